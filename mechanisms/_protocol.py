@@ -1,0 +1,72 @@
+"""The contract between an assembled mechanism and everything that uses it.
+
+``mechanisms.assemble(mechanism)`` returns a ``Model`` that satisfies this protocol. The nonlinear
+integrator (``mechanisms.simulate``), the nominal motion (``mechanisms.nominal_motion``) and
+``linearize`` only ever talk to a model through these methods, so a hand-written model (a pendulum in
+redundant coordinates, say) works with them too.
+
+Equations of motion (Lagrange with multipliers, seed eq. 2.10), n coordinates ``s``, r constraints:
+
+    M(s) s'' = Q(s, s', t) - Phi_s(s, t)^T lam          (n equations)
+    Phi(s, t) = 0                                         (r equations)
+
+so that ``Q`` collects everything but the inertia of ``s''`` and the constraint forces: applied forces
+and torques, gravity, minus the quadratic-velocity (Coriolis, centrifugal) terms, minus the elastic
+forces dPi/ds, minus the damping forces. Differentiating the constraints twice,
+
+    Phi_s s'' = gamma(s, s', t) = -(Phi_s s')_s s' - 2 Phi_st s' - Phi_tt.
+
+Shapes: ``s, sdot, sddot`` (n,), ``lam`` (r,), matrices (n, n) or (r, n). Units SI.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, Sequence
+
+import numpy as np
+
+
+class ConstrainedModel(Protocol):
+    n_coords: int
+    n_constraints: int
+    coord_labels: Sequence[str]        # e.g. "crank.x", "coupler.theta", "coupler.q3"
+    constraint_labels: Sequence[str]   # e.g. "O.x", "A.y", "drive:O"
+    rigid_index: np.ndarray            # int (n_rigid,): indices of the frame coordinates x, y, theta
+    elastic_index: np.ndarray          # int (n_elastic,): indices of the elastic coordinates
+
+    # --- equations of motion -----------------------------------------------------------------------
+    def mass_matrix(self, s: np.ndarray) -> np.ndarray: ...                       # (n, n)
+    def forces(self, s: np.ndarray, sdot: np.ndarray, t: float) -> np.ndarray: ...  # Q, (n,)
+    def constraints(self, s: np.ndarray, t: float) -> np.ndarray: ...            # Phi, (r,)
+    def constraint_jacobian(self, s: np.ndarray, t: float) -> np.ndarray: ...    # Phi_s, (r, n)
+    def constraint_rate(self, s: np.ndarray, t: float) -> np.ndarray: ...        # Phi_t, (r,)
+    def constraint_gamma(self, s: np.ndarray, sdot: np.ndarray, t: float) -> np.ndarray: ...  # (r,)
+
+    # --- analytic derivatives (for implicit integrators and for linearize) ---------------------------
+    def mass_matrix_jacobian(self, s: np.ndarray, sddot: np.ndarray) -> np.ndarray: ...
+    """d(M(s) sddot)/ds with sddot held fixed, (n, n)."""
+    def force_jacobians(self, s: np.ndarray, sdot: np.ndarray, t: float
+                        ) -> tuple[np.ndarray, np.ndarray]: ...
+    """(dQ/ds, dQ/dsdot), each (n, n)."""
+    def constraint_force_jacobian(self, s: np.ndarray, lam: np.ndarray, t: float) -> np.ndarray: ...
+    """d(Phi_s(s, t)^T lam)/ds with lam held fixed, (n, n)."""
+
+    # --- energies (for tests and diagnostics) ------------------------------------------------------
+    def kinetic_energy(self, s: np.ndarray, sdot: np.ndarray) -> float: ...
+    def potential_energy(self, s: np.ndarray) -> float: ...   # strain + gravity, J
+
+
+class Observable(Protocol):
+    """A scalar quantity of the mechanism that users ask about, with its gradient for linear maps.
+
+    Made by ``model.observable(spec)``; specs are strings such as ``"coupler.deflection@0.5"``
+    (transverse deflection relative to the chord at half the length, m), ``"coupler.strain@0.5"``
+    (axial strain at the neutral axis, 1), ``"coupler.moment@0.5"`` (bending moment, N m),
+    ``"rocker.angle"`` (frame angle, rad), ``"joint:B.fx"`` is not an observable of ``s`` (reactions
+    come from the multipliers) and is handled by the callers that hold ``lam``.
+    """
+
+    spec: str
+    unit: str
+    def value(self, s: np.ndarray) -> float: ...
+    def gradient(self, s: np.ndarray) -> np.ndarray: ...  # d value / ds, (n,)
