@@ -1,0 +1,197 @@
+"""Linearisation of constrained equations of motion about a periodic nominal motion.
+
+The model (see ``mechanisms._protocol``) obeys
+
+    R(s, s', s'', lam, t) = M(s) s'' - Q(s, s', t) + Phi_s(s, t)^T lam = 0,     Phi(s, t) = 0.
+
+About a nominal motion ``s0(t), lam0(t)`` (rigid: elastic coordinates zero, constraints satisfied), we
+write ``s = s0 + x``, ``lam = lam0 + mu`` and keep first-order terms (thesis chapter 4):
+
+    M0 x'' + D x' + K x + Phi_s0^T mu = -R0,          Phi_s0 x = 0,
+
+    D = -dQ/ds',   K = d(M s0'')/ds - dQ/ds + d(Phi_s^T lam0)/ds  (+ geometric stiffness),
+    R0 = M0 s0'' - Q0 + Phi_s0^T lam0  (zero on the rigid rows: it is the load of the rigid motion on
+    the elastic coordinates).
+
+The constraint is eliminated by coordinate partitioning: the independent coordinates ``z`` (the
+elastic coordinates, plus any rigid coordinate that is a degree of freedom of its own) and
+``x = V(t) z`` with ``V_dependent = -Phi_d^-1 Phi_i``, ``V_independent = I``. With
+``x' = V z' + V' z`` and ``x'' = V z'' + 2 V' z' + V'' z``, projecting on ``V^T`` (which removes
+``Phi_s0^T mu`` since ``Phi_s0 V = 0``):
+
+    (V^T M0 V) z'' + V^T (2 M0 V' + D V) z' + V^T (M0 V'' + D V' + K V) z = -V^T R0.
+
+``V`` is a smooth periodic function of time (a function of the configuration), so ``V'`` and ``V''``
+are computed by Fourier (spectral) differentiation over the period; the size of the highest
+harmonics that the grid holds is reported as the error estimate of that step.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["LinearizationError", "LinearCoefficients", "linear_coefficients",
+           "spectral_derivatives", "choose_independent"]
+
+# A dependent-coordinate block whose condition number exceeds this is treated as a toggle position:
+# beyond it the elimination amplifies round-off by more than ~1e-16 * 1e10 = 1e-6 relative.
+TOGGLE_CONDITION = 1.0e10
+# Above this the result is still computed, but a warning names the worst time.
+WARN_CONDITION = 1.0e6
+
+
+class LinearizationError(ValueError):
+    """The constrained equations cannot be linearised as asked (toggle position, bad nominal)."""
+
+
+@dataclass(frozen=True)
+class LinearCoefficients:
+    """The linearised equations in independent coordinates on the nominal grid.
+
+    ``M, C, K`` (N+1, m, m) and ``f`` (N+1, m) for ``M z'' + C z' + K z = f``; ``V``, ``Vdot``,
+    ``Vddot`` (N+1, n, m) map ``z`` to the full coordinate deviation ``x = V z``;
+    ``independent`` (m,) are the indices of ``z`` in ``s``; ``dependent_condition`` (N+1,) the
+    condition number of the dependent block of the constraint Jacobian; ``spectral_error`` an
+    estimate of the relative error of ``Vdot``, ``Vddot`` (size of the highest harmonics kept);
+    ``rigid_residual`` the largest rigid-row residual of the nominal motion (should be round-off).
+    """
+
+    t: np.ndarray
+    M: np.ndarray
+    C: np.ndarray
+    K: np.ndarray
+    f: np.ndarray
+    V: np.ndarray
+    Vdot: np.ndarray
+    Vddot: np.ndarray
+    independent: np.ndarray
+    dependent_condition: np.ndarray
+    spectral_error: float
+    rigid_residual: float
+
+
+def spectral_derivatives(values: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """First and second time derivatives of a smooth periodic sampled function.
+
+    ``values`` (N+1, ...) sampled at ``t_k = k T / N`` with ``values[N] == values[0]``. Returns
+    ``(d1, d2, tail)`` shaped like ``values`` and the relative size of the harmonics in the top
+    eighth of the resolved band: a spectrally converged function has ``tail`` near round-off.
+    """
+    n_steps = values.shape[0] - 1
+    samples = values[:n_steps]
+    coefficients = np.fft.fft(samples, axis=0)
+    harmonics = np.fft.fftfreq(n_steps, d=1.0 / n_steps)  # integer harmonic numbers
+    omega = 2.0 * math.pi / period
+    shape = (n_steps,) + (1,) * (values.ndim - 1)
+    ik = (1j * omega * harmonics).reshape(shape)
+    first = coefficients * ik
+    if n_steps % 2 == 0:
+        # The Nyquist harmonic has no defined odd derivative on the grid: drop it.
+        first[n_steps // 2] = 0.0
+    second = coefficients * ik**2
+    d1 = np.real(np.fft.ifft(first, axis=0))
+    d2 = np.real(np.fft.ifft(second, axis=0))
+    d1 = np.concatenate([d1, d1[:1]], axis=0)
+    d2 = np.concatenate([d2, d2[:1]], axis=0)
+    magnitude = np.abs(coefficients).reshape(n_steps, -1).max(axis=1)
+    top = np.abs(harmonics) >= (n_steps // 2) * 7 // 8
+    scale = magnitude.max()
+    tail = float(magnitude[top].max() / scale) if scale > 0 and top.any() else 0.0
+    return d1, d2, tail
+
+
+def choose_independent(jacobian: np.ndarray, preferred: np.ndarray) -> np.ndarray:
+    """Indices of independent coordinates: ``preferred`` first (the elastic coordinates and any
+    degree of freedom named by the caller), then as many further columns as the constraint
+    Jacobian (r, n) leaves free, picked by QR with column pivoting so that the remaining dependent
+    block is as well conditioned as possible."""
+    import scipy.linalg
+
+    n = jacobian.shape[1]
+    preferred = np.asarray(preferred, dtype=np.int64)
+    others = np.setdiff1d(np.arange(n), preferred)
+    n_free = n - jacobian.shape[0] - preferred.size
+    if n_free < 0:
+        raise LinearizationError(
+            f"the constraints ({jacobian.shape[0]}) leave fewer free coordinates than the "
+            f"{preferred.size} requested independent ones; the mechanism is over-constrained")
+    if n_free == 0:
+        return np.sort(preferred)
+    _, _, pivots = scipy.linalg.qr(jacobian[:, others], pivoting=True, mode="economic")
+    extra = others[pivots[jacobian.shape[0]:]][:n_free]
+    return np.sort(np.concatenate([preferred, extra]))
+
+
+def linear_coefficients(model, t: np.ndarray, s0: np.ndarray, sdot0: np.ndarray,
+                        sddot0: np.ndarray, lam0: np.ndarray, *, period: float,
+                        independent: np.ndarray, extra_stiffness: np.ndarray | None = None,
+                        time_label=None) -> LinearCoefficients:
+    """Linearise ``model`` about the nominal motion given on the uniform grid ``t`` (N+1,).
+
+    ``s0, sdot0, sddot0`` (N+1, n), ``lam0`` (N+1, r); ``independent`` (m,) coordinate indices;
+    ``extra_stiffness`` (N+1, n, n) is added to ``K`` (the geometric stiffness of axially loaded
+    links). ``time_label(k)`` describes sample k in error messages (e.g. the crank angle).
+    """
+    n_samples, n = s0.shape
+    independent = np.asarray(independent, dtype=np.int64)
+    dependent = np.setdiff1d(np.arange(n), independent)
+    m = independent.size
+    label = time_label or (lambda k: f"t = {t[k]:.6g} s")
+
+    mass = np.empty((n_samples, n, n))
+    damping = np.empty((n_samples, n, n))
+    stiffness = np.empty((n_samples, n, n))
+    residual = np.empty((n_samples, n))
+    V = np.zeros((n_samples, n, m))
+    V[:, independent, np.arange(m)] = 1.0
+    condition = np.empty(n_samples)
+    rigid_rows = np.asarray(model.rigid_index, dtype=np.int64)
+    for k in range(n_samples):
+        s, sd, sdd, lam, tk = s0[k], sdot0[k], sddot0[k], lam0[k], t[k]
+        M = model.mass_matrix(s)
+        Q = model.forces(s, sd, tk)
+        Phi_s = model.constraint_jacobian(s, tk)
+        dQ_ds, dQ_dsdot = model.force_jacobians(s, sd, tk)
+        mass[k] = M
+        damping[k] = -dQ_dsdot
+        stiffness[k] = (model.mass_matrix_jacobian(s, sdd) - dQ_ds
+                        + model.constraint_force_jacobian(s, lam, tk))
+        residual[k] = M @ sdd - Q + Phi_s.T @ lam
+        Phi_d = Phi_s[:, dependent]
+        singular_values = np.linalg.svd(Phi_d, compute_uv=False)
+        condition[k] = (singular_values[0] / singular_values[-1]
+                        if singular_values[-1] > 0 else np.inf)
+        if not condition[k] < TOGGLE_CONDITION:
+            worst = _worst_constraints(Phi_d, model)
+            raise LinearizationError(
+                f"the constraint Jacobian is singular at {label(k)} (condition number "
+                f"{condition[k]:.3g} of the dependent block): a toggle (dead-centre) position, "
+                f"where {worst} lose their rank. Change the link lengths or the crank range so the "
+                f"mechanism does not pass through it.")
+        V[k][dependent] = -np.linalg.solve(Phi_d, Phi_s[:, independent])
+    if extra_stiffness is not None:
+        stiffness = stiffness + extra_stiffness
+
+    Vdot, Vddot, tail = spectral_derivatives(V, period)
+    # Projection on V^T (module docstring).
+    Vt = np.swapaxes(V, 1, 2)
+    M_z = Vt @ mass @ V
+    C_z = Vt @ (2.0 * mass @ Vdot + damping @ V)
+    K_z = Vt @ (mass @ Vddot + damping @ Vdot + stiffness @ V)
+    f_z = -np.einsum("kni,kn->ki", V, residual)
+    rigid_residual = float(np.abs(residual[:, rigid_rows]).max()) if rigid_rows.size else 0.0
+    return LinearCoefficients(t=t, M=M_z, C=C_z, K=K_z, f=f_z, V=V, Vdot=Vdot, Vddot=Vddot,
+                              independent=independent, dependent_condition=condition,
+                              spectral_error=tail, rigid_residual=rigid_residual)
+
+
+def _worst_constraints(Phi_d: np.ndarray, model) -> str:
+    """Names of the constraint rows that dominate the null direction of a singular block."""
+    u, _, _ = np.linalg.svd(Phi_d)
+    weights = np.abs(u[:, -1])
+    labels = list(getattr(model, "constraint_labels", [f"row {i}" for i in range(len(weights))]))
+    rows = np.argsort(weights)[::-1][:3]
+    return "the constraints " + ", ".join(labels[i] for i in rows if weights[i] > 1e-3)
