@@ -1,0 +1,231 @@
+"""Monodromy matrix and Floquet multipliers by Newmark integration of the 2n unit initial states.
+
+The state is ``z = [x; v]`` (2n,).  Column ``j`` of the monodromy ``Phi`` (2n, 2n) is the state at
+``t = T`` of the homogeneous solution that starts from the unit state ``e_j``.
+
+Resolution of a multiplier.  For constant coefficients the eigenvector ``[x; v]`` of the discrete
+monodromy is an eigenvector of the one-step map, and for the trapezoidal rule its two halves obey
+``v = lam_h x`` with ``lam_h = (2/h)(R - 1)/(R + 1)``: the continuous-time rate that the scheme
+resolves with per-step amplification ``R``.  ``step_rate = h |v| / |x|`` therefore estimates
+``|lam h|`` of each Floquet mode.  A mode with ``step_rate > 1`` changes by more than a factor e (or
+turns by more than a radian) within one step: its multiplier is a property of the scheme, not of
+the system.  The typical case is a stiff or overdamped mode (``lam h -> -inf``): the trapezoidal
+``R`` tends to -1, so over an even number of steps its multiplier can approach +1 although the exact
+multiplier ``exp(lam T)`` is nearly 0.  Such modes are labelled unresolved and never reported as a
+near-resonance; the stability verdict stays right for them because the scheme is A-stable (for
+``2 beta >= gamma >= 1/2``): a decaying mode keeps ``|R| <= 1``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._newmark import newmark_march
+from ._system import PeriodicError, PeriodicSystem
+
+logger = logging.getLogger(__name__)
+
+#: Default tolerance of ``is_stable``: spectral radius <= 1 + STABILITY_TOL.  The multipliers of an
+#: undamped (conservative) system lie on the unit circle; numerically their moduli differ from 1 by
+#: rounding, about eps * cond(eigenvectors) ~ 1e-14..1e-12, and by up to sqrt(eps) ~ 1.5e-8 times a
+#: modest factor where two multipliers collide (a Jordan block, e.g. on a transition curve of
+#: Mathieu's equation).  1e-6 stays above both, and far below growth rates of practical interest
+#: (|lam| > 1e-6 / T).
+STABILITY_TOL = 1e-6
+#: A multiplier whose mode changes by more than a factor e per step (``step_rate > 1``) is unresolved.
+RESOLVED_STEP_RATE = 1.0
+#: Default of ``resonance_tol``: a resolved multiplier within this distance of +1 amplifies the
+#: periodic response by more than 1/resonance_tol = 100 relative to the forcing's quasi-static level.
+RESONANCE_TOL = 1e-2
+
+
+class NearResonanceWarning(RuntimeWarning):
+    """A resolved Floquet multiplier is close to +1: the periodic response is strongly amplified."""
+
+
+@dataclass(frozen=True)
+class FloquetResult:
+    """Floquet analysis of a :class:`PeriodicSystem`.
+
+    Attributes
+    ----------
+    monodromy : ndarray (2n, 2n)
+        ``Phi``, maps the state ``[x; v]`` at t = 0 to t = T (Newmark, N steps).
+    multipliers : ndarray (2n,) complex
+        Eigenvalues of ``Phi``, sorted by decreasing modulus.
+    spectral_radius : float
+        ``max |multipliers|``.
+    is_stable : bool
+        ``spectral_radius <= 1 + stability_tol``.
+    stability_tol : float
+        Tolerance used for ``is_stable`` (see ``STABILITY_TOL``).
+    exponents : ndarray (2n,) complex
+        Characteristic exponents ``log(multipliers) / T`` (1/s, principal branch; the imaginary part
+        is defined modulo 2 pi / T; ``-inf`` real part for a zero multiplier).
+    step_rates : ndarray (2n,)
+        Estimated ``|lam h|`` of each multiplier's mode (see the module notes); ``resolved`` is
+        ``step_rates <= 1``.
+    resolved : ndarray (2n,) bool
+    liouville_log_det : float
+        ``log|det Phi|`` of the computed monodromy.
+    liouville_log_det_exact : float
+        ``-int_0^T tr(M^-1 C) dt`` (trapezoidal quadrature on the samples): Liouville's formula for the
+        exact monodromy.  The two agree to O(h^2) when all modes are resolved; an unresolved damped
+        mode makes them differ (its numerical multiplier is not exp(lam T)).
+    n_steps : int
+    run_time : float
+        Wall time in s.
+    """
+
+    monodromy: np.ndarray
+    multipliers: np.ndarray
+    spectral_radius: float
+    is_stable: bool
+    stability_tol: float
+    exponents: np.ndarray
+    step_rates: np.ndarray
+    resolved: np.ndarray
+    liouville_log_det: float
+    liouville_log_det_exact: float
+    n_steps: int
+    run_time: float
+
+
+def floquet(
+    system: PeriodicSystem,
+    *,
+    beta: float = 0.25,
+    gamma: float = 0.5,
+    stability_tol: float = STABILITY_TOL,
+) -> FloquetResult:
+    """Monodromy, multipliers and stability of ``system`` by Newmark(beta, gamma) with N steps."""
+    start = time.perf_counter()
+    _check_system(system)
+    beta, gamma = check_scheme(beta, gamma)
+    stability_tol = _check_tol("stability_tol", stability_tol)
+    phi, _ = monodromy(system, beta, gamma, particular=False)
+    multipliers, step_rates = analyse_multipliers(phi, system.step)
+    with np.errstate(divide="ignore"):
+        exponents = np.log(multipliers.astype(complex)) / system.period
+    trace = np.trace(np.linalg.solve(system.M, system.C), axis1=1, axis2=2)
+    exact = -float(np.sum(trace[1:] + trace[:-1]) * 0.5 * system.step)
+    radius = float(np.abs(multipliers[0]))
+    return FloquetResult(
+        monodromy=phi,
+        multipliers=multipliers,
+        spectral_radius=radius,
+        is_stable=bool(radius <= 1.0 + stability_tol),
+        stability_tol=stability_tol,
+        exponents=exponents,
+        step_rates=step_rates,
+        resolved=step_rates <= RESOLVED_STEP_RATE,
+        liouville_log_det=float(np.linalg.slogdet(phi)[1]),
+        liouville_log_det_exact=exact,
+        n_steps=system.n_steps,
+        run_time=time.perf_counter() - start,
+    )
+
+
+def monodromy(system: PeriodicSystem, beta: float, gamma: float, *, particular: bool):
+    """``Phi`` (2n, 2n) and, if ``particular``, the end state ``b`` (2n,) of the forced solution from rest."""
+    n = system.n_dof
+    m = 2 * n + 1 if particular else 2 * n
+    x = np.zeros((n, m))
+    v = np.zeros((n, m))
+    x[:, :n] = np.eye(n)
+    v[:, n : 2 * n] = np.eye(n)
+    forced = np.zeros(m)
+    if particular:
+        forced[-1] = 1.0
+    a = np.empty((n, m))
+    empty = np.empty((0, n, m))
+    status = newmark_march(
+        system.M, system.C, system.K, system.f, system.step, beta, gamma, forced, x, v, a, empty, empty, empty
+    )
+    raise_on_singular(system, status)
+    phi = np.vstack((x[:, : 2 * n], v[:, : 2 * n]))
+    end = np.concatenate((x[:, -1], v[:, -1])) if particular else None
+    return phi, end
+
+
+def raise_on_singular(system: PeriodicSystem, status: int) -> None:
+    """Turn a kernel status (sample index of a singular matrix, or -1) into a PeriodicError."""
+    if status < 0:
+        return
+    t_k = status * system.step
+    what = "mass matrix M" if status == 0 else "effective matrix M + gamma h C + beta h^2 K"
+    raise PeriodicError(
+        f"system: the {what} is singular at sample {status} (t = {t_k:.6g} s); "
+        "check the mass, damping and stiffness there"
+    )
+
+
+def analyse_multipliers(phi: np.ndarray, step: float):
+    """Multipliers sorted by decreasing modulus, and the step rate ``h |v| / |x|`` of each eigenvector."""
+    n = phi.shape[0] // 2
+    values, vectors = np.linalg.eig(phi)
+    order = np.argsort(-np.abs(values), kind="stable")
+    values, vectors = values[order], vectors[:, order]
+    norm_x = np.linalg.norm(vectors[:n], axis=0)
+    norm_v = np.linalg.norm(vectors[n:], axis=0)
+    with np.errstate(divide="ignore"):
+        rates = np.where(norm_x > 0.0, step * norm_v / np.where(norm_x > 0.0, norm_x, 1.0), np.inf)
+    if np.all(values.imag == 0.0):
+        values = values.real.astype(complex)
+    return values, rates
+
+
+def check_scheme(beta, gamma):
+    """Validate Newmark's parameters; warn when the scheme is only conditionally stable."""
+    beta = _check_real("beta", beta)
+    gamma = _check_real("gamma", gamma)
+    if beta < 0.0 or gamma < 0.0:
+        raise ValueError(f"beta, gamma: expected non-negative values, got beta={beta}, gamma={gamma}")
+    if not (2.0 * beta >= gamma >= 0.5):
+        warnings.warn(
+            f"beta={beta}, gamma={gamma}: Newmark's scheme is unconditionally stable only for "
+            "2 beta >= gamma >= 1/2; multipliers of modes above its stability limit are spurious",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    return beta, gamma
+
+
+def near_resonance(multipliers, step_rates, tol, multiplier_errors=None):
+    """Indices of resolved multipliers within ``max(tol, 2 * error)`` of +1, and of unresolved ones within ``tol``."""
+    distance = np.abs(1.0 - multipliers)
+    resolved = step_rates <= RESOLVED_STEP_RATE
+    limit = np.full(distance.shape, tol)
+    if multiplier_errors is not None:
+        # A multiplier whose discretisation error is comparable to its distance from +1 may sit on it.
+        limit = np.maximum(limit, 2.0 * multiplier_errors)
+    physical = np.flatnonzero(resolved & (distance <= limit))
+    spurious = np.flatnonzero(~resolved & (distance <= tol))
+    return physical, spurious
+
+
+def _check_system(system) -> None:
+    if not isinstance(system, PeriodicSystem):
+        raise TypeError(f"system: expected a periodic.PeriodicSystem, got {type(system).__name__}")
+
+
+def _check_real(name, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name}: expected a real number, got {type(value).__name__}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"{name}: expected a finite number, got {value}")
+    return value
+
+
+def _check_tol(name, value) -> float:
+    value = _check_real(name, value)
+    if value < 0.0:
+        raise ValueError(f"{name}: expected a non-negative tolerance, got {value}")
+    return value

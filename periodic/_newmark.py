@@ -1,0 +1,169 @@
+"""Numba kernels: Newmark's scheme on many columns at once, with a small LU with partial pivoting.
+
+Newmark's scheme for ``M(t) x'' + C(t) x' + K(t) x = f(t)`` on ``t_k = k h`` (Newmark 1959;
+Hughes, The Finite Element Method, eq. 9.1.5-9.1.7), written in predictor-corrector form:
+
+    (N1)  x~ = x_k + h v_k + h^2 (1/2 - beta) a_k,       v~ = v_k + h (1 - gamma) a_k
+    (N2)  (M_{k+1} + gamma h C_{k+1} + beta h^2 K_{k+1}) a_{k+1} = f_{k+1} - C_{k+1} v~ - K_{k+1} x~
+    (N3)  x_{k+1} = x~ + beta h^2 a_{k+1},               v_{k+1} = v~ + gamma h a_{k+1}
+    (N0)  M_0 a_0 = f_0 - C_0 v_0 - K_0 x_0                                    (start)
+
+beta = 1/4, gamma = 1/2 (average acceleration) is the trapezoidal rule on the first-order form.
+Every column ``j`` of the state matrices is an independent solution; column ``j`` sees the force
+``forced[j] * f`` (1 for the particular solution, 0 for the homogeneous unit states).  The effective
+matrix of (N2) is factorised once per step and applied to all columns.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def _lu_factor(a, piv):
+    """In-place LU with partial pivoting, ``P a = L U`` (LAPACK getrf convention).
+
+    Returns False when a pivot is exactly zero.
+    """
+    n = a.shape[0]
+    for k in range(n):
+        p = k
+        amax = abs(a[k, k])
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > amax:
+                amax = abs(a[i, k])
+                p = i
+        piv[k] = p
+        if amax == 0.0:
+            return False
+        if p != k:
+            for j in range(n):
+                tmp = a[k, j]
+                a[k, j] = a[p, j]
+                a[p, j] = tmp
+        inv = 1.0 / a[k, k]
+        for i in range(k + 1, n):
+            lik = a[i, k] * inv
+            a[i, k] = lik
+            if lik != 0.0:
+                for j in range(k + 1, n):
+                    a[i, j] -= lik * a[k, j]
+    return True
+
+
+@numba.njit(cache=True)
+def _lu_solve(lu, piv, b):
+    """Overwrite ``b`` (n, m) with ``a^{-1} b`` from the factors of :func:`_lu_factor`."""
+    n = lu.shape[0]
+    m = b.shape[1]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            for j in range(m):
+                tmp = b[k, j]
+                b[k, j] = b[p, j]
+                b[p, j] = tmp
+    for i in range(n):  # L y = P b, unit diagonal
+        for l in range(i):
+            lil = lu[i, l]
+            if lil != 0.0:
+                for j in range(m):
+                    b[i, j] -= lil * b[l, j]
+    for i in range(n - 1, -1, -1):  # U x = y
+        for l in range(i + 1, n):
+            uil = lu[i, l]
+            if uil != 0.0:
+                for j in range(m):
+                    b[i, j] -= uil * b[l, j]
+        inv = 1.0 / lu[i, i]
+        for j in range(m):
+            b[i, j] *= inv
+
+
+@numba.njit(cache=True)
+def _residual_force(Mk, Ck, Kk, fk, forced, x, v, out):
+    """``out = forced * f_k - C_k v - K_k x`` for all columns (right-hand side of N0 and N2)."""
+    n, m = x.shape
+    for i in range(n):
+        for j in range(m):
+            out[i, j] = forced[j] * fk[i]
+        for l in range(n):
+            cil = Ck[i, l]
+            kil = Kk[i, l]
+            for j in range(m):
+                out[i, j] -= cil * v[l, j] + kil * x[l, j]
+
+
+@numba.njit(cache=True)
+def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist):
+    """March ``x, v`` (n, m) from ``t_0`` to ``t_N`` in place; ``a`` (n, m) receives the final acceleration.
+
+    M, C, K (N+1, n, n), f (N+1, n), forced (m,).  When ``x_hist`` has N+1 rows the states at all
+    samples are written to ``x_hist, v_hist, a_hist`` (N+1, n, m); pass zero-row arrays to skip.
+    Returns -1 on success, else the sample index whose matrix (M_0 in N0, the effective matrix of
+    N2 otherwise) has an exactly zero pivot.
+    """
+    n_samples = M.shape[0]
+    n, m = x.shape
+    store = x_hist.shape[0] == n_samples
+    lu = np.empty((n, n))
+    piv = np.empty(n, dtype=np.int64)
+    xp = np.empty((n, m))
+    vp = np.empty((n, m))
+    c_a = gamma * h
+    k_a = beta * h * h
+    # (N0): starting acceleration
+    _residual_force(M[0], C[0], K[0], f[0], forced, x, v, a)
+    lu[:, :] = M[0]
+    if not _lu_factor(lu, piv):
+        return 0
+    _lu_solve(lu, piv, a)
+    if store:
+        x_hist[0] = x
+        v_hist[0] = v
+        a_hist[0] = a
+    for k in range(n_samples - 1):
+        # (N1): predictors
+        for i in range(n):
+            for j in range(m):
+                xp[i, j] = x[i, j] + h * v[i, j] + h * h * (0.5 - beta) * a[i, j]
+                vp[i, j] = v[i, j] + h * (1.0 - gamma) * a[i, j]
+        # (N2): effective matrix and right-hand side at t_{k+1}
+        for i in range(n):
+            for j in range(n):
+                lu[i, j] = M[k + 1, i, j] + c_a * C[k + 1, i, j] + k_a * K[k + 1, i, j]
+        if not _lu_factor(lu, piv):
+            return k + 1
+        _residual_force(M[k + 1], C[k + 1], K[k + 1], f[k + 1], forced, xp, vp, a)
+        _lu_solve(lu, piv, a)
+        # (N3): correctors
+        for i in range(n):
+            for j in range(m):
+                x[i, j] = xp[i, j] + k_a * a[i, j]
+                v[i, j] = vp[i, j] + c_a * a[i, j]
+        if store:
+            x_hist[k + 1] = x
+            v_hist[k + 1] = v
+            a_hist[k + 1] = a
+    return -1
+
+
+@numba.njit(cache=True)
+def mass_pivot_ratios(M):
+    """For each sample of M (N+1, n, n): smallest |LU pivot| / largest |entry| (0 when singular)."""
+    n_samples, n = M.shape[0], M.shape[1]
+    out = np.empty(n_samples)
+    lu = np.empty((n, n))
+    piv = np.empty(n, dtype=np.int64)
+    for k in range(n_samples):
+        lu[:, :] = M[k]
+        scale = np.abs(lu).max()
+        if scale == 0.0 or not _lu_factor(lu, piv):
+            out[k] = 0.0
+            continue
+        smallest = abs(lu[0, 0])
+        for i in range(1, n):
+            smallest = min(smallest, abs(lu[i, i]))
+        out[k] = smallest / scale
+    return out

@@ -1,0 +1,252 @@
+"""Periodic steady state by shooting: ``(I - Phi) z0 = b``, then one forced run from ``z0``.
+
+One kernel call integrates the 2n unit states and the particular solution from rest (2n+1 columns,
+one factorisation per step) and gives ``Phi`` and ``b``; a second call with one column integrates the
+periodic solution from ``z0 = [x0; v0]`` and stores it at every sample.  The error estimate repeats
+the computation on N/2 steps: for a scheme of order p, ``|x_N - x_{N/2}| / (2^p - 1)`` estimates the
+error of ``x_N`` (p = 2 for gamma = 1/2, else 1).  With ``gamma = 1/2`` Newmark's scheme is
+time-symmetric (swapping k and k+1 with h -> -h gives the same equations), so its global error
+expands in even powers of h and one Richardson step, ``x_N + (x_N - x_{N/2}) / 3``, is of order 4.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._floquet import (
+    RESONANCE_TOL,
+    STABILITY_TOL,
+    NearResonanceWarning,
+    _check_system,
+    _check_tol,
+    analyse_multipliers,
+    check_scheme,
+    monodromy,
+    near_resonance,
+    raise_on_singular,
+)
+from ._newmark import newmark_march
+from ._system import PeriodicError, PeriodicSystem
+
+logger = logging.getLogger(__name__)
+
+#: Values of ``SteadyState.status``.
+STATUS_OK = "ok"
+STATUS_NEAR_RESONANCE = "near_resonance"
+STATUS_UNRESOLVED = "unresolved_stiff_mode"
+
+
+@dataclass(frozen=True)
+class SteadyState:
+    """Periodic solution of ``M x'' + C x' + K x = f`` over one period.
+
+    Attributes
+    ----------
+    t : ndarray (N+1,)
+        Sample times, s.
+    x, v, a : ndarray (N+1, n)
+        Displacement, velocity, acceleration of the periodic solution (units of x, x/s, x/s^2).
+    monodromy : ndarray (2n, 2n)
+        ``Phi`` of the state ``[x; v]`` (Richardson-extrapolated when ``extrapolated``).
+    multipliers : ndarray (2n,) complex
+        Floquet multipliers (eigenvalues of ``monodromy``), decreasing modulus.
+    step_rates : ndarray (2n,)
+        ``|lam h|`` estimate of each multiplier's mode; > 1 means unresolved (see ``periodic._floquet``).
+    spectral_radius : float
+    is_stable : bool
+        ``spectral_radius <= 1 + stability_tol``.
+    condition_number : float
+        2-norm condition number of ``I - Phi`` (N-step monodromy) solved for the initial state.  It
+        mixes the units of x and v, so it is large for stiff systems even far from resonance; use
+        ``status`` for the resonance verdict.
+    error_estimate : float
+        Estimated max abs error of ``x`` (units of x), from the N/2-step solution; NaN when skipped
+        (``estimate_error=False``).  With ``extrapolated`` it is the estimate for the N-step result,
+        a conservative bound for the extrapolated one.
+    multiplier_errors : ndarray (2n,) or None
+        Estimated error of each multiplier from the N/2 run (None when skipped).
+    periodicity_residual : float
+        ``max |x(T) - x(0)|`` of the final forced run (rounding times conditioning).
+    status : str
+        ``"ok"``, ``"near_resonance"`` (a resolved multiplier near +1; also warned with
+        :class:`NearResonanceWarning`) or ``"unresolved_stiff_mode"`` (a multiplier near +1 belongs to a
+        mode the step does not resolve; the exact multiplier is not near +1, see ``message``).
+    message : str
+    n_steps : int
+    extrapolated : bool
+    run_time : float
+        Wall time in s, including the N/2 run.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    monodromy: np.ndarray
+    multipliers: np.ndarray
+    step_rates: np.ndarray
+    spectral_radius: float
+    is_stable: bool
+    condition_number: float
+    error_estimate: float
+    multiplier_errors: np.ndarray | None
+    periodicity_residual: float
+    status: str
+    message: str
+    n_steps: int
+    extrapolated: bool
+    run_time: float
+
+
+@dataclass(frozen=True)
+class _Shot:
+    phi: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    condition_number: float
+    periodicity_residual: float
+
+
+def steady_state(
+    system: PeriodicSystem,
+    *,
+    extrapolate: bool = False,
+    estimate_error: bool = True,
+    beta: float = 0.25,
+    gamma: float = 0.5,
+    resonance_tol: float = RESONANCE_TOL,
+    stability_tol: float = STABILITY_TOL,
+) -> SteadyState:
+    """Periodic steady state of ``system`` by Newmark shooting on its N steps.
+
+    ``extrapolate=True`` returns the Richardson extrapolation of the N and N/2 results (order 4;
+    needs ``gamma = 1/2``).  ``estimate_error=False`` skips the N/2 run (about a third of the cost)
+    when not extrapolating.  Both need an even N.  Raises :class:`PeriodicError` if ``I - Phi`` is
+    exactly singular (a multiplier at +1 to rounding).
+    """
+    start = time.perf_counter()
+    _check_system(system)
+    beta, gamma = check_scheme(beta, gamma)
+    resonance_tol = _check_tol("resonance_tol", resonance_tol)
+    stability_tol = _check_tol("stability_tol", stability_tol)
+    order = 2 if gamma == 0.5 else 1
+    if extrapolate and order != 2:
+        raise ValueError(
+            f"extrapolate: Richardson extrapolation to order 4 needs the symmetric scheme gamma = 1/2, "
+            f"got gamma = {gamma}; use gamma = 0.5 or extrapolate=False"
+        )
+    coarse_needed = bool(extrapolate or estimate_error)
+    if coarse_needed and system.n_steps % 2:
+        raise PeriodicError(
+            f"n_steps: the error estimate and extrapolation compare with N/2 steps and need an even "
+            f"n_steps, got {system.n_steps}; use an even n_steps or estimate_error=False"
+        )
+    fine = _shoot(system, beta, gamma)
+    phi, x, v, a = fine.phi, fine.x, fine.v, fine.a
+    error_estimate = float("nan")
+    multiplier_errors = None
+    multipliers, step_rates = analyse_multipliers(phi, system.step)
+    if coarse_needed:
+        coarse = _shoot(system.coarsened(), beta, gamma)
+        factor = 1.0 / (2.0**order - 1.0)
+        error_estimate = float(np.abs(x[::2] - coarse.x).max()) * factor
+        coarse_multipliers = np.linalg.eigvals(coarse.phi)
+        multiplier_errors = factor * np.abs(multipliers[:, None] - coarse_multipliers[None, :]).min(axis=1)
+        if extrapolate:
+            phi = phi + factor * (phi - coarse.phi)
+            x = _richardson(x, coarse.x, factor)
+            v = _richardson(v, coarse.v, factor)
+            a = _richardson(a, coarse.a, factor)
+            multipliers, step_rates = analyse_multipliers(phi, system.step)
+    # The N/2 comparison estimates the errors of the N-step multipliers, not of extrapolated ones.
+    errors = None if extrapolate else multiplier_errors
+    physical, spurious = near_resonance(multipliers, step_rates, resonance_tol, errors)
+    status, message = _verdict(multipliers, step_rates, physical, spurious, fine.condition_number, error_estimate)
+    if status == STATUS_NEAR_RESONANCE:
+        warnings.warn(message, NearResonanceWarning, stacklevel=2)
+    elif status == STATUS_UNRESOLVED:
+        logger.info(message)
+    radius = float(np.abs(multipliers[0]))
+    return SteadyState(
+        t=system.t,
+        x=x,
+        v=v,
+        a=a,
+        monodromy=phi,
+        multipliers=multipliers,
+        step_rates=step_rates,
+        spectral_radius=radius,
+        is_stable=bool(radius <= 1.0 + stability_tol),
+        condition_number=fine.condition_number,
+        error_estimate=error_estimate,
+        multiplier_errors=multiplier_errors,
+        periodicity_residual=fine.periodicity_residual,
+        status=status,
+        message=message,
+        n_steps=system.n_steps,
+        extrapolated=bool(extrapolate),
+        run_time=time.perf_counter() - start,
+    )
+
+
+def _shoot(system: PeriodicSystem, beta: float, gamma: float) -> _Shot:
+    n = system.n_dof
+    phi, end = monodromy(system, beta, gamma, particular=True)
+    system_matrix = np.eye(2 * n) - phi
+    try:
+        z0 = np.linalg.solve(system_matrix, end)
+    except np.linalg.LinAlgError:
+        distance = np.abs(1.0 - np.linalg.eigvals(phi)).min()
+        raise PeriodicError(
+            f"system: I - Phi is singular (a Floquet multiplier is within {distance:.3g} of +1): the "
+            "system is at resonance and has no unique periodic solution"
+        ) from None
+    condition_number = float(np.linalg.cond(system_matrix))
+    x = np.ascontiguousarray(z0[:n, None])
+    v = np.ascontiguousarray(z0[n:, None])
+    a = np.empty((n, 1))
+    n_samples = system.n_steps + 1
+    xs, vs, as_ = np.empty((n_samples, n, 1)), np.empty((n_samples, n, 1)), np.empty((n_samples, n, 1))
+    status = newmark_march(
+        system.M, system.C, system.K, system.f, system.step, beta, gamma, np.ones(1), x, v, a, xs, vs, as_
+    )
+    raise_on_singular(system, status)
+    xs, vs, as_ = xs[:, :, 0], vs[:, :, 0], as_[:, :, 0]
+    residual = float(np.abs(xs[-1] - xs[0]).max())
+    return _Shot(phi, xs, vs, as_, condition_number, residual)
+
+
+def _richardson(fine: np.ndarray, coarse: np.ndarray, factor: float) -> np.ndarray:
+    """``fine + factor (fine - coarse)`` at the common samples; the O(h^2) correction is linearly
+    interpolated at the odd samples, an O(h^2) * O(h^2) error that keeps order 4."""
+    correction = factor * (fine[::2] - coarse)
+    out = fine.copy()
+    out[::2] += correction
+    out[1::2] += 0.5 * (correction[:-1] + correction[1:])
+    return out
+
+
+def _verdict(multipliers, step_rates, physical, spurious, condition_number, error_estimate):
+    if physical.size:
+        i = physical[np.argmin(np.abs(1.0 - multipliers[physical]))]
+        return STATUS_NEAR_RESONANCE, (
+            f"near resonance: Floquet multiplier {multipliers[i]:.8g} is {abs(1.0 - multipliers[i]):.3g} "
+            f"from +1 (its mode is resolved, step rate {step_rates[i]:.3g}); cond(I - Phi) = "
+            f"{condition_number:.3g}. The periodic response is amplified about 1/|1 - mu| times and is "
+            "sensitive to the parameters."
+        )
+    if spurious.size:
+        i = spurious[np.argmin(np.abs(1.0 - multipliers[spurious]))]
+        return STATUS_UNRESOLVED, (
+            f"Floquet multiplier {multipliers[i]:.8g} is {abs(1.0 - multipliers[i]):.3g} from +1, but its "
+            f"mode changes by exp({step_rates[i]:.3g}) per step: a stiff mode the step does not resolve, "
+            "whose exact multiplier is not near +1 (not a resonance). cond(I - Phi) = "
+            f"{condition_number:.3g}; error estimate of x = {error_estimate:.3g}."
+        )
+    return STATUS_OK, "ok"

@@ -1,0 +1,219 @@
+"""The time-periodic linear system ``M(t) x'' + C(t) x' + K(t) x = f(t)`` sampled on a uniform grid."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ._newmark import mass_pivot_ratios
+
+# A sample of M whose LU pivots span more than this ratio is treated as singular: rounding
+# alone makes the smallest pivot of an exactly singular matrix about n * eps times its norm.
+_SINGULAR_PIVOT_RATIO = 1e3 * np.finfo(float).eps
+# Periodicity of the samples: t_N = T must repeat t_0.  Rounding in the caller's sampling
+# (e.g. evaluating cos(2 pi k / N)) differs at the 1e-15 level; a mismatch above 1e-10 is
+# suspicious (warned) and one above 1e-6 means the coefficients are not T-periodic (error).
+_PERIODICITY_WARN = 1e-10
+_PERIODICITY_ERROR = 1e-6
+
+
+class PeriodicError(ValueError):
+    """Invalid periodic system or a periodic problem that cannot be solved."""
+
+
+@dataclass(frozen=True, eq=False)
+class PeriodicSystem:
+    """``M(t) x'' + C(t) x' + K(t) x = f(t)`` with period ``T``, sampled at ``t_k = k T / N``.
+
+    Attributes
+    ----------
+    period : float
+        ``T`` in s.
+    M, C, K : ndarray, shape (N+1, n, n)
+        Mass, damping and stiffness samples at ``t_0 .. t_N`` (``t_N = T`` repeats ``t_0``).
+    f : ndarray, shape (N+1, n)
+        Force samples (zeros when the system is unforced).
+
+    The arrays are private read-only float64 copies.  Construct with ``PeriodicSystem(period, M, C,
+    K, f=None)`` or :meth:`from_functions`.
+    """
+
+    period: float
+    M: np.ndarray
+    C: np.ndarray
+    K: np.ndarray
+    f: np.ndarray
+
+    def __init__(self, period, M, C, K, f=None):
+        period = _check_period(period)
+        mass = _as_samples("mass", M, ndim=3)
+        n_samples, n_dof = mass.shape[0], mass.shape[1]
+        if mass.shape[2] != n_dof:
+            raise ValueError(f"mass: expected shape (N+1, n, n), got {mass.shape} (matrices not square)")
+        if n_samples < 3:
+            raise ValueError(
+                f"mass: expected N+1 >= 3 samples (n_steps >= 2), got {n_samples} sample(s)"
+            )
+        damping = _as_samples("damping", C, ndim=3, shape=mass.shape)
+        stiffness = _as_samples("stiffness", K, ndim=3, shape=mass.shape)
+        if f is None:
+            force = np.zeros((n_samples, n_dof))
+        else:
+            force = _as_samples("force", f, ndim=2, shape=(n_samples, n_dof))
+        for name, samples in (("mass", mass), ("damping", damping), ("stiffness", stiffness), ("force", force)):
+            _check_periodic(name, samples)
+        ratios = mass_pivot_ratios(mass)
+        singular = np.flatnonzero(ratios <= _SINGULAR_PIVOT_RATIO)
+        if singular.size:
+            k = int(singular[0])
+            t_k = k * period / (n_samples - 1)
+            raise PeriodicError(
+                f"mass: the mass matrix is singular at sample {k} (t = {t_k:.6g} s; smallest/largest "
+                f"LU pivot {ratios[k]:.3g}); {singular.size} of {n_samples} samples are singular. "
+                "The Newmark start needs M(0) invertible and the problem must be an ODE in x: "
+                "eliminate massless coordinates (static condensation) or give them mass."
+            )
+        for arr in (mass, damping, stiffness, force):
+            arr.flags.writeable = False
+        _set(self, period, mass, damping, stiffness, force)
+
+    @classmethod
+    def from_functions(
+        cls,
+        period: float,
+        mass: Callable[[float], np.ndarray],
+        damping: Callable[[float], np.ndarray],
+        stiffness: Callable[[float], np.ndarray],
+        force: Callable[[float], np.ndarray] | None = None,
+        *,
+        n_steps: int,
+    ) -> "PeriodicSystem":
+        """Sample callables of scalar ``t`` (s) at ``t_k = k T / n_steps``, k = 0..n_steps.
+
+        ``mass``, ``damping``, ``stiffness`` return (n, n) arrays, ``force`` an (n,) array.
+        """
+        period = _check_period(period)
+        n_steps = _check_n_steps(n_steps)
+        times = np.arange(n_steps + 1) * (period / n_steps)
+        sampled = []
+        for name, func in (("mass", mass), ("damping", damping), ("stiffness", stiffness), ("force", force)):
+            if func is None and name == "force":
+                sampled.append(None)
+                continue
+            if not callable(func):
+                raise TypeError(f"{name}: expected a callable of scalar t, got {type(func).__name__}")
+            sampled.append(_sample(name, func, times))
+        return cls(period, *sampled)
+
+    @property
+    def n_steps(self) -> int:
+        """Number of Newmark steps ``N`` per period."""
+        return self.M.shape[0] - 1
+
+    @property
+    def n_dof(self) -> int:
+        """Number of coordinates ``n``."""
+        return self.M.shape[1]
+
+    @property
+    def step(self) -> float:
+        """Step ``h = T / N`` in s."""
+        return self.period / self.n_steps
+
+    @property
+    def t(self) -> np.ndarray:
+        """Sample times ``t_k = k T / N``, shape (N+1,), s."""
+        return np.arange(self.n_steps + 1) * self.step
+
+    def coarsened(self) -> "PeriodicSystem":
+        """The same system on the grid of ``N/2`` steps (every other sample); ``N`` must be even."""
+        if self.n_steps % 2:
+            raise PeriodicError(
+                f"n_steps: coarsening to N/2 needs an even number of steps, got {self.n_steps}; "
+                "sample the system with an even n_steps (or skip the error estimate)"
+            )
+        if self.n_steps < 4:
+            raise PeriodicError(f"n_steps: coarsening needs n_steps >= 4, got {self.n_steps}")
+        coarse = object.__new__(PeriodicSystem)
+        # Every other sample of validated arrays is valid: no re-validation needed.
+        _set(coarse, self.period, *(np.ascontiguousarray(a[::2]) for a in (self.M, self.C, self.K, self.f)))
+        return coarse
+
+
+def _set(obj, period, mass, damping, stiffness, force):
+    object.__setattr__(obj, "period", period)
+    object.__setattr__(obj, "M", mass)
+    object.__setattr__(obj, "C", damping)
+    object.__setattr__(obj, "K", stiffness)
+    object.__setattr__(obj, "f", force)
+
+
+def _check_period(period) -> float:
+    if isinstance(period, bool) or not isinstance(period, (int, float, np.integer, np.floating)):
+        raise TypeError(f"period: expected a positive real number (s), got {type(period).__name__}")
+    value = float(period)
+    if not math.isfinite(value) or value <= 0.0:
+        raise ValueError(f"period: expected a finite positive number (s), got {value!r}")
+    return value
+
+
+def _check_n_steps(n_steps) -> int:
+    if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)):
+        raise TypeError(f"n_steps: expected an integer >= 2, got {type(n_steps).__name__}")
+    if n_steps < 2:
+        raise ValueError(f"n_steps: expected an integer >= 2, got {n_steps}")
+    return int(n_steps)
+
+
+def _as_samples(name: str, values, *, ndim: int, shape=None) -> np.ndarray:
+    try:
+        arr = np.array(values, dtype=np.float64, order="C", copy=True)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name}: expected a real array, got {type(values).__name__} ({exc})") from None
+    expected = "(N+1, n, n)" if ndim == 3 else "(N+1, n)"
+    if arr.ndim != ndim or (shape is not None and arr.shape != tuple(shape)):
+        want = expected if shape is None else f"{expected} = {tuple(shape)}"
+        raise ValueError(f"{name}: expected shape {want}, got {arr.shape}")
+    if not np.isfinite(arr).all():
+        bad = np.argwhere(~np.isfinite(arr))[0]
+        raise ValueError(f"{name}: expected finite values, got {arr[tuple(bad)]} at index {tuple(int(i) for i in bad)}")
+    return arr
+
+
+def _check_periodic(name: str, samples: np.ndarray) -> None:
+    scale = float(np.abs(samples).max())
+    if scale == 0.0:
+        return
+    mismatch = float(np.abs(samples[-1] - samples[0]).max()) / scale
+    if mismatch > _PERIODICITY_ERROR:
+        raise PeriodicError(
+            f"{name}: the last sample (t = T) must repeat the first (t = 0) for a T-periodic system; "
+            f"they differ by {mismatch:.3g} relative to the largest entry. Check the period and that "
+            "the grid includes both ends (N+1 samples)."
+        )
+    if mismatch > _PERIODICITY_WARN:
+        warnings.warn(
+            f"{name}: samples at t = 0 and t = T differ by {mismatch:.3g} (relative); the system is "
+            "treated as T-periodic anyway",
+            RuntimeWarning,
+            stacklevel=4,
+        )
+
+
+def _sample(name: str, func, times: np.ndarray) -> np.ndarray:
+    values = []
+    for t in times:
+        try:
+            values.append(np.asarray(func(float(t)), dtype=np.float64))
+        except Exception as exc:  # any failure of user code is reported with its argument and time
+            raise ValueError(f"{name}: the callable raised {type(exc).__name__} at t = {t:.6g} s: {exc}") from exc
+        if values[-1].shape != values[0].shape:
+            raise ValueError(
+                f"{name}: the callable returned shape {values[-1].shape} at t = {t:.6g} s but "
+                f"{values[0].shape} at t = 0"
+            )
+    return np.stack(values)
