@@ -1,0 +1,618 @@
+"""Full nonlinear runs: the generalized-alpha method on the index-3 constrained equations of motion.
+
+The equations (see ``_protocol.py``, seed eq. 2.10), n coordinates ``s`` and r multipliers ``lam``:
+
+    M(s) s'' + Phi_s(s, t)^T lam = Q(s, s', t),        Phi(s, t) = 0.
+
+Generalized-alpha (Chung & Hulbert 1993, for constrained systems Arnold & Bruls 2007, Multibody Syst.
+Dyn. 18:185) advances positions ``q``, velocities ``v``, the true accelerations ``sddot`` and the
+auxiliary "alpha accelerations" ``a`` from ``t_n`` to ``t_{n+1} = t_n + h``:
+
+    (1 - alpha_m) a_{n+1} + alpha_m a_n = (1 - alpha_f) sddot_{n+1} + alpha_f sddot_n      (GA1)
+    q_{n+1} = q_n + h v_n + h^2 (1/2 - beta) a_n + h^2 beta a_{n+1}                      (GA2)
+    v_{n+1} = v_n + h (1 - gamma) a_n + h gamma a_{n+1}                                  (GA3)
+
+with the equations of motion and the position constraints ``Phi(q_{n+1}, t_{n+1}) = 0`` imposed
+exactly at ``t_{n+1}`` (index 3: no drift). With the spectral radius at infinity ``rho_inf`` in
+[0, 1] (Chung & Hulbert eq. 25-26):
+
+    alpha_m = (2 rho - 1) / (rho + 1),  alpha_f = rho / (rho + 1),
+    gamma = 1/2 + alpha_f - alpha_m,    beta = (gamma + 1/2)^2 / 4,
+
+which is second order for ``q`` and ``v`` and damps the unresolved (stiff, e.g. axial) modes.
+Eliminating ``a_{n+1}`` leaves ``q_{n+1} = qhat + beta' sddot_{n+1}``, ``v_{n+1} = vhat + gamma'
+sddot_{n+1}`` with ``beta' = h^2 beta (1 - alpha_f) / (1 - alpha_m)`` and ``gamma' = h gamma
+(1 - alpha_f) / (1 - alpha_m)``; Newton's method is run on ``x = (sddot_{n+1}, lam_{n+1})`` for
+
+    r_q = M(q) sddot + Phi_s(q)^T lam - Q(q, v, t) = 0,     r_c = Phi(q, t) / beta' = 0,     (NR)
+
+the constraint rows divided by ``beta'`` (Arnold & Bruls sec. 3.3; Bottasso, Bauchau & Cardona 2007)
+so that the iteration matrix
+
+    [ M + beta' K_t + gamma' C_t   Phi_s^T ]     K_t = d(M sddot)/ds - dQ/ds + d(Phi_s^T lam)/ds
+    [ Phi_s                        0       ]     C_t = -dQ/dsdot
+
+stays O(1) as h -> 0 instead of having rows of size O(h^2). The iteration matrix is kept (modified
+Newton) while the iteration contracts fast and re-evaluated from the model's analytic derivatives when
+it does not.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numba
+import numpy as np
+
+__all__ = ["SimulationError", "SimulationResult", "simulate"]
+
+logger = logging.getLogger(__name__)
+
+_METHODS = ("generalized-alpha",)
+
+
+class SimulationError(RuntimeError):
+    """A nonlinear run failed (Newton divergence, singular iteration matrix); ``.result`` holds the
+    steps computed before the failure."""
+
+    def __init__(self, message: str, result: "SimulationResult"):
+        super().__init__(message)
+        self.result = result
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """A nonlinear run on the grid ``t``.
+
+    Attributes
+    ----------
+    t : (n_t,) s
+    s, sdot, sddot : (n_t, n) coordinates and their first and second time derivatives (SI units of
+        each coordinate: m or rad, per s, per s^2).
+    lam : (n_t, r) Lagrange multipliers (the constraint force on the coordinates is ``-Phi_s^T lam``).
+    observables : {spec: (n_t,)} values of the requested observables (units in ``observable_units``).
+    constraint_residual : (n_t,) ``max |Phi(s, t)|`` at the accepted state (m, or rad for angle
+        constraints); bounded by the Newton tolerance, it does not drift.
+    observable_error : {spec: float} Richardson estimate of the maximum global error of each
+        observable over the run (``max |o_h - o_2h| / 3`` for a second-order method); empty unless
+        ``estimate_error=True``.
+    n_steps, n_newton, n_jacobian, n_factorizations : counts of accepted steps, Newton iterations,
+        evaluations of the analytic derivatives and LU factorisations of the iteration matrix.
+    status : 0 success, -1 failure (the arrays then end at the last accepted step).
+    message : what happened, naming the time of a failure.
+    run_time : wall-clock seconds of the whole call (including an error-estimate run).
+    """
+
+    t: np.ndarray
+    s: np.ndarray
+    sdot: np.ndarray
+    sddot: np.ndarray
+    lam: np.ndarray
+    observables: Mapping[str, np.ndarray]
+    observable_units: Mapping[str, str]
+    constraint_residual: np.ndarray
+    observable_error: Mapping[str, float]
+    n_steps: int
+    n_newton: int
+    n_jacobian: int
+    n_factorizations: int
+    status: int
+    message: str
+    run_time: float
+    method: str
+    rho_inf: float
+    dt: float
+    coord_labels: tuple[str, ...] = field(default=())
+
+    @property
+    def success(self) -> bool:
+        return self.status == 0
+
+
+# ---------------------------------------------------------------------------------------------------
+# Numba kernels
+# ---------------------------------------------------------------------------------------------------
+@numba.njit(cache=True)
+def _lu_factor(A, piv):
+    """In-place LU factorisation with partial pivoting, ``P A = L U`` (Golub & Van Loan alg. 3.4.1).
+
+    Returns ``min |u_kk| / max |u_kk|`` (0.0 when a pivot is exactly zero) as a cheap singularity
+    indicator."""
+    n = A.shape[0]
+    umax = 0.0
+    umin = np.inf
+    for k in range(n):
+        p = k
+        big = abs(A[k, k])
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > big:
+                big = abs(A[i, k])
+                p = i
+        piv[k] = p
+        if p != k:
+            for j in range(n):
+                tmp = A[k, j]
+                A[k, j] = A[p, j]
+                A[p, j] = tmp
+        pivot = A[k, k]
+        umax = max(umax, abs(pivot))
+        umin = min(umin, abs(pivot))
+        if pivot == 0.0:
+            return 0.0
+        for i in range(k + 1, n):
+            A[i, k] /= pivot
+            lik = A[i, k]
+            if lik != 0.0:
+                for j in range(k + 1, n):
+                    A[i, j] -= lik * A[k, j]
+    if umax == 0.0:
+        return 0.0
+    return umin / umax
+
+
+@numba.njit(cache=True)
+def _lu_solve(LU, piv, b):
+    """Solve ``A x = b`` in place from ``_lu_factor``'s output."""
+    n = LU.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+    for i in range(n):
+        acc = b[i]
+        for j in range(i):
+            acc -= LU[i, j] * b[j]
+        b[i] = acc
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= LU[i, j] * b[j]
+        b[i] = acc / LU[i, i]
+
+
+@numba.njit(cache=True)
+def _fill_iteration_matrix(M, dMa_ds, dQ_ds, dQ_dv, dPhiTlam_ds, Phi_s, beta_p, gamma_p, out):
+    """The Newton matrix of (NR): ``[[M + beta' K_t + gamma' C_t, Phi_s^T], [Phi_s, 0]]``."""
+    n = M.shape[0]
+    r = Phi_s.shape[0]
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = (M[i, j] + beta_p * (dMa_ds[i, j] - dQ_ds[i, j] + dPhiTlam_ds[i, j])
+                         - gamma_p * dQ_dv[i, j])
+    for k in range(r):
+        for j in range(n):
+            out[n + k, j] = Phi_s[k, j]
+            out[j, n + k] = Phi_s[k, j]
+        for m in range(r):
+            out[n + k, n + m] = 0.0
+
+
+@numba.njit(cache=True)
+def _newton_update(LU, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p, rhs,
+                   q, v):
+    """One (modified) Newton step on (NR): residual, solve, update ``sddot, lam`` and the positions
+    and velocities ``q = qhat + beta' sddot``, ``v = vhat + gamma' sddot``. Returns the max-norm of
+    the position increment ``beta' |d sddot|``."""
+    n = M.shape[0]
+    r = Phi_s.shape[0]
+    for i in range(n):
+        acc = -Q[i]
+        for j in range(n):
+            acc += M[i, j] * sddot[j]
+        for k in range(r):
+            acc += Phi_s[k, i] * lam[k]
+        rhs[i] = -acc
+    for k in range(r):
+        rhs[n + k] = -Phi[k] / beta_p
+    _lu_solve(LU, piv, rhs)
+    dq_max = 0.0
+    for i in range(n):
+        sddot[i] += rhs[i]
+        q[i] = qhat[i] + beta_p * sddot[i]
+        v[i] = vhat[i] + gamma_p * sddot[i]
+        dq_max = max(dq_max, abs(beta_p * rhs[i]))
+    for k in range(r):
+        lam[k] += rhs[n + k]
+    return dq_max
+
+
+@numba.njit(cache=True)
+def _predict(q, v, a, sddot, h, alpha_m, alpha_f, beta, gamma, qhat, vhat):
+    """The parts of (GA2), (GA3) known at ``t_n``, with ``a_{n+1}`` from (GA1) split into its known part
+    ``(alpha_f sddot_n - alpha_m a_n) / (1 - alpha_m)`` and ``(1 - alpha_f) / (1 - alpha_m) sddot_{n+1}``."""
+    for i in range(q.shape[0]):
+        a_known = (alpha_f * sddot[i] - alpha_m * a[i]) / (1.0 - alpha_m)
+        qhat[i] = q[i] + h * v[i] + h * h * ((0.5 - beta) * a[i] + beta * a_known)
+        vhat[i] = v[i] + h * ((1.0 - gamma) * a[i] + gamma * a_known)
+
+
+@numba.njit(cache=True)
+def _advance_alpha_acceleration(a, sddot_old, sddot_new, alpha_m, alpha_f):
+    """(GA1) solved for ``a_{n+1}``, in place."""
+    for i in range(a.shape[0]):
+        a[i] = (alpha_f * sddot_old[i] + (1.0 - alpha_f) * sddot_new[i] - alpha_m * a[i]) / (
+            1.0 - alpha_m)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Python driver
+# ---------------------------------------------------------------------------------------------------
+def _generalized_alpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
+    """(alpha_m, alpha_f, beta, gamma) of Chung & Hulbert (1993) eq. 25-26 for ``rho_inf``."""
+    alpha_m = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
+    alpha_f = rho_inf / (rho_inf + 1.0)
+    gamma = 0.5 + alpha_f - alpha_m
+    beta = 0.25 * (gamma + 0.5) ** 2
+    return alpha_m, alpha_f, beta, gamma
+
+
+def _as_vector(value: Any, n: int, name: str) -> np.ndarray:
+    arr = np.array(value, dtype=np.float64)
+    if arr.shape != (n,):
+        raise ValueError(f"`{name}` must have shape ({n},) (one value per coordinate); got shape "
+                         f"{arr.shape}.")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"`{name}` must be finite; got non-finite entries at indices "
+                         f"{np.flatnonzero(~np.isfinite(arr)).tolist()}.")
+    return arr
+
+
+def _positive(value: Any, name: str) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"`{name}` must be a real number; got {value!r}.") from None
+    if not (math.isfinite(x) and x > 0.0):
+        raise ValueError(f"`{name}` must be positive and finite; got {value!r}.")
+    return x
+
+
+def _period_of(system: Any, model: Any, period: float | None) -> float | None:
+    if period is not None:
+        return _positive(period, "period")
+    mech_period = getattr(system, "period", None)
+    if mech_period is not None:
+        return float(mech_period)
+    drives = getattr(system, "drives", ())
+    for drive in drives:
+        rate = getattr(drive, "rate", 0.0)
+        if rate:
+            return 2.0 * math.pi / abs(rate)
+    model_period = getattr(model, "period", None)
+    return None if model_period is None else float(model_period)
+
+
+def _time_grid(t0: float, t_end, n_periods, dt, steps_per_period, period) -> tuple[float, int]:
+    """(h, n_steps) of the uniform grid from the (t_end | n_periods) and (dt | steps_per_period)
+    options; the step is shortened so that the grid ends exactly at ``t_end``."""
+    if (t_end is None) == (n_periods is None):
+        raise TypeError("give exactly one of `t_end` (s) and `n_periods`; got "
+                        f"t_end={t_end!r}, n_periods={n_periods!r}.")
+    if (dt is None) == (steps_per_period is None):
+        raise TypeError("give exactly one of `dt` (s) and `steps_per_period`; got "
+                        f"dt={dt!r}, steps_per_period={steps_per_period!r}.")
+    needs_period = n_periods is not None or steps_per_period is not None
+    if needs_period and period is None:
+        raise ValueError("`n_periods` and `steps_per_period` need the period: this system has no "
+                         "drive rate or `period` attribute; pass `period=` (s) or use `t_end`, `dt`.")
+    duration = (_positive(t_end, "t_end") - t0 if t_end is not None
+                else _positive(n_periods, "n_periods") * period)
+    if duration <= 0.0:
+        raise ValueError(f"`t_end` must be after `t0` = {t0}; got t_end={t_end!r}.")
+    if steps_per_period is not None:
+        if int(steps_per_period) != steps_per_period or steps_per_period < 1:
+            raise ValueError("`steps_per_period` must be a positive integer; got "
+                             f"{steps_per_period!r}.")
+        h_wanted = period / int(steps_per_period)
+    else:
+        h_wanted = _positive(dt, "dt")
+    n_steps = max(1, int(math.ceil(duration / h_wanted - 1e-9)))
+    return duration / n_steps, n_steps
+
+
+def _resolve_model(system: Any):
+    """(model, mechanism or None) from a Mechanism or anything implementing the model protocol."""
+    from ._parts import Mechanism
+    if isinstance(system, Mechanism):
+        from . import assemble
+        return assemble(system), system
+    required = ("n_coords", "n_constraints", "mass_matrix", "forces", "constraints",
+                "constraint_jacobian", "constraint_rate", "constraint_gamma",
+                "mass_matrix_jacobian", "force_jacobians", "constraint_force_jacobian")
+    missing = [name for name in required if not hasattr(system, name)]
+    if missing:
+        raise TypeError("`system` must be a mechanisms.Mechanism or a model implementing "
+                        f"mechanisms/_protocol.py's ConstrainedModel; {type(system).__name__} lacks "
+                        f"{missing}.")
+    return system, None
+
+
+def _initial_state(model, mechanism, s0, sdot0, t0: float):
+    n = int(model.n_coords)
+    if s0 is None:
+        if mechanism is None:
+            raise ValueError("`s0` is required when simulating a bare model: only a Mechanism has a "
+                             "nominal rigid motion to start from.")
+        from . import nominal_motion
+        nominal = nominal_motion(mechanism)
+        s_start = np.array(nominal.s[0], dtype=np.float64)
+        v_start = np.array(nominal.sdot[0], dtype=np.float64) if sdot0 is None else None
+        if abs(float(nominal.t[0]) - t0) > 0.0:
+            raise ValueError(f"the nominal motion starts at t = {float(nominal.t[0])} s; pass `s0` "
+                             f"and `sdot0` to start at t0 = {t0} s.")
+    else:
+        s_start = _as_vector(s0, n, "s0")
+        v_start = None
+    if sdot0 is not None:
+        v_start = _as_vector(sdot0, n, "sdot0")
+    elif v_start is None:
+        v_start = np.zeros(n)
+    return s_start, v_start
+
+
+def _consistent_accelerations(model, q, v, t):
+    """Solve ``[[M, Phi_s^T], [Phi_s, 0]] [sddot; lam] = [Q; gamma]`` (the index-1 form at ``t``)."""
+    n = q.shape[0]
+    r = int(model.n_constraints)
+    A = np.zeros((n + r, n + r))
+    A[:n, :n] = model.mass_matrix(q)
+    Phi_s = np.asarray(model.constraint_jacobian(q, t), dtype=np.float64)
+    A[:n, n:] = Phi_s.T
+    A[n:, :n] = Phi_s
+    b = np.concatenate([model.forces(q, v, t), model.constraint_gamma(q, v, t)])
+    cond = np.linalg.cond(A)
+    if not np.isfinite(cond) or cond > 1e13:
+        raise ValueError(f"the augmented mass matrix at t = {t} s is singular (condition number "
+                         f"{cond:.3g}): check for redundant constraints or massless coordinates.")
+    x = np.linalg.solve(A, b)
+    return x[:n], x[n:]
+
+
+def _check_consistency(model, q, v, t, length_scale):
+    """Raise if the initial state violates the position or velocity constraints."""
+    phi = np.asarray(model.constraints(q, t), dtype=np.float64)
+    if np.max(np.abs(phi), initial=0.0) > 1e-8 * length_scale:
+        worst = int(np.argmax(np.abs(phi)))
+        labels = list(getattr(model, "constraint_labels", ()))
+        name = labels[worst] if worst < len(labels) else f"#{worst}"
+        raise ValueError(f"`s0` violates the constraints at t0 = {t} s: |Phi| = {abs(phi[worst]):.3g} "
+                         f"at constraint {name!r} (allowed 1e-8 x {length_scale:.3g}); start from "
+                         "an assembled configuration (e.g. mechanisms.nominal_motion).")
+    Phi_s = np.asarray(model.constraint_jacobian(q, t), dtype=np.float64)
+    vel = Phi_s @ v + np.asarray(model.constraint_rate(q, t), dtype=np.float64)
+    speed_scale = max(np.max(np.abs(v), initial=0.0), 1.0) * max(length_scale, 1.0)
+    if np.max(np.abs(vel), initial=0.0) > 1e-8 * speed_scale:
+        worst = int(np.argmax(np.abs(vel)))
+        raise ValueError(f"`sdot0` violates the velocity constraints at t0 = {t} s: "
+                         f"|Phi_s sdot + Phi_t| = {abs(vel[worst]):.3g} at constraint #{worst}; "
+                         "project it onto the constraint tangent space or start from the nominal "
+                         "motion.")
+
+
+def _observable_evaluators(model, mechanism, observables):
+    if observables is None:
+        if mechanism is None or not hasattr(model, "observable"):
+            return {}
+        from ._parts import ElasticLink
+        specs = [f"{link.name}.deflection@0.5" for link in mechanism.links
+                 if isinstance(link, ElasticLink) and link.boundary == "pinned-pinned"]
+    else:
+        if isinstance(observables, str):
+            observables = (observables,)
+        specs = list(observables)
+        if specs and not hasattr(model, "observable"):
+            raise TypeError(f"`observables` {specs} were asked for but the model "
+                            f"{type(model).__name__} has no `observable(spec)` method.")
+    return {spec: model.observable(spec) for spec in specs}
+
+
+def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None = None,
+             dt: float | None = None, steps_per_period: int | None = None,
+             s0: Sequence[float] | None = None, sdot0: Sequence[float] | None = None,
+             t0: float = 0.0, period: float | None = None, method: str = "generalized-alpha",
+             rho_inf: float = 0.8, observables: Sequence[str] | None = None, tol: float = 1e-10,
+             max_iterations: int = 20, jacobian_reuse: bool = True, estimate_error: bool = False,
+             throw: bool = True) -> SimulationResult:
+    """Integrate the full nonlinear constrained equations of motion on a uniform time grid.
+
+    Parameters
+    ----------
+    system : a ``mechanisms.Mechanism`` (assembled with ``mechanisms.assemble``) or any model
+        implementing ``mechanisms._protocol.ConstrainedModel``.
+    t_end, n_periods : the end time (s), or the number of drive periods, exactly one of them.
+    dt, steps_per_period : the time step (s, shortened to end on ``t_end``), or steps per period.
+    s0, sdot0 : initial coordinates and velocities (n,). Without ``s0`` a Mechanism starts on its
+        nominal rigid motion at ``t0 = 0`` (elastic coordinates zero); ``sdot0`` defaults to the
+        nominal velocities, or to zero with a given ``s0``. The state must satisfy the position and
+        velocity constraints to 1e-8 relative; accelerations and multipliers are then solved for
+        consistently.
+    period : the period (s) used by ``n_periods`` / ``steps_per_period`` for a bare model without a
+        ``period`` attribute.
+    method : ``"generalized-alpha"``.
+    rho_inf : spectral radius at infinite step in [0, 1]: 1 conserves (no numerical damping), smaller
+        values damp unresolved high-frequency modes harder; second order for any value.
+    observables : specs for ``model.observable(spec)`` (e.g. ``"coupler.deflection@0.5"``,
+        ``"coupler.strain@0.25"``, ``"coupler.moment@0.5"``, ``"rocker.angle"``); default: the midspan
+        deflection of every pinned-pinned elastic link of a Mechanism, none for a bare model.
+    tol : Newton tolerance: iterations stop when the position increment is below
+        ``tol * max(1, max |s0|)`` (m or rad); the constraint residual is then below that times
+        the row sums of ``Phi_s`` (and much below it when Newton converges fast).
+    max_iterations : Newton iterations allowed per step before the run is declared failed.
+    jacobian_reuse : keep the factorised iteration matrix across iterations and steps while it
+        contracts well (modified Newton); ``False`` re-evaluates it at every iteration.
+    estimate_error : also run with twice the step and report the Richardson estimate of the global
+        error of each observable in ``observable_error`` (costs about half a run more).
+    throw : raise ``SimulationError`` on failure; with ``False`` return the partial result with
+        ``status = -1`` and a message naming the time.
+
+    Returns
+    -------
+    SimulationResult
+    """
+    start_clock = time.perf_counter()
+    if method not in _METHODS:
+        raise ValueError(f"`method` must be one of {_METHODS}; got {method!r}.")
+    rho = float(rho_inf)
+    if not 0.0 <= rho <= 1.0:
+        raise ValueError(f"`rho_inf` must lie in [0, 1]; got {rho_inf!r}.")
+    tol = _positive(tol, "tol")
+    if int(max_iterations) != max_iterations or max_iterations < 1:
+        raise ValueError(f"`max_iterations` must be a positive integer; got {max_iterations!r}.")
+    model, mechanism = _resolve_model(system)
+    t0 = float(t0)
+    h, n_steps = _time_grid(t0, t_end, n_periods, dt, steps_per_period,
+                            _period_of(system, model, period))
+    q0, v0 = _initial_state(model, mechanism, s0, sdot0, t0)
+    length_scale = max(1.0, float(np.max(np.abs(q0), initial=0.0)))
+    _check_consistency(model, q0, v0, t0, length_scale)
+    evaluators = _observable_evaluators(model, mechanism, observables)
+
+    run = _integrate(model, q0, v0, t0, h, n_steps, rho, tol * length_scale, int(max_iterations),
+                     jacobian_reuse)
+    obs = {spec: np.array([ev.value(q) for q in run["s"]]) for spec, ev in evaluators.items()}
+    obs_error: dict[str, float] = {}
+    if estimate_error and run["status"] == 0:
+        if n_steps % 2:
+            raise ValueError("`estimate_error=True` needs an even number of steps (it reruns with "
+                             f"twice the step); this grid has {n_steps}.")
+        coarse = _integrate(model, q0, v0, t0, 2.0 * h, n_steps // 2, rho, tol * length_scale,
+                            int(max_iterations), jacobian_reuse)
+        if coarse["status"] != 0:
+            run["message"] += f" Error estimate unavailable: the 2 dt run failed ({coarse['message']})"
+        else:
+            for spec, ev in evaluators.items():
+                o_coarse = np.array([ev.value(q) for q in coarse["s"]])
+                # Richardson for an order-2 method: e_h ~ (o_h - o_2h) / (2^2 - 1)
+                obs_error[spec] = float(np.max(np.abs(obs[spec][::2] - o_coarse)) / 3.0)
+            # without observables the coordinates stand in, so the user still gets an estimate
+            if not evaluators:
+                obs_error["s"] = float(np.max(np.abs(run["s"][::2] - coarse["s"])) / 3.0)
+
+    result = SimulationResult(
+        t=run["t"], s=run["s"], sdot=run["sdot"], sddot=run["sddot"], lam=run["lam"],
+        observables=obs, observable_units={spec: getattr(ev, "unit", "") for spec, ev in
+                                           evaluators.items()},
+        constraint_residual=run["residual"], observable_error=obs_error,
+        n_steps=run["n_steps"], n_newton=run["n_newton"], n_jacobian=run["n_jacobian"],
+        n_factorizations=run["n_factorizations"], status=run["status"], message=run["message"],
+        run_time=time.perf_counter() - start_clock, method=method, rho_inf=rho, dt=h,
+        coord_labels=tuple(getattr(model, "coord_labels", ())))
+    if result.status != 0:
+        if throw:
+            raise SimulationError(result.message, result)
+        logger.warning(result.message)
+    return result
+
+
+def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jacobian_reuse):
+    """The generalized-alpha loop; returns a dict of the arrays and counts (see ``simulate``)."""
+    n = q0.shape[0]
+    r = int(model.n_constraints)
+    alpha_m, alpha_f, beta, gamma = _generalized_alpha_parameters(rho)
+    beta_p = h * h * beta * (1.0 - alpha_f) / (1.0 - alpha_m)
+    gamma_p = h * gamma * (1.0 - alpha_f) / (1.0 - alpha_m)
+
+    t_grid = t0 + h * np.arange(n_steps + 1)
+    S = np.empty((n_steps + 1, n))
+    V = np.empty((n_steps + 1, n))
+    A = np.empty((n_steps + 1, n))
+    L = np.empty((n_steps + 1, r))
+    residual = np.empty(n_steps + 1)
+
+    sddot0, lam0 = _consistent_accelerations(model, q0, v0, t0)
+    S[0], V[0], A[0], L[0] = q0, v0, sddot0, lam0
+    residual[0] = np.max(np.abs(model.constraints(q0, t0)), initial=0.0)
+
+    a = sddot0.copy()          # alpha acceleration a_0 = sddot_0 (Arnold & Bruls 2007, sec. 4)
+    q, v = q0.copy(), v0.copy()
+    sddot, lam = sddot0.copy(), lam0.copy()
+    qhat, vhat = np.empty(n), np.empty(n)
+    rhs = np.empty(n + r)
+    G = np.empty((n + r, n + r))
+    piv = np.empty(n + r, dtype=np.int64)
+    have_matrix = False
+    counts = {"n_newton": 0, "n_jacobian": 0, "n_factorizations": 0}
+
+    status, message, done = 0, "", 0
+    for step in range(1, n_steps + 1):
+        t = t_grid[step]
+        sddot_old = sddot.copy()
+        _predict(q, v, a, sddot, h, alpha_m, alpha_f, beta, gamma, qhat, vhat)
+        # predictor: sddot_{n+1} = sddot_n, lam_{n+1} = lam_n
+        q = qhat + beta_p * sddot
+        v = vhat + gamma_p * sddot
+        iterations, prev_dq = 0, np.inf
+        converged, failure = False, ""
+        while True:
+            M = np.ascontiguousarray(model.mass_matrix(q), dtype=np.float64)
+            Q = np.ascontiguousarray(model.forces(q, v, t), dtype=np.float64)
+            Phi = np.ascontiguousarray(model.constraints(q, t), dtype=np.float64)
+            Phi_s = np.ascontiguousarray(model.constraint_jacobian(q, t), dtype=np.float64)
+            if not (np.all(np.isfinite(Q)) and np.all(np.isfinite(Phi))):
+                failure = "the model returned non-finite forces or constraints"
+                break
+            if not have_matrix:
+                dQ_ds, dQ_dv = model.force_jacobians(q, v, t)
+                _fill_iteration_matrix(
+                    M, np.ascontiguousarray(model.mass_matrix_jacobian(q, sddot), dtype=np.float64),
+                    np.ascontiguousarray(dQ_ds, dtype=np.float64),
+                    np.ascontiguousarray(dQ_dv, dtype=np.float64),
+                    np.ascontiguousarray(model.constraint_force_jacobian(q, lam, t),
+                                         dtype=np.float64),
+                    Phi_s, beta_p, gamma_p, G)
+                pivot_ratio = _lu_factor(G, piv)
+                counts["n_jacobian"] += 1
+                counts["n_factorizations"] += 1
+                have_matrix, prev_dq = True, np.inf
+                if not pivot_ratio > 1e-14:
+                    failure = (f"the iteration matrix is singular (pivot ratio {pivot_ratio:.2g}): "
+                               "check for redundant constraints or a toggle position")
+                    break
+            dq = _newton_update(G, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p,
+                                rhs, q, v)
+            counts["n_newton"] += 1
+            iterations += 1
+            theta = dq / prev_dq if np.isfinite(prev_dq) and prev_dq > 0.0 else 0.0
+            prev_dq = dq
+            # accept when the last increment is below the tolerance: the error left is then about
+            # theta |dq| with theta <= 0.25 (see below). The cheaper estimate theta / (1 - theta)
+            # |dq| (Hairer & Wanner II, sec. IV.8) was tried and underestimates: the contraction of
+            # a stale matrix is not constant over 2-3 iterates.
+            if dq <= abs_tol:
+                converged = bool(np.all(np.isfinite(sddot)) and np.all(np.isfinite(lam)))
+                if not converged:
+                    failure = "the Newton iterates became non-finite"
+                break
+            if not np.isfinite(dq) or iterations >= max_iterations:
+                failure = (f"Newton's method did not converge in {iterations} iterations (last "
+                           f"position increment {dq:.3g}, tolerance {abs_tol:.3g})")
+                break
+            # contracting too slowly (or not at all): re-evaluate the matrix at this iterate. An
+            # evaluation costs about one iteration, and at theta = 0.25 the stale matrix gains
+            # only 0.6 digits per iteration, whereas a fresh one converges quadratically.
+            if theta > 0.25 or not jacobian_reuse:
+                have_matrix = False
+        if not converged:
+            status = -1
+            message = (f"generalized-alpha failed in the step from t = {t - h:.9g} s to "
+                       f"t = {t:.9g} s: {failure}. Try a smaller `dt`.")
+            break
+        S[step], V[step], A[step], L[step] = q, v, sddot, lam
+        residual[step] = np.max(np.abs(model.constraints(q, t)), initial=0.0)
+        _advance_alpha_acceleration(a, sddot_old, sddot, alpha_m, alpha_f)
+        done = step
+        if not jacobian_reuse:
+            have_matrix = False
+    if status == 0:
+        message = (f"generalized-alpha reached t = {t_grid[-1]:.9g} s in {n_steps} steps of "
+                   f"{h:.6g} s.")
+    end = done + 1
+    return {"t": t_grid[:end], "s": S[:end], "sdot": V[:end], "sddot": A[:end], "lam": L[:end],
+            "residual": residual[:end], "n_steps": done, "status": status, "message": message,
+            **counts}
