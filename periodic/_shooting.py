@@ -61,9 +61,13 @@ class SteadyState:
     is_stable : bool
         ``spectral_radius <= 1 + stability_tol``.
     condition_number : float
-        2-norm condition number of ``I - Phi`` (N-step monodromy) solved for the initial state.  It
-        mixes the units of x and v, so it is large for stiff systems even far from resonance; use
-        ``status`` for the resonance verdict.
+        2-norm condition number of ``I - Phi`` (N-step monodromy) solved for the initial state: it
+        bounds the rounding error of the periodic initial state (relative error <~ cond * eps).  It
+        mixes the units of x and v, so it is large for stiff systems even far from resonance, and it
+        can be 1 at resonance (``I - Phi`` a small multiple of a rotation); use ``status``.
+    inverse_norm : float
+        ``||(I - Phi)^-1||_2``: the amplification of the state mismatch of the particular solution
+        into the periodic initial state, about ``1 / min |1 - mu|`` (large near resonance).
     error_estimate : float
         Estimated max abs error of ``x`` (units of x), from the N/2-step solution; NaN when skipped
         (``estimate_error=False``).  With ``extrapolated`` it is the estimate for the N-step result,
@@ -93,6 +97,7 @@ class SteadyState:
     spectral_radius: float
     is_stable: bool
     condition_number: float
+    inverse_norm: float
     error_estimate: float
     multiplier_errors: np.ndarray | None
     periodicity_residual: float
@@ -110,6 +115,7 @@ class _Shot:
     v: np.ndarray
     a: np.ndarray
     condition_number: float
+    inverse_norm: float
     periodicity_residual: float
 
 
@@ -167,7 +173,7 @@ def steady_state(
     # The N/2 comparison estimates the errors of the N-step multipliers, not of extrapolated ones.
     errors = None if extrapolate else multiplier_errors
     physical, spurious = near_resonance(multipliers, step_rates, resonance_tol, errors)
-    status, message = _verdict(multipliers, step_rates, physical, spurious, fine.condition_number, error_estimate)
+    status, message = _verdict(multipliers, step_rates, physical, spurious, fine, error_estimate)
     if status == STATUS_NEAR_RESONANCE:
         warnings.warn(message, NearResonanceWarning, stacklevel=2)
     elif status == STATUS_UNRESOLVED:
@@ -184,6 +190,7 @@ def steady_state(
         spectral_radius=radius,
         is_stable=bool(radius <= 1.0 + stability_tol),
         condition_number=fine.condition_number,
+        inverse_norm=fine.inverse_norm,
         error_estimate=error_estimate,
         multiplier_errors=multiplier_errors,
         periodicity_residual=fine.periodicity_residual,
@@ -207,7 +214,9 @@ def _shoot(system: PeriodicSystem, beta: float, gamma: float) -> _Shot:
             f"system: I - Phi is singular (a Floquet multiplier is within {distance:.3g} of +1): the "
             "system is at resonance and has no unique periodic solution"
         ) from None
-    condition_number = float(np.linalg.cond(system_matrix))
+    singular_values = np.linalg.svd(system_matrix, compute_uv=False)
+    condition_number = float(singular_values[0] / singular_values[-1])
+    inverse_norm = float(1.0 / singular_values[-1])
     x = np.ascontiguousarray(z0[:n, None])
     v = np.ascontiguousarray(z0[n:, None])
     a = np.empty((n, 1))
@@ -219,7 +228,7 @@ def _shoot(system: PeriodicSystem, beta: float, gamma: float) -> _Shot:
     raise_on_singular(system, status)
     xs, vs, as_ = xs[:, :, 0], vs[:, :, 0], as_[:, :, 0]
     residual = float(np.abs(xs[-1] - xs[0]).max())
-    return _Shot(phi, xs, vs, as_, condition_number, residual)
+    return _Shot(phi, xs, vs, as_, condition_number, inverse_norm, residual)
 
 
 def _richardson(fine: np.ndarray, coarse: np.ndarray, factor: float) -> np.ndarray:
@@ -232,13 +241,14 @@ def _richardson(fine: np.ndarray, coarse: np.ndarray, factor: float) -> np.ndarr
     return out
 
 
-def _verdict(multipliers, step_rates, physical, spurious, condition_number, error_estimate):
+def _verdict(multipliers, step_rates, physical, spurious, shot: _Shot, error_estimate):
+    conditioning = f"cond(I - Phi) = {shot.condition_number:.3g}, ||(I - Phi)^-1|| = {shot.inverse_norm:.3g}"
+
     if physical.size:
         i = physical[np.argmin(np.abs(1.0 - multipliers[physical]))]
         return STATUS_NEAR_RESONANCE, (
             f"near resonance: Floquet multiplier {multipliers[i]:.8g} is {abs(1.0 - multipliers[i]):.3g} "
-            f"from +1 (its mode is resolved, step rate {step_rates[i]:.3g}); cond(I - Phi) = "
-            f"{condition_number:.3g}. The periodic response is amplified about 1/|1 - mu| times and is "
+            f"from +1 (its mode is resolved, step rate {step_rates[i]:.3g}); {conditioning}. The periodic response is amplified about 1/|1 - mu| times and is "
             "sensitive to the parameters."
         )
     if spurious.size:
@@ -246,7 +256,6 @@ def _verdict(multipliers, step_rates, physical, spurious, condition_number, erro
         return STATUS_UNRESOLVED, (
             f"Floquet multiplier {multipliers[i]:.8g} is {abs(1.0 - multipliers[i]):.3g} from +1, but its "
             f"mode changes by exp({step_rates[i]:.3g}) per step: a stiff mode the step does not resolve, "
-            "whose exact multiplier is not near +1 (not a resonance). cond(I - Phi) = "
-            f"{condition_number:.3g}; error estimate of x = {error_estimate:.3g}."
+            "whose exact multiplier is not near +1 (not a resonance). {conditioning}; error estimate of x = {error_estimate:.3g}."
         )
     return STATUS_OK, "ok"

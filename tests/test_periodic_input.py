@@ -1,0 +1,132 @@
+"""periodic: bad input is rejected with a message naming the argument."""
+
+import numpy as np
+import pytest
+
+import periodic
+from periodic import PeriodicError, PeriodicSystem
+
+N, n = 8, 2
+
+
+def arrays():
+    M = np.tile(np.eye(n), (N + 1, 1, 1))
+    C = 0.1 * M
+    K = np.tile(np.array([[2.0, -1.0], [-1.0, 2.0]]), (N + 1, 1, 1))
+    f = np.zeros((N + 1, n))
+    return M, C, K, f
+
+
+def test_valid_arrays_build_a_system():
+    system = PeriodicSystem(2.0, *arrays())
+    assert (system.n_steps, system.n_dof, system.step) == (N, n, 0.25)
+    assert not system.M.flags.writeable
+
+
+@pytest.mark.parametrize("period", [0.0, -1.0, np.nan, np.inf])
+def test_period_must_be_positive_and_finite(period):
+    with pytest.raises(ValueError, match="period"):
+        PeriodicSystem(period, *arrays())
+
+
+def test_period_must_be_a_number():
+    with pytest.raises(TypeError, match="period"):
+        PeriodicSystem("1.0", *arrays())
+
+
+@pytest.mark.parametrize("index, name", [(0, "mass"), (1, "damping"), (2, "stiffness"), (3, "force")])
+def test_wrong_shape_names_the_argument(index, name):
+    args = list(arrays())
+    args[index] = args[index][:, :1]
+    with pytest.raises(ValueError, match=f"^{name}: expected shape"):
+        PeriodicSystem(1.0, *args)
+
+
+@pytest.mark.parametrize("index, name", [(0, "mass"), (1, "damping"), (2, "stiffness"), (3, "force")])
+def test_non_finite_names_the_argument(index, name):
+    args = list(arrays())
+    args[index][3].flat[0] = np.nan
+    with pytest.raises(ValueError, match=f"^{name}: expected finite"):
+        PeriodicSystem(1.0, *args)
+
+
+def test_too_few_samples():
+    M, C, K, f = arrays()
+    with pytest.raises(ValueError, match="n_steps >= 2"):
+        PeriodicSystem(1.0, M[:2], C[:2], K[:2], f[:2])
+
+
+def test_singular_mass_names_the_sample_time():
+    M, C, K, f = arrays()
+    M[3] = np.array([[1.0, 1.0], [1.0, 1.0]])  # singular at t_3 = 3 * 2 / 8 = 0.75 s
+    with pytest.raises(PeriodicError, match=r"mass: .*singular at sample 3 \(t = 0\.75 s"):
+        PeriodicSystem(2.0, M, C, K, f)
+
+
+def test_samples_must_be_periodic():
+    M, C, K, f = arrays()
+    K[-1] *= 1.1
+    with pytest.raises(PeriodicError, match="stiffness: the last sample"):
+        PeriodicSystem(1.0, M, C, K, f)
+
+
+def test_nearly_periodic_samples_warn():
+    M, C, K, f = arrays()
+    K[-1] *= 1.0 + 1e-8
+    with pytest.warns(RuntimeWarning, match="stiffness: samples at t = 0 and t = T differ"):
+        PeriodicSystem(1.0, M, C, K, f)
+
+
+def constant(value):
+    return lambda t: value
+
+
+@pytest.mark.parametrize("n_steps, error", [(1, ValueError), (0, ValueError), (2.0, TypeError), (True, TypeError)])
+def test_from_functions_n_steps(n_steps, error):
+    with pytest.raises(error, match="n_steps"):
+        PeriodicSystem.from_functions(1.0, constant(np.eye(n)), constant(np.eye(n)), constant(np.eye(n)), n_steps=n_steps)
+
+
+def test_from_functions_reports_a_raising_callable_and_time():
+    def stiffness(t):
+        if t > 0.4:
+            raise ZeroDivisionError("boom")
+        return np.eye(n)
+
+    with pytest.raises(ValueError, match=r"stiffness: the callable raised ZeroDivisionError at t = 0\.5 s"):
+        PeriodicSystem.from_functions(1.0, constant(np.eye(n)), constant(np.eye(n)), stiffness, n_steps=4)
+
+
+def test_from_functions_rejects_non_callables():
+    with pytest.raises(TypeError, match="damping: expected a callable"):
+        PeriodicSystem.from_functions(1.0, constant(np.eye(n)), np.eye(n), constant(np.eye(n)), n_steps=4)
+
+
+def test_from_functions_wrong_force_shape():
+    with pytest.raises(ValueError, match="force: expected shape"):
+        PeriodicSystem.from_functions(
+            1.0, constant(np.eye(n)), constant(np.eye(n)), constant(np.eye(n)), constant(np.ones(3)), n_steps=4
+        )
+
+
+def test_steady_state_options():
+    system = PeriodicSystem(1.0, *arrays())
+    with pytest.raises(TypeError):
+        periodic.steady_state(system, n_steps=4)  # unknown option
+    with pytest.raises(TypeError, match="system: expected a periodic.PeriodicSystem"):
+        periodic.steady_state(arrays())
+    with pytest.raises(ValueError, match="extrapolate: .*gamma = 1/2"):
+        periodic.steady_state(system, extrapolate=True, beta=0.36, gamma=0.7)
+    with pytest.raises(ValueError, match="beta, gamma"):
+        periodic.floquet(system, beta=-0.1)
+    with pytest.raises(ValueError, match="resonance_tol"):
+        periodic.steady_state(system, resonance_tol=-1.0)
+
+
+def test_odd_n_steps_needs_estimate_error_false():
+    M, C, K, f = (a[:8] for a in arrays())  # N = 7
+    system = PeriodicSystem(1.0, M, C, K, f)
+    with pytest.raises(PeriodicError, match="n_steps: .*even.*estimate_error=False"):
+        periodic.steady_state(system)
+    result = periodic.steady_state(system, estimate_error=False)
+    assert np.isnan(result.error_estimate) and result.multiplier_errors is None
