@@ -1,0 +1,598 @@
+"""The generic assembler: a ``Mechanism`` -> a ``Model`` of its constrained equations of motion.
+
+Formulation (redundant coordinates, Lagrange's equations with multipliers, seed eq. 2.9-2.13).
+Each link contributes ``(x, y, theta)`` of its frame origin (first pin) and angle, then its elastic
+coordinates ``q``. A material point at abscissa ``x`` of a link sits at
+
+    r = R + A(theta) (xbar + S(x) q),     xbar = (x, 0),   S = [Su; Sw] (2 x n_elastic),
+
+(``S = 0`` for a rigid link, whose points have any local position). With ``L = dr/ds``,
+d'Alembert's principle gives the generalized inertia force ``int L^T r'' dm``, so
+
+    M = sum_g m_g L_g^T L_g + J_g h_g h_g^T,         h = (0, 0, 1, Sw'(x)) (section rotation),
+    Q = sum_g m_g L_g^T (gravity - Ldot_g s') - dPi/ds - C s' + drive torques,
+
+summed over *mass points*: Gauss points of the elastic links (``m = w mu``, ``J = w rho I`` with rotary
+inertia), the centroid of each rigid link (its mass and centroidal inertia) and the point masses.
+This is exactly the kinetic energy of seed eq. 2.12 (every Coriolis, centrifugal and elastic
+coupling term) integrated by Gauss quadrature, exact for FEM and to 1e-14 for Ritz modes (see
+``_beams``). The strain energy is ``1/2 int EA eps^2 + EI w''^2 dx`` with ``eps = u'`` (seed eq. 2.13,
+``geometric_stiffening=False``: the constant matrix ``K0``) or ``eps = u' + w'^2/2``
+(``geometric_stiffening=True``: evaluated at Gauss points). Damping acts on the elastic coordinates
+through a constant matrix ``C0``: Rayleigh ``alpha M_ee + beta K_ee`` (``K_ee`` the linear stiffness,
+so Kelvin-Voigt ``beta`` damps bending and axial strain), modal ratios of the link's own modes
+(frame held fixed), or the explicit matrix.
+
+Constraints: a revolute joint makes two rows ``r_a - r_b = 0``, a slider one row
+``n . (r - origin) = 0``, a prescribed drive one row: the material angle of ``link_b`` at the joint
+(``theta_b + Sw_b'(x) q_b``) minus that of ``link_a`` (0 for the ground) equals ``angle(t)``. A
+torque drive adds ``tau h`` to ``Q`` with ``h`` the gradient of that relative angle.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import numbers
+import warnings
+from dataclasses import dataclass
+from typing import Callable, Mapping
+
+import numpy as np
+from scipy.linalg import eigh
+
+from . import _kernels
+from ._beams import BeamShapes, beam_matrices, beam_shapes
+from ._parts import (GROUND, DampingMatrix, ElasticLink, Mechanism, ModalDamping,
+                     PrescribedDrive, Rayleigh, Revolute, RigidLink, Slider, TorqueDrive)
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class LinkLayout:
+    """Where a link lives in ``s``: coordinates ``offset .. offset + 3 + n_elastic``; ``shapes`` is
+    ``None`` for a rigid link. ``stiffening`` tells whether its strain is ``u' + w'^2/2``."""
+
+    link: RigidLink | ElasticLink
+    offset: int
+    n_elastic: int
+    shapes: BeamShapes | None
+    stiffening: bool
+
+    @property
+    def coords(self) -> slice:
+        return slice(self.offset, self.offset + 3 + self.n_elastic)
+
+    @property
+    def elastic(self) -> slice:
+        return slice(self.offset + 3, self.offset + 3 + self.n_elastic)
+
+
+@dataclass(frozen=True)
+class _DriveInfo:
+    drive: PrescribedDrive | TorqueDrive
+    gradient: np.ndarray        # h (n,): d(relative material angle)/ds
+    row: int                    # constraint row of a prescribed drive, -1 for a torque drive
+    feedforward: Callable | None
+
+
+def drive_law(drive: PrescribedDrive | TorqueDrive, period: float | None, t: float
+              ) -> tuple[float, float, float]:
+    """Nominal relative angle of a drive at time ``t`` (s) with its first and second derivatives:
+    ``offset + rate t + sum_k cos_k cos(k w t) + sin_k sin(k w t)``, ``w = 2 pi / period``."""
+    angle = drive.offset + drive.rate * t
+    rate = drive.rate
+    acc = 0.0
+    if drive.harmonics:
+        w = 2.0 * math.pi / period
+        for k, ck, sk in drive.harmonics:
+            kw = k * w
+            c, s = math.cos(kw * t), math.sin(kw * t)
+            angle += ck * c + sk * s
+            rate += kw * (-ck * s + sk * c)
+            acc -= kw * kw * (ck * c + sk * s)
+    return angle, rate, acc
+
+
+class Model:
+    """The assembled equations of motion of a mechanism (implements ``ConstrainedModel``).
+
+    ``M(s) s'' = Q(s, s', t) - Phi_s^T lam``, ``Phi(s, t) = 0``; see ``mechanisms._protocol`` for the
+    meaning and shapes of every method. Extra attributes: ``mechanism``, ``period`` (s or ``None``),
+    ``layouts`` (name -> ``LinkLayout``), ``drive_rows`` (constraint rows of prescribed drives).
+    """
+
+    def __init__(self, mechanism, layouts, coord_labels, constraint_labels, tables, drives,
+                 period, damping):
+        self.mechanism = mechanism
+        self.layouts: dict[str, LinkLayout] = layouts
+        self.coord_labels = tuple(coord_labels)
+        self.constraint_labels = tuple(constraint_labels)
+        self.n_coords = len(coord_labels)
+        self.n_constraints = len(constraint_labels)
+        self.period = period
+        rigid, elastic = [], []
+        for lay in layouts.values():
+            rigid.extend(range(lay.offset, lay.offset + 3))
+            elastic.extend(range(lay.offset + 3, lay.offset + 3 + lay.n_elastic))
+        self.rigid_index = np.array(rigid, dtype=np.int64)
+        self.elastic_index = np.array(elastic, dtype=np.int64)
+        (self._mp_int, self._mp_real, self._sp_int, self._sp_real, self._ct_int, self._ct_real,
+         self._shp, self._phi0, self._h_lin, self._k0, self._c0) = tables
+        self._damping = damping
+        self._gx, self._gy = (float(g) for g in mechanism.gravity)
+        self._drives: tuple[_DriveInfo, ...] = drives
+        self._torque_drives = tuple(d for d in drives if d.row < 0)
+        self._prescribed = tuple(d for d in drives if d.row >= 0)
+        self.drive_rows = np.array([d.row for d in self._prescribed], dtype=np.int64)
+
+    # --- input checks --------------------------------------------------------------------------
+    def _vector(self, value, size, name):
+        array = np.ascontiguousarray(value, dtype=np.float64)
+        if array.shape != (size,):
+            raise ValueError(f"{name} must have shape ({size},); received shape {array.shape}")
+        if not np.isfinite(array).all():
+            raise ValueError(f"{name} must be finite; received non-finite entries at "
+                             f"{np.flatnonzero(~np.isfinite(array)).tolist()}")
+        return array
+
+    # --- equations of motion -------------------------------------------------------------------
+    def mass_matrix(self, s):
+        s = self._vector(s, self.n_coords, "s")
+        out = np.zeros((self.n_coords, self.n_coords))
+        _kernels.mass_matrix(s, self._mp_int, self._mp_real, self._shp, out)
+        return out
+
+    def forces(self, s, sdot, t):
+        s = self._vector(s, self.n_coords, "s")
+        sdot = self._vector(sdot, self.n_coords, "sdot")
+        out = np.zeros(self.n_coords)
+        _kernels.forces(s, sdot, self._gx, self._gy, self._mp_int, self._mp_real, self._sp_int,
+                        self._sp_real, self._shp, self._k0, self._c0, out)
+        for info in self._torque_drives:
+            out += self._torque(info, s, sdot, t) * info.gradient
+        return out
+
+    def constraints(self, s, t):
+        s = self._vector(s, self.n_coords, "s")
+        out = self._phi0 + self._h_lin @ s
+        for info in self._prescribed:
+            out[info.row] -= drive_law(info.drive, self.period, t)[0]
+        _kernels.constraints(s, self._ct_int, self._ct_real, self._shp, out)
+        return out
+
+    def constraint_jacobian(self, s, t):
+        s = self._vector(s, self.n_coords, "s")
+        out = self._h_lin.copy()
+        _kernels.constraint_jacobian(s, self._ct_int, self._ct_real, self._shp, out)
+        return out
+
+    def constraint_rate(self, s, t):
+        out = np.zeros(self.n_constraints)
+        for info in self._prescribed:
+            out[info.row] = -drive_law(info.drive, self.period, t)[1]
+        return out
+
+    def constraint_gamma(self, s, sdot, t):
+        s = self._vector(s, self.n_coords, "s")
+        sdot = self._vector(sdot, self.n_coords, "sdot")
+        out = np.zeros(self.n_constraints)
+        for info in self._prescribed:
+            out[info.row] = drive_law(info.drive, self.period, t)[2]  # -Phi_tt
+        _kernels.constraint_gamma(s, sdot, self._ct_int, self._ct_real, self._shp, out)
+        return out
+
+    # --- analytic derivatives ------------------------------------------------------------------
+    def mass_matrix_jacobian(self, s, sddot):
+        s = self._vector(s, self.n_coords, "s")
+        sddot = self._vector(sddot, self.n_coords, "sddot")
+        out = np.zeros((self.n_coords, self.n_coords))
+        _kernels.mass_matrix_jacobian(s, sddot, self._mp_int, self._mp_real, self._shp, out)
+        return out
+
+    def force_jacobians(self, s, sdot, t):
+        s = self._vector(s, self.n_coords, "s")
+        sdot = self._vector(sdot, self.n_coords, "sdot")
+        d_s = np.zeros((self.n_coords, self.n_coords))
+        d_v = np.zeros((self.n_coords, self.n_coords))
+        _kernels.force_jacobians(s, sdot, self._gx, self._gy, self._mp_int, self._mp_real,
+                                 self._sp_int, self._sp_real, self._shp, self._k0, self._c0,
+                                 d_s, d_v)
+        for info in self._torque_drives:
+            hh = np.outer(info.gradient, info.gradient)
+            d_s -= info.drive.kp * hh
+            d_v -= info.drive.kd * hh
+        return d_s, d_v
+
+    def constraint_force_jacobian(self, s, lam, t):
+        s = self._vector(s, self.n_coords, "s")
+        lam = self._vector(lam, self.n_constraints, "lam")
+        out = np.zeros((self.n_coords, self.n_coords))
+        _kernels.constraint_force_jacobian(s, lam, self._ct_int, self._ct_real, self._shp, out)
+        return out
+
+    # --- energies and drives -------------------------------------------------------------------
+    def kinetic_energy(self, s, sdot) -> float:
+        s = self._vector(s, self.n_coords, "s")
+        sdot = self._vector(sdot, self.n_coords, "sdot")
+        return float(_kernels.kinetic_energy(s, sdot, self._mp_int, self._mp_real, self._shp))
+
+    def potential_energy(self, s) -> float:
+        s = self._vector(s, self.n_coords, "s")
+        return float(_kernels.potential_energy(s, self._gx, self._gy, self._mp_int, self._mp_real,
+                                               self._sp_int, self._sp_real, self._shp, self._k0))
+
+    def damping_power(self, sdot) -> float:
+        """Power dissipated by the damping of the elastic coordinates, ``s'^T C0 s'`` (W, >= 0)."""
+        sdot = self._vector(sdot, self.n_coords, "sdot")
+        return float(sdot @ self._damping @ sdot) if self._damping is not None else 0.0
+
+    def drive_torques(self, s, sdot, t, lam=None) -> np.ndarray:
+        """Torque (N m) each drive applies to its ``link_b`` (reaction on ``link_a``), in the order of
+        ``mechanism.drives``: ``-lam[row]`` for a prescribed drive (needs ``lam``), the torque law for
+        a torque drive."""
+        s = self._vector(s, self.n_coords, "s")
+        sdot = self._vector(sdot, self.n_coords, "sdot")
+        if self._prescribed and lam is None:
+            raise ValueError("lam is required: the torque of a prescribed drive is its multiplier")
+        if lam is not None:
+            lam = self._vector(lam, self.n_constraints, "lam")
+        return np.array([-lam[info.row] if info.row >= 0 else self._torque(info, s, sdot, t)
+                         for info in self._drives])
+
+    def drive_power(self, s, sdot, t, lam=None) -> float:
+        """Power the drives put in, ``sum tau_i * (relative angle rate)_i`` (W)."""
+        torques = self.drive_torques(s, sdot, t, lam)
+        sdot = self._vector(sdot, self.n_coords, "sdot")
+        return float(sum(tau * (info.gradient @ sdot) for tau, info in zip(torques, self._drives)))
+
+    def _torque(self, info, s, sdot, t):
+        drive = info.drive
+        angle, rate, _ = drive_law(drive, self.period, t)
+        tau = drive.kp * (angle - info.gradient @ s) + drive.kd * (rate - info.gradient @ sdot)
+        if info.feedforward is not None:
+            tau += float(info.feedforward(t))
+        return tau
+
+    # --- observables ---------------------------------------------------------------------------
+    def observable(self, spec: str):
+        """A scalar of ``s`` named by ``spec`` (see ``mechanisms._protocol.Observable``)."""
+        from ._observables import make_observable
+        return make_observable(self, spec)
+
+    def link_coordinates(self, name: str) -> slice:
+        """The slice of ``s`` holding link ``name``'s coordinates ``(x, y, theta, q...)``."""
+        if name not in self.layouts:
+            raise ValueError(f"unknown link {name!r}; links are {list(self.layouts)}")
+        return self.layouts[name].coords
+
+    def __repr__(self):
+        return (f"Model({self.mechanism.name!r}, n_coords={self.n_coords}, "
+                f"n_constraints={self.n_constraints})")
+
+
+# ---------------------------------------------------------------------------------------------------
+# Assembly
+# ---------------------------------------------------------------------------------------------------
+def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Callable] | None = None
+             ) -> Model:
+    """Assemble the equations of motion of ``mechanism``.
+
+    ``feedforward`` is the nominal torque ``tau_nominal(t)`` (N m) of the torque drives: one callable
+    when there is exactly one torque drive, or a mapping from the drive's joint name to a callable;
+    missing ones are zero.
+    """
+    if not isinstance(mechanism, Mechanism):
+        raise TypeError(f"mechanism must be a Mechanism; received {type(mechanism).__name__}")
+    layouts, coord_labels = _layout(mechanism)
+    n = len(coord_labels)
+
+    shp: list[float] = []
+
+    def push(*rows) -> int:
+        pointer = len(shp)
+        for row in rows:
+            shp.extend(np.asarray(row, dtype=float).ravel().tolist())
+        return pointer
+
+    # mass points (seed eq. 2.12) and strain points (eq. 2.13)
+    mp_int, mp_real, sp_int, sp_real = [], [], [], []
+    k0 = np.zeros((n, n))
+    c0 = np.zeros((n, n))
+    for lay in layouts.values():
+        link = lay.link
+        if lay.shapes is None:
+            cx, cy = link.centroid if link.centroid is not None else (0.5 * link.length, 0.0)
+            mp_int.append((lay.offset, 0, 0))
+            mp_real.append((link.mass, link.inertia, cx, cy))
+            continue
+        x, weights = lay.shapes.quadrature
+        v = lay.shapes.evaluate(x)
+        mu = link.density * link.area
+        rho_i = link.density * link.second_moment if link.rotary_inertia else 0.0
+        for g in range(len(x)):
+            pointer = push(v.u[g], v.w[g], v.dw[g])
+            mp_int.append((lay.offset, lay.n_elastic, pointer))
+            mp_real.append((weights[g] * mu, weights[g] * rho_i, x[g], 0.0))
+        m_ee, k_ee = beam_matrices(lay.shapes)
+        if lay.stiffening:
+            ea = link.youngs_modulus * link.area
+            ei = link.youngs_modulus * link.second_moment
+            for g in range(len(x)):
+                pointer = push(v.du[g], v.dw[g], v.ddw[g])
+                sp_int.append((lay.offset, lay.n_elastic, pointer))
+                sp_real.append((weights[g] * ea, weights[g] * ei))
+        else:
+            k0[lay.elastic, lay.elastic] = k_ee
+        c0[lay.elastic, lay.elastic] = _damping_matrix(link, m_ee, k_ee)
+    for index, pm in enumerate(mechanism.point_masses):
+        where = f"point_masses[{index}]"
+        lay = _known_link(layouts, pm.link, where + ".link")
+        _positive(pm.mass, where + ".mass")
+        _non_negative(pm.inertia, where + ".inertia")
+        cx, cy, su, sw, dw = _point_local(lay, pm.point, where + ".point")
+        pointer = push(su, sw, dw)
+        mp_int.append((lay.offset, lay.n_elastic, pointer))
+        mp_real.append((pm.mass, pm.inertia, cx, cy))
+
+    # constraints
+    constraint_labels, ct_int, ct_real, phi0 = [], [], [], []
+    joints = {}
+    for index, joint in enumerate(mechanism.joints):
+        where = f"joints[{index}]"
+        if not isinstance(joint, (Revolute, Slider)):
+            raise TypeError(f"{where} must be a Revolute or a Slider; received "
+                            f"{type(joint).__name__}")
+        if joint.name in joints:
+            raise ValueError(f"{where}: joint name {joint.name!r} is used twice")
+        joints[joint.name] = joint
+        row = len(constraint_labels)
+        if isinstance(joint, Revolute):
+            constraint_labels += [f"{joint.name}.x", f"{joint.name}.y"]
+            phi0 += [0.0, 0.0]
+            for link_name, point, sign, side in ((joint.link_a, joint.point_a, 1.0, "a"),
+                                                 (joint.link_b, joint.point_b, -1.0, "b")):
+                if link_name == GROUND:
+                    gx, gy = _ground_point(point, f"{where}.point_{side}")
+                    phi0[row] += sign * gx
+                    phi0[row + 1] += sign * gy
+                    continue
+                lay = _known_link(layouts, link_name, f"{where}.link_{side}")
+                cx, cy, su, sw, _ = _point_local(lay, point, f"{where}.point_{side}")
+                pointer = push(su, sw)
+                for axis in (0, 1):
+                    ct_int.append((row + axis, lay.offset, lay.n_elastic, pointer))
+                    ct_real.append((sign * (axis == 0), sign * (axis == 1), cx, cy))
+        else:
+            constraint_labels.append(f"{joint.name}.n")
+            lay = _known_link(layouts, joint.link, f"{where}.link")
+            _finite(joint.angle, f"{where}.angle")
+            ox, oy = _ground_point(joint.origin, f"{where}.origin")
+            nx, ny = -math.sin(joint.angle), math.cos(joint.angle)
+            phi0.append(-(nx * ox + ny * oy))
+            cx, cy, su, sw, _ = _point_local(lay, joint.point, f"{where}.point")
+            ct_int.append((row, lay.offset, lay.n_elastic, push(su, sw)))
+            ct_real.append((nx, ny, cx, cy))
+
+    # drives
+    if feedforward is not None and not callable(feedforward) and not isinstance(feedforward,
+                                                                                 Mapping):
+        raise TypeError("feedforward must be a callable tau(t) or a mapping joint name -> callable")
+    torque_joints = [d.joint for d in mechanism.drives if isinstance(d, TorqueDrive)]
+    if callable(feedforward) and len(torque_joints) != 1:
+        raise ValueError(f"feedforward is a single callable but the mechanism has "
+                         f"{len(torque_joints)} torque drives; pass a mapping joint name -> callable")
+    if isinstance(feedforward, Mapping):
+        for key in feedforward:
+            if key not in torque_joints:
+                raise ValueError(f"feedforward names joint {key!r}, which has no TorqueDrive; "
+                                 f"torque drives act at {torque_joints}")
+    drive_rows_h = []
+    drives = []
+    for index, drive in enumerate(mechanism.drives):
+        where = f"drives[{index}]"
+        if not isinstance(drive, (PrescribedDrive, TorqueDrive)):
+            raise TypeError(f"{where} must be a PrescribedDrive or a TorqueDrive; received "
+                            f"{type(drive).__name__}")
+        joint = joints.get(drive.joint)
+        if not isinstance(joint, Revolute):
+            raise ValueError(f"{where}.joint must name a revolute joint; received "
+                             f"{drive.joint!r} (revolute joints: "
+                             f"{[j.name for j in joints.values() if isinstance(j, Revolute)]})")
+        for key in ("rate", "offset") + (("kp", "kd") if isinstance(drive, TorqueDrive) else ()):
+            _finite(getattr(drive, key), f"{where}.{key}")
+        gradient = np.zeros(n)
+        for link_name, point, sign in ((joint.link_a, joint.point_a, -1.0),
+                                       (joint.link_b, joint.point_b, 1.0)):
+            if link_name == GROUND:
+                continue
+            lay = layouts[link_name]
+            *_, dw = _point_local(lay, point, f"joint {joint.name!r}")
+            gradient[lay.offset + 2] += sign
+            gradient[lay.elastic] += sign * dw
+        if isinstance(drive, PrescribedDrive):
+            row = len(constraint_labels)
+            constraint_labels.append(f"drive:{drive.joint}")
+            phi0.append(0.0)
+            drive_rows_h.append((row, gradient))
+            drives.append(_DriveInfo(drive, gradient, row, None))
+        else:
+            law = feedforward if callable(feedforward) else (feedforward or {}).get(drive.joint)
+            drives.append(_DriveInfo(drive, gradient, -1, law))
+    period = _period(mechanism)
+    r = len(constraint_labels)
+    h_lin = np.zeros((r, n))
+    for row, gradient in drive_rows_h:
+        h_lin[row] = gradient
+
+    has_matrices = bool(np.any(k0) or np.any(c0))
+    tables = (
+        np.array(mp_int, dtype=np.int64).reshape(-1, 3),
+        np.array(mp_real, dtype=np.float64).reshape(-1, 4),
+        np.array(sp_int, dtype=np.int64).reshape(-1, 3),
+        np.array(sp_real, dtype=np.float64).reshape(-1, 2),
+        np.array(ct_int, dtype=np.int64).reshape(-1, 4),
+        np.array(ct_real, dtype=np.float64).reshape(-1, 4),
+        np.array(shp, dtype=np.float64),
+        np.array(phi0, dtype=np.float64),
+        h_lin,
+        k0 if has_matrices else np.zeros((0, 0)),
+        c0 if has_matrices else np.zeros((0, 0)),
+    )
+    gx, gy = mechanism.gravity
+    _finite(gx, "gravity[0]")
+    _finite(gy, "gravity[1]")
+    damping = c0 if np.any(c0) else None
+    return Model(mechanism, layouts, coord_labels, constraint_labels, tables, tuple(drives), period,
+                 damping)
+
+
+def _layout(mechanism):
+    layouts: dict[str, LinkLayout] = {}
+    labels: list[str] = []
+    for index, link in enumerate(mechanism.links):
+        where = f"links[{index}]"
+        if not isinstance(link, (RigidLink, ElasticLink)):
+            raise TypeError(f"{where} must be a RigidLink or an ElasticLink; received "
+                            f"{type(link).__name__}")
+        if not isinstance(link.name, str) or not link.name or link.name == GROUND:
+            raise ValueError(f"{where}.name must be a non-empty string other than {GROUND!r}; "
+                             f"received {link.name!r}")
+        if link.name in layouts:
+            raise ValueError(f"{where}: link name {link.name!r} is used twice")
+        _positive(link.length, f"link {link.name!r}: length")
+        offset = len(labels)
+        labels += [f"{link.name}.x", f"{link.name}.y", f"{link.name}.theta"]
+        if isinstance(link, RigidLink):
+            _positive(link.mass, f"link {link.name!r}: mass")
+            _non_negative(link.inertia, f"link {link.name!r}: inertia")
+            layouts[link.name] = LinkLayout(link, offset, 0, None, False)
+            continue
+        shapes = beam_shapes(link)
+        stiffening = link.geometric_stiffening
+        if stiffening and not link.axial:
+            warnings.warn(f"link {link.name!r}: geometric stiffening needs axial deformation "
+                          f"(axial=False); the strain energy falls back to seed eq. 2.13",
+                          stacklevel=3)
+            stiffening = False
+        labels += [f"{link.name}.{label}" for label in shapes.labels]
+        layouts[link.name] = LinkLayout(link, offset, shapes.n_elastic, shapes, stiffening)
+    return layouts, labels
+
+
+def _damping_matrix(link: ElasticLink, m_ee: np.ndarray, k_ee: np.ndarray) -> np.ndarray:
+    damping = link.damping
+    n_e = m_ee.shape[0]
+    if damping is None:
+        return np.zeros((n_e, n_e))
+    if isinstance(damping, Rayleigh):
+        _non_negative(damping.alpha, f"link {link.name!r}: damping.alpha")
+        _non_negative(damping.beta, f"link {link.name!r}: damping.beta")
+        return damping.alpha * m_ee + damping.beta * k_ee
+    if isinstance(damping, ModalDamping):
+        ratios = np.asarray(damping.ratios, dtype=float)
+        if ratios.ndim != 1 or len(ratios) > n_e or not np.all(np.isfinite(ratios)) or np.any(
+                ratios < 0):
+            raise ValueError(f"link {link.name!r}: damping.ratios must be at most {n_e} "
+                             f"non-negative numbers; received {damping.ratios!r}")
+        omega2, modes = eigh(k_ee, m_ee)  # mass-normalised: modes^T M modes = I
+        omega = np.sqrt(np.maximum(omega2[:len(ratios)], 0.0))
+        mphi = m_ee @ modes[:, :len(ratios)]
+        return mphi @ np.diag(2.0 * ratios * omega) @ mphi.T
+    if isinstance(damping, DampingMatrix):
+        matrix = np.asarray(damping.matrix, dtype=float)
+        if matrix.shape != (n_e, n_e) or not np.all(np.isfinite(matrix)):
+            raise ValueError(f"link {link.name!r}: damping.matrix must be a finite ({n_e}, {n_e}) "
+                             f"matrix (one row per elastic coordinate); received shape "
+                             f"{matrix.shape}")
+        return matrix
+    raise TypeError(f"link {link.name!r}: damping must be Rayleigh, ModalDamping, DampingMatrix "
+                    f"or None; received {type(damping).__name__}")
+
+
+def _point_local(lay: LinkLayout, point, where):
+    """Local position ``c`` and shape rows ``(Su, Sw, Sw')`` of a point of a link."""
+    link = lay.link
+    if lay.shapes is None:
+        if isinstance(point, str):
+            if point == "start":
+                local = (0.0, 0.0)
+            elif point == "end":
+                local = (link.length, 0.0)
+            elif point in link.points:
+                local = tuple(float(c) for c in link.points[point])
+            else:
+                raise ValueError(f"{where}: link {link.name!r} has no point {point!r}; use "
+                                 f"'start', 'end', {sorted(link.points)} or a float in "
+                                 f"[0, {link.length}]")
+        else:
+            local = (_abscissa(point, link, where), 0.0)
+        empty = np.zeros(0)
+        return local[0], local[1], empty, empty, empty
+    if point == "start":
+        x = 0.0
+    elif point == "end":
+        x = link.length
+    elif isinstance(point, str):
+        raise ValueError(f"{where}: elastic link {link.name!r} has no named point {point!r}; use "
+                         f"'start', 'end' or a float in [0, {link.length}]")
+    else:
+        x = _abscissa(point, link, where)
+    v = lay.shapes.evaluate([x])
+    return x, 0.0, v.u[0], v.w[0], v.dw[0]
+
+
+def _abscissa(point, link, where):
+    if not isinstance(point, numbers.Real) or not math.isfinite(point) or not (
+            0.0 <= point <= link.length):
+        raise ValueError(f"{where}: a point on link {link.name!r} must be 'start', 'end', a named "
+                         f"point or a float in [0, {link.length}]; received {point!r}")
+    return float(point)
+
+
+def _ground_point(point, where):
+    try:
+        gx, gy = (float(c) for c in point)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: a ground point must be a pair (x, y) in metres; received "
+                         f"{point!r}") from None
+    if not (math.isfinite(gx) and math.isfinite(gy)):
+        raise ValueError(f"{where}: a ground point must be finite; received {point!r}")
+    return gx, gy
+
+
+def _known_link(layouts, name, where):
+    if name not in layouts:
+        raise ValueError(f"{where}: unknown link {name!r}; links are {list(layouts)}")
+    return layouts[name]
+
+
+def _period(mechanism):
+    if mechanism.period is not None:
+        _positive(mechanism.period, "period")
+        return float(mechanism.period)
+    if not mechanism.drives:
+        return None
+    first = mechanism.drives[0]
+    if first.rate != 0.0:
+        return 2.0 * math.pi / abs(first.rate)
+    if any(d.harmonics for d in mechanism.drives):
+        raise ValueError("period is required: a drive has harmonics and the first drive's rate "
+                         "is zero")
+    return None
+
+
+def _finite(value, where):
+    if not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise ValueError(f"{where} must be a finite number; received {value!r}")
+
+
+def _positive(value, where):
+    if not isinstance(value, numbers.Real) or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{where} must be a positive finite number; received {value!r}")
+
+
+def _non_negative(value, where):
+    if not isinstance(value, numbers.Real) or not math.isfinite(value) or value < 0:
+        raise ValueError(f"{where} must be a non-negative finite number; received {value!r}")

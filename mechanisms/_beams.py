@@ -1,0 +1,288 @@
+"""Shape functions of an elastic link and its own mass and stiffness matrices.
+
+An elastic link (``ElasticLink``) is an Euler-Bernoulli beam in a floating frame (see ``_parts``).
+Its displacement field relative to the frame is ``u(x) = Su(x) q`` (axial) and ``w(x) = Sw(x) q``
+(transverse), ``q`` the link's ``n_elastic`` elastic coordinates. This module builds ``Su, Sw`` and
+their derivatives for the three discretisations (seed eq. 2.1-2.8):
+
+* ``Ritz``: pinned-pinned bending ``sin(i pi x / L)`` (eq. 2.2), axial ``sin((2k-1) pi x / (2L))``
+  (eq. 2.4); for ``boundary="clamped-free"`` the clamped-free beam eigenfunctions
+  ``cosh bx - cos bx - sigma (sinh bx - sin bx)``, ``cos bL cosh bL = -1``. Bending coordinates
+  first, then axial.
+* ``UserShapes``: the user's callables, bending first, then axial.
+* ``Fem``: ``n_elements`` equal Hermite elements (eq. 2.5-2.8): linear axial and cubic transverse
+  interpolation, three DOF per node ``(u, w, w')``, ordered node by node; removed DOF: ``u0, w0, wN``
+  for pinned-pinned, ``u0, w0, w'0`` for clamped-free, and every ``u`` when the link has no axial
+  deformation.
+
+Integrals along the link use Gauss-Legendre quadrature (``BeamShapes.quadrature``): per element
+4 points for FEM (exact for the degree-6 mass integrands), 5 points with geometric stiffening (the
+strain energy ``(u' + w'^2/2)^2`` has degree 8). Ritz and user shapes are not polynomials: the number
+of points is doubled until the Gram integrals of all shapes and derivatives and the quartic
+integrals ``int (w_i')^4`` agree to 1e-14 relative, and the smaller rule that already agrees is kept.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ._parts import ElasticLink, Fem, Ritz, UserShapes
+
+_BOUNDARIES = ("pinned-pinned", "clamped-free")
+_QUADRATURE_RTOL = 1e-14
+_MAX_GAUSS_POINTS = 512
+
+
+@dataclass(frozen=True)
+class ShapeValues:
+    """Shape functions at ``m`` abscissae, each (m, n_elastic): axial ``u, du`` (value and d/dx),
+    transverse ``w, dw, ddw`` (value, slope, curvature). Units: 1, 1/m, 1/m^2 per unit coordinate."""
+
+    u: np.ndarray
+    du: np.ndarray
+    w: np.ndarray
+    dw: np.ndarray
+    ddw: np.ndarray
+
+
+@dataclass(frozen=True)
+class BeamShapes:
+    """The discretised displacement field of one elastic link.
+
+    ``labels`` name the elastic coordinates (without the link name); ``quadrature`` is
+    ``(x, weights)``, arrays (n_gauss,) in m, for integrals along the link.
+    """
+
+    link: ElasticLink
+    labels: tuple[str, ...]
+    quadrature: tuple[np.ndarray, np.ndarray]
+
+    @property
+    def n_elastic(self) -> int:
+        return len(self.labels)
+
+    def evaluate(self, x) -> ShapeValues:
+        """Shape functions at abscissae ``x`` (m, in ``[0, length]``), arrays (m, n_elastic)."""
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        length = self.link.length
+        if x.ndim != 1 or not np.all(np.isfinite(x)) or np.any(x < -1e-12 * length) or np.any(
+                x > length * (1 + 1e-12)):
+            raise ValueError(f"x must be finite abscissae in [0, {length}] m on link "
+                             f"{self.link.name!r}; received {x!r}")
+        x = np.clip(x, 0.0, length)  # only round-off beyond the ends (checked above) is clipped
+        disc = self.link.discretisation
+        if isinstance(disc, Fem):
+            return _fem_values(self.link, disc, x)
+        return _ritz_values(self.link, x)
+
+
+def beam_shapes(link: ElasticLink) -> BeamShapes:
+    """Shape functions and quadrature of ``link``; raises ``ValueError`` on bad options."""
+    if link.boundary not in _BOUNDARIES:
+        raise ValueError(f"link {link.name!r}: boundary must be one of {_BOUNDARIES}; "
+                         f"received {link.boundary!r}")
+    for key in ("length", "density", "youngs_modulus", "area", "second_moment"):
+        value = getattr(link, key)
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise ValueError(f"link {link.name!r}: {key} must be a positive finite number; "
+                             f"received {value!r}")
+    disc = link.discretisation
+    if isinstance(disc, Fem):
+        if not (isinstance(disc.n_elements, int) and disc.n_elements >= 1):
+            raise ValueError(f"link {link.name!r}: Fem.n_elements must be an integer >= 1; "
+                             f"received {disc.n_elements!r}")
+        labels = tuple(f"{kind}{node}" for node, kind in _fem_kept_dofs(link, disc)[1])
+        n_per_element = 5 if link.geometric_stiffening else 4
+        xg, wg = np.polynomial.legendre.leggauss(n_per_element)
+        h = link.length / disc.n_elements
+        starts = h * np.arange(disc.n_elements)
+        x = (starts[:, None] + 0.5 * h * (xg + 1.0)[None, :]).ravel()
+        weights = np.tile(0.5 * h * wg, disc.n_elements)
+        return BeamShapes(link, labels, (x, weights))
+    if isinstance(disc, Ritz):
+        if not (isinstance(disc.n_bending, int) and disc.n_bending >= 0
+                and isinstance(disc.n_axial, int) and disc.n_axial >= 0):
+            raise ValueError(f"link {link.name!r}: Ritz.n_bending and Ritz.n_axial must be "
+                             f"integers >= 0; received {disc!r}")
+        n_axial = disc.n_axial if link.axial else 0
+        labels = tuple(f"b{i + 1}" for i in range(disc.n_bending)) + tuple(
+            f"a{k + 1}" for k in range(n_axial))
+    elif isinstance(disc, UserShapes):
+        for kind in ("bending", "axial"):
+            if not all(callable(f) for f in getattr(disc, kind)):
+                raise TypeError(f"link {link.name!r}: UserShapes.{kind} must hold callables "
+                                f"f(x, length) -> (value, d/dx, d2/dx2)")
+        n_axial = len(disc.axial) if link.axial else 0
+        labels = tuple(f"b{i + 1}" for i in range(len(disc.bending))) + tuple(
+            f"a{k + 1}" for k in range(n_axial))
+    else:
+        raise TypeError(f"link {link.name!r}: discretisation must be Ritz, UserShapes or Fem; "
+                        f"received {type(disc).__name__}")
+    shapes = BeamShapes(link, labels, (np.zeros(0), np.zeros(0)))
+    return BeamShapes(link, labels, _adaptive_quadrature(shapes))
+
+
+def beam_matrices(shapes: BeamShapes) -> tuple[np.ndarray, np.ndarray]:
+    """The link's own mass and linear stiffness matrices, each (n_elastic, n_elastic).
+
+    ``M = int mu (Su^T Su + Sw^T Sw) dx (+ int rho I Sw'^T Sw' dx with rotary inertia)``,
+    ``K = int EA Su'^T Su' + EI Sw''^T Sw'' dx`` (seed eq. 2.13, frame held fixed); kg and N/m.
+    """
+    link = shapes.link
+    x, weights = shapes.quadrature
+    v = shapes.evaluate(x)
+    mu = link.density * link.area
+    mass = mu * (v.u.T @ (weights[:, None] * v.u) + v.w.T @ (weights[:, None] * v.w))
+    if link.rotary_inertia:
+        mass += link.density * link.second_moment * (v.dw.T @ (weights[:, None] * v.dw))
+    stiffness = (link.youngs_modulus * link.area * (v.du.T @ (weights[:, None] * v.du))
+                 + link.youngs_modulus * link.second_moment * (v.ddw.T @ (weights[:, None] * v.ddw)))
+    return 0.5 * (mass + mass.T), 0.5 * (stiffness + stiffness.T)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Ritz and user shapes
+# ---------------------------------------------------------------------------------------------------
+def clamped_free_roots(n: int) -> np.ndarray:
+    """The first ``n`` roots ``beta L`` of ``cos(b) cosh(b) = -1`` (1.8751, 4.6941, ...)."""
+    f = lambda b: math.cos(b) + 1.0 / math.cosh(b)  # same roots, no overflow
+    return np.array([brentq(f, (i - 1) * math.pi + 1e-3, i * math.pi, xtol=1e-15, rtol=1e-15)
+                     for i in range(1, n + 1)])
+
+
+def _clamped_free_mode(x: np.ndarray, beta: float, length: float):
+    """Clamped-free eigenfunction ``cosh bx - cos bx - sigma (sinh bx - sin bx)`` and two
+    derivatives, written with decaying exponentials so that high modes do not cancel."""
+    bl = beta * length
+    denominator = math.sinh(bl) + math.sin(bl)
+    sigma = (math.cosh(bl) + math.cos(bl)) / denominator
+    one_minus_sigma = (math.sin(bl) - math.cos(bl) - math.exp(-bl)) / denominator
+    bx = beta * x
+    grow = 0.5 * one_minus_sigma * np.exp(bx)      # e^{bx} (1 - sigma) / 2
+    decay = 0.5 * (1.0 + sigma) * np.exp(-bx)      # e^{-bx} (1 + sigma) / 2
+    value = decay + grow - np.cos(bx) + sigma * np.sin(bx)
+    slope = beta * (grow - decay + np.sin(bx) + sigma * np.cos(bx))
+    curvature = beta**2 * (grow + decay + np.cos(bx) - sigma * np.sin(bx))
+    return value, slope, curvature
+
+
+def _ritz_values(link: ElasticLink, x: np.ndarray) -> ShapeValues:
+    disc = link.discretisation
+    length = link.length
+    bending, axial = [], []
+    if isinstance(disc, Ritz):
+        if link.boundary == "pinned-pinned":
+            for i in range(1, disc.n_bending + 1):
+                k = i * math.pi / length
+                bending.append((np.sin(k * x), k * np.cos(k * x), -k * k * np.sin(k * x)))
+        else:
+            for beta_l in clamped_free_roots(disc.n_bending):
+                bending.append(_clamped_free_mode(x, beta_l / length, length))
+        if link.axial:
+            for j in range(1, disc.n_axial + 1):
+                k = (2 * j - 1) * math.pi / (2 * length)
+                axial.append((np.sin(k * x), k * np.cos(k * x), -k * k * np.sin(k * x)))
+    else:
+        bending = [_call_user(f, x, link, "bending", i) for i, f in enumerate(disc.bending)]
+        if link.axial:
+            axial = [_call_user(f, x, link, "axial", i) for i, f in enumerate(disc.axial)]
+    m, nb, na = len(x), len(bending), len(axial)
+    u, du, w, dw, ddw = (np.zeros((m, nb + na)) for _ in range(5))
+    for i, (value, slope, curvature) in enumerate(bending):
+        w[:, i], dw[:, i], ddw[:, i] = value, slope, curvature
+    for j, (value, slope, _) in enumerate(axial):
+        u[:, nb + j], du[:, nb + j] = value, slope
+    return ShapeValues(u, du, w, dw, ddw)
+
+
+def _call_user(f, x, link, kind, index):
+    result = f(x, link.length)
+    try:
+        arrays = tuple(np.broadcast_to(np.asarray(a, dtype=float), x.shape) for a in result)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"link {link.name!r}: UserShapes.{kind}[{index}] must return "
+                         f"(value, d/dx, d2/dx2), arrays shaped like x") from error
+    if len(arrays) != 3 or not all(np.all(np.isfinite(a)) for a in arrays):
+        raise ValueError(f"link {link.name!r}: UserShapes.{kind}[{index}] must return three "
+                         f"finite arrays (value, d/dx, d2/dx2)")
+    return arrays
+
+
+def _quadrature_integrals(shapes: BeamShapes, n: int) -> np.ndarray:
+    xg, wg = np.polynomial.legendre.leggauss(n)
+    length = shapes.link.length
+    x, weights = 0.5 * length * (xg + 1.0), 0.5 * length * wg
+    v = shapes.evaluate(x)
+    features = np.hstack([v.u, v.du, v.w, v.dw, v.ddw])
+    gram = features.T @ (weights[:, None] * features)
+    quartic = weights @ v.dw**4
+    # scale each integral by its Cauchy-Schwarz bound so that small entries are held to 1e-14 too
+    diag = np.sqrt(np.abs(np.diag(gram)))
+    scale = np.outer(diag, diag) + np.finfo(float).tiny
+    return np.concatenate([(gram / scale).ravel(), quartic / (weights @ np.abs(v.dw) ** 4 + 1e-300)])
+
+
+def _adaptive_quadrature(shapes: BeamShapes) -> tuple[np.ndarray, np.ndarray]:
+    n = 8
+    previous = _quadrature_integrals(shapes, n)
+    while True:
+        if 2 * n > _MAX_GAUSS_POINTS:
+            raise ValueError(f"link {shapes.link.name!r}: the shape-function integrals do not "
+                             f"converge with {_MAX_GAUSS_POINTS} Gauss points; are the user shapes "
+                             f"smooth?")
+        current = _quadrature_integrals(shapes, 2 * n)
+        if np.max(np.abs(current - previous)) <= _QUADRATURE_RTOL * 10:
+            break
+        n, previous = 2 * n, current
+    xg, wg = np.polynomial.legendre.leggauss(n)
+    length = shapes.link.length
+    return 0.5 * length * (xg + 1.0), 0.5 * length * wg
+
+
+# ---------------------------------------------------------------------------------------------------
+# Hermite finite elements
+# ---------------------------------------------------------------------------------------------------
+def _fem_kept_dofs(link: ElasticLink, disc: Fem):
+    """Indices of the kept DOF in the full node-wise vector ``(u_j, w_j, w'_j)``, and their names."""
+    n_nodes = disc.n_elements + 1
+    removed = {0, 1} | ({2} if link.boundary == "clamped-free" else {3 * (n_nodes - 1) + 1})
+    if not link.axial:
+        removed |= {3 * j for j in range(n_nodes)}
+    kept = [d for d in range(3 * n_nodes) if d not in removed]
+    names = [(d // 3, "uwr"[d % 3]) for d in kept]
+    return np.array(kept, dtype=np.int64), names
+
+
+def _fem_values(link: ElasticLink, disc: Fem, x: np.ndarray) -> ShapeValues:
+    n_el = disc.n_elements
+    h = link.length / n_el
+    element = np.minimum((x / h).astype(np.int64), n_el - 1)
+    xi = x / h - element
+    m = len(x)
+    full = 3 * (n_el + 1)
+    u, du, w, dw, ddw = (np.zeros((m, full)) for _ in range(5))
+    rows = np.arange(m)
+    first = 3 * element  # DOF of the element's first node
+    # seed eq. 2.8: linear axial interpolation
+    u[rows, first], u[rows, first + 3] = 1.0 - xi, xi
+    du[rows, first], du[rows, first + 3] = -1.0 / h, 1.0 / h
+    # seed eq. 2.6: cubic Hermite transverse interpolation (w_i, w'_i, w_{i+1}, w'_{i+1})
+    xi2, xi3 = xi * xi, xi * xi * xi
+    w[rows, first + 1] = 1.0 - 3.0 * xi2 + 2.0 * xi3
+    w[rows, first + 2] = h * (xi - 2.0 * xi2 + xi3)
+    w[rows, first + 4] = 3.0 * xi2 - 2.0 * xi3
+    w[rows, first + 5] = h * (xi3 - xi2)
+    dw[rows, first + 1] = (6.0 * xi2 - 6.0 * xi) / h
+    dw[rows, first + 2] = 1.0 - 4.0 * xi + 3.0 * xi2
+    dw[rows, first + 4] = (6.0 * xi - 6.0 * xi2) / h
+    dw[rows, first + 5] = 3.0 * xi2 - 2.0 * xi
+    ddw[rows, first + 1] = (12.0 * xi - 6.0) / h**2
+    ddw[rows, first + 2] = (6.0 * xi - 4.0) / h
+    ddw[rows, first + 4] = (6.0 - 12.0 * xi) / h**2
+    ddw[rows, first + 5] = (6.0 * xi - 2.0) / h
+    kept, _ = _fem_kept_dofs(link, disc)
+    return ShapeValues(u[:, kept], du[:, kept], w[:, kept], dw[:, kept], ddw[:, kept])
