@@ -34,7 +34,6 @@ from __future__ import annotations
 import logging
 import math
 import numbers
-import warnings
 from dataclasses import dataclass
 from typing import Callable, Mapping
 
@@ -472,9 +471,8 @@ def _layout(mechanism):
         shapes = beam_shapes(link)
         stiffening = link.geometric_stiffening
         if stiffening and not link.axial:
-            warnings.warn(f"link {link.name!r}: geometric stiffening needs axial deformation "
-                          f"(axial=False); the strain energy falls back to seed eq. 2.13",
-                          stacklevel=3)
+            logger.warning("link %r: geometric stiffening needs axial deformation (axial=False); "
+                           "its strain energy falls back to seed eq. 2.13", link.name)
             stiffening = False
         labels += [f"{link.name}.{label}" for label in shapes.labels]
         layouts[link.name] = LinkLayout(link, offset, shapes.n_elastic, shapes, stiffening)

@@ -58,10 +58,11 @@ def random_state(model, rng, *, q_scale=1e-3):
     n = model.n_coords
     s = rng.uniform(-1.0, 1.0, n)
     s[model.rigid_index] *= 0.3
-    s[[2, 5, 11]] = rng.uniform(-math.pi, math.pi, 3)
+    angles = model.rigid_index[2::3]
+    s[angles] = rng.uniform(-math.pi, math.pi, len(angles))
     s[model.elastic_index] *= q_scale
     sdot = rng.uniform(-1.0, 1.0, n) * 20.0
-    sdot[[2, 5, 11]] *= 10.0               # angular rates ~ 100 rad/s as in the thesis
+    sdot[angles] *= 10.0               # angular rates ~ 100 rad/s as in the thesis
     sdot[model.elastic_index] *= q_scale * 100.0
     return s, sdot
 
@@ -256,3 +257,245 @@ def test_assembler_matches_sympy_lagrange(derived):
         assert rel(model.forces(s_rigid, zero, t), gravity_only) < 1e-10
         assert rel(model.constraint_jacobian(s, t), jac_f(s, sdot, t)) < 1e-10
         assert rel(model.constraints(s, t), np.asarray(phi_f(s, sdot, t), float).ravel()) < 1e-10
+
+
+# ---------------------------------------------------------------------------------------------------
+# analytic derivatives against central differences
+# ---------------------------------------------------------------------------------------------------
+# Central differences with step h_k = 1e-5 * scale_k (scale 1 for frame coordinates, 1e-3 for the
+# elastic ones, the size of the state): truncation ~ (h/scale)^2 * |f'''| / 6 ~ 1e-11 relative,
+# round-off ~ eps |f| / h ~ 1e-11 relative, so agreement to 1e-7 leaves a margin of 1e3 for the
+# spread of curvature scales, while a missing or wrong term is an O(1) relative error of its block.
+FD_RTOL = 1e-7
+
+CASES = {
+    "ritz-stiffening": dict(discretisation=Ritz(2, 1)),
+    "fem3-rotary-torque": dict(discretisation=Fem(3), rotary=True, torque=True),
+    "fem2-seed-eq-2.13": dict(discretisation=Fem(2), stiffening=False),
+    # a soft coupler so that the inertia and gravity terms are not hidden behind the elastic ones
+    "fem2-soft": dict(discretisation=Fem(2), young=2.0e4),
+}
+
+
+@pytest.fixture(scope="module", params=list(CASES), ids=list(CASES))
+def case(request):
+    model = assemble(fourbar(**CASES[request.param]))
+    return model, np.random.default_rng(7)
+
+
+def _central_jacobian(f, x, scales, rel_step=1e-5):
+    """Central differences and their round-off bound, each (m, n): 10 eps max|f| / h_k per column
+    (the cancellation in f(x + h) - f(x - h) of large entries limits small ones)."""
+    columns, roundoff = [], []
+    for k in range(len(x)):
+        h = rel_step * scales[k]
+        e = np.zeros(len(x))
+        e[k] = h
+        plus, minus = f(x + e), f(x - e)
+        columns.append((plus - minus) / (2.0 * h))
+        bound = 10.0 * np.finfo(float).eps * max(np.max(np.abs(plus)), np.max(np.abs(minus))) / h
+        roundoff.append(np.full(len(plus), bound))
+    return np.array(columns).T, np.array(roundoff).T
+
+
+def _blockwise_close(analytic, numeric_and_roundoff, model, rtol, *, all_rows=False):
+    """Compare the rigid-rigid, rigid-elastic, ... blocks each on its own norm, allowing the
+    truncation (rtol) and the round-off bound of the differences. ``all_rows`` for (r, n)."""
+    numeric, roundoff = numeric_and_roundoff
+    groups = (model.rigid_index, model.elastic_index)
+    row_groups = (np.arange(analytic.shape[0]),) if all_rows else groups
+    for rows in row_groups:
+        for cols in groups:
+            block = np.ix_(rows, cols)
+            error = np.linalg.norm(analytic[block] - numeric[block])
+            allowed = rtol * np.linalg.norm(numeric[block]) + np.linalg.norm(roundoff[block])
+            assert error <= allowed, (f"block rows {rows[:3]}..., cols {cols[:3]}...: error "
+                                      f"{error:.3e} > allowed {allowed:.3e}")
+
+
+def test_derivatives_match_central_differences(case):
+    model, rng = case
+    n, r = model.n_coords, model.n_constraints
+    scales = np.ones(n)
+    scales[model.elastic_index] = 1e-3
+    for _ in range(2):
+        s, sdot = random_state(model, rng)
+        sddot = rng.normal(size=n) * 100.0
+        lam = rng.normal(size=r) * 10.0
+        t = rng.uniform(0.0, 0.06)
+        _blockwise_close(model.mass_matrix_jacobian(s, sddot),
+                         _central_jacobian(lambda x: model.mass_matrix(x) @ sddot, s, scales),
+                         model, FD_RTOL)
+        d_s, d_v = model.force_jacobians(s, sdot, t)
+        _blockwise_close(d_s, _central_jacobian(lambda x: model.forces(x, sdot, t), s, scales),
+                         model, FD_RTOL)
+        v_scales = np.abs(sdot) + 1.0
+        _blockwise_close(d_v, _central_jacobian(lambda x: model.forces(s, x, t), sdot, v_scales),
+                         model, FD_RTOL)
+        _blockwise_close(
+            model.constraint_force_jacobian(s, lam, t),
+            _central_jacobian(lambda x: model.constraint_jacobian(x, t).T @ lam, s, scales),
+            model, FD_RTOL)
+        _blockwise_close(model.constraint_jacobian(s, t),
+                         _central_jacobian(lambda x: model.constraints(x, t), s, scales),
+                         model, FD_RTOL, all_rows=True)
+
+
+def test_gamma_and_rate_are_time_derivatives_of_the_constraints(case):
+    """Along s(tau) = s + s' tau + a tau^2 / 2 at time t + tau: dPhi/dtau = Phi_s s' + Phi_t and
+    d2Phi/dtau2 = Phi_s a - gamma (protocol). Five-point differences with h = 1e-5 s: with angular
+    rates w up to ~200 rad/s, |Phi^(k)| ~ w^k * 0.3 m, the truncation relative to the derivative is
+    ~ (w h)^4 / 30 ~ 1e-12; round-off eps |Phi| / h^2 ~ 3e-7 m/s^2 against |Phi''| ~ w^2 0.3 m ~ 1e4
+    m/s^2 (and eps |Phi| / h ~ 3e-12 m/s against |Phi'| ~ 60 m/s): 1e-6 relative is safe."""
+    model, rng = case
+    s, sdot = random_state(model, rng)
+    a = rng.normal(size=model.n_coords) * 100.0
+    t = 0.01
+    h = 1e-5
+    along = lambda tau: model.constraints(s + sdot * tau + 0.5 * a * tau**2, t + tau)
+    f = [along(k * h) for k in (-2, -1, 0, 1, 2)]
+    first = (f[0] - 8 * f[1] + 8 * f[3] - f[4]) / (12 * h)
+    second = (-f[0] + 16 * f[1] - 30 * f[2] + 16 * f[3] - f[4]) / (12 * h * h)
+    jac = model.constraint_jacobian(s, t)
+    expected_first = jac @ sdot + model.constraint_rate(s, t)
+    expected_second = jac @ a - model.constraint_gamma(s, sdot, t)
+    assert np.linalg.norm(first - expected_first) <= 1e-6 * np.linalg.norm(expected_first)
+    assert np.linalg.norm(second - expected_second) <= 1e-6 * np.linalg.norm(expected_second)
+
+
+def test_energies_are_consistent_with_the_equations(case):
+    """T = s'^T M s' / 2; with s' = 0 the forces are -dV/ds (plus the torque drive's PD law);
+    the velocity forces do no work but the damping's: s'.(Q(s, s') - Q(s, 0)) =
+    -1/2 s'^T (dM/ds s') s' - s'^T C s' (Lagrange: s'.k = 1/2 s'^T Mdot s')."""
+    model, rng = case
+    s, sdot = random_state(model, rng)
+    t = 0.02
+    zero = np.zeros(model.n_coords)
+    kinetic = model.kinetic_energy(s, sdot)
+    assert kinetic == pytest.approx(0.5 * sdot @ model.mass_matrix(s) @ sdot, rel=1e-12)
+    scales = np.ones(model.n_coords)
+    scales[model.elastic_index] = 1e-3
+    grad_v = _central_jacobian(lambda x: np.array([model.potential_energy(x)]), s, scales)[0][0]
+    drive_force = model.forces(s, zero, t) + grad_v
+    torque_driven = any(isinstance(d, TorqueDrive) for d in model.mechanism.drives)
+    crank_angle = np.zeros(model.n_coords)
+    crank_angle[2] = 1.0          # gradient of the drive's relative angle (ground to rigid crank)
+    if torque_driven:
+        drive_force -= model.drive_torques(s, zero, t)[0] * crank_angle
+    assert np.linalg.norm(drive_force) <= FD_RTOL * np.linalg.norm(grad_v)
+    power = sdot @ (model.forces(s, sdot, t) - model.forces(s, zero, t))
+    if torque_driven:
+        power -= (model.drive_torques(s, sdot, t) - model.drive_torques(s, zero, t))[0] * sdot[2]
+    mdot = model.mass_matrix_jacobian(s, sdot)
+    expected = -0.5 * sdot @ mdot @ sdot - model.damping_power(sdot)
+    assert power == pytest.approx(expected, rel=1e-10, abs=1e-12 * kinetic * 100)
+
+
+# ---------------------------------------------------------------------------------------------------
+# constraint values on known configurations, observables, bad input
+# ---------------------------------------------------------------------------------------------------
+def test_slider_crank_constraints_vanish_on_the_closed_form_configuration():
+    """Crank r at angle phi from O, rod l whose end slides on the x-axis: x_B = r cos phi +
+    sqrt(l^2 - r^2 sin^2 phi), rod angle -asin(r sin phi / l). The rod is elastic (FEM) with zero
+    deflection. Phi = 0 to round-off; the drive row is the crank angle minus the law."""
+    r, l, phi = 0.15, 0.30, 0.7
+    crank = RigidLink.uniform("crank", r, **STEEL)
+    rod = ElasticLink.rectangular("rod", l, youngs_modulus=E, discretisation=Fem(2), **STEEL)
+    mech = Mechanism("slider-crank", (crank, rod),
+                     (Revolute("O", GROUND, (0.0, 0.0), "crank", "start"),
+                      Revolute("A", "crank", "end", "rod", "start"),
+                      Slider("S", "rod", "end", origin=(0.05, 0.0), angle=0.0)),
+                     (PrescribedDrive("O", rate=150.0, offset=phi),))
+    model = assemble(mech)
+    assert model.constraint_labels == ("O.x", "O.y", "A.x", "A.y", "S.n", "drive:O")
+    beta = -math.asin(r * math.sin(phi) / l)
+    s = np.zeros(model.n_coords)
+    s[model.link_coordinates("crank")][:3] = (0.0, 0.0, phi)
+    s[model.link_coordinates("rod")][:3] = (r * math.cos(phi), r * math.sin(phi), beta)
+    assert np.max(np.abs(model.constraints(s, 0.0))) < 1e-15
+    assert model.constraints(s, 1e-3)[-1] == pytest.approx(-0.15, rel=1e-12)
+    # lifting the slider's line by 1 mm shows up in its row only
+    lifted = assemble(Mechanism("lifted", mech.links, mech.joints[:2] + (
+        Slider("S", "rod", "end", origin=(0.05, 0.001), angle=0.0),), mech.drives))
+    assert lifted.constraints(s, 0.0) == pytest.approx([0, 0, 0, 0, -0.001, 0], abs=1e-15)
+
+
+def test_observables_values_and_gradients():
+    """Pinned-pinned coupler: deflection@f is w(fL) (the frame is the chord), moment is EI w'',
+    strain u' + w'^2/2; gradients against central differences (the values are at most quadratic
+    in q and the step is 1e-9, so differences agree to ~1e-7 relative)."""
+    model = assemble(fourbar(Fem(4)))
+    rng = np.random.default_rng(3)
+    s, _ = random_state(model, rng)
+    shapes = model.layouts["coupler"].shapes
+    q = s[model.layouts["coupler"].elastic]
+    values = shapes.evaluate([0.3 * L2])
+    deflection = model.observable("coupler.deflection@0.3")
+    assert deflection.unit == "m"
+    assert deflection.value(s) == pytest.approx(values.w[0] @ q, rel=1e-12)
+    moment = model.observable("coupler.moment@0.3")
+    assert moment.value(s) == pytest.approx(E * SECOND_MOMENT * values.ddw[0] @ q, rel=1e-12)
+    strain = model.observable("coupler.strain@0.3")
+    assert strain.value(s) == pytest.approx(values.du[0] @ q + 0.5 * (values.dw[0] @ q) ** 2,
+                                            rel=1e-12)
+    assert model.observable("rocker.angle").value(s) == s[model.link_coordinates("rocker")][2]
+    for spec in ("coupler.deflection", "coupler.strain@0.8", "coupler.moment@0.3", "rocker.angle"):
+        obs = model.observable(spec)
+        scales = np.ones(model.n_coords)
+        scales[model.elastic_index] = 1e-3
+        numeric, roundoff = _central_jacobian(lambda x: np.array([obs.value(x)]), s, scales,
+                                              rel_step=1e-6)
+        assert np.all(np.abs(obs.gradient(s) - numeric[0])
+                      <= 1e-7 * np.max(np.abs(numeric)) + roundoff[0])
+
+
+def test_clamped_free_deflection_is_measured_from_the_chord():
+    """A clamped-free arm bent into its first mode: the tip lies on the chord (zero deflection),
+    midspan lies off it by the closed-form distance from the chord."""
+    arm = ElasticLink.rectangular("arm", 0.5, youngs_modulus=E, discretisation=Ritz(1, 0),
+                                  boundary="clamped-free", axial=False,
+                                  geometric_stiffening=False, **STEEL)
+    mech = Mechanism("arm", (arm,), (Revolute("O", GROUND, (0.0, 0.0), "arm", "start"),),
+                     (PrescribedDrive("O", rate=1.0),))
+    model = assemble(mech)
+    s = np.array([0.0, 0.0, 0.2, 0.01])
+    v = model.layouts["arm"].shapes.evaluate([0.25, 0.5])
+    chord = np.array([0.5, v.w[1, 0] * 0.01])
+    point = np.array([0.25, v.w[0, 0] * 0.01])
+    expected = (chord[0] * point[1] - chord[1] * point[0]) / np.linalg.norm(chord)
+    assert model.observable("arm.deflection@0.5").value(s) == pytest.approx(expected, rel=1e-12)
+    assert model.observable("arm.deflection@1").value(s) == pytest.approx(0.0, abs=1e-15)
+
+
+def _replace(mechanism, **changes):
+    return Mechanism(**{**{f: getattr(mechanism, f) for f in (
+        "name", "links", "joints", "drives", "point_masses", "gravity")}, **changes})
+
+
+@pytest.mark.parametrize("change, culprit", [
+    (lambda m: _replace(m, joints=m.joints[:1] + (
+        Revolute("A", "crank", "end", "coupling", "start"),) + m.joints[2:]), "coupling"),
+    (lambda m: _replace(m, drives=(PrescribedDrive("Q", rate=1.0),)), "Q"),
+    (lambda m: _replace(m, links=(RigidLink("crank", -0.05, mass=0.1, inertia=1e-5),)
+                        + m.links[1:]), "length"),
+    (lambda m: _replace(m, joints=m.joints[:1] + (
+        Revolute("A", "crank", "middle", "coupler", "start"),) + m.joints[2:]), "middle"),
+    (lambda m: _replace(m, joints=m.joints[:1] + (
+        Revolute("A", "crank", "end", "coupler", 0.5),) + m.joints[2:]), "0.5"),
+])
+def test_bad_mechanisms_are_rejected_with_the_offending_part_named(change, culprit):
+    """Whether ``Mechanism`` itself or ``assemble`` catches it, the message names the culprit."""
+    with pytest.raises(ValueError, match=culprit):
+        assemble(change(fourbar()))
+
+
+def test_bad_call_arguments_are_rejected():
+    model = assemble(fourbar())
+    with pytest.raises(ValueError, match=r"s must have shape \(12,\)"):
+        model.mass_matrix(np.zeros(11))
+    with pytest.raises(ValueError, match="sdot must be finite"):
+        model.forces(np.zeros(12), np.full(12, np.nan), 0.0)
+    with pytest.raises(ValueError, match="unknown quantity 'bend'"):
+        model.observable("coupler.bend@0.5")
+    with pytest.raises(ValueError, match="needs an elastic link"):
+        model.observable("crank.deflection")
