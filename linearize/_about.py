@@ -1,0 +1,305 @@
+"""``linearize.about``: a mechanism linearised about its nominal rigid motion, as a periodic system,
+and ``linearize.speed_family``: the same with its coefficients as polynomials in the crank speed."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+import mechanisms
+import periodic
+
+from ._core import (WARN_CONDITION, LinearCoefficients, LinearizationError, choose_independent,
+                    linear_coefficients)
+from ._geometric import geometric_stiffness
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["LinearizedMechanism", "SpeedFamily", "about", "speed_family", "default_observables"]
+
+
+@dataclass(frozen=True)
+class LinearizedMechanism:
+    """A mechanism's elastic vibration about its nominal motion, ``M z'' + C z' + K z = f``.
+
+    ``system``: the ``periodic.PeriodicSystem`` in the independent coordinates ``z`` (m,), labelled
+    by ``labels``; ``nominal``: the ``mechanisms.NominalMotion`` it is linearised about (same grid);
+    ``crank_angle`` (N+1,) rad: the first drive's angle on the grid; ``observables``: the specs that
+    ``observe`` reports; ``coefficients``: the ``LinearCoefficients`` with the basis ``V`` (N+1, n, m)
+    and the conditioning diagnostics; ``run_time`` (s) of the linearisation.
+    """
+
+    mechanism: Any
+    nominal: Any
+    system: periodic.PeriodicSystem
+    labels: tuple[str, ...]
+    crank_angle: np.ndarray
+    observables: tuple[str, ...]
+    observable_maps: dict
+    coefficients: LinearCoefficients
+    run_time: float
+
+    def observe(self, z: np.ndarray) -> dict[str, np.ndarray]:
+        """Observable deviations (N+1,) from the independent-coordinate history ``z`` (N+1, m)."""
+        z = np.asarray(z, dtype=float)
+        if z.shape != self.system.f.shape:
+            raise ValueError(f"z must have shape {self.system.f.shape} (samples, independent "
+                             f"coordinates); received shape {z.shape}")
+        return {spec: np.einsum("ki,ki->k", gmap, z) for spec, gmap in self.observable_maps.items()}
+
+    def full_state(self, z: np.ndarray, zdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Full coordinates and rates (N+1, n): nominal motion plus ``x = V z``,
+        ``x' = V z' + V' z``."""
+        c = self.coefficients
+        s = self.nominal.s + np.einsum("kni,ki->kn", c.V, z)
+        sdot = self.nominal.sdot + np.einsum("kni,ki->kn", c.V, zdot) + np.einsum(
+            "kni,ki->kn", c.Vdot, z)
+        return s, sdot
+
+    def frozen_frequencies(self) -> np.ndarray:
+        """Natural frequencies (N+1, m), rad/s, of the frozen-time systems ``(K(t_k), M(t_k))``
+        (negative where an eigenvalue is negative: a frozen-time divergence), ascending."""
+        import scipy.linalg
+
+        out = np.empty(self.system.f.shape)
+        for k in range(out.shape[0]):
+            K = 0.5 * (self.system.K[k] + self.system.K[k].T)
+            lam = scipy.linalg.eigh(K, self.system.M[k], eigvals_only=True)
+            out[k] = np.sign(lam) * np.sqrt(np.abs(lam))
+        return out
+
+
+def default_observables(mechanism) -> tuple[str, ...]:
+    """Midspan deflection of each pinned-pinned elastic link, tip deflection of each clamped-free
+    one (relative to the chord)."""
+    specs = []
+    for link in mechanism.links:
+        if isinstance(link, mechanisms.ElasticLink):
+            where = "0.5" if link.boundary == "pinned-pinned" else "1.0"
+            specs.append(f"{link.name}.deflection@{where}")
+    return tuple(specs)
+
+
+def _independent_coordinates(model, nominal) -> np.ndarray:
+    """Elastic coordinates, plus the coordinates that the constraints leave free (the driven
+    angle of each torque drive, chosen by pivoting on the rigid Jacobian)."""
+    return choose_independent(model.constraint_jacobian(nominal.s[0], nominal.t[0]),
+                              np.asarray(model.elastic_index, dtype=np.int64))
+
+
+def _has_stiffening(model) -> bool:
+    return any(lay.shapes is not None and lay.stiffening for lay in model.layouts.values())
+
+
+def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label):
+    extra = None
+    if _has_stiffening(model):
+        extra = np.stack([geometric_stiffness(model, s[k], sdot[k], sddot[k], lam[k])
+                          for k in range(len(t))])
+    return linear_coefficients(model, t, s, sdot, sddot, lam, period=period,
+                               independent=independent, extra_stiffness=extra, time_label=label)
+
+
+def _crank_angle(mechanism, t, period):
+    if not mechanism.drives:
+        return np.zeros_like(t)
+    drive = mechanism.drives[0]
+    return np.array([drive.angle(tk, period)[0] for tk in t])
+
+
+def _observable_maps(model, specs, s, V):
+    maps = {}
+    for spec in specs:
+        obs = model.observable(spec)
+        gradients = np.stack([obs.gradient(sk) for sk in s])
+        maps[spec] = np.einsum("kn,kni->ki", gradients, V)
+    return maps
+
+
+def _finish(mechanism, model, nominal, coeffs, specs, started):
+    if coeffs.dependent_condition.max() > WARN_CONDITION:
+        k = int(np.argmax(coeffs.dependent_condition))
+        logger.warning("constraint Jacobian poorly conditioned (%.3g) at crank angle %.4g rad: "
+                       "close to a toggle position", coeffs.dependent_condition[k],
+                       _crank_angle(mechanism, nominal.t[k:k + 1], nominal.period)[0])
+    system = periodic.PeriodicSystem(nominal.period, coeffs.M, coeffs.C, coeffs.K, coeffs.f)
+    labels = tuple(model.coord_labels[i] for i in coeffs.independent)
+    return LinearizedMechanism(
+        mechanism=mechanism, nominal=nominal, system=system, labels=labels,
+        crank_angle=_crank_angle(mechanism, nominal.t, nominal.period), observables=tuple(specs),
+        observable_maps=_observable_maps(model, specs, nominal.s, coeffs.V), coefficients=coeffs,
+        run_time=time.perf_counter() - started)
+
+
+def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMechanism:
+    """Linearise ``mechanism`` about its nominal rigid motion over one period of ``n_steps`` steps.
+
+    ``observables``: specs (see ``mechanisms._observables``), default ``default_observables``.
+    Raises ``LinearizationError`` at a toggle position (naming the crank angle).
+    """
+    started = time.perf_counter()
+    if not isinstance(mechanism, mechanisms.Mechanism):
+        raise TypeError(f"mechanism must be a mechanisms.Mechanism; received "
+                        f"{type(mechanism).__name__}")
+    specs = default_observables(mechanism) if observables is None else tuple(observables)
+    nominal = mechanisms.nominal_motion(mechanism, n_steps=n_steps)
+    model = _model_with_feedforward(mechanism, nominal)
+    independent = _independent_coordinates(model, nominal)
+    angle = _crank_angle(mechanism, nominal.t, nominal.period)
+    coeffs = _coefficients(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, nominal.lam,
+                           period=nominal.period, independent=independent,
+                           label=lambda k: f"crank angle {angle[k]:.6g} rad (t = {nominal.t[k]:.6g} s)")
+    return _finish(mechanism, model, nominal, coeffs, specs, started)
+
+
+def _model_with_feedforward(mechanism, nominal):
+    """The model whose torque drives apply the nominal inverse-dynamics torque (interpolated
+    periodically on the grid), so that the nominal motion is a solution of the full equations."""
+    torque_joints = [d.joint for d in mechanism.drives if isinstance(d, mechanisms.TorqueDrive)]
+    if not torque_joints:
+        return nominal.model
+    feedforward = {}
+    for i, drive in enumerate(mechanism.drives):
+        if isinstance(drive, mechanisms.TorqueDrive):
+            torque = nominal.drive_torque[:, i].copy()
+            feedforward[drive.joint] = _periodic_interpolant(nominal.t, torque, nominal.period)
+    return mechanisms.assemble(mechanism, feedforward=feedforward)
+
+
+def _periodic_interpolant(t, values, period):
+    from scipy.interpolate import CubicSpline
+
+    spline = CubicSpline(t, values, bc_type="periodic")
+    return lambda time_: float(spline(time_ % period))
+
+
+# ---------------------------------------------------------------------------------------------------
+# Polynomial dependence on the crank speed
+# ---------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SpeedFamily:
+    """The linearised coefficients of a constant-speed mechanism as polynomials in its speed.
+
+    With the crank angle ``phi = offset + Omega t`` as the independent variable the nominal
+    configuration does not depend on ``Omega``, its rates scale with ``Omega`` and its accelerations
+    and inertia multipliers with ``Omega^2``; so, exactly,
+
+        M = M0,  C = C0 + Omega C1,  K = K0 + Omega K1 + Omega^2 K2,  f = f0 + Omega^2 f2
+
+    on the crank-angle grid ``phi_k = offset + 2 pi k / N`` (``f0`` is the gravity load, ``C0`` the
+    material damping, ``K1`` couples damping with the moving basis). Each array has the grid as its
+    first axis. ``at_speed(Omega)`` returns the ``LinearizedMechanism`` at any speed of the same sign
+    as the base mechanism's, for the cost of a few array operations.
+    """
+
+    mechanism: Any
+    base: LinearizedMechanism
+    rate: float
+    M: np.ndarray
+    C0: np.ndarray
+    C1: np.ndarray
+    K0: np.ndarray
+    K1: np.ndarray
+    K2: np.ndarray
+    f0: np.ndarray
+    f2: np.ndarray
+    lam0: np.ndarray
+    lam2: np.ndarray
+    run_time: float
+
+    def at_speed(self, rate: float) -> LinearizedMechanism:
+        """The linearised mechanism at crank speed ``rate`` (rad/s, same sign as the base)."""
+        if not (isinstance(rate, (int, float, np.floating)) and math.isfinite(rate)
+                and rate * self.rate > 0):
+            raise ValueError(f"rate must be a finite crank speed (rad/s) of the same sign as the "
+                             f"scene's ({self.rate:g}); received {rate!r}")
+        started = time.perf_counter()
+        w = rate
+        scale = rate / self.rate
+        base = self.base
+        lam = self.lam0 + w**2 * self.lam2
+        period = abs(base.nominal.period / scale)
+        nominal = dataclasses.replace(
+            base.nominal, t=base.nominal.t / scale, sdot=base.nominal.sdot * scale,
+            sddot=base.nominal.sddot * scale**2, lam=lam,
+            drive_torque=-lam[:, base.nominal.model.drive_rows], period=period)
+        coeffs = dataclasses.replace(
+            base.coefficients, t=nominal.t, C=self.C0 + w * self.C1,
+            K=self.K0 + w * self.K1 + w**2 * self.K2, f=self.f0 + w**2 * self.f2,
+            Vdot=base.coefficients.Vdot * scale, Vddot=base.coefficients.Vddot * scale**2)
+        system = periodic.PeriodicSystem(period, self.M, coeffs.C, coeffs.K, coeffs.f)
+        if self.mechanism.spec is not None:
+            mechanism = self.mechanism.with_parameter("drive.rate", rate)
+        else:
+            mechanism = self.mechanism.replace(
+                drives=(dataclasses.replace(self.mechanism.drives[0], rate=rate),))
+        return dataclasses.replace(base, mechanism=mechanism, nominal=nominal, system=system,
+                                   coefficients=coeffs, run_time=time.perf_counter() - started)
+
+
+def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFamily:
+    """Linearise once, with the coefficients' exact dependence on the crank speed (see
+    ``SpeedFamily``). Needs one prescribed drive at constant rate (no harmonics)."""
+    started = time.perf_counter()
+    drives = mechanism.drives
+    if (len(drives) != 1 or not isinstance(drives[0], mechanisms.PrescribedDrive)
+            or drives[0].harmonics or drives[0].rate == 0):
+        raise LinearizationError(
+            "speed_family needs exactly one PrescribedDrive with a nonzero constant rate and no "
+            f"harmonics; received drives {drives!r}. Use linearize.about() at each speed instead.")
+    base = about(mechanism, n_steps=n_steps, observables=observables)
+    nominal = base.nominal
+    model = nominal.model
+    rate = drives[0].rate
+    # Crank-angle derivatives of the nominal configuration: s' = sdot / rate, s'' = sddot / rate^2.
+    ds, dds = nominal.sdot / rate, nominal.sddot / rate**2
+    lam_static = _static_multipliers(model, nominal)
+    lam2 = (nominal.lam - lam_static) / rate**2
+    independent = base.coefficients.independent
+
+    def at(w):
+        # t only enters the model through rheonomic constraints whose Jacobian does not depend on
+        # it (a constant-rate drive), so the crank-angle grid is what matters.
+        return _coefficients(model, nominal.t, nominal.s, w * ds, w**2 * dds,
+                             lam_static + w**2 * lam2,
+                             period=abs(2 * math.pi / w) if w else math.inf,
+                             independent=independent, label=lambda k: f"sample {k}")
+
+    # Three speeds fix a quadratic exactly: 0, rate, 2 rate.
+    c0, c1, c2 = at(0.0), base.coefficients, at(2.0 * rate)
+
+    def split(p0, p1, p2):
+        lin = (4.0 * p1 - p2 - 3.0 * p0) / (2.0 * rate)
+        quad = (p2 - 2.0 * p1 + p0) / (2.0 * rate**2)
+        return lin, quad
+
+    C1, C2 = split(c0.C, c1.C, c2.C)
+    K1, K2 = split(c0.K, c1.K, c2.K)
+    f1, f2 = split(c0.f, c1.f, c2.f)
+    scale_C = max(np.abs(c1.C).max(), 1e-300)
+    if np.abs(C2).max() * rate**2 > 1e-8 * scale_C or np.abs(f1).max() * abs(rate) > 1e-8 * max(
+            np.abs(c1.f).max(), 1e-300):
+        raise LinearizationError("the coefficients are not polynomial in the crank speed as "
+                                 "expected (speed-dependent forces?); use linearize.about() per "
+                                 "speed")
+    return SpeedFamily(mechanism=mechanism, base=base, rate=rate, M=c1.M, C0=c0.C, C1=C1,
+                       K0=c0.K, K1=K1, K2=K2, f0=c0.f, f2=f2, lam0=lam_static, lam2=lam2,
+                       run_time=time.perf_counter() - started)
+
+
+def _static_multipliers(model, nominal) -> np.ndarray:
+    """Multipliers of the rigid mechanism held at rest in each nominal configuration (gravity and
+    other static loads only): the rigid rows of ``Phi_s^T lam = Q(s, 0, t)``."""
+    rigid = np.asarray(model.rigid_index, dtype=np.int64)
+    zero = np.zeros(model.n_coords)
+    out = np.empty_like(nominal.lam)
+    for k, (tk, sk) in enumerate(zip(nominal.t, nominal.s)):
+        Phi_r = model.constraint_jacobian(sk, tk)[:, rigid]
+        out[k] = np.linalg.solve(Phi_r.T, model.forces(sk, zero, tk)[rigid])
+    return out
