@@ -1,0 +1,193 @@
+"""Numerical pieces shared by the studies: steady state with per-observable error estimates, frozen-time
+modes, MAC tracking, resonance crossings, unfolding of Floquet characteristic frequencies."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+from scipy.optimize import linear_sum_assignment
+
+import periodic
+
+from ._problem import Linear
+
+
+@dataclass(frozen=True, eq=False)
+class Steady:
+    """Steady state of a :class:`Linear` with error estimates.
+
+    ``state`` the N-step ``periodic.SteadyState``; ``response`` (N+1, n_obs) observables;
+    ``response_error`` (n_obs,) estimated max abs error of each observable, ``|o_N - o_{N/2}| / 3``
+    (Newmark's average-acceleration scheme is of order 2, so the N/2 difference is 3 times the N-step
+    error to leading order); ``error_estimate`` the same for the coordinates ``z``; ``run_time`` s.
+    """
+
+    state: periodic.SteadyState
+    response: np.ndarray
+    response_error: np.ndarray
+    error_estimate: float
+    run_time: float
+
+
+def solve_steady(linear: Linear) -> Steady:
+    fine = periodic.steady_state(linear.system, estimate_error=False)
+    coarse = periodic.steady_state(linear.system.coarsened(), estimate_error=False)
+    response = linear.observe(fine.x)
+    coarse_response = linear.observe(coarse.x, stride=2)
+    response_error = np.abs(response[::2] - coarse_response).max(axis=0) / 3.0
+    error = float(np.abs(fine.x[::2] - coarse.x).max()) / 3.0
+    return Steady(state=fine, response=response, response_error=response_error, error_estimate=error,
+                  run_time=fine.run_time + coarse.run_time)
+
+
+def peak_to_peak(samples: np.ndarray) -> tuple[float, float]:
+    """Peak-to-peak of a periodic signal sampled at ``t_0 .. t_N`` (``t_N`` repeats ``t_0``), (N+1,).
+
+    The extremes of the samples miss the true ones by up to ``A (k dphi)^2 / 8`` for a harmonic k of
+    amplitude A sampled every ``dphi`` rad; each extreme is refined by the parabola through it and its
+    two neighbours (error of higher order). Returns ``(value, correction)`` where ``correction`` (the
+    change made by the refinement) bounds the sampling error of the unrefined value and is reported as
+    part of the error estimate.
+    """
+    values = samples[:-1]
+    n = values.size
+    refined = []
+    for sign in (1.0, -1.0):
+        i = int(np.argmax(sign * values))
+        left, centre, right = values[(i - 1) % n], values[i], values[(i + 1) % n]
+        curvature = left - 2.0 * centre + right
+        offset = 0.0 if curvature == 0.0 else 0.5 * (left - right) / curvature
+        refined.append((centre - 0.25 * (left - right) * offset, centre))
+    (high, high_sampled), (low, low_sampled) = refined
+    return float(high - low), float(abs((high - low) - (high_sampled - low_sampled)))
+
+
+def frozen_modes(system: periodic.PeriodicSystem, n_samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frozen-time natural frequencies of ``(K(t), M(t))`` at ``n_samples`` equally spaced samples of
+    one period (the first at t = 0).
+
+    Returns ``(index, frequencies, shapes)``: ``index`` (n_samples,) sample indices;
+    ``frequencies`` (n_samples, m) rad/s, ascending, ``sign(lam) sqrt(|lam|)`` of the generalised
+    eigenvalues ``lam`` (real parts; a negative frequency flags a statically unstable frozen system);
+    ``shapes`` (m, m) the real mode shapes at t = 0, columns in the order of the frequencies, unit
+    norm.
+    """
+    n_steps = system.n_steps
+    n_samples = max(2, min(int(n_samples), n_steps))
+    index = np.unique(np.round(np.linspace(0, n_steps, n_samples, endpoint=False)).astype(int))
+    frequencies = np.empty((index.size, system.n_dof))
+    shapes = None
+    for row, i in enumerate(index):
+        values, vectors = scipy.linalg.eig(system.K[i], system.M[i])
+        values = values.real
+        order = np.argsort(values)
+        frequencies[row] = np.sign(values[order]) * np.sqrt(np.abs(values[order]))
+        if row == 0:
+            shapes = vectors[:, order].real
+            shapes /= np.linalg.norm(shapes, axis=0)
+    return index, frequencies, shapes
+
+
+def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Modal assurance criterion of the columns of ``a`` (m, p) against those of ``b`` (m, q):
+    ``|a_i . b_j|^2 / ((a_i . a_i)(b_j . b_j))``, shape (p, q), in [0, 1]."""
+    cross = np.abs(a.T @ b) ** 2
+    return cross / np.outer(np.sum(a * a, axis=0), np.sum(b * b, axis=0))
+
+
+def track_modes(shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Follow modes across consecutive grid points by MAC.
+
+    ``shapes`` (n, m, m): mode shapes (columns, ascending frequency) at each point. Returns
+    ``order`` (n, m) int: tracked mode j is column ``order[i, j]`` at point i (identity at the first
+    point), and ``confidence`` (n, m): the MAC of each assignment with the previous point (1 at the
+    first point). The assignment maximises the total MAC (Hungarian algorithm).
+    """
+    n, m = shapes.shape[0], shapes.shape[2]
+    order = np.empty((n, m), dtype=int)
+    confidence = np.ones((n, m))
+    order[0] = np.arange(m)
+    for i in range(1, n):
+        previous = shapes[i - 1][:, order[i - 1]]
+        if not (np.isfinite(previous).all() and np.isfinite(shapes[i]).all()):
+            order[i] = np.arange(m)
+            confidence[i] = np.nan
+            continue
+        score = mac(previous, shapes[i])
+        rows, cols = linear_sum_assignment(-score)
+        order[i, rows] = cols
+        confidence[i, rows] = score[rows, cols]
+    return order, confidence
+
+
+def crossings(parameter: np.ndarray, difference: np.ndarray) -> list[tuple[int, float]]:
+    """Where ``difference`` (n,) changes sign between consecutive finite points: ``(i, value)`` with
+    ``value`` the parameter at the zero by linear interpolation between points i and i + 1."""
+    found = []
+    for i in range(parameter.size - 1):
+        a, b = difference[i], difference[i + 1]
+        if not (np.isfinite(a) and np.isfinite(b)):
+            continue
+        if a == 0.0:
+            found.append((i, float(parameter[i])))
+        elif a * b < 0.0:
+            found.append((i, float(parameter[i] + (parameter[i + 1] - parameter[i]) * a / (a - b))))
+    return found
+
+
+def unstable_intervals(parameter: np.ndarray, radius: np.ndarray, *, tol: float) -> list[tuple[float, float]]:
+    """Parameter intervals where ``radius > 1 + tol``, ends interpolated linearly in ``radius - 1``;
+    an interval touching the end of the grid ends there."""
+    excess = radius - (1.0 + tol)
+    unstable = np.isfinite(excess) & (excess > 0.0)
+    intervals = []
+    i = 0
+    while i < parameter.size:
+        if not unstable[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < parameter.size and unstable[j + 1]:
+            j += 1
+        start = float(parameter[i])
+        if i > 0 and np.isfinite(excess[i - 1]):
+            a, b = excess[i - 1], excess[i]
+            start = float(parameter[i - 1] + (parameter[i] - parameter[i - 1]) * a / (a - b))
+        end = float(parameter[j])
+        if j + 1 < parameter.size and np.isfinite(excess[j + 1]):
+            a, b = excess[j], excess[j + 1]
+            end = float(parameter[j] + (parameter[j + 1] - parameter[j]) * a / (a - b))
+        intervals.append((start, end))
+        i = j + 1
+    return intervals
+
+
+def characteristic_frequencies(multipliers: np.ndarray, period: float, targets: np.ndarray) -> np.ndarray:
+    """Floquet characteristic frequencies, unfolded.
+
+    A multiplier ``mu = exp(lam T)`` fixes ``Im lam`` only modulo ``Omega = 2 pi / T``: the candidates
+    are ``|arg mu| / T + k Omega`` and ``-|arg mu| / T + k Omega`` (k integer, kept >= 0). For each
+    multiplier the candidate nearest to any of ``targets`` (rad/s, e.g. the mean frozen natural
+    frequencies) is returned; shape (2m,), rad/s.
+    """
+    omega = 2.0 * math.pi / period
+    base = np.abs(np.angle(multipliers)) / period
+    targets = np.asarray(targets)[np.isfinite(targets)]
+    out = np.full(multipliers.shape, np.nan)
+    if targets.size == 0:
+        return out
+    for i, b in enumerate(base):
+        best, best_distance = np.nan, np.inf
+        for sign in (1.0, -1.0):
+            for target in targets:
+                k = np.round((target - sign * b) / omega)
+                candidate = sign * b + k * omega
+                if candidate < 0.0:
+                    candidate += omega * np.ceil(-candidate / omega)
+                if abs(candidate - target) < best_distance:
+                    best, best_distance = candidate, abs(candidate - target)
+        out[i] = best
+    return out
