@@ -100,8 +100,7 @@ def _has_stiffening(model) -> bool:
 def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label):
     extra = None
     if _has_stiffening(model):
-        extra = np.stack([geometric_stiffness(model, s[k], sdot[k], sddot[k], lam[k])
-                          for k in range(len(t))])
+        extra = geometric_stiffness(model, t, s, sdot, sddot, lam)
     return linear_coefficients(model, t, s, sdot, sddot, lam, period=period,
                                independent=independent, extra_stiffness=extra, time_label=label)
 

@@ -32,72 +32,77 @@ from mechanisms import GROUND, Revolute
 __all__ = ["axial_force", "geometric_stiffness"]
 
 
-def _loads_on_link(model, name, s, sdot, sddot, lam):
-    """Concentrated loads on link ``name``: a list of ``(abscissa (m), force (2,) N)`` from the joints
-    (through the multipliers) and from the point masses (their inertia and weight)."""
-    layout = model.layouts[name]
-    link = layout.link
-    off = layout.offset
-    Phi_s = model.constraint_jacobian(s, 0.0)
-    labels = model.constraint_labels
-    loads = []
-    for joint in model.mechanism.joints:
-        if isinstance(joint, Revolute):
-            ends = [(joint.link_a, joint.point_a), (joint.link_b, joint.point_b)]
-            rows = [labels.index(f"{joint.name}.x"), labels.index(f"{joint.name}.y")]
-        else:
-            ends = [(joint.link, joint.point)]
-            rows = [labels.index(f"{joint.name}.n")]
-        for link_name, point in ends:
-            if link_name == name:
-                loads.append((_abscissa(point, link), -Phi_s[rows, off:off + 2].T @ lam[rows]))
-    g = np.asarray(model.mechanism.gravity, dtype=float)
-    for mass in model.mechanism.point_masses:
-        if mass.link == name:
-            xi = _abscissa(mass.point, link)
-            loads.append((xi, mass.mass * (g - _rigid_acceleration(s, sdot, sddot, off, xi))))
-    return loads
+class _LinkLoading:
+    """What the axial force of one stiffened link needs, gathered once: quadrature, shape slopes,
+    the constraint rows of its joints and the abscissae of its joints and point masses."""
+
+    def __init__(self, model, name):
+        layout = model.layouts[name]
+        link = layout.link
+        self.offset = layout.offset
+        self.elastic = layout.elastic
+        self.x, self.weights = layout.shapes.quadrature
+        self.slopes = layout.shapes.evaluate(self.x).dw       # (n_gauss, n_elastic)
+        self.mu = link.density * link.area
+        self.length = link.length
+        labels = model.constraint_labels
+        self.joints = []                                      # (abscissa, rows)
+        for joint in model.mechanism.joints:
+            if isinstance(joint, Revolute):
+                ends = [(joint.link_a, joint.point_a), (joint.link_b, joint.point_b)]
+                rows = [labels.index(f"{joint.name}.x"), labels.index(f"{joint.name}.y")]
+            else:
+                ends = [(joint.link, joint.point)]
+                rows = [labels.index(f"{joint.name}.n")]
+            self.joints += [(_abscissa(point, link), rows) for link_name, point in ends
+                            if link_name == name]
+        self.masses = [(_abscissa(pm.point, link), pm.mass)
+                       for pm in model.mechanism.point_masses if pm.link == name]
+
+    def axial_force(self, model, s, sdot, sddot, lam, Phi_s, x):
+        """``N`` (tension positive, N) at abscissae ``x`` (m) for one state (module docstring)."""
+        off = self.offset
+        theta, theta_d, theta_dd = s[off + 2], sdot[off + 2], sddot[off + 2]
+        e = np.array([math.cos(theta), math.sin(theta)])
+        e_perp = np.array([-e[1], e[0]])
+        g = np.asarray(model.mechanism.gravity, dtype=float)
+        R_dd = sddot[off:off + 2]
+        L = self.length
+        N = self.mu * ((e @ (g - R_dd)) * (L - x) + theta_d**2 * (L**2 - x**2) / 2)
+        for xi, rows in self.joints:
+            # Force of the joint on the link: -(block of Phi_s on the link's R)^T lam.
+            force = -Phi_s[rows, off:off + 2].T @ lam[rows]
+            N = N + np.where(x < xi, e @ force, 0.0)
+        for xi, mass in self.masses:
+            acceleration = R_dd + xi * (theta_dd * e_perp - theta_d**2 * e)
+            N = N + np.where(x < xi, mass * (e @ (g - acceleration)), 0.0)
+        return N
 
 
-def _rigid_acceleration(s, sdot, sddot, off, xi):
-    """Acceleration (2,) of the point at abscissa ``xi`` of a link moving rigidly."""
-    theta = s[off + 2]
-    e = np.array([math.cos(theta), math.sin(theta)])
-    e_perp = np.array([-e[1], e[0]])
-    return sddot[off:off + 2] + xi * (sddot[off + 2] * e_perp - sdot[off + 2] ** 2 * e)
-
-
-def axial_force(model, name: str, s, sdot, sddot, lam, x) -> np.ndarray:
+def axial_force(model, name: str, s, sdot, sddot, lam, x, *, t: float = 0.0) -> np.ndarray:
     """Axial force ``N`` (N, tension positive) at abscissae ``x`` (m) of elastic link ``name`` in the
-    rigid motion ``s, sdot, sddot`` (n,) with multipliers ``lam`` (r,); returns shape of ``x``."""
-    layout = model.layouts[name]
-    link = layout.link
-    off = layout.offset
-    x = np.asarray(x, dtype=float)
-    theta = s[off + 2]
-    e = np.array([math.cos(theta), math.sin(theta)])
-    g = np.asarray(model.mechanism.gravity, dtype=float)
-    mu = link.density * link.area
-    L = link.length
-    # Distributed inertia and gravity beyond x (closed form, module docstring).
-    N = mu * ((e @ (g - sddot[off:off + 2])) * (L - x) + sdot[off + 2] ** 2 * (L**2 - x**2) / 2)
-    for xi, force in _loads_on_link(model, name, s, sdot, sddot, lam):
-        N = N + np.where(x < xi, e @ force, 0.0)
-    return N
+    rigid motion ``s, sdot, sddot`` (n,) at time ``t`` with multipliers ``lam`` (r,)."""
+    if name not in model.layouts or model.layouts[name].shapes is None:
+        raise ValueError(f"name must be an elastic link of the model; received {name!r}")
+    loading = _LinkLoading(model, name)
+    return loading.axial_force(model, s, sdot, sddot, lam, model.constraint_jacobian(s, t),
+                               np.asarray(x, dtype=float))
 
 
-def geometric_stiffness(model, s, sdot, sddot, lam) -> np.ndarray:
-    """``K_G`` (n, n): the geometric stiffness of every link with geometric stiffening on, for the
-    rigid motion ``s, sdot, sddot`` (n,) and multipliers ``lam`` (r,)."""
+def geometric_stiffness(model, t, s, sdot, sddot, lam) -> np.ndarray:
+    """``K_G`` (N+1, n, n): the geometric stiffness of every link with geometric stiffening on,
+    along the rigid motion ``s, sdot, sddot`` (N+1, n) at times ``t`` (N+1,) with multipliers
+    ``lam`` (N+1, r)."""
     n = model.n_coords
-    K_G = np.zeros((n, n))
-    for name, layout in model.layouts.items():
-        if layout.shapes is None or not layout.stiffening:
-            continue
-        x, weights = layout.shapes.quadrature
-        slopes = layout.shapes.evaluate(x).dw               # (n_gauss, n_elastic)
-        N = axial_force(model, name, s, sdot, sddot, lam, x)
-        K_G[layout.elastic, layout.elastic] = slopes.T @ ((weights * N)[:, None] * slopes)
+    K_G = np.zeros((len(t), n, n))
+    loadings = [_LinkLoading(model, name) for name, layout in model.layouts.items()
+                if layout.shapes is not None and layout.stiffening]
+    for k in range(len(t)):
+        Phi_s = model.constraint_jacobian(s[k], t[k])
+        for link in loadings:
+            N = link.axial_force(model, s[k], sdot[k], sddot[k], lam[k], Phi_s, link.x)
+            K_G[k, link.elastic, link.elastic] = link.slopes.T @ (
+                (link.weights * N)[:, None] * link.slopes)
     return K_G
 
 
