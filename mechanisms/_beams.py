@@ -123,7 +123,10 @@ def beam_shapes(link: ElasticLink) -> BeamShapes:
         raise TypeError(f"link {link.name!r}: discretisation must be Ritz, UserShapes or Fem; "
                         f"received {type(disc).__name__}")
     shapes = BeamShapes(link, labels, (np.zeros(0), np.zeros(0)))
-    return BeamShapes(link, labels, _adaptive_quadrature(shapes))
+    shapes = BeamShapes(link, labels, _adaptive_quadrature(shapes))
+    if isinstance(disc, UserShapes):
+        _check_user_boundary(shapes)
+    return shapes
 
 
 def beam_matrices(shapes: BeamShapes) -> tuple[np.ndarray, np.ndarray]:
@@ -210,6 +213,26 @@ def _call_user(f, x, link, kind, index):
         raise ValueError(f"link {link.name!r}: UserShapes.{kind}[{index}] must return three "
                          f"finite arrays (value, d/dx, d2/dx2)")
     return arrays
+
+
+def _check_user_boundary(shapes: BeamShapes) -> None:
+    """User shapes must keep the frame's meaning: ``u(0) = w(0) = 0`` and ``w(L) = 0``
+    (pinned-pinned) or ``w'(0) = 0`` (clamped-free), to 1e-10 of the shape's largest value."""
+    link = shapes.link
+    inner = shapes.evaluate(shapes.quadrature[0])
+    ends = shapes.evaluate([0.0, link.length])
+    checks = [("u(0)", ends.u[0], inner.u), ("w(0)", ends.w[0], inner.w)]
+    if link.boundary == "pinned-pinned":
+        checks.append(("w(L)", ends.w[1], inner.w))
+    else:
+        checks.append(("w'(0)", ends.dw[0], inner.dw))
+    for name, at_end, values in checks:
+        scale = np.max(np.abs(values), axis=0)
+        bad = np.flatnonzero(np.abs(at_end) > 1e-10 * scale)
+        if bad.size:
+            raise ValueError(f"link {link.name!r}: user shape {shapes.labels[bad[0]]} has "
+                             f"{name} = {at_end[bad[0]]:.3g}, but a {link.boundary} link needs "
+                             f"{name} = 0 (see mechanisms._parts for the frame conventions)")
 
 
 def _quadrature_integrals(shapes: BeamShapes, n: int) -> np.ndarray:

@@ -17,6 +17,13 @@ forces dPi/ds, minus the damping forces. Differentiating the constraints twice,
     Phi_s s'' = gamma(s, s', t) = -(Phi_s s')_s s' - 2 Phi_st s' - Phi_tt.
 
 Shapes: ``s, sdot, sddot`` (n,), ``lam`` (r,), matrices (n, n) or (r, n). Units SI.
+
+``mechanisms.Model`` (the assembler's implementation) adds, beyond this protocol: ``mechanism``,
+``period`` (s or None), ``layouts`` (link name -> ``LinkLayout`` with ``coords``/``elastic`` slices and
+``shapes``), ``drive_rows`` (constraint rows of prescribed drives), ``link_coordinates(name)``,
+``observable(spec)``, ``drive_torques(s, sdot, t, lam=None)`` (N m per drive; a prescribed drive's
+torque is ``-lam[row]``), ``drive_power(s, sdot, t, lam=None)`` (W) and ``damping_power(sdot)`` (W), so
+that ``d(T + V)/dt = drive_power - damping_power`` can be checked along a solution.
 """
 
 from __future__ import annotations

@@ -190,3 +190,14 @@ def test_modal_damping_gives_the_requested_ratios():
     expected = np.zeros_like(modal)
     expected[[0, 1], [0, 1]] = 2 * np.array(ratios) * np.sqrt(omega2[:2])
     assert np.abs(modal - expected).max() <= 1e-10 * expected.max()
+
+
+def test_user_shapes_violating_the_boundary_conditions_are_rejected():
+    cosine = lambda x, length: (np.cos(x / length), -np.sin(x / length) / length,
+                                -np.cos(x / length) / length**2)
+    with pytest.raises(ValueError, match=r"user shape b1 has w\(0\) = 1"):
+        beam_shapes(beam(UserShapes((cosine,))))
+    parabola = lambda x, length: (x * x, 2 * x, 2 + 0 * x)
+    beam_shapes(beam(UserShapes((parabola,)), boundary="clamped-free"))  # w(0) = w'(0) = 0
+    with pytest.raises(ValueError, match=r"w\(L\)"):
+        beam_shapes(beam(UserShapes((parabola,))))
