@@ -499,3 +499,33 @@ def test_bad_call_arguments_are_rejected():
         model.observable("coupler.bend@0.5")
     with pytest.raises(ValueError, match="needs an elastic link"):
         model.observable("crank.deflection")
+
+
+@pytest.mark.parametrize("options", [dict(discretisation=Ritz(2, 1)),
+                                     dict(discretisation=Fem(2), torque=True, rotary=True)],
+                         ids=["prescribed", "torque"])
+def test_power_balance_along_the_equations_of_motion(options):
+    """For s'' from M s'' = Q - Phi_s^T lam (any lam) and a velocity that satisfies the velocity
+    constraints Phi_s s' + Phi_t = 0: d(T + V)/dt = drive_power - damping_power exactly (the joint
+    forces do no work, the drive row's multiplier is minus the drive torque). d/dt by a five-point
+    difference along s + s' tau + s'' tau^2 / 2 with h = 2e-7 s: the fastest time scale is the
+    axial mode (w ~ 3e4 rad/s), truncation ~ (w h)^4 ~ 1e-9; round-off ~ eps |T + V| / h ~ 1e-6 W
+    against powers of ~1e5 W; 1e-7 relative leaves a margin of 10-100."""
+    model = assemble(fourbar(**options))
+    rng = np.random.default_rng(11)
+    s, sdot = random_state(model, rng)
+    t = 0.013
+    jac = model.constraint_jacobian(s, t)
+    # least-squares projection of the velocity onto Phi_s s' = -Phi_t
+    sdot -= np.linalg.lstsq(jac, jac @ sdot + model.constraint_rate(s, t), rcond=None)[0]
+    lam = rng.normal(size=model.n_constraints) * 10.0
+    sddot = np.linalg.solve(model.mass_matrix(s), model.forces(s, sdot, t) - jac.T @ lam)
+    h = 2e-7
+    energy = lambda tau: (model.kinetic_energy(s + sdot * tau + 0.5 * sddot * tau**2,
+                                               sdot + sddot * tau)
+                          + model.potential_energy(s + sdot * tau + 0.5 * sddot * tau**2))
+    e = [energy(k * h) for k in (-2, -1, 1, 2)]
+    rate = (e[0] - 8 * e[1] + 8 * e[2] - e[3]) / (12 * h)
+    expected = model.drive_power(s, sdot, t, lam) - model.damping_power(sdot)
+    assert model.damping_power(sdot) > 0.0
+    assert rate == pytest.approx(expected, rel=1e-7)
