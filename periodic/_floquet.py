@@ -18,7 +18,6 @@ near-resonance; the stability verdict stays right for them because the scheme is
 
 from __future__ import annotations
 
-import logging
 import math
 import time
 import warnings
@@ -28,8 +27,6 @@ import numpy as np
 
 from ._newmark import newmark_march
 from ._system import PeriodicError, PeriodicSystem
-
-logger = logging.getLogger(__name__)
 
 #: Default tolerance of ``is_stable``: spectral radius <= 1 + STABILITY_TOL.  The multipliers of an
 #: undamped (conservative) system lie on the unit circle; numerically their moduli differ from 1 by

@@ -242,20 +242,21 @@ def _richardson(fine: np.ndarray, coarse: np.ndarray, factor: float) -> np.ndarr
 
 
 def _verdict(multipliers, step_rates, physical, spurious, shot: _Shot, error_estimate):
+    """Status and message from the indices of near-+1 multipliers with resolved / unresolved modes."""
+    if not (physical.size or spurious.size):
+        return STATUS_OK, "ok"
+    candidates = physical if physical.size else spurious
+    i = candidates[np.argmin(np.abs(1.0 - multipliers[candidates]))]
+    closeness = f"Floquet multiplier {multipliers[i]:.8g} is {abs(1.0 - multipliers[i]):.3g} from +1"
     conditioning = f"cond(I - Phi) = {shot.condition_number:.3g}, ||(I - Phi)^-1|| = {shot.inverse_norm:.3g}"
-
     if physical.size:
-        i = physical[np.argmin(np.abs(1.0 - multipliers[physical]))]
         return STATUS_NEAR_RESONANCE, (
-            f"near resonance: Floquet multiplier {multipliers[i]:.8g} is {abs(1.0 - multipliers[i]):.3g} "
-            f"from +1 (its mode is resolved, step rate {step_rates[i]:.3g}); {conditioning}. The periodic response is amplified about 1/|1 - mu| times and is "
-            "sensitive to the parameters."
+            f"near resonance: {closeness} (its mode is resolved, step rate {step_rates[i]:.3g}); "
+            f"{conditioning}. The periodic response is amplified about 1/|1 - mu| times and is sensitive "
+            "to the parameters."
         )
-    if spurious.size:
-        i = spurious[np.argmin(np.abs(1.0 - multipliers[spurious]))]
-        return STATUS_UNRESOLVED, (
-            f"Floquet multiplier {multipliers[i]:.8g} is {abs(1.0 - multipliers[i]):.3g} from +1, but its "
-            f"mode changes by exp({step_rates[i]:.3g}) per step: a stiff mode the step does not resolve, "
-            "whose exact multiplier is not near +1 (not a resonance). {conditioning}; error estimate of x = {error_estimate:.3g}."
-        )
-    return STATUS_OK, "ok"
+    return STATUS_UNRESOLVED, (
+        f"{closeness}, but its mode changes by exp({step_rates[i]:.3g}) per step: a stiff mode the step "
+        f"does not resolve, whose exact multiplier is not near +1 (not a resonance). {conditioning}; "
+        f"error estimate of x = {error_estimate:.3g}."
+    )

@@ -109,6 +109,9 @@ class PeriodicSystem:
             sampled.append(_sample(name, func, times))
         return cls(period, *sampled)
 
+    def __repr__(self) -> str:
+        return f"PeriodicSystem(period={self.period!r}, n_steps={self.n_steps}, n_dof={self.n_dof})"
+
     @property
     def n_steps(self) -> int:
         """Number of Newmark steps ``N`` per period."""
@@ -205,15 +208,21 @@ def _check_periodic(name: str, samples: np.ndarray) -> None:
 
 
 def _sample(name: str, func, times: np.ndarray) -> np.ndarray:
-    values = []
-    for t in times:
+    out = None
+    for k, t in enumerate(times):
         try:
-            values.append(np.asarray(func(float(t)), dtype=np.float64))
+            value = func(float(t))
         except Exception as exc:  # any failure of user code is reported with its argument and time
             raise ValueError(f"{name}: the callable raised {type(exc).__name__} at t = {t:.6g} s: {exc}") from exc
-        if values[-1].shape != values[0].shape:
+        if out is None:
+            out = np.empty((times.size,) + np.shape(value))
+        elif np.shape(value) != out.shape[1:]:  # checked: assignment alone would broadcast a scalar
             raise ValueError(
-                f"{name}: the callable returned shape {values[-1].shape} at t = {t:.6g} s but "
-                f"{values[0].shape} at t = 0"
+                f"{name}: the callable returned shape {np.shape(value)} at t = {t:.6g} s but "
+                f"{out.shape[1:]} at t = 0"
             )
-    return np.stack(values)
+        try:
+            out[k] = value
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"{name}: the callable returned a non-real value at t = {t:.6g} s ({exc})") from None
+    return out

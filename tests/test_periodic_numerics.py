@@ -325,9 +325,18 @@ def test_unresolved_stiff_mode_is_not_called_a_resonance(n_steps):
         warnings.simplefilter("error", NearResonanceWarning)
         result = periodic.steady_state(system)
     assert result.status == "unresolved_stiff_mode"
+    assert "not a resonance" in result.message and "cond(I - Phi) = " in result.message
     assert np.abs(1.0 - result.multipliers).min() < 1e-2
     assert result.step_rates.max() > 1e3
     x, _ = harmonic_response(STIFF_M, STIFF_C, STIFF_K, STIFF_F, 1.0, system.t)
     # The discrete periodic solution stays second-order accurate; its estimate stays honest.
     true_error = np.abs(result.x - x).max()
     assert true_error == pytest.approx(result.error_estimate, rel=0.2)
+
+
+def test_exactly_singular_shooting_matrix_raises():
+    """A free mass (K = C = 0) has Phi = [[1, T], [0, 1]] exactly: no unique periodic solution."""
+    zeros = np.zeros((9, 1, 1))
+    system = PeriodicSystem(1.0, np.ones((9, 1, 1)), zeros, zeros, np.ones((9, 1)))
+    with pytest.raises(periodic.PeriodicError, match=r"I - Phi is singular .*resonance"):
+        periodic.steady_state(system)
