@@ -118,7 +118,7 @@ class Model:
         self.rigid_index = np.array(rigid, dtype=np.int64)
         self.elastic_index = np.array(elastic, dtype=np.int64)
         (self._mp_int, self._mp_real, self._sp_int, self._sp_real, self._ct_int, self._ct_real,
-         self._shp, self._phi0, self._h_lin, self._k0, self._c0) = tables
+         self._shp, self._idx, self._phi0, self._h_lin, self._k0, self._c0) = tables
         self._damping = damping
         self._gx, self._gy = (float(g) for g in mechanism.gravity)
         self._drives: tuple[_DriveInfo, ...] = drives
@@ -140,7 +140,7 @@ class Model:
     def mass_matrix(self, s):
         s = self._vector(s, self.n_coords, "s")
         out = np.zeros((self.n_coords, self.n_coords))
-        _kernels.mass_matrix(s, self._mp_int, self._mp_real, self._shp, out)
+        _kernels.mass_matrix(s, self._mp_int, self._mp_real, self._shp, self._idx, out)
         return out
 
     def forces(self, s, sdot, t):
@@ -148,7 +148,7 @@ class Model:
         sdot = self._vector(sdot, self.n_coords, "sdot")
         out = np.zeros(self.n_coords)
         _kernels.forces(s, sdot, self._gx, self._gy, self._mp_int, self._mp_real, self._sp_int,
-                        self._sp_real, self._shp, self._k0, self._c0, out)
+                        self._sp_real, self._shp, self._idx, self._k0, self._c0, out)
         for info in self._torque_drives:
             out += self._torque(info, s, sdot, t) * info.gradient
         return out
@@ -158,13 +158,13 @@ class Model:
         out = self._phi0 + self._h_lin @ s
         for info in self._prescribed:
             out[info.row] -= drive_law(info.drive, self.period, t)[0]
-        _kernels.constraints(s, self._ct_int, self._ct_real, self._shp, out)
+        _kernels.constraints(s, self._ct_int, self._ct_real, self._shp, self._idx, out)
         return out
 
     def constraint_jacobian(self, s, t):
         s = self._vector(s, self.n_coords, "s")
         out = self._h_lin.copy()
-        _kernels.constraint_jacobian(s, self._ct_int, self._ct_real, self._shp, out)
+        _kernels.constraint_jacobian(s, self._ct_int, self._ct_real, self._shp, self._idx, out)
         return out
 
     def constraint_rate(self, s, t):
@@ -179,7 +179,7 @@ class Model:
         out = np.zeros(self.n_constraints)
         for info in self._prescribed:
             out[info.row] = drive_law(info.drive, self.period, t)[2]  # -Phi_tt
-        _kernels.constraint_gamma(s, sdot, self._ct_int, self._ct_real, self._shp, out)
+        _kernels.constraint_gamma(s, sdot, self._ct_int, self._ct_real, self._shp, self._idx, out)
         return out
 
     # --- analytic derivatives ------------------------------------------------------------------
@@ -187,7 +187,8 @@ class Model:
         s = self._vector(s, self.n_coords, "s")
         sddot = self._vector(sddot, self.n_coords, "sddot")
         out = np.zeros((self.n_coords, self.n_coords))
-        _kernels.mass_matrix_jacobian(s, sddot, self._mp_int, self._mp_real, self._shp, out)
+        _kernels.mass_matrix_jacobian(s, sddot, self._mp_int, self._mp_real, self._shp, self._idx,
+                                      out)
         return out
 
     def force_jacobians(self, s, sdot, t):
@@ -196,8 +197,8 @@ class Model:
         d_s = np.zeros((self.n_coords, self.n_coords))
         d_v = np.zeros((self.n_coords, self.n_coords))
         _kernels.force_jacobians(s, sdot, self._gx, self._gy, self._mp_int, self._mp_real,
-                                 self._sp_int, self._sp_real, self._shp, self._k0, self._c0,
-                                 d_s, d_v)
+                                 self._sp_int, self._sp_real, self._shp, self._idx, self._k0,
+                                 self._c0, d_s, d_v)
         for info in self._torque_drives:
             hh = np.outer(info.gradient, info.gradient)
             d_s -= info.drive.kp * hh
@@ -208,19 +209,22 @@ class Model:
         s = self._vector(s, self.n_coords, "s")
         lam = self._vector(lam, self.n_constraints, "lam")
         out = np.zeros((self.n_coords, self.n_coords))
-        _kernels.constraint_force_jacobian(s, lam, self._ct_int, self._ct_real, self._shp, out)
+        _kernels.constraint_force_jacobian(s, lam, self._ct_int, self._ct_real, self._shp,
+                                           self._idx, out)
         return out
 
     # --- energies and drives -------------------------------------------------------------------
     def kinetic_energy(self, s, sdot) -> float:
         s = self._vector(s, self.n_coords, "s")
         sdot = self._vector(sdot, self.n_coords, "sdot")
-        return float(_kernels.kinetic_energy(s, sdot, self._mp_int, self._mp_real, self._shp))
+        return float(_kernels.kinetic_energy(s, sdot, self._mp_int, self._mp_real, self._shp,
+                                             self._idx))
 
     def potential_energy(self, s) -> float:
         s = self._vector(s, self.n_coords, "s")
         return float(_kernels.potential_energy(s, self._gx, self._gy, self._mp_int, self._mp_real,
-                                               self._sp_int, self._sp_real, self._shp, self._k0))
+                                               self._sp_int, self._sp_real, self._shp, self._idx,
+                                               self._k0))
 
     def damping_power(self, sdot) -> float:
         """Power dissipated by the damping of the elastic coordinates, ``s'^T C0 s'`` (W, >= 0)."""
@@ -288,12 +292,19 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
     n = len(coord_labels)
 
     shp: list[float] = []
+    idx: list[int] = []
 
-    def push(*rows) -> int:
-        pointer = len(shp)
+    def push(*rows) -> tuple[int, int, int]:
+        """Store the shape rows of a point sparsely (the elastic coordinates where any row is
+        nonzero); return (nnz, value pointer, index pointer)."""
+        rows = [np.asarray(row, dtype=float) for row in rows]
+        active = np.flatnonzero(np.any([row != 0.0 for row in rows], axis=0)) if len(
+            rows[0]) else np.zeros(0, dtype=np.int64)
+        pointer, index_pointer = len(shp), len(idx)
         for row in rows:
-            shp.extend(np.asarray(row, dtype=float).ravel().tolist())
-        return pointer
+            shp.extend(row[active].tolist())
+        idx.extend(active.tolist())
+        return len(active), pointer, index_pointer
 
     # mass points (seed eq. 2.12) and strain points (eq. 2.13)
     mp_int, mp_real, sp_int, sp_real = [], [], [], []
@@ -303,7 +314,7 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
         link = lay.link
         if lay.shapes is None:
             cx, cy = link.centroid if link.centroid is not None else (0.5 * link.length, 0.0)
-            mp_int.append((lay.offset, 0, 0))
+            mp_int.append((lay.offset, 0, 0, 0))
             mp_real.append((link.mass, link.inertia, cx, cy))
             continue
         x, weights = lay.shapes.quadrature
@@ -311,16 +322,14 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
         mu = link.density * link.area
         rho_i = link.density * link.second_moment if link.rotary_inertia else 0.0
         for g in range(len(x)):
-            pointer = push(v.u[g], v.w[g], v.dw[g])
-            mp_int.append((lay.offset, lay.n_elastic, pointer))
+            mp_int.append((lay.offset, *push(v.u[g], v.w[g], v.dw[g])))
             mp_real.append((weights[g] * mu, weights[g] * rho_i, x[g], 0.0))
         m_ee, k_ee = beam_matrices(lay.shapes)
         if lay.stiffening:
             ea = link.youngs_modulus * link.area
             ei = link.youngs_modulus * link.second_moment
             for g in range(len(x)):
-                pointer = push(v.du[g], v.dw[g], v.ddw[g])
-                sp_int.append((lay.offset, lay.n_elastic, pointer))
+                sp_int.append((lay.offset, *push(v.du[g], v.dw[g], v.ddw[g])))
                 sp_real.append((weights[g] * ea, weights[g] * ei))
         else:
             k0[lay.elastic, lay.elastic] = k_ee
@@ -331,8 +340,7 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
         _positive(pm.mass, where + ".mass")
         _non_negative(pm.inertia, where + ".inertia")
         cx, cy, su, sw, dw = _point_local(lay, pm.point, where + ".point")
-        pointer = push(su, sw, dw)
-        mp_int.append((lay.offset, lay.n_elastic, pointer))
+        mp_int.append((lay.offset, *push(su, sw, dw)))
         mp_real.append((pm.mass, pm.inertia, cx, cy))
 
     # constraints
@@ -359,9 +367,9 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
                     continue
                 lay = _known_link(layouts, link_name, f"{where}.link_{side}")
                 cx, cy, su, sw, _ = _point_local(lay, point, f"{where}.point_{side}")
-                pointer = push(su, sw)
+                stored = push(su, sw)
                 for axis in (0, 1):
-                    ct_int.append((row + axis, lay.offset, lay.n_elastic, pointer))
+                    ct_int.append((row + axis, lay.offset, *stored))
                     ct_real.append((sign * (axis == 0), sign * (axis == 1), cx, cy))
         else:
             constraint_labels.append(f"{joint.name}.n")
@@ -371,7 +379,7 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
             nx, ny = -math.sin(joint.angle), math.cos(joint.angle)
             phi0.append(-(nx * ox + ny * oy))
             cx, cy, su, sw, _ = _point_local(lay, joint.point, f"{where}.point")
-            ct_int.append((row, lay.offset, lay.n_elastic, push(su, sw)))
+            ct_int.append((row, lay.offset, *push(su, sw)))
             ct_real.append((nx, ny, cx, cy))
 
     # drives
@@ -427,13 +435,14 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
 
     has_matrices = bool(np.any(k0) or np.any(c0))
     tables = (
-        np.array(mp_int, dtype=np.int64).reshape(-1, 3),
+        np.array(mp_int, dtype=np.int64).reshape(-1, 4),
         np.array(mp_real, dtype=np.float64).reshape(-1, 4),
-        np.array(sp_int, dtype=np.int64).reshape(-1, 3),
+        np.array(sp_int, dtype=np.int64).reshape(-1, 4),
         np.array(sp_real, dtype=np.float64).reshape(-1, 2),
-        np.array(ct_int, dtype=np.int64).reshape(-1, 4),
+        np.array(ct_int, dtype=np.int64).reshape(-1, 5),
         np.array(ct_real, dtype=np.float64).reshape(-1, 4),
         np.array(shp, dtype=np.float64),
+        np.array(idx, dtype=np.int64),
         np.array(phi0, dtype=np.float64),
         h_lin,
         k0 if has_matrices else np.zeros((0, 0)),

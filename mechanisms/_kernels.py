@@ -8,16 +8,22 @@ rigid link) and at ``r = R + A(theta) p`` in the plane. With ``s_link = (x, y, t
     r'' = L s_link'' + c,  c = Ldot s' = -theta'^2 A p + 2 theta' J A S q'           (2)
     D(v) = d(L^T v)/ds_link (v fixed): D_tt = -(A p).v, D_tq_k = D_q_k t = (J A S_k).v  (3)
 
-Point tables (rows of int64 and float64 arrays, built once by ``_assemble``):
+Point tables (rows of int64 and float64 arrays, built once by ``_assemble``). Shape rows are stored
+sparsely: a point of a Hermite element touches at most 6 of its link's elastic coordinates, so each
+point keeps only its ``nnz`` active ones, ``idx[iptr : iptr + nnz]`` (indices among the link's
+elastic coordinates), with their values in ``shp`` (``nnz`` per row):
 
-* mass points ``mp_int = (offset, ne, shape pointer)``, ``mp_real = (m, J, cx, cy)``: mass m (kg),
+* mass points ``mp_int = (offset, nnz, ptr, iptr)``, ``mp_real = (m, J, cx, cy)``: mass m (kg),
   rotary inertia J (kg m^2) with angular velocity ``theta' + g.q'``;
-  ``shp[ptr : ptr + 3 ne] = (S_axial, S_transverse, g)``.
-* strain points ``sp_int = (offset, ne, ptr)``, ``sp_real = (w EA, w EI)`` (quadrature weight
-  times rigidity); ``shp[ptr : ptr + 3 ne] = (u', w', w'')`` rows; strain ``eps = u'q + (w'q)^2/2``
-  (geometric stiffening; links without it use the constant matrix ``K0`` instead).
-* constraint terms ``ct_int = (row, offset, ne, ptr)``, ``ct_real = (dx, dy, cx, cy)``:
-  ``Phi[row] += d . r``; ``shp[ptr : ptr + 2 ne] = (S_axial, S_transverse)``.
+  ``shp[ptr : ptr + 3 nnz] = (S_axial, S_transverse, g)``.
+* strain points ``sp_int = (offset, nnz, ptr, iptr)``, ``sp_real = (w EA, w EI)`` (quadrature
+  weight times rigidity); ``shp[ptr : ptr + 3 nnz] = (u', w', w'')``; strain
+  ``eps = u'q + (w'q)^2/2`` (geometric stiffening; links without it use the constant ``K0``).
+* constraint terms ``ct_int = (row, offset, nnz, ptr, iptr)``, ``ct_real = (dx, dy, cx, cy)``:
+  ``Phi[row] += d . r``; ``shp[ptr : ptr + 2 nnz] = (S_axial, S_transverse)``.
+
+Inside a kernel, ``cols[a]`` maps the point's local column ``a`` (0, 1, 2 = x, y, theta, then the
+active elastic coordinates) to its index in ``s``.
 
 All kernels fill preallocated outputs (zeroed by the caller where they accumulate).
 """
@@ -31,26 +37,31 @@ import numpy as np
 
 
 @numba.njit(cache=True)
-def _max_local(table_ne):
+def _max_local(table_nnz):
     n = 0
-    for i in range(table_ne.shape[0]):
-        if table_ne[i] > n:
-            n = table_ne[i]
+    for i in range(table_nnz.shape[0]):
+        if table_nnz[i] > n:
+            n = table_nnz[i]
     return n + 3
 
 
 @numba.njit(cache=True)
-def _fill_l(s, off, ne, cx, cy, ptr, shp, lx, ly):
-    """Fill the columns of L (eq. 1) into lx, ly (length 3 + ne); return A p."""
+def _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols):
+    """Fill the active columns of L (eq. 1) into lx, ly and their indices in s into cols (length
+    3 + nnz); return A p."""
     th = s[off + 2]
     c = math.cos(th)
     sn = math.sin(th)
     px = cx
     py = cy
-    for k in range(ne):
-        qk = s[off + 3 + k]
-        px += shp[ptr + k] * qk
-        py += shp[ptr + ne + k] * qk
+    cols[0] = off
+    cols[1] = off + 1
+    cols[2] = off + 2
+    for k in range(nnz):
+        col = off + 3 + idx[iptr + k]
+        cols[3 + k] = col
+        px += shp[ptr + k] * s[col]
+        py += shp[ptr + nnz + k] * s[col]
     apx = c * px - sn * py
     apy = sn * px + c * py
     lx[0] = 1.0
@@ -59,64 +70,65 @@ def _fill_l(s, off, ne, cx, cy, ptr, shp, lx, ly):
     ly[1] = 1.0
     lx[2] = -apy
     ly[2] = apx
-    for k in range(ne):
+    for k in range(nnz):
         sa = shp[ptr + k]
-        st = shp[ptr + ne + k]
+        st = shp[ptr + nnz + k]
         lx[3 + k] = c * sa - sn * st
         ly[3 + k] = sn * sa + c * st
     return apx, apy
 
 
 @numba.njit(cache=True)
-def _elastic_velocity(sdot, off, ne, lx, ly):
+def _elastic_velocity(sdot, nnz, lx, ly, cols):
     """A S q' (m/s)."""
     vx = 0.0
     vy = 0.0
-    for k in range(ne):
-        vx += lx[3 + k] * sdot[off + 3 + k]
-        vy += ly[3 + k] * sdot[off + 3 + k]
+    for k in range(nnz):
+        vx += lx[3 + k] * sdot[cols[3 + k]]
+        vy += ly[3 + k] * sdot[cols[3 + k]]
     return vx, vy
 
 
 @numba.njit(cache=True)
-def _add_d(out, scale, off, ne, apx, apy, lx, ly, vx, vy):
-    """out[link block] += scale * D(v), eq. (3)."""
-    t = off + 2
+def _add_d(out, scale, nnz, apx, apy, lx, ly, cols, vx, vy):
+    """out += scale * D(v), eq. (3)."""
+    t = cols[2]
     out[t, t] += -scale * (apx * vx + apy * vy)
-    for k in range(ne):
+    for k in range(nnz):
         # J A S_k = (-ly, lx)
         value = scale * (-ly[3 + k] * vx + lx[3 + k] * vy)
-        out[t, off + 3 + k] += value
-        out[off + 3 + k, t] += value
+        out[t, cols[3 + k]] += value
+        out[cols[3 + k], t] += value
 
 
 @numba.njit(cache=True)
-def mass_matrix(s, mp_int, mp_real, shp, out):
+def mass_matrix(s, mp_int, mp_real, shp, idx, out):
     """M = sum m L^T L + J h h^T, h = (0, 0, 1, g) (seed eq. 2.12 by d'Alembert); out (n, n) zeroed."""
     nmax = _max_local(mp_int[:, 1])
     lx = np.empty(nmax)
     ly = np.empty(nmax)
+    cols = np.empty(nmax, dtype=np.int64)
     for i in range(mp_int.shape[0]):
-        off, ne, ptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2]
+        off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
         m, inertia, cx, cy = mp_real[i, 0], mp_real[i, 1], mp_real[i, 2], mp_real[i, 3]
-        _fill_l(s, off, ne, cx, cy, ptr, shp, lx, ly)
-        nl = 3 + ne
+        _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
+        nl = 3 + nnz
         for a in range(nl):
             for b in range(nl):
-                out[off + a, off + b] += m * (lx[a] * lx[b] + ly[a] * ly[b])
+                out[cols[a], cols[b]] += m * (lx[a] * lx[b] + ly[a] * ly[b])
         if inertia != 0.0:
-            g0 = ptr + 2 * ne
+            g0 = ptr + 2 * nnz
             t = off + 2
             out[t, t] += inertia
-            for k in range(ne):
-                out[t, off + 3 + k] += inertia * shp[g0 + k]
-                out[off + 3 + k, t] += inertia * shp[g0 + k]
-                for j in range(ne):
-                    out[off + 3 + k, off + 3 + j] += inertia * shp[g0 + k] * shp[g0 + j]
+            for k in range(nnz):
+                out[t, cols[3 + k]] += inertia * shp[g0 + k]
+                out[cols[3 + k], t] += inertia * shp[g0 + k]
+                for j in range(nnz):
+                    out[cols[3 + k], cols[3 + j]] += inertia * shp[g0 + k] * shp[g0 + j]
 
 
 @numba.njit(cache=True)
-def mass_matrix_jacobian(s, acc, mp_int, mp_real, shp, out):
+def mass_matrix_jacobian(s, acc, mp_int, mp_real, shp, idx, out):
     """d(M(s) a)/ds, a fixed: sum m [L^T d(L a)/ds + D(L a)] (eq. 1, 3); h is constant so the
     rotary inertia adds nothing; out (n, n) zeroed."""
     nmax = _max_local(mp_int[:, 1])
@@ -124,55 +136,68 @@ def mass_matrix_jacobian(s, acc, mp_int, mp_real, shp, out):
     ly = np.empty(nmax)
     jx = np.empty(nmax)
     jy = np.empty(nmax)
+    cols = np.empty(nmax, dtype=np.int64)
     for i in range(mp_int.shape[0]):
-        off, ne, ptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2]
+        off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
         m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
         if m == 0.0:
             continue
-        apx, apy = _fill_l(s, off, ne, cx, cy, ptr, shp, lx, ly)
-        nl = 3 + ne
+        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
+        nl = 3 + nnz
         la_x = 0.0
         la_y = 0.0
         for a in range(nl):
-            la_x += lx[a] * acc[off + a]
-            la_y += ly[a] * acc[off + a]
-        asa_x, asa_y = _elastic_velocity(acc, off, ne, lx, ly)  # A S a_q
+            la_x += lx[a] * acc[cols[a]]
+            la_y += ly[a] * acc[cols[a]]
+        asa_x, asa_y = _elastic_velocity(acc, nnz, lx, ly, cols)  # A S a_q
         at = acc[off + 2]
         # d(L a)/ds: theta column -A p a_t + J A S a_q; q_k columns J A S_k a_t
-        jx[0] = 0.0
-        jy[0] = 0.0
-        jx[1] = 0.0
-        jy[1] = 0.0
         jx[2] = -apx * at - asa_y
         jy[2] = -apy * at + asa_x
-        for k in range(ne):
+        for k in range(nnz):
             jx[3 + k] = -ly[3 + k] * at
             jy[3 + k] = lx[3 + k] * at
         for a in range(nl):
             for b in range(2, nl):
-                out[off + a, off + b] += m * (lx[a] * jx[b] + ly[a] * jy[b])
-        _add_d(out, m, off, ne, apx, apy, lx, ly, la_x, la_y)
+                out[cols[a], cols[b]] += m * (lx[a] * jx[b] + ly[a] * jy[b])
+        _add_d(out, m, nnz, apx, apy, lx, ly, cols, la_x, la_y)
 
 
 @numba.njit(cache=True)
-def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, k0, c0, out):
+def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, out):
     """Q = sum m L^T (g - c) - dPi/ds - K0 s - C0 s' (eq. 2; seed eq. 2.10, 2.13); out (n,) zeroed."""
-    nmax = max(_max_local(mp_int[:, 1]), _max_local(sp_int[:, 1]))
+    nmax = _max_local(mp_int[:, 1])
     lx = np.empty(nmax)
     ly = np.empty(nmax)
+    cols = np.empty(nmax, dtype=np.int64)
     for i in range(mp_int.shape[0]):
-        off, ne, ptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2]
+        off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
         m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
         if m == 0.0:
             continue
-        apx, apy = _fill_l(s, off, ne, cx, cy, ptr, shp, lx, ly)
+        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
         wt = sdot[off + 2]
-        asv_x, asv_y = _elastic_velocity(sdot, off, ne, lx, ly)
+        asv_x, asv_y = _elastic_velocity(sdot, nnz, lx, ly, cols)
         vx = gx + wt * wt * apx + 2.0 * wt * asv_y    # g - c, c = -w^2 A p + 2 w J A S q'
         vy = gy + wt * wt * apy - 2.0 * wt * asv_x
-        for a in range(3 + ne):
-            out[off + a] += m * (lx[a] * vx + ly[a] * vy)
-    _strain_forces(s, sp_int, sp_real, shp, out)
+        for a in range(3 + nnz):
+            out[cols[a]] += m * (lx[a] * vx + ly[a] * vy)
+    for i in range(sp_int.shape[0]):
+        # -dPi/dq of Pi = sum 1/2 (w EA eps^2 + w EI kappa^2), eps = u'q + (w'q)^2/2, kappa = w''q
+        off, nnz, ptr, iptr = sp_int[i, 0], sp_int[i, 1], sp_int[i, 2], sp_int[i, 3]
+        ea, ei = sp_real[i, 0], sp_real[i, 1]
+        du = 0.0
+        dw = 0.0
+        kappa = 0.0
+        for k in range(nnz):
+            qk = s[off + 3 + idx[iptr + k]]
+            du += shp[ptr + k] * qk
+            dw += shp[ptr + nnz + k] * qk
+            kappa += shp[ptr + 2 * nnz + k] * qk
+        eps = du + 0.5 * dw * dw
+        for k in range(nnz):
+            deps = shp[ptr + k] + dw * shp[ptr + nnz + k]
+            out[off + 3 + idx[iptr + k]] -= ea * eps * deps + ei * kappa * shp[ptr + 2 * nnz + k]
     n = s.shape[0]
     if k0.shape[0] == n:
         for a in range(n):
@@ -183,77 +208,60 @@ def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, k0, c0, out):
 
 
 @numba.njit(cache=True)
-def _strain_forces(s, sp_int, sp_real, shp, out):
-    """-dPi/dq of Pi = sum_g 1/2 (w EA eps^2 + w EI kappa^2), eps = u'q + (w'q)^2/2, kappa = w''q."""
-    for i in range(sp_int.shape[0]):
-        off, ne, ptr = sp_int[i, 0], sp_int[i, 1], sp_int[i, 2]
-        ea, ei = sp_real[i, 0], sp_real[i, 1]
-        du = 0.0
-        dw = 0.0
-        kappa = 0.0
-        for k in range(ne):
-            qk = s[off + 3 + k]
-            du += shp[ptr + k] * qk
-            dw += shp[ptr + ne + k] * qk
-            kappa += shp[ptr + 2 * ne + k] * qk
-        eps = du + 0.5 * dw * dw
-        for k in range(ne):
-            deps = shp[ptr + k] + dw * shp[ptr + ne + k]
-            out[off + 3 + k] -= ea * eps * deps + ei * kappa * shp[ptr + 2 * ne + k]
-
-
-@numba.njit(cache=True)
-def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, k0, c0, out_s, out_v):
+def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, out_s,
+                    out_v):
     """dQ/ds and dQ/ds' of ``forces`` (derivatives of eq. 2 and of the strain forces); outputs
     (n, n) zeroed."""
-    nmax = max(_max_local(mp_int[:, 1]), _max_local(sp_int[:, 1]))
+    nmax = _max_local(mp_int[:, 1])
     lx = np.empty(nmax)
     ly = np.empty(nmax)
+    cols = np.empty(nmax, dtype=np.int64)
     for i in range(mp_int.shape[0]):
-        off, ne, ptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2]
+        off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
         m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
         if m == 0.0:
             continue
-        apx, apy = _fill_l(s, off, ne, cx, cy, ptr, shp, lx, ly)
+        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
         wt = sdot[off + 2]
-        asv_x, asv_y = _elastic_velocity(sdot, off, ne, lx, ly)
+        asv_x, asv_y = _elastic_velocity(sdot, nnz, lx, ly, cols)
         vx = gx + wt * wt * apx + 2.0 * wt * asv_y
         vy = gy + wt * wt * apy - 2.0 * wt * asv_x
-        nl = 3 + ne
+        nl = 3 + nnz
         t = off + 2
-        # d(g - c)/ds: theta column w^2 J A p + 2 w A S q' ... written out with J A p = (-apy, apx)
+        # d(g - c)/dtheta = w^2 J A p + 2 w A S q', with J A p = (-apy, apx)
         dtx = -wt * wt * apy + 2.0 * wt * asv_x
         dty = wt * wt * apx + 2.0 * wt * asv_y
-        for a in range(nl):
-            out_s[off + a, t] += m * (lx[a] * dtx + ly[a] * dty)
-            for k in range(ne):  # d(g - c)/dq_k = w^2 A S_k
-                out_s[off + a, off + 3 + k] += m * wt * wt * (lx[a] * lx[3 + k] + ly[a] * ly[3 + k])
-        _add_d(out_s, m, off, ne, apx, apy, lx, ly, vx, vy)
-        # d(g - c)/ds': theta' column 2 w A p - 2 J A S q'; q'_k columns -2 w J A S_k
+        # d(g - c)/dtheta' = 2 w A p - 2 J A S q'
         dvx = 2.0 * wt * apx + 2.0 * asv_y
         dvy = 2.0 * wt * apy - 2.0 * asv_x
         for a in range(nl):
-            out_v[off + a, t] += m * (lx[a] * dvx + ly[a] * dvy)
-            for k in range(ne):
-                out_v[off + a, off + 3 + k] += m * (-2.0 * wt) * (-lx[a] * ly[3 + k]
-                                                                  + ly[a] * lx[3 + k])
+            ca = cols[a]
+            out_s[ca, t] += m * (lx[a] * dtx + ly[a] * dty)
+            out_v[ca, t] += m * (lx[a] * dvx + ly[a] * dvy)
+            for k in range(nnz):
+                ck = cols[3 + k]
+                # d(g - c)/dq_k = w^2 A S_k;  d(g - c)/dq'_k = -2 w J A S_k
+                out_s[ca, ck] += m * wt * wt * (lx[a] * lx[3 + k] + ly[a] * ly[3 + k])
+                out_v[ca, ck] += m * (-2.0 * wt) * (-lx[a] * ly[3 + k] + ly[a] * lx[3 + k])
+        _add_d(out_s, m, nnz, apx, apy, lx, ly, cols, vx, vy)
     for i in range(sp_int.shape[0]):
-        off, ne, ptr = sp_int[i, 0], sp_int[i, 1], sp_int[i, 2]
+        off, nnz, ptr, iptr = sp_int[i, 0], sp_int[i, 1], sp_int[i, 2], sp_int[i, 3]
         ea, ei = sp_real[i, 0], sp_real[i, 1]
         du = 0.0
         dw = 0.0
-        for k in range(ne):
-            qk = s[off + 3 + k]
+        for k in range(nnz):
+            qk = s[off + 3 + idx[iptr + k]]
             du += shp[ptr + k] * qk
-            dw += shp[ptr + ne + k] * qk
+            dw += shp[ptr + nnz + k] * qk
         eps = du + 0.5 * dw * dw
-        for k in range(ne):
-            dk = shp[ptr + k] + dw * shp[ptr + ne + k]
-            for j in range(ne):
-                dj = shp[ptr + j] + dw * shp[ptr + ne + j]
-                out_s[off + 3 + k, off + 3 + j] -= (
-                    ea * (dk * dj + eps * shp[ptr + ne + k] * shp[ptr + ne + j])
-                    + ei * shp[ptr + 2 * ne + k] * shp[ptr + 2 * ne + j])
+        for k in range(nnz):
+            dk = shp[ptr + k] + dw * shp[ptr + nnz + k]
+            ck = off + 3 + idx[iptr + k]
+            for j in range(nnz):
+                dj = shp[ptr + j] + dw * shp[ptr + nnz + j]
+                out_s[ck, off + 3 + idx[iptr + j]] -= (
+                    ea * (dk * dj + eps * shp[ptr + nnz + k] * shp[ptr + nnz + j])
+                    + ei * shp[ptr + 2 * nnz + k] * shp[ptr + 2 * nnz + j])
     n = s.shape[0]
     if k0.shape[0] == n:
         for a in range(n):
@@ -263,110 +271,120 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, k0, 
 
 
 @numba.njit(cache=True)
-def constraints(s, ct_int, ct_real, shp, out):
+def constraints(s, ct_int, ct_real, shp, idx, out):
     """Phi[row] += d . (R + A p) over the constraint terms; out (r,) holds the constant parts."""
     nmax = _max_local(ct_int[:, 2])
     lx = np.empty(nmax)
     ly = np.empty(nmax)
+    cols = np.empty(nmax, dtype=np.int64)
     for i in range(ct_int.shape[0]):
-        row, off, ne, ptr = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2], ct_int[i, 3]
+        row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
+        ptr, iptr = ct_int[i, 3], ct_int[i, 4]
         dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
-        apx, apy = _fill_l(s, off, ne, cx, cy, ptr, shp, lx, ly)
+        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
         out[row] += dx * (s[off] + apx) + dy * (s[off + 1] + apy)
 
 
 @numba.njit(cache=True)
-def constraint_jacobian(s, ct_int, ct_real, shp, out):
+def constraint_jacobian(s, ct_int, ct_real, shp, idx, out):
     """Phi_s[row] += d^T L (eq. 1); out (r, n) holds the constant (drive) rows."""
     nmax = _max_local(ct_int[:, 2])
     lx = np.empty(nmax)
     ly = np.empty(nmax)
+    cols = np.empty(nmax, dtype=np.int64)
     for i in range(ct_int.shape[0]):
-        row, off, ne, ptr = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2], ct_int[i, 3]
+        row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
+        ptr, iptr = ct_int[i, 3], ct_int[i, 4]
         dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
-        _fill_l(s, off, ne, cx, cy, ptr, shp, lx, ly)
-        for a in range(3 + ne):
-            out[row, off + a] += dx * lx[a] + dy * ly[a]
+        _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
+        for a in range(3 + nnz):
+            out[row, cols[a]] += dx * lx[a] + dy * ly[a]
 
 
 @numba.njit(cache=True)
-def constraint_gamma(s, sdot, ct_int, ct_real, shp, out):
+def constraint_gamma(s, sdot, ct_int, ct_real, shp, idx, out):
     """gamma[row] -= d . c (eq. 2; the point constraints do not depend on t); out (r,) holds the
     drive rows' accelerations."""
     nmax = _max_local(ct_int[:, 2])
     lx = np.empty(nmax)
     ly = np.empty(nmax)
+    cols = np.empty(nmax, dtype=np.int64)
     for i in range(ct_int.shape[0]):
-        row, off, ne, ptr = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2], ct_int[i, 3]
+        row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
+        ptr, iptr = ct_int[i, 3], ct_int[i, 4]
         dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
-        apx, apy = _fill_l(s, off, ne, cx, cy, ptr, shp, lx, ly)
+        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
         wt = sdot[off + 2]
-        asv_x, asv_y = _elastic_velocity(sdot, off, ne, lx, ly)
+        asv_x, asv_y = _elastic_velocity(sdot, nnz, lx, ly, cols)
         cxv = -wt * wt * apx - 2.0 * wt * asv_y
         cyv = -wt * wt * apy + 2.0 * wt * asv_x
         out[row] -= dx * cxv + dy * cyv
 
 
 @numba.njit(cache=True)
-def constraint_force_jacobian(s, lam, ct_int, ct_real, shp, out):
+def constraint_force_jacobian(s, lam, ct_int, ct_real, shp, idx, out):
     """d(Phi_s^T lam)/ds = sum lam[row] D(d) (eq. 3); out (n, n) zeroed."""
     nmax = _max_local(ct_int[:, 2])
     lx = np.empty(nmax)
     ly = np.empty(nmax)
+    cols = np.empty(nmax, dtype=np.int64)
     for i in range(ct_int.shape[0]):
-        row, off, ne, ptr = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2], ct_int[i, 3]
+        row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
+        ptr, iptr = ct_int[i, 3], ct_int[i, 4]
         dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
-        apx, apy = _fill_l(s, off, ne, cx, cy, ptr, shp, lx, ly)
-        _add_d(out, lam[row], off, ne, apx, apy, lx, ly, dx, dy)
+        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
+        _add_d(out, lam[row], nnz, apx, apy, lx, ly, cols, dx, dy)
 
 
 @numba.njit(cache=True)
-def kinetic_energy(s, sdot, mp_int, mp_real, shp):
+def kinetic_energy(s, sdot, mp_int, mp_real, shp, idx):
     """T = sum 1/2 m |L s'|^2 + 1/2 J (theta' + g.q')^2 (J)."""
     nmax = _max_local(mp_int[:, 1])
     lx = np.empty(nmax)
     ly = np.empty(nmax)
+    cols = np.empty(nmax, dtype=np.int64)
     energy = 0.0
     for i in range(mp_int.shape[0]):
-        off, ne, ptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2]
+        off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
         m, inertia, cx, cy = mp_real[i, 0], mp_real[i, 1], mp_real[i, 2], mp_real[i, 3]
-        _fill_l(s, off, ne, cx, cy, ptr, shp, lx, ly)
+        _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
         vx = 0.0
         vy = 0.0
-        for a in range(3 + ne):
-            vx += lx[a] * sdot[off + a]
-            vy += ly[a] * sdot[off + a]
+        for a in range(3 + nnz):
+            vx += lx[a] * sdot[cols[a]]
+            vy += ly[a] * sdot[cols[a]]
         omega = sdot[off + 2]
-        for k in range(ne):
-            omega += shp[ptr + 2 * ne + k] * sdot[off + 3 + k]
+        for k in range(nnz):
+            omega += shp[ptr + 2 * nnz + k] * sdot[cols[3 + k]]
         energy += 0.5 * m * (vx * vx + vy * vy) + 0.5 * inertia * omega * omega
     return energy
 
 
 @numba.njit(cache=True)
-def potential_energy(s, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, k0):
+def potential_energy(s, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0):
     """V = -sum m g.r + strain energy (seed eq. 2.13, with eps = u'q + (w'q)^2/2 at strain points
     and 1/2 s^T K0 s for the links without geometric stiffening) (J)."""
     nmax = _max_local(mp_int[:, 1])
     lx = np.empty(nmax)
     ly = np.empty(nmax)
+    cols = np.empty(nmax, dtype=np.int64)
     energy = 0.0
     for i in range(mp_int.shape[0]):
-        off, ne, ptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2]
+        off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
         m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
-        apx, apy = _fill_l(s, off, ne, cx, cy, ptr, shp, lx, ly)
+        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
         energy -= m * (gx * (s[off] + apx) + gy * (s[off + 1] + apy))
     for i in range(sp_int.shape[0]):
-        off, ne, ptr = sp_int[i, 0], sp_int[i, 1], sp_int[i, 2]
+        off, nnz, ptr, iptr = sp_int[i, 0], sp_int[i, 1], sp_int[i, 2], sp_int[i, 3]
         ea, ei = sp_real[i, 0], sp_real[i, 1]
         du = 0.0
         dw = 0.0
         kappa = 0.0
-        for k in range(ne):
-            qk = s[off + 3 + k]
+        for k in range(nnz):
+            qk = s[off + 3 + idx[iptr + k]]
             du += shp[ptr + k] * qk
-            dw += shp[ptr + ne + k] * qk
-            kappa += shp[ptr + 2 * ne + k] * qk
+            dw += shp[ptr + nnz + k] * qk
+            kappa += shp[ptr + 2 * nnz + k] * qk
         eps = du + 0.5 * dw * dw
         energy += 0.5 * (ea * eps * eps + ei * kappa * kappa)
     n = s.shape[0]
