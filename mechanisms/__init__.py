@@ -9,6 +9,11 @@ from ._assemble import (LinkLayout as LinkLayout, Model as Model, assemble as as
                         drive_law as drive_law)
 from ._beams import (BeamShapes as BeamShapes, beam_matrices as beam_matrices,
                      beam_shapes as beam_shapes)
+from ._parts import MechanismError as MechanismError
+from ._load import build as build, load as load, loads as loads, scenes as scenes
+from ._scenes import (four_bar as four_bar, six_bar as six_bar, slider_crank as slider_crank,
+                      two_link_arm as two_link_arm)
+from ._kinematics import NominalMotion as NominalMotion, nominal_motion as nominal_motion
 from ._protocol import ConstrainedModel as ConstrainedModel, Observable as Observable
 from ._simulate import (SimulationError as SimulationError, SimulationResult as SimulationResult,
                         simulate as simulate)

@@ -14,17 +14,68 @@ Conventions shared by every module of ``mechanisms`` (and relied on by ``lineari
 * A point on a link is named by a string: ``"start"``, ``"end"``, a key of ``RigidLink.points``, or
   a float in ``[0, length]`` (a position along the undeformed x-axis of the link). A point on the ground
   is a pair of floats ``(x, y)`` in metres.
+
+Every part checks its own numbers when it is made, and a ``Mechanism`` checks how the parts fit
+together (names, mobility, Grashof for four-bars), raising ``MechanismError`` (a ``ValueError``) that
+names the offending part and key. Checks that need the assembled equations (assembly at ``t = 0``, a
+crank that cannot turn, toggle positions) run at the start of ``mechanisms.nominal_motion``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import re
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, Sequence, Union
+from typing import Any, Callable, Mapping, Union
 
 GROUND = "ground"
 
 PointRef = Union[str, float]
+
+
+class MechanismError(ValueError):
+    """A mechanism or scene that is invalid: bad numbers, unknown names, a linkage that cannot be
+    assembled or whose crank cannot turn, a singular constraint Jacobian."""
+
+
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
+
+
+def _check_name(kind: str, name: object) -> None:
+    # Names become parts of dotted parameter paths ("links.coupler.thickness") and of observable
+    # specs ("coupler.deflection@0.5", "joint:B.fx"), so dots, '@' and ':' are not allowed.
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise MechanismError(f"{kind} name must be a word of letters, digits, '_' or '-' starting "
+                             f"with a letter (no dots), got {name!r}")
+    if name == GROUND:
+        raise MechanismError(f"{kind} name {GROUND!r} is reserved for the fixed frame")
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _check_number(owner: str, key: str, value: object, unit: str, *, positive: bool = False,
+                  nonnegative: bool = False) -> None:
+    if not _is_number(value) or not math.isfinite(value):
+        raise MechanismError(f"{owner}: {key} must be a finite number ({unit}), got {value!r}")
+    if positive and not value > 0:
+        raise MechanismError(f"{owner}: {key} must be positive ({unit}), got {value!r}")
+    if nonnegative and not value >= 0:
+        raise MechanismError(f"{owner}: {key} must be zero or positive ({unit}), got {value!r}")
+
+
+def _check_count(owner: str, key: str, value: object, minimum: int) -> None:
+    if not isinstance(value, int) or isinstance(value, bool) or value < minimum:
+        raise MechanismError(f"{owner}: {key} must be an integer >= {minimum}, got {value!r}")
+
+
+def _check_pair(owner: str, key: str, value: object, unit: str) -> None:
+    if (not isinstance(value, (tuple, list)) or len(value) != 2
+            or not all(_is_number(v) and math.isfinite(v) for v in value)):
+        raise MechanismError(f"{owner}: {key} must be a pair of finite numbers ({unit}), "
+                             f"got {value!r}")
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -42,6 +93,10 @@ class Ritz:
     n_bending: int = 2
     n_axial: int = 1
 
+    def __post_init__(self) -> None:
+        _check_count("Ritz", "n_bending", self.n_bending, 1)
+        _check_count("Ritz", "n_axial", self.n_axial, 0)
+
 
 @dataclass(frozen=True)
 class UserShapes:
@@ -55,6 +110,11 @@ class UserShapes:
     bending: tuple[Callable, ...] = ()
     axial: tuple[Callable, ...] = ()
 
+    def __post_init__(self) -> None:
+        if not self.bending or not all(callable(f) for f in self.bending + self.axial):
+            raise MechanismError("UserShapes: bending must be a non-empty tuple of callables and "
+                                 "axial a tuple of callables")
+
 
 @dataclass(frozen=True)
 class Fem:
@@ -62,6 +122,9 @@ class Fem:
     node (axial, transverse, rotation), the link's boundary conditions removed."""
 
     n_elements: int = 1
+
+    def __post_init__(self) -> None:
+        _check_count("Fem", "n_elements", self.n_elements, 1)
 
 
 Discretisation = Union[Ritz, UserShapes, Fem]
@@ -78,6 +141,10 @@ class Rayleigh:
     alpha: float = 0.0
     beta: float = 0.0
 
+    def __post_init__(self) -> None:
+        _check_number("Rayleigh", "alpha", self.alpha, "1/s", nonnegative=True)
+        _check_number("Rayleigh", "beta", self.beta, "s", nonnegative=True)
+
 
 @dataclass(frozen=True)
 class ModalDamping:
@@ -86,12 +153,25 @@ class ModalDamping:
 
     ratios: tuple[float, ...] = ()
 
+    def __post_init__(self) -> None:
+        for i, ratio in enumerate(self.ratios):
+            _check_number("ModalDamping", f"ratios[{i}]", ratio, "1", nonnegative=True)
+
 
 @dataclass(frozen=True)
 class DampingMatrix:
     """An explicit damping matrix on the link's elastic coordinates, N s/m (n_elastic, n_elastic)."""
 
     matrix: tuple[tuple[float, ...], ...] = ()
+
+    def __post_init__(self) -> None:
+        n = len(self.matrix)
+        for i, row in enumerate(self.matrix):
+            if len(row) != n:
+                raise MechanismError(f"DampingMatrix: matrix must be square, row {i} has "
+                                     f"{len(row)} entries instead of {n}")
+            for j, value in enumerate(row):
+                _check_number("DampingMatrix", f"matrix[{i}][{j}]", value, "N s/m")
 
 
 Damping = Union[Rayleigh, ModalDamping, DampingMatrix, None]
@@ -112,12 +192,33 @@ class RigidLink:
     centroid: tuple[float, float] | None = None
     points: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        _check_name("link", self.name)
+        owner = f"link {self.name!r}"
+        _check_number(owner, "length", self.length, "m", positive=True)
+        _check_number(owner, "mass", self.mass, "kg", positive=True)
+        _check_number(owner, "inertia", self.inertia, "kg m^2", nonnegative=True)
+        if self.centroid is not None:
+            _check_pair(owner, "centroid", self.centroid, "m")
+        for key, point in self.points.items():
+            _check_name(f"{owner}: point", key)
+            if key in ("start", "end"):
+                raise MechanismError(f"{owner}: point name {key!r} is reserved for the pins")
+            _check_pair(owner, f"points.{key}", point, "m")
+
     @classmethod
     def uniform(cls, name: str, length: float, *, width: float, thickness: float, density: float,
                 **kwargs) -> "RigidLink":
         """A uniform bar of rectangular section ``width x thickness`` (m) and ``density`` (kg/m^3)."""
+        owner = f"link {name!r}"
+        for key, value, unit in (("width", width, "m"), ("thickness", thickness, "m"),
+                                 ("density", density, "kg/m^3")):
+            _check_number(owner, key, value, unit, positive=True)
         mass = density * width * thickness * length
         return cls(name=name, length=length, mass=mass, inertia=mass * length**2 / 12.0, **kwargs)
+
+
+_BOUNDARIES = ("pinned-pinned", "clamped-free")
 
 
 @dataclass(frozen=True)
@@ -141,11 +242,34 @@ class ElasticLink:
     rotary_inertia: bool = False
     damping: Damping = None
 
+    def __post_init__(self) -> None:
+        _check_name("link", self.name)
+        owner = f"link {self.name!r}"
+        for key, unit in (("length", "m"), ("density", "kg/m^3"), ("youngs_modulus", "Pa"),
+                          ("area", "m^2"), ("second_moment", "m^4")):
+            _check_number(owner, key, getattr(self, key), unit, positive=True)
+        if not isinstance(self.discretisation, (Ritz, UserShapes, Fem)):
+            raise MechanismError(f"{owner}: discretisation must be Ritz, UserShapes or Fem, got "
+                                 f"{self.discretisation!r}")
+        if self.boundary not in _BOUNDARIES:
+            raise MechanismError(f"{owner}: boundary must be one of {_BOUNDARIES}, got "
+                                 f"{self.boundary!r}")
+        for key in ("axial", "geometric_stiffening", "rotary_inertia"):
+            if not isinstance(getattr(self, key), bool):
+                raise MechanismError(f"{owner}: {key} must be true or false, got "
+                                     f"{getattr(self, key)!r}")
+        if not isinstance(self.damping, (Rayleigh, ModalDamping, DampingMatrix, type(None))):
+            raise MechanismError(f"{owner}: damping must be Rayleigh, ModalDamping, DampingMatrix "
+                                 f"or None, got {self.damping!r}")
+
     @classmethod
     def rectangular(cls, name: str, length: float, *, width: float, thickness: float,
                     density: float, youngs_modulus: float, **kwargs) -> "ElasticLink":
         """Rectangular section ``width x thickness`` bending about the thin direction:
         ``A = b h``, ``I = b h^3 / 12``."""
+        owner = f"link {name!r}"
+        _check_number(owner, "width", width, "m", positive=True)
+        _check_number(owner, "thickness", thickness, "m", positive=True)
         return cls(name=name, length=length, density=density, youngs_modulus=youngs_modulus,
                    area=width * thickness, second_moment=width * thickness**3 / 12.0, **kwargs)
 
@@ -172,6 +296,11 @@ class PointMass:
     mass: float
     inertia: float = 0.0
 
+    def __post_init__(self) -> None:
+        owner = f"point mass on {self.link!r} at {self.point!r}"
+        _check_number(owner, "mass", self.mass, "kg", positive=True)
+        _check_number(owner, "inertia", self.inertia, "kg m^2", nonnegative=True)
+
 
 # ---------------------------------------------------------------------------------------------------
 # Joints
@@ -187,6 +316,16 @@ class Revolute:
     link_b: str
     point_b: PointRef
 
+    def __post_init__(self) -> None:
+        _check_name("joint", self.name)
+        if self.link_b == GROUND:
+            raise MechanismError(f"joint {self.name!r}: put the ground on side a (link_a = "
+                                 f"{GROUND!r}, point_a = (x, y)), not on side b")
+        if self.link_a == self.link_b:
+            raise MechanismError(f"joint {self.name!r} joins link {self.link_a!r} to itself")
+        if self.link_a == GROUND:
+            _check_pair(f"joint {self.name!r}", "point_a (a ground point)", self.point_a, "m")
+
 
 @dataclass(frozen=True)
 class Slider:
@@ -199,6 +338,11 @@ class Slider:
     origin: tuple[float, float] = (0.0, 0.0)
     angle: float = 0.0
 
+    def __post_init__(self) -> None:
+        _check_name("joint", self.name)
+        _check_pair(f"joint {self.name!r}", "origin", self.origin, "m")
+        _check_number(f"joint {self.name!r}", "angle", self.angle, "rad")
+
 
 Joint = Union[Revolute, Slider]
 
@@ -206,6 +350,19 @@ Joint = Union[Revolute, Slider]
 # ---------------------------------------------------------------------------------------------------
 # Drives
 # ---------------------------------------------------------------------------------------------------
+def _check_drive(drive: "PrescribedDrive | TorqueDrive") -> None:
+    owner = f"drive at joint {drive.joint!r}"
+    _check_number(owner, "rate", drive.rate, "rad/s")
+    _check_number(owner, "offset", drive.offset, "rad")
+    for i, harmonic in enumerate(drive.harmonics):
+        if len(harmonic) != 3:
+            raise MechanismError(f"{owner}: harmonics[{i}] must be (k, cos_k, sin_k), got "
+                                 f"{harmonic!r}")
+        _check_count(owner, f"harmonics[{i}] order k", harmonic[0], 1)
+        _check_number(owner, f"harmonics[{i}] cos_k", harmonic[1], "rad")
+        _check_number(owner, f"harmonics[{i}] sin_k", harmonic[2], "rad")
+
+
 @dataclass(frozen=True)
 class PrescribedDrive:
     """Prescribes the relative rotation at revolute joint ``joint``: the angle of ``link_b``'s material
@@ -219,6 +376,13 @@ class PrescribedDrive:
     rate: float = 0.0
     offset: float = 0.0
     harmonics: tuple[tuple[int, float, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        _check_drive(self)
+
+    def angle(self, t: float, period: float) -> tuple[float, float, float]:
+        """The prescribed angle (rad), its rate (rad/s) and acceleration (rad/s^2) at time ``t``."""
+        return _drive_law(self, t, period)
 
 
 @dataclass(frozen=True)
@@ -237,16 +401,47 @@ class TorqueDrive:
     kp: float = 0.0
     kd: float = 0.0
 
+    def __post_init__(self) -> None:
+        _check_drive(self)
+        _check_number(f"drive at joint {self.joint!r}", "kp", self.kp, "N m/rad", nonnegative=True)
+        _check_number(f"drive at joint {self.joint!r}", "kd", self.kd, "N m s/rad",
+                      nonnegative=True)
+
+    def angle(self, t: float, period: float) -> tuple[float, float, float]:
+        """The nominal angle (rad), its rate (rad/s) and acceleration (rad/s^2) at time ``t``."""
+        return _drive_law(self, t, period)
+
 
 Drive = Union[PrescribedDrive, TorqueDrive]
 
 
+def _drive_law(drive: Drive, t: float, period: float) -> tuple[float, float, float]:
+    omega = 2.0 * math.pi / period
+    angle, rate, acceleration = drive.offset + drive.rate * t, drive.rate, 0.0
+    for k, cos_k, sin_k in drive.harmonics:
+        c, s = math.cos(k * omega * t), math.sin(k * omega * t)
+        angle += cos_k * c + sin_k * s
+        rate += k * omega * (-cos_k * s + sin_k * c)
+        acceleration -= (k * omega) ** 2 * (cos_k * c + sin_k * s)
+    return angle, rate, acceleration
+
+
+# ---------------------------------------------------------------------------------------------------
+# The mechanism
+# ---------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Mechanism:
-    """An immutable planar mechanism.
+    """An immutable planar mechanism, validated when it is made.
 
     ``initial_angles`` maps link names to a guess of their frame angle at ``t = 0`` (rad), used to pick
-    the assembly branch. ``period`` (s) defaults to ``2 pi / |rate|`` of the first drive.
+    the assembly branch. ``period`` (s) defaults to ``2 pi / |rate|`` of the first drive; every drive's
+    ``rate * period`` must be a whole number of turns so that the nominal motion is periodic.
+
+    ``spec`` is the scene description (the TOML tables as a dict) the mechanism was built from, kept
+    so that ``with_parameter("links.coupler.thickness", 2e-3)`` rebuilds it with every derived
+    quantity (area, I, Rayleigh beta from a damping ratio) recomputed; ``None`` for mechanisms made
+    from parts. ``studies`` is the scene's raw ``[studies]`` table, kept for the ``studies`` package
+    and not interpreted here.
     """
 
     name: str
@@ -257,3 +452,302 @@ class Mechanism:
     gravity: tuple[float, float] = (0.0, 0.0)
     initial_angles: Mapping[str, float] = field(default_factory=dict)
     period: float | None = None
+    spec: Mapping[str, Any] | None = field(default=None, compare=False, repr=False)
+    studies: Mapping[str, Any] = field(default_factory=dict, compare=False, repr=False)
+    period_is_default: bool = field(default=False, init=False, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        for key in ("links", "joints", "drives", "point_masses"):
+            object.__setattr__(self, key, tuple(getattr(self, key)))
+        object.__setattr__(self, "gravity", tuple(self.gravity))
+        _validate(self)
+
+    # --- lookup ---------------------------------------------------------------------------------------
+    def link(self, name: str) -> Link:
+        """The link called ``name``."""
+        for link in self.links:
+            if link.name == name:
+                return link
+        raise KeyError(f"no link {name!r}; links are {[l.name for l in self.links]}")
+
+    def joint(self, name: str) -> Joint:
+        """The joint called ``name``."""
+        for joint in self.joints:
+            if joint.name == name:
+                return joint
+        raise KeyError(f"no joint {name!r}; joints are {[j.name for j in self.joints]}")
+
+    # --- variants for sweeps --------------------------------------------------------------------------
+    def replace(self, **changes: Any) -> "Mechanism":
+        """A new validated mechanism with dataclass fields replaced (``links=..., period=...``).
+
+        The result carries no ``spec`` (it would no longer describe it); to change one scene
+        parameter and keep derived quantities consistent use ``with_parameter``.
+        """
+        unknown = set(changes) - {f.name for f in dataclasses.fields(self) if f.init}
+        if unknown:
+            raise TypeError(f"Mechanism.replace() got unknown fields {sorted(unknown)}")
+        if "period" not in changes and self.period_is_default:
+            changes["period"] = None  # recompute from the (possibly new) drives
+        changes.setdefault("spec", None)
+        return dataclasses.replace(self, **changes)
+
+    def with_parameter(self, path: str, value: Any) -> "Mechanism":
+        """A new validated mechanism with one scene parameter changed, named by its dotted path in
+        the scene file, e.g. ``"drive.rate"``, ``"links.coupler.thickness"``,
+        ``"links.coupler.damping.ratio"``, ``"gravity"``. Derived quantities are recomputed."""
+        return self.with_parameters({path: value})
+
+    def with_parameters(self, changes: Mapping[str, Any]) -> "Mechanism":
+        """Like ``with_parameter`` for several ``{path: value}`` at once."""
+        from ._load import build, set_path, to_spec
+
+        spec = to_spec(self)
+        for path, value in changes.items():
+            spec = set_path(spec, path, value)
+        return build(spec, source=f"{self.name} with {dict(changes)}")
+
+    def to_spec(self) -> dict[str, Any]:
+        """The scene description as nested dicts (what ``mechanisms.build`` takes)."""
+        from ._load import to_spec
+
+        return to_spec(self)
+
+    def to_toml(self) -> str:
+        """The scene as TOML text that ``mechanisms.load`` reads back to an equal mechanism."""
+        from ._load import dumps
+
+        return dumps(self.to_spec())
+
+
+def _pin_position(link: Link, point: object, owner: str) -> tuple[float, float]:
+    """Position of a named point in the undeformed link frame, m; raises for unknown points."""
+    if point == "start":
+        return (0.0, 0.0)
+    if point == "end":
+        return (float(link.length), 0.0)
+    if isinstance(point, str):
+        if isinstance(link, RigidLink) and point in link.points:
+            x, y = link.points[point]
+            return (float(x), float(y))
+        known = ["start", "end"] + (list(link.points) if isinstance(link, RigidLink) else [])
+        raise MechanismError(f"{owner}: link {link.name!r} has no point {point!r}; its points are "
+                             f"{known} or a distance along the link in metres")
+    if _is_number(point) and math.isfinite(point) and 0.0 <= point <= link.length:
+        return (float(point), 0.0)
+    raise MechanismError(f"{owner}: point on link {link.name!r} must be 'start', 'end', a named "
+                         f"point or a distance in [0, {link.length}] m, got {point!r}")
+
+
+def _validate(mech: Mechanism) -> None:
+    """Checks how the parts fit together; each failure names the part and the fix."""
+    if not isinstance(mech.name, str) or not mech.name:
+        raise MechanismError(f"mechanism name must be a non-empty string, got {mech.name!r}")
+    if not mech.links:
+        raise MechanismError(f"mechanism {mech.name!r} has no links")
+    links: dict[str, Link] = {}
+    for link in mech.links:
+        if not isinstance(link, (RigidLink, ElasticLink)):
+            raise MechanismError(f"links must be RigidLink or ElasticLink, got {link!r}")
+        if link.name in links:
+            raise MechanismError(f"duplicate link name {link.name!r}")
+        links[link.name] = link
+
+    def known_link(owner: str, name: str) -> Link:
+        if name not in links:
+            import difflib
+
+            close = difflib.get_close_matches(str(name), list(links) + [GROUND], n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise MechanismError(f"{owner} names unknown link {name!r} (links: {list(links)}, or "
+                                 f"{GROUND!r}){hint}")
+        return links[name]
+
+    joints: dict[str, Joint] = {}
+    neighbours: dict[str, set[str]] = {name: set() for name in links}
+    grounded: set[str] = set()
+    for joint in mech.joints:
+        if not isinstance(joint, (Revolute, Slider)):
+            raise MechanismError(f"joints must be Revolute or Slider, got {joint!r}")
+        if joint.name in joints:
+            raise MechanismError(f"duplicate joint name {joint.name!r}")
+        joints[joint.name] = joint
+        owner = f"joint {joint.name!r}"
+        if isinstance(joint, Revolute):
+            _pin_position(known_link(owner, joint.link_b), joint.point_b, owner)
+            if joint.link_a == GROUND:
+                grounded.add(joint.link_b)
+            else:
+                _pin_position(known_link(owner, joint.link_a), joint.point_a, owner)
+                neighbours[joint.link_a].add(joint.link_b)
+                neighbours[joint.link_b].add(joint.link_a)
+        else:
+            _pin_position(known_link(owner, joint.link), joint.point, owner)
+            grounded.add(joint.link)
+
+    driven: set[str] = set()
+    for drive in mech.drives:
+        if not isinstance(drive, (PrescribedDrive, TorqueDrive)):
+            raise MechanismError(f"drives must be PrescribedDrive or TorqueDrive, got {drive!r}")
+        joint = joints.get(drive.joint)
+        if not isinstance(joint, Revolute):
+            raise MechanismError(f"drive names joint {drive.joint!r}, which is not a revolute joint "
+                                 f"of the mechanism (revolute joints: "
+                                 f"{[j.name for j in mech.joints if isinstance(j, Revolute)]})")
+        if drive.joint in driven:
+            raise MechanismError(f"joint {drive.joint!r} is driven twice")
+        driven.add(drive.joint)
+    if not mech.drives:
+        raise MechanismError(f"mechanism {mech.name!r} has no drive; add a PrescribedDrive or "
+                             f"TorqueDrive at the crank joint")
+
+    for pm in mech.point_masses:
+        owner = f"point mass on {pm.link!r}"
+        _pin_position(known_link(owner, pm.link), pm.point, owner)
+    _check_pair(f"mechanism {mech.name!r}", "gravity", mech.gravity, "m/s^2")
+    for name, angle in mech.initial_angles.items():
+        known_link("initial_angles", name)
+        _check_number("initial_angles", name, angle, "rad")
+
+    # Every link must hang together with the ground, else it floats freely.
+    reached, frontier = set(grounded), list(grounded)
+    while frontier:
+        for other in neighbours[frontier.pop()] - reached:
+            reached.add(other)
+            frontier.append(other)
+    floating = [name for name in links if name not in reached]
+    if floating:
+        raise MechanismError(f"links {floating} are not connected to the ground by joints")
+
+    # Mobility (Gruebler): the rigid coordinates (3 per link) must be fixed by the joints and drives,
+    # so that the nominal motion is determined and the rigid subsystem is square.
+    n_rigid = 3 * len(mech.links)
+    n_equations = sum(2 if isinstance(j, Revolute) else 1 for j in mech.joints) + len(mech.drives)
+    if n_equations != n_rigid:
+        mobility = n_rigid - n_equations + len(mech.drives)
+        raise MechanismError(
+            f"linkage {mech.name!r} cannot be assembled as a driven mechanism: {len(mech.links)} "
+            f"links have {n_rigid} rigid coordinates but the joints and drives give {n_equations} "
+            f"constraint equations (mobility {mobility} with {len(mech.drives)} drive(s)); "
+            f"{'add' if n_equations < n_rigid else 'remove'} joints or drives so that they match")
+
+    # Period: default from the first drive; all drives must repeat over it.
+    period, is_default = mech.period, mech.period is None
+    if is_default:
+        rate = mech.drives[0].rate
+        if rate == 0.0:
+            raise MechanismError(f"mechanism {mech.name!r}: the first drive has rate 0, so give the "
+                                 f"period of its motion explicitly (period = ... s)")
+        period = 2.0 * math.pi / abs(rate)
+    _check_number(f"mechanism {mech.name!r}", "period", period, "s", positive=True)
+    for drive in mech.drives:
+        turns = drive.rate * period / (2.0 * math.pi)
+        if abs(turns - round(turns)) > 1e-9 * max(1.0, abs(turns)):
+            raise MechanismError(f"drive at joint {drive.joint!r}: rate {drive.rate} rad/s turns "
+                                 f"{turns:.6g} times per period {period:.6g} s; the nominal motion "
+                                 f"is periodic only for a whole number of turns")
+    object.__setattr__(mech, "period", float(period))
+    object.__setattr__(mech, "period_is_default", is_default)
+
+    _check_four_bar(mech, links, joints)
+
+
+def _check_four_bar(mech: Mechanism, links: dict[str, Link], joints: dict[str, Joint]) -> None:
+    """Grashof for a driven four-bar: the crank must pass every angle it is driven through.
+
+    With crank pin O, coupler pin A, rocker pivot C and lengths l_coupler, l_rocker, the loop closes
+    exactly when |A - C| lies in [|l_coupler - l_rocker|, l_coupler + l_rocker]. Scanning the crank
+    angle over one period finds the first angle where it does not (a non-Grashof linkage, or a
+    Grashof one whose crank is not the shortest link); touching the bound is a toggle, where the
+    constraint Jacobian is singular (a change-point linkage, s + l = p + q).
+    """
+    revolutes = [j for j in mech.joints if isinstance(j, Revolute)]
+    if len(mech.links) != 3 or len(revolutes) != 4 or len(mech.drives) != 1:
+        return
+    ground_joints = [j for j in revolutes if j.link_a == GROUND]
+    drive_joint = joints[mech.drives[0].joint]
+    if len(ground_joints) != 2 or drive_joint.link_a != GROUND:
+        return
+    crank = links[drive_joint.link_b]
+    rocker_joint = next(j for j in ground_joints if j is not drive_joint)
+    rocker = links[rocker_joint.link_b]
+    if rocker is crank:
+        return
+    coupler = next(link for link in mech.links if link is not crank and link is not rocker)
+    inner = [j for j in revolutes if j.link_a != GROUND]
+
+    def pin(link: Link, joint: Revolute) -> tuple[float, float]:
+        point = joint.point_a if joint.link_a == link.name else joint.point_b
+        return _pin_position(link, point, f"joint {joint.name!r}")
+
+    def side(link_a: Link, link_b: Link) -> Revolute | None:
+        return next((j for j in inner if {j.link_a, j.link_b} == {link_a.name, link_b.name}), None)
+
+    crank_coupler, coupler_rocker = side(crank, coupler), side(coupler, rocker)
+    if crank_coupler is None or coupler_rocker is None:
+        return
+    o, c = drive_joint.point_a, rocker_joint.point_a
+    crank_vec = [b - a for a, b in zip(pin(crank, drive_joint), pin(crank, crank_coupler))]
+    l_coupler = math.dist(pin(coupler, crank_coupler), pin(coupler, coupler_rocker))
+    l_rocker = math.dist(pin(rocker, rocker_joint), pin(rocker, coupler_rocker))
+    l_crank, l_ground = math.hypot(*crank_vec), math.dist(o, c)
+    low, high = abs(l_coupler - l_rocker), l_coupler + l_rocker
+    scale = max(l_crank, l_ground, l_coupler, l_rocker)
+    drive, period = mech.drives[0], mech.period
+
+    def margin(t: float) -> float:
+        theta = drive.angle(t, period)[0]
+        ax = o[0] + math.cos(theta) * crank_vec[0] - math.sin(theta) * crank_vec[1]
+        ay = o[1] + math.sin(theta) * crank_vec[0] + math.cos(theta) * crank_vec[1]
+        d = math.hypot(ax - c[0], ay - c[1])
+        return min(d - low, high - d) / scale
+
+    # 4096 samples resolve the crank angle to 0.1 deg per turn; bisection then pins the crossing.
+    n_samples = 4096 * max(1, round(abs(drive.rate) * period / (2.0 * math.pi)))
+    times = [period * k / n_samples for k in range(n_samples + 1)]
+    margins = [margin(t) for t in times]
+    lengths = sorted([l_crank, l_ground, l_coupler, l_rocker])
+    grashof = (f"lengths crank {l_crank:.6g}, coupler {l_coupler:.6g}, rocker {l_rocker:.6g}, "
+               f"ground {l_ground:.6g} m: s + l = {lengths[0] + lengths[3]:.6g} m, p + q = "
+               f"{lengths[1] + lengths[2]:.6g} m")
+    if margins[0] <= 0.0:
+        raise MechanismError(f"four-bar {mech.name!r} cannot be assembled at crank angle "
+                             f"{math.degrees(drive.angle(0.0, period)[0]):.2f} deg (t = 0): the "
+                             f"coupler and rocker cannot reach ({grashof})")
+    ratio = (math.sqrt(5.0) - 1.0) / 2.0
+
+    def refined_minimum(k: int) -> tuple[float, float]:
+        # Golden-section search of the margin's minimum between the samples around k.
+        t_low, t_high = times[max(k - 1, 0)], times[min(k + 1, n_samples)]
+        for _ in range(80):
+            t_1, t_2 = t_high - ratio * (t_high - t_low), t_low + ratio * (t_high - t_low)
+            t_low, t_high = (t_low, t_2) if margin(t_1) < margin(t_2) else (t_1, t_high)
+        return margin(t_high), t_high
+
+    k_open = next((k for k, m in enumerate(margins) if m < 0.0), None)
+    if k_open is not None:
+        # The loop opens: bisect for the first angle where it no longer closes.
+        kind = "the coupler and rocker cannot reach beyond it"
+        t_low, t_high = times[k_open - 1], times[k_open]
+        for _ in range(60):
+            t_mid = 0.5 * (t_low + t_high)
+            t_low, t_high = (t_mid, t_high) if margin(t_mid) > 0.0 else (t_low, t_mid)
+    else:
+        # A toggle touches margin 0 without crossing, between samples: refine every local minimum
+        # of the samples. 1e-9 of the largest length is far below any physical clearance and far
+        # above rounding (1e-16).
+        minima = [refined_minimum(k) for k in range(1, n_samples)
+                  if margins[k] <= margins[k - 1] and margins[k] <= margins[k + 1]
+                  and margins[k] < 1e-3]
+        toggles = [t for value, t in minima if value <= 1e-9]
+        if not toggles:
+            return
+        kind = ("toggle: the constraint Jacobian of joints "
+                f"{crank_coupler.name!r}, {coupler_rocker.name!r} is singular there")
+        t_high = toggles[0]
+    angle = drive.angle(t_high, period)[0]
+    raise MechanismError(
+        f"four-bar {mech.name!r}: the crank cannot turn fully; it fails at crank angle "
+        f"{math.degrees(angle):.2f} deg (t = {t_high:.6g} s), {kind}. Grashof needs s + l <= p + q "
+        f"with the crank the shortest link (or the ground shortest), strictly for no toggle; "
+        f"{grashof}")

@@ -1,0 +1,402 @@
+"""The nominal rigid motion: the mechanism with its elastic coordinates held at zero, over one period.
+
+With the elastic coordinates fixed, the rigid coordinates ``s_r`` (x, y, theta of every link frame)
+and the constraints (joints and drives) form a square system, solved on the uniform grid
+``t_k = k T / N``:
+
+* positions: ``Phi(s, t_k) = 0`` by Newton-Raphson, continued along the crank angle from the
+  previous grid point with the predictor ``s + h s' + h^2/2 s''`` (steps halved when Newton struggles);
+* velocities: ``Phi_s s' = -Phi_t``;
+* accelerations: ``Phi_s s'' = gamma(s, s', t)``;
+* multipliers from the rigid rows of ``M s'' = Q - Phi_s^T lam`` (protocol equations in
+  ``mechanisms._protocol``): ``Phi_r^T lam = Q_r - (M s'')_r``, and the drive torques from them.
+
+The scaled Jacobian's condition number is tracked: a toggle position (singular Jacobian) raises
+``MechanismError`` naming the joints and the crank angle, an ill-conditioned one warns.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ._parts import (GROUND, Mechanism, MechanismError, PrescribedDrive, Revolute, TorqueDrive,
+                     _pin_position)
+
+logger = logging.getLogger(__name__)
+
+# Newton stops once max |Phi| < _NEWTON_STOP (positions in m, drive rows in rad): quadratic
+# convergence from a residual of 1e-9 already lands at rounding (~1e-17 m for 0.1 m links); the
+# result must meet the 1e-12 required of the nominal motion.
+_NEWTON_STOP = 1e-14
+_RESIDUAL_REQUIRED = 1e-12
+# Condition numbers of the Jacobian scaled to metres: position errors are amplified by it, so above
+# 1e6 (errors of 1e-10 m from rounding) we warn and above 1e10 (a toggle) we stop.
+_COND_WARN, _COND_SINGULAR = 1e6, 1e10
+# A Newton correction larger than 0.05 (rad, or a twentieth of the link scale) after a second-order
+# predictor means a jump towards another assembly branch: the step is halved instead.
+_MAX_CORRECTION = 0.05
+_MAX_HALVINGS = 12
+
+
+@dataclass(frozen=True)
+class NominalMotion:
+    """The rigid mechanism's motion over one period on ``t_k = k T / N``, ``k = 0..N``.
+
+    ``s, sdot, sddot`` (N+1, n): full coordinate vectors (m, rad; elastic entries zero) and their
+    first and second time derivatives; ``lam`` (N+1, r): multipliers of the rigid inverse dynamics
+    (``M s'' = Q - Phi_s^T lam``); ``drive_torque`` (N+1, n_drives): torque (N m) each drive applies
+    to its ``link_b``. Error estimates: ``constraint_residual`` max |Phi| (m or rad),
+    ``velocity_residual`` max |Phi_s s' + Phi_t|, ``acceleration_residual`` max |Phi_s s'' - gamma|,
+    ``closure_error`` how far the rigid state at ``T`` differs from that at 0 (whole turns removed),
+    ``jacobian_condition`` (N+1,) condition number of the rigid Jacobian scaled to metres.
+    ``run_time`` in s.
+    """
+
+    t: np.ndarray
+    s: np.ndarray
+    sdot: np.ndarray
+    sddot: np.ndarray
+    lam: np.ndarray
+    drive_torque: np.ndarray
+    constraint_residual: float
+    velocity_residual: float
+    acceleration_residual: float
+    closure_error: float
+    jacobian_condition: np.ndarray
+    model: Any
+    period: float
+    run_time: float
+
+    @property
+    def n_steps(self) -> int:
+        return len(self.t) - 1
+
+
+def nominal_motion(mechanism_or_model: Any, *, n_steps: int, period: float | None = None,
+                   s0: np.ndarray | None = None) -> NominalMotion:
+    """The rigid nominal motion of a ``Mechanism`` (assembled here) or of an assembled model.
+
+    ``n_steps`` N >= 2 grid intervals over one period. For a bare model (no ``model.mechanism``),
+    give ``period`` (s) unless the model has one, and ``s0`` (n,), a guess of the coordinates at
+    ``t = 0``; for a mechanism the guess comes from its ``initial_angles`` and drives. Torque drives
+    follow their nominal law here, and their torque is the inverse-dynamics one.
+
+    Raises ``MechanismError`` when the linkage cannot be assembled, the crank cannot turn through
+    the period or the constraint Jacobian is singular (toggle), naming joints and crank angle.
+    """
+    started = time.perf_counter()
+    if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 2:
+        raise ValueError(f"n_steps must be an integer >= 2, got {n_steps!r}")
+    model, mechanism = _model_of(mechanism_or_model)
+    if period is None:
+        period = mechanism.period if mechanism is not None else getattr(model, "period", None)
+    if period is None or not (isinstance(period, (int, float)) and math.isfinite(period)
+                              and period > 0):
+        raise ValueError(f"period must be a positive number of seconds (give period=...), got "
+                         f"{period!r}")
+    n, r = model.n_coords, model.n_constraints
+    rigid = np.asarray(model.rigid_index, dtype=np.int64)
+    if r != len(rigid):
+        raise MechanismError(f"the rigid subsystem is not square: {len(rigid)} rigid coordinates "
+                             f"but {r} constraint equations")
+    labels = list(model.coord_labels)
+    system = _RigidSystem(model, rigid, mechanism, float(period))
+    if s0 is None:
+        if mechanism is None:
+            raise ValueError("s0 (a guess of the coordinates at t = 0) is required for a model "
+                             "without a mechanism")
+        s0 = _initial_guess(mechanism, labels, n, float(period))
+    s0 = np.array(s0, dtype=np.float64)
+    if s0.shape != (n,) or not np.isfinite(s0).all():
+        raise ValueError(f"s0 must be a finite vector of shape ({n},), got shape {s0.shape}")
+
+    times = np.linspace(0.0, period, n_steps + 1)
+    s = np.zeros((n_steps + 1, n))
+    sdot, sddot = np.zeros_like(s), np.zeros_like(s)
+    lam = np.zeros((n_steps + 1, r))
+    condition = np.zeros(n_steps + 1)
+    s[0] = system.assemble(s0)
+    for k in range(n_steps + 1):
+        if k > 0:
+            s[k] = system.continue_to(s[k - 1], sdot[k - 1], sddot[k - 1], times[k - 1],
+                                      times[k])
+        sdot[k], sddot[k], condition[k] = system.rates(s[k], times[k])
+        lam[k] = system.multipliers(s[k], sdot[k], sddot[k], times[k])
+
+    drive_torque = _drive_torques(model, s, sdot, lam, times)
+    residual = max(float(np.abs(model.constraints(s[k], times[k])).max()) for k in range(len(times)))
+    if residual > _RESIDUAL_REQUIRED:
+        raise MechanismError(f"the nominal motion's constraint residual {residual:.3g} exceeds "
+                             f"{_RESIDUAL_REQUIRED:g}: the Jacobian is too ill-conditioned "
+                             f"(max condition number {condition.max():.3g})")
+    velocity_residual = max(float(np.abs(model.constraint_jacobian(s[k], times[k]) @ sdot[k]
+                                         + model.constraint_rate(s[k], times[k])).max())
+                            for k in range(len(times)))
+    acceleration_residual = max(float(np.abs(model.constraint_jacobian(s[k], times[k]) @ sddot[k]
+                                             - model.constraint_gamma(s[k], sdot[k], times[k])
+                                             ).max()) for k in range(len(times)))
+    closure = _closure_error(s[0], s[-1], labels, rigid)
+    # The continuation closes on itself up to Newton's accuracy amplified by the conditioning; a
+    # closure error of 1e-6 or more means it ended on another assembly branch.
+    if closure > 1e-6:
+        raise MechanismError(f"the nominal motion does not close over one period (state at T "
+                             f"differs from t = 0 by {closure:.3g}): the continuation switched "
+                             f"assembly branch; check for toggle positions or give a larger "
+                             f"n_steps")
+    run_time = time.perf_counter() - started
+    logger.info("nominal motion: %d steps in %.3f s, residual %.2e, max condition %.3g",
+                n_steps, run_time, residual, condition.max())
+    return NominalMotion(t=times, s=s, sdot=sdot, sddot=sddot, lam=lam, drive_torque=drive_torque,
+                         constraint_residual=residual, velocity_residual=velocity_residual,
+                         acceleration_residual=acceleration_residual, closure_error=closure,
+                         jacobian_condition=condition, model=model, period=float(period),
+                         run_time=run_time)
+
+
+def _model_of(obj: Any) -> tuple[Any, Mechanism | None]:
+    if isinstance(obj, Mechanism):
+        from ._assemble import assemble
+
+        if any(isinstance(d, TorqueDrive) for d in obj.drives):
+            # The nominal motion of a torque drive follows its nominal law; its inverse-dynamics
+            # torque is what the drive's multiplier gives when that law is prescribed.
+            obj = obj.replace(drives=tuple(
+                PrescribedDrive(d.joint, d.rate, d.offset, d.harmonics)
+                if isinstance(d, TorqueDrive) else d for d in obj.drives), period=obj.period)
+        return assemble(obj), obj
+    for name in ("n_coords", "n_constraints", "rigid_index", "constraints",
+                 "constraint_jacobian", "constraint_rate", "constraint_gamma", "mass_matrix",
+                 "forces"):
+        if not hasattr(obj, name):
+            raise TypeError(f"nominal_motion() takes a Mechanism or a model implementing "
+                            f"mechanisms.ConstrainedModel; {type(obj).__name__} lacks {name!r}")
+    mechanism = getattr(obj, "mechanism", None)
+    return obj, mechanism if isinstance(mechanism, Mechanism) else None
+
+
+class _RigidSystem:
+    """The constraints restricted to the rigid coordinates, elastic ones held at zero."""
+
+    def __init__(self, model: Any, rigid: np.ndarray, mechanism: Mechanism | None, period: float):
+        self.model, self.rigid, self.mechanism, self.period = model, rigid, mechanism, period
+        labels = list(model.coord_labels)
+        constraint_labels = list(model.constraint_labels)
+        # Scale to metres: x, y columns by the link scale L (so a column is a displacement per
+        # unit of L) and joint rows (m) by 1/L; angles and drive rows (rad) stay.
+        scale = 1.0
+        if mechanism is not None:
+            scale = max(link.length for link in mechanism.links)
+        self.scale = scale
+        self.column_scale = np.array([1.0 if labels[i].endswith(".theta") else scale
+                                      for i in rigid])
+        self.row_scale = np.array([1.0 if label.startswith("drive:") else 1.0 / scale
+                                   for label in constraint_labels])
+        self.constraint_labels = constraint_labels
+
+    def jacobian(self, s: np.ndarray, t: float) -> np.ndarray:
+        return self.model.constraint_jacobian(s, t)[:, self.rigid]
+
+    def condition(self, jac: np.ndarray) -> float:
+        return float(np.linalg.cond(self.row_scale[:, None] * jac * self.column_scale[None, :]))
+
+    def where(self, t: float) -> str:
+        if self.mechanism is None:
+            return f"t = {t:.6g} s"
+        drive = self.mechanism.drives[0]
+        angle = drive.angle(t, self.period)[0]
+        return (f"crank angle {math.degrees(angle):.2f} deg (drive at joint {drive.joint!r}, "
+                f"t = {t:.6g} s)")
+
+    def singular_joints(self, jac: np.ndarray) -> list[str]:
+        """Joints whose constraint rows make up the (near) null space of Phi_s^T."""
+        u, _, _ = np.linalg.svd(self.row_scale[:, None] * jac * self.column_scale[None, :])
+        weights = np.abs(u[:, -1])
+        joints: list[str] = []
+        for label, weight in zip(self.constraint_labels, weights):
+            if weight >= 0.2 * weights.max():
+                joint = label.split(":", 1)[1] if label.startswith("drive:") else \
+                    label.rsplit(".", 1)[0]
+                if joint not in joints:
+                    joints.append(joint)
+        return joints
+
+    def newton(self, s: np.ndarray, t: float, max_iterations: int) -> tuple[np.ndarray, bool,
+                                                                             float]:
+        """Newton on the rigid coordinates; returns (s, converged, scaled size of all corrections)."""
+        s = s.copy()
+        total = 0.0
+        for _ in range(max_iterations):
+            phi = self.model.constraints(s, t)
+            if np.abs(phi).max() < _NEWTON_STOP:
+                return s, True, total
+            jac = self.jacobian(s, t)
+            try:
+                step = np.linalg.solve(jac, phi)
+            except np.linalg.LinAlgError:
+                return s, False, total
+            if not np.isfinite(step).all():
+                return s, False, total
+            s[self.rigid] -= step
+            total += float(np.abs(step / self.column_scale).max())
+        phi = self.model.constraints(s, t)
+        return s, bool(np.abs(phi).max() < _RESIDUAL_REQUIRED), total
+
+    def assemble(self, guess: np.ndarray) -> np.ndarray:
+        """Positions at t = 0 from a rough guess: damped Newton (backtracking on |Phi|)."""
+        s = guess.copy()
+        for _ in range(100):
+            phi = self.model.constraints(s, 0.0)
+            norm = float(np.abs(phi).max())
+            if norm < _NEWTON_STOP:
+                break
+            step = np.linalg.lstsq(self.jacobian(s, 0.0), phi, rcond=None)[0]
+            for _ in range(30):
+                trial = s.copy()
+                trial[self.rigid] -= step
+                if float(np.abs(self.model.constraints(trial, 0.0)).max()) < norm:
+                    break
+                step = 0.5 * step
+            else:
+                break
+            s = trial
+        s, converged, _ = self.newton(s, 0.0, 10)
+        if not converged:
+            phi = self.model.constraints(s, 0.0)
+            worst = [self.constraint_labels[i] for i in np.argsort(-np.abs(phi))[:2]]
+            raise MechanismError(
+                f"the linkage cannot be assembled at {self.where(0.0)}: Newton-Raphson from the "
+                f"initial angles left a residual {np.abs(phi).max():.3g} (largest at {worst}); "
+                f"check the link lengths and ground points, or give initial_angles near the "
+                f"intended configuration")
+        self.check_jacobian(s, 0.0)
+        return s
+
+    def check_jacobian(self, s: np.ndarray, t: float) -> float:
+        jac = self.jacobian(s, t)
+        cond = self.condition(jac)
+        if not cond < _COND_SINGULAR:
+            raise MechanismError(
+                f"singular constraint Jacobian (toggle position) at {self.where(t)}: joints "
+                f"{self.singular_joints(jac)} (condition number {cond:.3g}); links meeting there "
+                f"are aligned. Change the link lengths (Grashof: s + l < p + q with the crank "
+                f"shortest) or the drive's range")
+        if cond > _COND_WARN:
+            message = (f"ill-conditioned constraint Jacobian at {self.where(t)}: condition number "
+                       f"{cond:.3g} near joints {self.singular_joints(jac)}")
+            logger.warning(message)
+            warnings.warn(message, RuntimeWarning, stacklevel=4)
+        return cond
+
+    def continue_to(self, s: np.ndarray, sdot: np.ndarray, sddot: np.ndarray, t0: float,
+                    t1: float) -> np.ndarray:
+        """Positions at t1 by continuation from the solved state at t0."""
+        target, depth = t1, 0
+        while True:
+            h = target - t0
+            predicted = s + h * sdot + 0.5 * h * h * sddot
+            solved, converged, correction = self.newton(predicted, target, 8)
+            if converged and correction < _MAX_CORRECTION:
+                if target == t1:
+                    return solved
+                # Accept the substep and carry on from it towards t1.
+                s, t0 = solved, target
+                sdot, sddot, _ = self.rates(s, t0)
+                target, depth = t1, 0
+                continue
+            depth += 1
+            if depth > _MAX_HALVINGS:
+                jac = self.jacobian(s, t0)
+                raise MechanismError(
+                    f"the crank cannot turn through the period: the rigid linkage stops near "
+                    f"{self.where(t0)}; beyond it the loop does not close (condition number "
+                    f"{self.condition(jac):.3g}, joints {self.singular_joints(jac)}). Check "
+                    f"Grashof's condition and the link lengths")
+            target = t0 + 0.5 * (target - t0)
+
+    def rates(self, s: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """Velocities from Phi_s s' = -Phi_t and accelerations from Phi_s s'' = gamma."""
+        cond = self.check_jacobian(s, t)
+        jac = self.jacobian(s, t)
+        sdot = np.zeros_like(s)
+        sdot[self.rigid] = np.linalg.solve(jac, -self.model.constraint_rate(s, t))
+        sddot = np.zeros_like(s)
+        sddot[self.rigid] = np.linalg.solve(jac, self.model.constraint_gamma(s, sdot, t))
+        return sdot, sddot, cond
+
+    def multipliers(self, s: np.ndarray, sdot: np.ndarray, sddot: np.ndarray,
+                    t: float) -> np.ndarray:
+        """Rigid rows of M s'' = Q - Phi_s^T lam, solved for lam (square: n_rigid = r)."""
+        rhs = (self.model.forces(s, sdot, t) - self.model.mass_matrix(s) @ sddot)[self.rigid]
+        return np.linalg.solve(self.jacobian(s, t).T, rhs)
+
+
+def _drive_torques(model: Any, s: np.ndarray, sdot: np.ndarray, lam: np.ndarray,
+                   times: np.ndarray) -> np.ndarray:
+    if hasattr(model, "drive_torques"):
+        return np.array([model.drive_torques(s[k], sdot[k], times[k], lam[k])
+                         for k in range(len(times))]).reshape(len(times), -1)
+    # Without the assembler's helper: a drive row written angle_b - angle_a - angle(t) = 0 exerts
+    # the generalized force -lam on link_b's angle, which is the torque on it.
+    rows = [i for i, label in enumerate(model.constraint_labels) if label.startswith("drive:")]
+    return -lam[:, rows]
+
+
+def _closure_error(first: np.ndarray, last: np.ndarray, labels: list[str],
+                   rigid: np.ndarray) -> float:
+    """Largest difference between the rigid coordinates at T and 0, angles modulo whole turns."""
+    worst = 0.0
+    for i in rigid:
+        diff = last[i] - first[i]
+        if labels[i].endswith(".theta"):
+            diff -= 2.0 * math.pi * round(diff / (2.0 * math.pi))
+        worst = max(worst, abs(diff))
+    return worst
+
+
+def _initial_guess(mech: Mechanism, labels: list[str], n: int, period: float) -> np.ndarray:
+    """Frame angles from the drives at t = 0 and ``initial_angles``; frame origins by walking the
+    joints from the ground so that every tree joint closes (the loops are closed by Newton)."""
+    index = {label: i for i, label in enumerate(labels)}
+    angles = {link.name: float(mech.initial_angles.get(link.name, 0.0)) for link in mech.links}
+    joints = {j.name: j for j in mech.joints}
+    for _ in range(len(mech.drives)):
+        for drive in mech.drives:
+            joint = joints[drive.joint]
+            base = 0.0 if joint.link_a == GROUND else angles[joint.link_a]
+            angles[joint.link_b] = base + drive.angle(0.0, period)[0]
+    links = {link.name: link for link in mech.links}
+    origins: dict[str, np.ndarray] = {}
+
+    def world(name: str, point: Any) -> np.ndarray:
+        local = np.array(_pin_position(links[name], point, f"link {name!r}"))
+        c, s = math.cos(angles[name]), math.sin(angles[name])
+        return origins[name] + np.array([c * local[0] - s * local[1], s * local[0] + c * local[1]])
+
+    def place(name: str, point: Any, at: np.ndarray) -> None:
+        origins[name] = np.zeros(2)
+        origins[name] = at - world(name, point)
+
+    for joint in mech.joints:
+        if isinstance(joint, Revolute) and joint.link_a == GROUND and joint.link_b not in origins:
+            place(joint.link_b, joint.point_b, np.array(joint.point_a, dtype=float))
+    for _ in range(len(mech.joints)):
+        for joint in mech.joints:
+            if not isinstance(joint, Revolute) or joint.link_a == GROUND:
+                continue
+            if joint.link_a in origins and joint.link_b not in origins:
+                place(joint.link_b, joint.point_b, world(joint.link_a, joint.point_a))
+            elif joint.link_b in origins and joint.link_a not in origins:
+                place(joint.link_a, joint.point_a, world(joint.link_b, joint.point_b))
+    s = np.zeros(n)
+    for name in links:
+        x, y = origins.get(name, np.zeros(2))
+        s[index[f"{name}.x"]], s[index[f"{name}.y"]] = x, y
+        s[index[f"{name}.theta"]] = angles[name]
+    return s
