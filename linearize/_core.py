@@ -141,37 +141,23 @@ def linear_coefficients(model, t: np.ndarray, s0: np.ndarray, sdot0: np.ndarray,
     m = independent.size
     label = time_label or (lambda k: f"t = {t[k]:.6g} s")
 
-    mass = np.empty((n_samples, n, n))
-    damping = np.empty((n_samples, n, n))
-    stiffness = np.empty((n_samples, n, n))
-    residual = np.empty((n_samples, n))
+    mass, damping, stiffness, residual, jacobian = _linear_terms(model, t, s0, sdot0, sddot0, lam0)
+    Phi_d = jacobian[:, :, dependent]
+    singular_values = np.linalg.svd(Phi_d, compute_uv=False)
+    with np.errstate(divide="ignore"):
+        condition = singular_values[:, 0] / singular_values[:, -1]
+    bad = np.flatnonzero(~(condition < TOGGLE_CONDITION))
+    if bad.size:
+        k = int(bad[0])
+        raise LinearizationError(
+            f"the constraint Jacobian is singular at {label(k)} (condition number "
+            f"{condition[k]:.3g} of the dependent block): a toggle (dead-centre) position, "
+            f"where {_worst_constraints(Phi_d[k], model)} lose their rank. Change the link lengths "
+            f"or the crank range so the mechanism does not pass through it.")
     V = np.zeros((n_samples, n, m))
     V[:, independent, np.arange(m)] = 1.0
-    condition = np.empty(n_samples)
+    V[:, dependent, :] = -np.linalg.solve(Phi_d, jacobian[:, :, independent])
     rigid_rows = np.asarray(model.rigid_index, dtype=np.int64)
-    for k in range(n_samples):
-        s, sd, sdd, lam, tk = s0[k], sdot0[k], sddot0[k], lam0[k], t[k]
-        M = model.mass_matrix(s)
-        Q = model.forces(s, sd, tk)
-        Phi_s = model.constraint_jacobian(s, tk)
-        dQ_ds, dQ_dsdot = model.force_jacobians(s, sd, tk)
-        mass[k] = M
-        damping[k] = -dQ_dsdot
-        stiffness[k] = (model.mass_matrix_jacobian(s, sdd) - dQ_ds
-                        + model.constraint_force_jacobian(s, lam, tk))
-        residual[k] = M @ sdd - Q + Phi_s.T @ lam
-        Phi_d = Phi_s[:, dependent]
-        singular_values = np.linalg.svd(Phi_d, compute_uv=False)
-        condition[k] = (singular_values[0] / singular_values[-1]
-                        if singular_values[-1] > 0 else np.inf)
-        if not condition[k] < TOGGLE_CONDITION:
-            worst = _worst_constraints(Phi_d, model)
-            raise LinearizationError(
-                f"the constraint Jacobian is singular at {label(k)} (condition number "
-                f"{condition[k]:.3g} of the dependent block): a toggle (dead-centre) position, "
-                f"where {worst} lose their rank. Change the link lengths or the crank range so the "
-                f"mechanism does not pass through it.")
-        V[k][dependent] = -np.linalg.solve(Phi_d, Phi_s[:, independent])
     if extra_stiffness is not None:
         stiffness = stiffness + extra_stiffness
 
@@ -186,6 +172,33 @@ def linear_coefficients(model, t: np.ndarray, s0: np.ndarray, sdot0: np.ndarray,
     return LinearCoefficients(t=t, M=M_z, C=C_z, K=K_z, f=f_z, V=V, Vdot=Vdot, Vddot=Vddot,
                               independent=independent, dependent_condition=condition,
                               spectral_error=tail, rigid_residual=rigid_residual)
+
+
+def _linear_terms(model, t, s0, sdot0, sddot0, lam0):
+    """Mass, damping ``-dQ/ds'``, stiffness, residual and constraint Jacobian at every sample:
+    (N, n, n) x 3, (N, n), (N, r, n). An assembled ``mechanisms.Model`` is evaluated in one numba
+    call; any other model through the protocol's methods, sample by sample."""
+    import mechanisms
+    from mechanisms._batch import linear_terms
+
+    if isinstance(model, mechanisms.Model):
+        return linear_terms(model, t, s0, sdot0, sddot0, lam0)
+    n_samples, n = s0.shape
+    mass = np.empty((n_samples, n, n))
+    damping = np.empty((n_samples, n, n))
+    stiffness = np.empty((n_samples, n, n))
+    residual = np.empty((n_samples, n))
+    jacobian = np.empty((n_samples, model.n_constraints, n))
+    for k in range(n_samples):
+        s, sd, sdd, lam, tk = s0[k], sdot0[k], sddot0[k], lam0[k], t[k]
+        mass[k] = model.mass_matrix(s)
+        jacobian[k] = model.constraint_jacobian(s, tk)
+        dQ_ds, dQ_dsdot = model.force_jacobians(s, sd, tk)
+        damping[k] = -dQ_dsdot
+        stiffness[k] = (model.mass_matrix_jacobian(s, sdd) - dQ_ds
+                        + model.constraint_force_jacobian(s, lam, tk))
+        residual[k] = mass[k] @ sdd - model.forces(s, sd, tk) + jacobian[k].T @ lam
+    return mass, damping, stiffness, residual, jacobian
 
 
 def _worst_constraints(Phi_d: np.ndarray, model) -> str:

@@ -59,23 +59,24 @@ class _LinkLoading:
         self.masses = [(_abscissa(pm.point, link), pm.mass)
                        for pm in model.mechanism.point_masses if pm.link == name]
 
-    def axial_force(self, model, s, sdot, sddot, lam, Phi_s, x):
-        """``N`` (tension positive, N) at abscissae ``x`` (m) for one state (module docstring)."""
+    def axial_force(self, gravity, s, sdot, sddot, lam, jacobian, x):
+        """``N`` (samples, len(x)), tension positive (N), at abscissae ``x`` (m) along the samples
+        ``s, sdot, sddot`` (samples, n), ``lam`` (samples, r), ``jacobian`` (samples, r, n)."""
         off = self.offset
-        theta, theta_d, theta_dd = s[off + 2], sdot[off + 2], sddot[off + 2]
-        e = np.array([math.cos(theta), math.sin(theta)])
-        e_perp = np.array([-e[1], e[0]])
-        g = np.asarray(model.mechanism.gravity, dtype=float)
-        R_dd = sddot[off:off + 2]
+        theta, theta_d, theta_dd = s[:, off + 2], sdot[:, off + 2], sddot[:, off + 2]
+        e = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+        e_perp = np.stack([-e[:, 1], e[:, 0]], axis=1)
+        R_dd = sddot[:, off:off + 2]
         L = self.length
-        N = self.mu * ((e @ (g - R_dd)) * (L - x) + theta_d**2 * (L**2 - x**2) / 2)
+        along = np.einsum("kj,kj->k", e, gravity - R_dd)
+        N = self.mu * (along[:, None] * (L - x) + (theta_d**2)[:, None] * (L**2 - x**2) / 2)
         for xi, rows in self.joints:
             # Force of the joint on the link: -(block of Phi_s on the link's R)^T lam.
-            force = -Phi_s[rows, off:off + 2].T @ lam[rows]
-            N = N + np.where(x < xi, e @ force, 0.0)
+            force = -np.einsum("krj,kr->kj", jacobian[:, rows, off:off + 2], lam[:, rows])
+            N += np.einsum("kj,kj->k", e, force)[:, None] * (x < xi)
         for xi, mass in self.masses:
-            acceleration = R_dd + xi * (theta_dd * e_perp - theta_d**2 * e)
-            N = N + np.where(x < xi, mass * (e @ (g - acceleration)), 0.0)
+            acceleration = R_dd + xi * (theta_dd[:, None] * e_perp - (theta_d**2)[:, None] * e)
+            N += mass * np.einsum("kj,kj->k", e, gravity - acceleration)[:, None] * (x < xi)
         return N
 
 
@@ -85,24 +86,29 @@ def axial_force(model, name: str, s, sdot, sddot, lam, x, *, t: float = 0.0) -> 
     if name not in model.layouts or model.layouts[name].shapes is None:
         raise ValueError(f"name must be an elastic link of the model; received {name!r}")
     loading = _LinkLoading(model, name)
-    return loading.axial_force(model, s, sdot, sddot, lam, model.constraint_jacobian(s, t),
-                               np.asarray(x, dtype=float))
+    gravity = np.asarray(model.mechanism.gravity, dtype=float)
+    one = [np.asarray(a, dtype=float)[None] for a in (s, sdot, sddot, lam)]
+    return loading.axial_force(gravity, *one, model.constraint_jacobian(s, t)[None],
+                               np.atleast_1d(np.asarray(x, dtype=float)))[0]
 
 
-def geometric_stiffness(model, t, s, sdot, sddot, lam) -> np.ndarray:
+def geometric_stiffness(model, t, s, sdot, sddot, lam, jacobian=None) -> np.ndarray:
     """``K_G`` (N+1, n, n): the geometric stiffness of every link with geometric stiffening on,
     along the rigid motion ``s, sdot, sddot`` (N+1, n) at times ``t`` (N+1,) with multipliers
-    ``lam`` (N+1, r)."""
+    ``lam`` (N+1, r); ``jacobian`` (N+1, r, n), the constraint Jacobian there, if already known."""
     n = model.n_coords
     K_G = np.zeros((len(t), n, n))
     loadings = [_LinkLoading(model, name) for name, layout in model.layouts.items()
                 if layout.shapes is not None and layout.stiffening]
-    for k in range(len(t)):
-        Phi_s = model.constraint_jacobian(s[k], t[k])
-        for link in loadings:
-            N = link.axial_force(model, s[k], sdot[k], sddot[k], lam[k], Phi_s, link.x)
-            K_G[k, link.elastic, link.elastic] = link.slopes.T @ (
-                (link.weights * N)[:, None] * link.slopes)
+    if not loadings:
+        return K_G
+    if jacobian is None:
+        jacobian = np.stack([model.constraint_jacobian(s[k], t[k]) for k in range(len(t))])
+    gravity = np.asarray(model.mechanism.gravity, dtype=float)
+    for link in loadings:
+        N = link.axial_force(gravity, s, sdot, sddot, lam, jacobian, link.x)
+        K_G[:, link.elastic, link.elastic] = np.einsum("gi,kg,gj->kij", link.slopes,
+                                                       link.weights * N, link.slopes)
     return K_G
 
 
