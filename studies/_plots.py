@@ -71,6 +71,28 @@ def plot_steady_state(result: Any, *, axes: Any = None) -> dict[str, list]:
     return artists
 
 
+def plot_mechanism(result: Any, *, ax: Any = None, n_frames: int = 8) -> list:
+    """Link outlines at ``n_frames`` crank angles over the period, later frames darker; the elastic
+    deflection is magnified ``result.magnification`` times."""
+    if not result.outlines:
+        raise ValueError(f"{result.problem}: no link outlines to draw (not a mechanism problem)")
+    ax = ax if ax is not None else _axes(1, None, height=4.8)[0]
+    n_samples = next(iter(result.outlines.values())).shape[0] - 1
+    frames = np.linspace(0, n_samples, n_frames, endpoint=False).astype(int)
+    artists = []
+    for rank, k in enumerate(frames):
+        shade = 0.8 * (1.0 - rank / max(n_frames - 1, 1))
+        for j, (name, points) in enumerate(result.outlines.items()):
+            artists += ax.plot(points[k, :, 0], points[k, :, 1], color=(shade, shade, 1.0 - 0.5 * shade),
+                               lw=1.2, label=name if rank == n_frames - 1 else None)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"{result.problem}: deformed mechanism over one period (deflection x "
+                 f"{result.magnification:.3g})", fontsize="small")
+    return artists
+
+
 def plot_sweep(result: Any, *, axes: Any = None) -> dict[str, list]:
     """Peak-to-peak of each observable and the spectral radius against the swept parameter, with
     resonances (dotted lines, labelled k:mode) and parametric instabilities (shaded)."""
@@ -113,7 +135,9 @@ def plot_campbell(result: Any, *, ax: Any = None) -> list:
         artists += ax.plot(np.repeat(speeds, result.characteristic.shape[1]),
                            result.characteristic.reshape(-1), ".", color="k", ms=2,
                            label="Floquet characteristic")
-        top = np.nanmax(result.band_max) * 1.15
+        # Show the range the harmonics reach (where resonances can occur) and at least the lowest
+        # mode; higher modes (e.g. axial) would squash the interesting part.
+        top = 1.15 * max(max(result.harmonics) * speeds[-1], np.nanmax(result.band_max[:, 0]))
         for k in result.harmonics:
             artists += ax.plot(speeds, k * speeds, color="0.6", lw=0.7, ls="--")
             ax.annotate(f"{k}x", (speeds[-1], min(k * speeds[-1], top)), fontsize="x-small")

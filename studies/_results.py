@@ -23,7 +23,9 @@ class SteadyStateResult(Result):
     ``t`` (N+1,) s; ``crank_angle`` (N+1,) rad; ``x`` (N+1, m) independent coordinates (SI unit of each
     coordinate, see ``labels``); ``response`` {spec: (N+1,)} observables; ``response_error``
     {spec: float} estimated max abs error of each; ``multipliers`` (2m,) complex; ``error_estimate``
-    max abs error of ``x``; ``run_time`` s (linearisation, N and N/2 shooting).
+    max abs error of ``x``; ``run_time`` s (linearisation, N and N/2 shooting); for mechanisms
+    ``outlines`` {link: (N+1, n_points, 2)} m, points along each link over the period with the
+    deflection magnified ``magnification`` times (empty for other problems).
     """
 
     problem: str
@@ -44,14 +46,22 @@ class SteadyStateResult(Result):
     n_steps: int
     run_time: float
     shooting_run_time: float
+    outlines: Mapping[str, np.ndarray] = field(default_factory=dict)
+    magnification: float = float("nan")
 
     _units = {"t": "s", "crank_angle": "rad", "x": "SI (see labels)", "response": "@observables",
-              "multipliers": "1"}
+              "multipliers": "1", "outlines": "m"}
 
     def plot(self, *, axes: Any = None) -> dict[str, list]:
         from ._plots import plot_steady_state
 
         return plot_steady_state(self, axes=axes)
+
+    def plot_mechanism(self, *, ax: Any = None, n_frames: int = 8) -> list:
+        """The deformed mechanism at ``n_frames`` crank angles over the period."""
+        from ._plots import plot_mechanism
+
+        return plot_mechanism(self, ax=ax, n_frames=n_frames)
 
     def plot_multipliers(self, *, ax: Any = None) -> list:
         from ._plots import plot_multipliers

@@ -85,6 +85,10 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
     linear = problem.linearize(values, n_steps=n_steps)
     steady = solve_steady(linear)
     state = steady.state
+    drawing = {}
+    if hasattr(problem, "outlines"):
+        outlines, magnification = problem.outlines(linear, state.x)
+        drawing = {"outlines": outlines, "magnification": magnification}
     return SteadyStateResult(
         problem=problem.name, parameters=problem.resolve(values), scene=problem.text,
         labels=tuple(linear.labels), units=dict(zip(linear.observables, linear.units)),
@@ -94,7 +98,8 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
                         for k, spec in enumerate(linear.observables)},
         multipliers=state.multipliers, spectral_radius=state.spectral_radius,
         error_estimate=steady.error_estimate, status=state.status, message=state.message,
-        n_steps=n_steps, run_time=time.perf_counter() - start, shooting_run_time=steady.run_time)
+        n_steps=n_steps, run_time=time.perf_counter() - start, shooting_run_time=steady.run_time,
+        **drawing)
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -1,0 +1,224 @@
+"""The problem of a mechanism scene: ``linearize`` at given scene parameters, ``mechanisms.simulate``
+for the nonlinear route, link outlines for drawings.
+
+Parameters are named by their dotted path in the scene file (``"links.coupler.thickness"``) or
+``"speed"`` for the crank speed (the first drive's ``rate``). A sweep over the speed alone reuses one
+``linearize.speed_family`` per process (the coefficients are polynomials in the speed); anything
+else is linearised afresh at each point.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from ._problem import SPEED, Linear, NonlinearRun, resolve_values
+
+# Units of scene parameters by their last key (docs/scenes.md); others are reported as "SI".
+_UNITS = {"rate": "rad/s", "length": "m", "width": "m", "thickness": "m", "area": "m^2",
+          "second_moment": "m^4", "density": "kg/m^3", "youngs_modulus": "Pa", "mass": "kg",
+          "inertia": "kg m^2", "ratio": "1", "alpha": "1/s", "beta": "s", "n_elements": "1",
+          "n_bending": "1", "n_axial": "1", "kp": "N m/rad", "kd": "N m s/rad", "period": "s"}
+_INTEGER_KEYS = ("n_elements", "n_bending", "n_axial")
+_CACHE_SIZE = 8
+_mechanisms: OrderedDict = OrderedDict()
+_families: OrderedDict = OrderedDict()
+
+
+def _cached(cache: OrderedDict, key: Any, make):
+    if key in cache:
+        cache.move_to_end(key)
+        return cache[key]
+    value = make()
+    cache[key] = value
+    if len(cache) > _CACHE_SIZE:
+        cache.popitem(last=False)
+    return value
+
+
+def _get_path(spec: Mapping[str, Any], path: str) -> Any:
+    node: Any = spec
+    for part in path.split("."):
+        if not isinstance(node, Mapping) or part not in node:
+            raise KeyError(path)
+        node = node[part]
+    return node
+
+
+@dataclass(frozen=True)
+class MechanismProblem:
+    """A scene (TOML ``text``) as a study problem.
+
+    ``parameter_paths``: the scene parameters studies may vary besides ``"speed"`` (their nominal
+    values are read from the scene); ``observables``: specs (None: ``linearize.default_observables``);
+    ``magnification`` of the deflections in drawings (None: 10 % of the longest link over the largest
+    deflection).
+    """
+
+    name: str
+    text: str
+    parameter_paths: tuple[str, ...] = ()
+    observable_specs: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        mechanism = self.mechanism()
+        if not mechanism.drives or not hasattr(mechanism.drives[0], "rate"):
+            raise ValueError(f"scene {self.name!r}: studies need a drive with a rate (crank speed)")
+        spec = mechanism.to_spec()
+        for path in self.parameter_paths:
+            try:
+                value = _get_path(spec, path)
+            except KeyError:
+                raise ValueError(f"scene {self.name!r} has no parameter {path!r} (dotted path of a "
+                                 f"number in the scene file, e.g. 'links.coupler.thickness')") from None
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"scene {self.name!r}: parameter {path!r} is {value!r}, not a number")
+
+    @classmethod
+    def from_scene(cls, name_or_path: str, *, parameter_paths=(), observables=None) -> "MechanismProblem":
+        import mechanisms
+
+        mechanism = mechanisms.load(name_or_path)
+        return cls(name=mechanism.name, text=mechanism.to_toml(), parameter_paths=tuple(parameter_paths),
+                   observable_specs=None if observables is None else tuple(observables))
+
+    def mechanism(self, values: Mapping[str, float] | None = None):
+        """The ``mechanisms.Mechanism`` at ``values`` (cached per process)."""
+        import mechanisms
+
+        base = _cached(_mechanisms, self.text, lambda: mechanisms.loads(self.text, source=f"scene {self.name!r}"))
+        changes = {}
+        for key, value in (values or {}).items():
+            path = "drive.rate" if key == SPEED else key
+            changes[path] = int(round(value)) if path.split(".")[-1] in _INTEGER_KEYS else value
+        if not changes:
+            return base
+        return _cached(_mechanisms, (self.text, tuple(sorted(changes.items()))),
+                       lambda: base.with_parameters(changes))
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        spec = self.mechanism().to_spec()
+        values = {SPEED: float(self.mechanism().drives[0].rate)}
+        values.update({path: float(_get_path(spec, path)) for path in self.parameter_paths})
+        return values
+
+    @property
+    def units(self) -> dict[str, str]:
+        return {name: _UNITS.get(name.split(".")[-1], "rad/s" if name == SPEED else "SI")
+                for name in self.parameters}
+
+    def resolve(self, values: Mapping[str, float] | None) -> dict[str, float]:
+        return resolve_values(self.name, self.parameters, values)
+
+    def linearize(self, values: Mapping[str, float] | None = None, *, n_steps: int) -> Linear:
+        import linearize
+
+        params = self.resolve(values)
+        nominal = self.parameters
+        others = {k: v for k, v in params.items() if k != SPEED and v != nominal[k]}
+        mechanism = self.mechanism(others)
+        drive = mechanism.drives[0]
+        speed = params[SPEED]
+        constant_rate = type(drive).__name__ == "PrescribedDrive" and not drive.harmonics
+        if constant_rate and speed * drive.rate > 0:
+            family = _cached(_families, (self.text, tuple(sorted(others.items())), n_steps, self.observable_specs),
+                             lambda: linearize.speed_family(mechanism, n_steps=n_steps,
+                                                            observables=self.observable_specs))
+            lin = family.at_speed(speed) if speed != drive.rate else family.base
+        else:
+            lin = linearize.about(self.mechanism(dict(others, speed=speed)), n_steps=n_steps,
+                                  observables=self.observable_specs)
+        model = lin.nominal.model
+        gains = np.ascontiguousarray(np.stack([lin.observable_maps[s] for s in lin.observables], axis=1))
+        return Linear(system=lin.system, crank_angle=np.asarray(lin.crank_angle, dtype=float),
+                      labels=tuple(lin.labels), observables=tuple(lin.observables),
+                      units=tuple(model.observable(s).unit for s in lin.observables), gains=gains,
+                      context=lin)
+
+    # --- nonlinear route --------------------------------------------------------------------------------
+    supports_nonlinear = True
+
+    def simulate(self, linear: Linear, x0: np.ndarray, v0: np.ndarray, *, n_periods: int,
+                 steps_per_period: int, values: Mapping[str, float] | None = None) -> NonlinearRun:
+        """``mechanisms.simulate`` from the nominal state plus ``x = V z`` (projected onto the
+        constraints, which ``V z`` satisfies to first order only); observables as deviations from
+        their values along the nominal motion."""
+        import mechanisms
+
+        lin = linear.context
+        model = lin.nominal.model
+        n = linear.system.n_steps
+        z = np.zeros((n + 1, x0.size))
+        zdot = np.zeros_like(z)
+        z[0], zdot[0] = x0, v0
+        s, sdot = lin.full_state(z, zdot)
+        s0, sdot0 = _project(model, s[0], sdot[0], float(lin.nominal.t[0]))
+        run = mechanisms.simulate(lin.mechanism, n_periods=n_periods, steps_per_period=steps_per_period,
+                                  s0=s0, sdot0=sdot0, observables=list(linear.observables),
+                                  estimate_error=False)
+        if not run.success:
+            raise RuntimeError(f"nonlinear run of {self.name!r} failed: {run.message}")
+        if steps_per_period != n:
+            raise ValueError(f"steps_per_period ({steps_per_period}) must equal the linear grid's "
+                             f"n_steps ({n}) to subtract the nominal motion sample by sample")
+        observables = {}
+        for spec in linear.observables:
+            observable = model.observable(spec)
+            nominal = np.array([observable.value(sk) for sk in lin.nominal.s[:-1]])
+            reps = int(math.ceil(run.t.size / n))
+            observables[spec] = run.observables[spec] - np.tile(nominal, reps)[: run.t.size]
+        return NonlinearRun(t=run.t, observables=observables, run_time=run.run_time,
+                            error=dict(run.observable_error), message=run.message)
+
+    # --- drawings ----------------------------------------------------------------------------------------
+    def outlines(self, linear: Linear, z: np.ndarray, *, n_points: int = 21,
+                 magnification: float | None = None) -> tuple[dict[str, np.ndarray], float]:
+        """Link outlines over the period: ``{link: (N+1, n_points, 2)}`` positions in m of points
+        along each link's x-axis, the elastic transverse deflection magnified; and the magnification."""
+        lin = linear.context
+        model = lin.nominal.model
+        labels = list(model.coord_labels)
+        mechanism = lin.mechanism
+        s_full, _ = lin.full_state(z, np.zeros_like(z))
+        deflections = {}
+        for link in mechanism.links:
+            if type(link).__name__ != "ElasticLink":
+                continue
+            rows = []
+            for fraction in np.linspace(0.0, 1.0, n_points):
+                observable = model.observable(f"{link.name}.deflection@{fraction:.6g}")
+                rows.append([observable.value(sk) for sk in s_full])
+            deflections[link.name] = np.array(rows).T  # (N+1, n_points)
+        largest = max((np.abs(d).max() for d in deflections.values()), default=0.0)
+        longest = max(link.length for link in mechanism.links)
+        if magnification is None:
+            magnification = 0.1 * longest / largest if largest > 0 else 1.0
+        outlines = {}
+        for link in mechanism.links:
+            x = lin.nominal.s[:, labels.index(f"{link.name}.x")]
+            y = lin.nominal.s[:, labels.index(f"{link.name}.y")]
+            theta = lin.nominal.s[:, labels.index(f"{link.name}.theta")]
+            xi = np.linspace(0.0, link.length, n_points)
+            w = magnification * deflections.get(link.name, np.zeros((x.size, n_points)))
+            c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
+            outlines[link.name] = np.stack([x[:, None] + c * xi - s * w, y[:, None] + s * xi + c * w], axis=-1)
+        return outlines, float(magnification)
+
+
+def _project(model, s: np.ndarray, sdot: np.ndarray, t: float, *, iterations: int = 10):
+    """Nearest state on the position and velocity constraints (Gauss-Newton, minimum-norm steps)."""
+    s = s.copy()
+    for _ in range(iterations):
+        phi = model.constraints(s, t)
+        if np.abs(phi).max() < 1e-14:
+            break
+        jac = model.constraint_jacobian(s, t)
+        s -= jac.T @ np.linalg.solve(jac @ jac.T, phi)
+    jac = model.constraint_jacobian(s, t)
+    residual = jac @ sdot + model.constraint_rate(s, t)
+    return s, sdot - jac.T @ np.linalg.solve(jac @ jac.T, residual)

@@ -1,0 +1,160 @@
+"""The flexvib command end to end through ``main(argv)`` on small scenes."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+import mechanisms
+import studies
+from studies import _grid
+from studies.cli import main
+from tests.test_studies_store import assert_same
+
+SMALL_FOUR_BAR = """
+[studies]
+n_steps = 32
+
+[studies.steady_state]
+
+[studies.sweep]
+parameter = "speed"
+values = [60.0, 100.0, 140.0]
+
+[studies.stability_chart]
+x = { parameter = "speed", values = [80.0, 120.0] }
+y = { parameter = "links.coupler.thickness", values = [1.4e-3, 1.8e-3] }
+n_steps = 32
+
+[studies.nonlinear_check]
+n_periods = 2
+"""
+
+
+@pytest.fixture(scope="module")
+def mathieu_run(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("mathieu")
+    path = folder / "m.h5"
+    assert main(["run", "mathieu", "--out", str(path), "--quiet"]) == 0
+    return path
+
+
+def test_scenes_lists_mechanisms_and_the_mathieu_demo(capsys):
+    assert main(["scenes"]) == 0
+    out = capsys.readouterr().out
+    assert "four_bar_thesis" in out and "mathieu" in out
+
+
+def test_run_writes_every_declared_study_and_resumes(mathieu_run, monkeypatch, capsys):
+    results = studies.load(mathieu_run)
+    assert set(results) == {"steady_state", "sweep", "campbell", "stability_chart", "nonlinear_check",
+                            "error_cost"}
+    assert all(r.done.all() for r in results.values() if hasattr(r, "done"))
+    evaluated = []
+    monkeypatch.setattr(_grid, "evaluate", lambda *a: evaluated.append(a) or None)
+    assert main(["run", "mathieu", "--out", str(mathieu_run), "--quiet"]) == 0
+    assert evaluated == []  # everything was complete: nothing recomputed
+    assert "sweep" in capsys.readouterr().out
+
+
+def test_jobs_do_not_change_the_numbers(mathieu_run, tmp_path):
+    path = tmp_path / "pool.h5"
+    assert main(["run", "mathieu", "--out", str(path), "--jobs", "2", "--quiet"]) == 0
+    serial, pooled = studies.load(mathieu_run), studies.load(path)
+    for kind in ("sweep", "campbell", "stability_chart"):
+        assert_same(serial[kind], pooled[kind])
+
+
+EXPECTED_LABELS = {
+    "steady_state": ["crank angle (deg)", "x (m)"],
+    "steady_state_multipliers": ["Re mu", "Im mu"],
+    "sweep": ["speed (rad/s)", "x peak to peak (m)", "spectral radius |mu|max"],
+    "campbell": ["crank speed (rad/s)", "frequency (rad/s)"],
+    "stability_chart": ["speed (rad/s)", "epsilon", "spectral radius |mu|max"],
+    "nonlinear_check": ["time (s)", "x (m)"],
+    "error_cost": ["run time (s)", "relative error (1)"],
+}
+
+
+def test_plot_draws_every_figure_with_its_axes(mathieu_run, tmp_path, capsys):
+    outdir = tmp_path / "figures"
+    assert main(["plot", str(mathieu_run), "--outdir", str(outdir)]) == 0
+    for stem, labels in EXPECTED_LABELS.items():
+        assert (outdir / f"{stem}.png").stat().st_size > 1000
+        svg = (outdir / f"{stem}.svg").read_text()
+        texts = {t.replace("&#39;", "'") for t in re.findall(r">([^<>]+)</text>", svg)}
+        for label in labels:
+            assert label in texts, (stem, label)
+
+
+def test_info_summarises(mathieu_run, capsys):
+    assert main(["info", str(mathieu_run)]) == 0
+    out = capsys.readouterr().out
+    assert "[sweep] SweepResult of mathieu, complete" in out and "points done: 57 of 57" in out
+    assert "numpy" in out and "error_estimate" in out
+
+
+def test_small_four_bar_scene_end_to_end(tmp_path, capsys):
+    scene = tmp_path / "small.toml"
+    scene.write_text(mechanisms.load("four_bar_thesis").to_toml() + SMALL_FOUR_BAR)
+    path = tmp_path / "fb.h5"
+    assert main(["run", str(scene), "--out", str(path), "--quiet"]) == 0
+    results = studies.load(path)
+    assert set(results) == {"steady_state", "sweep", "stability_chart", "nonlinear_check"}
+    chart = results["stability_chart"]
+    assert chart.parameters == ("speed", "links.coupler.thickness") and chart.parameter_units[1] == "m"
+    assert np.isfinite(chart.spectral_radius).all()
+    steady = results["steady_state"]
+    # the deformed outlines keep the pins together: the crank's end is the coupler's start (the
+    # coupler is pinned-pinned, so its deflection vanishes there) to the nominal motion's residual
+    outlines = steady.outlines
+    np.testing.assert_allclose(outlines["crank"][:, -1], outlines["coupler"][:, 0], atol=1e-9)
+    np.testing.assert_allclose(outlines["coupler"][:, -1], outlines["rocker"][:, -1], atol=1e-9)
+    outdir = tmp_path / "figures"
+    assert main(["plot", str(path), "--outdir", str(outdir)]) == 0
+    svg = (outdir / "steady_state_mechanism.svg").read_text()
+    assert "x (m)" in svg and "y (m)" in svg
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["run", "no_such_scene"], "no built-in scene 'no_such_scene'"),
+    (["run", "missing.toml"], "does not exist"),
+    (["run", "mathieu", "--jobs", "0"], "--jobs"),
+    (["run", "mathieu", "--executor", "dask"], "--scheduler"),
+    (["run", "mathieu", "--scheduler", "tcp://127.0.0.1:1"], "only used with --executor dask"),
+    (["plot", "missing.h5"], "does not exist"),
+    (["info", "missing.h5"], "does not exist"),
+])
+def test_bad_input_exits_2_with_a_clear_message(argv, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("table, message", [
+    ("[studies.sweep]\nparameter = 'speed'\nstrat = 1.0\n", "unknown key 'strat'; did you mean 'start'?"),
+    ("[studies]\nn_steps = 33\n[studies.steady_state]\n", "n_steps: expected an even integer"),
+    ("[studies.sweep]\nparameter = 'links.coupler.thicknes'\nvalues = [1e-3]\n", "no parameter 'links.coupler.thicknes'"),
+    ("[studies]\nn_steps = 32\n", "declares no study"),
+])
+def test_bad_studies_table_exits_2_naming_the_key(table, message, tmp_path, capsys):
+    scene = tmp_path / "bad.toml"
+    scene.write_text(mechanisms.load("four_bar_thesis").to_toml() + table)
+    assert main(["run", str(scene), "--out", str(tmp_path / "bad.h5"), "--quiet"]) == 2
+    assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["plot", "--help"], ["info", "--help"],
+                                  ["scenes", "--help"]])
+def test_help_everywhere(argv, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == 0 and "usage: flexvib" in capsys.readouterr().out
+
+
+def test_argparse_errors_exit_2(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["run", "--jobs", "two"])
+    assert exit_.value.code == 2
