@@ -131,9 +131,11 @@ class Model:
         array = np.ascontiguousarray(value, dtype=np.float64)
         if array.shape != (size,):
             raise ValueError(f"{name} must have shape ({size},); received shape {array.shape}")
-        if not np.isfinite(array).all():
-            raise ValueError(f"{name} must be finite; received non-finite entries at "
-                             f"{np.flatnonzero(~np.isfinite(array)).tolist()}")
+        if not math.isfinite(array.sum()):  # fast path; a sum can overflow, so look closer
+            bad = np.flatnonzero(~np.isfinite(array))
+            if bad.size:
+                raise ValueError(f"{name} must be finite; received non-finite entries at "
+                                 f"{bad.tolist()}")
         return array
 
     # --- equations of motion -------------------------------------------------------------------
