@@ -85,7 +85,7 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int, period: float | Non
 
     ``n_steps`` N >= 2 grid intervals over one period. For a bare model (no ``model.mechanism``),
     give ``period`` (s) unless the model has one, and ``s0`` (n,), a guess of the coordinates at
-    ``t = 0``; for a mechanism the guess comes from its ``initial_angles`` and drives. Torque drives
+    ``t = 0`` (its elastic entries are ignored); for a mechanism the guess comes from its ``initial_angles`` and drives. Torque drives
     follow their nominal law here, and their torque is the inverse-dynamics one.
 
     Raises ``MechanismError`` when the linkage cannot be assembled, the crank cannot turn through
@@ -116,6 +116,7 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int, period: float | Non
     s0 = np.array(s0, dtype=np.float64)
     if s0.shape != (n,) or not np.isfinite(s0).all():
         raise ValueError(f"s0 must be a finite vector of shape ({n},), got shape {s0.shape}")
+    s0[np.asarray(model.elastic_index, dtype=np.int64)] = 0.0  # the rigid mechanism
 
     times = np.linspace(0.0, period, n_steps + 1)
     s = np.zeros((n_steps + 1, n))
