@@ -61,7 +61,8 @@ class FloquetResult:
     is_stable : bool
         ``spectral_radius <= 1 + stability_tol``.
     stability_tol : float
-        Tolerance used for ``is_stable`` (see ``STABILITY_TOL``).
+        Tolerance used for ``is_stable``: at most ``STABILITY_TOL`` = 1e-6 (larger values are refused,
+        they would hide growth), smaller values are allowed.
     exponents : ndarray (2n,) complex
         Characteristic exponents ``log(multipliers) / T`` (1/s, principal branch; the imaginary part
         is defined modulo 2 pi / T; ``-inf`` real part for a zero multiplier).
@@ -105,7 +106,7 @@ def floquet(
     start = time.perf_counter()
     _check_system(system)
     beta, gamma = check_scheme(beta, gamma)
-    stability_tol = _check_tol("stability_tol", stability_tol)
+    stability_tol = _check_tol("stability_tol", stability_tol, STABILITY_TOL)
     phi, _ = monodromy(system, beta, gamma, particular=False)
     multipliers, step_rates = analyse_multipliers(phi, system.step)
     with np.errstate(divide="ignore"):
@@ -221,8 +222,8 @@ def _check_real(name, value) -> float:
     return value
 
 
-def _check_tol(name, value) -> float:
+def _check_tol(name, value, upper=np.inf) -> float:
     value = _check_real(name, value)
-    if value < 0.0:
-        raise ValueError(f"{name}: expected a non-negative tolerance, got {value}")
+    if not 0.0 <= value <= upper:
+        raise ValueError(f"{name}: expected a tolerance in [0, {upper:g}], got {value}")
     return value

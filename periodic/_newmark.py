@@ -81,10 +81,22 @@ def _lu_solve(lu, piv, b):
             b[i, j] *= inv
 
 
+# From this many coordinates on, BLAS (np.dot) beats the plain loops for the products C v and K x
+# (measured: 2x faster at n = 20 and 40, 2x slower at n = 2..5).
+_BLAS_FROM_N_DOF = 8
+
+
 @numba.njit(cache=True)
-def _residual_force(Mk, Ck, Kk, fk, forced, x, v, out):
+def _residual_force(Ck, Kk, fk, forced, x, v, out, work):
     """``out = forced * f_k - C_k v - K_k x`` for all columns (right-hand side of N0 and N2)."""
     n, m = x.shape
+    if n >= _BLAS_FROM_N_DOF:
+        np.dot(Ck, v, out)
+        np.dot(Kk, x, work)
+        for i in range(n):
+            for j in range(m):
+                out[i, j] = forced[j] * fk[i] - out[i, j] - work[i, j]
+        return
     for i in range(n):
         for j in range(m):
             out[i, j] = forced[j] * fk[i]
@@ -111,10 +123,11 @@ def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a
     piv = np.empty(n, dtype=np.int64)
     xp = np.empty((n, m))
     vp = np.empty((n, m))
+    work = np.empty((n, m))
     c_a = gamma * h
     k_a = beta * h * h
     # (N0): starting acceleration
-    _residual_force(M[0], C[0], K[0], f[0], forced, x, v, a)
+    _residual_force(C[0], K[0], f[0], forced, x, v, a, work)
     lu[:, :] = M[0]
     if not _lu_factor(lu, piv):
         return 0
@@ -135,7 +148,7 @@ def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a
                 lu[i, j] = M[k + 1, i, j] + c_a * C[k + 1, i, j] + k_a * K[k + 1, i, j]
         if not _lu_factor(lu, piv):
             return k + 1
-        _residual_force(M[k + 1], C[k + 1], K[k + 1], f[k + 1], forced, xp, vp, a)
+        _residual_force(C[k + 1], K[k + 1], f[k + 1], forced, xp, vp, a, work)
         _lu_solve(lu, piv, a)
         # (N3): correctors
         for i in range(n):

@@ -140,7 +140,7 @@ def steady_state(
     _check_system(system)
     beta, gamma = check_scheme(beta, gamma)
     resonance_tol = _check_tol("resonance_tol", resonance_tol)
-    stability_tol = _check_tol("stability_tol", stability_tol)
+    stability_tol = _check_tol("stability_tol", stability_tol, STABILITY_TOL)
     order = 2 if gamma == 0.5 else 1
     if extrapolate and order != 2:
         raise ValueError(

@@ -173,6 +173,8 @@ def _check_n_steps(n_steps) -> int:
 
 
 def _as_samples(name: str, values, *, ndim: int, shape=None) -> np.ndarray:
+    if np.iscomplexobj(values):
+        raise TypeError(f"{name}: expected real values, got a complex array (its imaginary part would be lost)")
     try:
         arr = np.array(values, dtype=np.float64, order="C", copy=True)
     except (TypeError, ValueError) as exc:

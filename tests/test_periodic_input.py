@@ -121,6 +121,14 @@ def test_steady_state_options():
         periodic.floquet(system, beta=-0.1)
     with pytest.raises(ValueError, match="resonance_tol"):
         periodic.steady_state(system, resonance_tol=-1.0)
+    with pytest.raises(ValueError, match=r"stability_tol: expected a tolerance in \[0, 1e-06\]"):
+        periodic.floquet(system, stability_tol=1e-3)
+
+
+def test_complex_samples_are_refused():
+    M, C, K, f = arrays()
+    with pytest.raises(TypeError, match="force: expected real values"):
+        PeriodicSystem(1.0, M, C, K, f + 1j)
 
 
 def test_odd_n_steps_needs_estimate_error_false():

@@ -24,10 +24,11 @@ def newmark_numpy(M, C, K, f, h, beta, gamma, forced, x0, v0):
     return np.array(xs), np.array(vs), np.array(as_)
 
 
+@pytest.mark.parametrize("n", [4, 10])  # plain loops and the BLAS path of the kernel
 @pytest.mark.parametrize("beta, gamma", [(0.25, 0.5), (0.3025, 0.6), (0.0, 0.5)])
-def test_kernel_matches_numpy_twin(beta, gamma):
+def test_kernel_matches_numpy_twin(beta, gamma, n):
     rng = np.random.default_rng(7)
-    n, n_steps, m = 4, 30, 9
+    n_steps, m = 30, 2 * n + 1
     M = rng.normal(size=(n_steps + 1, n, n)) * 0.2 + 2.0 * np.eye(n)  # random, non-symmetric, invertible
     C = rng.normal(size=(n_steps + 1, n, n))
     K = rng.normal(size=(n_steps + 1, n, n)) * 3.0
