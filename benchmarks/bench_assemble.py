@@ -46,7 +46,7 @@ def main():
     calls, repeats = (200, 3) if args.quick else (2000, 7)
 
     model = assemble(fourbar(Ritz(2, 1)))
-    mass_f, forces_f, jac_f, _ = _derive_fourbar(True, False)
+    mass_f, forces_f, jac_f, _ = _derive_fourbar(True, False, cse=True)
     s, sdot = random_state(model, np.random.default_rng(0))
     t = 0.01
     print(f"thesis four-bar, Ritz(2, 1): n = {model.n_coords}, r = {model.n_constraints}")

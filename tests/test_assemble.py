@@ -121,13 +121,19 @@ def _rot(theta):
     return sp.Matrix([[sp.cos(theta), -sp.sin(theta)], [sp.sin(theta), sp.cos(theta)]])
 
 
-def _derive_fourbar(stiffening, rotary):
-    """M, Q, Phi_s of the four-bar (coordinates as the assembler orders them), lambdified."""
-    s = sp.symbols("x1 y1 t1 x2 y2 t2 q1 q2 p1 x3 y3 t3", real=True)
-    v = sp.symbols("x1d y1d t1d x2d y2d t2d q1d q2d p1d x3d y3d t3d", real=True)
-    time = sp.Symbol("t", real=True)
-    x1, y1, t1, x2, y2, t2, q1, q2, p1, x3, y3, t3 = s
-    x1d, y1d, t1d, x2d, y2d, t2d, q1d, q2d, p1d, x3d, y3d, t3d = v
+S_SYM = sp.symbols("x1 y1 t1 x2 y2 t2 q1 q2 p1 x3 y3 t3", real=True)
+V_SYM = sp.symbols("x1d y1d t1d x2d y2d t2d q1d q2d p1d x3d y3d t3d", real=True)
+T_SYM = sp.Symbol("t", real=True)
+
+
+@functools.lru_cache(maxsize=None)
+def _energy_pieces():
+    """The four-bar's energies, split into additive pieces so that the variants share the work:
+    kinetic (seed eq. 2.12 plus the rigid bars and the point mass), rotary kinetic energy of the
+    coupler's sections, potential (gravity + seed eq. 2.13), the extra strain energy of geometric
+    stiffening EA/2 ((u' + w'^2/2)^2 - u'^2), the Rayleigh damping force and the constraints."""
+    x1, y1, t1, x2, y2, t2, q1, q2, p1, x3, y3, t3 = S_SYM
+    x1d, y1d, t1d, x2d, y2d, t2d, q1d, q2d, p1d, x3d, y3d, t3d = V_SYM
     gvec = sp.Matrix(GRAVITY)
 
     def bar(r_origin, v_origin, theta, omega, length):
@@ -159,48 +165,32 @@ def _derive_fourbar(stiffening, rotary):
     velocity = (sp.Matrix([x2d, y2d]) + t2d * rot2.diff(t2) * local
                 + rot2 * sp.Matrix([ud, wd]))
     t_coupler = _integrate(sp.Rational(1, 2) * MU * velocity.dot(velocity), L2)
-    if rotary:
-        omega = t2d + wd.diff(XI) / L2
-        t_coupler += _integrate(sp.Rational(1, 2) * 7800.0 * SECOND_MOMENT * omega**2, L2)
+    t_rotary = _integrate(sp.Rational(1, 2) * 7800.0 * SECOND_MOMENT * (t2d + wd.diff(XI) / L2)**2,
+                          L2)
     v_coupler = _integrate(-MU * gvec.dot(position), L2)
-    strain = u_x + (w_x**2 / 2 if stiffening else 0)
-    v_strain = _integrate(sp.Rational(1, 2) * (E * AREA * strain**2
-                                               + E * SECOND_MOMENT * w_xx**2), L2)
+    v_linear = _integrate(sp.Rational(1, 2) * (E * AREA * u_x**2 + E * SECOND_MOMENT * w_xx**2), L2)
+    v_stiffening = _integrate(sp.Rational(1, 2) * E * AREA * ((u_x + w_x**2 / 2)**2 - u_x**2), L2)
 
     # point mass on the coupler
     xi_m = sp.Float(POINT_MASS["x"] / L2, 30)
     u_m, w_m = fields(xi_m)
     local_m = sp.Matrix([POINT_MASS["x"] + u_m, w_m])
     position_m = sp.Matrix([x2, y2]) + rot2 * local_m
-    velocity_m = position_m.jacobian(s) * sp.Matrix(v)
+    velocity_m = position_m.jacobian(S_SYM) * sp.Matrix(V_SYM)
     omega_m = t2d + (wd.diff(XI) / L2).subs(XI, xi_m)
     t_mass = (sp.Rational(1, 2) * POINT_MASS["mass"] * velocity_m.dot(velocity_m)
               + sp.Rational(1, 2) * POINT_MASS["inertia"] * omega_m**2)
     v_mass = -POINT_MASS["mass"] * gvec.dot(position_m)
 
-    kinetic = t_crank + t_rocker + t_coupler + t_mass
-    potential = v_crank + v_rocker + v_coupler + v_strain + v_mass
-
-    # Rayleigh damping C = alpha M_ee + beta K_ee of the coupler's elastic coordinates
+    # Rayleigh damping C = alpha M_ee + beta K_ee of the coupler's elastic coordinates (the
+    # rotary inertia is left out of M_ee here and added by the caller)
     q, qd = sp.Matrix([q1, q2, p1]), sp.Matrix([q1d, q2d, p1d])
-    m_ee = sp.hessian(t_coupler, qd)
-    linear_strain = _integrate(sp.Rational(1, 2) * (E * AREA * u_x**2
-                                                    + E * SECOND_MOMENT * w_xx**2), L2)
-    k_ee = sp.hessian(linear_strain, q)
-    dissipation = (ALPHA * m_ee + BETA * k_ee) * qd
-
-    # Lagrange (seed eq. 2.10): M s'' = dT/ds - (d2T/ds'ds) s' - dV/ds - C s' - Phi_s^T lam
-    s_vec, v_vec = sp.Matrix(s), sp.Matrix(v)
-    p = sp.Matrix([kinetic]).jacobian(v_vec).T
-    mass = p.jacobian(v_vec)
-    forces = (sp.Matrix([kinetic]).jacobian(s_vec).T - p.jacobian(s_vec) * v_vec
-              - sp.Matrix([potential]).jacobian(s_vec).T)
-    forces[6:9, 0] -= dissipation
+    damping = ALPHA * sp.hessian(t_coupler, qd) + BETA * sp.hessian(v_linear, q)
 
     # constraints (seed eq. 2.11, written for the frame coordinates)
     w_period = DRIVE["rate"]  # period 2 pi / rate: the harmonics' base frequency is the rate
-    angle = DRIVE["offset"] + DRIVE["rate"] * time + sum(
-        c * sp.cos(k * w_period * time) + d * sp.sin(k * w_period * time)
+    angle = DRIVE["offset"] + DRIVE["rate"] * T_SYM + sum(
+        c * sp.cos(k * w_period * T_SYM) + d * sp.sin(k * w_period * T_SYM)
         for k, c, d in DRIVE["harmonics"])
     u_l, w_l = fields(1)
     a_point = sp.Matrix([x1, y1]) + _rot(t1) * sp.Matrix([L1, 0])
@@ -212,10 +202,41 @@ def _derive_fourbar(stiffening, rotary):
         b_coupler[0] - b_rocker[0], b_coupler[1] - b_rocker[1],
         L0 - x3, -y3,
         t1 - angle])
-    jac = phi.jacobian(s_vec)
-    args = (s, v, time)
-    return (sp.lambdify(args, mass, cse=True), sp.lambdify(args, forces, cse=True),
-            sp.lambdify(args, jac, cse=True), sp.lambdify(args, phi, cse=True))
+    return dict(kinetic=t_crank + t_rocker + t_coupler + t_mass, rotary=t_rotary,
+                potential=v_crank + v_rocker + v_coupler + v_linear + v_mass,
+                stiffening=v_stiffening, damping=damping, qd=qd, phi=phi)
+
+
+@functools.lru_cache(maxsize=None)
+def _lagrange(piece):
+    """Lagrange's equations (seed eq. 2.10) of one energy piece, in the protocol's form
+    M s'' = Q: a kinetic piece gives M = d2T/ds'2 and Q = dT/ds - (d2T/ds'ds) s'; a potential
+    piece gives M = 0 and Q = -dV/ds."""
+    energy = sp.Matrix([_energy_pieces()[piece]])
+    s_vec, v_vec = sp.Matrix(S_SYM), sp.Matrix(V_SYM)
+    if piece in ("kinetic", "rotary"):
+        p = energy.jacobian(v_vec).T
+        return p.jacobian(v_vec), energy.jacobian(s_vec).T - p.jacobian(s_vec) * v_vec
+    return sp.zeros(12, 12), -energy.jacobian(s_vec).T
+
+
+def _derive_fourbar(stiffening, rotary, *, cse=False):
+    """M, Q, Phi_s and Phi of the four-bar (coordinates as the assembler orders them), lambdified
+    with arguments (s, s', t)."""
+    pieces = _energy_pieces()
+    names = ["kinetic", "potential"] + (["rotary"] if rotary else []) + (
+        ["stiffening"] if stiffening else [])
+    mass, forces = sp.zeros(12, 12), sp.zeros(12, 1)
+    for name in names:
+        m, f = _lagrange(name)
+        mass, forces = mass + m, forces + f
+    damping = pieces["damping"]
+    if rotary:  # Rayleigh alpha acts on the full elastic mass block, rotary inertia included
+        damping = damping + ALPHA * _lagrange("rotary")[0][6:9, 6:9]
+    forces[6:9, 0] -= damping * pieces["qd"]
+    jac = pieces["phi"].jacobian(sp.Matrix(S_SYM))
+    args = (S_SYM, V_SYM, T_SYM)
+    return tuple(sp.lambdify(args, expr, cse=cse) for expr in (mass, forces, jac, pieces["phi"]))
 
 
 @pytest.fixture(scope="module", params=[(False, False), (True, True)],
