@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from ._assemble import assemble, drive_law
 from ._parts import (GROUND, Mechanism, MechanismError, PrescribedDrive, Revolute, TorqueDrive,
                      _pin_position)
 
@@ -79,14 +80,15 @@ class NominalMotion:
         return len(self.t) - 1
 
 
-def nominal_motion(mechanism_or_model: Any, *, n_steps: int, period: float | None = None,
+def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float | None = None,
                    s0: np.ndarray | None = None) -> NominalMotion:
     """The rigid nominal motion of a ``Mechanism`` (assembled here) or of an assembled model.
 
-    ``n_steps`` N >= 2 grid intervals over one period. For a bare model (no ``model.mechanism``),
-    give ``period`` (s) unless the model has one, and ``s0`` (n,), a guess of the coordinates at
-    ``t = 0`` (its elastic entries are ignored); for a mechanism the guess comes from its ``initial_angles`` and drives. Torque drives
-    follow their nominal law here, and their torque is the inverse-dynamics one.
+    ``n_steps`` N >= 2 grid intervals over one period (default 360: a degree of crank angle).
+    For a bare model (no ``model.mechanism``) give ``period`` (s) unless the model has one, and
+    ``s0`` (n,), a guess of the coordinates at ``t = 0`` (its elastic entries are ignored); for a
+    mechanism the guess comes from its ``initial_angles`` and drives. Torque drives follow their
+    nominal law here, and their torque is the inverse-dynamics one.
 
     Raises ``MechanismError`` when the linkage cannot be assembled, the crank cannot turn through
     the period or the constraint Jacobian is singular (toggle), naming joints and crank angle.
@@ -104,8 +106,12 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int, period: float | Non
     n, r = model.n_coords, model.n_constraints
     rigid = np.asarray(model.rigid_index, dtype=np.int64)
     if r != len(rigid):
+        hint = ("; a model assembled with torque drives has no drive rows: pass the Mechanism, "
+                "whose nominal motion follows the drives' nominal laws"
+                if mechanism is not None and any(isinstance(d, TorqueDrive)
+                                                 for d in mechanism.drives) else "")
         raise MechanismError(f"the rigid subsystem is not square: {len(rigid)} rigid coordinates "
-                             f"but {r} constraint equations")
+                             f"but {r} constraint equations{hint}")
     labels = list(model.coord_labels)
     system = _RigidSystem(model, rigid, mechanism, float(period))
     if s0 is None:
@@ -163,8 +169,6 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int, period: float | Non
 
 def _model_of(obj: Any) -> tuple[Any, Mechanism | None]:
     if isinstance(obj, Mechanism):
-        from ._assemble import assemble
-
         if any(isinstance(d, TorqueDrive) for d in obj.drives):
             # The nominal motion of a torque drive follows its nominal law; its inverse-dynamics
             # torque is what the drive's multiplier gives when that law is prescribed.
@@ -211,7 +215,7 @@ class _RigidSystem:
         if self.mechanism is None:
             return f"t = {t:.6g} s"
         drive = self.mechanism.drives[0]
-        angle = drive.angle(t, self.period)[0]
+        angle = drive_law(drive, self.period, t)[0]
         return (f"crank angle {math.degrees(angle):.2f} deg (drive at joint {drive.joint!r}, "
                 f"t = {t:.6g} s)")
 
@@ -371,7 +375,7 @@ def _initial_guess(mech: Mechanism, labels: list[str], n: int, period: float) ->
         for drive in mech.drives:
             joint = joints[drive.joint]
             base = 0.0 if joint.link_a == GROUND else angles[joint.link_a]
-            angles[joint.link_b] = base + drive.angle(0.0, period)[0]
+            angles[joint.link_b] = base + drive_law(drive, period, 0.0)[0]
     links = {link.name: link for link in mech.links}
     origins: dict[str, np.ndarray] = {}
 

@@ -380,10 +380,6 @@ class PrescribedDrive:
     def __post_init__(self) -> None:
         _check_drive(self)
 
-    def angle(self, t: float, period: float) -> tuple[float, float, float]:
-        """The prescribed angle (rad), its rate (rad/s) and acceleration (rad/s^2) at time ``t``."""
-        return _drive_law(self, t, period)
-
 
 @dataclass(frozen=True)
 class TorqueDrive:
@@ -407,23 +403,8 @@ class TorqueDrive:
         _check_number(f"drive at joint {self.joint!r}", "kd", self.kd, "N m s/rad",
                       nonnegative=True)
 
-    def angle(self, t: float, period: float) -> tuple[float, float, float]:
-        """The nominal angle (rad), its rate (rad/s) and acceleration (rad/s^2) at time ``t``."""
-        return _drive_law(self, t, period)
-
 
 Drive = Union[PrescribedDrive, TorqueDrive]
-
-
-def _drive_law(drive: Drive, t: float, period: float) -> tuple[float, float, float]:
-    omega = 2.0 * math.pi / period
-    angle, rate, acceleration = drive.offset + drive.rate * t, drive.rate, 0.0
-    for k, cos_k, sin_k in drive.harmonics:
-        c, s = math.cos(k * omega * t), math.sin(k * omega * t)
-        angle += cos_k * c + sin_k * s
-        rate += k * omega * (-cos_k * s + sin_k * c)
-        acceleration -= (k * omega) ** 2 * (cos_k * c + sin_k * s)
-    return angle, rate, acceleration
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -693,10 +674,12 @@ def _check_four_bar(mech: Mechanism, links: dict[str, Link], joints: dict[str, J
     l_crank, l_ground = math.hypot(*crank_vec), math.dist(o, c)
     low, high = abs(l_coupler - l_rocker), l_coupler + l_rocker
     scale = max(l_crank, l_ground, l_coupler, l_rocker)
+    from ._assemble import drive_law  # the one drive law, shared with the assembled model
+
     drive, period = mech.drives[0], mech.period
 
     def margin(t: float) -> float:
-        theta = drive.angle(t, period)[0]
+        theta = drive_law(drive, period, t)[0]
         ax = o[0] + math.cos(theta) * crank_vec[0] - math.sin(theta) * crank_vec[1]
         ay = o[1] + math.sin(theta) * crank_vec[0] + math.cos(theta) * crank_vec[1]
         d = math.hypot(ax - c[0], ay - c[1])
@@ -712,7 +695,7 @@ def _check_four_bar(mech: Mechanism, links: dict[str, Link], joints: dict[str, J
                f"{lengths[1] + lengths[2]:.6g} m")
     if margins[0] <= 0.0:
         raise MechanismError(f"four-bar {mech.name!r} cannot be assembled at crank angle "
-                             f"{math.degrees(drive.angle(0.0, period)[0]):.2f} deg (t = 0): the "
+                             f"{math.degrees(drive_law(drive, period, 0.0)[0]):.2f} deg (t = 0): the "
                              f"coupler and rocker cannot reach ({grashof})")
     ratio = (math.sqrt(5.0) - 1.0) / 2.0
 
@@ -745,7 +728,7 @@ def _check_four_bar(mech: Mechanism, links: dict[str, Link], joints: dict[str, J
         kind = ("toggle: the constraint Jacobian of joints "
                 f"{crank_coupler.name!r}, {coupler_rocker.name!r} is singular there")
         t_high = toggles[0]
-    angle = drive.angle(t_high, period)[0]
+    angle = drive_law(drive, period, t_high)[0]
     raise MechanismError(
         f"four-bar {mech.name!r}: the crank cannot turn fully; it fails at crank angle "
         f"{math.degrees(angle):.2f} deg (t = {t_high:.6g} s), {kind}. Grashof needs s + l <= p + q "

@@ -297,3 +297,14 @@ def test_bad_arguments():
             mechanisms.nominal_motion(mech, n_steps=bad)
     with pytest.raises(TypeError, match="lacks 'n_coords'"):
         mechanisms.nominal_motion(object(), n_steps=8)
+
+
+def test_torque_drive_follows_its_nominal_law(four_bar):
+    """A torque drive's nominal motion is its law, its torque the inverse-dynamics one; a model
+    assembled with it (no drive row) is refused with the fix."""
+    mech = mechanisms.load("four_bar_fem4")
+    torque_driven = mech.replace(drives=(mechanisms.TorqueDrive("O", rate=100.0, kp=10.0),))
+    motion = mechanisms.nominal_motion(torque_driven, n_steps=N_STEPS)
+    np.testing.assert_array_equal(motion.drive_torque, four_bar.drive_torque)
+    with pytest.raises(MechanismError, match="pass the Mechanism"):
+        mechanisms.nominal_motion(mechanisms.assemble(torque_driven), n_steps=8)
