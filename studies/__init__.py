@@ -3,6 +3,7 @@ charts, nonlinear checks, error against run time; HDF5 results and the ``flexvib
 
 from ._grid import PointOutcome as PointOutcome
 from ._grid import run_grid as run_grid
+from ._mechanism import MechanismProblem as MechanismProblem
 from ._problem import Linear as Linear
 from ._problem import NonlinearRun as NonlinearRun
 from ._problem import PeriodicCoefficients as PeriodicCoefficients
@@ -24,7 +25,7 @@ from ._studies import steady_state as steady_state
 from ._studies import sweep as sweep
 
 __all__ = [
-    "CampbellResult", "ErrorCostResult", "Linear", "NonlinearCheck", "NonlinearRun",
+    "CampbellResult", "ErrorCostResult", "Linear", "MechanismProblem", "NonlinearCheck", "NonlinearRun",
     "PeriodicCoefficients", "PeriodicProblem", "PointOutcome", "StabilityChart", "SteadyStateResult",
     "SweepResult", "campbell", "error_cost", "load", "mathieu_problem", "nonlinear_check", "open_file",
     "run_grid", "stability_chart", "steady_state", "sweep",

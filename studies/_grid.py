@@ -26,7 +26,8 @@ from ._store import encode, write_attrs
 logger = logging.getLogger(__name__)
 
 STATUS_FAILED = "failed"
-STATUS_OK = "ok"
+#: Grid points are sent to an executor in at most about this many tasks.
+MAX_TASKS = 256
 
 
 @dataclass(frozen=True)
@@ -60,6 +61,13 @@ def evaluate(point: Callable, problem: Any, values: Mapping[str, float],
     if notes:
         message = "; ".join(([message] if message else []) + notes)
     return PointOutcome(data, status, message, time.perf_counter() - start)
+
+
+def evaluate_batch(point: Callable, problem: Any,
+                   batch: Sequence[tuple[tuple[int, ...], Mapping[str, float]]],
+                   options: Mapping[str, Any]) -> list[tuple[tuple[int, ...], PointOutcome]]:
+    """:func:`evaluate` at each ``(index, values)`` of ``batch``, in a worker."""
+    return [(index, evaluate(point, problem, values, options)) for index, values in batch]
 
 
 @dataclass
@@ -189,11 +197,15 @@ def run_grid(point: Callable, problem: Any, points: Sequence[tuple[tuple[int, ..
             for index, values in todo:
                 finish(index, evaluate(point, problem, values, options))
         else:
-            futures = {executor.submit(evaluate, point, problem, values, options): index
-                       for index, values in todo}
+            # Batches amortise the cost of a task (pickling the problem, inter-process messages)
+            # over several cheap points; at most ~MAX_TASKS tasks keep the workers evenly loaded.
+            size = max(1, len(todo) // MAX_TASKS)
+            batches = [todo[i:i + size] for i in range(0, len(todo), size)]
+            futures = [executor.submit(evaluate_batch, point, problem, batch, options) for batch in batches]
             try:
                 for future in as_completed(futures):
-                    finish(futures[future], future.result())
+                    for index, outcome in future.result():
+                        finish(index, outcome)
             finally:
                 for future in futures:
                     future.cancel()

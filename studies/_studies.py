@@ -310,8 +310,13 @@ def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tu
                   stability_tol=periodic.STABILITY_TOL)
     store = _open(out, name, shape, "StabilityChart", settings, {"spectral_radius": "1"}, header,
                   {"first": (axes[0], units[0]), "second": (axes[1], units[1])})
-    points = [((i, j), {names[0]: float(a), names[1]: float(b)})
-              for i, a in enumerate(axes[0]) for j, b in enumerate(axes[1])]
+    # The crank speed varies fastest, so that consecutive points (and a worker's batch) share the
+    # other parameter and reuse one speed family of the linearisation.
+    speed_first = names[0] == SPEED
+    points = [((i, j), {names[0]: float(axes[0][i]), names[1]: float(axes[1][j])})
+              for outer in range(shape[1 if speed_first else 0])
+              for inner in range(shape[0 if speed_first else 1])
+              for i, j in [(inner, outer) if speed_first else (outer, inner)]]
     outcomes = run_grid(chart_point, problem, points, {"n_steps": int(n_steps)}, executor=executor,
                         store=store, progress=progress, description=f"{name}")
     fields = _collect(outcomes, shape)
