@@ -42,6 +42,7 @@ from scipy.linalg import eigh
 
 from . import _kernels
 from ._beams import BeamShapes, beam_matrices, beam_shapes
+from ._observables import make_observable
 from ._parts import (GROUND, DampingMatrix, ElasticLink, Mechanism, ModalDamping,
                      PrescribedDrive, Rayleigh, Revolute, RigidLink, Slider, TorqueDrive)
 
@@ -262,8 +263,7 @@ class Model:
 
     # --- observables ---------------------------------------------------------------------------
     def observable(self, spec: str):
-        """A scalar of ``s`` named by ``spec`` (see ``mechanisms._protocol.Observable``)."""
-        from ._observables import make_observable
+        """A scalar of ``s`` named by ``spec`` (see ``mechanisms._observables``)."""
         return make_observable(self, spec)
 
     def link_coordinates(self, name: str) -> slice:

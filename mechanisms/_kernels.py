@@ -46,6 +46,27 @@ def _max_local(table_nnz):
 
 
 @numba.njit(cache=True)
+def _scratch(table_nnz):
+    """Columns of L (x and y components) and their indices in s, for the largest point."""
+    nmax = _max_local(table_nnz)
+    return np.empty(nmax), np.empty(nmax), np.empty(nmax, dtype=np.int64)
+
+
+@numba.njit(cache=True)
+def _strain_state(s, off, nnz, ptr, iptr, shp, idx):
+    """Slope w'q, strain eps = u'q + (w'q)^2/2 and curvature kappa = w''q at a strain point."""
+    du = 0.0
+    dw = 0.0
+    kappa = 0.0
+    for k in range(nnz):
+        qk = s[off + 3 + idx[iptr + k]]
+        du += shp[ptr + k] * qk
+        dw += shp[ptr + nnz + k] * qk
+        kappa += shp[ptr + 2 * nnz + k] * qk
+    return dw, du + 0.5 * dw * dw, kappa
+
+
+@numba.njit(cache=True)
 def _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols):
     """Fill the active columns of L (eq. 1) into lx, ly and their indices in s into cols (length
     3 + nnz); return A p."""
@@ -104,10 +125,7 @@ def _add_d(out, scale, nnz, apx, apy, lx, ly, cols, vx, vy):
 @numba.njit(cache=True)
 def mass_matrix(s, mp_int, mp_real, shp, idx, out):
     """M = sum m L^T L + J h h^T, h = (0, 0, 1, g) (seed eq. 2.12 by d'Alembert); out (n, n) zeroed."""
-    nmax = _max_local(mp_int[:, 1])
-    lx = np.empty(nmax)
-    ly = np.empty(nmax)
-    cols = np.empty(nmax, dtype=np.int64)
+    lx, ly, cols = _scratch(mp_int[:, 1])
     for i in range(mp_int.shape[0]):
         off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
         m, inertia, cx, cy = mp_real[i, 0], mp_real[i, 1], mp_real[i, 2], mp_real[i, 3]
@@ -131,12 +149,9 @@ def mass_matrix(s, mp_int, mp_real, shp, idx, out):
 def mass_matrix_jacobian(s, acc, mp_int, mp_real, shp, idx, out):
     """d(M(s) a)/ds, a fixed: sum m [L^T d(L a)/ds + D(L a)] (eq. 1, 3); h is constant so the
     rotary inertia adds nothing; out (n, n) zeroed."""
-    nmax = _max_local(mp_int[:, 1])
-    lx = np.empty(nmax)
-    ly = np.empty(nmax)
-    jx = np.empty(nmax)
-    jy = np.empty(nmax)
-    cols = np.empty(nmax, dtype=np.int64)
+    lx, ly, cols = _scratch(mp_int[:, 1])
+    jx = np.empty(len(lx))
+    jy = np.empty(len(lx))
     for i in range(mp_int.shape[0]):
         off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
         m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
@@ -166,10 +181,7 @@ def mass_matrix_jacobian(s, acc, mp_int, mp_real, shp, idx, out):
 @numba.njit(cache=True)
 def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, out):
     """Q = sum m L^T (g - c) - dPi/ds - K0 s - C0 s' (eq. 2; seed eq. 2.10, 2.13); out (n,) zeroed."""
-    nmax = _max_local(mp_int[:, 1])
-    lx = np.empty(nmax)
-    ly = np.empty(nmax)
-    cols = np.empty(nmax, dtype=np.int64)
+    lx, ly, cols = _scratch(mp_int[:, 1])
     for i in range(mp_int.shape[0]):
         off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
         m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
@@ -186,15 +198,7 @@ def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, 
         # -dPi/dq of Pi = sum 1/2 (w EA eps^2 + w EI kappa^2), eps = u'q + (w'q)^2/2, kappa = w''q
         off, nnz, ptr, iptr = sp_int[i, 0], sp_int[i, 1], sp_int[i, 2], sp_int[i, 3]
         ea, ei = sp_real[i, 0], sp_real[i, 1]
-        du = 0.0
-        dw = 0.0
-        kappa = 0.0
-        for k in range(nnz):
-            qk = s[off + 3 + idx[iptr + k]]
-            du += shp[ptr + k] * qk
-            dw += shp[ptr + nnz + k] * qk
-            kappa += shp[ptr + 2 * nnz + k] * qk
-        eps = du + 0.5 * dw * dw
+        dw, eps, kappa = _strain_state(s, off, nnz, ptr, iptr, shp, idx)
         for k in range(nnz):
             deps = shp[ptr + k] + dw * shp[ptr + nnz + k]
             out[off + 3 + idx[iptr + k]] -= ea * eps * deps + ei * kappa * shp[ptr + 2 * nnz + k]
@@ -212,10 +216,7 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
                     out_v):
     """dQ/ds and dQ/ds' of ``forces`` (derivatives of eq. 2 and of the strain forces); outputs
     (n, n) zeroed."""
-    nmax = _max_local(mp_int[:, 1])
-    lx = np.empty(nmax)
-    ly = np.empty(nmax)
-    cols = np.empty(nmax, dtype=np.int64)
+    lx, ly, cols = _scratch(mp_int[:, 1])
     for i in range(mp_int.shape[0]):
         off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
         m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
@@ -247,13 +248,7 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
     for i in range(sp_int.shape[0]):
         off, nnz, ptr, iptr = sp_int[i, 0], sp_int[i, 1], sp_int[i, 2], sp_int[i, 3]
         ea, ei = sp_real[i, 0], sp_real[i, 1]
-        du = 0.0
-        dw = 0.0
-        for k in range(nnz):
-            qk = s[off + 3 + idx[iptr + k]]
-            du += shp[ptr + k] * qk
-            dw += shp[ptr + nnz + k] * qk
-        eps = du + 0.5 * dw * dw
+        dw, eps, _ = _strain_state(s, off, nnz, ptr, iptr, shp, idx)
         for k in range(nnz):
             dk = shp[ptr + k] + dw * shp[ptr + nnz + k]
             ck = off + 3 + idx[iptr + k]
@@ -273,10 +268,7 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
 @numba.njit(cache=True)
 def constraints(s, ct_int, ct_real, shp, idx, out):
     """Phi[row] += d . (R + A p) over the constraint terms; out (r,) holds the constant parts."""
-    nmax = _max_local(ct_int[:, 2])
-    lx = np.empty(nmax)
-    ly = np.empty(nmax)
-    cols = np.empty(nmax, dtype=np.int64)
+    lx, ly, cols = _scratch(ct_int[:, 2])
     for i in range(ct_int.shape[0]):
         row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
         ptr, iptr = ct_int[i, 3], ct_int[i, 4]
@@ -288,10 +280,7 @@ def constraints(s, ct_int, ct_real, shp, idx, out):
 @numba.njit(cache=True)
 def constraint_jacobian(s, ct_int, ct_real, shp, idx, out):
     """Phi_s[row] += d^T L (eq. 1); out (r, n) holds the constant (drive) rows."""
-    nmax = _max_local(ct_int[:, 2])
-    lx = np.empty(nmax)
-    ly = np.empty(nmax)
-    cols = np.empty(nmax, dtype=np.int64)
+    lx, ly, cols = _scratch(ct_int[:, 2])
     for i in range(ct_int.shape[0]):
         row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
         ptr, iptr = ct_int[i, 3], ct_int[i, 4]
@@ -305,10 +294,7 @@ def constraint_jacobian(s, ct_int, ct_real, shp, idx, out):
 def constraint_gamma(s, sdot, ct_int, ct_real, shp, idx, out):
     """gamma[row] -= d . c (eq. 2; the point constraints do not depend on t); out (r,) holds the
     drive rows' accelerations."""
-    nmax = _max_local(ct_int[:, 2])
-    lx = np.empty(nmax)
-    ly = np.empty(nmax)
-    cols = np.empty(nmax, dtype=np.int64)
+    lx, ly, cols = _scratch(ct_int[:, 2])
     for i in range(ct_int.shape[0]):
         row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
         ptr, iptr = ct_int[i, 3], ct_int[i, 4]
@@ -324,10 +310,7 @@ def constraint_gamma(s, sdot, ct_int, ct_real, shp, idx, out):
 @numba.njit(cache=True)
 def constraint_force_jacobian(s, lam, ct_int, ct_real, shp, idx, out):
     """d(Phi_s^T lam)/ds = sum lam[row] D(d) (eq. 3); out (n, n) zeroed."""
-    nmax = _max_local(ct_int[:, 2])
-    lx = np.empty(nmax)
-    ly = np.empty(nmax)
-    cols = np.empty(nmax, dtype=np.int64)
+    lx, ly, cols = _scratch(ct_int[:, 2])
     for i in range(ct_int.shape[0]):
         row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
         ptr, iptr = ct_int[i, 3], ct_int[i, 4]
@@ -339,10 +322,7 @@ def constraint_force_jacobian(s, lam, ct_int, ct_real, shp, idx, out):
 @numba.njit(cache=True)
 def kinetic_energy(s, sdot, mp_int, mp_real, shp, idx):
     """T = sum 1/2 m |L s'|^2 + 1/2 J (theta' + g.q')^2 (J)."""
-    nmax = _max_local(mp_int[:, 1])
-    lx = np.empty(nmax)
-    ly = np.empty(nmax)
-    cols = np.empty(nmax, dtype=np.int64)
+    lx, ly, cols = _scratch(mp_int[:, 1])
     energy = 0.0
     for i in range(mp_int.shape[0]):
         off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
@@ -364,10 +344,7 @@ def kinetic_energy(s, sdot, mp_int, mp_real, shp, idx):
 def potential_energy(s, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0):
     """V = -sum m g.r + strain energy (seed eq. 2.13, with eps = u'q + (w'q)^2/2 at strain points
     and 1/2 s^T K0 s for the links without geometric stiffening) (J)."""
-    nmax = _max_local(mp_int[:, 1])
-    lx = np.empty(nmax)
-    ly = np.empty(nmax)
-    cols = np.empty(nmax, dtype=np.int64)
+    lx, ly, cols = _scratch(mp_int[:, 1])
     energy = 0.0
     for i in range(mp_int.shape[0]):
         off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
@@ -377,15 +354,7 @@ def potential_energy(s, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0):
     for i in range(sp_int.shape[0]):
         off, nnz, ptr, iptr = sp_int[i, 0], sp_int[i, 1], sp_int[i, 2], sp_int[i, 3]
         ea, ei = sp_real[i, 0], sp_real[i, 1]
-        du = 0.0
-        dw = 0.0
-        kappa = 0.0
-        for k in range(nnz):
-            qk = s[off + 3 + idx[iptr + k]]
-            du += shp[ptr + k] * qk
-            dw += shp[ptr + nnz + k] * qk
-            kappa += shp[ptr + 2 * nnz + k] * qk
-        eps = du + 0.5 * dw * dw
+        dw, eps, kappa = _strain_state(s, off, nnz, ptr, iptr, shp, idx)
         energy += 0.5 * (ea * eps * eps + ei * kappa * kappa)
     n = s.shape[0]
     if k0.shape[0] == n:
