@@ -43,7 +43,7 @@ from scipy.linalg import eigh
 from . import _kernels
 from ._beams import BeamShapes, beam_matrices, beam_shapes
 from ._observables import make_observable
-from ._parts import (GROUND, DampingMatrix, ElasticLink, Mechanism, ModalDamping,
+from ._parts import (GROUND, DampingMatrix, ElasticLink, Mechanism, MechanismError, ModalDamping,
                      PrescribedDrive, Rayleigh, Revolute, RigidLink, Slider, TorqueDrive)
 
 logger = logging.getLogger(__name__)
@@ -351,10 +351,10 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
     for index, joint in enumerate(mechanism.joints):
         where = f"joints[{index}]"
         if not isinstance(joint, (Revolute, Slider)):
-            raise TypeError(f"{where} must be a Revolute or a Slider; received "
+            raise MechanismError(f"{where} must be a Revolute or a Slider; received "
                             f"{type(joint).__name__}")
         if joint.name in joints:
-            raise ValueError(f"{where}: joint name {joint.name!r} is used twice")
+            raise MechanismError(f"{where}: joint name {joint.name!r} is used twice")
         joints[joint.name] = joint
         row = len(constraint_labels)
         if isinstance(joint, Revolute):
@@ -390,23 +390,23 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
         raise TypeError("feedforward must be a callable tau(t) or a mapping joint name -> callable")
     torque_joints = [d.joint for d in mechanism.drives if isinstance(d, TorqueDrive)]
     if callable(feedforward) and len(torque_joints) != 1:
-        raise ValueError(f"feedforward is a single callable but the mechanism has "
+        raise MechanismError(f"feedforward is a single callable but the mechanism has "
                          f"{len(torque_joints)} torque drives; pass a mapping joint name -> callable")
     if isinstance(feedforward, Mapping):
         for key in feedforward:
             if key not in torque_joints:
-                raise ValueError(f"feedforward names joint {key!r}, which has no TorqueDrive; "
+                raise MechanismError(f"feedforward names joint {key!r}, which has no TorqueDrive; "
                                  f"torque drives act at {torque_joints}")
     drive_rows_h = []
     drives = []
     for index, drive in enumerate(mechanism.drives):
         where = f"drives[{index}]"
         if not isinstance(drive, (PrescribedDrive, TorqueDrive)):
-            raise TypeError(f"{where} must be a PrescribedDrive or a TorqueDrive; received "
+            raise MechanismError(f"{where} must be a PrescribedDrive or a TorqueDrive; received "
                             f"{type(drive).__name__}")
         joint = joints.get(drive.joint)
         if not isinstance(joint, Revolute):
-            raise ValueError(f"{where}.joint must name a revolute joint; received "
+            raise MechanismError(f"{where}.joint must name a revolute joint; received "
                              f"{drive.joint!r} (revolute joints: "
                              f"{[j.name for j in joints.values() if isinstance(j, Revolute)]})")
         for key in ("rate", "offset") + (("kp", "kd") if isinstance(drive, TorqueDrive) else ()):
@@ -464,13 +464,13 @@ def _layout(mechanism):
     for index, link in enumerate(mechanism.links):
         where = f"links[{index}]"
         if not isinstance(link, (RigidLink, ElasticLink)):
-            raise TypeError(f"{where} must be a RigidLink or an ElasticLink; received "
+            raise MechanismError(f"{where} must be a RigidLink or an ElasticLink; received "
                             f"{type(link).__name__}")
         if not isinstance(link.name, str) or not link.name or link.name == GROUND:
-            raise ValueError(f"{where}.name must be a non-empty string other than {GROUND!r}; "
+            raise MechanismError(f"{where}.name must be a non-empty string other than {GROUND!r}; "
                              f"received {link.name!r}")
         if link.name in layouts:
-            raise ValueError(f"{where}: link name {link.name!r} is used twice")
+            raise MechanismError(f"{where}: link name {link.name!r} is used twice")
         _positive(link.length, f"link {link.name!r}: length")
         offset = len(labels)
         labels += [f"{link.name}.x", f"{link.name}.y", f"{link.name}.theta"]
@@ -503,7 +503,7 @@ def _damping_matrix(link: ElasticLink, m_ee: np.ndarray, k_ee: np.ndarray) -> np
         ratios = np.asarray(damping.ratios, dtype=float)
         if ratios.ndim != 1 or len(ratios) > n_e or not np.all(np.isfinite(ratios)) or np.any(
                 ratios < 0):
-            raise ValueError(f"link {link.name!r}: damping.ratios must be at most {n_e} "
+            raise MechanismError(f"link {link.name!r}: damping.ratios must be at most {n_e} "
                              f"non-negative numbers; received {damping.ratios!r}")
         omega2, modes = eigh(k_ee, m_ee)  # mass-normalised: modes^T M modes = I
         omega = np.sqrt(np.maximum(omega2[:len(ratios)], 0.0))
@@ -512,11 +512,11 @@ def _damping_matrix(link: ElasticLink, m_ee: np.ndarray, k_ee: np.ndarray) -> np
     if isinstance(damping, DampingMatrix):
         matrix = np.asarray(damping.matrix, dtype=float)
         if matrix.shape != (n_e, n_e) or not np.all(np.isfinite(matrix)):
-            raise ValueError(f"link {link.name!r}: damping.matrix must be a finite ({n_e}, {n_e}) "
+            raise MechanismError(f"link {link.name!r}: damping.matrix must be a finite ({n_e}, {n_e}) "
                              f"matrix (one row per elastic coordinate); received shape "
                              f"{matrix.shape}")
         return matrix
-    raise TypeError(f"link {link.name!r}: damping must be Rayleigh, ModalDamping, DampingMatrix "
+    raise MechanismError(f"link {link.name!r}: damping must be Rayleigh, ModalDamping, DampingMatrix "
                     f"or None; received {type(damping).__name__}")
 
 
@@ -532,7 +532,7 @@ def _point_local(lay: LinkLayout, point, where):
             elif point in link.points:
                 local = tuple(float(c) for c in link.points[point])
             else:
-                raise ValueError(f"{where}: link {link.name!r} has no point {point!r}; use "
+                raise MechanismError(f"{where}: link {link.name!r} has no point {point!r}; use "
                                  f"'start', 'end', {sorted(link.points)} or a float in "
                                  f"[0, {link.length}]")
         else:
@@ -544,7 +544,7 @@ def _point_local(lay: LinkLayout, point, where):
     elif point == "end":
         x = link.length
     elif isinstance(point, str):
-        raise ValueError(f"{where}: elastic link {link.name!r} has no named point {point!r}; use "
+        raise MechanismError(f"{where}: elastic link {link.name!r} has no named point {point!r}; use "
                          f"'start', 'end' or a float in [0, {link.length}]")
     else:
         x = _abscissa(point, link, where)
@@ -555,7 +555,7 @@ def _point_local(lay: LinkLayout, point, where):
 def _abscissa(point, link, where):
     if not isinstance(point, numbers.Real) or not math.isfinite(point) or not (
             0.0 <= point <= link.length):
-        raise ValueError(f"{where}: a point on link {link.name!r} must be 'start', 'end', a named "
+        raise MechanismError(f"{where}: a point on link {link.name!r} must be 'start', 'end', a named "
                          f"point or a float in [0, {link.length}]; received {point!r}")
     return float(point)
 
@@ -564,16 +564,16 @@ def _ground_point(point, where):
     try:
         gx, gy = (float(c) for c in point)
     except (TypeError, ValueError):
-        raise ValueError(f"{where}: a ground point must be a pair (x, y) in metres; received "
+        raise MechanismError(f"{where}: a ground point must be a pair (x, y) in metres; received "
                          f"{point!r}") from None
     if not (math.isfinite(gx) and math.isfinite(gy)):
-        raise ValueError(f"{where}: a ground point must be finite; received {point!r}")
+        raise MechanismError(f"{where}: a ground point must be finite; received {point!r}")
     return gx, gy
 
 
 def _known_link(layouts, name, where):
     if name not in layouts:
-        raise ValueError(f"{where}: unknown link {name!r}; links are {list(layouts)}")
+        raise MechanismError(f"{where}: unknown link {name!r}; links are {list(layouts)}")
     return layouts[name]
 
 
@@ -587,21 +587,21 @@ def _period(mechanism):
     if first.rate != 0.0:
         return 2.0 * math.pi / abs(first.rate)
     if any(d.harmonics for d in mechanism.drives):
-        raise ValueError("period is required: a drive has harmonics and the first drive's rate "
+        raise MechanismError("period is required: a drive has harmonics and the first drive's rate "
                          "is zero")
     return None
 
 
 def _finite(value, where):
     if not isinstance(value, numbers.Real) or not math.isfinite(value):
-        raise ValueError(f"{where} must be a finite number; received {value!r}")
+        raise MechanismError(f"{where} must be a finite number; received {value!r}")
 
 
 def _positive(value, where):
     if not isinstance(value, numbers.Real) or not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{where} must be a positive finite number; received {value!r}")
+        raise MechanismError(f"{where} must be a positive finite number; received {value!r}")
 
 
 def _non_negative(value, where):
     if not isinstance(value, numbers.Real) or not math.isfinite(value) or value < 0:
-        raise ValueError(f"{where} must be a non-negative finite number; received {value!r}")
+        raise MechanismError(f"{where} must be a non-negative finite number; received {value!r}")

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
-from ._parts import ElasticLink, Fem, Ritz, UserShapes
+from ._parts import ElasticLink, Fem, MechanismError, Ritz, UserShapes
 
 _BOUNDARIES = ("pinned-pinned", "clamped-free")
 _QUADRATURE_RTOL = 1e-14
@@ -83,17 +83,17 @@ class BeamShapes:
 def beam_shapes(link: ElasticLink) -> BeamShapes:
     """Shape functions and quadrature of ``link``; raises ``ValueError`` on bad options."""
     if link.boundary not in _BOUNDARIES:
-        raise ValueError(f"link {link.name!r}: boundary must be one of {_BOUNDARIES}; "
+        raise MechanismError(f"link {link.name!r}: boundary must be one of {_BOUNDARIES}; "
                          f"received {link.boundary!r}")
     for key in ("length", "density", "youngs_modulus", "area", "second_moment"):
         value = getattr(link, key)
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise ValueError(f"link {link.name!r}: {key} must be a positive finite number; "
+            raise MechanismError(f"link {link.name!r}: {key} must be a positive finite number; "
                              f"received {value!r}")
     disc = link.discretisation
     if isinstance(disc, Fem):
         if not (isinstance(disc.n_elements, int) and disc.n_elements >= 1):
-            raise ValueError(f"link {link.name!r}: Fem.n_elements must be an integer >= 1; "
+            raise MechanismError(f"link {link.name!r}: Fem.n_elements must be an integer >= 1; "
                              f"received {disc.n_elements!r}")
         labels = tuple(f"{kind}{node}" for node, kind in _fem_kept_dofs(link, disc)[1])
         n_per_element = 5 if link.geometric_stiffening else 4
@@ -106,7 +106,7 @@ def beam_shapes(link: ElasticLink) -> BeamShapes:
     if isinstance(disc, Ritz):
         if not (isinstance(disc.n_bending, int) and disc.n_bending >= 0
                 and isinstance(disc.n_axial, int) and disc.n_axial >= 0):
-            raise ValueError(f"link {link.name!r}: Ritz.n_bending and Ritz.n_axial must be "
+            raise MechanismError(f"link {link.name!r}: Ritz.n_bending and Ritz.n_axial must be "
                              f"integers >= 0; received {disc!r}")
         n_axial = disc.n_axial if link.axial else 0
         labels = tuple(f"b{i + 1}" for i in range(disc.n_bending)) + tuple(
@@ -114,13 +114,13 @@ def beam_shapes(link: ElasticLink) -> BeamShapes:
     elif isinstance(disc, UserShapes):
         for kind in ("bending", "axial"):
             if not all(callable(f) for f in getattr(disc, kind)):
-                raise TypeError(f"link {link.name!r}: UserShapes.{kind} must hold callables "
+                raise MechanismError(f"link {link.name!r}: UserShapes.{kind} must hold callables "
                                 f"f(x, length) -> (value, d/dx, d2/dx2)")
         n_axial = len(disc.axial) if link.axial else 0
         labels = tuple(f"b{i + 1}" for i in range(len(disc.bending))) + tuple(
             f"a{k + 1}" for k in range(n_axial))
     else:
-        raise TypeError(f"link {link.name!r}: discretisation must be Ritz, UserShapes or Fem; "
+        raise MechanismError(f"link {link.name!r}: discretisation must be Ritz, UserShapes or Fem; "
                         f"received {type(disc).__name__}")
     shapes = BeamShapes(link, labels, (np.zeros(0), np.zeros(0)))
     shapes = BeamShapes(link, labels, _adaptive_quadrature(shapes))
@@ -207,10 +207,10 @@ def _call_user(f, x, link, kind, index):
     try:
         arrays = tuple(np.broadcast_to(np.asarray(a, dtype=float), x.shape) for a in result)
     except (TypeError, ValueError) as error:
-        raise ValueError(f"link {link.name!r}: UserShapes.{kind}[{index}] must return "
+        raise MechanismError(f"link {link.name!r}: UserShapes.{kind}[{index}] must return "
                          f"(value, d/dx, d2/dx2), arrays shaped like x") from error
     if len(arrays) != 3 or not all(np.all(np.isfinite(a)) for a in arrays):
-        raise ValueError(f"link {link.name!r}: UserShapes.{kind}[{index}] must return three "
+        raise MechanismError(f"link {link.name!r}: UserShapes.{kind}[{index}] must return three "
                          f"finite arrays (value, d/dx, d2/dx2)")
     return arrays
 
@@ -230,7 +230,7 @@ def _check_user_boundary(shapes: BeamShapes) -> None:
         scale = np.max(np.abs(values), axis=0)
         bad = np.flatnonzero(np.abs(at_end) > 1e-10 * scale)
         if bad.size:
-            raise ValueError(f"link {link.name!r}: user shape {shapes.labels[bad[0]]} has "
+            raise MechanismError(f"link {link.name!r}: user shape {shapes.labels[bad[0]]} has "
                              f"{name} = {at_end[bad[0]]:.3g}, but a {link.boundary} link needs "
                              f"{name} = 0 (see mechanisms._parts for the frame conventions)")
 
@@ -254,7 +254,7 @@ def _adaptive_quadrature(shapes: BeamShapes) -> tuple[np.ndarray, np.ndarray]:
     previous = _quadrature_integrals(shapes, n)
     while True:
         if 2 * n > _MAX_GAUSS_POINTS:
-            raise ValueError(f"link {shapes.link.name!r}: the shape-function integrals do not "
+            raise MechanismError(f"link {shapes.link.name!r}: the shape-function integrals do not "
                              f"converge with {_MAX_GAUSS_POINTS} Gauss points; are the user shapes "
                              f"smooth?")
         current = _quadrature_integrals(shapes, 2 * n)
