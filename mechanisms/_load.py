@@ -296,8 +296,7 @@ def _build(spec: Mapping[str, Any]) -> Mechanism:
     angles = top.table("initial_angles")
     initial_angles = {name: _Table({"a": value}, "initial_angles", ("a",)).number("a", "rad")
                       for name, value in angles.items()}
-    description = top.string("description", "")
-    del description  # documentation only; kept in the spec
+    top.string("description", "")  # checked only: documentation, kept in the spec
     period = top.number("period", "s", positive=True) if top.has("period") else None
     return Mechanism(name=top.string("name"), links=tuple(links), joints=tuple(joints),
                      drives=tuple(drives), point_masses=tuple(point_masses),

@@ -24,6 +24,7 @@ crank that cannot turn, toggle positions) run at the start of ``mechanisms.nomin
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import re
 from dataclasses import dataclass, field
@@ -520,39 +521,39 @@ def _pin_position(link: Link, point: object, owner: str) -> tuple[float, float]:
                          f"point or a distance in [0, {link.length}] m, got {point!r}")
 
 
+def _by_name(parts: tuple, types: tuple[type, ...], kind: str) -> dict[str, Any]:
+    """Parts keyed by their names, checking their types and that no name repeats."""
+    named: dict[str, Any] = {}
+    for part in parts:
+        if not isinstance(part, types):
+            raise MechanismError(f"{kind}s must be {' or '.join(t.__name__ for t in types)}, got "
+                                 f"{part!r}")
+        if part.name in named:
+            raise MechanismError(f"duplicate {kind} name {part.name!r}")
+        named[part.name] = part
+    return named
+
+
 def _validate(mech: Mechanism) -> None:
     """Checks how the parts fit together; each failure names the part and the fix."""
     if not isinstance(mech.name, str) or not mech.name:
         raise MechanismError(f"mechanism name must be a non-empty string, got {mech.name!r}")
     if not mech.links:
         raise MechanismError(f"mechanism {mech.name!r} has no links")
-    links: dict[str, Link] = {}
-    for link in mech.links:
-        if not isinstance(link, (RigidLink, ElasticLink)):
-            raise MechanismError(f"links must be RigidLink or ElasticLink, got {link!r}")
-        if link.name in links:
-            raise MechanismError(f"duplicate link name {link.name!r}")
-        links[link.name] = link
+    links: dict[str, Link] = _by_name(mech.links, (RigidLink, ElasticLink), "link")
 
     def known_link(owner: str, name: str) -> Link:
         if name not in links:
-            import difflib
-
             close = difflib.get_close_matches(str(name), list(links) + [GROUND], n=1)
             hint = f"; did you mean {close[0]!r}?" if close else ""
             raise MechanismError(f"{owner} names unknown link {name!r} (links: {list(links)}, or "
                                  f"{GROUND!r}){hint}")
         return links[name]
 
-    joints: dict[str, Joint] = {}
+    joints: dict[str, Joint] = _by_name(mech.joints, (Revolute, Slider), "joint")
     neighbours: dict[str, set[str]] = {name: set() for name in links}
     grounded: set[str] = set()
     for joint in mech.joints:
-        if not isinstance(joint, (Revolute, Slider)):
-            raise MechanismError(f"joints must be Revolute or Slider, got {joint!r}")
-        if joint.name in joints:
-            raise MechanismError(f"duplicate joint name {joint.name!r}")
-        joints[joint.name] = joint
         owner = f"joint {joint.name!r}"
         if isinstance(joint, Revolute):
             _pin_position(known_link(owner, joint.link_b), joint.point_b, owner)
