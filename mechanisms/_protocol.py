@@ -24,6 +24,12 @@ Shapes: ``s, sdot, sddot`` (n,), ``lam`` (r,), matrices (n, n) or (r, n). Units 
 ``observable(spec)``, ``drive_torques(s, sdot, t, lam=None)`` (N m per drive; a prescribed drive's
 torque is ``-lam[row]``), ``drive_power(s, sdot, t, lam=None)`` (W) and ``damping_power(sdot)`` (W), so
 that ``d(T + V)/dt = drive_power - damping_power`` can be checked along a solution.
+
+Reading the multipliers of ``mechanisms.Model`` (the generalized constraint force is
+``-Phi_s^T lam``): a revolute joint's rows ``"J.x", "J.y"`` (``Phi = r_a - r_b``) are the force that
+``link_a`` exerts on ``link_b`` at the pin (N, global axes); a slider's row ``"S.n"``
+(``Phi = n . (r - origin)``) gives the force ``-lam n`` of the guide on the link; a prescribed drive's
+row ``"drive:J"`` is minus the torque the drive applies to ``link_b`` (N m).
 """
 
 from __future__ import annotations

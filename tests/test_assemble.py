@@ -550,3 +550,26 @@ def test_power_balance_along_the_equations_of_motion(options):
     expected = model.drive_power(s, sdot, t, lam) - model.damping_power(sdot)
     assert model.damping_power(sdot) > 0.0
     assert rate == pytest.approx(expected, rel=1e-7)
+
+
+def test_multipliers_are_the_documented_reactions():
+    """A uniform bar pinned at O, held at rest by a prescribed drive 0.3 rad from hanging: the pin
+    force on the bar is m g upwards (lam of "O.x", "O.y" = force of link_a = ground on link_b), and
+    the drive torque -lam of "drive:O" balances gravity, m g (L/2) sin(0.3) (statics)."""
+    bar = RigidLink.uniform("bar", 0.4, **STEEL)
+    g = 9.81
+    angle = -math.pi / 2 + 0.3
+    mech = Mechanism("pendulum", (bar,), (Revolute("O", GROUND, (0.0, 0.0), "bar", "start"),),
+                     (PrescribedDrive("O", rate=0.0, offset=angle),), gravity=(0.0, -g),
+                     period=1.0)
+    model = assemble(mech)
+    s, zero = np.array([0.0, 0.0, angle]), np.zeros(3)
+    jac = model.constraint_jacobian(s, 0.0)
+    kkt = np.block([[model.mass_matrix(s), jac.T], [jac, np.zeros((3, 3))]])
+    solution = np.linalg.solve(kkt, np.concatenate([model.forces(s, zero, 0.0),
+                                                    model.constraint_gamma(s, zero, 0.0)]))
+    sddot, lam = solution[:3], solution[3:]
+    assert np.abs(sddot).max() < 1e-12
+    assert lam[:2] == pytest.approx([0.0, bar.mass * g], abs=1e-12)
+    torque = bar.mass * g * 0.2 * math.sin(0.3)
+    assert model.drive_torques(s, zero, 0.0, lam) == pytest.approx([torque], rel=1e-12)
