@@ -573,3 +573,40 @@ def test_multipliers_are_the_documented_reactions():
     assert lam[:2] == pytest.approx([0.0, bar.mass * g], abs=1e-12)
     torque = bar.mass * g * 0.2 * math.sin(0.3)
     assert model.drive_torques(s, zero, 0.0, lam) == pytest.approx([torque], rel=1e-12)
+
+
+def test_rigid_body_with_offset_centroid_and_named_point_mass():
+    """Mass matrix of a rigid link (x, y, theta) with centroid c, inertia I_c, and a point mass m_p
+    with inertia J_p at a named point p: [[m I, m A' c], [m (A' c)^T, I_c + m |c|^2]] summed over
+    the two bodies (Huygens-Steiner)."""
+    c, p = np.array([0.12, 0.03]), np.array([0.2, -0.05])
+    link = RigidLink("plate", 0.3, mass=1.7, inertia=0.011, centroid=tuple(c),
+                     points={"tip": tuple(p)})
+    mech = Mechanism("plate", (link,), (Revolute("O", GROUND, (0.0, 0.0), "plate", "start"),),
+                     (PrescribedDrive("O", rate=3.0),),
+                     point_masses=(PointMass("plate", "tip", 0.4, 0.002),))
+    model = assemble(mech)
+    theta = 0.8
+    rotation_prime = np.array([[-math.sin(theta), -math.cos(theta)],
+                               [math.cos(theta), -math.sin(theta)]])
+    expected = np.zeros((3, 3))
+    for mass, inertia, where in ((1.7, 0.011, c), (0.4, 0.002, p)):
+        arm = rotation_prime @ where
+        expected[:2, :2] += mass * np.eye(2)
+        expected[:2, 2] += mass * arm
+        expected[2, :2] += mass * arm
+        expected[2, 2] += inertia + mass * where @ where
+    assert model.mass_matrix(np.array([0.1, -0.2, theta])) == pytest.approx(expected, rel=1e-14)
+
+
+def test_torque_drive_feedforward_enters_the_forces():
+    """Q(feedforward) - Q(no feedforward) = tau_ff(t) h, h the gradient of the drive angle."""
+    plain = assemble(fourbar(torque=True))
+    driven = assemble(fourbar(torque=True), feedforward={"O": lambda t: 2.0 + 30.0 * t})
+    s, sdot = random_state(plain, np.random.default_rng(5))
+    h = np.zeros(plain.n_coords)
+    h[2] = 1.0
+    difference = driven.forces(s, sdot, 0.1) - plain.forces(s, sdot, 0.1)
+    assert difference == pytest.approx(5.0 * h, abs=1e-12 * np.abs(plain.forces(s, sdot, 0.1)).max())
+    with pytest.raises(ValueError, match="has no TorqueDrive"):
+        assemble(fourbar(torque=True), feedforward={"A": lambda t: 0.0})
