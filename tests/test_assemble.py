@@ -127,11 +127,14 @@ T_SYM = sp.Symbol("t", real=True)
 
 
 @functools.lru_cache(maxsize=None)
-def _energy_pieces():
+def _energy_pieces(kind):
     """The four-bar's energies, split into additive pieces so that the variants share the work:
     kinetic (seed eq. 2.12 plus the rigid bars and the point mass), rotary kinetic energy of the
     coupler's sections, potential (gravity + seed eq. 2.13), the extra strain energy of geometric
-    stiffening EA/2 ((u' + w'^2/2)^2 - u'^2), the Rayleigh damping force and the constraints."""
+    stiffening EA/2 ((u' + w'^2/2)^2 - u'^2), the Rayleigh damping force and the constraints.
+    ``kind`` is the coupler's discretisation: "ritz" (2 bending modes, 1 axial mode; elastic
+    coordinates q1, q2, p1) or "fem1" (one Hermite element, seed eq. 2.5-2.8, pinned ends: the
+    coordinates r0, u1, r1 stand in the places of q1, q2, p1)."""
     x1, y1, t1, x2, y2, t2, q1, q2, p1, x3, y3, t3 = S_SYM
     x1d, y1d, t1d, x2d, y2d, t2d, q1d, q2d, p1d, x3d, y3d, t3d = V_SYM
     gvec = sp.Matrix(GRAVITY)
@@ -148,15 +151,18 @@ def _energy_pieces():
     t_crank, v_crank = bar(sp.Matrix([x1, y1]), sp.Matrix([x1d, y1d]), t1, t1d, L1)
     t_rocker, v_rocker = bar(sp.Matrix([x3, y3]), sp.Matrix([x3d, y3d]), t3, t3d, L3)
 
-    # coupler: seed eq. 2.14 with the modes of eq. 2.2 and 2.4, in xi = x / L2
     def fields(xi):
-        w = q1 * sp.sin(sp.pi * xi) + q2 * sp.sin(2 * sp.pi * xi)
-        u = p1 * sp.sin(sp.pi * xi / 2)
+        if kind == "ritz":  # seed eq. 2.14 with the modes of eq. 2.2 and 2.4, xi = x / L2
+            w = q1 * sp.sin(sp.pi * xi) + q2 * sp.sin(2 * sp.pi * xi)
+            u = p1 * sp.sin(sp.pi * xi / 2)
+        else:               # seed eq. 2.5-2.8 with q1 = u0 = 0, q2 = w0 = 0, q5 = w1 = 0
+            w = q1 * L2 * (xi - 2 * xi**2 + xi**3) + p1 * L2 * (xi**3 - xi**2)
+            u = q2 * xi
         return u, w
 
     u, w = fields(XI)
-    ud = u.subs(p1, p1d)
-    wd = w.subs({q1: q1d, q2: q2d}, simultaneous=True)
+    rates = {q1: q1d, q2: q2d, p1: p1d}
+    ud, wd = u.subs(rates, simultaneous=True), w.subs(rates, simultaneous=True)
     w_x, u_x = w.diff(XI) / L2, u.diff(XI) / L2
     w_xx = w.diff(XI, 2) / L2**2
     rot2 = _rot(t2)
@@ -208,11 +214,11 @@ def _energy_pieces():
 
 
 @functools.lru_cache(maxsize=None)
-def _lagrange(piece):
+def _lagrange(kind, piece):
     """Lagrange's equations (seed eq. 2.10) of one energy piece, in the protocol's form
     M s'' = Q: a kinetic piece gives M = d2T/ds'2 and Q = dT/ds - (d2T/ds'ds) s'; a potential
     piece gives M = 0 and Q = -dV/ds."""
-    energy = sp.Matrix([_energy_pieces()[piece]])
+    energy = sp.Matrix([_energy_pieces(kind)[piece]])
     s_vec, v_vec = sp.Matrix(S_SYM), sp.Matrix(V_SYM)
     if piece in ("kinetic", "rotary"):
         p = energy.jacobian(v_vec).T
@@ -220,43 +226,50 @@ def _lagrange(piece):
     return sp.zeros(12, 12), -energy.jacobian(s_vec).T
 
 
-def _derive_fourbar(stiffening, rotary, *, cse=False):
+def _derive_fourbar(stiffening, rotary, *, kind="ritz", cse=False):
     """M, Q, Phi_s and Phi of the four-bar (coordinates as the assembler orders them), lambdified
     with arguments (s, s', t)."""
-    pieces = _energy_pieces()
+    pieces = _energy_pieces(kind)
     names = ["kinetic", "potential"] + (["rotary"] if rotary else []) + (
         ["stiffening"] if stiffening else [])
     mass, forces = sp.zeros(12, 12), sp.zeros(12, 1)
     for name in names:
-        m, f = _lagrange(name)
+        m, f = _lagrange(kind, name)
         mass, forces = mass + m, forces + f
     damping = pieces["damping"]
     if rotary:  # Rayleigh alpha acts on the full elastic mass block, rotary inertia included
-        damping = damping + ALPHA * _lagrange("rotary")[0][6:9, 6:9]
+        damping = damping + ALPHA * _lagrange(kind, "rotary")[0][6:9, 6:9]
     forces[6:9, 0] -= damping * pieces["qd"]
     jac = pieces["phi"].jacobian(sp.Matrix(S_SYM))
     args = (S_SYM, V_SYM, T_SYM)
     return tuple(sp.lambdify(args, expr, cse=cse) for expr in (mass, forces, jac, pieces["phi"]))
 
 
-@pytest.fixture(scope="module", params=[(False, False), (True, True)],
-                ids=["seed-eq-2.13", "stiffening+rotary"])
+SYMPY_CASES = {"ritz-seed-eq-2.13": ("ritz", False, False),
+               "ritz-stiffening+rotary": ("ritz", True, True),
+               "fem1-stiffening": ("fem1", True, False)}
+
+
+@pytest.fixture(scope="module", params=list(SYMPY_CASES), ids=list(SYMPY_CASES))
 def derived(request):
-    stiffening, rotary = request.param
-    model = assemble(fourbar(Ritz(2, 1), stiffening=stiffening, rotary=rotary))
-    return model, _derive_fourbar(stiffening, rotary)
+    kind, stiffening, rotary = SYMPY_CASES[request.param]
+    discretisation = Ritz(2, 1) if kind == "ritz" else Fem(1)
+    model = assemble(fourbar(discretisation, stiffening=stiffening, rotary=rotary))
+    return model, _derive_fourbar(stiffening, rotary, kind=kind)
 
 
 def test_assembler_matches_sympy_lagrange(derived):
     """Mass matrix, force vector and constraint Jacobian of the thesis four-bar against the sympy
-    derivation, to 1e-10 relative. The Ritz integrals are exact in sympy and converged to ~1e-14 by
-    the assembler's Gauss rule; the sympy side evaluates with float64 after lambdify, so agreement is
+    derivation, to 1e-10 relative. The integrals are exact in sympy; the assembler's Gauss rule is
+    exact for the Hermite element and converged to ~1e-14 for the Ritz modes; the sympy side evaluates with float64 after lambdify, so agreement is
     limited by round-off (~1e-14 times the condition of the sums), far below 1e-10. Each block is
     compared on its own scale: the velocity part of Q (Q(s, s') - Q(s, 0)) is ~1e4 times smaller than
     the elastic part, and the gravity part (q = 0, s' = 0) smaller still."""
     model, (mass_f, forces_f, jac_f, phi_f) = derived
+    elastic = ("b1", "b2", "a1") if isinstance(model.layouts["coupler"].link.discretisation,
+                                               Ritz) else ("r0", "u1", "r1")
     assert model.coord_labels == ("crank.x", "crank.y", "crank.theta", "coupler.x", "coupler.y",
-                                  "coupler.theta", "coupler.b1", "coupler.b2", "coupler.a1",
+                                  "coupler.theta", *(f"coupler.{e}" for e in elastic),
                                   "rocker.x", "rocker.y", "rocker.theta")
     rng = np.random.default_rng(20181)
     zero = np.zeros(model.n_coords)
@@ -264,8 +277,10 @@ def test_assembler_matches_sympy_lagrange(derived):
     def rel(a, b):
         return np.linalg.norm(a - b) / np.linalg.norm(b)
 
-    for _ in range(5):
-        s, sdot = random_state(model, rng)
+    # deflections of 1e-3 and of 3e-2 (where the quartic strain energy of geometric stiffening
+    # contributes ~1e-2 of the elastic force rather than ~1e-5)
+    for q_scale in (1e-3, 1e-3, 1e-3, 3e-2, 3e-2):
+        s, sdot = random_state(model, rng, q_scale=q_scale)
         t = rng.uniform(0.0, 0.1)
         assert rel(model.mass_matrix(s), mass_f(s, sdot, t)) < 1e-10
         q_static = np.asarray(forces_f(s, zero, t), dtype=float).ravel()
