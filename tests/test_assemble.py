@@ -277,8 +277,8 @@ def test_assembler_matches_sympy_lagrange(derived):
     def rel(a, b):
         return np.linalg.norm(a - b) / np.linalg.norm(b)
 
-    # deflections of 1e-3 and of 3e-2 (where the quartic strain energy of geometric stiffening
-    # contributes ~1e-2 of the elastic force rather than ~1e-5)
+    # elastic coordinates of 1e-3 and of 3e-2: geometric stiffening contributes ~1e-5 and ~2e-4 of
+    # the static force, so at 1e-10 an error of more than ~1e-6 of the stiffening terms shows
     for q_scale in (1e-3, 1e-3, 1e-3, 3e-2, 3e-2):
         s, sdot = random_state(model, rng, q_scale=q_scale)
         t = rng.uniform(0.0, 0.1)
