@@ -1,4 +1,4 @@
-"""Elastic-link discretisations against closed forms: natural frequencies of pinned-pinned,
+"""Elastic-link discretisations against closed forms: natural frequencies of pinned-pinned, free-free,
 fixed-free (axial) and clamped-free beams, exact Ritz integrals, and the observed order of
 convergence of Hermite elements (h^4 for bending, h^2 for linear axial elements)."""
 
@@ -201,3 +201,24 @@ def test_user_shapes_violating_the_boundary_conditions_are_rejected():
     beam_shapes(beam(UserShapes((parabola,)), boundary="clamped-free"))  # w(0) = w'(0) = 0
     with pytest.raises(ValueError, match=r"w\(L\)"):
         beam_shapes(beam(UserShapes((parabola,))))
+
+
+FREE_FREE = (4.730040744862704, 7.853204624095838)  # cos b cosh b = 1
+
+
+def test_unconstrained_link_is_a_free_free_beam():
+    """M and -dQ/ds of the model do not involve the joints: for the one link alone at rest they are
+    the equations of a free floating beam, i.e. three rigid-body modes (zero frequency) and the
+    free-free bending frequencies; the chord frame plus Hermite elements converge at h^4."""
+    counts = (4, 8, 16, 32)
+    exact = np.array(FREE_FREE) ** 2 * BENDING_SCALE
+    errors = []
+    for n in counts:
+        model = cantilever_model(beam(Fem(n), axial=False, geometric_stiffening=False))
+        zero = np.zeros(model.n_coords)
+        stiffness = -model.force_jacobians(zero, zero, 0.0)[0]
+        omega2 = eigh(0.5 * (stiffness + stiffness.T), model.mass_matrix(zero), eigvals_only=True)
+        # three rigid-body modes: zero up to the round-off of an eigensolver on K ~ 1e6 |M|
+        assert np.abs(omega2[:3]).max() < 1e-9 * omega2[3]
+        errors.append(np.max(np.abs(np.sqrt(omega2[3:5]) - exact) / exact))
+    assert observed_order(counts, errors) == pytest.approx(4.0, abs=0.3)
