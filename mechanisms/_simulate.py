@@ -277,17 +277,11 @@ def _positive(value: Any, name: str) -> float:
     return x
 
 
-def _period_of(system: Any, model: Any, period: float | None) -> float | None:
+def _period_of(model: Any, period: float | None) -> float | None:
+    """The drive period (s): the ``period`` argument, else the model's (the assembler sets it from
+    ``Mechanism.period`` or the first drive's rate), else None."""
     if period is not None:
         return _positive(period, "period")
-    mech_period = getattr(system, "period", None)
-    if mech_period is not None:
-        return float(mech_period)
-    drives = getattr(system, "drives", ())
-    for drive in drives:
-        rate = getattr(drive, "rate", 0.0)
-        if rate:
-            return 2.0 * math.pi / abs(rate)
     model_period = getattr(model, "period", None)
     return None if model_period is None else float(model_period)
 
@@ -320,12 +314,28 @@ def _time_grid(t0: float, t_end, n_periods, dt, steps_per_period, period) -> tup
     return duration / n_steps, n_steps
 
 
-def _resolve_model(system: Any):
-    """(model, mechanism or None) from a Mechanism or anything implementing the model protocol."""
-    from ._parts import Mechanism
+def _resolve_model(system: Any, need_nominal: bool):
+    """(model, mechanism or None, nominal motion or None) from a Mechanism or a protocol model.
+
+    A Mechanism is assembled here; with torque drives its nominal inverse-dynamics torque (from the
+    nominal motion, a periodic cubic spline in time) is the drives' feedforward. The nominal motion
+    is computed when a start state is needed or for the feedforward."""
+    from ._parts import Mechanism, TorqueDrive
     if isinstance(system, Mechanism):
-        from . import assemble
-        return assemble(system), system
+        from . import assemble, nominal_motion
+        torque_drives = [i for i, d in enumerate(system.drives) if isinstance(d, TorqueDrive)]
+        nominal = nominal_motion(system) if (need_nominal or torque_drives) else None
+        if not torque_drives:
+            return assemble(system), system, nominal
+        from scipy.interpolate import CubicSpline
+        feedforward = {}
+        for i in torque_drives:
+            torque = np.array(nominal.drive_torque[:, i])
+            torque[-1] = torque[0]   # periodic: the nominal motion closes to ~1e-6
+            spline = CubicSpline(nominal.t, torque, bc_type="periodic")
+            feedforward[system.drives[i].joint] = (
+                lambda t, spline=spline, period=nominal.period: float(spline(t % period)))
+        return assemble(system, feedforward=feedforward), system, nominal
     required = ("n_coords", "n_constraints", "mass_matrix", "forces", "constraints",
                 "constraint_jacobian", "constraint_rate", "constraint_gamma",
                 "mass_matrix_jacobian", "force_jacobians", "constraint_force_jacobian")
@@ -334,29 +344,31 @@ def _resolve_model(system: Any):
         raise TypeError("`system` must be a mechanisms.Mechanism or a model implementing "
                         f"mechanisms/_protocol.py's ConstrainedModel; {type(system).__name__} lacks "
                         f"{missing}.")
-    return system, None
-
-
-def _initial_state(model, mechanism, s0, sdot0, t0: float):
-    n = int(model.n_coords)
-    if s0 is None:
-        if mechanism is None:
-            raise ValueError("`s0` is required when simulating a bare model: only a Mechanism has a "
-                             "nominal rigid motion to start from.")
+    mechanism = getattr(system, "mechanism", None)
+    mechanism = mechanism if isinstance(mechanism, Mechanism) else None
+    nominal = None
+    if need_nominal and mechanism is not None:
         from . import nominal_motion
         nominal = nominal_motion(mechanism)
-        s_start = np.array(nominal.s[0], dtype=np.float64)
-        v_start = np.array(nominal.sdot[0], dtype=np.float64) if sdot0 is None else None
-        if abs(float(nominal.t[0]) - t0) > 0.0:
+    return system, mechanism, nominal
+
+
+def _initial_state(model, nominal, s0, sdot0, t0: float):
+    n = int(model.n_coords)
+    if s0 is None:
+        if nominal is None:
+            raise ValueError("`s0` is required when simulating a bare model: only a Mechanism (or a "
+                             "model assembled from one) has a nominal rigid motion to start from.")
+        if float(nominal.t[0]) != t0:
             raise ValueError(f"the nominal motion starts at t = {float(nominal.t[0])} s; pass `s0` "
                              f"and `sdot0` to start at t0 = {t0} s.")
+        s_start = np.array(nominal.s[0], dtype=np.float64)
+        v_start = np.array(nominal.sdot[0], dtype=np.float64)
     else:
         s_start = _as_vector(s0, n, "s0")
-        v_start = None
+        v_start = np.zeros(n)
     if sdot0 is not None:
         v_start = _as_vector(sdot0, n, "sdot0")
-    elif v_start is None:
-        v_start = np.zeros(n)
     return s_start, v_start
 
 
@@ -427,12 +439,14 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
 
     Parameters
     ----------
-    system : a ``mechanisms.Mechanism`` (assembled with ``mechanisms.assemble``) or any model
-        implementing ``mechanisms._protocol.ConstrainedModel``.
+    system : a ``mechanisms.Mechanism`` (assembled with ``mechanisms.assemble``; torque drives get
+        the nominal inverse-dynamics torque as feedforward) or any model implementing
+        ``mechanisms._protocol.ConstrainedModel``.
     t_end, n_periods : the end time (s), or the number of drive periods, exactly one of them.
     dt, steps_per_period : the time step (s, shortened to end on ``t_end``), or steps per period.
-    s0, sdot0 : initial coordinates and velocities (n,). Without ``s0`` a Mechanism starts on its
-        nominal rigid motion at ``t0 = 0`` (elastic coordinates zero); ``sdot0`` defaults to the
+    s0, sdot0 : initial coordinates and velocities (n,). Without ``s0`` a Mechanism (or a model
+        with a ``mechanism`` attribute) starts on its nominal rigid motion
+        (``mechanisms.nominal_motion``) at ``t0 = 0``, elastic coordinates zero; ``sdot0`` defaults to the
         nominal velocities, or to zero with a given ``s0``. The state must satisfy the position and
         velocity constraints to 1e-8 relative; accelerations and multipliers are then solved for
         consistently.
@@ -468,11 +482,11 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
     tol = _positive(tol, "tol")
     if int(max_iterations) != max_iterations or max_iterations < 1:
         raise ValueError(f"`max_iterations` must be a positive integer; got {max_iterations!r}.")
-    model, mechanism = _resolve_model(system)
+    model, mechanism, nominal = _resolve_model(system, need_nominal=s0 is None)
     t0 = float(t0)
     h, n_steps = _time_grid(t0, t_end, n_periods, dt, steps_per_period,
-                            _period_of(system, model, period))
-    q0, v0 = _initial_state(model, mechanism, s0, sdot0, t0)
+                            _period_of(model, period))
+    q0, v0 = _initial_state(model, nominal, s0, sdot0, t0)
     length_scale = max(1.0, float(np.max(np.abs(q0), initial=0.0)))
     _check_consistency(model, q0, v0, t0, length_scale)
     evaluators = _observable_evaluators(model, mechanism, observables)
