@@ -70,6 +70,28 @@ class LinkLayout:
 
 
 @dataclass(frozen=True)
+class _Tables:
+    """The point tables and constant matrices the kernels read (layouts in ``_kernels``): mass
+    points, strain points, constraint terms, sparse shape values ``shp`` and their indices ``idx``,
+    the constant part ``phi0`` (r,) and drive rows ``h_lin`` (r, n) of the constraints, and ``k0``,
+    ``c0`` (n, n): linear stiffness of the links without geometric stiffening and damping of the
+    elastic coordinates ((0, 0) arrays when both vanish)."""
+
+    mp_int: np.ndarray
+    mp_real: np.ndarray
+    sp_int: np.ndarray
+    sp_real: np.ndarray
+    ct_int: np.ndarray
+    ct_real: np.ndarray
+    shp: np.ndarray
+    idx: np.ndarray
+    phi0: np.ndarray
+    h_lin: np.ndarray
+    k0: np.ndarray
+    c0: np.ndarray
+
+
+@dataclass(frozen=True)
 class _DriveInfo:
     drive: PrescribedDrive | TorqueDrive
     gradient: np.ndarray        # h (n,): d(relative material angle)/ds
@@ -118,9 +140,8 @@ class Model:
             elastic.extend(range(lay.offset + 3, lay.offset + 3 + lay.n_elastic))
         self.rigid_index = np.array(rigid, dtype=np.int64)
         self.elastic_index = np.array(elastic, dtype=np.int64)
-        (self._mp_int, self._mp_real, self._sp_int, self._sp_real, self._ct_int, self._ct_real,
-         self._shp, self._idx, self._phi0, self._h_lin, self._k0, self._c0) = tables
-        self._damping = damping
+        self._tables: _Tables = tables
+        self._damping = damping  # C0, or None without damping
         self._gx, self._gy = (float(g) for g in mechanism.gravity)
         self._drives: tuple[_DriveInfo, ...] = drives
         self._torque_drives = tuple(d for d in drives if d.row < 0)
@@ -141,33 +162,37 @@ class Model:
 
     # --- equations of motion -------------------------------------------------------------------
     def mass_matrix(self, s):
+        tb = self._tables
         s = self._vector(s, self.n_coords, "s")
         out = np.zeros((self.n_coords, self.n_coords))
-        _kernels.mass_matrix(s, self._mp_int, self._mp_real, self._shp, self._idx, out)
+        _kernels.mass_matrix(s, tb.mp_int, tb.mp_real, tb.shp, tb.idx, out)
         return out
 
     def forces(self, s, sdot, t):
+        tb = self._tables
         s = self._vector(s, self.n_coords, "s")
         sdot = self._vector(sdot, self.n_coords, "sdot")
         out = np.zeros(self.n_coords)
-        _kernels.forces(s, sdot, self._gx, self._gy, self._mp_int, self._mp_real, self._sp_int,
-                        self._sp_real, self._shp, self._idx, self._k0, self._c0, out)
+        _kernels.forces(s, sdot, self._gx, self._gy, tb.mp_int, tb.mp_real, tb.sp_int,
+                        tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, out)
         for info in self._torque_drives:
             out += self._torque(info, s, sdot, t) * info.gradient
         return out
 
     def constraints(self, s, t):
+        tb = self._tables
         s = self._vector(s, self.n_coords, "s")
-        out = self._phi0 + self._h_lin @ s
+        out = tb.phi0 + tb.h_lin @ s
         for info in self._prescribed:
             out[info.row] -= drive_law(info.drive, self.period, t)[0]
-        _kernels.constraints(s, self._ct_int, self._ct_real, self._shp, self._idx, out)
+        _kernels.constraints(s, tb.ct_int, tb.ct_real, tb.shp, tb.idx, out)
         return out
 
     def constraint_jacobian(self, s, t):
+        tb = self._tables
         s = self._vector(s, self.n_coords, "s")
-        out = self._h_lin.copy()
-        _kernels.constraint_jacobian(s, self._ct_int, self._ct_real, self._shp, self._idx, out)
+        out = tb.h_lin.copy()
+        _kernels.constraint_jacobian(s, tb.ct_int, tb.ct_real, tb.shp, tb.idx, out)
         return out
 
     def constraint_rate(self, s, t):
@@ -177,31 +202,32 @@ class Model:
         return out
 
     def constraint_gamma(self, s, sdot, t):
+        tb = self._tables
         s = self._vector(s, self.n_coords, "s")
         sdot = self._vector(sdot, self.n_coords, "sdot")
         out = np.zeros(self.n_constraints)
         for info in self._prescribed:
             out[info.row] = drive_law(info.drive, self.period, t)[2]  # -Phi_tt
-        _kernels.constraint_gamma(s, sdot, self._ct_int, self._ct_real, self._shp, self._idx, out)
+        _kernels.constraint_gamma(s, sdot, tb.ct_int, tb.ct_real, tb.shp, tb.idx, out)
         return out
 
     # --- analytic derivatives ------------------------------------------------------------------
     def mass_matrix_jacobian(self, s, sddot):
+        tb = self._tables
         s = self._vector(s, self.n_coords, "s")
         sddot = self._vector(sddot, self.n_coords, "sddot")
         out = np.zeros((self.n_coords, self.n_coords))
-        _kernels.mass_matrix_jacobian(s, sddot, self._mp_int, self._mp_real, self._shp, self._idx,
-                                      out)
+        _kernels.mass_matrix_jacobian(s, sddot, tb.mp_int, tb.mp_real, tb.shp, tb.idx, out)
         return out
 
     def force_jacobians(self, s, sdot, t):
+        tb = self._tables
         s = self._vector(s, self.n_coords, "s")
         sdot = self._vector(sdot, self.n_coords, "sdot")
         d_s = np.zeros((self.n_coords, self.n_coords))
         d_v = np.zeros((self.n_coords, self.n_coords))
-        _kernels.force_jacobians(s, sdot, self._gx, self._gy, self._mp_int, self._mp_real,
-                                 self._sp_int, self._sp_real, self._shp, self._idx, self._k0,
-                                 self._c0, d_s, d_v)
+        _kernels.force_jacobians(s, sdot, self._gx, self._gy, tb.mp_int, tb.mp_real, tb.sp_int,
+                                 tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, d_s, d_v)
         for info in self._torque_drives:
             hh = np.outer(info.gradient, info.gradient)
             d_s -= info.drive.kp * hh
@@ -209,25 +235,25 @@ class Model:
         return d_s, d_v
 
     def constraint_force_jacobian(self, s, lam, t):
+        tb = self._tables
         s = self._vector(s, self.n_coords, "s")
         lam = self._vector(lam, self.n_constraints, "lam")
         out = np.zeros((self.n_coords, self.n_coords))
-        _kernels.constraint_force_jacobian(s, lam, self._ct_int, self._ct_real, self._shp,
-                                           self._idx, out)
+        _kernels.constraint_force_jacobian(s, lam, tb.ct_int, tb.ct_real, tb.shp, tb.idx, out)
         return out
 
     # --- energies and drives -------------------------------------------------------------------
     def kinetic_energy(self, s, sdot) -> float:
+        tb = self._tables
         s = self._vector(s, self.n_coords, "s")
         sdot = self._vector(sdot, self.n_coords, "sdot")
-        return float(_kernels.kinetic_energy(s, sdot, self._mp_int, self._mp_real, self._shp,
-                                             self._idx))
+        return float(_kernels.kinetic_energy(s, sdot, tb.mp_int, tb.mp_real, tb.shp, tb.idx))
 
     def potential_energy(self, s) -> float:
+        tb = self._tables
         s = self._vector(s, self.n_coords, "s")
-        return float(_kernels.potential_energy(s, self._gx, self._gy, self._mp_int, self._mp_real,
-                                               self._sp_int, self._sp_real, self._shp, self._idx,
-                                               self._k0))
+        return float(_kernels.potential_energy(s, self._gx, self._gy, tb.mp_int, tb.mp_real,
+                                               tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0))
 
     def damping_power(self, sdot) -> float:
         """Power dissipated by the damping of the elastic coordinates, ``s'^T C0 s'`` (W, >= 0)."""
@@ -436,7 +462,7 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
         h_lin[row] = gradient
 
     has_matrices = bool(np.any(k0) or np.any(c0))
-    tables = (
+    tables = _Tables(
         np.array(mp_int, dtype=np.int64).reshape(-1, 4),
         np.array(mp_real, dtype=np.float64).reshape(-1, 4),
         np.array(sp_int, dtype=np.int64).reshape(-1, 4),
@@ -448,8 +474,7 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
         np.array(phi0, dtype=np.float64),
         h_lin,
         k0 if has_matrices else np.zeros((0, 0)),
-        c0 if has_matrices else np.zeros((0, 0)),
-    )
+        c0 if has_matrices else np.zeros((0, 0)))
     gx, gy = mechanism.gravity
     _finite(gx, "gravity[0]")
     _finite(gy, "gravity[1]")
