@@ -78,16 +78,13 @@ def frozen_modes(system: periodic.PeriodicSystem, n_samples: int) -> tuple[np.nd
     n_steps = system.n_steps
     n_samples = max(2, min(int(n_samples), n_steps))
     index = np.unique(np.round(np.linspace(0, n_steps, n_samples, endpoint=False)).astype(int))
-    frequencies = np.empty((index.size, system.n_dof))
-    shapes = None
-    for row, i in enumerate(index):
-        values, vectors = scipy.linalg.eig(system.K[i], system.M[i])
-        values = values.real
-        order = np.argsort(values)
-        frequencies[row] = np.sign(values[order]) * np.sqrt(np.abs(values[order]))
-        if row == 0:
-            shapes = vectors[:, order].real
-            shapes /= np.linalg.norm(shapes, axis=0)
+    # eigenvalues of M^-1 K at all samples in one batched call (M is well conditioned: PeriodicSystem
+    # rejects singular mass samples); the shapes only at t = 0, from the generalised problem.
+    values = np.sort(np.linalg.eigvals(np.linalg.solve(system.M[index], system.K[index])).real, axis=1)
+    frequencies = np.sign(values) * np.sqrt(np.abs(values))
+    first, vectors = scipy.linalg.eig(system.K[0], system.M[0])
+    shapes = vectors[:, np.argsort(first.real)].real
+    shapes /= np.linalg.norm(shapes, axis=0)
     return index, frequencies, shapes
 
 

@@ -69,34 +69,42 @@ class SteadyStateResult(Result):
         return plot_multipliers(self.multipliers, ax=ax, title=f"{self.problem}: Floquet multipliers")
 
 
+@dataclass(frozen=True, eq=False)
+class GridResult(Result):
+    """Fields shared by the grid studies: ``problem`` name, ``scene`` text, ``settings``; per grid
+    point ``done`` (bool; False where an interrupted run did not get), ``status`` ("ok", a periodic
+    status, "inaccurate" or "failed"), ``message`` (str) and ``point_run_time`` (s)."""
+
+    problem: str
+    scene: str
+    settings: Mapping[str, Any]
+    done: np.ndarray
+    status: np.ndarray
+    message: np.ndarray
+    point_run_time: np.ndarray
+
+    _units = {"done": "1", "status": "1", "message": "1", "point_run_time": "s"}
+
+
 @register
 @dataclass(frozen=True, eq=False)
-class SweepResult(Result):
+class SweepResult(GridResult):
     """Peak-to-peak response and stability against one parameter.
 
     ``values`` (n,) of ``parameter`` (unit ``parameter_unit``); ``speed`` (n,) crank speed rad/s at
     each point; ``peak_to_peak`` {spec: (n,)} and ``peak_to_peak_error`` {spec: (n,)} (twice the max
     error estimate); ``spectral_radius`` (n,); ``multipliers`` (n, 2m) complex; ``error_estimate`` (n,)
     max error of the coordinates; ``frozen_min``, ``frozen_max``, ``frozen_mean`` (n, m) rad/s the
-    band of each frozen-time natural frequency (ascending order) over the period; ``status``,
-    ``message`` (n,) str; ``point_run_time`` (n,) s; ``done`` (n,) bool (False where an interrupted
-    run did not get); ``resonances`` ((k, mode, value), ...) where ``k * speed`` crosses the mean of
+    band of each frozen-time natural frequency (ascending order) over the period; ``resonances`` ((k, mode, value), ...) where ``k * speed`` crosses the mean of
     frozen frequency ``mode`` (0-based); ``instabilities`` ((start, end), ...) parameter intervals with
     spectral radius above 1 (parametric instability); ``run_time`` s wall time of the whole sweep.
     """
 
-    problem: str
-    scene: str
     parameter: str
     parameter_unit: str
     labels: tuple[str, ...]
     units: Mapping[str, str]
-    settings: Mapping[str, Any]
     values: np.ndarray
-    done: np.ndarray
-    status: np.ndarray
-    message: np.ndarray
-    point_run_time: np.ndarray
     speed: np.ndarray = None
     peak_to_peak: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak_to_peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
@@ -113,7 +121,7 @@ class SweepResult(Result):
     _units = {"values": "@parameter_unit", "speed": "rad/s", "peak_to_peak": "@observables",
               "peak_to_peak_error": "@observables", "spectral_radius": "1", "multipliers": "1",
               "error_estimate": "SI (see labels)", "frozen_min": "rad/s", "frozen_max": "rad/s",
-              "frozen_mean": "rad/s", "point_run_time": "s", "done": "1", "status": "1", "message": "1"}
+              "frozen_mean": "rad/s", **GridResult._units}
 
     def plot(self, *, axes: Any = None) -> dict[str, list]:
         from ._plots import plot_sweep
@@ -123,7 +131,7 @@ class SweepResult(Result):
 
 @register
 @dataclass(frozen=True, eq=False)
-class CampbellResult(Result):
+class CampbellResult(GridResult):
     """Campbell diagram: frozen-time natural frequencies against crank speed.
 
     ``speeds`` (n,) rad/s; ``crank_angle`` (n_frozen,) rad at which the frozen systems are taken;
@@ -136,15 +144,8 @@ class CampbellResult(Result):
     ``harmonics`` the k of the lines ``k * speed``.
     """
 
-    problem: str
-    scene: str
     labels: tuple[str, ...]
-    settings: Mapping[str, Any]
     speeds: np.ndarray
-    done: np.ndarray
-    status: np.ndarray
-    message: np.ndarray
-    point_run_time: np.ndarray
     crank_angle: np.ndarray = None
     frozen: np.ndarray = None
     shapes: np.ndarray = None
@@ -162,8 +163,7 @@ class CampbellResult(Result):
 
     _units = {"speeds": "rad/s", "crank_angle": "rad", "frozen": "rad/s", "shapes": "1",
               "multipliers": "1", "period": "s", "order": "1", "tracking_mac": "1", "band_min": "rad/s",
-              "band_max": "rad/s", "band_mean": "rad/s", "characteristic": "rad/s",
-              "point_run_time": "s"}
+              "band_max": "rad/s", "band_mean": "rad/s", "characteristic": "rad/s", **GridResult._units}
 
     def plot(self, *, ax: Any = None) -> list:
         from ._plots import plot_campbell
@@ -173,31 +173,23 @@ class CampbellResult(Result):
 
 @register
 @dataclass(frozen=True, eq=False)
-class StabilityChart(Result):
+class StabilityChart(GridResult):
     """Spectral radius over two parameters.
 
     ``first`` (n1,) values of ``parameters[0]``, ``second`` (n2,) of ``parameters[1]`` (units
-    ``parameter_units``); ``spectral_radius`` (n1, n2); ``status``, ``message`` (n1, n2);
-    ``point_run_time`` (n1, n2) s; ``done`` (n1, n2) bool; ``stability_tol`` the tolerance of
+    ``parameter_units``); ``spectral_radius`` (n1, n2); ``stability_tol`` the tolerance of
     ``|mu| = 1``; ``run_time`` s.
     """
 
-    problem: str
-    scene: str
     parameters: tuple[str, str]
     parameter_units: tuple[str, str]
-    settings: Mapping[str, Any]
     first: np.ndarray
     second: np.ndarray
-    done: np.ndarray
-    status: np.ndarray
-    message: np.ndarray
-    point_run_time: np.ndarray
     spectral_radius: np.ndarray = None
     stability_tol: float = 1e-6
     run_time: float = float("nan")
 
-    _units = {"spectral_radius": "1", "point_run_time": "s"}
+    _units = {"spectral_radius": "1", **GridResult._units}
 
     def _unit(self, name: str, key: str | None = None) -> str:
         if name == "first":

@@ -31,6 +31,10 @@ logger = logging.getLogger(__name__)
 #: coefficients converge fast in the number of samples; 32 resolves a band edge to well under 1 %
 #: for coefficients with a few harmonics).
 FROZEN_SAMPLES = 32
+#: A sweep point whose peak-to-peak error estimate exceeds this fraction of the value gets the status
+#: ``STATUS_INACCURATE`` (its numbers are kept, and flagged).
+INACCURATE = 0.1
+STATUS_INACCURATE = "inaccurate"
 
 
 def _check_n_steps(n_steps: Any) -> int:
@@ -121,13 +125,19 @@ def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, froz
         "frozen_max": frozen.max(axis=0),
         "frozen_mean": frozen.mean(axis=0),
     }
+    status, message = steady.state.status, steady.state.message
     for k, spec in enumerate(linear.observables):
         value, sampling = peak_to_peak(response[:, k])
         data[f"peak_to_peak/{spec}"] = value
         # The extremes of two functions each within e of the truth differ by at most 2 e; the
         # sampling correction of the extremes is added as a bound on what the refinement leaves.
-        data[f"peak_to_peak_error/{spec}"] = 2.0 * float(steady.response_error[k]) + sampling
-    return data, steady.state.status, steady.state.message
+        error = 2.0 * float(steady.response_error[k]) + sampling
+        data[f"peak_to_peak_error/{spec}"] = error
+        if status == "ok" and not error <= INACCURATE * value:
+            status = STATUS_INACCURATE
+            message = (f"{spec}: peak-to-peak error estimate {error:.3g} exceeds {INACCURATE:.0%} of the "
+                       f"value {value:.3g}; refine n_steps (typically near a resonance)")
+    return data, status, message
 
 
 def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int = 256,
