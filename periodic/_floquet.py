@@ -12,8 +12,9 @@ turns by more than a radian) within one step: its multiplier is a property of th
 the system.  The typical case is a stiff or overdamped mode (``lam h -> -inf``): the trapezoidal
 ``R`` tends to -1, so over an even number of steps its multiplier can approach +1 although the exact
 multiplier ``exp(lam T)`` is nearly 0.  Such modes are labelled unresolved and never reported as a
-near-resonance; the stability verdict stays right for them because the scheme is A-stable (for
-``2 beta >= gamma >= 1/2``): a decaying mode keeps ``|R| <= 1``.
+near-resonance.  They do not spoil the stability verdict: the scheme is A-stable (for
+``2 beta >= gamma >= 1/2``), so a decaying mode keeps ``|R| <= 1`` (exactly so for constant
+coefficients), but they can dominate ``spectral_radius`` at small N.
 """
 
 from __future__ import annotations
