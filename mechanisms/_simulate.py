@@ -82,6 +82,9 @@ class SimulationResult:
         ``estimate_error=True``.
     n_steps, n_newton, n_jacobian, n_factorizations : counts of accepted steps, Newton iterations,
         evaluations of the analytic derivatives and LU factorisations of the iteration matrix.
+    min_pivot_ratio : smallest ``min |u_kk| / max |u_kk|`` of the LU factors of the iteration
+        matrix over the run, a cheap conditioning indicator; below ~1e-13 (logged as a warning) the
+        Newton increments may carry large rounding errors.
     status : 0 success, -1 failure (the arrays then end at the last accepted step).
     message : what happened, naming the time of a failure.
     run_time : wall-clock seconds of the whole call (including an error-estimate run).
@@ -100,6 +103,7 @@ class SimulationResult:
     n_newton: int
     n_jacobian: int
     n_factorizations: int
+    min_pivot_ratio: float
     status: int
     message: str
     run_time: float
@@ -518,9 +522,14 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
                                            evaluators.items()},
         constraint_residual=run["residual"], observable_error=obs_error,
         n_steps=run["n_steps"], n_newton=run["n_newton"], n_jacobian=run["n_jacobian"],
-        n_factorizations=run["n_factorizations"], status=run["status"], message=run["message"],
+        n_factorizations=run["n_factorizations"], min_pivot_ratio=run["min_pivot_ratio"],
+        status=run["status"], message=run["message"],
         run_time=time.perf_counter() - start_clock, method=method, rho_inf=rho, dt=h,
         coord_labels=tuple(getattr(model, "coord_labels", ())))
+    if result.min_pivot_ratio < 1e-13:
+        logger.warning("the iteration matrix was ill-conditioned (pivot ratio %.2g): check the "
+                       "constraint rows for near-redundancy or reduce extreme stiffness contrasts",
+                       result.min_pivot_ratio)
     if result.status != 0:
         if throw:
             raise SimulationError(result.message, result)
@@ -556,84 +565,95 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
     piv = np.empty(n + r, dtype=np.int64)
     have_matrix = False
     counts = {"n_newton": 0, "n_jacobian": 0, "n_factorizations": 0}
+    min_pivot_ratio = np.inf
 
     status, message, done = 0, "", 0
     for step in range(1, n_steps + 1):
         t = t_grid[step]
         sddot_old = sddot.copy()
         _predict(q, v, a, sddot, h, alpha_m, alpha_f, beta, gamma, qhat, vhat)
-        if step >= 2:
-            # predictor: linear extrapolation of sddot and lam, an O(h^2) guess instead of the
-            # O(h) of sddot_{n+1} = sddot_n; saves about one Newton iteration per step
-            sddot = 2.0 * sddot - A[step - 2]
-            lam = 2.0 * lam - L[step - 2]
-        q = qhat + beta_p * sddot
-        v = vhat + gamma_p * sddot
-        iterations, prev_dq, phi_scale = 0, np.inf, 1.0
-        converged, candidate, failure = False, False, ""
-        while True:
-            Phi = np.ascontiguousarray(model.constraints(q, t), dtype=np.float64)
-            if candidate:
-                # the increments say converged; accept if the constraints agree to tol as well
-                step_residual = np.max(np.abs(Phi), initial=0.0)
-                if step_residual <= abs_tol * phi_scale:
-                    converged = True
+        # predictors: linear extrapolation of sddot and lam (an O(h^2) guess, about one Newton
+        # iteration fewer per step than sddot_{n+1} = sddot_n); if Newton fails from it (it can,
+        # when the start-up transient of very stiff coordinates makes the extrapolation wild),
+        # the step is retried from the constant predictor with a freshly evaluated matrix
+        sddot_n, lam_n = sddot.copy(), lam.copy()
+        for attempt in range(2 if step >= 2 else 1):
+            if attempt == 0 and step >= 2:
+                sddot = 2.0 * sddot_n - A[step - 2]
+                lam = 2.0 * lam_n - L[step - 2]
+            else:
+                sddot, lam = sddot_n.copy(), lam_n.copy()
+                have_matrix = have_matrix and attempt == 0
+            q = qhat + beta_p * sddot
+            v = vhat + gamma_p * sddot
+            iterations, prev_dq, phi_scale = 0, np.inf, 1.0
+            converged, candidate, failure = False, False, ""
+            while True:
+                Phi = np.ascontiguousarray(model.constraints(q, t), dtype=np.float64)
+                if candidate:
+                    # the increments say converged; accept if the constraints agree to tol as well
+                    step_residual = np.max(np.abs(Phi), initial=0.0)
+                    if step_residual <= abs_tol * phi_scale:
+                        converged = True
+                        break
+                    candidate = False
+                    if iterations >= max_iterations:
+                        failure = (f"the constraint residual stalled at {step_residual:.3g} > "
+                                   f"{abs_tol * phi_scale:.3g} after {iterations} iterations (`tol` "
+                                   "below round-off?)")
+                        break
+                M = np.ascontiguousarray(model.mass_matrix(q), dtype=np.float64)
+                Q = np.ascontiguousarray(model.forces(q, v, t), dtype=np.float64)
+                Phi_s = np.ascontiguousarray(model.constraint_jacobian(q, t), dtype=np.float64)
+                if not have_matrix:
+                    dQ_ds, dQ_dv = model.force_jacobians(q, v, t)
+                    _fill_iteration_matrix(
+                        M, np.ascontiguousarray(model.mass_matrix_jacobian(q, sddot), dtype=np.float64),
+                        np.ascontiguousarray(dQ_ds, dtype=np.float64),
+                        np.ascontiguousarray(dQ_dv, dtype=np.float64),
+                        np.ascontiguousarray(model.constraint_force_jacobian(q, lam, t),
+                                             dtype=np.float64),
+                        Phi_s, beta_p, gamma_p, G)
+                    pivot_ratio = _lu_factor(G, piv)
+                    counts["n_jacobian"] += 1
+                    counts["n_factorizations"] += 1
+                    have_matrix, prev_dq = True, np.inf
+                    min_pivot_ratio = min(min_pivot_ratio, pivot_ratio)
+                    if not pivot_ratio > 0.0:
+                        failure = ("the iteration matrix is singular (zero pivot): check for redundant "
+                                   "constraints or a toggle position")
+                        break
+                dq = _newton_update(G, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p,
+                                    rhs, q, v)
+                counts["n_newton"] += 1
+                iterations += 1
+                theta = dq / prev_dq if np.isfinite(prev_dq) and prev_dq > 0.0 else 0.0
+                prev_dq = dq
+                if not np.isfinite(dq):
+                    # NaN or inf anywhere in M, Q, Phi, Phi_s or the matrix reaches the increment
+                    failure = "the Newton increment is not finite (non-finite model output?)"
                     break
-                candidate = False
+                # error left in the iterate: about theta |dq| < |dq| / 4 (see below). The cheaper
+                # test theta / (1 - theta) |dq| <= tol (Hairer & Wanner II, sec. IV.8) was tried and
+                # accepted errors of ~100 tol in the elastic coordinates: a stale matrix contracts
+                # unevenly over 2-3 iterates. A candidate is accepted once Phi at it is also below tol
+                # times the row sums of Phi_s (checked above, in the evaluation the next iteration
+                # would need anyway).
+                if dq <= abs_tol:
+                    candidate = True
+                    phi_scale = max(1.0, float(np.max(np.sum(np.abs(Phi_s), axis=1), initial=0.0)))
+                    continue
                 if iterations >= max_iterations:
-                    failure = (f"the constraint residual stalled at {step_residual:.3g} > "
-                               f"{abs_tol * phi_scale:.3g} after {iterations} iterations (`tol` "
-                               "below round-off?)")
+                    failure = (f"Newton's method did not converge in {iterations} iterations (last "
+                               f"position increment {dq:.3g}, tolerance {abs_tol:.3g})")
                     break
-            M = np.ascontiguousarray(model.mass_matrix(q), dtype=np.float64)
-            Q = np.ascontiguousarray(model.forces(q, v, t), dtype=np.float64)
-            Phi_s = np.ascontiguousarray(model.constraint_jacobian(q, t), dtype=np.float64)
-            if not have_matrix:
-                dQ_ds, dQ_dv = model.force_jacobians(q, v, t)
-                _fill_iteration_matrix(
-                    M, np.ascontiguousarray(model.mass_matrix_jacobian(q, sddot), dtype=np.float64),
-                    np.ascontiguousarray(dQ_ds, dtype=np.float64),
-                    np.ascontiguousarray(dQ_dv, dtype=np.float64),
-                    np.ascontiguousarray(model.constraint_force_jacobian(q, lam, t),
-                                         dtype=np.float64),
-                    Phi_s, beta_p, gamma_p, G)
-                pivot_ratio = _lu_factor(G, piv)
-                counts["n_jacobian"] += 1
-                counts["n_factorizations"] += 1
-                have_matrix, prev_dq = True, np.inf
-                if not pivot_ratio > 1e-14:
-                    failure = (f"the iteration matrix is singular (pivot ratio {pivot_ratio:.2g}): "
-                               "check for redundant constraints or a toggle position")
-                    break
-            dq = _newton_update(G, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p,
-                                rhs, q, v)
-            counts["n_newton"] += 1
-            iterations += 1
-            theta = dq / prev_dq if np.isfinite(prev_dq) and prev_dq > 0.0 else 0.0
-            prev_dq = dq
-            if not np.isfinite(dq):
-                # NaN or inf anywhere in M, Q, Phi, Phi_s or the matrix reaches the increment
-                failure = "the Newton increment is not finite (non-finite model output?)"
+                # contracting too slowly (or not at all): re-evaluate the matrix at this iterate. An
+                # evaluation costs about one iteration, and at theta = 0.25 the stale matrix gains
+                # only 0.6 digits per iteration, whereas a fresh one converges quadratically.
+                if theta > 0.25 or not jacobian_reuse:
+                    have_matrix = False
+            if converged:
                 break
-            # error left in the iterate: about theta |dq| < |dq| / 4 (see below). The cheaper
-            # test theta / (1 - theta) |dq| <= tol (Hairer & Wanner II, sec. IV.8) was tried and
-            # accepted errors of ~100 tol in the elastic coordinates: a stale matrix contracts
-            # unevenly over 2-3 iterates. A candidate is accepted once Phi at it is also below tol
-            # times the row sums of Phi_s (checked above, in the evaluation the next iteration
-            # would need anyway).
-            if dq <= abs_tol:
-                candidate = True
-                phi_scale = max(1.0, float(np.max(np.sum(np.abs(Phi_s), axis=1), initial=0.0)))
-                continue
-            if iterations >= max_iterations:
-                failure = (f"Newton's method did not converge in {iterations} iterations (last "
-                           f"position increment {dq:.3g}, tolerance {abs_tol:.3g})")
-                break
-            # contracting too slowly (or not at all): re-evaluate the matrix at this iterate. An
-            # evaluation costs about one iteration, and at theta = 0.25 the stale matrix gains
-            # only 0.6 digits per iteration, whereas a fresh one converges quadratically.
-            if theta > 0.25 or not jacobian_reuse:
-                have_matrix = False
         if not converged:
             status = -1
             message = (f"generalized-alpha failed in the step from t = {t - h:.9g} s to "
@@ -651,4 +671,4 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
     end = done + 1
     return {"t": t_grid[:end], "s": S[:end], "sdot": V[:end], "sddot": A[:end], "lam": L[:end],
             "residual": residual[:end], "n_steps": done, "status": status, "message": message,
-            **counts}
+            "min_pivot_ratio": float(min_pivot_ratio), **counts}
