@@ -11,7 +11,9 @@ Hughes, The Finite Element Method, eq. 9.1.5-9.1.7), written in predictor-correc
 beta = 1/4, gamma = 1/2 (average acceleration) is the trapezoidal rule on the first-order form.
 Every column ``j`` of the state matrices is an independent solution; column ``j`` sees the force
 ``forced[j] * f`` (1 for the particular solution, 0 for the homogeneous unit states).  The effective
-matrix of (N2) is factorised once per step and applied to all columns.
+matrix of (N2) is factorised once per step and applied to all columns.  The small LU below beats
+np.linalg.solve inside njit (which copies to Fortran order and calls LAPACK) for n = 2..40 with
+2n+1 right-hand sides: measured 6x at n = 2, 4x at n = 10, 1.5x at n = 40.
 """
 
 from __future__ import annotations

@@ -340,3 +340,32 @@ def test_exactly_singular_shooting_matrix_raises():
     system = PeriodicSystem(1.0, np.ones((9, 1, 1)), zeros, zeros, np.ones((9, 1)))
     with pytest.raises(periodic.PeriodicError, match=r"I - Phi is singular .*resonance"):
         periodic.steady_state(system)
+
+
+@pytest.mark.parametrize("beta", [1.0 / 6.0, 0.3])
+def test_other_beta_with_gamma_half_is_symmetric_order_2_and_4(beta):
+    """Newmark with gamma = 1/2 is time-symmetric for any beta, so Richardson gives order 4 too."""
+    functions, exact = manufactured_functions()
+    errors, errors4 = [], []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # beta = 1/6 is only conditionally stable
+        for n_steps in GRID:
+            system = PeriodicSystem.from_functions(TWO_PI, *functions, n_steps=int(n_steps))
+            truth = np.array([exact(t)[0] for t in system.t])
+            errors.append(np.abs(periodic.steady_state(system, beta=beta).x - truth).max())
+            errors4.append(np.abs(periodic.steady_state(system, beta=beta, extrapolate=True).x - truth).max())
+    assert observed_order(GRID, errors) == pytest.approx(2.0, abs=0.1)
+    assert observed_order(GRID, errors4) == pytest.approx(4.0, abs=0.3)
+
+
+def test_numerically_damped_newmark_is_order_1_with_an_honest_estimate():
+    """gamma > 1/2 (here 0.6, beta = (gamma + 1/2)^2 / 4) is first order; the estimate uses 2^1 - 1."""
+    functions, exact = manufactured_functions()
+    errors = []
+    for n_steps in GRID:
+        system = PeriodicSystem.from_functions(TWO_PI, *functions, n_steps=int(n_steps))
+        result = periodic.steady_state(system, beta=0.3025, gamma=0.6)
+        truth = np.array([exact(t)[0] for t in system.t])
+        errors.append(np.abs(result.x - truth).max())
+    assert observed_order(GRID, errors) == pytest.approx(1.0, abs=0.1)
+    assert result.error_estimate / errors[-1] == pytest.approx(1.0, abs=0.2)
