@@ -135,7 +135,7 @@ def main():
             spp_choice = spp
             break
     rtol_choice, ivp_errors = None, {}
-    for rtol in (1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6):
+    for rtol in (1.0, 3e-1, 1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6):
         t, d, sol = run_ivp(model, s0, v0, args.calibration_revs, rtol, args.method, t_eval=grid)
         ivp_errors[rtol] = rel_error(t, d)
         print(f"  solve_ivp {args.method} rtol {rtol:.0e}: rel. error {ivp_errors[rtol]:.3g} "

@@ -329,12 +329,12 @@ def test_double_pendulum_with_springs_converges_to_minimal_solution(soft_double)
     z = ref.y[:, -1]
     idx = [2, 3, 6, 7]
     errors = []
-    for n_steps in (400, 800, 1600):
+    for n_steps in (200, 400, 800):
         res = mechanisms.simulate(soft_double, t_end=t_end, dt=t_end / n_steps, s0=s0, sdot0=sd0,
                                   tol=1e-13)
         errors.append(max(np.max(np.abs(res.s[-1, idx] - z[:4])),
                           np.max(np.abs(res.sdot[-1, idx] - z[4:])) / 100.0))
-    # the spring modes (~70-100 rad/s, h omega <= 0.12) are resolved: asymptotic order 2
+    # the spring modes (~70-100 rad/s, h omega <= 0.25) are resolved: asymptotic order 2
     assert np.all(np.abs(_observed_orders(errors) - 2.0) < 0.2), errors
 
 
@@ -344,7 +344,7 @@ def test_double_pendulum_with_springs_converges_to_minimal_solution(soft_double)
 def test_constraint_residual_stays_at_newton_tolerance(soft_double):
     s0, sd0 = double_pendulum_initial(1.0, 2.0, 3.0, -5.0)
     tol = 1e-12
-    res = mechanisms.simulate(soft_double, t_end=3.0, dt=2e-3, s0=s0, sdot0=sd0, tol=tol)
+    res = mechanisms.simulate(soft_double, t_end=2.0, dt=2e-3, s0=s0, sdot0=sd0, tol=tol)
     assert res.success
     # index 3: Phi = 0 is solved at every step, so the residual is bounded by the last Newton
     # increment (<= tol * max(1, |s0|) = 2 tol) times the row sums of Phi_s (<= 2 + L1 + |u1| + 1
@@ -356,7 +356,8 @@ def test_constraint_residual_stays_at_newton_tolerance(soft_double):
 
 @pytest.mark.parametrize("rho_inf", [0.8, 0.0])
 def test_stiff_springs_stable_at_large_steps_and_rigid_limit(rho_inf):
-    # springs with omega = sqrt(k / mp) ~ 7e4-1e5 rad/s; steps of 2e-3 s give h omega ~ 150-200
+    # springs with omega = sqrt(k / mp) ~ 7e4-1e5 rad/s; steps of 2e-3 s give h omega ~ 150-200,
+    # steps of 8e-3 s up to ~800
     k = 1e9
     stiff = double_pendulum_model(k, k)
     rigid = double_pendulum_minimal(k, k, rigid=True)
@@ -365,7 +366,7 @@ def test_stiff_springs_stable_at_large_steps_and_rigid_limit(rho_inf):
     ref = solve_ivp(rigid, (0, t_end), [0.4, -0.3, 1.0, 0.0], method="DOP853", rtol=1e-12,
                     atol=1e-13).y[:, -1]
     errors = []
-    for n_steps in (250, 500, 1000):
+    for n_steps in (125, 250, 500):
         res = mechanisms.simulate(stiff, t_end=t_end, dt=t_end / n_steps, s0=s0, sdot0=sd0,
                                   rho_inf=rho_inf)
         assert res.success
@@ -401,7 +402,7 @@ def test_undriven_energy_conserved_to_second_order(soft_double):
     s0, sd0 = double_pendulum_initial(1.2, 0.5, 2.0, -1.0)
     t_end = 1.0
     drifts = []
-    for n_steps in (500, 1000, 2000):
+    for n_steps in (250, 500, 1000):
         res = mechanisms.simulate(soft_double, t_end=t_end, dt=t_end / n_steps, s0=s0, sdot0=sd0,
                                   tol=1e-13)
         E = _energy(soft_double, res)
@@ -420,7 +421,7 @@ def test_drive_work_equals_energy_change():
     _, sd0 = double_pendulum_initial(0.3, 0.0, w1, 0.0)
     t_end = 1.0
     mismatch, gains = [], []
-    for n_steps in (500, 1000, 2000):
+    for n_steps in (250, 500, 1000):
         res = mechanisms.simulate(model, t_end=t_end, dt=t_end / n_steps, s0=s0, sdot0=sd0,
                                   tol=1e-13)
         E = _energy(model, res)
