@@ -494,15 +494,15 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
     length_scale = max(1.0, float(np.max(np.abs(q0), initial=0.0)))
     _check_consistency(model, q0, v0, t0, length_scale)
     evaluators = _observable_evaluators(model, mechanism, observables)
+    if estimate_error and n_steps % 2:
+        raise ValueError("`estimate_error=True` needs an even number of steps (it reruns with "
+                         f"twice the step); this grid has {n_steps}: change `dt` or `t_end`.")
 
     run = _integrate(model, q0, v0, t0, h, n_steps, rho, tol * length_scale, int(max_iterations),
                      jacobian_reuse)
     obs = {spec: np.array([ev.value(q) for q in run["s"]]) for spec, ev in evaluators.items()}
     obs_error: dict[str, float] = {}
     if estimate_error and run["status"] == 0:
-        if n_steps % 2:
-            raise ValueError("`estimate_error=True` needs an even number of steps (it reruns with "
-                             f"twice the step); this grid has {n_steps}.")
         coarse = _integrate(model, q0, v0, t0, 2.0 * h, n_steps // 2, rho, tol * length_scale,
                             int(max_iterations), jacobian_reuse)
         if coarse["status"] != 0:

@@ -600,3 +600,23 @@ def test_torque_drive_with_nominal_feedforward_follows_the_nominal_law():
         assert res.lam.shape[1] == 8   # no drive row: the crank is free
         deviations.append(np.max(np.abs(res.s[:, 2] - 100.0 * res.t)))
     assert np.all(np.abs(_observed_orders(deviations) - 2.0) < 0.25), deviations
+
+
+def test_bad_input_caught_before_the_run(pendulum):
+    with pytest.raises(ValueError, match="even number of steps"):
+        mechanisms.simulate(pendulum, t_end=0.03, dt=0.01, s0=[0, 0, 0.3], estimate_error=True)
+    with pytest.raises(TypeError, match="no `observable"):
+        mechanisms.simulate(_NoObservables(pendulum), t_end=0.1, dt=0.01, s0=[0, 0, 0.3],
+                            observables=["theta.angle"])
+
+
+class _NoObservables:
+    """A protocol model without the optional ``observable`` method."""
+
+    def __init__(self, model):
+        self._m = model
+
+    def __getattr__(self, name):
+        if name == "observable":
+            raise AttributeError(name)
+        return getattr(self._m, name)
