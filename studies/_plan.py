@@ -144,7 +144,7 @@ def plan(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, 
                 _unknown(f"{where}.{key}", options[key], _AXIS)
                 axes.append(_axis(f"{where}.{key}", options[key]))
             studies[kind] = {"first": axes[0], "second": axes[1],
-                             "n_steps": _integer(where, "n_steps", options.get("n_steps", 128), 2)}
+                             "n_steps": _integer(where, "n_steps", options.get("n_steps", 128), 4, even=True)}
         elif kind == "nonlinear_check":
             studies[kind] = {"values": values, "n_steps": steps,
                              "n_periods": _integer(where, "n_periods", options.get("n_periods", 5), 2),

@@ -177,7 +177,8 @@ class StabilityChart(GridResult):
     """Spectral radius over two parameters.
 
     ``first`` (n1,) values of ``parameters[0]``, ``second`` (n2,) of ``parameters[1]`` (units
-    ``parameter_units``); ``spectral_radius`` (n1, n2); ``stability_tol`` the tolerance of
+    ``parameter_units``); ``spectral_radius`` (n1, n2) and ``spectral_radius_error`` (n1, n2) its
+    estimated error (N against N/2 steps); ``stability_tol`` the tolerance of
     ``|mu| = 1``; ``run_time`` s.
     """
 
@@ -186,10 +187,11 @@ class StabilityChart(GridResult):
     first: np.ndarray
     second: np.ndarray
     spectral_radius: np.ndarray = None
+    spectral_radius_error: np.ndarray = None
     stability_tol: float = 1e-6
     run_time: float = float("nan")
 
-    _units = {"spectral_radius": "1", **GridResult._units}
+    _units = {"spectral_radius": "1", "spectral_radius_error": "1", **GridResult._units}
 
     def _unit(self, name: str, key: str | None = None) -> str:
         if name == "first":

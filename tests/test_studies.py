@@ -166,6 +166,17 @@ def test_stability_chart_matches_mathieu_characteristic_curves():
     assert chart.spectral_radius.shape == (13, 6) and chart.done.all()
 
 
+def test_stability_chart_error_estimate_of_a_damped_oscillator():
+    problem = studies.mathieu_problem(epsilon=0.0, force=0.0)
+    speeds, zetas = np.array([0.4, 0.9, 2.5]), np.array([0.02, 0.1])
+    chart = studies.stability_chart(problem, ("speed", speeds), ("damping_ratio", zetas), n_steps=32)
+    period = 2 * np.pi / speeds[:, None]
+    exact = np.exp(-zetas[None, :] * period)  # |mu| of an underdamped pair: exp(-zeta w0 T)
+    error = np.abs(chart.spectral_radius - exact)
+    # order 2: the N/2 difference over 3 is the leading error term; 1.5 allows the next one at 32 steps
+    assert np.all(error <= 1.5 * chart.spectral_radius_error) and np.all(error > 0)
+
+
 # ---------------------------------------------------------------------------------------------------
 # Campbell diagram: two modes whose frequencies cross as the speed grows
 # ---------------------------------------------------------------------------------------------------
