@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ._assemble import assemble, drive_law
+from ._assemble import assemble
 from ._parts import (GROUND, Mechanism, MechanismError, PrescribedDrive, Revolute, TorqueDrive,
                      _pin_position)
 
@@ -215,7 +215,7 @@ class _RigidSystem:
         if self.mechanism is None:
             return f"t = {t:.6g} s"
         drive = self.mechanism.drives[0]
-        angle = drive_law(drive, self.period, t)[0]
+        angle = drive.angle(t, self.period)[0]
         return (f"crank angle {math.degrees(angle):.2f} deg (drive at joint {drive.joint!r}, "
                 f"t = {t:.6g} s)")
 
@@ -375,7 +375,7 @@ def _initial_guess(mech: Mechanism, labels: list[str], n: int, period: float) ->
         for drive in mech.drives:
             joint = joints[drive.joint]
             base = 0.0 if joint.link_a == GROUND else angles[joint.link_a]
-            angles[joint.link_b] = base + drive_law(drive, period, 0.0)[0]
+            angles[joint.link_b] = base + drive.angle(0.0, period)[0]
     links = {link.name: link for link in mech.links}
     origins: dict[str, np.ndarray] = {}
 

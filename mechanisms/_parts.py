@@ -364,6 +364,15 @@ def _check_drive(drive: "PrescribedDrive | TorqueDrive") -> None:
         _check_number(owner, f"harmonics[{i}] sin_k", harmonic[2], "rad")
 
 
+def _drive_angle(drive: "PrescribedDrive | TorqueDrive", t: float,
+                 period: float | None) -> tuple[float, float, float]:
+    """The drive's nominal relative angle (rad), its rate (rad/s) and acceleration (rad/s^2) at
+    time ``t`` (s); ``period`` (s) sets the harmonics' fundamental."""
+    from ._assemble import drive_law  # the one drive law, shared with the assembled model
+
+    return drive_law(drive, period, t)
+
+
 @dataclass(frozen=True)
 class PrescribedDrive:
     """Prescribes the relative rotation at revolute joint ``joint``: the angle of ``link_b``'s material
@@ -380,6 +389,8 @@ class PrescribedDrive:
 
     def __post_init__(self) -> None:
         _check_drive(self)
+
+    angle = _drive_angle
 
 
 @dataclass(frozen=True)
@@ -403,6 +414,8 @@ class TorqueDrive:
         _check_number(f"drive at joint {self.joint!r}", "kp", self.kp, "N m/rad", nonnegative=True)
         _check_number(f"drive at joint {self.joint!r}", "kd", self.kd, "N m s/rad",
                       nonnegative=True)
+
+    angle = _drive_angle
 
 
 Drive = Union[PrescribedDrive, TorqueDrive]
@@ -675,12 +688,10 @@ def _check_four_bar(mech: Mechanism, links: dict[str, Link], joints: dict[str, J
     l_crank, l_ground = math.hypot(*crank_vec), math.dist(o, c)
     low, high = abs(l_coupler - l_rocker), l_coupler + l_rocker
     scale = max(l_crank, l_ground, l_coupler, l_rocker)
-    from ._assemble import drive_law  # the one drive law, shared with the assembled model
-
     drive, period = mech.drives[0], mech.period
 
     def margin(t: float) -> float:
-        theta = drive_law(drive, period, t)[0]
+        theta = drive.angle(t, period)[0]
         ax = o[0] + math.cos(theta) * crank_vec[0] - math.sin(theta) * crank_vec[1]
         ay = o[1] + math.sin(theta) * crank_vec[0] + math.cos(theta) * crank_vec[1]
         d = math.hypot(ax - c[0], ay - c[1])
@@ -696,7 +707,7 @@ def _check_four_bar(mech: Mechanism, links: dict[str, Link], joints: dict[str, J
                f"{lengths[1] + lengths[2]:.6g} m")
     if margins[0] <= 0.0:
         raise MechanismError(f"four-bar {mech.name!r} cannot be assembled at crank angle "
-                             f"{math.degrees(drive_law(drive, period, 0.0)[0]):.2f} deg (t = 0): the "
+                             f"{math.degrees(drive.angle(0.0, period)[0]):.2f} deg (t = 0): the "
                              f"coupler and rocker cannot reach ({grashof})")
     ratio = (math.sqrt(5.0) - 1.0) / 2.0
 
@@ -729,7 +740,7 @@ def _check_four_bar(mech: Mechanism, links: dict[str, Link], joints: dict[str, J
         kind = ("toggle: the constraint Jacobian of joints "
                 f"{crank_coupler.name!r}, {coupler_rocker.name!r} is singular there")
         t_high = toggles[0]
-    angle = drive_law(drive, period, t_high)[0]
+    angle = drive.angle(t_high, period)[0]
     raise MechanismError(
         f"four-bar {mech.name!r}: the crank cannot turn fully; it fails at crank angle "
         f"{math.degrees(angle):.2f} deg (t = {t_high:.6g} s), {kind}. Grashof needs s + l <= p + q "
