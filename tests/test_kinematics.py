@@ -308,3 +308,50 @@ def test_torque_drive_follows_its_nominal_law(four_bar):
     np.testing.assert_array_equal(motion.drive_torque, four_bar.drive_torque)
     with pytest.raises(MechanismError, match="pass the Mechanism"):
         mechanisms.nominal_motion(mechanisms.assemble(torque_driven), n_steps=8)
+
+
+@pytest.mark.parametrize("name", mechanisms.scenes())
+def test_every_scene_balances_drive_power_and_energy_rate(name):
+    """d(T + V)/dt along the motion (the model's energy functions, differentiated spectrally) equals
+    the drive power sum tau_i * (relative angle rate)_i from the multipliers: two independent routes
+    through the model (energies vs. mass matrix, forces and constraint Jacobian)."""
+    mech = mechanisms.load(name).with_parameter("gravity", [0.0, -9.81])
+    motion = mechanisms.nominal_motion(mech, n_steps=N_STEPS)
+    model = motion.model
+    energy = np.array([model.kinetic_energy(s, v) + model.potential_energy(s)
+                       for s, v in zip(motion.s[:-1], motion.sdot[:-1])])
+    power = spectral_derivative(energy, motion.period)
+    rates = np.array([[drive.angle(t, motion.period)[1] for drive in mech.drives]
+                      for t in motion.t[:-1]])
+    drive_power = (motion.drive_torque[:-1] * rates).sum(axis=1)
+    # The energies' Fourier coefficients fall below rounding well before the 128th harmonic, so
+    # spectral differentiation is limited by rounding in T + V (1e-16 of it) amplified by the
+    # highest wavenumber (N/2 = 128): ~1e-12 of the power scale; 1e-10 leaves a margin.
+    np.testing.assert_allclose(drive_power, power, rtol=0, atol=1e-10 * np.abs(power).max())
+
+
+def test_six_bar_against_two_loop_closures():
+    """The six-bar as two four-bars in series: B from circles about A and O2, the plate angle from
+    O2B, C on the plate at -60 deg from O2B, D from circles about C and O3 (upper branches)."""
+    motion = mechanisms.nominal_motion(mechanisms.load("six_bar"), n_steps=N_STEPS)
+
+    def upper(p, r_p, q, r_q):
+        d = np.hypot(q[0] - p[0], q[1] - p[1])
+        a = (r_p**2 - r_q**2 + d**2) / (2 * d)
+        h = np.sqrt(r_p**2 - a**2)
+        ex, ey = (q[0] - p[0]) / d, (q[1] - p[1]) / d
+        return p[0] + a * ex - h * ey, p[1] + a * ey + h * ex
+
+    phi = 100.0 * motion.t
+    a = (0.06 * np.cos(phi), 0.06 * np.sin(phi))
+    b = upper(a, 0.28, (0.30, 0.0), 0.15)
+    plate = np.arctan2(b[1], b[0] - 0.30)
+    c = (0.30 + 0.10 * np.cos(plate - math.pi / 3), 0.10 * np.sin(plate - math.pi / 3))
+    d = upper(c, 0.30, (0.60, 0.0), 0.20)
+    np.testing.assert_allclose(unwrap_like(plate, series(motion, "plate.theta")[0]),
+                               series(motion, "plate.theta")[0], atol=1e-12)
+    np.testing.assert_allclose(series(motion, "link4.x")[0], c[0], atol=1e-13)
+    np.testing.assert_allclose(series(motion, "link4.y")[0], c[1], atol=1e-13)
+    output = np.arctan2(d[1], d[0] - 0.60)
+    np.testing.assert_allclose(unwrap_like(output, series(motion, "output.theta")[0]),
+                               series(motion, "output.theta")[0], atol=1e-12)
