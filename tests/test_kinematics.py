@@ -355,3 +355,30 @@ def test_six_bar_against_two_loop_closures():
     output = np.arctan2(d[1], d[0] - 0.60)
     np.testing.assert_allclose(unwrap_like(output, series(motion, "output.theta")[0]),
                                series(motion, "output.theta")[0], atol=1e-12)
+
+
+def test_rigid_limit_stiff_coupler_reproduces_kinematics_and_torque():
+    """Full nonlinear runs (mechanisms.simulate) of the four-bar with a 1e3 and 1e4 times stiffer
+    coupler, started on the nominal motion: in the last period the rocker angle differs from the
+    rigid one by the elastic deformation, which scales as 1/E; the crank torque (drive multiplier)
+    differs from the rigid inverse-dynamics torque by the integrator's error, which falls at
+    second order in the step (the 1/E part is below it)."""
+    base = mechanisms.load("four_bar_fem1")
+
+    def last_period_deviation(factor, steps):
+        mech = base.with_parameter("links.coupler.youngs_modulus", 2e11 * factor)
+        nominal = mechanisms.nominal_motion(mech, n_steps=steps)
+        run = mechanisms.simulate(mech, n_periods=2, steps_per_period=steps, rho_inf=0.5)
+        last = slice(-steps - 1, None)
+        np.testing.assert_allclose(run.t[last] - nominal.period, nominal.t, atol=1e-15)
+        row = nominal.model.constraint_labels.index("drive:O")
+        rocker = column(nominal, "rocker.theta")
+        torque_error = np.abs(-run.lam[last, row] - nominal.drive_torque[:, 0]).max()
+        return (torque_error / np.abs(nominal.drive_torque).max(),
+                np.abs(run.s[last, rocker] - nominal.s[:, rocker]).max())
+
+    torque_128, angle_stiff = last_period_deviation(1e4, 128)
+    torque_256, _ = last_period_deviation(1e4, 256)
+    _, angle_soft = last_period_deviation(1e3, 256)
+    assert torque_256 < 1e-3 and 3.5 < torque_128 / torque_256 < 4.5
+    assert angle_stiff < 1e-8 and 8.0 < angle_soft / angle_stiff < 12.0
