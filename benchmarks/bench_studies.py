@@ -9,10 +9,11 @@
 3. Steady state at 1 % accuracy of the peak mid-span deflection with 1 % modal damping (coupler
    damping ratio 0.01): shooting on the linearised system (linearisation included) against
    brute-force integration of the full nonlinear model (``mechanisms.simulate``) from the nominal
-   rigid motion until the periodicity defect is below 1 % of the peak-to-peak. The reference is the
+   rigid motion until the transient has died out. The reference is the
    linear steady state at 2048 steps with Richardson extrapolation (the nonlinear-linear difference
    at this amplitude is ~0.03 %, see tests/test_studies_mechanism.py). Each route uses the coarsest
-   steps per period (16, 32, 64, ...) that meet 1 %.
+   steps per period (16, 32, 64, ...) that meet 1 %; brute force stops after the fewest periods from
+   which on every period's peak is within 1 % of its own limit (an oracle rule: its best case).
 
 All times are medians of repeated runs with a warm JIT cache. Run:
     .venv/bin/python benchmarks/bench_studies.py [--quick]
@@ -109,6 +110,18 @@ def peak(values):
     return float(np.max(np.abs(values)))
 
 
+def periods_to_target(history, steps_per_period, target):
+    """Fewest periods after which the peak of every later period of ``history`` is within 1 % of
+    ``target`` (an oracle stopping rule, the best case for brute force); None if never."""
+    n = steps_per_period
+    peaks = np.array([peak(history[p * n:(p + 1) * n + 1]) for p in range(history.size // n)])
+    within = np.abs(peaks - target) <= 0.01 * target
+    if not within[-1]:
+        return None
+    first = within.size - int(np.argmin(within[::-1])) if not within.all() else 0
+    return first + 1
+
+
 def bench_shooting_vs_brute_force(repeats):
     mechanism = mechanisms.load(SCENE).with_parameter("links.coupler.damping.ratio", 0.01)
     problem = studies.MechanismProblem(name="four_bar_fem4_1pct", text=mechanism.to_toml())
@@ -128,47 +141,60 @@ def bench_shooting_vs_brute_force(repeats):
         return shoot(n_shoot)
 
     t_shoot, value_shoot = median_time(shooting, repeats)
+    linear = problem.linearize(None, n_steps=n_shoot)
+    t_alone, _ = median_time(lambda: periodic.steady_state(linear.system, estimate_error=False), repeats)
 
-    def brute(n, max_periods=80):
-        run = mechanisms.simulate(mechanism, n_periods=max_periods, steps_per_period=n, observables=[SPEC])
-        y = run.observables[SPEC]
-        for p in range(1, max_periods):
-            last, before = y[p * n:(p + 1) * n + 1], y[(p - 1) * n:p * n + 1]
-            if np.abs(last - before).max() <= 0.01 * np.ptp(last):
-                return p + 1, peak(last)
-        return None, peak(y[-n - 1:])
+    # Brute force is judged against its own limit (the same model at 1024 steps per period, last of
+    # 80 periods): the full nonlinear model need not converge to the linear reference, and the
+    # difference of the two limits is reported separately.
+    limit_run = mechanisms.simulate(mechanism, n_periods=80, steps_per_period=1024, observables=[SPEC])
+    limit = peak(limit_run.observables[SPEC][-1025:])
 
+    periods = None
     for n_brute in (16, 32, 64, 128, 256, 512):
         try:
-            periods, value = brute(n_brute)
+            run = mechanisms.simulate(mechanism, n_periods=80, steps_per_period=n_brute, observables=[SPEC])
         except mechanisms.SimulationError as error:  # step too long for Newton: refine
             print(f"  (brute force with {n_brute} steps per period failed: {str(error)[:80]}...)")
             continue
-        if periods is not None and abs(value - target) <= 0.01 * target:
+        periods = periods_to_target(run.observables[SPEC], n_brute, limit)
+        if periods is not None:
             break
+    print(f"steady state at 1 % of the peak deflection, {SCENE} at its speed with 1 % damping:")
+    print(f"  shooting {n_shoot} steps (linearisation included) {t_shoot * 1e3:9.1f} ms, peak "
+          f"{value_shoot * 1e3:.4f} mm vs reference {target * 1e3:.4f} mm "
+          f"({100 * abs(value_shoot - target) / target:.2f} %); shooting alone {t_alone * 1e3:.2f} ms")
+    if periods is None:
+        print(f"  brute force did not reach 1 % of its own limit ({limit * 1e3:.4f} mm) within 80 periods "
+              f"and 512 steps per period")
+        return
 
     def brute_force():
         run = mechanisms.simulate(mechanism, n_periods=periods, steps_per_period=n_brute, observables=[SPEC])
         return peak(run.observables[SPEC][-n_brute - 1:])
 
     t_brute, value_brute = median_time(brute_force, max(1, repeats // 2))
-    print(f"steady state at 1 % of the peak deflection ({target * 1e3:.4f} mm), 1 % damping:")
-    print(f"  shooting {n_shoot} steps (linearisation included) {t_shoot * 1e3:9.1f} ms, peak error "
-          f"{100 * abs(value_shoot - target) / target:.2f} %")
-    print(f"  brute force {n_brute} steps x {periods} periods {t_brute * 1e3:9.1f} ms, peak error "
-          f"{100 * abs(value_brute - target) / target:.2f} %")
-    print(f"  ratio brute force / shooting {t_brute / t_shoot:8.1f}")
+    print(f"  brute force {n_brute} steps x {periods} periods {t_brute * 1e3:9.1f} ms, peak "
+          f"{value_brute * 1e3:.4f} mm vs its limit {limit * 1e3:.4f} mm "
+          f"({100 * abs(value_brute - limit) / limit:.2f} %)")
+    print(f"  ratio brute force / shooting: {t_brute / t_shoot:8.1f} with the linearisation, "
+          f"{t_brute / t_alone:8.0f} without")
+    print(f"  nonlinear limit / linear reference: {limit / target:.4f}")
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller grids, fewer repeats")
+    parser.add_argument("--only", choices=("sweep", "chart", "transient"), help="run one part")
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
     repeats = 1 if args.quick else 3
-    bench_sweep(40 if args.quick else 200, repeats)
-    bench_chart(20 if args.quick else 100, 1)
-    bench_shooting_vs_brute_force(repeats)
+    if args.only in (None, "sweep"):
+        bench_sweep(40 if args.quick else 200, repeats)
+    if args.only in (None, "chart"):
+        bench_chart(20 if args.quick else 100, 1)
+    if args.only in (None, "transient"):
+        bench_shooting_vs_brute_force(repeats)
 
 
 if __name__ == "__main__":

@@ -54,9 +54,8 @@ class MechanismProblem:
     """A scene (TOML ``text``) as a study problem.
 
     ``parameter_paths``: the scene parameters studies may vary besides ``"speed"`` (their nominal
-    values are read from the scene); ``observables``: specs (None: ``linearize.default_observables``);
-    ``magnification`` of the deflections in drawings (None: 10 % of the longest link over the largest
-    deflection).
+    values are read from the scene); ``observable_specs``: observable specs (None:
+    ``linearize.default_observables``).
     """
 
     name: str
@@ -151,7 +150,9 @@ class MechanismProblem:
         import mechanisms
 
         lin = linear.context
-        model = lin.nominal.model
+        # the model of this mechanism (a speed family's result keeps the base speed's model, whose
+        # rheonomic drive constraint has the base speed)
+        model = mechanisms.assemble(lin.mechanism)
         n = linear.system.n_steps
         z = np.zeros((n + 1, x0.size))
         zdot = np.zeros_like(z)

@@ -15,7 +15,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ._problem import SPEED
-from ._store import encode, open_file
+from ._store import encode, open_file, read_group
 
 logger = logging.getLogger(__name__)
 
@@ -213,9 +213,7 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
             if group is not None and not grid:
                 if group.attrs.get("request") == request and group.attrs.get("complete"):
                     logger.info("%s: already complete in %s, skipped", kind, path)
-                    from ._store import _REGISTRY
-
-                    results[kind] = _REGISTRY[group.attrs["kind"]].from_hdf5(group)
+                    results[kind] = read_group(group)
                     continue
                 del handle[kind]
             logger.info("running %s", kind)

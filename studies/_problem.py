@@ -19,6 +19,7 @@ optionally with a nonlinear force, integrated by scipy for the nonlinear route) 
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
 
@@ -159,8 +160,6 @@ class PeriodicProblem:
     def simulate(self, linear: Linear, x0: np.ndarray, v0: np.ndarray, *, n_periods: int,
                  steps_per_period: int, values: Mapping[str, float] | None = None) -> NonlinearRun:
         """Integrate ``M x'' + C x' + K x + g = f`` from ``(x0, v0)`` at t = 0 with DOP853 (rtol 1e-10)."""
-        import time
-
         from scipy.integrate import solve_ivp
 
         if self.nonlinear_force is None:

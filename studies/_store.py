@@ -189,14 +189,16 @@ def load(path: str | Path) -> dict[str, Result]:
     except OSError as error:
         raise ValueError(f"{str(path)!r} is not an HDF5 result file: {error}") from None
     with handle:
-        results = {}
-        for name, group in handle.items():
-            kind = group.attrs.get("kind")
-            if kind not in _REGISTRY:
-                raise ValueError(f"{path}: group {name!r} has unknown kind {kind!r} (known: "
-                                 f"{sorted(_REGISTRY)})")
-            results[name] = _REGISTRY[kind].from_hdf5(group)
-    return results
+        return {name: read_group(group) for name, group in handle.items()}
+
+
+def read_group(group: Any) -> Result:
+    """The result stored in one study group (its class from the ``kind`` attribute)."""
+    kind = group.attrs.get("kind")
+    if kind not in _REGISTRY:
+        raise ValueError(f"{group.file.filename}: group {group.name!r} has unknown kind {kind!r} "
+                         f"(known: {sorted(_REGISTRY)})")
+    return _REGISTRY[kind].from_hdf5(group)
 
 
 def study_attrs(group: Any) -> dict[str, Any]:
