@@ -127,6 +127,10 @@ def _finish(mechanism, model, nominal, coeffs, specs, started):
         logger.warning("constraint Jacobian poorly conditioned (%.3g) at crank angle %.4g rad: "
                        "close to a toggle position", coeffs.dependent_condition[k],
                        _crank_angle(mechanism, nominal.t[k:k + 1], nominal.period)[0])
+    # Sample N is sample 0 one period later; they differ only by the nominal motion's closure error
+    # (reported by the nominal motion), so make the coefficients exactly periodic.
+    for array in (coeffs.M, coeffs.C, coeffs.K, coeffs.f):
+        array[-1] = array[0]
     system = periodic.PeriodicSystem(nominal.period, coeffs.M, coeffs.C, coeffs.K, coeffs.f)
     labels = tuple(model.coord_labels[i] for i in coeffs.independent)
     return LinearizedMechanism(
@@ -174,6 +178,8 @@ def _model_with_feedforward(mechanism, nominal):
 def _periodic_interpolant(t, values, period):
     from scipy.interpolate import CubicSpline
 
+    values = values.copy()
+    values[-1] = values[0]  # equal up to the nominal motion's closure error (round-off)
     spline = CubicSpline(t, values, bc_type="periodic")
     return lambda time_: float(spline(time_ % period))
 

@@ -58,9 +58,10 @@ def linear_terms(model, t, S, Sd, Sdd, Lam):
     R = np.zeros((n_samples, n))
     J = np.zeros((n_samples, r, n))
     S, Sd, Sdd, Lam = (np.ascontiguousarray(a, dtype=np.float64) for a in (S, Sd, Sdd, Lam))
-    _linear_terms(S, Sd, Sdd, Lam, model._gx, model._gy, model._mp_int, model._mp_real,
-                  model._sp_int, model._sp_real, model._shp, model._idx, model._k0, model._c0,
-                  model._ct_int, model._ct_real, model._h_lin, M, D, K, R, J)
+    tb = model._tables
+    _linear_terms(S, Sd, Sdd, Lam, model._gx, model._gy, tb.mp_int, tb.mp_real, tb.sp_int,
+                  tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, tb.ct_int, tb.ct_real, tb.h_lin,
+                  M, D, K, R, J)
     for info in model._torque_drives:
         # tau h enters Q; its derivatives are -kp h h^T (positions) and -kd h h^T (rates).
         h = info.gradient
