@@ -211,20 +211,23 @@ def _check_periodic(name: str, samples: np.ndarray) -> None:
 
 def _sample(name: str, func, times: np.ndarray) -> np.ndarray:
     out = None
-    for k, t in enumerate(times):
-        try:
-            value = func(float(t))
-        except Exception as exc:  # any failure of user code is reported with its argument and time
-            raise ValueError(f"{name}: the callable raised {type(exc).__name__} at t = {t:.6g} s: {exc}") from exc
-        if out is None:
-            out = np.empty((times.size,) + np.shape(value))
-        elif np.shape(value) != out.shape[1:]:  # checked: assignment alone would broadcast a scalar
-            raise ValueError(
-                f"{name}: the callable returned shape {np.shape(value)} at t = {t:.6g} s but "
-                f"{out.shape[1:]} at t = 0"
-            )
-        try:
-            out[k] = value
-        except (TypeError, ValueError) as exc:
-            raise TypeError(f"{name}: the callable returned a non-real value at t = {t:.6g} s ({exc})") from None
+    with warnings.catch_warnings():
+        # Storing a complex value into the float array would drop its imaginary part with a warning.
+        warnings.simplefilter("error", np.exceptions.ComplexWarning)
+        for k, t in enumerate(times.tolist()):
+            try:
+                value = func(t)
+            except Exception as exc:  # any failure of user code is reported with its argument and time
+                raise ValueError(f"{name}: the callable raised {type(exc).__name__} at t = {t:.6g} s: {exc}") from exc
+            shape = np.shape(value)
+            if out is None:
+                out = np.empty((times.size,) + shape)
+            elif shape != out.shape[1:]:  # checked: assignment alone would broadcast a scalar
+                raise ValueError(
+                    f"{name}: the callable returned shape {shape} at t = {t:.6g} s but {out.shape[1:]} at t = 0"
+                )
+            try:
+                out[k] = value
+            except (TypeError, ValueError, np.exceptions.ComplexWarning) as exc:
+                raise TypeError(f"{name}: the callable returned a non-real value at t = {t:.6g} s ({exc})") from None
     return out

@@ -138,3 +138,10 @@ def test_odd_n_steps_needs_estimate_error_false():
         periodic.steady_state(system)
     result = periodic.steady_state(system, estimate_error=False)
     assert np.isnan(result.error_estimate) and result.multiplier_errors is None
+
+
+def test_from_functions_refuses_complex_values():
+    with pytest.raises(TypeError, match=r"stiffness: the callable returned a non-real value at t = 0\.25 s"):
+        PeriodicSystem.from_functions(
+            1.0, constant(np.eye(n)), constant(np.eye(n)), lambda t: np.eye(n) + (1j if t > 0.2 else 0.0), n_steps=4
+        )
