@@ -73,7 +73,8 @@ class SteadyState:
         (``estimate_error=False``).  With ``extrapolated`` it is the estimate for the N-step result,
         a conservative bound for the extrapolated one.
     multiplier_errors : ndarray (2n,) or None
-        Estimated error of each multiplier from the N/2 run (None when skipped).
+        Estimated error of each multiplier from the N/2 run (None when skipped); with
+        ``extrapolated`` the N-step estimate, a conservative bound.
     periodicity_residual : float
         ``max |x(T) - x(0)|`` of the final forced run (rounding times conditioning).
     status : str
@@ -169,10 +170,12 @@ def steady_state(
             x = _richardson(x, coarse.x, factor)
             v = _richardson(v, coarse.v, factor)
             a = _richardson(a, coarse.a, factor)
+            fine_multipliers = multipliers
             multipliers, step_rates = analyse_multipliers(phi, system.step)
-    # The N/2 comparison estimates the errors of the N-step multipliers, not of extrapolated ones.
-    errors = None if extrapolate else multiplier_errors
-    physical, spurious = near_resonance(multipliers, step_rates, resonance_tol, errors)
+            # The Richardson correction estimates the error of the N-step values: a conservative
+            # bound for the extrapolated ones, as for error_estimate.
+            multiplier_errors = np.abs(multipliers[:, None] - fine_multipliers[None, :]).min(axis=1)
+    physical, spurious = near_resonance(multipliers, step_rates, resonance_tol, multiplier_errors)
     status, message = _verdict(multipliers, step_rates, physical, spurious, fine, error_estimate)
     if status == STATUS_NEAR_RESONANCE:
         warnings.warn(message, NearResonanceWarning, stacklevel=2)

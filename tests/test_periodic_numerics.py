@@ -369,3 +369,13 @@ def test_numerically_damped_newmark_is_order_1_with_an_honest_estimate():
         errors.append(np.abs(result.x - truth).max())
     assert observed_order(GRID, errors) == pytest.approx(1.0, abs=0.1)
     assert result.error_estimate / errors[-1] == pytest.approx(1.0, abs=0.2)
+
+
+def test_multiplier_error_estimates_match_true_errors(constant_runs):
+    exact_mu = np.linalg.eigvals(scipy.linalg.expm(state_matrix(M2, C2, K2) * TWO_PI / OMEGA2))
+    for system, plain, extrapolated in constant_runs[1:]:
+        true_errors = np.abs(plain.multipliers[:, None] - exact_mu[None, :]).min(axis=1)
+        # |mu_N - mu_{N/2}| / 3 = true error * (1 + O(h^2)), as for the state.
+        np.testing.assert_allclose(plain.multiplier_errors / true_errors, 1.0, atol=0.2)
+        true_errors4 = np.abs(extrapolated.multipliers[:, None] - exact_mu[None, :]).min(axis=1)
+        assert np.all(extrapolated.multiplier_errors >= true_errors4)  # conservative bound
