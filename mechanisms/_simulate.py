@@ -32,9 +32,10 @@ so that the iteration matrix
     [ M + beta' K_t + gamma' C_t   Phi_s^T ]     K_t = d(M sddot)/ds - dQ/ds + d(Phi_s^T lam)/ds
     [ Phi_s                        0       ]     C_t = -dQ/dsdot
 
-stays O(1) as h -> 0 instead of having rows of size O(h^2). The iteration matrix is kept (modified
-Newton) while the iteration contracts fast and re-evaluated from the model's analytic derivatives when
-it does not.
+stays O(1) as h -> 0 instead of having rows of size O(h^2). ``M`` and ``Phi_s`` are evaluated for
+the residual at every iteration anyway, so the matrix is refactorised with them once per step; the
+tangent terms ``beta' K_t + gamma' C_t`` (the model's analytic derivatives) are kept across steps
+while the iteration contracts by 1/4 or better, and re-evaluated when it does not (modified Newton).
 """
 
 from __future__ import annotations
@@ -73,7 +74,8 @@ class SimulationResult:
     t : (n_t,) s
     s, sdot, sddot : (n_t, n) coordinates and their first and second time derivatives (SI units of
         each coordinate: m or rad, per s, per s^2).
-    lam : (n_t, r) Lagrange multipliers (the constraint force on the coordinates is ``-Phi_s^T lam``).
+    lam : (n_t, r) Lagrange multipliers (the constraint force on the coordinates is
+        ``-Phi_s^T lam``).
     observables : {spec: (n_t,)} values of the requested observables (units in ``observable_units``).
     constraint_residual : (n_t,) ``max |Phi(s, t)|`` at the accepted state (m, or rad for angle
         constraints); bounded by the Newton tolerance, it does not drift.
@@ -81,7 +83,8 @@ class SimulationResult:
         observable over the run (``max |o_h - o_2h| / 3`` for a second-order method); empty unless
         ``estimate_error=True``.
     n_steps, n_newton, n_jacobian, n_factorizations : counts of accepted steps, Newton iterations,
-        evaluations of the analytic derivatives and LU factorisations of the iteration matrix.
+        evaluations of the analytic derivatives (tangent terms) and LU factorisations of the
+        iteration matrix.
     min_pivot_ratio : smallest ``min |u_kk| / max |u_kk|`` of the LU factors of the iteration
         matrix over the run, a cheap conditioning indicator; below ~1e-13 (logged as a warning) the
         Newton increments may carry large rounding errors.
@@ -241,8 +244,9 @@ def _newton_update(LU, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, ga
 
 @numba.njit(cache=True)
 def _predict(q, v, a, sddot, h, alpha_m, alpha_f, beta, gamma, qhat, vhat):
-    """The parts of (GA2), (GA3) known at ``t_n``, with ``a_{n+1}`` from (GA1) split into its known part
-    ``(alpha_f sddot_n - alpha_m a_n) / (1 - alpha_m)`` and ``(1 - alpha_f) / (1 - alpha_m) sddot_{n+1}``."""
+    """The parts of (GA2), (GA3) known at ``t_n``, with ``a_{n+1}`` from (GA1) split into its known
+    part ``(alpha_f sddot_n - alpha_m a_n) / (1 - alpha_m)`` and
+    ``(1 - alpha_f) / (1 - alpha_m) sddot_{n+1}``."""
     for i in range(q.shape[0]):
         a_known = (alpha_f * sddot[i] - alpha_m * a[i]) / (1.0 - alpha_m)
         qhat[i] = q[i] + h * v[i] + h * h * ((0.5 - beta) * a[i] + beta * a_known)
@@ -311,7 +315,8 @@ def _time_grid(t0: float, t_end, n_periods, dt, steps_per_period, period) -> tup
     needs_period = n_periods is not None or steps_per_period is not None
     if needs_period and period is None:
         raise ValueError("`n_periods` and `steps_per_period` need the period: this system has no "
-                         "drive rate or `period` attribute; pass `period=` (s) or use `t_end`, `dt`.")
+                         "drive rate or `period` attribute; pass `period=` (s) or use `t_end`, "
+                         "`dt`.")
     duration = (_positive(t_end, "t_end") - t0 if t_end is not None
                 else _positive(n_periods, "n_periods") * period)
     if duration <= 0.0:
@@ -410,9 +415,10 @@ def _check_consistency(model, q, v, t, length_scale):
         worst = int(np.argmax(np.abs(phi)))
         labels = list(getattr(model, "constraint_labels", ()))
         name = labels[worst] if worst < len(labels) else f"#{worst}"
-        raise ValueError(f"`s0` violates the constraints at t0 = {t} s: |Phi| = {abs(phi[worst]):.3g} "
-                         f"at constraint {name!r} (allowed 1e-8 x {length_scale:.3g}); start from "
-                         "an assembled configuration (e.g. mechanisms.nominal_motion).")
+        raise ValueError(f"`s0` violates the constraints at t0 = {t} s: "
+                         f"|Phi| = {abs(phi[worst]):.3g} at constraint {name!r} (allowed 1e-8 x "
+                         f"{length_scale:.3g}); start from an assembled configuration (e.g. "
+                         "mechanisms.nominal_motion).")
     Phi_s = np.asarray(model.constraint_jacobian(q, t), dtype=np.float64)
     vel = Phi_s @ v + np.asarray(model.constraint_rate(q, t), dtype=np.float64)
     speed_scale = max(np.max(np.abs(v), initial=0.0), 1.0) * max(length_scale, 1.0)
@@ -459,24 +465,25 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
     dt, steps_per_period : the time step (s, shortened to end on ``t_end``), or steps per period.
     s0, sdot0 : initial coordinates and velocities (n,). Without ``s0`` a Mechanism (or a model
         with a ``mechanism`` attribute) starts on its nominal rigid motion
-        (``mechanisms.nominal_motion``) at ``t0 = 0``, elastic coordinates zero; ``sdot0`` defaults to the
-        nominal velocities, or to zero with a given ``s0``. The state must satisfy the position and
-        velocity constraints to 1e-8 relative; accelerations and multipliers are then solved for
-        consistently.
+        (``mechanisms.nominal_motion``) at ``t0 = 0``, elastic coordinates zero; ``sdot0``
+        defaults to the nominal velocities, or to zero with a given ``s0``. The state must
+        satisfy the position and velocity constraints to 1e-8 relative; accelerations and
+        multipliers are then solved for consistently.
     period : the period (s) used by ``n_periods`` / ``steps_per_period`` for a bare model without a
         ``period`` attribute.
     method : ``"generalized-alpha"``.
     rho_inf : spectral radius at infinite step in [0, 1]: 1 conserves (no numerical damping), smaller
         values damp unresolved high-frequency modes harder; second order for any value.
     observables : specs for ``model.observable(spec)`` (e.g. ``"coupler.deflection@0.5"``,
-        ``"coupler.strain@0.25"``, ``"coupler.moment@0.5"``, ``"rocker.angle"``); default: the midspan
-        deflection of every pinned-pinned elastic link of a Mechanism, none for a bare model.
+        ``"coupler.strain@0.25"``, ``"coupler.moment@0.5"``, ``"rocker.angle"``); default: the
+        midspan deflection of every pinned-pinned elastic link of a Mechanism, none for a bare model.
     tol : Newton tolerance: iterations stop when the last position increment is below
         ``tol * max(1, max |s0|)`` (m or rad) and the constraint residual ``max |Phi|`` is below
         that times ``max(1, max row sum |Phi_s|)``.
     max_iterations : Newton iterations allowed per step before the run is declared failed.
-    jacobian_reuse : keep the factorised iteration matrix across iterations and steps while it
-        contracts well (modified Newton); ``False`` re-evaluates it at every iteration.
+    jacobian_reuse : keep the tangent terms of the iteration matrix across iterations and steps
+        while Newton contracts well (modified Newton); ``False`` re-evaluates them at every
+        iteration (full Newton).
     estimate_error : also run with twice the step and report the Richardson estimate of the global
         error of each observable in ``observable_error`` (costs about half a run more).
     throw : raise ``SimulationError`` on failure; with ``False`` return the partial result with
@@ -515,7 +522,8 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
         coarse = _integrate(model, q0, v0, t0, 2.0 * h, n_steps // 2, rho, tol * length_scale,
                             int(max_iterations), jacobian_reuse)
         if coarse["status"] != 0:
-            run["message"] += f" Error estimate unavailable: the 2 dt run failed ({coarse['message']})"
+            run["message"] += (" Error estimate unavailable: the 2 dt run failed "
+                               f"({coarse['message']})")
         else:
             for spec, ev in evaluators.items():
                 o_coarse = np.array([ev.value(q) for q in coarse["s"]])
@@ -641,8 +649,8 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
                         failure = ("the iteration matrix is singular (zero pivot): check for "
                                    "redundant constraints or a toggle position")
                         break
-                dq = _newton_update(G, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p,
-                                    rhs, q, v)
+                dq = _newton_update(G, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p,
+                                    gamma_p, rhs, q, v)
                 counts["n_newton"] += 1
                 iterations += 1
                 theta = dq / prev_dq if np.isfinite(prev_dq) and prev_dq > 0.0 else 0.0
@@ -654,9 +662,9 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
                 # error left in the iterate: about theta |dq| < |dq| / 4 (see below). The cheaper
                 # test theta / (1 - theta) |dq| <= tol (Hairer & Wanner II, sec. IV.8) was tried and
                 # accepted errors of ~100 tol in the elastic coordinates: a stale matrix contracts
-                # unevenly over 2-3 iterates. A candidate is accepted once Phi at it is also below tol
-                # times the row sums of Phi_s (checked above, in the evaluation the next iteration
-                # would need anyway).
+                # unevenly over 2-3 iterates. A candidate is accepted once Phi at it is also below
+                # tol times the row sums of Phi_s (checked above, in the evaluation the next
+                # iteration would need anyway).
                 if dq <= abs_tol:
                     candidate = True
                     phi_scale = max(1.0, float(np.max(np.sum(np.abs(Phi_s), axis=1), initial=0.0)))

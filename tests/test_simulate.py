@@ -155,7 +155,8 @@ def pendulum_minimal_rhs(t, z):
     return [z[1], -m * G * (L / 2) * math.cos(z[0]) / (m * L**2 / 3)]
 
 
-# double pendulum with axial springs: bar i (mass m_i, length L_i) plus an end mass mp_i at (L_i + u_i, 0)
+# double pendulum with axial springs: bar i (mass m_i, length L_i) plus an end mass mp_i at
+# (L_i + u_i, 0) in its frame
 DBL = dict(m1=0.6, L1=0.3, mp1=0.2, m2=0.4, L2=0.25, mp2=0.1)
 
 
