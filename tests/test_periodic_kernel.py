@@ -1,9 +1,11 @@
-"""periodic: the numba Newmark kernel against a slow, obvious numpy twin; the demo command."""
+"""periodic: the numba Newmark kernel against a slow, obvious numpy twin; the demo command and its
+steady state against a long damped transient (scipy DOP853)."""
 
 import h5py
 import numpy as np
 import pytest
 
+import periodic
 from periodic import __main__ as demo
 from periodic._newmark import mass_pivot_ratios, newmark_march
 
@@ -81,3 +83,28 @@ def test_demo_writes_result_and_figure(tmp_path, capsys):
         assert 0.0 < h5.attrs["error_estimate"] < 1e-3 and h5.attrs["run_time_s"] > 0.0
         assert '"n_steps": 64' in h5.attrs["settings"] and h5.attrs["package_version"]
     assert "error estimate" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_demo_steady_state_equals_long_damped_transient():
+    """Cross-algorithm: the shooting solution of the demo system against a 60-period DOP853 transient
+    from rest.  The slowest transient decays by |mu|max = 0.818 per period, so after 60 periods it is
+    ~0.818^60 * 0.03 m = 2e-7 m, about 1 % of the N = 256 Newmark error (~2e-5 m)."""
+    import scipy.integrate
+
+    def rhs(t, y):
+        stiffness = demo.STIFFNESS_MEAN + demo.STIFFNESS_PULSE * np.cos(demo.OMEGA * t)
+        force = demo.FORCE * np.cos(demo.OMEGA * t)
+        acceleration = np.linalg.solve(demo.MASS, force - demo.DAMPING @ y[2:] - stiffness @ y[:2])
+        return np.concatenate((y[2:], acceleration))
+
+    system = demo.demo_system(256)
+    n_periods = 60
+    transient = scipy.integrate.solve_ivp(
+        rhs, (0.0, n_periods * system.period), np.zeros(4), method="DOP853", rtol=1e-10, atol=1e-13,
+        t_eval=(n_periods - 1) * system.period + system.t,
+    )
+    result = periodic.steady_state(system)
+    assert np.abs(result.multipliers).max() < 0.82
+    true_error = np.abs(result.x - transient.y[:2].T).max()
+    assert result.error_estimate / true_error == pytest.approx(1.0, abs=0.2)
