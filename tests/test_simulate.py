@@ -39,6 +39,20 @@ class _Observable:
         return g
 
 
+def _lagrange_terms(points, rotors, qv, qd):
+    """Mass matrix ``sum m J^T J`` of point masses ``(m, r(q))`` and rotary inertias
+    ``(J, angle(q))``, and the quadratic-velocity term ``sum m J^T (dJ/dt) qd`` of Lagrange's
+    equations, ``M q'' + quad = generalized forces``."""
+    n = len(qv)
+    Mmat, quad = sp.zeros(n, n), sp.zeros(n, 1)
+    for inertia, position in [(m, sp.Matrix(r)) for m, r in points] + [
+            (J, sp.Matrix([angle])) for J, angle in rotors]:
+        Jac = position.jacobian(qv)
+        Mmat += inertia * Jac.T * Jac
+        quad += inertia * Jac.T * ((Jac * qd).jacobian(qv) * qd)
+    return Mmat, quad
+
+
 class SympyModel:
     """A ConstrainedModel from point masses ``(m, r(q))``, rotary inertias ``(J, angle(q))``, a
     potential ``V(q)``, a constant damping matrix and constraints ``Phi(q, t)``."""
@@ -50,16 +64,7 @@ class SympyModel:
         qd = sp.Matrix(sp.symbols(f"qd0:{n}"))
         acc = sp.Matrix(sp.symbols(f"acc0:{len(q)}"))
         qv = sp.Matrix(q)
-        Mmat = sp.zeros(n, n)
-        quad = sp.zeros(n, 1)   # Sum m J^T (dJ/dt) qd, the quadratic-velocity term of Lagrange's eq.
-        for m, r in points:
-            Jr = sp.Matrix(r).jacobian(qv)
-            Mmat += m * Jr.T * Jr
-            quad += m * Jr.T * ((Jr * qd).jacobian(qv) * qd)
-        for J, angle in rotors:
-            Ja = sp.Matrix([angle]).jacobian(qv)
-            Mmat += J * Ja.T * Ja
-            quad += J * Ja.T * ((Ja * qd).jacobian(qv) * qd)
+        Mmat, quad = _lagrange_terms(points, rotors, qv, qd)
         C = sp.zeros(n, n) if damping is None else sp.Matrix(damping)
         Q = -quad - sp.Matrix([potential]).jacobian(qv).T - C * qd
         Phi = sp.Matrix(constraints)
@@ -207,14 +212,7 @@ def double_pendulum_minimal(k1, k2, *, rigid=False):
     n = len(qmin)
     qv = sp.Matrix(qmin)
     qd = sp.Matrix(sp.symbols(f"w0:{n}"))
-    Mmat, quad = sp.zeros(n, n), sp.zeros(n, 1)
-    for m, r in points:
-        Jr = sp.Matrix(r).jacobian(qv)
-        Mmat += m * Jr.T * Jr
-        quad += m * Jr.T * ((Jr * qd).jacobian(qv) * qd)
-    for J, angle in rotors:
-        Ja = sp.Matrix([angle]).jacobian(qv)
-        Mmat += J * Ja.T * Ja
+    Mmat, quad = _lagrange_terms(points, rotors, qv, qd)
     rhs = -quad - sp.Matrix([V]).jacobian(qv).T
     Mf = sp.lambdify([qmin], Mmat, cse=True)
     Rf = sp.lambdify([qmin, list(qd)], rhs, cse=True)
