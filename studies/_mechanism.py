@@ -16,6 +16,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+import periodic
+
 from ._problem import SPEED, Linear, NonlinearRun, resolve_values
 
 # Units of scene parameters by their last key (docs/scenes.md); others are reported as "SI".
@@ -114,7 +116,11 @@ class MechanismProblem:
     def resolve(self, values: Mapping[str, float] | None) -> dict[str, float]:
         return resolve_values(self.name, self.parameters, values)
 
-    def linearize(self, values: Mapping[str, float] | None = None, *, n_steps: int) -> Linear:
+    def linearize(self, values: Mapping[str, float] | None = None, *, n_steps: int,
+                  context: bool = True) -> Linear:
+        """The linear periodic system at ``values``. ``context=False`` skips building the
+        ``linearize`` result object (mechanism, nominal motion at that speed) that only the nonlinear
+        route and drawings need: grid points take the speed family's polynomials directly."""
         import linearize
 
         params = self.resolve(values)
@@ -128,16 +134,21 @@ class MechanismProblem:
             family = _cached(_families, (self.text, tuple(sorted(others.items())), n_steps, self.observable_specs),
                              lambda: linearize.speed_family(mechanism, n_steps=n_steps,
                                                             observables=self.observable_specs))
-            lin = family.at_speed(speed) if speed != drive.rate else family.base
+            if speed == drive.rate:
+                return _linear(family.base, family.base.system, family.base)
+            if not context:
+                # SpeedFamily: M, C = C0 + W C1, K = K0 + W K1 + W^2 K2, f = f0 + W^2 f2 on the
+                # crank-angle grid, whose configuration (hence the observable gains) is the base's.
+                w = speed
+                system = periodic.PeriodicSystem(
+                    abs(family.base.nominal.period * family.rate / w), family.M, family.C0 + w * family.C1,
+                    family.K0 + w * family.K1 + w**2 * family.K2, family.f0 + w**2 * family.f2)
+                return _linear(family.base, system, None)
+            lin = family.at_speed(speed)
         else:
             lin = linearize.about(self.mechanism(dict(others, speed=speed)), n_steps=n_steps,
                                   observables=self.observable_specs)
-        model = lin.nominal.model
-        gains = np.ascontiguousarray(np.stack([lin.observable_maps[s] for s in lin.observables], axis=1))
-        return Linear(system=lin.system, crank_angle=np.asarray(lin.crank_angle, dtype=float),
-                      labels=tuple(lin.labels), observables=tuple(lin.observables),
-                      units=tuple(model.observable(s).unit for s in lin.observables), gains=gains,
-                      context=lin)
+        return _linear(lin, lin.system, lin)
 
     # --- nonlinear route --------------------------------------------------------------------------------
     supports_nonlinear = True
@@ -209,6 +220,16 @@ class MechanismProblem:
             c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
             outlines[link.name] = np.stack([x[:, None] + c * xi - s * w, y[:, None] + s * xi + c * w], axis=-1)
         return outlines, float(magnification)
+
+
+def _linear(lin: Any, system: Any, context: Any) -> Linear:
+    """A study's ``Linear`` from a ``linearize`` result (gains and units of its observables)."""
+    model = lin.nominal.model
+    gains = np.ascontiguousarray(np.stack([lin.observable_maps[s] for s in lin.observables], axis=1))
+    return Linear(system=system, crank_angle=np.asarray(lin.crank_angle, dtype=float),
+                  labels=tuple(lin.labels), observables=tuple(lin.observables),
+                  units=tuple(model.observable(s).unit for s in lin.observables), gains=gains,
+                  context=context)
 
 
 def _project(model, s: np.ndarray, sdot: np.ndarray, t: float, *, iterations: int = 10):

@@ -5,8 +5,8 @@ A *problem* is any picklable object with
 * ``name`` (str) and ``text`` (str, the scene description stored with the results);
 * ``parameters`` (dict name -> nominal value, SI units) including ``"speed"`` (crank speed, rad/s);
 * ``units`` (dict name -> unit of each parameter);
-* ``linearize(values, *, n_steps) -> Linear``, ``values`` a dict of parameter values that override the
-  nominal ones;
+* ``linearize(values, *, n_steps, context=True) -> Linear``, ``values`` a dict of parameter values
+  that override the nominal ones; ``context=False`` may skip what only the nonlinear route needs;
 * optionally ``simulate(linear, x0, v0, *, n_periods, steps_per_period) -> NonlinearRun``, the full
   nonlinear model started from the independent coordinates ``x0, v0`` of the linear system at t = 0
   (needed only by the nonlinear check).
@@ -140,7 +140,10 @@ class PeriodicProblem:
         """Nominal parameters overridden by ``values``; unknown names raise ``ValueError``."""
         return resolve_values(self.name, self.parameters, values)
 
-    def linearize(self, values: Mapping[str, float] | None = None, *, n_steps: int) -> Linear:
+    def linearize(self, values: Mapping[str, float] | None = None, *, n_steps: int,
+                  context: bool = True) -> Linear:
+        """The sampled system at ``values`` (``context`` is accepted for the problem protocol; a
+        periodic problem has no model-specific object)."""
         params = self.resolve(values)
         coefficients = self.coefficients(params)
         system = periodic.PeriodicSystem.from_functions(

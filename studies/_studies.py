@@ -112,7 +112,7 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
 def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, frozen_samples: int):
     """One sweep point: steady state, multipliers, frozen frequency bands (a top-level function so
     that process pools and Dask can pickle it)."""
-    linear = problem.linearize(values, n_steps=n_steps)
+    linear = problem.linearize(values, n_steps=n_steps, context=False)
     steady = solve_steady(linear)
     _, frozen, _ = frozen_modes(linear.system, frozen_samples)
     response = steady.response
@@ -226,7 +226,7 @@ def _collect(outcomes: Mapping[tuple[int, ...], Any], shape: tuple[int, ...]) ->
 def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, frozen_samples: int):
     """One speed of a Campbell diagram: frozen frequencies over the crank angle, mode shapes at crank
     angle 0, Floquet multipliers."""
-    linear = problem.linearize(values, n_steps=n_steps)
+    linear = problem.linearize(values, n_steps=n_steps, context=False)
     index, frozen, shapes = frozen_modes(linear.system, frozen_samples)
     result = periodic.floquet(linear.system)
     status = "ok" if result.resolved.all() else "unresolved_mode"
@@ -289,7 +289,7 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
 # ---------------------------------------------------------------------------------------------------
 def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int):
     """Spectral radius of the monodromy at one point of a stability chart, with its error estimate."""
-    linear = problem.linearize(values, n_steps=n_steps)
+    linear = problem.linearize(values, n_steps=n_steps, context=False)
     result = periodic.floquet(linear.system)
     coarse = periodic.floquet(linear.system.coarsened())
     unresolved = ~result.resolved & (np.abs(result.multipliers) > 1.0 + result.stability_tol)
