@@ -424,6 +424,8 @@ def test_energies_are_consistent_with_the_equations(case):
         power -= (model.drive_torques(s, sdot, t) - model.drive_torques(s, zero, t))[0] * sdot[2]
     mdot = model.mass_matrix_jacobian(s, sdot)
     expected = -0.5 * sdot @ mdot @ sdot - model.damping_power(sdot)
+    # an exact identity evaluated twice in float64: the sides differ by the round-off of sums
+    # whose terms reach ~ |s'| |Q| ~ 1e2 * (the kinetic energy times the angular rates)
     assert power == pytest.approx(expected, rel=1e-10, abs=1e-12 * kinetic * 100)
 
 
