@@ -111,6 +111,18 @@ def _elastic_velocity(sdot, nnz, lx, ly, cols):
 
 
 @numba.njit(cache=True)
+def _point_motion(s, sdot, gx, gy, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols):
+    """Fill L (eq. 1) and return A p, theta', A S q' and v = g - c (eq. 2), the acceleration that
+    gravity minus the velocity terms give the point: c = -theta'^2 A p + 2 theta' J A S q'."""
+    apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
+    wt = sdot[off + 2]
+    asv_x, asv_y = _elastic_velocity(sdot, nnz, lx, ly, cols)
+    vx = gx + wt * wt * apx + 2.0 * wt * asv_y
+    vy = gy + wt * wt * apy - 2.0 * wt * asv_x
+    return apx, apy, wt, asv_x, asv_y, vx, vy
+
+
+@numba.njit(cache=True)
 def _add_d(out, scale, nnz, apx, apy, lx, ly, cols, vx, vy):
     """out += scale * D(v), eq. (3)."""
     t = cols[2]
@@ -187,11 +199,8 @@ def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, 
         m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
         if m == 0.0:
             continue
-        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
-        wt = sdot[off + 2]
-        asv_x, asv_y = _elastic_velocity(sdot, nnz, lx, ly, cols)
-        vx = gx + wt * wt * apx + 2.0 * wt * asv_y    # g - c, c = -w^2 A p + 2 w J A S q'
-        vy = gy + wt * wt * apy - 2.0 * wt * asv_x
+        apx, apy, wt, asv_x, asv_y, vx, vy = _point_motion(s, sdot, gx, gy, off, nnz, cx, cy, ptr,
+                                                           iptr, shp, idx, lx, ly, cols)
         for a in range(3 + nnz):
             out[cols[a]] += m * (lx[a] * vx + ly[a] * vy)
     for i in range(sp_int.shape[0]):
@@ -222,11 +231,8 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
         m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
         if m == 0.0:
             continue
-        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
-        wt = sdot[off + 2]
-        asv_x, asv_y = _elastic_velocity(sdot, nnz, lx, ly, cols)
-        vx = gx + wt * wt * apx + 2.0 * wt * asv_y
-        vy = gy + wt * wt * apy - 2.0 * wt * asv_x
+        apx, apy, wt, asv_x, asv_y, vx, vy = _point_motion(s, sdot, gx, gy, off, nnz, cx, cy, ptr,
+                                                           iptr, shp, idx, lx, ly, cols)
         nl = 3 + nnz
         t = off + 2
         # d(g - c)/dtheta = w^2 J A p + 2 w A S q', with J A p = (-apy, apx)
