@@ -82,7 +82,8 @@ def baumgarte_rhs(model, rate):
 
 def run_ga(model, s0, v0, n_revs, steps_per_period):
     res = mechanisms.simulate(model, n_periods=n_revs, steps_per_period=steps_per_period, s0=s0,
-                              sdot0=v0, observables=[SPEC], tol=NEWTON_TOL)
+                              sdot0=v0, observables=[SPEC], tol=NEWTON_TOL,
+                              estimate_error=False)
     return res.t, res.observables[SPEC], res
 
 

@@ -601,9 +601,19 @@ def test_torque_drive_with_nominal_feedforward_follows_the_nominal_law():
     assert np.all(np.abs(_observed_orders(deviations) - 2.0) < 0.25), deviations
 
 
-def test_bad_input_caught_before_the_run(pendulum):
-    with pytest.raises(ValueError, match="even number of steps"):
-        mechanisms.simulate(pendulum, t_end=0.03, dt=0.01, s0=[0, 0, 0.3], estimate_error=True)
+def test_error_estimate_on_odd_grids_and_without_observables(pendulum):
+    # 101 steps: the 2 h run covers 50 steps; the estimate uses the common points
+    res = mechanisms.simulate(pendulum, t_end=0.505, dt=0.005, s0=[0, 0, 0.3])
+    assert res.n_steps == 101 and set(res.observable_error) == {"s"}
+    ref = solve_ivp(pendulum_minimal_rhs, (0, 0.505), [0.3, 0.0], t_eval=res.t, method="DOP853",
+                    rtol=1e-13, atol=1e-13).y[0]
+    # the coordinates' estimate bounds theta's true error within the O(h^3) remainder
+    assert np.max(np.abs(res.s[:, 2] - ref)) <= 1.5 * res.observable_error["s"]
+    single = mechanisms.simulate(pendulum, t_end=0.005, dt=0.005, s0=[0, 0, 0.3])
+    assert single.observable_error == {} and "No error estimate" in single.message
+
+
+def test_observables_without_an_observable_method(pendulum):
     with pytest.raises(TypeError, match="no `observable"):
         mechanisms.simulate(_NoObservables(pendulum), t_end=0.1, dt=0.01, s0=[0, 0, 0.3],
                             observables=["theta.angle"])
