@@ -629,3 +629,37 @@ class _NoObservables:
         if name == "observable":
             raise AttributeError(name)
         return getattr(self._m, name)
+
+
+class _RedundantPin:
+    """The pendulum with its x pin row repeated: a singular augmented matrix."""
+
+    def __init__(self, model):
+        self._m = model
+        self.n_constraints = model.n_constraints + 1
+
+    def __getattr__(self, name):
+        return getattr(self._m, name)
+
+    def _rows(self, a):
+        return np.concatenate([a, a[:1]])
+
+    def constraints(self, s, t):
+        return self._rows(self._m.constraints(s, t))
+
+    def constraint_jacobian(self, s, t):
+        return self._rows(self._m.constraint_jacobian(s, t))
+
+    def constraint_rate(self, s, t):
+        return self._rows(self._m.constraint_rate(s, t))
+
+    def constraint_gamma(self, s, sdot, t):
+        return self._rows(self._m.constraint_gamma(s, sdot, t))
+
+    def constraint_force_jacobian(self, s, lam, t):
+        return self._m.constraint_force_jacobian(s, lam[:-1] + np.r_[lam[-1], 0.0], t)
+
+
+def test_redundant_constraints_are_reported_before_the_run(pendulum):
+    with pytest.raises(ValueError, match="singular.*redundant constraints"):
+        mechanisms.simulate(_RedundantPin(pendulum), t_end=0.1, dt=0.01, s0=[0, 0, 0.3])
