@@ -157,7 +157,7 @@ class MechanismProblem:
                  steps_per_period: int, values: Mapping[str, float] | None = None) -> NonlinearRun:
         """``mechanisms.simulate`` from the nominal state plus ``x = V z`` (projected onto the
         constraints, which ``V z`` satisfies to first order only); observables as deviations from
-        their values along the nominal motion."""
+        their values along the nominal motion, with the simulation's Richardson error estimates."""
         import mechanisms
 
         lin = linear.context
@@ -172,7 +172,7 @@ class MechanismProblem:
         s0, sdot0 = _project(model, s[0], sdot[0], float(lin.nominal.t[0]))
         run = mechanisms.simulate(lin.mechanism, n_periods=n_periods, steps_per_period=steps_per_period,
                                   s0=s0, sdot0=sdot0, observables=list(linear.observables),
-                                  estimate_error=False)
+                                  estimate_error=True)
         if not run.success:
             raise RuntimeError(f"nonlinear run of {self.name!r} failed: {run.message}")
         if steps_per_period != n:

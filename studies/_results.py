@@ -213,7 +213,8 @@ class NonlinearCheck(Result):
 
     ``t_linear`` (N+1,) s and ``linear`` {spec: (N+1,)}: the linear steady state over one period;
     ``t`` (n_t,) s and ``nonlinear`` {spec: (n_t,)}: the nonlinear run from the linear state at t = 0
-    over ``n_periods``; ``difference`` {spec: float} max over the last period of |nonlinear - linear|;
+    over ``n_periods``; ``linear_error`` and ``nonlinear_error`` {spec: float} the estimated max
+    error of each route (NaN when the integrator gives none); ``difference`` {spec: float} max over the last period of |nonlinear - linear|;
     ``relative_difference`` {spec: float} the same over the linear peak-to-peak;
     ``periodicity_defect`` {spec: float} max |o(t) - o(t - T)| over the last period of the nonlinear
     run; from rest (when asked): ``t_rest``, ``rest`` {spec: (n_rest,)}, ``rest_difference``
@@ -232,6 +233,7 @@ class NonlinearCheck(Result):
     linear_error: Mapping[str, float]
     t: np.ndarray
     nonlinear: Mapping[str, np.ndarray]
+    nonlinear_error: Mapping[str, float]
     difference: Mapping[str, float]
     relative_difference: Mapping[str, float]
     periodicity_defect: Mapping[str, float]

@@ -394,7 +394,9 @@ def nonlinear_check(problem: Any, values: Mapping[str, float] | None = None, *, 
                   "max_periods_from_rest": max_periods_from_rest, "steady_tol": steady_tol},
         t_linear=steady.state.t, linear=lin,
         linear_error={spec: float(steady.response_error[k]) for k, spec in enumerate(specs)},
-        t=run.t, nonlinear=dict(run.observables), difference=difference, relative_difference=relative,
+        t=run.t, nonlinear=dict(run.observables),
+        nonlinear_error={spec: float(run.error.get(spec, float("nan"))) for spec in specs},
+        difference=difference, relative_difference=relative,
         periodicity_defect=defect, linear_run_time=linear_time, nonlinear_run_time=run.run_time, **extra)
 
 

@@ -34,7 +34,7 @@ def assert_same(a, b):
             for key in x:
                 np.testing.assert_array_equal(x[key], y[key], err_msg=f"{field.name}[{key}]")
         elif field.name != "settings":
-            assert x == y or (x != x and y != y), field.name  # NaN scalars compare equal here
+            np.testing.assert_equal(x, y, err_msg=field.name)  # NaN equals NaN here, also in dicts
 
 
 @pytest.fixture(scope="module")
