@@ -71,3 +71,96 @@ def linear_terms(model, t, S, Sd, Sdd, Lam):
         K += info.drive.kp * hh
         D += info.drive.kd * hh
     return M, D, K, R, J
+
+
+@numba.njit(cache=True)
+def _inertia_residual(S, Sd, Sdd, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, out):
+    """out[k] = M(S[k]) Sdd[k] - Q(S[k], Sd[k]) without the torque drives; out zeroed on entry."""
+    n_samples, n = S.shape
+    M = np.zeros((n, n))
+    Q = np.zeros(n)
+    for k in range(n_samples):
+        M[:, :] = 0.0
+        Q[:] = 0.0
+        _kernels.mass_matrix(S[k], mp_int, mp_real, shp, idx, M)
+        _kernels.forces(S[k], Sd[k], gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, Q)
+        for a in range(n):
+            acc = -Q[a]
+            for b in range(n):
+                acc += M[a, b] * Sdd[k, b]
+            out[k, a] = acc
+
+
+def inertia_residual(model, t, S, Sd, Sdd):
+    """``M(s) s'' - Q(s, s', t)`` (N, n) along samples ``S, Sd, Sdd`` (N, n) at times ``t`` (N,) of
+    an assembled ``Model``, torque drives included."""
+    S, Sd, Sdd = (np.ascontiguousarray(a, dtype=np.float64) for a in (S, Sd, Sdd))
+    out = np.zeros(S.shape)
+    tb = model._tables
+    _inertia_residual(S, Sd, Sdd, model._gx, model._gy, tb.mp_int, tb.mp_real, tb.sp_int,
+                      tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, out)
+    for info in model._torque_drives:
+        torque = np.array([model._torque(info, S[k], Sd[k], t[k]) for k in range(len(t))])
+        out -= torque[:, None] * info.gradient
+    return out
+
+
+@numba.njit(cache=True)
+def _continue_positions(s, start, drive_rows, drive_angles, rigid, phi0, h_lin, ct_int, ct_real,
+                        shp, idx, newton_stop, max_correction, column_scale, max_iterations):
+    """Positions s[k] (in place) for k = start.. by continuation: predictor the quadratic
+    extrapolation of s[k-3..k-1], then Newton on the rigid coordinates. Returns the first k whose
+    Newton did not converge or corrected more than ``max_correction`` (scaled), or len(s)."""
+    n_samples, n = s.shape
+    r = phi0.shape[0]
+    n_rigid = rigid.shape[0]
+    phi = np.empty(r)
+    jac = np.empty((r, n))
+    jac_r = np.empty((r, n_rigid))
+    for k in range(start, n_samples):
+        q = 3.0 * s[k - 1] - 3.0 * s[k - 2] + s[k - 3]
+        total = 0.0
+        converged = False
+        for _ in range(max_iterations):
+            # Phi = phi0 + h_lin s - drive angle (drive rows) + point-constraint terms.
+            for i in range(r):
+                acc = phi0[i]
+                for j in range(n):
+                    acc += h_lin[i, j] * q[j]
+                phi[i] = acc
+            for d in range(drive_rows.shape[0]):
+                phi[drive_rows[d]] -= drive_angles[k, d]
+            _kernels.constraints(q, ct_int, ct_real, shp, idx, phi)
+            if np.abs(phi).max() < newton_stop:
+                converged = True
+                break
+            jac[:, :] = h_lin
+            _kernels.constraint_jacobian(q, ct_int, ct_real, shp, idx, jac)
+            for i in range(r):
+                for j in range(n_rigid):
+                    jac_r[i, j] = jac[i, rigid[j]]
+            step = np.linalg.solve(jac_r, phi)
+            for j in range(n_rigid):
+                q[rigid[j]] -= step[j]
+                total = max(total, abs(step[j] / column_scale[j]))
+        if not converged or total >= max_correction:
+            return k
+        s[k] = q
+    return n_samples
+
+
+def continue_positions(model, s, start, times, *, newton_stop, max_correction, column_scale):
+    """Fill ``s[start:]`` (N+1, n) by fast continuation (see ``_continue_positions``) for an
+    assembled ``Model``; returns the first sample it could not do (``len(s)`` when all are done).
+    Needs ``start >= 3``; ``column_scale`` (n_rigid,) scales the corrections as the caller's
+    careful path does."""
+    from ._assemble import drive_law
+
+    tb = model._tables
+    rows = np.asarray(model.drive_rows, dtype=np.int64)
+    angles = np.array([[drive_law(info.drive, model.period, t)[0] for info in model._prescribed]
+                       for t in times]).reshape(len(times), len(rows))
+    rigid = np.asarray(model.rigid_index, dtype=np.int64)
+    return _continue_positions(s, start, rows, angles, rigid, tb.phi0, tb.h_lin, tb.ct_int,
+                               tb.ct_real, tb.shp, tb.idx, newton_stop, max_correction,
+                               np.ascontiguousarray(column_scale, dtype=np.float64), 8)

@@ -125,17 +125,50 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
     s0[np.asarray(model.elastic_index, dtype=np.int64)] = 0.0  # the rigid mechanism
 
     times = np.linspace(0.0, period, n_steps + 1)
+    h = period / n_steps
     s = np.zeros((n_steps + 1, n))
-    sdot, sddot = np.zeros_like(s), np.zeros_like(s)
-    lam = np.zeros((n_steps + 1, r))
-    condition = np.zeros(n_steps + 1)
     s[0] = system.assemble(s0)
-    for k in range(n_steps + 1):
-        if k > 0:
-            s[k] = system.continue_to(s[k - 1], sdot[k - 1], sddot[k - 1], times[k - 1],
-                                      times[k])
-        sdot[k], sddot[k], condition[k] = system.rates(s[k], times[k])
-        lam[k] = system.multipliers(s[k], sdot[k], sddot[k], times[k])
+    # Positions by continuation. The predictor s + h s' + h^2/2 s'' uses exact rates for the first
+    # steps and then the quadratic extrapolation of the last three positions (the same predictor to
+    # O(h^3), without solving for rates inside the loop).
+    # An assembled model runs the plain steps in one numba loop, which hands back the first step
+    # that needs care (a large correction or a struggling Newton) to the step-halving path here.
+    fast = _fast_continuation(model)
+    k = 1
+    while k <= n_steps:
+        if fast and k >= 3:
+            k = fast(model, s, k, times, newton_stop=_NEWTON_STOP, max_correction=_MAX_CORRECTION,
+                     column_scale=system.column_scale)
+            if k > n_steps:
+                break
+        if k >= 3:
+            sdot_k = (3.0 * s[k - 1] - 4.0 * s[k - 2] + s[k - 3]) / (2.0 * h)
+            sddot_k = (s[k - 1] - 2.0 * s[k - 2] + s[k - 3]) / (h * h)
+        else:
+            sdot_k, sddot_k, _ = system.rates(s[k - 1], times[k - 1])
+        s[k] = system.continue_to(s[k - 1], sdot_k, sddot_k, times[k - 1], times[k])
+        k += 1
+
+    # Conditioning, rates and multipliers along the whole grid, with stacked linear algebra.
+    jacobians = np.stack([model.constraint_jacobian(s[k], times[k]) for k in range(len(times))])
+    rigid_jacobians = jacobians[:, :, rigid]
+    scaled = system.row_scale[None, :, None] * rigid_jacobians * system.column_scale[None, None, :]
+    singular_values = np.linalg.svd(scaled, compute_uv=False)
+    with np.errstate(divide="ignore"):
+        condition = singular_values[:, 0] / singular_values[:, -1]
+    if not condition.max() < _COND_WARN:
+        # Raise (toggle) or warn at the first offending sample, with the joints and angle named.
+        system.check_jacobian(s[int(np.argmax(~(condition < _COND_WARN)))],
+                              times[int(np.argmax(~(condition < _COND_WARN)))])
+    rates = np.stack([model.constraint_rate(s[k], times[k]) for k in range(len(times))])
+    sdot = np.zeros_like(s)
+    sdot[:, rigid] = np.linalg.solve(rigid_jacobians, -rates[..., None])[..., 0]
+    gamma = np.stack([model.constraint_gamma(s[k], sdot[k], times[k])
+                      for k in range(len(times))])
+    sddot = np.zeros_like(s)
+    sddot[:, rigid] = np.linalg.solve(rigid_jacobians, gamma[..., None])[..., 0]
+    inertia = _inertia_residual(model, times, s, sdot, sddot)      # M s'' - Q, (N+1, n)
+    lam = np.linalg.solve(np.swapaxes(rigid_jacobians, 1, 2), -inertia[:, rigid, None])[..., 0]
 
     drive_torque = _drive_torques(model, s, sdot, lam, times)
     residual = max(float(np.abs(model.constraints(s[k], times[k])).max()) for k in range(len(times)))
@@ -143,12 +176,9 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
         raise MechanismError(f"the nominal motion's constraint residual {residual:.3g} exceeds "
                              f"{_RESIDUAL_REQUIRED:g}: the Jacobian is too ill-conditioned "
                              f"(max condition number {condition.max():.3g})")
-    velocity_residual = max(float(np.abs(model.constraint_jacobian(s[k], times[k]) @ sdot[k]
-                                         + model.constraint_rate(s[k], times[k])).max())
-                            for k in range(len(times)))
-    acceleration_residual = max(float(np.abs(model.constraint_jacobian(s[k], times[k]) @ sddot[k]
-                                             - model.constraint_gamma(s[k], sdot[k], times[k])
-                                             ).max()) for k in range(len(times)))
+    velocity_residual = float(np.abs(np.einsum("krn,kn->kr", jacobians, sdot) + rates).max())
+    acceleration_residual = float(np.abs(np.einsum("krn,kn->kr", jacobians, sddot)
+                                         - gamma).max())
     closure = _closure_error(s[0], s[-1], labels, rigid)
     # The continuation closes on itself up to Newton's accuracy amplified by the conditioning; a
     # closure error of 1e-6 or more means it ended on another assembly branch.
@@ -340,6 +370,26 @@ class _RigidSystem:
         """Rigid rows of M s'' = Q - Phi_s^T lam, solved for lam (square: n_rigid = r)."""
         rhs = (self.model.forces(s, sdot, t) - self.model.mass_matrix(s) @ sddot)[self.rigid]
         return np.linalg.solve(self.jacobian(s, t).T, rhs)
+
+
+def _fast_continuation(model: Any):
+    """The numba continuation for an assembled model, or None for a hand-written one."""
+    from ._assemble import Model
+    from ._batch import continue_positions
+
+    return continue_positions if isinstance(model, Model) else None
+
+
+def _inertia_residual(model: Any, times: np.ndarray, s: np.ndarray, sdot: np.ndarray,
+                      sddot: np.ndarray) -> np.ndarray:
+    """``M(s) s'' - Q(s, s', t)`` at every sample (N+1, n): one numba call for an assembled model."""
+    from ._assemble import Model
+    from ._batch import inertia_residual
+
+    if isinstance(model, Model):
+        return inertia_residual(model, times, s, sdot, sddot)
+    return np.stack([model.mass_matrix(s[k]) @ sddot[k] - model.forces(s[k], sdot[k], times[k])
+                     for k in range(len(times))])
 
 
 def _drive_torques(model: Any, s: np.ndarray, sdot: np.ndarray, lam: np.ndarray,
