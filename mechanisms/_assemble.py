@@ -17,8 +17,13 @@ inertia), the centroid of each rigid link (its mass and centroidal inertia) and 
 This is exactly the kinetic energy of seed eq. 2.12 (every Coriolis, centrifugal and elastic
 coupling term) integrated by Gauss quadrature, exact for FEM and to 1e-14 for Ritz modes (see
 ``_beams``). The strain energy is ``1/2 int EA eps^2 + EI w''^2 dx`` with ``eps = u'`` (seed eq. 2.13,
-``geometric_stiffening=False``: the constant matrix ``K0``) or ``eps = u' + w'^2/2``
-(``geometric_stiffening=True``: evaluated at Gauss points). Damping acts on the elastic coordinates
+``geometric_stiffening=False``: the constant matrix ``K0``) or the projected membrane strain
+``eps = Su'(x) q + P[w'^2/2](x)`` (``geometric_stiffening=True``: evaluated at Gauss points), ``P``
+the L2 projection onto the span of the link's axial strain functions ``Su'_i`` (``_beams``): the
+pointwise ``u' + w'^2/2`` would lock (``u'`` cannot represent ``w'^2/2``, so bending would stretch
+the chord). At ``q = 0`` under an axial strain ``Su' p`` the bending Hessian of this energy is
+``int N Sw'^T Sw' dx``, the usual geometric stiffness. A link with geometric stiffening but no axial
+coordinates has nothing to project onto: it falls back to seed eq. 2.13 (``K0``), with a warning. Damping acts on the elastic coordinates
 through a constant matrix ``C0``: Rayleigh ``alpha M_ee + beta K_ee`` (``K_ee`` the linear stiffness,
 so Kelvin-Voigt ``beta`` damps bending and axial strain), modal ratios of the link's own modes
 (frame held fixed), or the explicit matrix.
@@ -39,9 +44,10 @@ from typing import Callable, Mapping
 
 import numpy as np
 from scipy.linalg import eigh
+from scipy.sparse.csgraph import connected_components
 
 from . import _kernels
-from ._beams import BeamShapes, beam_matrices, beam_shapes
+from ._beams import BeamShapes, beam_matrices, beam_shapes, membrane_projection
 from ._observables import make_observable
 from ._parts import (GROUND, DampingMatrix, ElasticLink, Mechanism, MechanismError, ModalDamping,
                      PrescribedDrive, Rayleigh, Revolute, RigidLink, Slider, TorqueDrive)
@@ -52,13 +58,15 @@ logger = logging.getLogger(__name__)
 @dataclass(frozen=True)
 class LinkLayout:
     """Where a link lives in ``s``: coordinates ``offset .. offset + 3 + n_elastic``; ``shapes`` is
-    ``None`` for a rigid link. ``stiffening`` tells whether its strain is ``u' + w'^2/2``."""
+    ``None`` for a rigid link. ``stiffening`` tells whether its strain is the projected membrane
+    strain; ``membrane`` is then its projection ``R`` (n_elastic, n_gauss) (``membrane_projection``)."""
 
     link: RigidLink | ElasticLink
     offset: int
     n_elastic: int
     shapes: BeamShapes | None
     stiffening: bool
+    membrane: np.ndarray | None = None
 
     @property
     def coords(self) -> slice:
@@ -334,7 +342,25 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
         idx.extend(active.tolist())
         return len(active), pointer, index_pointer
 
-    # mass points (seed eq. 2.12) and strain points (eq. 2.13)
+    def push_group(offset, group, projection, v, rows):
+        """Store a group of strain points (``_kernels`` eq. 4): shape rows on the group's common
+        active coordinates, then the group's block of the projection."""
+        active = np.flatnonzero(np.any(np.abs(np.vstack([v.du[group], v.dw[group], v.ddw[group]]))
+                                       > 0.0, axis=0))
+        index_pointer = len(idx)
+        idx.extend(active.tolist())
+        pointers = []
+        for g in group:
+            pointers.append(len(shp))
+            for row in (v.du[g], v.dw[g], v.ddw[g]):
+                shp.extend(row[active].tolist())
+        block_pointer = len(shp)
+        shp.extend(projection[np.ix_(group, group)].ravel().tolist())
+        for k, pointer in enumerate(pointers):
+            rows.append((offset, len(active), pointer, index_pointer,
+                         len(group) if k == 0 else 0, block_pointer))
+
+    # mass points (seed eq. 2.12) and strain points (eq. 2.13, projected membrane strain)
     mp_int, mp_real, sp_int, sp_real = [], [], [], []
     k0 = np.zeros((n, n))
     c0 = np.zeros((n, n))
@@ -356,9 +382,10 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
         if lay.stiffening:
             ea = link.youngs_modulus * link.area
             ei = link.youngs_modulus * link.second_moment
-            for g in range(len(x)):
-                sp_int.append((lay.offset, *push(v.du[g], v.dw[g], v.ddw[g])))
-                sp_real.append((weights[g] * ea, weights[g] * ei))
+            projection = v.du @ lay.membrane  # P (n_gauss, n_gauss) at the Gauss points
+            for group in _projection_groups(projection):
+                push_group(lay.offset, group, projection, v, sp_int)
+                sp_real.extend((weights[g] * ea, weights[g] * ei) for g in group)
         else:
             k0[lay.elastic, lay.elastic] = k_ee
         c0[lay.elastic, lay.elastic] = _damping_matrix(link, m_ee, k_ee)
@@ -465,7 +492,7 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
     tables = _Tables(
         np.array(mp_int, dtype=np.int64).reshape(-1, 4),
         np.array(mp_real, dtype=np.float64).reshape(-1, 4),
-        np.array(sp_int, dtype=np.int64).reshape(-1, 4),
+        np.array(sp_int, dtype=np.int64).reshape(-1, 6),
         np.array(sp_real, dtype=np.float64).reshape(-1, 2),
         np.array(ct_int, dtype=np.int64).reshape(-1, 5),
         np.array(ct_real, dtype=np.float64).reshape(-1, 4),
@@ -505,14 +532,25 @@ def _layout(mechanism):
             layouts[link.name] = LinkLayout(link, offset, 0, None, False)
             continue
         shapes = beam_shapes(link)
-        stiffening = link.geometric_stiffening
-        if stiffening and not link.axial:
-            logger.warning("link %r: geometric stiffening needs axial deformation (axial=False); "
-                           "its strain energy falls back to seed eq. 2.13", link.name)
-            stiffening = False
+        membrane = membrane_projection(shapes) if link.geometric_stiffening else None
+        if link.geometric_stiffening and membrane is None:
+            logger.warning("link %r: geometric stiffening needs axial coordinates to carry the "
+                           "membrane strain (axial=%s, none kept); its strain energy falls back "
+                           "to seed eq. 2.13", link.name, link.axial)
         labels += [f"{link.name}.{label}" for label in shapes.labels]
-        layouts[link.name] = LinkLayout(link, offset, shapes.n_elastic, shapes, stiffening)
+        layouts[link.name] = LinkLayout(link, offset, shapes.n_elastic, shapes,
+                                        membrane is not None, membrane)
     return layouts, labels
+
+
+def _projection_groups(projection: np.ndarray) -> list[np.ndarray]:
+    """Gauss points that the projection couples (an element for linear axial FEM, where ``P`` is
+    the element average; the whole link for Ritz modes), as index arrays. Entries below 1e-12 of
+    the largest are the round-off of exact zeros (the projection of a function supported on one
+    element onto element-wise constants vanishes elsewhere) and do not couple."""
+    coupled = np.abs(projection) > 1e-12 * np.max(np.abs(projection))
+    count, labels = connected_components(coupled, directed=False)
+    return [np.flatnonzero(labels == label) for label in range(count)]
 
 
 def _damping_matrix(link: ElasticLink, m_ee: np.ndarray, k_ee: np.ndarray) -> np.ndarray:

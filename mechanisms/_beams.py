@@ -16,10 +16,17 @@ their derivatives for the three discretisations (seed eq. 2.1-2.8):
   deformation.
 
 Integrals along the link use Gauss-Legendre quadrature (``BeamShapes.quadrature``): per element
-4 points for FEM (exact for the degree-6 mass integrands), 5 points with geometric stiffening (the
-strain energy ``(u' + w'^2/2)^2`` has degree 8). Ritz and user shapes are not polynomials: the number
-of points is doubled until the Gram integrals of all shapes and derivatives and the quartic
-integrals ``int (w_i')^4`` agree to 1e-14 relative, and the smaller rule that already agrees is kept.
+4 points for FEM, exact for the degree-6 mass integrands and for geometric stiffening too, whose
+projected membrane strain (``membrane_projection``) is constant on an element and needs the element
+integrals of ``w'^2`` (degree 4). Ritz and user shapes are not polynomials: the number of points is
+doubled until the Gram integrals of all shapes and derivatives and the cubic integrals
+``int u_k' w_i' w_j'`` (the projection of ``w'^2/2``) agree to 1e-14 relative, and the smaller rule
+that already agrees is kept.
+
+Geometric stiffening uses the *projected* membrane strain (assumed strain, "B-bar"):
+``eps(x) = Su'(x) q + P[w'^2/2](x)``, ``P`` the L2 projection onto span{Su'_i}. The pointwise
+``u' + w'^2/2`` locks: ``u'`` (linear FEM or Ritz axial modes) cannot represent ``w'^2/2``, so any
+bending would stretch the chord and over-stiffen the link (membrane locking).
 """
 
 from __future__ import annotations
@@ -96,8 +103,7 @@ def beam_shapes(link: ElasticLink) -> BeamShapes:
             raise MechanismError(f"link {link.name!r}: Fem.n_elements must be an integer >= 1; "
                              f"received {disc.n_elements!r}")
         labels = tuple(f"{kind}{node}" for node, kind in _fem_kept_dofs(link, disc)[1])
-        n_per_element = 5 if link.geometric_stiffening else 4
-        xg, wg = np.polynomial.legendre.leggauss(n_per_element)
+        xg, wg = np.polynomial.legendre.leggauss(4)
         h = link.length / disc.n_elements
         starts = h * np.arange(disc.n_elements)
         x = (starts[:, None] + 0.5 * h * (xg + 1.0)[None, :]).ravel()
@@ -145,6 +151,25 @@ def beam_matrices(shapes: BeamShapes) -> tuple[np.ndarray, np.ndarray]:
     stiffness = (link.youngs_modulus * link.area * (v.du.T @ (weights[:, None] * v.du))
                  + link.youngs_modulus * link.second_moment * (v.ddw.T @ (weights[:, None] * v.ddw)))
     return 0.5 * (mass + mass.T), 0.5 * (stiffness + stiffness.T)
+
+
+def membrane_projection(shapes: BeamShapes) -> np.ndarray | None:
+    """The L2 projection onto the link's axial strain functions, as ``R`` (n_elastic, n_gauss).
+
+    For values ``f_g`` of a function at the Gauss points, ``P f (x) = Su'(x) . (R f)`` is its
+    projection onto span{Su'_i}; at the Gauss points ``P = B R``, ``B = Su'(x_g)``. With ``W`` the
+    weights, ``R = (B^T W B)^+ B^T W``, computed from the SVD ``W^1/2 B = U S V^T`` as
+    ``V S^-1 U^T W^1/2`` (so ``P = W^-1/2 U U^T W^1/2``, W-orthogonal even when the functions are
+    dependent). Singular values below 1e-10 of the largest count as dependent directions. ``None``
+    when the link has no axial coordinates (nothing to project onto).
+    """
+    x, weights = shapes.quadrature
+    root = np.sqrt(weights)
+    u, sigma, vt = np.linalg.svd(root[:, None] * shapes.evaluate(x).du, full_matrices=False)
+    if sigma.size == 0 or sigma[0] == 0.0:
+        return None
+    rank = int(np.sum(sigma > 1e-10 * sigma[0]))
+    return (vt[:rank].T / sigma[:rank]) @ (u[:, :rank].T * root[None, :])
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -242,11 +267,14 @@ def _quadrature_integrals(shapes: BeamShapes, n: int) -> np.ndarray:
     v = shapes.evaluate(x)
     features = np.hstack([v.u, v.du, v.w, v.dw, v.ddw])
     gram = features.T @ (weights[:, None] * features)
-    quartic = weights @ v.dw**4
+    cubic = np.einsum("g,gk,gi,gj->kij", weights, v.du, v.dw, v.dw)
+    # Cauchy-Schwarz: |int u_k' w_i' w_j'| <= (int u_k'^2 w_i'^2)^1/2 (int w_j'^2)^1/2 (smooth integrals)
+    cubic_bound = np.sqrt(np.einsum("g,gk,gi->ki", weights, v.du**2, v.dw**2))[:, :, None] * np.sqrt(
+        weights @ v.dw**2)[None, None, :]
     # scale each integral by its Cauchy-Schwarz bound so that small entries are held to 1e-14 too
     diag = np.sqrt(np.abs(np.diag(gram)))
     scale = np.outer(diag, diag) + np.finfo(float).tiny
-    return np.concatenate([(gram / scale).ravel(), quartic / (weights @ np.abs(v.dw) ** 4 + 1e-300)])
+    return np.concatenate([(gram / scale).ravel(), (cubic / (cubic_bound + 1e-300)).ravel()])
 
 
 def _adaptive_quadrature(shapes: BeamShapes) -> tuple[np.ndarray, np.ndarray]:

@@ -16,9 +16,18 @@ elastic coordinates), with their values in ``shp`` (``nnz`` per row):
 * mass points ``mp_int = (offset, nnz, ptr, iptr)``, ``mp_real = (m, J, cx, cy)``: mass m (kg),
   rotary inertia J (kg m^2) with angular velocity ``theta' + g.q'``;
   ``shp[ptr : ptr + 3 nnz] = (S_axial, S_transverse, g)``.
-* strain points ``sp_int = (offset, nnz, ptr, iptr)``, ``sp_real = (w EA, w EI)`` (quadrature
-  weight times rigidity); ``shp[ptr : ptr + 3 nnz] = (u', w', w'')``; strain
-  ``eps = u'q + (w'q)^2/2`` (geometric stiffening; links without it use the constant ``K0``).
+* strain points ``sp_int = (offset, nnz, ptr, iptr, size, pptr)``, ``sp_real = (w EA, w EI)``
+  (quadrature weight times rigidity); ``shp[ptr : ptr + 3 nnz] = (u', w', w'')``. Strain points come
+  in consecutive *groups* (an element of a Hermite link, a whole Ritz link) that share ``offset``,
+  ``nnz`` and ``iptr``; the first row of a group holds its ``size`` G and ``shp[pptr : pptr + G^2]``
+  the row-major projection ``P`` (G x G) onto the link's axial strain functions (``_assemble``).
+  Projected membrane strain (geometric stiffening; links without it use the constant ``K0``):
+
+      s_j = w'_j q,   eps_g = u'_g q + sum_j P_gj s_j^2 / 2,   kappa_g = w''_g q           (4)
+      Pi = sum_g 1/2 (w EA eps_g^2 + w EI kappa_g^2),   c_j = sum_g w_g EA eps_g P_gj
+      dPi/dq = sum_g w EA eps_g u'_g + c_g s_g w'_g + w EI kappa_g w''_g                     (5)
+      d2Pi/dq2 = sum_g w EA G_g G_g^T + c_g w'_g w'_g^T + w EI w''_g w''_g^T,
+      G_g = d eps_g / dq = u'_g + sum_j P_gj s_j w'_j                                         (6)
 * constraint terms ``ct_int = (row, offset, nnz, ptr, iptr)``, ``ct_real = (dx, dy, cx, cy)``:
   ``Phi[row] += d . r``; ``shp[ptr : ptr + 2 nnz] = (S_axial, S_transverse)``.
 
@@ -53,17 +62,44 @@ def _scratch(table_nnz):
 
 
 @numba.njit(cache=True)
-def _strain_state(s, off, nnz, ptr, iptr, shp, idx):
-    """Slope w'q, strain eps = u'q + (w'q)^2/2 and curvature kappa = w''q at a strain point."""
-    du = 0.0
-    dw = 0.0
-    kappa = 0.0
-    for k in range(nnz):
-        qk = s[off + 3 + idx[iptr + k]]
-        du += shp[ptr + k] * qk
-        dw += shp[ptr + nnz + k] * qk
-        kappa += shp[ptr + 2 * nnz + k] * qk
-    return dw, du + 0.5 * dw * dw, kappa
+def _max_group(sp_int):
+    n = 1
+    for i in range(sp_int.shape[0]):
+        if sp_int[i, 4] > n:
+            n = sp_int[i, 4]
+    return n
+
+
+@numba.njit(cache=True)
+def _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef):
+    """Eq. (4)-(5) for the strain-point group starting at row i0: fill slope s_j, projected strain
+    eps_g, curvature kappa_g and c_j (first ``size`` entries); return the group's size."""
+    size, pptr = sp_int[i0, 4], sp_int[i0, 5]
+    off, nnz, iptr = sp_int[i0, 0], sp_int[i0, 1], sp_int[i0, 3]
+    for g in range(size):
+        ptr = sp_int[i0 + g, 2]
+        du = 0.0
+        dw = 0.0
+        kap = 0.0
+        for k in range(nnz):
+            qk = s[off + 3 + idx[iptr + k]]
+            du += shp[ptr + k] * qk
+            dw += shp[ptr + nnz + k] * qk
+            kap += shp[ptr + 2 * nnz + k] * qk
+        eps[g] = du
+        slope[g] = dw
+        kappa[g] = kap
+    for g in range(size):
+        acc = 0.0
+        for j in range(size):
+            acc += shp[pptr + g * size + j] * slope[j] * slope[j]
+        eps[g] += 0.5 * acc
+    for j in range(size):
+        acc = 0.0
+        for g in range(size):
+            acc += sp_real[i0 + g, 0] * eps[g] * shp[pptr + g * size + j]
+        coef[j] = acc
+    return size
 
 
 @numba.njit(cache=True)
@@ -203,14 +239,22 @@ def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, 
                                                            iptr, shp, idx, lx, ly, cols)
         for a in range(3 + nnz):
             out[cols[a]] += m * (lx[a] * vx + ly[a] * vy)
-    for i in range(sp_int.shape[0]):
-        # -dPi/dq of Pi = sum 1/2 (w EA eps^2 + w EI kappa^2), eps = u'q + (w'q)^2/2, kappa = w''q
-        off, nnz, ptr, iptr = sp_int[i, 0], sp_int[i, 1], sp_int[i, 2], sp_int[i, 3]
-        ea, ei = sp_real[i, 0], sp_real[i, 1]
-        dw, eps, kappa = _strain_state(s, off, nnz, ptr, iptr, shp, idx)
-        for k in range(nnz):
-            deps = shp[ptr + k] + dw * shp[ptr + nnz + k]
-            out[off + 3 + idx[iptr + k]] -= ea * eps * deps + ei * kappa * shp[ptr + 2 * nnz + k]
+    size_max = _max_group(sp_int)
+    slope, eps, kappa, coef = (np.empty(size_max), np.empty(size_max), np.empty(size_max),
+                               np.empty(size_max))
+    i0 = 0
+    while i0 < sp_int.shape[0]:
+        # -dPi/dq, eq. (5)
+        size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
+        off, nnz, iptr = sp_int[i0, 0], sp_int[i0, 1], sp_int[i0, 3]
+        for g in range(size):
+            ptr = sp_int[i0 + g, 2]
+            ea, ei = sp_real[i0 + g, 0], sp_real[i0 + g, 1]
+            for k in range(nnz):
+                out[off + 3 + idx[iptr + k]] -= (ea * eps[g] * shp[ptr + k]
+                                                 + coef[g] * slope[g] * shp[ptr + nnz + k]
+                                                 + ei * kappa[g] * shp[ptr + 2 * nnz + k])
+        i0 += size
     n = s.shape[0]
     if k0.shape[0] == n:
         for a in range(n):
@@ -251,18 +295,33 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
                 out_s[ca, ck] += m * wt * wt * (lx[a] * lx[3 + k] + ly[a] * ly[3 + k])
                 out_v[ca, ck] += m * (-2.0 * wt) * (-lx[a] * ly[3 + k] + ly[a] * lx[3 + k])
         _add_d(out_s, m, nnz, apx, apy, lx, ly, cols, vx, vy)
-    for i in range(sp_int.shape[0]):
-        off, nnz, ptr, iptr = sp_int[i, 0], sp_int[i, 1], sp_int[i, 2], sp_int[i, 3]
-        ea, ei = sp_real[i, 0], sp_real[i, 1]
-        dw, eps, _ = _strain_state(s, off, nnz, ptr, iptr, shp, idx)
-        for k in range(nnz):
-            dk = shp[ptr + k] + dw * shp[ptr + nnz + k]
-            ck = off + 3 + idx[iptr + k]
-            for j in range(nnz):
-                dj = shp[ptr + j] + dw * shp[ptr + nnz + j]
-                out_s[ck, off + 3 + idx[iptr + j]] -= (
-                    ea * (dk * dj + eps * shp[ptr + nnz + k] * shp[ptr + nnz + j])
-                    + ei * shp[ptr + 2 * nnz + k] * shp[ptr + 2 * nnz + j])
+    size_max = _max_group(sp_int)
+    slope, eps, kappa, coef = (np.empty(size_max), np.empty(size_max), np.empty(size_max),
+                               np.empty(size_max))
+    grad = np.empty(max(_max_local(sp_int[:, 1]) - 3, 1))
+    i0 = 0
+    while i0 < sp_int.shape[0]:
+        # -d2Pi/dq2, eq. (6)
+        size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
+        off, nnz, iptr, pptr = sp_int[i0, 0], sp_int[i0, 1], sp_int[i0, 3], sp_int[i0, 5]
+        for g in range(size):
+            ptr = sp_int[i0 + g, 2]
+            ea, ei = sp_real[i0 + g, 0], sp_real[i0 + g, 1]
+            for k in range(nnz):
+                grad[k] = shp[ptr + k]
+            for j in range(size):
+                pj = shp[pptr + g * size + j] * slope[j]
+                ptr_j = sp_int[i0 + j, 2]
+                for k in range(nnz):
+                    grad[k] += pj * shp[ptr_j + nnz + k]
+            for k in range(nnz):
+                ck = off + 3 + idx[iptr + k]
+                for j in range(nnz):
+                    out_s[ck, off + 3 + idx[iptr + j]] -= (
+                        ea * grad[k] * grad[j]
+                        + coef[g] * shp[ptr + nnz + k] * shp[ptr + nnz + j]
+                        + ei * shp[ptr + 2 * nnz + k] * shp[ptr + 2 * nnz + j])
+        i0 += size
     n = s.shape[0]
     if k0.shape[0] == n:
         for a in range(n):
@@ -348,8 +407,8 @@ def kinetic_energy(s, sdot, mp_int, mp_real, shp, idx):
 
 @numba.njit(cache=True)
 def potential_energy(s, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0):
-    """V = -sum m g.r + strain energy (seed eq. 2.13, with eps = u'q + (w'q)^2/2 at strain points
-    and 1/2 s^T K0 s for the links without geometric stiffening) (J)."""
+    """V = -sum m g.r + strain energy (seed eq. 2.13, with the projected membrane strain of eq. (4)
+    at strain points and 1/2 s^T K0 s for the links without geometric stiffening) (J)."""
     lx, ly, cols = _scratch(mp_int[:, 1])
     energy = 0.0
     for i in range(mp_int.shape[0]):
@@ -357,11 +416,15 @@ def potential_energy(s, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0):
         m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
         apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
         energy -= m * (gx * (s[off] + apx) + gy * (s[off + 1] + apy))
-    for i in range(sp_int.shape[0]):
-        off, nnz, ptr, iptr = sp_int[i, 0], sp_int[i, 1], sp_int[i, 2], sp_int[i, 3]
-        ea, ei = sp_real[i, 0], sp_real[i, 1]
-        dw, eps, kappa = _strain_state(s, off, nnz, ptr, iptr, shp, idx)
-        energy += 0.5 * (ea * eps * eps + ei * kappa * kappa)
+    size_max = _max_group(sp_int)
+    slope, eps, kappa, coef = (np.empty(size_max), np.empty(size_max), np.empty(size_max),
+                               np.empty(size_max))
+    i0 = 0
+    while i0 < sp_int.shape[0]:
+        size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
+        for g in range(size):
+            energy += 0.5 * (sp_real[i0 + g, 0] * eps[g] ** 2 + sp_real[i0 + g, 1] * kappa[g] ** 2)
+        i0 += size
     n = s.shape[0]
     if k0.shape[0] == n:
         for a in range(n):

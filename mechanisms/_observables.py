@@ -5,8 +5,9 @@ Specs (``link`` a link name, ``f`` a fraction of the link length in [0, 1], defa
 * ``"link.deflection@f"``: distance (m) of the material point at ``x = f L`` from the chord through
   the link's start and tip, positive on the frame's +y side. For a pinned-pinned link the frame is
   the chord frame and this is ``w(x)``; for a clamped-free link it is measured from the deformed chord.
-* ``"link.strain@f"``: axial strain at the neutral axis, ``u'(x)`` (+ ``w'(x)^2/2`` when the link has
-  geometric stiffening), 1.
+* ``"link.strain@f"``: membrane (neutral-axis) strain, 1: ``u'(x)``, or with geometric stiffening
+  the projected membrane strain the strain energy uses, ``u'(x) + P[w'^2/2](x)`` (``_assemble``);
+  for Hermite elements it is constant on an element, and at a node the element to the right is used.
 * ``"link.moment@f"``: bending moment ``EI w''(x)``, N m (for Hermite elements, at a node the element
   to the right is used).
 * ``"link.angle"``: the frame angle ``theta``, rad (for an elastic link: the chord or root tangent).
@@ -35,7 +36,8 @@ class LinkObservable:
     rows: tuple            # shape rows at x and at the tip, each (n_elastic,)
     length: float
     flexural_rigidity: float
-    stiffening: bool
+    membrane: tuple        # with stiffening: (a (n_gauss,), w' at the Gauss points (n_gauss, n_e))
+                           # so that P[w'^2/2](x) = a . (w'_g q)^2 / 2; else ()
 
     def _q(self, s):
         s = np.asarray(s, dtype=float)
@@ -53,8 +55,10 @@ class LinkObservable:
             px, py = self.x + u @ q, w @ q
             return float((cx * py - cy * px) / np.hypot(cx, cy))
         if self.kind == "strain":
-            slope = dw @ q
-            return float(du @ q + (0.5 * slope * slope if self.stiffening else 0.0))
+            if not self.membrane:
+                return float(du @ q)
+            weights, slopes = self.membrane
+            return float(du @ q + 0.5 * weights @ (slopes @ q) ** 2)
         return float(self.flexural_rigidity * (ddw @ q))
 
     def gradient(self, s) -> np.ndarray:
@@ -73,7 +77,10 @@ class LinkObservable:
             d_norm = (cx * u_tip + cy * w_tip) / norm
             grad = d_cross / norm - cross * d_norm / norm**2
         elif self.kind == "strain":
-            grad = du + ((dw @ q) * dw if self.stiffening else 0.0)
+            grad = du.copy()
+            if self.membrane:
+                weights, slopes = self.membrane
+                grad += (weights * (slopes @ q)) @ slopes
         else:
             grad = self.flexural_rigidity * ddw
         out[self.coords][3:] = grad
@@ -95,12 +102,11 @@ def make_observable(model, spec: str) -> LinkObservable:
                          f"{sorted(_KINDS)}")
     lay = model.layouts[name]
     common = dict(spec=spec, unit=_KINDS[kind], kind=kind, n_coords=model.n_coords,
-                  coords=lay.coords, theta_index=lay.offset + 2, length=lay.link.length,
-                  stiffening=lay.stiffening)
+                  coords=lay.coords, theta_index=lay.offset + 2, length=lay.link.length)
     if kind == "angle":
         if where:
             raise ValueError(f"observable {spec!r}: 'angle' takes no '@fraction'")
-        return LinkObservable(**common, x=0.0, rows=(), flexural_rigidity=0.0)
+        return LinkObservable(**common, x=0.0, rows=(), flexural_rigidity=0.0, membrane=())
     if lay.shapes is None:
         raise ValueError(f"observable {spec!r}: {kind} needs an elastic link; {name!r} is rigid")
     try:
@@ -113,5 +119,8 @@ def make_observable(model, spec: str) -> LinkObservable:
     x = fraction * lay.link.length
     v = lay.shapes.evaluate([x, lay.link.length])
     rows = (v.u[0], v.w[0], v.du[0], v.dw[0], v.ddw[0], v.u[1], v.w[1])
-    return LinkObservable(**common, x=x, rows=rows,
+    membrane = ()
+    if lay.stiffening:
+        membrane = (v.du[0] @ lay.membrane, lay.shapes.evaluate(lay.shapes.quadrature[0]).dw)
+    return LinkObservable(**common, x=x, rows=rows, membrane=membrane,
                           flexural_rigidity=lay.link.youngs_modulus * lay.link.second_moment)

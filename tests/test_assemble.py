@@ -3,7 +3,8 @@
 * sympy: the thesis four-bar OABC (rigid crank and rocker, elastic coupler with 2 Ritz bending and
   1 axial mode, seed eq. 2.2/2.4) derived by Lagrange's equations (seed eq. 2.10) from the kinetic
   and strain energies written out symbolically (seed eq. 2.12/2.13, with and without geometric
-  stiffening), integrals along the links done exactly, in the assembler's coordinates.
+  stiffening, whose membrane strain is projected onto the axial strain functions), integrals along
+  the links done exactly, in the assembler's coordinates.
 * central finite differences for the analytic derivatives of the protocol.
 * the exact second time derivative of the constraints along a quadratic path for ``gamma``.
 """
@@ -16,6 +17,7 @@ import math
 import numpy as np
 import pytest
 import sympy as sp
+from scipy.integrate import quad
 
 import mechanisms as mk
 from mechanisms import (GROUND, ElasticLink, Fem, Mechanism, PointMass, PrescribedDrive, Rayleigh,
@@ -131,7 +133,8 @@ def _energy_pieces(kind):
     """The four-bar's energies, split into additive pieces so that the variants share the work:
     kinetic (seed eq. 2.12 plus the rigid bars and the point mass), rotary kinetic energy of the
     coupler's sections, potential (gravity + seed eq. 2.13), the extra strain energy of geometric
-    stiffening EA/2 ((u' + w'^2/2)^2 - u'^2), the Rayleigh damping force and the constraints.
+    stiffening EA/2 int (eps^2 - u'^2) with the projected membrane strain eps = u' + P[w'^2/2], P the
+    L2 projection onto the axial strain function (``_assemble``), the Rayleigh damping force and the constraints.
     ``kind`` is the coupler's discretisation: "ritz" (2 bending modes, 1 axial mode; elastic
     coordinates q1, q2, p1) or "fem1" (one Hermite element, seed eq. 2.5-2.8, pinned ends: the
     coordinates r0, u1, r1 stand in the places of q1, q2, p1)."""
@@ -175,7 +178,14 @@ def _energy_pieces(kind):
                           L2)
     v_coupler = _integrate(-MU * gvec.dot(position), L2)
     v_linear = _integrate(sp.Rational(1, 2) * (E * AREA * u_x**2 + E * SECOND_MOMENT * w_xx**2), L2)
-    v_stiffening = _integrate(sp.Rational(1, 2) * E * AREA * ((u_x + w_x**2 / 2)**2 - u_x**2), L2)
+    # projected membrane strain u' + P[w'^2/2]: with one axial coordinate a (p1 for Ritz, u1 for the
+    # element) u' = a Y'(x), and P f = Y' int(Y' f) / int(Y'^2), so eps = Y' (a + c) with
+    # c = int(Y' w'^2/2) / int(Y'^2), and EA/2 int (eps^2 - u'^2) = EA/2 int(Y'^2) ((a + c)^2 - a^2)
+    axial = p1 if kind == "ritz" else q2
+    slope_axial = u_x.diff(axial)
+    gram = _integrate(slope_axial**2, L2)
+    c = _integrate(slope_axial * w_x**2 / 2, L2) / gram
+    v_stiffening = sp.Rational(1, 2) * E * AREA * gram * ((axial + c)**2 - axial**2)
 
     # point mass on the coupler
     xi_m = sp.Float(POINT_MASS["x"] / L2, 30)
@@ -460,7 +470,8 @@ def test_slider_crank_constraints_vanish_on_the_closed_form_configuration():
 
 def test_observables_values_and_gradients():
     """Pinned-pinned coupler: deflection@f is w(fL) (the frame is the chord), moment is EI w'',
-    strain u' + w'^2/2; gradients against central differences (the values are at most quadratic
+    strain u' + the element average of w'^2/2 (the projected membrane strain of linear axial
+    elements; the average by scipy's adaptive quad, not the Gauss rule); gradients against central differences (the values are at most quadratic
     in q and the step is 1e-9, so differences agree to ~1e-7 relative)."""
     model = assemble(fourbar(Fem(4)))
     rng = np.random.default_rng(3)
@@ -474,8 +485,11 @@ def test_observables_values_and_gradients():
     moment = model.observable("coupler.moment@0.3")
     assert moment.value(s) == pytest.approx(E * SECOND_MOMENT * values.ddw[0] @ q, rel=1e-12)
     strain = model.observable("coupler.strain@0.3")
-    assert strain.value(s) == pytest.approx(values.du[0] @ q + 0.5 * (values.dw[0] @ q) ** 2,
-                                            rel=1e-12)
+    h = L2 / 4
+    element = (h, 2 * h)                               # 0.3 L lies on the second of 4 elements
+    mean_square = quad(lambda x: (shapes.evaluate([x]).dw[0] @ q) ** 2, *element,
+                       epsabs=0.0, epsrel=1e-13)[0] / h
+    assert strain.value(s) == pytest.approx(values.du[0] @ q + 0.5 * mean_square, rel=1e-11)
     assert model.observable("rocker.angle").value(s) == s[model.link_coordinates("rocker")][2]
     for spec in ("coupler.deflection", "coupler.strain@0.8", "coupler.moment@0.3", "rocker.angle"):
         obs = model.observable(spec)
