@@ -136,11 +136,13 @@ class CampbellResult(GridResult):
 
     ``speeds`` (n,) rad/s; ``crank_angle`` (n_frozen,) rad at which the frozen systems are taken;
     ``frozen`` (n, n_frozen, m) rad/s ascending at each sample; ``shapes`` (n, m, m) mode shapes at
-    crank angle 0 (columns); ``multipliers`` (n, 2m); ``period`` (n,) s; after the grid: ``order``
+    crank angle 0 (columns); ``multipliers`` (n, 2m) and ``multipliers_coarse`` (n, 2m) with N and
+    N/2 steps; ``period`` (n,) s; after the grid: ``order``
     (n, m) tracked mode j is frequency column ``order[i, j]`` at speed i (MAC tracking),
     ``tracking_mac`` (n, m) the MAC of each step, ``band_min``/``band_max``/``band_mean`` (n, m) rad/s
     band of each tracked mode over the crank angle, ``characteristic`` (n, 2m) rad/s Floquet
-    characteristic frequencies unfolded to the nearest frozen mean frequency, ``mode_labels`` (m,),
+    characteristic frequencies unfolded to the nearest frozen mean frequency and
+    ``characteristic_error`` (n, 2m) rad/s their estimated error (N against N/2), ``mode_labels`` (m,),
     ``harmonics`` the k of the lines ``k * speed``.
     """
 
@@ -150,6 +152,7 @@ class CampbellResult(GridResult):
     frozen: np.ndarray = None
     shapes: np.ndarray = None
     multipliers: np.ndarray = None
+    multipliers_coarse: np.ndarray = None
     period: np.ndarray = None
     order: np.ndarray = None
     tracking_mac: np.ndarray = None
@@ -157,12 +160,14 @@ class CampbellResult(GridResult):
     band_max: np.ndarray = None
     band_mean: np.ndarray = None
     characteristic: np.ndarray = None
+    characteristic_error: np.ndarray = None
     mode_labels: tuple = ()
     harmonics: tuple = ()
     run_time: float = float("nan")
 
     _units = {"speeds": "rad/s", "crank_angle": "rad", "frozen": "rad/s", "shapes": "1",
-              "multipliers": "1", "period": "s", "order": "1", "tracking_mac": "1", "band_min": "rad/s",
+              "multipliers": "1", "multipliers_coarse": "1", "period": "s", "order": "1",
+              "tracking_mac": "1", "characteristic_error": "rad/s", "band_min": "rad/s",
               "band_max": "rad/s", "band_mean": "rad/s", "characteristic": "rad/s", **GridResult._units}
 
     def plot(self, *, ax: Any = None) -> list:

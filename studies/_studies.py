@@ -229,10 +229,12 @@ def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, f
     linear = problem.linearize(values, n_steps=n_steps, context=False)
     index, frozen, shapes = frozen_modes(linear.system, frozen_samples)
     result = periodic.floquet(linear.system)
+    coarse = periodic.floquet(linear.system.coarsened())
     status = "ok" if result.resolved.all() else "unresolved_mode"
     message = "" if status == "ok" else (f"{int((~result.resolved).sum())} multipliers belong to modes "
                                          f"the {n_steps} steps do not resolve")
     return ({"frozen": frozen, "shapes": shapes, "multipliers": result.multipliers,
+             "multipliers_coarse": coarse.multipliers,
              "period": linear.system.period, "crank_angle": np.asarray(linear.crank_angle)[index]},
             status, message)
 
@@ -251,7 +253,8 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
     probe = problem.linearize({SPEED: float(grid[0])}, n_steps=4)
     settings = {"speeds": grid, "n_steps": n_steps, "frozen_samples": frozen_samples,
                 "scene": problem.text}
-    units = {"frozen": "rad/s", "shapes": "1", "multipliers": "1", "period": "s", "crank_angle": "rad"}
+    units = {"frozen": "rad/s", "shapes": "1", "multipliers": "1", "multipliers_coarse": "1", "period": "s",
+             "crank_angle": "rad"}
     header = dict(problem=problem.name, scene=problem.text, labels=tuple(probe.labels))
     store = _open(out, name, grid.shape, "CampbellResult", settings, units, header,
                   {"speeds": (grid, "rad/s")})
@@ -268,14 +271,23 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
         band_min = fields["frozen"].min(axis=1)[rows, order]
         band_max = fields["frozen"].max(axis=1)[rows, order]
         band_mean = fields["frozen"].mean(axis=1)[rows, order]
-        characteristic = np.stack([characteristic_frequencies(fields["multipliers"][i], fields["period"][i],
-                                                              band_mean[i]) for i in range(grid.size)])
+        characteristic, characteristic_error = [], []
+        for i in range(grid.size):
+            fine = characteristic_frequencies(fields["multipliers"][i], fields["period"][i], band_mean[i])
+            halved = characteristic_frequencies(fields["multipliers_coarse"][i], fields["period"][i],
+                                                band_mean[i])
+            characteristic.append(fine)
+            # order 2 in the step: the N/2 difference over 3 estimates the error of the N-step value
+            characteristic_error.append(np.array([np.nanmin(np.abs(halved - f)) / 3.0 if np.isfinite(f)
+                                                  else np.nan for f in fine]))
+        characteristic, characteristic_error = np.array(characteristic), np.array(characteristic_error)
         first = fields["shapes"][0]
         labels = tuple(f"mode {j + 1} ({probe.labels[int(np.argmax(np.abs(first[:, j])))]})"
                        if np.isfinite(first[:, j]).all() else f"mode {j + 1}"
                        for j in range(first.shape[1]))
         extra = dict(order=order, tracking_mac=confidence, band_min=band_min, band_max=band_max,
-                     band_mean=band_mean, characteristic=characteristic, mode_labels=labels,
+                     band_mean=band_mean, characteristic=characteristic,
+                     characteristic_error=characteristic_error, mode_labels=labels,
                      harmonics=tuple(range(1, max_harmonic + 1)))
     result = CampbellResult(**header, settings=settings, speeds=grid, run_time=time.perf_counter() - start,
                             **fields, **extra)
