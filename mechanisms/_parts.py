@@ -26,6 +26,8 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+
+import numpy as np
 import re
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Union
@@ -698,9 +700,16 @@ def _check_four_bar(mech: Mechanism, links: dict[str, Link], joints: dict[str, J
         return min(d - low, high - d) / scale
 
     # 4096 samples resolve the crank angle to 0.1 deg per turn; bisection then pins the crossing.
+    # The scan is vectorised (it runs whenever a four-bar is made, e.g. at every point of a sweep).
     n_samples = 4096 * max(1, round(abs(drive.rate) * period / (2.0 * math.pi)))
-    times = [period * k / n_samples for k in range(n_samples + 1)]
-    margins = [margin(t) for t in times]
+    times = np.linspace(0.0, period, n_samples + 1)
+    theta = drive.offset + drive.rate * times
+    for k, cos_k, sin_k in drive.harmonics:   # the drive law of ``drive_law``, on an array
+        theta = theta + cos_k * np.cos(2 * math.pi * k * times / period) + sin_k * np.sin(
+            2 * math.pi * k * times / period)
+    d = np.hypot(o[0] + np.cos(theta) * crank_vec[0] - np.sin(theta) * crank_vec[1] - c[0],
+                 o[1] + np.sin(theta) * crank_vec[0] + np.cos(theta) * crank_vec[1] - c[1])
+    margins = np.minimum(d - low, high - d) / scale
     lengths = sorted([l_crank, l_ground, l_coupler, l_rocker])
     grashof = (f"lengths crank {l_crank:.6g}, coupler {l_coupler:.6g}, rocker {l_rocker:.6g}, "
                f"ground {l_ground:.6g} m: s + l = {lengths[0] + lengths[3]:.6g} m, p + q = "
@@ -719,8 +728,9 @@ def _check_four_bar(mech: Mechanism, links: dict[str, Link], joints: dict[str, J
             t_low, t_high = (t_low, t_2) if margin(t_1) < margin(t_2) else (t_1, t_high)
         return margin(t_high), t_high
 
-    k_open = next((k for k, m in enumerate(margins) if m < 0.0), None)
-    if k_open is not None:
+    opened = np.flatnonzero(margins < 0.0)
+    if opened.size:
+        k_open = int(opened[0])
         # The loop opens: bisect for the first angle where it no longer closes.
         kind = "the coupler and rocker cannot reach beyond it"
         t_low, t_high = times[k_open - 1], times[k_open]
@@ -731,9 +741,10 @@ def _check_four_bar(mech: Mechanism, links: dict[str, Link], joints: dict[str, J
         # A toggle touches margin 0 without crossing, between samples: refine every local minimum
         # of the samples. 1e-9 of the largest length is far below any physical clearance and far
         # above rounding (1e-16).
-        minima = [refined_minimum(k) for k in range(1, n_samples)
-                  if margins[k] <= margins[k - 1] and margins[k] <= margins[k + 1]
-                  and margins[k] < 1e-3]
+        inner_margins = margins[1:-1]
+        candidates = np.flatnonzero((inner_margins <= margins[:-2]) & (inner_margins <= margins[2:])
+                                    & (inner_margins < 1e-3)) + 1
+        minima = [refined_minimum(int(k)) for k in candidates]
         toggles = [t for value, t in minima if value <= 1e-9]
         if not toggles:
             return
