@@ -158,3 +158,15 @@ def test_argparse_errors_exit_2(capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["run", "--jobs", "two"])
     assert exit_.value.code == 2
+
+
+def test_dask_scheduler_from_the_command_line(mathieu_run, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    path = tmp_path / "dask.h5"
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, protocol="tcp",
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        assert main(["run", "mathieu", "--out", str(path), "--executor", "dask", "--scheduler",
+                     cluster.scheduler_address, "--quiet"]) == 0
+    serial, remote = studies.load(mathieu_run), studies.load(path)
+    for kind in ("sweep", "campbell", "stability_chart"):
+        assert_same(serial[kind], remote[kind])
