@@ -196,18 +196,38 @@ def _tangent_terms(dMa_ds, dQ_ds, dQ_dv, dPhiTlam_ds, beta_p, gamma_p, out):
 
 @numba.njit(cache=True)
 def _fill_iteration_matrix(M, tangent, Phi_s, out):
-    """The Newton matrix of (NR): ``[[M + beta' K_t + gamma' C_t, Phi_s^T], [Phi_s, 0]]``."""
+    """The Newton matrix of (NR): ``[[M + beta' K_t + gamma' C_t, Phi_s^T], [Phi_s, 0]]``.
+
+    Returns ``max(1, max_k sum_j |Phi_s[k, j]|)``, the factor from a position error to the
+    constraint residual that the acceptance test allows for."""
     n = M.shape[0]
     r = Phi_s.shape[0]
     for i in range(n):
         for j in range(n):
             out[i, j] = M[i, j] + tangent[i, j]
+    row_sum_max = 1.0
     for k in range(r):
+        row_sum = 0.0
         for j in range(n):
             out[n + k, j] = Phi_s[k, j]
             out[j, n + k] = Phi_s[k, j]
+            row_sum += abs(Phi_s[k, j])
+        row_sum_max = max(row_sum_max, row_sum)
         for m in range(r):
             out[n + k, n + m] = 0.0
+    return row_sum_max
+
+
+@numba.njit(cache=True)
+def _max_abs(x):
+    """``max |x_i|`` (0 for an empty array, NaN if any entry is NaN)."""
+    out = 0.0
+    for i in range(x.shape[0]):
+        if not abs(x[i]) <= out:
+            out = abs(x[i])
+            if np.isnan(out):
+                return out
+    return out
 
 
 @numba.njit(cache=True)
@@ -609,13 +629,13 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
             q = qhat + beta_p * sddot
             v = vhat + gamma_p * sddot
             factorized = False
-            iterations, prev_dq, phi_scale = 0, np.inf, 1.0
+            iterations, prev_dq = 0, np.inf
             converged, candidate, failure = False, False, ""
             while True:
                 Phi = np.ascontiguousarray(model.constraints(q, t), dtype=np.float64)
                 if candidate:
                     # the increments say converged; accept if the constraints agree to tol as well
-                    step_residual = np.max(np.abs(Phi), initial=0.0)
+                    step_residual = _max_abs(Phi)
                     if step_residual <= abs_tol * phi_scale:
                         converged = True
                         break
@@ -644,7 +664,7 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
                     # M and Phi_s are evaluated for the residual anyway: the matrix takes them
                     # fresh once per step (they rotate with the links) and keeps the O(h) tangent
                     # terms, which are re-evaluated only when the iteration contracts slowly
-                    _fill_iteration_matrix(M, tangent, Phi_s, G)
+                    phi_scale = _fill_iteration_matrix(M, tangent, Phi_s, G)
                     pivot_ratio = _lu_factor(G, piv)
                     counts["n_factorizations"] += 1
                     factorized, prev_dq = True, np.inf
@@ -657,9 +677,9 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
                                     gamma_p, rhs, q, v)
                 counts["n_newton"] += 1
                 iterations += 1
-                theta = dq / prev_dq if np.isfinite(prev_dq) and prev_dq > 0.0 else 0.0
+                theta = dq / prev_dq if math.isfinite(prev_dq) and prev_dq > 0.0 else 0.0
                 prev_dq = dq
-                if not np.isfinite(dq):
+                if not math.isfinite(dq):
                     # NaN or inf anywhere in M, Q, Phi, Phi_s or the matrix reaches the increment
                     failure = "the Newton increment is not finite (non-finite model output?)"
                     break
@@ -671,7 +691,6 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
                 # iteration would need anyway).
                 if dq <= abs_tol:
                     candidate = True
-                    phi_scale = max(1.0, float(np.max(np.sum(np.abs(Phi_s), axis=1), initial=0.0)))
                     continue
                 if iterations >= max_iterations:
                     failure = (f"Newton's method did not converge in {iterations} iterations (last "
