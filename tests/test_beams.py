@@ -1,6 +1,8 @@
 """Elastic-link discretisations against closed forms: natural frequencies of pinned-pinned, free-free,
 fixed-free (axial) and clamped-free beams, exact Ritz integrals, and the observed order of
-convergence of Hermite elements (h^4 for bending, h^2 for linear axial elements)."""
+convergence of Hermite elements (h^4 for bending, h^2 for linear axial elements), and the projected
+membrane strain of geometric stiffening (no locking when the chord may shorten, the closed-form
+string force when it may not)."""
 
 from __future__ import annotations
 
@@ -11,7 +13,7 @@ import pytest
 from scipy.linalg import eigh, null_space
 
 from mechanisms import (GROUND, ElasticLink, Fem, Mechanism, ModalDamping, PrescribedDrive,
-                        Revolute, Ritz, UserShapes, assemble, beam_matrices, beam_shapes)
+                        Revolute, Ritz, TorqueDrive, UserShapes, assemble, beam_matrices, beam_shapes)
 from mechanisms._beams import clamped_free_roots
 
 LENGTH = 0.2794
@@ -221,4 +223,137 @@ def test_unconstrained_link_is_a_free_free_beam():
         # three rigid-body modes: zero up to the round-off of an eigensolver on K ~ 1e6 |M|
         assert np.abs(omega2[:3]).max() < 1e-9 * omega2[3]
         errors.append(np.max(np.abs(np.sqrt(omega2[3:5]) - exact) / exact))
+    assert observed_order(counts, errors) == pytest.approx(4.0, abs=0.3)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Geometric stiffening: the projected membrane strain does not lock, and still stiffens a string
+# ---------------------------------------------------------------------------------------------------
+W0 = 2e-3   # mid-span deflection (m): w'^2/2 ~ 4e-4 and EA w'^2/2 ~ 5e3 N, EI w'' ~ 0.15 N m
+
+
+def pinned_model(link):
+    """The link pinned to the ground at its start, with an idle torque drive (a mechanism needs
+    one). In the state below the frame lies on the x-axis (theta = 0) and the chord-frame convention
+    w(L) = 0 puts the far end on that axis: with u(L) free this is the end on a slider along the
+    chord, with u(L) = 0 an immovable second pin."""
+    mech = Mechanism("bent", (link,), (Revolute("pin", GROUND, (0.0, 0.0), "beam", "start"),),
+                     (TorqueDrive("pin", kp=0.0, kd=0.0),), period=1.0)
+    return assemble(mech)
+
+
+def scale_shortening():
+    """int_0^L w'^2/2 dx / L for the sine of amplitude W0: the chord's relative shortening."""
+    return (math.pi * W0 / LENGTH) ** 2 / 4
+
+
+def bent_state(model, n_elements):
+    """s with the frame at rest on the x-axis and the link bent into w = W0 sin(pi x / L) (exact
+    for Ritz mode b1, the Hermite interpolant for elements); axial coordinates zero."""
+    lay = model.layouts["beam"]
+    s = np.zeros(model.n_coords)
+    k = math.pi / LENGTH
+    for i, label in enumerate(lay.shapes.labels):
+        kind, where = label[0], int(label[1:])
+        x = where * LENGTH / n_elements if n_elements else 0.0
+        value = {"w": W0 * math.sin(k * x), "r": W0 * k * math.cos(k * x),
+                 "b": W0 * (where == 1)}.get(kind, 0.0)
+        s[lay.offset + 3 + i] = value
+    return s
+
+
+def relax_axial(model, s, free):
+    """Minimise the potential energy over the coordinates ``free`` (the axial ones): with the
+    transverse field fixed the membrane strain is linear in them, so the energy is quadratic and
+    Newton on -dV/ds = Q(s, 0) converges in one step (a second one only polishes round-off)."""
+    zero = np.zeros(model.n_coords)
+    s = s.copy()
+    for _ in range(2):
+        residual = model.forces(s, zero, 0.0)[free]
+        tangent = model.force_jacobians(s, zero, 0.0)[0][np.ix_(free, free)]
+        s[free] -= np.linalg.solve(tangent, residual)
+    return s
+
+
+def axial_indices(model, keep=lambda label: True):
+    lay = model.layouts["beam"]
+    return np.array([lay.offset + 3 + i for i, label in enumerate(lay.shapes.labels)
+                     if label[0] in "ua" and keep(label)])
+
+
+def bending_energy(model, s):
+    """1/2 int EI w''^2 from the link's own linear stiffness restricted to its bending block (K has
+    no axial-transverse coupling)."""
+    lay = model.layouts["beam"]
+    _, stiffness = beam_matrices(lay.shapes)
+    bending = np.array([label[0] not in "ua" for label in lay.shapes.labels])
+    q = s[lay.elastic] * bending
+    return 0.5 * q @ stiffness @ q
+
+
+@pytest.mark.parametrize("discretisation", [Fem(1), Fem(2), Fem(4), Ritz(2, 1), Ritz(1, 3)],
+                         ids=["fem1", "fem2", "fem4", "ritz2-1", "ritz1-3"])
+def test_projected_membrane_strain_does_not_lock(discretisation):
+    """A pinned link whose far end slides freely along the chord, bent statically into its first
+    pinned-pinned mode: the chord shortens freely, so once the axial coordinates minimise the energy
+    the projected membrane strain and the axial strain energy vanish. Exactly, not approximately:
+    P[w'^2/2] lies in the span of Su', so u' = -P[w'^2/2] is reachable. Checked to round-off: the
+    strain against 1e-12 of w'^2/2 (~4e-4), the axial energy against 1e-11 of the bending energy
+    (V and the bending energy are sums of ~1e2 terms each, cancelling to ~1e-14 relative). The old
+    pointwise strain u' + w'^2/2 on the same Gauss points cannot vanish: u' (piecewise constant,
+    or cosines of odd quarter waves) cannot represent cos^2(pi x / L); its minimum axial energy is
+    computed here by least squares and is a sizeable fraction of the bending energy (locking:
+    0.2 to 1.9 times it for these discretisations at W0 = 2 mm)."""
+    model = pinned_model(beam(discretisation))
+    n_elements = discretisation.n_elements if isinstance(discretisation, Fem) else 0
+    s = relax_axial(model, bent_state(model, n_elements), axial_indices(model))
+    assert np.abs(model.constraints(s, 0.0)).max() < 1e-15
+    tip = s[model.layouts["beam"].elastic] @ model.layouts["beam"].shapes.evaluate([LENGTH]).u[0]
+    assert tip < -0.1 * LENGTH * scale_shortening()    # the chord did shorten
+    scale = 0.5 * (math.pi * W0 / LENGTH) ** 2
+    for fraction in np.linspace(0.0, 1.0, 7):
+        strain = model.observable(f"beam.strain@{fraction}").value(s)
+        assert abs(strain) < 1e-12 * scale
+    bending = bending_energy(model, s)
+    assert abs(model.potential_energy(s) - bending) < 1e-11 * bending
+
+    # the pointwise strain's best axial field, on the assembler's own Gauss rule
+    lay = model.layouts["beam"]
+    x, weights = lay.shapes.quadrature
+    v = lay.shapes.evaluate(x)
+    q = s[lay.elastic]
+    root = np.sqrt(weights)
+    target = -0.5 * (v.dw @ q) ** 2
+    best = np.linalg.lstsq(root[:, None] * v.du, root * target, rcond=None)[0]
+    residual = v.du @ best - target
+    locked = 0.5 * EA * weights @ residual**2
+    assert locked > 0.05 * bending
+
+
+def test_clamped_chord_keeps_the_string_stiffening():
+    """Both ends pinned to the ground: the chord cannot shorten, bending stretches the bar. For
+    w = w0 sin(pi x / L) the axial equilibrium makes N = EA eps uniform and the end condition
+    int_0^L eps dx = u(L) - u(0) + int w'^2/2 dx = 0 + (pi w0 / L)^2 / 2 * L / 2 fixes it:
+    N = EA pi^2 w0^2 / (4 L^2) (the membrane of an extensible string), axial energy
+    N^2 L / (2 EA) = EA pi^4 w0^4 / (32 L^3), growing as w0^4 (the cubic stiffening of the bar).
+    Linear axial elements represent a uniform N exactly, so the only error is the Hermite
+    interpolation of the sine in int w'^2 (seed eq. 2.6), which converges at h^4 (w' interpolated to
+    O(h^3), its square integrated with superconvergent cancellation; observed order checked)."""
+    exact_force = EA * math.pi**2 * W0**2 / (4 * LENGTH**2)
+    exact_energy = EA * math.pi**4 * W0**4 / (32 * LENGTH**3)
+    counts = (2, 4, 8, 16)
+    errors = []
+    for n in counts:
+        model = pinned_model(beam(Fem(n)))
+        free = axial_indices(model, keep=lambda label: label != f"u{n}")  # u(L) = 0: immovable
+        s = relax_axial(model, bent_state(model, n), free)
+        forces = [EA * model.observable(f"beam.strain@{f}").value(s)
+                  for f in np.linspace(0.0, 1.0, 2 * n + 1)]
+        # uniform to round-off (equilibrium is exact in the element space)
+        assert np.ptp(forces) < 1e-10 * exact_force
+        energy = model.potential_energy(s) - bending_energy(model, s)
+        # the energy is N^2 L / (2 EA) with the same N, to round-off
+        assert energy == pytest.approx(forces[0] ** 2 * LENGTH / (2 * EA), rel=1e-10)
+        errors.append(abs(forces[0] - exact_force) / exact_force)
+    assert errors[-1] < 1e-5                      # 4e-6 observed at 16 elements
     assert observed_order(counts, errors) == pytest.approx(4.0, abs=0.3)
