@@ -379,3 +379,18 @@ def test_multiplier_error_estimates_match_true_errors(constant_runs):
         np.testing.assert_allclose(plain.multiplier_errors / true_errors, 1.0, atol=0.2)
         true_errors4 = np.abs(extrapolated.multipliers[:, None] - exact_mu[None, :]).min(axis=1)
         assert np.all(extrapolated.multiplier_errors >= true_errors4)  # conservative bound
+
+
+def test_periodic_response_is_linear_in_the_forcing():
+    """x[f1 + 2 f2] = x[f1] + 2 x[f2] to rounding (times cond(I - Phi)) at any N: the scheme is linear."""
+    functions, _ = manufactured_functions()
+    base = PeriodicSystem.from_functions(TWO_PI, *functions, n_steps=64)
+    rng = np.random.default_rng(5)
+    f1, f2 = rng.normal(size=base.f.shape), rng.normal(size=base.f.shape)
+    f1[-1], f2[-1] = f1[0], f2[0]
+    x1, x2, x12 = (
+        periodic.steady_state(PeriodicSystem(TWO_PI, base.M, base.C, base.K, f), estimate_error=False)
+        for f in (f1, f2, f1 + 2.0 * f2)
+    )
+    bound = 1e3 * np.finfo(float).eps * x12.condition_number * np.abs(x12.x).max()
+    np.testing.assert_allclose(x12.x, x1.x + 2.0 * x2.x, rtol=0, atol=bound)
