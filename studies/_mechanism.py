@@ -67,8 +67,6 @@ class MechanismProblem:
 
     def __post_init__(self) -> None:
         mechanism = self.mechanism()
-        if not mechanism.drives or not hasattr(mechanism.drives[0], "rate"):
-            raise ValueError(f"scene {self.name!r}: studies need a drive with a rate (crank speed)")
         spec = mechanism.to_spec()
         for path in self.parameter_paths:
             try:
@@ -94,8 +92,10 @@ class MechanismProblem:
         base = _cached(_mechanisms, self.text, lambda: mechanisms.loads(self.text, source=f"scene {self.name!r}"))
         changes = {}
         for key, value in (values or {}).items():
-            path = "drive.rate" if key == SPEED else key
-            changes[path] = int(round(value)) if path.split(".")[-1] in _INTEGER_KEYS else value
+            if key == SPEED:
+                changes.update(_speed_changes(base, value))
+            else:
+                changes[key] = int(round(value)) if key.split(".")[-1] in _INTEGER_KEYS else value
         if not changes:
             return base
         return _cached(_mechanisms, (self.text, tuple(sorted(changes.items()))),
@@ -104,7 +104,7 @@ class MechanismProblem:
     @property
     def parameters(self) -> dict[str, float]:
         spec = self.mechanism().to_spec()
-        values = {SPEED: float(self.mechanism().drives[0].rate)}
+        values = {SPEED: _speed(self.mechanism())}
         values.update({path: float(_get_path(spec, path)) for path in self.parameter_paths})
         return values
 
@@ -129,7 +129,8 @@ class MechanismProblem:
         mechanism = self.mechanism(others)
         drive = mechanism.drives[0]
         speed = params[SPEED]
-        constant_rate = type(drive).__name__ == "PrescribedDrive" and not drive.harmonics
+        constant_rate = (type(drive).__name__ == "PrescribedDrive" and not drive.harmonics
+                         and len(mechanism.drives) == 1)
         if constant_rate and speed * drive.rate > 0:
             family = _cached(_families, (self.text, tuple(sorted(others.items())), n_steps, self.observable_specs),
                              lambda: linearize.speed_family(mechanism, n_steps=n_steps,
@@ -222,11 +223,41 @@ class MechanismProblem:
         return outlines, float(magnification)
 
 
+def _speed(mechanism) -> float:
+    """The studies' ``speed`` of a mechanism: the fundamental angular frequency ``2 pi / period`` of its
+    periodic motion, rad/s (the crank speed of a crank turning once per period)."""
+    return 2.0 * math.pi / mechanism.period
+
+
+def _speed_changes(mechanism, speed: float) -> dict[str, float]:
+    """Scene parameter changes that make the motion's fundamental frequency ``speed``: every drive's
+    rate scaled in proportion (so the drives still turn whole turns per period) and an explicit
+    period scaled inversely; for oscillating drives (rate 0) the period alone."""
+    if not (math.isfinite(speed) and speed > 0):
+        raise ValueError(f"parameter 'speed': expected a positive number (rad/s), got {speed!r}")
+    factor = speed / _speed(mechanism)
+    spec = mechanism.to_spec()
+    changes: dict[str, float] = {}
+    if "drive" in spec:
+        if mechanism.drives[0].rate:
+            changes["drive.rate"] = mechanism.drives[0].rate * factor
+    else:
+        for drive in mechanism.drives:
+            if drive.rate:
+                changes[f"drives.{drive.joint}.rate"] = drive.rate * factor
+    if "period" in spec or not changes:
+        changes["period"] = mechanism.period / factor
+    return changes
+
+
 def _linear(lin: Any, system: Any, context: Any) -> Linear:
-    """A study's ``Linear`` from a ``linearize`` result (gains and units of its observables)."""
+    """A study's ``Linear`` from a ``linearize`` result (gains and units of its observables). The
+    crank angle is the phase ``2 pi t / T`` (the drive angle less its offset for a crank turning once
+    per period; the phase of an oscillating drive)."""
     model = lin.nominal.model
     gains = np.ascontiguousarray(np.stack([lin.observable_maps[s] for s in lin.observables], axis=1))
-    return Linear(system=system, crank_angle=np.asarray(lin.crank_angle, dtype=float),
+    phase = 2.0 * math.pi * np.asarray(system.t) / system.period
+    return Linear(system=system, crank_angle=phase,
                   labels=tuple(lin.labels), observables=tuple(lin.observables),
                   units=tuple(model.observable(s).unit for s in lin.observables), gains=gains,
                   context=context)

@@ -38,8 +38,8 @@ class StudiesError(ValueError):
 
 def default_table(nominal_speed: float) -> dict[str, Any]:
     """The studies run for a scene without a ``[studies]`` table: steady state, a 100-point speed
-    sweep and a 40-speed Campbell diagram from 0.2 to 4 times the scene's speed, a 3-period
-    nonlinear check."""
+    sweep and a 40-speed Campbell diagram from 0.2 to 4 times the scene's speed (``2 pi / period``,
+    rad/s), a 3-period nonlinear check."""
     low, high = 0.2 * abs(nominal_speed), 4.0 * abs(nominal_speed)
     return {"steady_state": {}, "sweep": {"parameter": SPEED, "start": low, "stop": high, "count": 100},
             "campbell": {"start": low, "stop": high, "count": 40}, "nonlinear_check": {"n_periods": 3}}
@@ -196,15 +196,14 @@ def parameters_needed(studies: Mapping[str, Mapping[str, Any]]) -> tuple[str, ..
 
 
 def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, *, executor: Any = None,
-             progress: bool = False) -> dict[str, Any]:
-    """Run the declared ``studies`` on ``problem`` into the HDF5 file ``path``; returns the results.
+             progress: bool = False) -> tuple[dict[str, Any], dict[str, str]]:
+    """Run the declared ``studies`` on ``problem`` into the HDF5 file ``path``; returns
+    ``(results, failures)``: ``{kind: result}`` and ``{kind: message}`` of studies that raised.
 
     Grid studies resume an interrupted run; the other studies are skipped when the file already holds
     a complete result for the same request, and recomputed otherwise.
     """
-    from . import _studies
-
-    results = {}
+    results, failures = {}, {}
     with open_file(path) as handle:
         for kind, options in studies.items():
             request = encode({"options": options, "scene": problem.text})
@@ -217,32 +216,45 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
                     continue
                 del handle[kind]
             logger.info("running %s", kind)
-            if kind == "steady_state":
-                result = _studies.steady_state(problem, options["values"], n_steps=options["n_steps"])
-            elif kind == "sweep":
-                result = _studies.sweep(problem, options["parameter"], options["values"],
-                                        n_steps=options["n_steps"], max_harmonic=options["max_harmonic"],
-                                        executor=executor, out=handle, name=kind, progress=progress)
-            elif kind == "campbell":
-                result = _studies.campbell(problem, options["speeds"], n_steps=options["n_steps"],
-                                           frozen_samples=options["frozen_samples"],
-                                           max_harmonic=options["max_harmonic"], executor=executor,
-                                           out=handle, name=kind, progress=progress)
-            elif kind == "stability_chart":
-                result = _studies.stability_chart(problem, options["first"], options["second"],
-                                                  n_steps=options["n_steps"], executor=executor, out=handle,
-                                                  name=kind, progress=progress)
-            elif kind == "nonlinear_check":
-                result = _studies.nonlinear_check(
-                    problem, options["values"], n_steps=options["n_steps"], n_periods=options["n_periods"],
-                    from_rest=options["from_rest"], max_periods_from_rest=options["max_periods_from_rest"],
-                    steady_tol=options["steady_tol"])
-            else:
-                result = _studies.error_cost(problem, options["values"], n_steps=options["n_steps"],
-                                             resolution=options["resolution"],
-                                             reference_steps=options["reference_steps"])
+            try:
+                result = _run_study(problem, kind, options, handle, executor, progress)
+            except (ArithmeticError, RuntimeError, np.linalg.LinAlgError) as error:
+                # a study that cannot be computed (a nonlinear run whose Newton iteration fails) is
+                # reported and the others go on; grid points fail one by one inside the grid. Bad
+                # input (ValueError) still stops the run with exit code 2.
+                logger.error("%s failed: %s: %s", kind, type(error).__name__, error)
+                failures[kind] = f"{type(error).__name__}: {error}"
+                continue
             if not grid:
                 result.to_hdf5(handle.create_group(kind))
             handle[kind].attrs["request"] = request
             results[kind] = result
-    return results
+    return results, failures
+
+
+def _run_study(problem: Any, kind: str, options: Mapping[str, Any], handle: Any, executor: Any,
+               progress: bool) -> Any:
+    from . import _studies
+
+    if kind == "steady_state":
+        return _studies.steady_state(problem, options["values"], n_steps=options["n_steps"])
+    if kind == "sweep":
+        return _studies.sweep(problem, options["parameter"], options["values"], n_steps=options["n_steps"],
+                              max_harmonic=options["max_harmonic"], executor=executor, out=handle,
+                              name=kind, progress=progress)
+    if kind == "campbell":
+        return _studies.campbell(problem, options["speeds"], n_steps=options["n_steps"],
+                                 frozen_samples=options["frozen_samples"],
+                                 max_harmonic=options["max_harmonic"], executor=executor, out=handle,
+                                 name=kind, progress=progress)
+    if kind == "stability_chart":
+        return _studies.stability_chart(problem, options["first"], options["second"],
+                                        n_steps=options["n_steps"], executor=executor, out=handle,
+                                        name=kind, progress=progress)
+    if kind == "nonlinear_check":
+        return _studies.nonlinear_check(
+            problem, options["values"], n_steps=options["n_steps"], n_periods=options["n_periods"],
+            from_rest=options["from_rest"], max_periods_from_rest=options["max_periods_from_rest"],
+            steady_tol=options["steady_tol"])
+    return _studies.error_cost(problem, options["values"], n_steps=options["n_steps"],
+                               resolution=options["resolution"], reference_steps=options["reference_steps"])

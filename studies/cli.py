@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import sys
 from pathlib import Path
 from typing import Any, Sequence
@@ -109,7 +110,8 @@ def load_scene(scene: str) -> tuple[Any, dict[str, Any]]:
     if path.suffix == ".toml" and not path.is_file():
         raise UsageError(f"scene file {scene!r} does not exist")
     mechanism = mechanisms.load(scene)
-    table = dict(mechanism.studies) or default_table(mechanism.drives[0].rate)
+    # the studies' speed is the motion's fundamental frequency 2 pi / period (the crank speed)
+    table = dict(mechanism.studies) or default_table(2.0 * math.pi / mechanism.period)
     common, declared = plan(table)
     problem = MechanismProblem(name=mechanism.name, text=mechanism.to_toml(),
                                parameter_paths=parameters_needed(declared),
@@ -148,7 +150,8 @@ def _run(args: argparse.Namespace) -> int:
     out = args.out or Path(f"{Path(args.scene).stem}.h5")
     executor, client = _executor(args)
     try:
-        results = run_plan(problem, declared, str(out), executor=executor, progress=not args.quiet)
+        results, failures = run_plan(problem, declared, str(out), executor=executor,
+                                     progress=not args.quiet)
     finally:
         if client is not None:
             client.close()
@@ -156,8 +159,11 @@ def _run(args: argparse.Namespace) -> int:
             executor.shutdown()
     for kind, result in results.items():
         print(f"{kind:16s} {_summary(result)}")
+    for kind, message in failures.items():
+        print(f"{kind:16s} FAILED: {message}")
     print(f"wrote {out}")
-    return 0
+    # exit code 1: the input was fine but a study could not be computed
+    return 1 if failures else 0
 
 
 def _summary(result: Any) -> str:

@@ -170,3 +170,28 @@ def test_dask_scheduler_from_the_command_line(mathieu_run, tmp_path):
     serial, remote = studies.load(mathieu_run), studies.load(path)
     for kind in ("sweep", "campbell", "stability_chart"):
         assert_same(serial[kind], remote[kind])
+
+
+def test_a_study_that_cannot_be_computed_is_reported_and_the_rest_written(tmp_path, monkeypatch, capsys):
+    from studies import _studies
+
+    def fails(*args, **kwargs):
+        raise RuntimeError("Newton's method did not converge")
+
+    monkeypatch.setattr(_studies, "nonlinear_check", fails)
+    path = tmp_path / "m.h5"
+    assert main(["run", "mathieu", "--out", str(path), "--quiet"]) == 1
+    assert "nonlinear_check  FAILED: RuntimeError: Newton's method" in capsys.readouterr().out
+    assert "nonlinear_check" not in studies.load(path) and "sweep" in studies.load(path)
+
+
+def test_speed_of_a_scene_with_oscillating_drives_is_its_fundamental_frequency():
+    import math
+
+    from studies import MechanismProblem
+
+    problem = MechanismProblem.from_scene("two_link_arm")
+    period = mechanisms.load("two_link_arm").period
+    assert problem.parameters["speed"] == pytest.approx(2 * math.pi / period, rel=1e-15)
+    linear = problem.linearize({"speed": 4 * math.pi / period}, n_steps=8, context=False)
+    assert linear.system.period == pytest.approx(period / 2, rel=1e-15)
