@@ -505,6 +505,29 @@ def test_observables_values_and_gradients():
                       <= 1e-7 * np.max(np.abs(numeric)) + roundoff[0])
 
 
+def test_ritz_strain_observable_is_the_projection_onto_the_axial_mode():
+    """With one axial Ritz mode Y = sin(pi x / 2L) the projected membrane strain is
+    Y'(x) (a + int Y' w'^2/2 / int Y'^2), the integrals by scipy's adaptive quad (independent of the
+    assembler's Gauss rule); its gradient against central differences as above."""
+    model = assemble(fourbar(Ritz(2, 1)))
+    s, _ = random_state(model, np.random.default_rng(5), q_scale=3e-2)
+    shapes = model.layouts["coupler"].shapes
+    q = s[model.layouts["coupler"].elastic]
+    axial_slope = lambda x: shapes.evaluate([x]).du[0, 2]
+    slope = lambda x: shapes.evaluate([x]).dw[0] @ q
+    gram = quad(lambda x: axial_slope(x) ** 2, 0.0, L2, epsabs=0.0, epsrel=1e-13)[0]
+    projected = quad(lambda x: axial_slope(x) * slope(x) ** 2 / 2, 0.0, L2, epsabs=0.0,
+                     epsrel=1e-13)[0] / gram
+    strain = model.observable("coupler.strain@0.7")
+    assert strain.value(s) == pytest.approx(axial_slope(0.7 * L2) * (q[2] + projected), rel=1e-11)
+    scales = np.ones(model.n_coords)
+    scales[model.elastic_index] = 1e-3
+    numeric, roundoff = _central_jacobian(lambda x: np.array([strain.value(x)]), s, scales,
+                                          rel_step=1e-6)
+    assert np.all(np.abs(strain.gradient(s) - numeric[0])
+                  <= 1e-7 * np.max(np.abs(numeric)) + roundoff[0])
+
+
 def test_clamped_free_deflection_is_measured_from_the_chord():
     """A clamped-free arm bent into its first mode: the tip lies on the chord (zero deflection),
     midspan lies off it by the closed-form distance from the chord."""
