@@ -23,10 +23,10 @@ the L2 projection onto the span of the link's axial strain functions ``Su'_i`` (
 pointwise ``u' + w'^2/2`` would lock (``u'`` cannot represent ``w'^2/2``, so bending would stretch
 the chord). At ``q = 0`` under an axial strain ``Su' p`` the bending Hessian of this energy is
 ``int N Sw'^T Sw' dx``, the usual geometric stiffness. A link with geometric stiffening but no axial
-coordinates has nothing to project onto: it falls back to seed eq. 2.13 (``K0``), with a warning. Damping acts on the elastic coordinates
-through a constant matrix ``C0``: Rayleigh ``alpha M_ee + beta K_ee`` (``K_ee`` the linear stiffness,
-so Kelvin-Voigt ``beta`` damps bending and axial strain), modal ratios of the link's own modes
-(frame held fixed), or the explicit matrix.
+coordinates has nothing to project onto: it falls back to seed eq. 2.13 (``K0``), with a warning.
+Damping acts on the elastic coordinates through a constant matrix ``C0``: Rayleigh ``alpha M_ee +
+beta K_ee`` (``K_ee`` the linear stiffness, so Kelvin-Voigt ``beta`` damps bending and axial
+strain), modal ratios of the link's own modes (frame held fixed), or the explicit matrix.
 
 Constraints: a revolute joint makes two rows ``r_a - r_b = 0``, a slider one row
 ``n . (r - origin) = 0``, a prescribed drive one row: the material angle of ``link_b`` at the joint
@@ -59,7 +59,8 @@ logger = logging.getLogger(__name__)
 class LinkLayout:
     """Where a link lives in ``s``: coordinates ``offset .. offset + 3 + n_elastic``; ``shapes`` is
     ``None`` for a rigid link. ``stiffening`` tells whether its strain is the projected membrane
-    strain; ``membrane`` is then its projection ``R`` (n_elastic, n_gauss) (``membrane_projection``)."""
+    strain; ``membrane`` is then its projection ``R`` (n_elastic, n_gauss)
+    (``membrane_projection``)."""
 
     link: RigidLink | ElasticLink
     offset: int

@@ -31,6 +31,7 @@ bending would stretch the chord and over-stiffen the link (membrane locking).
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -38,6 +39,8 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ._parts import ElasticLink, Fem, MechanismError, Ritz, UserShapes
+
+logger = logging.getLogger(__name__)
 
 _BOUNDARIES = ("pinned-pinned", "clamped-free")
 _QUADRATURE_RTOL = 1e-14
@@ -169,6 +172,11 @@ def membrane_projection(shapes: BeamShapes) -> np.ndarray | None:
     if sigma.size == 0 or sigma[0] == 0.0:
         return None
     rank = int(np.sum(sigma > 1e-10 * sigma[0]))
+    n_axial = int(np.sum(np.any(shapes.evaluate(x).du != 0.0, axis=0)))
+    if rank < n_axial:
+        logger.warning("link %r: its %d axial strain functions span only %d dimensions (singular "
+                       "values below 1e-10 of the largest); the membrane strain is projected onto "
+                       "that span", shapes.link.name, n_axial, rank)
     return (vt[:rank].T / sigma[:rank]) @ (u[:, :rank].T * root[None, :])
 
 
@@ -268,9 +276,10 @@ def _quadrature_integrals(shapes: BeamShapes, n: int) -> np.ndarray:
     features = np.hstack([v.u, v.du, v.w, v.dw, v.ddw])
     gram = features.T @ (weights[:, None] * features)
     cubic = np.einsum("g,gk,gi,gj->kij", weights, v.du, v.dw, v.dw)
-    # Cauchy-Schwarz: |int u_k' w_i' w_j'| <= (int u_k'^2 w_i'^2)^1/2 (int w_j'^2)^1/2 (smooth integrals)
-    cubic_bound = np.sqrt(np.einsum("g,gk,gi->ki", weights, v.du**2, v.dw**2))[:, :, None] * np.sqrt(
-        weights @ v.dw**2)[None, None, :]
+    # Cauchy-Schwarz: |int u_k' w_i' w_j'| <= (int u_k'^2 w_i'^2)^1/2 (int w_j'^2)^1/2, a bound made
+    # of smooth integrals (converging with the rule, unlike int |u_k' w_i' w_j'|)
+    cubic_bound = (np.sqrt(np.einsum("g,gk,gi->ki", weights, v.du**2, v.dw**2))[:, :, None]
+                   * np.sqrt(weights @ v.dw**2)[None, None, :])
     # scale each integral by its Cauchy-Schwarz bound so that small entries are held to 1e-14 too
     diag = np.sqrt(np.abs(np.diag(gram)))
     scale = np.outer(diag, diag) + np.finfo(float).tiny

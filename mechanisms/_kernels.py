@@ -62,12 +62,13 @@ def _scratch(table_nnz):
 
 
 @numba.njit(cache=True)
-def _max_group(sp_int):
+def _group_scratch(sp_int):
+    """Per-point arrays (slope, eps, kappa, c) for the largest strain-point group."""
     n = 1
     for i in range(sp_int.shape[0]):
         if sp_int[i, 4] > n:
             n = sp_int[i, 4]
-    return n
+    return np.empty(n), np.empty(n), np.empty(n), np.empty(n)
 
 
 @numba.njit(cache=True)
@@ -239,9 +240,7 @@ def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, 
                                                            iptr, shp, idx, lx, ly, cols)
         for a in range(3 + nnz):
             out[cols[a]] += m * (lx[a] * vx + ly[a] * vy)
-    size_max = _max_group(sp_int)
-    slope, eps, kappa, coef = (np.empty(size_max), np.empty(size_max), np.empty(size_max),
-                               np.empty(size_max))
+    slope, eps, kappa, coef = _group_scratch(sp_int)
     i0 = 0
     while i0 < sp_int.shape[0]:
         # -dPi/dq, eq. (5)
@@ -295,9 +294,7 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
                 out_s[ca, ck] += m * wt * wt * (lx[a] * lx[3 + k] + ly[a] * ly[3 + k])
                 out_v[ca, ck] += m * (-2.0 * wt) * (-lx[a] * ly[3 + k] + ly[a] * lx[3 + k])
         _add_d(out_s, m, nnz, apx, apy, lx, ly, cols, vx, vy)
-    size_max = _max_group(sp_int)
-    slope, eps, kappa, coef = (np.empty(size_max), np.empty(size_max), np.empty(size_max),
-                               np.empty(size_max))
+    slope, eps, kappa, coef = _group_scratch(sp_int)
     grad = np.empty(max(_max_local(sp_int[:, 1]) - 3, 1))
     i0 = 0
     while i0 < sp_int.shape[0]:
@@ -416,9 +413,7 @@ def potential_energy(s, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0):
         m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
         apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
         energy -= m * (gx * (s[off] + apx) + gy * (s[off + 1] + apy))
-    size_max = _max_group(sp_int)
-    slope, eps, kappa, coef = (np.empty(size_max), np.empty(size_max), np.empty(size_max),
-                               np.empty(size_max))
+    slope, eps, kappa, coef = _group_scratch(sp_int)
     i0 = 0
     while i0 < sp_int.shape[0]:
         size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)

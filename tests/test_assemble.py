@@ -137,8 +137,9 @@ def _energy_pieces(kind):
     """The four-bar's energies, split into additive pieces so that the variants share the work:
     kinetic (seed eq. 2.12 plus the rigid bars and the point mass), rotary kinetic energy of the
     coupler's sections, potential (gravity + seed eq. 2.13), the extra strain energy of geometric
-    stiffening EA/2 int (eps^2 - u'^2) with the projected membrane strain eps = u' + P[w'^2/2], P the
-    L2 projection onto the axial strain function (``_assemble``), the Rayleigh damping force and the constraints.
+    stiffening EA/2 int (eps^2 - u'^2) with the projected membrane strain eps = u' + P[w'^2/2],
+    P the L2 projection onto the axial strain function (``_assemble``), the Rayleigh damping force
+    and the constraints.
     ``kind`` is the coupler's discretisation: "ritz" (2 bending modes, 1 axial mode; elastic
     coordinates q1, q2, p1) or "fem1" (one Hermite element, seed eq. 2.5-2.8, pinned ends: the
     coordinates r0, u1, r1 stand in the places of q1, q2, p1)."""
@@ -275,10 +276,11 @@ def derived(request):
 def test_assembler_matches_sympy_lagrange(derived):
     """Mass matrix, force vector and constraint Jacobian of the thesis four-bar against the sympy
     derivation, to 1e-10 relative. The integrals are exact in sympy; the assembler's Gauss rule is
-    exact for the Hermite element and converged to ~1e-14 for the Ritz modes; the sympy side evaluates with float64 after lambdify, so agreement is
-    limited by round-off (~1e-14 times the condition of the sums), far below 1e-10. Each block is
-    compared on its own scale: the velocity part of Q (Q(s, s') - Q(s, 0)) is ~1e4 times smaller than
-    the elastic part, and the gravity part (q = 0, s' = 0) smaller still."""
+    exact for the Hermite element and converged to ~1e-14 for the Ritz modes; the sympy side
+    evaluates with float64 after lambdify, so agreement is limited by round-off (~1e-14 times the condition of
+    the sums), far below 1e-10. Each block is compared on its own scale: the velocity part of Q
+    (Q(s, s') - Q(s, 0)) is ~1e4 times smaller than the elastic part, and the gravity part (q = 0,
+    s' = 0) smaller still."""
     model, (mass_f, forces_f, jac_f, phi_f) = derived
     elastic = ("b1", "b2", "a1") if isinstance(model.layouts["coupler"].link.discretisation,
                                                Ritz) else ("r0", "u1", "r1")
@@ -475,8 +477,9 @@ def test_slider_crank_constraints_vanish_on_the_closed_form_configuration():
 def test_observables_values_and_gradients():
     """Pinned-pinned coupler: deflection@f is w(fL) (the frame is the chord), moment is EI w'',
     strain u' + the element average of w'^2/2 (the projected membrane strain of linear axial
-    elements; the average by scipy's adaptive quad, not the Gauss rule); gradients against central differences (the values are at most quadratic
-    in q and the step is 1e-9, so differences agree to ~1e-7 relative)."""
+    elements; the average by scipy's adaptive quad, not the Gauss rule); gradients against central differences
+    (the values are at most quadratic in q and the step is 1e-9, so differences agree to ~1e-7
+    relative)."""
     model = assemble(fourbar(Fem(4)))
     rng = np.random.default_rng(3)
     s, _ = random_state(model, rng)

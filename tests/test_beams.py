@@ -6,6 +6,7 @@ string force when it may not)."""
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -357,3 +358,31 @@ def test_clamped_chord_keeps_the_string_stiffening():
         errors.append(abs(forces[0] - exact_force) / exact_force)
     assert errors[-1] < 1e-5                      # 4e-6 observed at 16 elements
     assert observed_order(counts, errors) == pytest.approx(4.0, abs=0.3)
+
+
+def test_stiffening_without_axial_coordinates_falls_back_and_dependent_axial_shapes_are_flagged(
+        caplog):
+    """No axial coordinate (Ritz n_axial = 0): nothing carries a membrane strain, so the link keeps
+    seed eq. 2.13 (linear forces -K q, K the link's own stiffness) and says so. Two identical user
+    axial shapes span one dimension: the projection uses that span and the rank loss is logged."""
+    with caplog.at_level(logging.WARNING, logger="mechanisms"):
+        model = pinned_model(beam(Ritz(2, 0)))
+    assert "falls back to seed eq. 2.13" in caplog.text
+    lay = model.layouts["beam"]
+    assert not lay.stiffening
+    s = bent_state(model, 0)
+    _, stiffness = beam_matrices(lay.shapes)
+    zero = np.zeros(model.n_coords)
+    forces = model.forces(s, zero, 0.0)[lay.elastic]
+    assert forces == pytest.approx(-stiffness @ s[lay.elastic], rel=1e-12)
+
+    sine = lambda x, length: (np.sin(math.pi * x / length), math.pi / length * np.cos(
+        math.pi * x / length), -(math.pi / length) ** 2 * np.sin(math.pi * x / length))
+    ramp = lambda x, length: (x / length, 0 * x + 1 / length, 0 * x)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="mechanisms"):
+        model = pinned_model(beam(UserShapes((sine,), (ramp, ramp))))
+    assert "2 axial strain functions span only 1 dimensions" in caplog.text
+    # the membrane strain of a bent link with free axial coordinates still relaxes to zero
+    s = relax_axial(model, bent_state(model, 0), axial_indices(model)[:1])
+    assert abs(model.observable("beam.strain@0.5").value(s)) < 1e-12 * scale_shortening()
