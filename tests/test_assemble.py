@@ -499,13 +499,16 @@ def test_observables_values_and_gradients():
     assert strain.value(s) == pytest.approx(values.du[0] @ q + 0.5 * mean_square, rel=1e-11)
     assert model.observable("rocker.angle").value(s) == s[model.link_coordinates("rocker")][2]
     for spec in ("coupler.deflection", "coupler.strain@0.8", "coupler.moment@0.3", "rocker.angle"):
-        obs = model.observable(spec)
-        scales = np.ones(model.n_coords)
-        scales[model.elastic_index] = 1e-3
-        numeric, roundoff = _central_jacobian(lambda x: np.array([obs.value(x)]), s, scales,
-                                              rel_step=1e-6)
-        assert np.all(np.abs(obs.gradient(s) - numeric[0])
-                      <= 1e-7 * np.max(np.abs(numeric)) + roundoff[0])
+        _assert_gradient_matches_differences(model, model.observable(spec), s)
+
+
+def _assert_gradient_matches_differences(model, obs, s):
+    scales = np.ones(model.n_coords)
+    scales[model.elastic_index] = 1e-3
+    numeric, roundoff = _central_jacobian(lambda x: np.array([obs.value(x)]), s, scales,
+                                          rel_step=1e-6)
+    assert np.all(np.abs(obs.gradient(s) - numeric[0])
+                  <= 1e-7 * np.max(np.abs(numeric)) + roundoff[0])
 
 
 def test_ritz_strain_observable_is_the_projection_onto_the_axial_mode():
@@ -523,12 +526,7 @@ def test_ritz_strain_observable_is_the_projection_onto_the_axial_mode():
                      epsrel=1e-13)[0] / gram
     strain = model.observable("coupler.strain@0.7")
     assert strain.value(s) == pytest.approx(axial_slope(0.7 * L2) * (q[2] + projected), rel=1e-11)
-    scales = np.ones(model.n_coords)
-    scales[model.elastic_index] = 1e-3
-    numeric, roundoff = _central_jacobian(lambda x: np.array([strain.value(x)]), s, scales,
-                                          rel_step=1e-6)
-    assert np.all(np.abs(strain.gradient(s) - numeric[0])
-                  <= 1e-7 * np.max(np.abs(numeric)) + roundoff[0])
+    _assert_gradient_matches_differences(model, strain, s)
 
 
 def test_clamped_free_deflection_is_measured_from_the_chord():
