@@ -1,7 +1,9 @@
 """Geometric stiffness of axially loaded elastic links along the nominal rigid motion.
 
-With geometric stiffening the strain of a link is ``u' + w'^2/2`` and its strain energy
-``1/2 int EA (u' + w'^2/2)^2 dx`` contributes ``int N w' dw' dx`` to the bending forces, ``N = EA eps``
+With geometric stiffening the membrane strain of a link is ``eps = u' + P[w'^2/2]`` (``P`` the
+projection onto the axial-strain functions, which keeps the discretised link free of membrane
+locking; see ``mechanisms._beams``) and its strain energy ``1/2 int EA eps^2 dx`` contributes
+``int N w' dw' dx`` to the bending forces at first order, ``N = EA eps``
 the axial force. About a rigid nominal motion the elastic coordinates are zero, so a naive
 linearisation sees ``N = 0``. The axial force is carried, to leading order, quasi-statically by the
 stiff axial deformation; we take it from the rigid inverse dynamics instead (joint reactions from the

@@ -241,7 +241,7 @@ class ElasticLink:
     discretisation: Discretisation = Fem(1)
     boundary: str = "pinned-pinned"  # or "clamped-free"
     axial: bool = True
-    geometric_stiffening: bool = True  # strain u' + w'^2 / 2; False keeps the seed's eq. 2.13 exactly
+    geometric_stiffening: bool = True  # strain u' + P[w'^2/2] (projected, see _beams); False: seed eq. 2.13
     rotary_inertia: bool = False
     damping: Damping = None
 
