@@ -76,13 +76,13 @@ class LinearizedMechanism:
 
 
 def default_observables(mechanism) -> tuple[str, ...]:
-    """Midspan deflection of each pinned-pinned elastic link, tip deflection of each clamped-free
-    one (relative to the chord)."""
+    """Midspan deflection (from the chord) of each pinned-pinned elastic link, tip deflection (from
+    the root tangent) of each clamped-free one."""
     specs = []
     for link in mechanism.links:
         if isinstance(link, mechanisms.ElasticLink):
-            where = "0.5" if link.boundary == "pinned-pinned" else "1.0"
-            specs.append(f"{link.name}.deflection@{where}")
+            specs.append(f"{link.name}.deflection@0.5" if link.boundary == "pinned-pinned"
+                         else f"{link.name}.transverse@1.0")
     return tuple(specs)
 
 

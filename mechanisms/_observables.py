@@ -5,6 +5,9 @@ Specs (``link`` a link name, ``f`` a fraction of the link length in [0, 1], defa
 * ``"link.deflection@f"``: distance (m) of the material point at ``x = f L`` from the chord through
   the link's start and tip, positive on the frame's +y side. For a pinned-pinned link the frame is
   the chord frame and this is ``w(x)``; for a clamped-free link it is measured from the deformed chord.
+* ``"link.transverse@f"``: transverse displacement ``w(x)`` (m) in the link's frame: for a
+  pinned-pinned link the same as ``deflection``; for a clamped-free link (robot arms) the deflection
+  from the root tangent, so ``@1.0`` is the tip deflection.
 * ``"link.strain@f"``: membrane (neutral-axis) strain, 1: ``u'(x)``, or with geometric stiffening
   the projected membrane strain the strain energy uses, ``u'(x) + P[w'^2/2](x)`` (``_assemble``);
   for Hermite elements it is constant on an element, and at a node the element to the right is used.
@@ -19,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-_KINDS = {"deflection": "m", "strain": "1", "moment": "N m", "angle": "rad"}
+_KINDS = {"deflection": "m", "transverse": "m", "strain": "1", "moment": "N m", "angle": "rad"}
 
 
 @dataclass(frozen=True)
@@ -54,6 +57,8 @@ class LinkObservable:
             cx, cy = self.length + u_tip @ q, w_tip @ q
             px, py = self.x + u @ q, w @ q
             return float((cx * py - cy * px) / np.hypot(cx, cy))
+        if self.kind == "transverse":
+            return float(w @ q)
         if self.kind == "strain":
             if not self.membrane:
                 return float(du @ q)
@@ -76,6 +81,8 @@ class LinkObservable:
             d_cross = u_tip * py + cx * w - w_tip * px - cy * u
             d_norm = (cx * u_tip + cy * w_tip) / norm
             grad = d_cross / norm - cross * d_norm / norm**2
+        elif self.kind == "transverse":
+            grad = w.copy()
         elif self.kind == "strain":
             grad = du.copy()
             if self.membrane:

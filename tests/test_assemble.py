@@ -700,3 +700,31 @@ def test_stiffened_nonlinear_run_matches_the_linear_steady_state(n_elements):
         peaks.append(np.abs(run.observables[spec][-(steps + 1):]).max())
     assert abs(peaks[1] - peaks[0]) / 3 < 2e-3 * linear_peak
     assert peaks[1] == pytest.approx(linear_peak, rel=0.02)
+
+
+def test_transverse_observable_of_a_clamped_free_arm_is_the_tip_deflection_from_the_root_tangent():
+    """On the two-link arm, `transverse@1.0` must equal the distance of the tip (from the model's own
+    world position of the link's end pin, an independent route through the constraint kernel) from
+    the root tangent line, while `deflection@1.0` (from the chord) is zero by definition."""
+    import mechanisms
+
+    mechanism = mechanisms.load("two_link_arm")
+    model = assemble(mechanism)
+    rng = np.random.default_rng(5)
+    s, _ = random_state(model, rng)
+    name = next(link.name for link in mechanism.links if getattr(link, "boundary", "")
+                == "clamped-free")
+    lay = model.layouts[name]
+    x, y, theta = s[lay.offset:lay.offset + 3]
+    q = s[lay.elastic]
+    tip = lay.shapes.evaluate([lay.link.length])
+    # World tip position r = R + A (L + u, w): its distance from the root tangent line.
+    local = np.array([lay.link.length + tip.u[0] @ q, tip.w[0] @ q])
+    c, sn = np.cos(theta), np.sin(theta)
+    world = np.array([x, y]) + np.array([[c, -sn], [sn, c]]) @ local
+    offset = world - np.array([x, y])
+    distance = -sn * offset[0] + c * offset[1]
+    transverse = model.observable(f"{name}.transverse@1.0")
+    assert transverse.value(s) == pytest.approx(distance, rel=1e-12)
+    assert model.observable(f"{name}.deflection@1.0").value(s) == pytest.approx(0.0, abs=1e-15)
+    _assert_gradient_matches_differences(model, transverse, s)
