@@ -264,14 +264,22 @@ def _newton_update(LU, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, ga
 
 
 @numba.njit(cache=True)
-def _predict(q, v, a, sddot, h, alpha_m, alpha_f, beta, gamma, qhat, vhat):
-    """The parts of (GA2), (GA3) known at ``t_n``, with ``a_{n+1}`` from (GA1) split into its known
-    part ``(alpha_f sddot_n - alpha_m a_n) / (1 - alpha_m)`` and
-    ``(1 - alpha_f) / (1 - alpha_m) sddot_{n+1}``."""
+def _start_step(q, v, a, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, alpha_m, alpha_f,
+                beta, gamma, beta_p, gamma_p, qhat, vhat, sddot, lam, q_new, v_new):
+    """Predictor of the step from ``t_n``: the parts of (GA2), (GA3) known at ``t_n`` (``a_{n+1}``
+    from (GA1) split into its known part ``(alpha_f sddot_n - alpha_m a_n) / (1 - alpha_m)`` and
+    ``(1 - alpha_f) / (1 - alpha_m) sddot_{n+1}``), the guess of ``sddot_{n+1}, lam_{n+1}`` (linear
+    extrapolation from ``t_{n-1}, t_n``, or the values at ``t_n``) and the positions and velocities
+    ``q = qhat + beta' sddot``, ``v = vhat + gamma' sddot`` it implies."""
     for i in range(q.shape[0]):
-        a_known = (alpha_f * sddot[i] - alpha_m * a[i]) / (1.0 - alpha_m)
+        a_known = (alpha_f * sddot_n[i] - alpha_m * a[i]) / (1.0 - alpha_m)
         qhat[i] = q[i] + h * v[i] + h * h * ((0.5 - beta) * a[i] + beta * a_known)
         vhat[i] = v[i] + h * ((1.0 - gamma) * a[i] + gamma * a_known)
+        sddot[i] = 2.0 * sddot_n[i] - sddot_prev[i] if extrapolate else sddot_n[i]
+        q_new[i] = qhat[i] + beta_p * sddot[i]
+        v_new[i] = vhat[i] + gamma_p * sddot[i]
+    for k in range(lam.shape[0]):
+        lam[k] = 2.0 * lam_n[k] - lam_prev[k] if extrapolate else lam_n[k]
 
 
 @numba.njit(cache=True)
@@ -598,8 +606,8 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
     residual[0] = np.max(np.abs(model.constraints(q0, t0)), initial=0.0)
 
     a = sddot0.copy()          # alpha acceleration a_0 = sddot_0 (Arnold & Bruls 2007, sec. 4)
-    q, v = q0.copy(), v0.copy()
-    sddot, lam = sddot0.copy(), lam0.copy()
+    # the Newton iterates (updated in place); the accepted state of step k is S, V, A, L[k]
+    q, v, sddot, lam = np.empty(n), np.empty(n), np.empty(n), np.empty(r)
     qhat, vhat = np.empty(n), np.empty(n)
     rhs = np.empty(n + r)
     G = np.empty((n + r, n + r))
@@ -612,22 +620,17 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
     status, message, done = 0, "", 0
     for step in range(1, n_steps + 1):
         t = t_grid[step]
-        sddot_old = sddot.copy()
-        _predict(q, v, a, sddot, h, alpha_m, alpha_f, beta, gamma, qhat, vhat)
         # predictors: linear extrapolation of sddot and lam (an O(h^2) guess, about one Newton
         # iteration fewer per step than sddot_{n+1} = sddot_n); if Newton fails from it (it can,
         # when the start-up transient of very stiff coordinates makes the extrapolation wild),
         # the step is retried from the constant predictor with a freshly evaluated matrix
-        sddot_n, lam_n = sddot.copy(), lam.copy()
         for attempt in range(2 if step >= 2 else 1):
-            if attempt == 0 and step >= 2:
-                sddot = 2.0 * sddot_n - A[step - 2]
-                lam = 2.0 * lam_n - L[step - 2]
-            else:
-                sddot, lam = sddot_n.copy(), lam_n.copy()
-                have_tangent = have_tangent and attempt == 0
-            q = qhat + beta_p * sddot
-            v = vhat + gamma_p * sddot
+            extrapolate = attempt == 0 and step >= 2
+            _start_step(S[step - 1], V[step - 1], a, A[step - 1], L[step - 1],
+                        A[max(step - 2, 0)], L[max(step - 2, 0)], extrapolate, h, alpha_m,
+                        alpha_f, beta, gamma, beta_p, gamma_p, qhat, vhat, sddot, lam, q, v)
+            if attempt == 1:
+                have_tangent = False
             factorized = False
             iterations, prev_dq = 0, np.inf
             converged, candidate, failure = False, False, ""
@@ -710,7 +713,7 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
             break
         S[step], V[step], A[step], L[step] = q, v, sddot, lam
         residual[step] = step_residual
-        _advance_alpha_acceleration(a, sddot_old, sddot, alpha_m, alpha_f)
+        _advance_alpha_acceleration(a, A[step - 1], A[step], alpha_m, alpha_f)
         done = step
         if not jacobian_reuse:
             have_tangent = False
