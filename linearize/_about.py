@@ -100,7 +100,10 @@ def _has_stiffening(model) -> bool:
 def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label):
     extra = None
     if _has_stiffening(model):
-        extra = geometric_stiffness(model, t, s, sdot, sddot, lam)
+        from mechanisms._batch import constraint_terms
+
+        extra = geometric_stiffness(model, t, s, sdot, sddot, lam,
+                                    jacobian=constraint_terms(model, t, s)[0])
     return linear_coefficients(model, t, s, sdot, sddot, lam, period=period,
                                independent=independent, extra_stiffness=extra, time_label=label)
 
@@ -113,20 +116,26 @@ def _crank_angle(mechanism, t, period):
 
 
 def _observable_maps(model, specs, s, V):
+    """Linear maps (N+1, m) from z to each observable. A link observable's gradient depends on the
+    link's elastic coordinates only (``mechanisms._observables``), and those are zero all along the
+    rigid nominal motion: one gradient serves every sample."""
     maps = {}
+    rigid_nominal = not np.any(s[:, np.asarray(model.elastic_index, dtype=np.int64)])
     for spec in specs:
         obs = model.observable(spec)
-        gradients = np.stack([obs.gradient(sk) for sk in s])
+        if rigid_nominal and getattr(obs, "depends_on_elastic_only", False):
+            gradients = np.broadcast_to(obs.gradient(s[0]), s.shape)
+        else:
+            gradients = np.stack([obs.gradient(sk) for sk in s])
         maps[spec] = np.einsum("kn,kni->ki", gradients, V)
     return maps
 
 
-def _finish(mechanism, model, nominal, coeffs, specs, started):
+def _finish(mechanism, model, nominal, coeffs, specs, angle, started):
     if coeffs.dependent_condition.max() > WARN_CONDITION:
         k = int(np.argmax(coeffs.dependent_condition))
         logger.warning("constraint Jacobian poorly conditioned (%.3g) at crank angle %.4g rad: "
-                       "close to a toggle position", coeffs.dependent_condition[k],
-                       _crank_angle(mechanism, nominal.t[k:k + 1], nominal.period)[0])
+                       "close to a toggle position", coeffs.dependent_condition[k], angle[k])
     # Sample N is sample 0 one period later; they differ only by the nominal motion's closure error
     # (reported by the nominal motion), so make the coefficients exactly periodic.
     for array in (coeffs.M, coeffs.C, coeffs.K, coeffs.f):
@@ -135,7 +144,7 @@ def _finish(mechanism, model, nominal, coeffs, specs, started):
     labels = tuple(model.coord_labels[i] for i in coeffs.independent)
     return LinearizedMechanism(
         mechanism=mechanism, nominal=nominal, system=system, labels=labels,
-        crank_angle=_crank_angle(mechanism, nominal.t, nominal.period), observables=tuple(specs),
+        crank_angle=angle, observables=tuple(specs),
         observable_maps=_observable_maps(model, specs, nominal.s, coeffs.V), coefficients=coeffs,
         run_time=time.perf_counter() - started)
 
@@ -158,7 +167,7 @@ def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMecha
     coeffs = _coefficients(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, nominal.lam,
                            period=nominal.period, independent=independent,
                            label=lambda k: f"crank angle {angle[k]:.6g} rad (t = {nominal.t[k]:.6g} s)")
-    return _finish(mechanism, model, nominal, coeffs, specs, started)
+    return _finish(mechanism, model, nominal, coeffs, specs, angle, started)
 
 
 def _model_with_feedforward(mechanism, nominal):

@@ -164,3 +164,35 @@ def continue_positions(model, s, start, times, *, newton_stop, max_correction, c
     return _continue_positions(s, start, rows, angles, rigid, tb.phi0, tb.h_lin, tb.ct_int,
                                tb.ct_real, tb.shp, tb.idx, newton_stop, max_correction,
                                np.ascontiguousarray(column_scale, dtype=np.float64), 8)
+
+
+@numba.njit(cache=True)
+def _constraint_terms(S, Sd, ct_int, ct_real, shp, idx, h_lin, J, gamma):
+    """J[k] = Phi_s(S[k]) (constant rows h_lin included) and, when Sd has rows, gamma[k] += the
+    point-constraint part of gamma(S[k], Sd[k]); outputs zeroed (gamma holding the drive rows)."""
+    for k in range(S.shape[0]):
+        J[k, :, :] = h_lin
+        _kernels.constraint_jacobian(S[k], ct_int, ct_real, shp, idx, J[k])
+        if Sd.shape[0] == S.shape[0]:
+            _kernels.constraint_gamma(S[k], Sd[k], ct_int, ct_real, shp, idx, gamma[k])
+
+
+def constraint_terms(model, t, S, Sd=None):
+    """Constraint Jacobians (N, r, n) along samples ``S`` (N, n) at times ``t`` (N,), and with
+    ``Sd`` (N, n) also ``Phi_t`` (N, r) and ``gamma`` (N, r) (``Phi_s s'' = gamma``), for an
+    assembled ``Model``; equal to its methods sample by sample."""
+    from ._assemble import drive_law
+
+    S = np.ascontiguousarray(S, dtype=np.float64)
+    n_samples = S.shape[0]
+    tb = model._tables
+    J = np.zeros((n_samples, model.n_constraints, model.n_coords))
+    rate = np.zeros((n_samples, model.n_constraints))
+    gamma = np.zeros((n_samples, model.n_constraints))
+    for info in model._prescribed:
+        law = np.array([drive_law(info.drive, model.period, tk) for tk in t])
+        rate[:, info.row] = -law[:, 1]
+        gamma[:, info.row] = law[:, 2]          # -Phi_tt of the drive row
+    Sd = np.zeros((0, S.shape[1])) if Sd is None else np.ascontiguousarray(Sd, dtype=np.float64)
+    _constraint_terms(S, Sd, tb.ct_int, tb.ct_real, tb.shp, tb.idx, tb.h_lin, J, gamma)
+    return J, rate, gamma

@@ -150,7 +150,13 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
         k += 1
 
     # Conditioning, rates and multipliers along the whole grid, with stacked linear algebra.
-    jacobians = np.stack([model.constraint_jacobian(s[k], times[k]) for k in range(len(times))])
+    batch = _batch_terms(model)
+    if batch:
+        jacobians, rates, _ = batch(model, times, s)
+    else:
+        jacobians = np.stack([model.constraint_jacobian(s[k], times[k])
+                              for k in range(len(times))])
+        rates = np.stack([model.constraint_rate(s[k], times[k]) for k in range(len(times))])
     rigid_jacobians = jacobians[:, :, rigid]
     scaled = system.row_scale[None, :, None] * rigid_jacobians * system.column_scale[None, None, :]
     singular_values = np.linalg.svd(scaled, compute_uv=False)
@@ -160,11 +166,13 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
         # Raise (toggle) or warn at the first offending sample, with the joints and angle named.
         system.check_jacobian(s[int(np.argmax(~(condition < _COND_WARN)))],
                               times[int(np.argmax(~(condition < _COND_WARN)))])
-    rates = np.stack([model.constraint_rate(s[k], times[k]) for k in range(len(times))])
     sdot = np.zeros_like(s)
     sdot[:, rigid] = np.linalg.solve(rigid_jacobians, -rates[..., None])[..., 0]
-    gamma = np.stack([model.constraint_gamma(s[k], sdot[k], times[k])
-                      for k in range(len(times))])
+    if batch:
+        gamma = batch(model, times, s, sdot)[2]
+    else:
+        gamma = np.stack([model.constraint_gamma(s[k], sdot[k], times[k])
+                          for k in range(len(times))])
     sddot = np.zeros_like(s)
     sddot[:, rigid] = np.linalg.solve(rigid_jacobians, gamma[..., None])[..., 0]
     inertia = _inertia_residual(model, times, s, sdot, sddot)      # M s'' - Q, (N+1, n)
@@ -370,6 +378,14 @@ class _RigidSystem:
         """Rigid rows of M s'' = Q - Phi_s^T lam, solved for lam (square: n_rigid = r)."""
         rhs = (self.model.forces(s, sdot, t) - self.model.mass_matrix(s) @ sddot)[self.rigid]
         return np.linalg.solve(self.jacobian(s, t).T, rhs)
+
+
+def _batch_terms(model: Any):
+    """The batched constraint terms for an assembled model, or None for a hand-written one."""
+    from ._assemble import Model
+    from ._batch import constraint_terms
+
+    return constraint_terms if isinstance(model, Model) else None
 
 
 def _fast_continuation(model: Any):

@@ -42,6 +42,11 @@ class LinkObservable:
     membrane: tuple        # with stiffening: (a (n_gauss,), w' at the Gauss points (n_gauss, n_e))
                            # so that P[w'^2/2](x) = a . (w'_g q)^2 / 2; else ()
 
+    # The value and gradient read only the link's elastic coordinates (and, for "angle", its frame
+    # angle, whose gradient is constant): linearize relies on this to evaluate the gradient once
+    # along a rigid motion.
+    depends_on_elastic_only = True
+
     def _q(self, s):
         s = np.asarray(s, dtype=float)
         if s.shape != (self.n_coords,):

@@ -53,3 +53,20 @@ def test_batched_inertia_residual_equals_the_model_methods():
     slow = np.stack([model.mass_matrix(S[k]) @ Sdd[k] - model.forces(S[k], Sd[k], t[k])
                      for k in range(n_samples)])
     np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-13 * np.abs(slow).max())
+
+
+def test_batched_constraint_terms_equal_the_model_methods():
+    mechanism = mc.four_bar(discretisation="fem", n_elements=2).replace(
+        drives=(mc.PrescribedDrive("O", rate=90.0, harmonics=((1, 0.05, 0.02), (3, 0.0, 0.01))),))
+    model = mc.assemble(mechanism)
+    rng = np.random.default_rng(13)
+    n_samples = 4
+    t = rng.uniform(0, 0.07, n_samples)
+    S, Sd = rng.standard_normal((2, n_samples, model.n_coords))
+    from mechanisms._batch import constraint_terms
+    J, rate, gamma = constraint_terms(model, t, S, Sd)
+    for k in range(n_samples):
+        np.testing.assert_allclose(J[k], model.constraint_jacobian(S[k], t[k]), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(rate[k], model.constraint_rate(S[k], t[k]), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(gamma[k], model.constraint_gamma(S[k], Sd[k], t[k]), rtol=1e-13,
+                                   atol=1e-13 * np.abs(gamma[k]).max())
