@@ -82,22 +82,22 @@ def spectral_derivatives(values: np.ndarray, period: float) -> tuple[np.ndarray,
     """
     n_steps = values.shape[0] - 1
     samples = values[:n_steps]
-    coefficients = np.fft.fft(samples, axis=0)
-    harmonics = np.fft.fftfreq(n_steps, d=1.0 / n_steps)  # integer harmonic numbers
+    coefficients = np.fft.rfft(samples, axis=0)               # harmonics 0 .. N/2 (real input)
+    harmonics = np.arange(coefficients.shape[0])
     omega = 2.0 * math.pi / period
-    shape = (n_steps,) + (1,) * (values.ndim - 1)
+    shape = (coefficients.shape[0],) + (1,) * (values.ndim - 1)
     ik = (1j * omega * harmonics).reshape(shape)
     first = coefficients * ik
     if n_steps % 2 == 0:
         # The Nyquist harmonic has no defined odd derivative on the grid: drop it.
         first[n_steps // 2] = 0.0
     second = coefficients * ik**2
-    d1 = np.real(np.fft.ifft(first, axis=0))
-    d2 = np.real(np.fft.ifft(second, axis=0))
+    d1 = np.fft.irfft(first, n=n_steps, axis=0)
+    d2 = np.fft.irfft(second, n=n_steps, axis=0)
     d1 = np.concatenate([d1, d1[:1]], axis=0)
     d2 = np.concatenate([d2, d2[:1]], axis=0)
-    magnitude = np.abs(coefficients).reshape(n_steps, -1).max(axis=1)
-    top = np.abs(harmonics) >= (n_steps // 2) * 7 // 8
+    magnitude = np.abs(coefficients).reshape(coefficients.shape[0], -1).max(axis=1)
+    top = harmonics >= (n_steps // 2) * 7 // 8
     scale = magnitude.max()
     tail = float(magnitude[top].max() / scale) if scale > 0 and top.any() else 0.0
     return d1, d2, tail

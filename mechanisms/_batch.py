@@ -167,20 +167,25 @@ def continue_positions(model, s, start, times, *, newton_stop, max_correction, c
 
 
 @numba.njit(cache=True)
-def _constraint_terms(S, Sd, ct_int, ct_real, shp, idx, h_lin, J, gamma):
-    """J[k] = Phi_s(S[k]) (constant rows h_lin included) and, when Sd has rows, gamma[k] += the
-    point-constraint part of gamma(S[k], Sd[k]); outputs zeroed (gamma holding the drive rows)."""
+def _constraint_terms(S, Sd, ct_int, ct_real, shp, idx, h_lin, J, gamma, phi):
+    """J[k] = Phi_s(S[k]) (constant rows h_lin included); when Sd has rows, gamma[k] += the
+    point-constraint part of gamma(S[k], Sd[k]); when phi has rows, phi[k] += h_lin S[k] + the
+    point-constraint part of Phi(S[k]). Outputs hold the constant and drive parts on entry."""
     for k in range(S.shape[0]):
         J[k, :, :] = h_lin
         _kernels.constraint_jacobian(S[k], ct_int, ct_real, shp, idx, J[k])
         if Sd.shape[0] == S.shape[0]:
             _kernels.constraint_gamma(S[k], Sd[k], ct_int, ct_real, shp, idx, gamma[k])
+        if phi.shape[0] == S.shape[0]:
+            phi[k] += h_lin @ S[k]
+            _kernels.constraints(S[k], ct_int, ct_real, shp, idx, phi[k])
 
 
-def constraint_terms(model, t, S, Sd=None):
-    """Constraint Jacobians (N, r, n) along samples ``S`` (N, n) at times ``t`` (N,), and with
-    ``Sd`` (N, n) also ``Phi_t`` (N, r) and ``gamma`` (N, r) (``Phi_s s'' = gamma``), for an
-    assembled ``Model``; equal to its methods sample by sample."""
+def constraint_terms(model, t, S, Sd=None, *, with_values=False):
+    """Constraint Jacobians (N, r, n) along samples ``S`` (N, n) at times ``t`` (N,), ``Phi_t``
+    (N, r), with ``Sd`` (N, n) also ``gamma`` (N, r) (``Phi_s s'' = gamma``, else zeros), and with
+    ``with_values`` a fourth array, ``Phi`` (N, r), for an assembled ``Model``; equal to its methods
+    sample by sample."""
     from ._assemble import drive_law
 
     S = np.ascontiguousarray(S, dtype=np.float64)
@@ -189,10 +194,13 @@ def constraint_terms(model, t, S, Sd=None):
     J = np.zeros((n_samples, model.n_constraints, model.n_coords))
     rate = np.zeros((n_samples, model.n_constraints))
     gamma = np.zeros((n_samples, model.n_constraints))
+    phi = np.tile(tb.phi0, (n_samples, 1)) if with_values else np.zeros((0, model.n_constraints))
     for info in model._prescribed:
         law = np.array([drive_law(info.drive, model.period, tk) for tk in t])
         rate[:, info.row] = -law[:, 1]
         gamma[:, info.row] = law[:, 2]          # -Phi_tt of the drive row
+        if with_values:
+            phi[:, info.row] -= law[:, 0]
     Sd = np.zeros((0, S.shape[1])) if Sd is None else np.ascontiguousarray(Sd, dtype=np.float64)
-    _constraint_terms(S, Sd, tb.ct_int, tb.ct_real, tb.shp, tb.idx, tb.h_lin, J, gamma)
-    return J, rate, gamma
+    _constraint_terms(S, Sd, tb.ct_int, tb.ct_real, tb.shp, tb.idx, tb.h_lin, J, gamma, phi)
+    return (J, rate, gamma, phi) if with_values else (J, rate, gamma)

@@ -179,7 +179,11 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
     lam = np.linalg.solve(np.swapaxes(rigid_jacobians, 1, 2), -inertia[:, rigid, None])[..., 0]
 
     drive_torque = _drive_torques(model, s, sdot, lam, times)
-    residual = max(float(np.abs(model.constraints(s[k], times[k])).max()) for k in range(len(times)))
+    if batch:
+        residual = float(np.abs(batch(model, times, s, with_values=True)[3]).max())
+    else:
+        residual = max(float(np.abs(model.constraints(s[k], times[k])).max())
+                       for k in range(len(times)))
     if residual > _RESIDUAL_REQUIRED:
         raise MechanismError(f"the nominal motion's constraint residual {residual:.3g} exceeds "
                              f"{_RESIDUAL_REQUIRED:g}: the Jacobian is too ill-conditioned "
@@ -410,6 +414,11 @@ def _inertia_residual(model: Any, times: np.ndarray, s: np.ndarray, sdot: np.nda
 
 def _drive_torques(model: Any, s: np.ndarray, sdot: np.ndarray, lam: np.ndarray,
                    times: np.ndarray) -> np.ndarray:
+    rows = getattr(model, "drive_rows", None)
+    mechanism = getattr(model, "mechanism", None)
+    if rows is not None and mechanism is not None and len(rows) == len(mechanism.drives):
+        # Every drive prescribed (as in the nominal motion): the torque is minus its multiplier.
+        return -lam[:, np.asarray(rows, dtype=np.int64)]
     if hasattr(model, "drive_torques"):
         return np.array([model.drive_torques(s[k], sdot[k], times[k], lam[k])
                          for k in range(len(times))]).reshape(len(times), -1)

@@ -64,8 +64,9 @@ def test_batched_constraint_terms_equal_the_model_methods():
     t = rng.uniform(0, 0.07, n_samples)
     S, Sd = rng.standard_normal((2, n_samples, model.n_coords))
     from mechanisms._batch import constraint_terms
-    J, rate, gamma = constraint_terms(model, t, S, Sd)
+    J, rate, gamma, phi = constraint_terms(model, t, S, Sd, with_values=True)
     for k in range(n_samples):
+        np.testing.assert_allclose(phi[k], model.constraints(S[k], t[k]), rtol=0, atol=1e-14)
         np.testing.assert_allclose(J[k], model.constraint_jacobian(S[k], t[k]), rtol=0, atol=1e-15)
         np.testing.assert_allclose(rate[k], model.constraint_rate(S[k], t[k]), rtol=0, atol=1e-15)
         np.testing.assert_allclose(gamma[k], model.constraint_gamma(S[k], Sd[k], t[k]), rtol=1e-13,
