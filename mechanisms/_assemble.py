@@ -24,9 +24,16 @@ pointwise ``u' + w'^2/2`` would lock (``u'`` cannot represent ``w'^2/2``, so ben
 the chord). At ``q = 0`` under an axial strain ``Su' p`` the bending Hessian of this energy is
 ``int N Sw'^T Sw' dx``, the usual geometric stiffness. A link with geometric stiffening but no axial
 coordinates has nothing to project onto: it falls back to seed eq. 2.13 (``K0``), with a warning.
-Damping acts on the elastic coordinates through a constant matrix ``C0``: Rayleigh ``alpha M_ee +
-beta K_ee`` (``K_ee`` the linear stiffness, so Kelvin-Voigt ``beta`` damps bending and axial
-strain), modal ratios of the link's own modes (frame held fixed), or the explicit matrix.
+Damping acts on the elastic coordinates. Rayleigh ``alpha M_ee + beta K_ee`` (``K_ee`` the linear
+stiffness, so Kelvin-Voigt ``beta`` damps bending and axial strain) is the constant matrix ``C0``
+on a link without geometric stiffening. On a link with it, ``alpha M_ee`` stays constant and the
+Kelvin-Voigt part acts on the rates of the strains the strain energy uses (damping stress
+``beta E eps'``, ``_kernels`` eq. 7-9): the linear ``beta EA int u' du'`` would see the chord
+shortening ``u' = -P[w'^2/2]`` of a bent link as a strain rate and resist it with a large spurious
+force ("damping locking"). At ``q = 0`` the two agree, so the linearisation is the same. Modal ratios
+of the link's own modes (frame held fixed) and the explicit matrix are constant ``C0`` on every link:
+on a stiffened link they still damp the chord shortening's axial motion (a limitation; use
+Rayleigh ``beta`` there).
 
 Constraints: a revolute joint makes two rows ``r_a - r_b = 0``, a slider one row
 ``n . (r - origin) = 0``, a prescribed drive one row: the material angle of ``link_b`` at the joint
@@ -83,8 +90,9 @@ class _Tables:
     """The point tables and constant matrices the kernels read (layouts in ``_kernels``): mass
     points, strain points, constraint terms, sparse shape values ``shp`` and their indices ``idx``,
     the constant part ``phi0`` (r,) and drive rows ``h_lin`` (r, n) of the constraints, and ``k0``,
-    ``c0`` (n, n): linear stiffness of the links without geometric stiffening and damping of the
-    elastic coordinates ((0, 0) arrays when both vanish)."""
+    ``c0`` (n, n): linear stiffness of the links without geometric stiffening and constant damping of
+    the elastic coordinates (stiffened links' Kelvin-Voigt ``beta`` is on the strain points instead)
+    ((0, 0) arrays when both vanish)."""
 
     mp_int: np.ndarray
     mp_real: np.ndarray
@@ -135,7 +143,7 @@ class Model:
     """
 
     def __init__(self, mechanism, layouts, coord_labels, constraint_labels, tables, drives,
-                 period, damping):
+                 period):
         self.mechanism = mechanism
         self.layouts: dict[str, LinkLayout] = layouts
         self.coord_labels = tuple(coord_labels)
@@ -150,7 +158,8 @@ class Model:
         self.rigid_index = np.array(rigid, dtype=np.int64)
         self.elastic_index = np.array(elastic, dtype=np.int64)
         self._tables: _Tables = tables
-        self._damping = damping  # C0, or None without damping
+        # Kelvin-Voigt damping on the strain rates of a stiffened link (``_kernels`` eq. 7)
+        self._strain_rate_damping = bool(np.any(tables.sp_real[:, 2] != 0.0))
         self._gx, self._gy = (float(g) for g in mechanism.gravity)
         self._drives: tuple[_DriveInfo, ...] = drives
         self._torque_drives = tuple(d for d in drives if d.row < 0)
@@ -264,10 +273,21 @@ class Model:
         return float(_kernels.potential_energy(s, self._gx, self._gy, tb.mp_int, tb.mp_real,
                                                tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0))
 
-    def damping_power(self, sdot) -> float:
-        """Power dissipated by the damping of the elastic coordinates, ``s'^T C0 s'`` (W, >= 0)."""
+    def damping_power(self, sdot, s=None) -> float:
+        """Power dissipated by the damping of the elastic coordinates (W, >= 0): ``s'^T C0 s'`` plus,
+        on links with geometric stiffening and Rayleigh ``beta``, ``beta int EA eps'^2 + EI w''^2``
+        of the projected membrane strain (``_kernels`` eq. 7), which depends on the positions ``s``
+        (required then; the other terms do not need it)."""
+        tb = self._tables
         sdot = self._vector(sdot, self.n_coords, "sdot")
-        return float(sdot @ self._damping @ sdot) if self._damping is not None else 0.0
+        if s is None:
+            if self._strain_rate_damping:
+                raise ValueError("s is required: Kelvin-Voigt damping of a link with geometric "
+                                 "stiffening depends on the positions; call damping_power(sdot, s)")
+            s = np.zeros(self.n_coords)
+        else:
+            s = self._vector(s, self.n_coords, "s")
+        return float(_kernels.damping_power(s, sdot, tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.c0))
 
     def drive_torques(self, s, sdot, t, lam=None) -> np.ndarray:
         """Torque (N m) each drive applies to its ``link_b`` (reaction on ``link_a``), in the order of
@@ -384,12 +404,20 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
             ea = link.youngs_modulus * link.area
             ei = link.youngs_modulus * link.second_moment
             projection = v.du @ lay.membrane  # P (n_gauss, n_gauss) at the Gauss points
+            beta = link.damping.beta if isinstance(link.damping, Rayleigh) else 0.0
+            if isinstance(link.damping, (ModalDamping, DampingMatrix)):
+                logger.warning("link %r: %s is a constant matrix on the elastic coordinates; with "
+                               "geometric stiffening it also damps the axial motion of the chord "
+                               "shortening of a bent link, which strains nothing (use Rayleigh "
+                               "beta, which acts on the membrane strain rate)", link.name,
+                               type(link.damping).__name__)
             for group in _projection_groups(projection):
                 push_group(lay.offset, group, projection, v, sp_int)
-                sp_real.extend((weights[g] * ea, weights[g] * ei) for g in group)
+                sp_real.extend((weights[g] * ea, weights[g] * ei, beta) for g in group)
         else:
             k0[lay.elastic, lay.elastic] = k_ee
-        c0[lay.elastic, lay.elastic] = _damping_matrix(link, m_ee, k_ee)
+        c0[lay.elastic, lay.elastic] = _damping_matrix(link, m_ee, k_ee,
+                                                       strain_rate_beta=lay.stiffening)
     for index, pm in enumerate(mechanism.point_masses):
         where = f"point_masses[{index}]"
         lay = _known_link(layouts, pm.link, where + ".link")
@@ -494,7 +522,7 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
         np.array(mp_int, dtype=np.int64).reshape(-1, 4),
         np.array(mp_real, dtype=np.float64).reshape(-1, 4),
         np.array(sp_int, dtype=np.int64).reshape(-1, 6),
-        np.array(sp_real, dtype=np.float64).reshape(-1, 2),
+        np.array(sp_real, dtype=np.float64).reshape(-1, 3),
         np.array(ct_int, dtype=np.int64).reshape(-1, 5),
         np.array(ct_real, dtype=np.float64).reshape(-1, 4),
         np.array(shp, dtype=np.float64),
@@ -506,9 +534,7 @@ def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Calla
     gx, gy = mechanism.gravity
     _finite(gx, "gravity[0]")
     _finite(gy, "gravity[1]")
-    damping = c0 if np.any(c0) else None
-    return Model(mechanism, layouts, coord_labels, constraint_labels, tables, tuple(drives), period,
-                 damping)
+    return Model(mechanism, layouts, coord_labels, constraint_labels, tables, tuple(drives), period)
 
 
 def _layout(mechanism):
@@ -554,7 +580,11 @@ def _projection_groups(projection: np.ndarray) -> list[np.ndarray]:
     return [np.flatnonzero(labels == label) for label in range(count)]
 
 
-def _damping_matrix(link: ElasticLink, m_ee: np.ndarray, k_ee: np.ndarray) -> np.ndarray:
+def _damping_matrix(link: ElasticLink, m_ee: np.ndarray, k_ee: np.ndarray, *,
+                    strain_rate_beta: bool) -> np.ndarray:
+    """The constant damping matrix ``C0`` of a link's elastic coordinates (N s/m). With
+    ``strain_rate_beta`` (geometric stiffening) Rayleigh's ``beta`` is left out: the strain points
+    carry it (``_kernels`` eq. 7-9)."""
     damping = link.damping
     n_e = m_ee.shape[0]
     if damping is None:
@@ -562,6 +592,8 @@ def _damping_matrix(link: ElasticLink, m_ee: np.ndarray, k_ee: np.ndarray) -> np
     if isinstance(damping, Rayleigh):
         _non_negative(damping.alpha, f"link {link.name!r}: damping.alpha")
         _non_negative(damping.beta, f"link {link.name!r}: damping.beta")
+        if strain_rate_beta:
+            return damping.alpha * m_ee
         return damping.alpha * m_ee + damping.beta * k_ee
     if isinstance(damping, ModalDamping):
         ratios = np.asarray(damping.ratios, dtype=float)

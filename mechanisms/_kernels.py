@@ -16,8 +16,9 @@ elastic coordinates), with their values in ``shp`` (``nnz`` per row):
 * mass points ``mp_int = (offset, nnz, ptr, iptr)``, ``mp_real = (m, J, cx, cy)``: mass m (kg),
   rotary inertia J (kg m^2) with angular velocity ``theta' + g.q'``;
   ``shp[ptr : ptr + 3 nnz] = (S_axial, S_transverse, g)``.
-* strain points ``sp_int = (offset, nnz, ptr, iptr, size, pptr)``, ``sp_real = (w EA, w EI)``
-  (quadrature weight times rigidity); ``shp[ptr : ptr + 3 nnz] = (u', w', w'')``. Strain points come
+* strain points ``sp_int = (offset, nnz, ptr, iptr, size, pptr)``, ``sp_real = (w EA, w EI, beta)``
+  (quadrature weight times rigidity, and the link's Kelvin-Voigt coefficient beta in s);
+  ``shp[ptr : ptr + 3 nnz] = (u', w', w'')``. Strain points come
   in consecutive *groups* (an element of a Hermite link, a whole Ritz link) that share ``offset``,
   ``nnz`` and ``iptr``; the first row of a group holds its ``size`` G and ``shp[pptr : pptr + G^2]``
   the row-major projection ``P`` (G x G) onto the link's axial strain functions (``_assemble``).
@@ -28,6 +29,21 @@ elastic coordinates), with their values in ``shp`` (``nnz`` per row):
       dPi/dq = sum_g w EA eps_g u'_g + c_g s_g w'_g + w EI kappa_g w''_g                     (5)
       d2Pi/dq2 = sum_g w EA G_g G_g^T + c_g w'_g w'_g^T + w EI w''_g w''_g^T,
       G_g = d eps_g / dq = u'_g + sum_j P_gj s_j w'_j                                         (6)
+
+  Kelvin-Voigt damping acts on the rates of the same strains (damping stress beta E eps'), i.e.
+  the Rayleigh dissipation function D = beta/2 sum_g (w EA eps'_g^2 + w EI kappa'_g^2) with
+
+      s'_j = w'_j q',   eps'_g = G_g q' = u'_g q' + sum_j P_gj s_j s'_j,   kappa'_g = w''_g q'    (7)
+      -dD/dq' = -beta sum_g w EA eps'_g G_g + w EI kappa'_g w''_g
+              = -sum_g beta w EA eps'_g u'_g + d_g s_g w'_g + beta w EI kappa'_g w''_g,
+      d_j = beta sum_g w EA eps'_g P_gj                                                     (8)
+      d2D/dq'2 = beta sum_g w EA G_g G_g^T + w EI w''_g w''_g^T
+      d2D/dq'dq = sum_g d_g w'_g w'_g^T + beta w EA G_g r_g^T,  r_g = d eps'_g/dq
+                = sum_j P_gj s'_j w'_j                                                     (9)
+
+  At q = 0 this is the constant ``beta K_ee``; unlike it, it does not resist the chord shortening
+  of a bent link (eps' = 0 there while u' moves), which the linear form would damp as an axial
+  strain rate ("damping locking").
 * constraint terms ``ct_int = (row, offset, nnz, ptr, iptr)``, ``ct_real = (dx, dy, cx, cy)``:
   ``Phi[row] += d . r``; ``shp[ptr : ptr + 2 nnz] = (S_axial, S_transverse)``.
 
@@ -101,6 +117,39 @@ def _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef):
             acc += sp_real[i0 + g, 0] * eps[g] * shp[pptr + g * size + j]
         coef[j] = acc
     return size
+
+
+@numba.njit(cache=True)
+def _membrane_rate_group(sdot, i0, sp_int, sp_real, shp, idx, slope, slope_rate, eps_rate,
+                         kappa_rate, coef_rate):
+    """Eq. (7)-(8) for the group starting at row i0, after ``_membrane_group`` filled ``slope``:
+    fill s'_j, eps'_g, kappa'_g and d_j (first ``size`` entries)."""
+    size, pptr = sp_int[i0, 4], sp_int[i0, 5]
+    off, nnz, iptr = sp_int[i0, 0], sp_int[i0, 1], sp_int[i0, 3]
+    beta = sp_real[i0, 2]
+    for g in range(size):
+        ptr = sp_int[i0 + g, 2]
+        du = 0.0
+        dw = 0.0
+        kap = 0.0
+        for k in range(nnz):
+            vk = sdot[off + 3 + idx[iptr + k]]
+            du += shp[ptr + k] * vk
+            dw += shp[ptr + nnz + k] * vk
+            kap += shp[ptr + 2 * nnz + k] * vk
+        eps_rate[g] = du
+        slope_rate[g] = dw
+        kappa_rate[g] = kap
+    for g in range(size):
+        acc = 0.0
+        for j in range(size):
+            acc += shp[pptr + g * size + j] * slope[j] * slope_rate[j]
+        eps_rate[g] += acc
+    for j in range(size):
+        acc = 0.0
+        for g in range(size):
+            acc += sp_real[i0 + g, 0] * eps_rate[g] * shp[pptr + g * size + j]
+        coef_rate[j] = beta * acc
 
 
 @numba.njit(cache=True)
@@ -241,6 +290,7 @@ def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, 
         for a in range(3 + nnz):
             out[cols[a]] += m * (lx[a] * vx + ly[a] * vy)
     slope, eps, kappa, coef = _group_scratch(sp_int)
+    slope_rate, eps_rate, kappa_rate, coef_rate = _group_scratch(sp_int)
     i0 = 0
     while i0 < sp_int.shape[0]:
         # -dPi/dq, eq. (5)
@@ -253,6 +303,19 @@ def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, 
                 out[off + 3 + idx[iptr + k]] -= (ea * eps[g] * shp[ptr + k]
                                                  + coef[g] * slope[g] * shp[ptr + nnz + k]
                                                  + ei * kappa[g] * shp[ptr + 2 * nnz + k])
+        beta = sp_real[i0, 2]
+        if beta != 0.0:
+            # -dD/dq', eq. (8)
+            _membrane_rate_group(sdot, i0, sp_int, sp_real, shp, idx, slope, slope_rate,
+                                 eps_rate, kappa_rate, coef_rate)
+            for g in range(size):
+                ptr = sp_int[i0 + g, 2]
+                ea, ei = sp_real[i0 + g, 0], sp_real[i0 + g, 1]
+                for k in range(nnz):
+                    out[off + 3 + idx[iptr + k]] -= (
+                        beta * ea * eps_rate[g] * shp[ptr + k]
+                        + coef_rate[g] * slope[g] * shp[ptr + nnz + k]
+                        + beta * ei * kappa_rate[g] * shp[ptr + 2 * nnz + k])
         i0 += size
     n = s.shape[0]
     if k0.shape[0] == n:
@@ -295,29 +358,47 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
                 out_v[ca, ck] += m * (-2.0 * wt) * (-lx[a] * ly[3 + k] + ly[a] * lx[3 + k])
         _add_d(out_s, m, nnz, apx, apy, lx, ly, cols, vx, vy)
     slope, eps, kappa, coef = _group_scratch(sp_int)
+    slope_rate, eps_rate, kappa_rate, coef_rate = _group_scratch(sp_int)
     grad = np.empty(max(_max_local(sp_int[:, 1]) - 3, 1))
+    grad_rate = np.empty(grad.shape[0])
     i0 = 0
     while i0 < sp_int.shape[0]:
-        # -d2Pi/dq2, eq. (6)
+        # -d2Pi/dq2, eq. (6); with Kelvin-Voigt damping also -d2D/dq'dq and -d2D/dq'2, eq. (9)
         size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
         off, nnz, iptr, pptr = sp_int[i0, 0], sp_int[i0, 1], sp_int[i0, 3], sp_int[i0, 5]
+        beta = sp_real[i0, 2]
+        if beta != 0.0:
+            _membrane_rate_group(sdot, i0, sp_int, sp_real, shp, idx, slope, slope_rate,
+                                 eps_rate, kappa_rate, coef_rate)
         for g in range(size):
             ptr = sp_int[i0 + g, 2]
             ea, ei = sp_real[i0 + g, 0], sp_real[i0 + g, 1]
             for k in range(nnz):
                 grad[k] = shp[ptr + k]
+                grad_rate[k] = 0.0
             for j in range(size):
                 pj = shp[pptr + g * size + j] * slope[j]
                 ptr_j = sp_int[i0 + j, 2]
                 for k in range(nnz):
                     grad[k] += pj * shp[ptr_j + nnz + k]
+                if beta != 0.0:
+                    pj_rate = shp[pptr + g * size + j] * slope_rate[j]
+                    for k in range(nnz):
+                        grad_rate[k] += pj_rate * shp[ptr_j + nnz + k]
             for k in range(nnz):
                 ck = off + 3 + idx[iptr + k]
                 for j in range(nnz):
-                    out_s[ck, off + 3 + idx[iptr + j]] -= (
+                    cj = off + 3 + idx[iptr + j]
+                    out_s[ck, cj] -= (
                         ea * grad[k] * grad[j]
                         + coef[g] * shp[ptr + nnz + k] * shp[ptr + nnz + j]
                         + ei * shp[ptr + 2 * nnz + k] * shp[ptr + 2 * nnz + j])
+                    if beta != 0.0:
+                        out_s[ck, cj] -= (coef_rate[g] * shp[ptr + nnz + k] * shp[ptr + nnz + j]
+                                          + beta * ea * grad[k] * grad_rate[j])
+                        out_v[ck, cj] -= beta * (
+                            ea * grad[k] * grad[j]
+                            + ei * shp[ptr + 2 * nnz + k] * shp[ptr + 2 * nnz + j])
         i0 += size
     n = s.shape[0]
     if k0.shape[0] == n:
@@ -426,3 +507,29 @@ def potential_energy(s, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0):
             for b in range(n):
                 energy += 0.5 * s[a] * k0[a, b] * s[b]
     return energy
+
+
+@numba.njit(cache=True)
+def damping_power(s, sdot, sp_int, sp_real, shp, idx, c0):
+    """Power dissipated by the damping (W, >= 0): 2 D of eq. (7)-(8), sum_g beta (w EA eps'_g^2 +
+    w EI kappa'_g^2) over the strain points with Kelvin-Voigt damping, plus s'^T C0 s'."""
+    slope, eps, kappa, coef = _group_scratch(sp_int)
+    slope_rate, eps_rate, kappa_rate, coef_rate = _group_scratch(sp_int)
+    power = 0.0
+    i0 = 0
+    while i0 < sp_int.shape[0]:
+        size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
+        beta = sp_real[i0, 2]
+        if beta != 0.0:
+            _membrane_rate_group(sdot, i0, sp_int, sp_real, shp, idx, slope, slope_rate,
+                                 eps_rate, kappa_rate, coef_rate)
+            for g in range(size):
+                power += beta * (sp_real[i0 + g, 0] * eps_rate[g] ** 2
+                                 + sp_real[i0 + g, 1] * kappa_rate[g] ** 2)
+        i0 += size
+    n = s.shape[0]
+    if c0.shape[0] == n:
+        for a in range(n):
+            for b in range(n):
+                power += sdot[a] * c0[a, b] * sdot[b]
+    return power

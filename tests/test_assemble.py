@@ -138,8 +138,9 @@ def _energy_pieces(kind):
     kinetic (seed eq. 2.12 plus the rigid bars and the point mass), rotary kinetic energy of the
     coupler's sections, potential (gravity + seed eq. 2.13), the extra strain energy of geometric
     stiffening EA/2 int (eps^2 - u'^2) with the projected membrane strain eps = u' + P[w'^2/2],
-    P the L2 projection onto the axial strain function (``_assemble``), the Rayleigh damping force
-    and the constraints.
+    P the L2 projection onto the axial strain function (``_assemble``), the Rayleigh damping (its
+    mass-proportional matrix and the Kelvin-Voigt dissipation functions of the linear and of the
+    projected strain) and the constraints.
     ``kind`` is the coupler's discretisation: "ritz" (2 bending modes, 1 axial mode; elastic
     coordinates q1, q2, p1) or "fem1" (one Hermite element, seed eq. 2.5-2.8, pinned ends: the
     coordinates r0, u1, r1 stand in the places of q1, q2, p1)."""
@@ -203,10 +204,19 @@ def _energy_pieces(kind):
               + sp.Rational(1, 2) * POINT_MASS["inertia"] * omega_m**2)
     v_mass = -POINT_MASS["mass"] * gvec.dot(position_m)
 
-    # Rayleigh damping C = alpha M_ee + beta K_ee of the coupler's elastic coordinates (the
-    # rotary inertia is left out of M_ee here and added by the caller)
+    # Rayleigh damping of the coupler's elastic coordinates: alpha M_ee (the rotary inertia is
+    # left out of M_ee here and added by the caller) and Kelvin-Voigt beta as the Rayleigh
+    # dissipation function D = beta/2 int (EA eps'^2 + EI w''_t^2) dx, damping force -dD/dq'.
+    # Seed eq. 2.13: eps = u', so D = beta/2 q'^T K_ee q'. Projected strain: eps = Y' (a + c), so
+    # eps' = Y' (a' + c') with c' = dc/dq q', and int EA eps'^2 = EA gram (a' + c')^2.
     q, qd = sp.Matrix([q1, q2, p1]), sp.Matrix([q1d, q2d, p1d])
-    damping = ALPHA * sp.hessian(t_coupler, qd) + BETA * sp.hessian(v_linear, q)
+    damping_mass = ALPHA * sp.hessian(t_coupler, qd)
+    dissipation_linear = BETA * v_linear.subs(rates, simultaneous=True)
+    c_rate = sum(c.diff(qk) * qdk for qk, qdk in zip(q, qd))
+    bending_rate = _integrate(
+        sp.Rational(1, 2) * E * SECOND_MOMENT * w_xx.subs(rates, simultaneous=True)**2, L2)
+    dissipation_stiffening = BETA * (sp.Rational(1, 2) * E * AREA * gram
+                                     * (rates[axial] + c_rate)**2 + bending_rate)
 
     # constraints (seed eq. 2.11, written for the frame coordinates)
     w_period = DRIVE["rate"]  # period 2 pi / rate: the harmonics' base frequency is the rate
@@ -225,7 +235,9 @@ def _energy_pieces(kind):
         t1 - angle])
     return dict(kinetic=t_crank + t_rocker + t_coupler + t_mass, rotary=t_rotary,
                 potential=v_crank + v_rocker + v_coupler + v_linear + v_mass,
-                stiffening=v_stiffening, damping=damping, qd=qd, phi=phi)
+                stiffening=v_stiffening, damping_mass=damping_mass,
+                dissipation_linear=dissipation_linear,
+                dissipation_stiffening=dissipation_stiffening, qd=qd, phi=phi)
 
 
 @functools.lru_cache(maxsize=None)
@@ -251,10 +263,12 @@ def _derive_fourbar(stiffening, rotary, *, kind="ritz", cse=False):
     for name in names:
         m, f = _lagrange(kind, name)
         mass, forces = mass + m, forces + f
-    damping = pieces["damping"]
+    damping = pieces["damping_mass"]
     if rotary:  # Rayleigh alpha acts on the full elastic mass block, rotary inertia included
         damping = damping + ALPHA * _lagrange(kind, "rotary")[0][6:9, 6:9]
-    forces[6:9, 0] -= damping * pieces["qd"]
+    dissipation = pieces["dissipation_stiffening" if stiffening else "dissipation_linear"]
+    forces[6:9, 0] -= (damping * pieces["qd"]
+                       + sp.Matrix([dissipation]).jacobian(pieces["qd"]).T)
     jac = pieces["phi"].jacobian(sp.Matrix(S_SYM))
     args = (S_SYM, V_SYM, T_SYM)
     return tuple(sp.lambdify(args, expr, cse=cse) for expr in (mass, forces, jac, pieces["phi"]))
@@ -439,7 +453,7 @@ def test_energies_are_consistent_with_the_equations(case):
     if torque_driven:
         power -= (model.drive_torques(s, sdot, t) - model.drive_torques(s, zero, t))[0] * sdot[2]
     mdot = model.mass_matrix_jacobian(s, sdot)
-    expected = -0.5 * sdot @ mdot @ sdot - model.damping_power(sdot)
+    expected = -0.5 * sdot @ mdot @ sdot - model.damping_power(sdot, s)
     # an exact identity evaluated twice in float64: the sides differ by the round-off of sums
     # whose terms reach ~ |s'| |Q| ~ 1e2 * (the kinetic energy times the angular rates)
     assert power == pytest.approx(expected, rel=1e-10, abs=1e-12 * kinetic * 100)
@@ -606,8 +620,8 @@ def test_power_balance_along_the_equations_of_motion(options):
                           + model.potential_energy(s + sdot * tau + 0.5 * sddot * tau**2))
     e = [energy(k * h) for k in (-2, -1, 1, 2)]
     rate = (e[0] - 8 * e[1] + 8 * e[2] - e[3]) / (12 * h)
-    expected = model.drive_power(s, sdot, t, lam) - model.damping_power(sdot)
-    assert model.damping_power(sdot) > 0.0
+    expected = model.drive_power(s, sdot, t, lam) - model.damping_power(sdot, s)
+    assert model.damping_power(sdot, s) > 0.0
     assert rate == pytest.approx(expected, rel=1e-7)
 
 

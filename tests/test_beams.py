@@ -2,7 +2,8 @@
 fixed-free (axial) and clamped-free beams, exact Ritz integrals, and the observed order of
 convergence of Hermite elements (h^4 for bending, h^2 for linear axial elements), and the projected
 membrane strain of geometric stiffening (no locking when the chord may shorten, the closed-form
-string force when it may not)."""
+string force when it may not), and Kelvin-Voigt damping of that strain's rate (no damping
+locking: the chord shortening of a bent link is not damped, a stretching rate is)."""
 
 from __future__ import annotations
 
@@ -14,7 +15,8 @@ import pytest
 from scipy.linalg import eigh, null_space
 
 from mechanisms import (GROUND, ElasticLink, Fem, Mechanism, ModalDamping, PrescribedDrive,
-                        Revolute, Ritz, TorqueDrive, UserShapes, assemble, beam_matrices, beam_shapes)
+                        Rayleigh, Revolute, Ritz, TorqueDrive, UserShapes, assemble, beam_matrices,
+                        beam_shapes)
 from mechanisms._beams import clamped_free_roots
 
 LENGTH = 0.2794
@@ -386,3 +388,91 @@ def test_stiffening_without_axial_coordinates_falls_back_and_dependent_axial_sha
     # the membrane strain of a bent link with free axial coordinates still relaxes to zero
     s = relax_axial(model, bent_state(model, 0), axial_indices(model)[:1])
     assert abs(model.observable("beam.strain@0.5").value(s)) < 1e-12 * scale_shortening()
+
+
+# ---------------------------------------------------------------------------------------------------
+# Kelvin-Voigt damping acts on the rate of the projected membrane strain: no damping locking
+# ---------------------------------------------------------------------------------------------------
+BETA = 1.0e-4   # s: beta EA ~ 6e2 N s, beta EI ~ 7e-6 N m^2 s
+
+
+def _bending_and_axial_stiffness(lay):
+    """The bending and the axial blocks of the link's linear stiffness (K has no coupling)."""
+    _, stiffness = beam_matrices(lay.shapes)
+    axial = np.array([label[0] in "ua" for label in lay.shapes.labels])
+    return stiffness * np.outer(~axial, ~axial), stiffness * np.outer(axial, axial)
+
+
+def _damping_force(model, s, sdot):
+    """With the frame at rest (theta' = 0) the velocity terms of the inertia forces vanish
+    (``_kernels`` eq. 2: c = -theta'^2 A p + 2 theta' J A S q'), so Q(s, s') - Q(s, 0) is the
+    damping force alone."""
+    return model.forces(s, sdot, 0.0) - model.forces(s, np.zeros(model.n_coords), 0.0)
+
+
+@pytest.mark.parametrize("discretisation", [Fem(2), Fem(4), Ritz(2, 1)],
+                         ids=["fem2", "fem4", "ritz2-1"])
+def test_chord_shortening_feels_no_axial_damping(discretisation):
+    """The pinned link with a free sliding end, moving along the path s(lam) = lam q_b + lam^2 a
+    (q_b the bent shape, a the axial field that relaxes its membrane strain to zero at lam = 1,
+    exactly quadratic in lam since the strain is linear in a): the projected strain stays zero,
+    so Kelvin-Voigt damping must give only the bending force -beta K_bend q' (K_bend the bending
+    block of the link's linear stiffness, from ``beam_matrices``) and dissipate
+    beta q'^T K_bend q'. The old constant beta K_ee also damped the axial rate 2 a: its spurious
+    force beta K_axial 2a is 2e2 to 1e3 times the bending force here; the check is to 1e-10 of it
+    (round-off of sums of beta EA-sized terms cancelling to zero) plus 1e-9 of the bending force."""
+    model = pinned_model(beam(discretisation, damping=Rayleigh(0.0, BETA)))
+    lay = model.layouts["beam"]
+    n_elements = discretisation.n_elements if isinstance(discretisation, Fem) else 0
+    bent = bent_state(model, n_elements)
+    s = relax_axial(model, bent, axial_indices(model))
+    sdot = np.zeros(model.n_coords)
+    sdot[lay.elastic] = bent[lay.elastic] + 2.0 * (s - bent)[lay.elastic]   # d s / d lam at 1
+    k_bend, k_axial = _bending_and_axial_stiffness(lay)
+    qdot = sdot[lay.elastic]
+    expected = np.zeros(model.n_coords)
+    expected[lay.elastic] = -BETA * k_bend @ qdot
+    spurious = BETA * np.linalg.norm(k_axial @ qdot)
+    assert spurious > 1e2 * np.linalg.norm(expected)      # what the linear damping got wrong
+    error = np.linalg.norm(_damping_force(model, s, sdot) - expected)
+    assert error < 1e-10 * spurious + 1e-9 * np.linalg.norm(expected)
+    power = BETA * qdot @ k_bend @ qdot
+    assert model.damping_power(sdot, s) == pytest.approx(power, rel=1e-9)
+    with pytest.raises(ValueError, match="s is required"):
+        model.damping_power(sdot)
+
+
+@pytest.mark.parametrize("n_elements", [2, 4])
+def test_axial_stretching_rate_feels_beta_ea(n_elements):
+    """At the same bent, relaxed state, a uniform axial stretching rate e (nodal axial velocities
+    e x_i of the linear elements) with no bending rate: eps' = e everywhere, so the dissipated
+    power is beta EA L e^2 and the damping force is -beta EA e d/dq int eps dx =
+    -beta EA e (Su(L) - Su(0) + G q), G = int Sw'^T Sw' dx (the projection keeps the integral: the
+    constants lie in the span of the elements' strains). G is built here with scipy quad on each
+    element, independently of the assembler's Gauss rule; agreement to 1e-9 (quad asked for 1e-12;
+    the force sums terms ~1e2 times larger than the result)."""
+    from scipy.integrate import quad
+
+    model = pinned_model(beam(Fem(n_elements), damping=Rayleigh(0.0, BETA)))
+    lay = model.layouts["beam"]
+    s = relax_axial(model, bent_state(model, n_elements), axial_indices(model))
+    rate = 3.0e-2    # 1/s
+    sdot = np.zeros(model.n_coords)
+    for i, label in enumerate(lay.shapes.labels):
+        if label[0] == "u":
+            sdot[lay.offset + 3 + i] = rate * int(label[1:]) * LENGTH / n_elements
+    assert model.damping_power(sdot, s) == pytest.approx(BETA * EA * LENGTH * rate**2, rel=1e-12)
+    n_e = lay.n_elastic
+    gram = np.zeros((n_e, n_e))
+    nodes = np.linspace(0.0, LENGTH, n_elements + 1)
+    slope = lambda x: lay.shapes.evaluate([x]).dw[0]
+    for a in range(n_e):
+        for b in range(a, n_e):
+            gram[a, b] = gram[b, a] = sum(
+                quad(lambda x: slope(x)[a] * slope(x)[b], lo, hi, epsabs=0.0, epsrel=1e-12)[0]
+                for lo, hi in zip(nodes[:-1], nodes[1:]))
+    ends = lay.shapes.evaluate([0.0, LENGTH]).u
+    expected = np.zeros(model.n_coords)
+    expected[lay.elastic] = -BETA * EA * rate * (ends[1] - ends[0] + gram @ s[lay.elastic])
+    force = _damping_force(model, s, sdot)
+    assert np.linalg.norm(force - expected) < 1e-9 * np.linalg.norm(expected)
