@@ -476,3 +476,20 @@ def test_axial_stretching_rate_feels_beta_ea(n_elements):
     expected[lay.elastic] = -BETA * EA * rate * (ends[1] - ends[0] + gram @ s[lay.elastic])
     force = _damping_force(model, s, sdot)
     assert np.linalg.norm(force - expected) < 1e-9 * np.linalg.norm(expected)
+
+
+@pytest.mark.parametrize("discretisation", [Fem(3), Ritz(2, 1)], ids=["fem3", "ritz2-1"])
+def test_strain_rate_damping_is_rayleigh_at_zero_deflection(discretisation):
+    """At q = 0 the strain-rate form reduces to C = alpha M_ee + beta K_ee (M_ee, K_ee from
+    ``beam_matrices``): the linearisation about an undeformed motion is unchanged. With the frame at
+    rest the elastic block of -dQ/ds' is C alone; both sides are the same Gauss sums in another
+    order, so they agree to round-off (1e-12 of |C|)."""
+    alpha = 0.5
+    model = pinned_model(beam(discretisation, damping=Rayleigh(alpha, BETA)))
+    lay = model.layouts["beam"]
+    s = np.zeros(model.n_coords)
+    s[lay.offset + 2] = 0.7
+    damping = -model.force_jacobians(s, np.zeros(model.n_coords), 0.0)[1][lay.elastic, lay.elastic]
+    mass, stiffness = beam_matrices(lay.shapes)
+    expected = alpha * mass + BETA * stiffness
+    assert np.abs(damping - expected).max() <= 1e-12 * np.abs(expected).max()
