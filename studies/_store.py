@@ -44,6 +44,8 @@ def open_file(path: str | Path, mode: str = "a"):
     """Open (create) a result file and stamp it with versions and creation time."""
     import h5py
 
+    if mode != "r":
+        Path(path).parent.mkdir(parents=True, exist_ok=True)  # as a user expects of --out a/b.h5
     handle = h5py.File(path, mode)
     if "flexvib_version" not in handle.attrs and mode != "r":
         stamp = versions()
