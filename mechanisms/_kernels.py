@@ -88,35 +88,50 @@ def _group_scratch(sp_int):
 
 
 @numba.njit(cache=True)
-def _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef):
-    """Eq. (4)-(5) for the strain-point group starting at row i0: fill slope s_j, projected strain
-    eps_g, curvature kappa_g and c_j (first ``size`` entries); return the group's size."""
-    size, pptr = sp_int[i0, 4], sp_int[i0, 5]
+def _strain_rows(v, i0, sp_int, shp, idx, axial, slope, curvature):
+    """u'_g v, w'_g v and w''_g v (the first ``size`` entries) at the strain points of the group
+    starting at row i0, for a vector v of coordinates (q, eq. 4) or of their rates (q', eq. 7)."""
     off, nnz, iptr = sp_int[i0, 0], sp_int[i0, 1], sp_int[i0, 3]
-    for g in range(size):
+    for g in range(sp_int[i0, 4]):
         ptr = sp_int[i0 + g, 2]
         du = 0.0
         dw = 0.0
         kap = 0.0
         for k in range(nnz):
-            qk = s[off + 3 + idx[iptr + k]]
-            du += shp[ptr + k] * qk
-            dw += shp[ptr + nnz + k] * qk
-            kap += shp[ptr + 2 * nnz + k] * qk
-        eps[g] = du
+            vk = v[off + 3 + idx[iptr + k]]
+            du += shp[ptr + k] * vk
+            dw += shp[ptr + nnz + k] * vk
+            kap += shp[ptr + 2 * nnz + k] * vk
+        axial[g] = du
         slope[g] = dw
-        kappa[g] = kap
+        curvature[g] = kap
+
+
+@numba.njit(cache=True)
+def _project(i0, sp_int, sp_real, shp, factor, a, b, scale, strain, coef):
+    """strain_g += factor sum_j P_gj a_j b_j, then coef_j = scale sum_g w EA strain_g P_gj, over the
+    group starting at row i0 (eq. 4-5 with a = b = s, factor 1/2, scale 1; eq. 7-8 with a = s,
+    b = s', factor 1, scale beta)."""
+    size, pptr = sp_int[i0, 4], sp_int[i0, 5]
     for g in range(size):
         acc = 0.0
         for j in range(size):
-            acc += shp[pptr + g * size + j] * slope[j] * slope[j]
-        eps[g] += 0.5 * acc
+            acc += shp[pptr + g * size + j] * a[j] * b[j]
+        strain[g] += factor * acc
     for j in range(size):
         acc = 0.0
         for g in range(size):
-            acc += sp_real[i0 + g, 0] * eps[g] * shp[pptr + g * size + j]
-        coef[j] = acc
-    return size
+            acc += sp_real[i0 + g, 0] * strain[g] * shp[pptr + g * size + j]
+        coef[j] = scale * acc
+
+
+@numba.njit(cache=True)
+def _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef):
+    """Eq. (4)-(5) for the strain-point group starting at row i0: fill slope s_j, projected strain
+    eps_g, curvature kappa_g and c_j (first ``size`` entries); return the group's size."""
+    _strain_rows(s, i0, sp_int, shp, idx, eps, slope, kappa)
+    _project(i0, sp_int, sp_real, shp, 0.5, slope, slope, 1.0, eps, coef)
+    return sp_int[i0, 4]
 
 
 @numba.njit(cache=True)
@@ -124,32 +139,25 @@ def _membrane_rate_group(sdot, i0, sp_int, sp_real, shp, idx, slope, slope_rate,
                          kappa_rate, coef_rate):
     """Eq. (7)-(8) for the group starting at row i0, after ``_membrane_group`` filled ``slope``:
     fill s'_j, eps'_g, kappa'_g and d_j (first ``size`` entries)."""
-    size, pptr = sp_int[i0, 4], sp_int[i0, 5]
+    _strain_rows(sdot, i0, sp_int, shp, idx, eps_rate, slope_rate, kappa_rate)
+    _project(i0, sp_int, sp_real, shp, 1.0, slope, slope_rate, sp_real[i0, 2], eps_rate,
+             coef_rate)
+
+
+@numba.njit(cache=True)
+def _subtract_strain_force(out, i0, sp_int, sp_real, shp, idx, scale, strain, curvature, slope,
+                           coef):
+    """out -= sum_g scale (w EA strain_g u'_g + w EI curvature_g w''_g) + coef_g slope_g w'_g over
+    the group starting at row i0: dPi/dq of eq. (5) (scale 1) or dD/dq' of eq. (8) (scale beta,
+    with the rates of eq. 7 and d_j)."""
     off, nnz, iptr = sp_int[i0, 0], sp_int[i0, 1], sp_int[i0, 3]
-    beta = sp_real[i0, 2]
-    for g in range(size):
+    for g in range(sp_int[i0, 4]):
         ptr = sp_int[i0 + g, 2]
-        du = 0.0
-        dw = 0.0
-        kap = 0.0
+        ea, ei = sp_real[i0 + g, 0], sp_real[i0 + g, 1]
         for k in range(nnz):
-            vk = sdot[off + 3 + idx[iptr + k]]
-            du += shp[ptr + k] * vk
-            dw += shp[ptr + nnz + k] * vk
-            kap += shp[ptr + 2 * nnz + k] * vk
-        eps_rate[g] = du
-        slope_rate[g] = dw
-        kappa_rate[g] = kap
-    for g in range(size):
-        acc = 0.0
-        for j in range(size):
-            acc += shp[pptr + g * size + j] * slope[j] * slope_rate[j]
-        eps_rate[g] += acc
-    for j in range(size):
-        acc = 0.0
-        for g in range(size):
-            acc += sp_real[i0 + g, 0] * eps_rate[g] * shp[pptr + g * size + j]
-        coef_rate[j] = beta * acc
+            out[off + 3 + idx[iptr + k]] -= (scale * (ea * strain[g] * shp[ptr + k]
+                                                      + ei * curvature[g] * shp[ptr + 2 * nnz + k])
+                                             + coef[g] * slope[g] * shp[ptr + nnz + k])
 
 
 @numba.njit(cache=True)
@@ -295,27 +303,14 @@ def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, 
     while i0 < sp_int.shape[0]:
         # -dPi/dq, eq. (5)
         size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
-        off, nnz, iptr = sp_int[i0, 0], sp_int[i0, 1], sp_int[i0, 3]
-        for g in range(size):
-            ptr = sp_int[i0 + g, 2]
-            ea, ei = sp_real[i0 + g, 0], sp_real[i0 + g, 1]
-            for k in range(nnz):
-                out[off + 3 + idx[iptr + k]] -= (ea * eps[g] * shp[ptr + k]
-                                                 + coef[g] * slope[g] * shp[ptr + nnz + k]
-                                                 + ei * kappa[g] * shp[ptr + 2 * nnz + k])
+        _subtract_strain_force(out, i0, sp_int, sp_real, shp, idx, 1.0, eps, kappa, slope, coef)
         beta = sp_real[i0, 2]
         if beta != 0.0:
             # -dD/dq', eq. (8)
             _membrane_rate_group(sdot, i0, sp_int, sp_real, shp, idx, slope, slope_rate,
                                  eps_rate, kappa_rate, coef_rate)
-            for g in range(size):
-                ptr = sp_int[i0 + g, 2]
-                ea, ei = sp_real[i0 + g, 0], sp_real[i0 + g, 1]
-                for k in range(nnz):
-                    out[off + 3 + idx[iptr + k]] -= (
-                        beta * ea * eps_rate[g] * shp[ptr + k]
-                        + coef_rate[g] * slope[g] * shp[ptr + nnz + k]
-                        + beta * ei * kappa_rate[g] * shp[ptr + 2 * nnz + k])
+            _subtract_strain_force(out, i0, sp_int, sp_real, shp, idx, beta, eps_rate,
+                                   kappa_rate, slope, coef_rate)
         i0 += size
     n = s.shape[0]
     if k0.shape[0] == n:
