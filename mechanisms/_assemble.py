@@ -274,8 +274,8 @@ class Model:
                                                tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0))
 
     def damping_power(self, sdot, s=None) -> float:
-        """Power dissipated by the damping of the elastic coordinates (W, >= 0): ``s'^T C0 s'`` plus,
-        on links with geometric stiffening and Rayleigh ``beta``, ``beta int EA eps'^2 + EI w''^2``
+        """Power dissipated by the damping of the elastic coordinates (W, >= 0): ``s'^T C0 s'``
+        plus, on links with geometric stiffening and Rayleigh ``beta``, ``beta int EA eps'^2 + EI w''^2``
         of the projected membrane strain (``_kernels`` eq. 7), which depends on the positions ``s``
         (required then; the other terms do not need it)."""
         tb = self._tables

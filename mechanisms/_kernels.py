@@ -33,7 +33,7 @@ elastic coordinates), with their values in ``shp`` (``nnz`` per row):
   Kelvin-Voigt damping acts on the rates of the same strains (damping stress beta E eps'), i.e.
   the Rayleigh dissipation function D = beta/2 sum_g (w EA eps'_g^2 + w EI kappa'_g^2) with
 
-      s'_j = w'_j q',   eps'_g = G_g q' = u'_g q' + sum_j P_gj s_j s'_j,   kappa'_g = w''_g q'    (7)
+      s'_j = w'_j q',   eps'_g = G_g q' = u'_g q' + sum_j P_gj s_j s'_j,   kappa'_g = w''_g q'  (7)
       -dD/dq' = -beta sum_g w EA eps'_g G_g + w EI kappa'_g w''_g
               = -sum_g beta w EA eps'_g u'_g + d_g s_g w'_g + beta w EI kappa'_g w''_g,
       d_j = beta sum_g w EA eps'_g P_gj                                                     (8)
@@ -286,7 +286,8 @@ def mass_matrix_jacobian(s, acc, mp_int, mp_real, shp, idx, out):
 
 @numba.njit(cache=True)
 def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, out):
-    """Q = sum m L^T (g - c) - dPi/ds - K0 s - C0 s' (eq. 2; seed eq. 2.10, 2.13); out (n,) zeroed."""
+    """Q = sum m L^T (g - c) - dPi/ds - dD/ds' - K0 s - C0 s' (eq. 2, 5, 8; seed eq. 2.10, 2.13);
+    out (n,) zeroed."""
     lx, ly, cols = _scratch(mp_int[:, 1])
     for i in range(mp_int.shape[0]):
         off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
