@@ -275,9 +275,9 @@ class Model:
 
     def damping_power(self, sdot, s=None) -> float:
         """Power dissipated by the damping of the elastic coordinates (W, >= 0): ``s'^T C0 s'``
-        plus, on links with geometric stiffening and Rayleigh ``beta``, ``beta int EA eps'^2 + EI w''^2``
-        of the projected membrane strain (``_kernels`` eq. 7), which depends on the positions ``s``
-        (required then; the other terms do not need it)."""
+        plus, on links with geometric stiffening and Rayleigh ``beta``,
+        ``beta int EA eps'^2 + EI w''_t^2 dx`` of the projected membrane strain (``_kernels``
+        eq. 7), which depends on the positions ``s`` (required then; the rest does not need it)."""
         tb = self._tables
         sdot = self._vector(sdot, self.n_coords, "sdot")
         if s is None:
