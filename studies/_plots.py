@@ -6,7 +6,7 @@ them; ``artist.figure`` (or ``axes.figure``) reaches the figure for saving.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -39,6 +39,22 @@ def _label(name: str, unit: str) -> str:
     return f"{name} ({unit})" if unit and unit != "1" else name
 
 
+def _largest(values: Any) -> float:
+    """Largest finite entry of an array, a mapping of arrays, or None (NaN if there is none)."""
+    if values is None:
+        return float("nan")
+    arrays = values.values() if isinstance(values, Mapping) else [values]
+    finite = [np.abs(np.asarray(a, dtype=float))[np.isfinite(np.asarray(a, dtype=float))]
+              for a in arrays]
+    finite = [a for a in finite if a.size]
+    return float(max(a.max() for a in finite)) if finite else float("nan")
+
+
+def _cost(error: str, run_time: float) -> str:
+    """The line every figure carries: what its error estimate says and the run time that bought it."""
+    return f"{error}; run time {run_time:.3g} s"
+
+
 def plot_multipliers(multipliers: np.ndarray, *, ax: Any = None, title: str = "") -> list:
     """Multipliers in the complex plane with the unit circle; returns [circle, points]."""
     ax = ax if ax is not None else _axes(1, None, width=4.8, height=4.8)[0]
@@ -66,8 +82,10 @@ def plot_steady_state(result: Any, *, axes: Any = None) -> dict[str, list]:
         ax.set_ylabel(_label(spec, result.units[spec]))
         ax.set_title(f"{spec}: error estimate {result.response_error[spec]:.2g} {result.units[spec]}",
                      fontsize="small")
-    artists["multipliers"] = plot_multipliers(result.multipliers, ax=axes[-1],
-                                              title=f"spectral radius {result.spectral_radius:.6f}")
+    artists["multipliers"] = plot_multipliers(
+        result.multipliers, ax=axes[-1],
+        title=f"spectral radius {result.spectral_radius:.6f}\n" + _cost(
+            f"max coordinate error {result.error_estimate:.2g} (N against N/2)", result.run_time))
     return artists
 
 
@@ -109,6 +127,12 @@ def plot_sweep(result: Any, *, axes: Any = None) -> dict[str, list]:
         artists["spectral_radius"] = axes[-1].plot(x, result.spectral_radius, ".-", color="C1")
         artists["stability_limit"] = [axes[-1].axhline(1.0, color="k", lw=0.8)]
     axes[-1].set_ylabel("spectral radius |mu|max")
+    relative = [np.asarray(result.peak_to_peak_error.get(spec), dtype=float)
+                / np.asarray(result.peak_to_peak[spec], dtype=float)
+                for spec in specs if result.peak_to_peak_error.get(spec) is not None]
+    axes[0].set_title(_cost(f"{len(x)} points, largest estimated error "
+                            f"{100 * _largest(relative):.2g} % of peak to peak",
+                            result.run_time), fontsize="small", pad=14)  # above the k:mode labels
     for ax in axes:
         ax.set_xlabel(xlabel)
         for start, end in result.instabilities:
@@ -145,7 +169,15 @@ def plot_campbell(result: Any, *, ax: Any = None) -> list:
         ax.legend(fontsize="x-small", loc="upper left")
     ax.set_xlabel("crank speed (rad/s)")
     ax.set_ylabel("frequency (rad/s)")
-    ax.set_title(f"{result.problem}: Campbell diagram", fontsize="small")
+    # The error of the characteristic frequencies drawn (an unresolved axial mode far above the
+    # plotted range would otherwise set it).
+    error = float("nan")
+    if result.characteristic_error is not None:
+        shown = np.asarray(result.characteristic) <= ax.get_ylim()[1]
+        error = _largest(np.where(shown, result.characteristic_error, np.nan))
+    ax.set_title(f"{result.problem}: Campbell diagram\n" + _cost(
+        f"characteristic frequencies shown to {error:.2g} rad/s", result.run_time),
+        fontsize="small")
     return artists
 
 
@@ -163,7 +195,9 @@ def plot_chart(result: Any, *, ax: Any = None) -> list:
     ax.figure.colorbar(mesh, ax=ax, label="spectral radius |mu|max")
     ax.set_xlabel(_label(result.parameters[0], result.parameter_units[0]))
     ax.set_ylabel(_label(result.parameters[1], result.parameter_units[1]))
-    ax.set_title(f"{result.problem}: stability chart (black: |mu| = 1)", fontsize="small")
+    ax.set_title(f"{result.problem}: stability chart (black: |mu| = 1)\n" + _cost(
+        f"spectral radius to {_largest(result.spectral_radius_error):.2g}", result.run_time),
+        fontsize="small")
     return artists
 
 
@@ -184,7 +218,11 @@ def plot_nonlinear(result: Any, *, axes: Any = None) -> dict[str, list]:
         ax.set_xlabel("time (s)")
         ax.set_ylabel(_label(spec, result.units[spec]))
         ax.set_title(f"{spec}: max difference {result.difference[spec]:.2g} "
-                     f"({100 * result.relative_difference[spec]:.2g} % of peak to peak)", fontsize="small")
+                     f"({100 * result.relative_difference[spec]:.2g} % of peak to peak)\n"
+                     f"estimated errors: linear {result.linear_error.get(spec, float('nan')):.2g}, "
+                     f"nonlinear {result.nonlinear_error.get(spec, float('nan')):.2g}; run time "
+                     f"linear {result.linear_run_time:.3g} s, nonlinear "
+                     f"{result.nonlinear_run_time:.3g} s", fontsize="small")
         ax.legend(fontsize="x-small")
         artists[spec] = lines
     return artists
