@@ -138,8 +138,11 @@ Discretisation = Union[Ritz, UserShapes, Fem]
 # ---------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Rayleigh:
-    """``C = alpha M_ee + beta K_ee`` on a link's elastic coordinates; ``beta`` is Kelvin-Voigt
-    (stiffness-proportional) damping acting on bending and axial strain; units 1/s and s."""
+    """Rayleigh damping, units 1/s and s: ``alpha M_ee`` on a link's elastic coordinates plus
+    Kelvin-Voigt damping ``beta``, a damping stress ``beta E`` times the strain rate of bending and
+    of axial (membrane) strain. Without geometric stiffening that is ``beta K_ee``; with it, it acts
+    on the rate of the projected membrane strain, so a bent link shortening its chord is not damped
+    as if it were stretched (equal to ``beta K_ee`` at zero deflection, hence in the linearisation)."""
 
     alpha: float = 0.0
     beta: float = 0.0

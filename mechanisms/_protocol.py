@@ -22,7 +22,8 @@ Shapes: ``s, sdot, sddot`` (n,), ``lam`` (r,), matrices (n, n) or (r, n). Units 
 ``period`` (s or None), ``layouts`` (link name -> ``LinkLayout`` with ``coords``/``elastic`` slices and
 ``shapes``), ``drive_rows`` (constraint rows of prescribed drives), ``link_coordinates(name)``,
 ``observable(spec)``, ``drive_torques(s, sdot, t, lam=None)`` (N m per drive; a prescribed drive's
-torque is ``-lam[row]``), ``drive_power(s, sdot, t, lam=None)`` (W) and ``damping_power(sdot)`` (W), so
+torque is ``-lam[row]``), ``drive_power(s, sdot, t, lam=None)`` (W) and ``damping_power(sdot, s=None)`` (W; ``s`` needed when
+a stiffened link has Kelvin-Voigt damping), so
 that ``d(T + V)/dt = drive_power - damping_power`` can be checked along a solution.
 
 Reading the multipliers of ``mechanisms.Model`` (the generalized constraint force is
