@@ -16,7 +16,7 @@ import mechanisms
 import periodic
 
 from ._core import (WARN_CONDITION, LinearCoefficients, LinearizationError, choose_independent,
-                    linear_coefficients)
+                    interpolate_periodic, linear_coefficients, spectral_tail)
 from ._geometric import geometric_stiffness
 
 logger = logging.getLogger(__name__)
@@ -97,15 +97,57 @@ def _has_stiffening(model) -> bool:
     return any(lay.shapes is not None and lay.stiffening for lay in model.layouts.values())
 
 
-def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label):
+# Coefficients of a smooth mechanism are smooth periodic functions of time: evaluating the model at
+# every sample of a fine Newmark grid is wasted work. ``about`` evaluates them at every stride-th
+# sample (at least COARSEST samples per period) and interpolates spectrally, refining until the
+# highest resolved harmonics are below INTERPOLATION_TOL of the largest (so the interpolation error
+# is at round-off level); near toggle positions the spectra decay slowly and it falls back to every
+# sample.
+COARSEST = 64
+INTERPOLATION_TOL = 1e-12
+
+
+def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, stride=1):
+    """``LinearCoefficients`` on the grid of ``t`` (N+1,), the model evaluated at every ``stride``-th
+    sample (N divisible by ``stride``) and the results interpolated to the others."""
+    pick = slice(None, None, stride)
+    t_c, s_c, sdot_c, sddot_c, lam_c = t[pick], s[pick], sdot[pick], sddot[pick], lam[pick]
     extra = None
     if _has_stiffening(model):
         from mechanisms._batch import constraint_terms
 
-        extra = geometric_stiffness(model, t, s, sdot, sddot, lam,
-                                    jacobian=constraint_terms(model, t, s)[0])
-    return linear_coefficients(model, t, s, sdot, sddot, lam, period=period,
-                               independent=independent, extra_stiffness=extra, time_label=label)
+        extra = geometric_stiffness(model, t_c, s_c, sdot_c, sddot_c, lam_c,
+                                    jacobian=constraint_terms(model, t_c, s_c)[0])
+    coarse = linear_coefficients(model, t_c, s_c, sdot_c, sddot_c, lam_c, period=period,
+                                 independent=independent, extra_stiffness=extra,
+                                 time_label=lambda k: label(k * stride))
+    if stride == 1:
+        return coarse
+    n_steps = len(t) - 1
+    fields = ("M", "C", "K", "f", "V", "Vdot", "Vddot")
+    # The interpolation error that matters is that of the system's coefficients and of the basis;
+    # the tails of V' and V'' are those of V weighted by k and k^2, and they reach the coefficients
+    # only through M V'' and the like, which the tails of C and K already measure.
+    tail = max(spectral_tail(getattr(coarse, name)) for name in ("M", "C", "K", "f", "V"))
+    return dataclasses.replace(
+        coarse, t=t, stride=stride, interpolation_error=tail,
+        dependent_condition=np.repeat(coarse.dependent_condition, stride)[:n_steps + 1],
+        **{name: interpolate_periodic(getattr(coarse, name), n_steps) for name in fields})
+
+
+def _adaptive_coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label):
+    """``_coefficients`` with the largest stride (a power of two dividing N, leaving at least
+    ``COARSEST`` samples) whose coefficients the coarse samples resolve to ``INTERPOLATION_TOL``."""
+    n_steps = len(t) - 1
+    stride = 1
+    while n_steps % (2 * stride) == 0 and n_steps // (2 * stride) >= COARSEST:
+        stride *= 2
+    while True:
+        coeffs = _coefficients(model, t, s, sdot, sddot, lam, period=period,
+                               independent=independent, label=label, stride=stride)
+        if stride == 1 or coeffs.interpolation_error < INTERPOLATION_TOL:
+            return coeffs
+        stride //= 2
 
 
 def _crank_angle(mechanism, t, period):
@@ -160,14 +202,59 @@ def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMecha
         raise TypeError(f"mechanism must be a mechanisms.Mechanism; received "
                         f"{type(mechanism).__name__}")
     specs = default_observables(mechanism) if observables is None else tuple(observables)
-    nominal = mechanisms.nominal_motion(mechanism, n_steps=n_steps)
+    nominal = _nominal_motion(mechanism, n_steps)
     model = _model_with_feedforward(mechanism, nominal)
     independent = _independent_coordinates(model, nominal)
     angle = _crank_angle(mechanism, nominal.t, nominal.period)
-    coeffs = _coefficients(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, nominal.lam,
-                           period=nominal.period, independent=independent,
-                           label=lambda k: f"crank angle {angle[k]:.6g} rad (t = {nominal.t[k]:.6g} s)")
+    coeffs = _adaptive_coefficients(
+        model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, nominal.lam,
+        period=nominal.period, independent=independent,
+        label=lambda k: f"crank angle {angle[k]:.6g} rad (t = {nominal.t[k]:.6g} s)")
     return _finish(mechanism, model, nominal, coeffs, specs, angle, started)
+
+
+def _nominal_motion(mechanism, n_steps):
+    """``mechanisms.nominal_motion`` on the grid of ``n_steps``, computed on a coarser grid (every
+    stride-th sample, at least ``COARSEST`` per period) and interpolated spectrally when that is
+    exact to round-off: the coarse samples must resolve the motion to ``INTERPOLATION_TOL`` and the
+    interpolated motion must meet the constraints at every fine sample as the direct computation
+    does (positions 1e-12, rates and accelerations to 1e-9 of their scale); otherwise, or for a
+    hand-written model, the direct computation on the fine grid."""
+    stride = 1
+    while n_steps % (2 * stride) == 0 and n_steps // (2 * stride) >= COARSEST:
+        stride *= 2
+    if stride == 1:
+        return mechanisms.nominal_motion(mechanism, n_steps=n_steps)
+    started = time.perf_counter()
+    coarse = mechanisms.nominal_motion(mechanism, n_steps=n_steps // stride)
+    # Angles of links that turn fully grow by whole turns over the period: interpolate the
+    # periodic remainder.
+    drift = coarse.s[-1] - coarse.s[0]
+    phase = coarse.t / coarse.period
+    periodic_part = coarse.s - np.outer(phase, drift)
+    arrays = {"sdot": coarse.sdot, "sddot": coarse.sddot, "lam": coarse.lam,
+              "drive_torque": coarse.drive_torque}
+    if max(spectral_tail(a) for a in [periodic_part, *arrays.values()]) > INTERPOLATION_TOL:
+        return mechanisms.nominal_motion(mechanism, n_steps=n_steps)
+    t = np.linspace(0.0, coarse.period, n_steps + 1)
+    s = interpolate_periodic(periodic_part, n_steps) + np.outer(t / coarse.period, drift)
+    fine = {name: interpolate_periodic(a, n_steps) for name, a in arrays.items()}
+    model = coarse.model
+    from mechanisms._batch import constraint_terms
+
+    jacobian, rate, gamma, phi = constraint_terms(model, t, s, fine["sdot"], with_values=True)
+    velocity = np.abs(np.einsum("krn,kn->kr", jacobian, fine["sdot"]) + rate).max()
+    acceleration = np.abs(np.einsum("krn,kn->kr", jacobian, fine["sddot"]) - gamma).max()
+    position = np.abs(phi).max()
+    scale_v = max(np.abs(rate).max(), np.abs(fine["sdot"]).max())
+    scale_a = max(np.abs(gamma).max(), np.abs(fine["sddot"]).max())
+    if not (position <= 1e-12 and velocity <= 1e-9 * scale_v and acceleration <= 1e-9 * scale_a):
+        return mechanisms.nominal_motion(mechanism, n_steps=n_steps)
+    return dataclasses.replace(
+        coarse, t=t, s=s, constraint_residual=float(position), velocity_residual=float(velocity),
+        acceleration_residual=float(acceleration),
+        jacobian_condition=np.repeat(coarse.jacobian_condition, stride)[:n_steps + 1],
+        run_time=time.perf_counter() - started, **fine)
 
 
 def _model_with_feedforward(mechanism, nominal):
@@ -283,7 +370,8 @@ def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFam
         return _coefficients(model, nominal.t, nominal.s, w * ds, w**2 * dds,
                              lam_static + w**2 * lam2,
                              period=abs(2 * math.pi / w) if w else math.inf,
-                             independent=independent, label=lambda k: f"sample {k}")
+                             independent=independent, label=lambda k: f"sample {k}",
+                             stride=base.coefficients.stride)
 
     # Three speeds fix a quadratic exactly: 0, rate, 2 rate.
     c0, c1, c2 = at(0.0), base.coefficients, at(2.0 * rate)

@@ -56,7 +56,10 @@ class LinearCoefficients:
     ``independent`` (m,) are the indices of ``z`` in ``s``; ``dependent_condition`` (N+1,) the
     condition number of the dependent block of the constraint Jacobian; ``spectral_error`` an
     estimate of the relative error of ``Vdot``, ``Vddot`` (size of the highest harmonics kept);
-    ``rigid_residual`` the largest rigid-row residual of the nominal motion (should be round-off).
+    ``rigid_residual`` the largest rigid-row residual of the nominal motion (should be round-off);
+    ``stride``: the model was evaluated at every ``stride``-th sample and the coefficients
+    interpolated spectrally to the others (1: evaluated everywhere), with ``interpolation_error``
+    the relative size of the highest harmonics the coarse samples resolve (``spectral_tail``).
     """
 
     t: np.ndarray
@@ -71,6 +74,8 @@ class LinearCoefficients:
     dependent_condition: np.ndarray
     spectral_error: float
     rigid_residual: float
+    stride: int = 1
+    interpolation_error: float = 0.0
 
 
 def spectral_derivatives(values: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -101,6 +106,36 @@ def spectral_derivatives(values: np.ndarray, period: float) -> tuple[np.ndarray,
     scale = magnitude.max()
     tail = float(magnitude[top].max() / scale) if scale > 0 and top.any() else 0.0
     return d1, d2, tail
+
+
+def spectral_tail(values: np.ndarray) -> float:
+    """Relative size of the harmonics in the top eighth of the band that the samples ``values``
+    (N+1, ...) of a periodic function resolve (``values[N] == values[0]``): near round-off for a
+    spectrally converged function, and a bound on the error of interpolating it from these samples.
+    """
+    n_steps = values.shape[0] - 1
+    magnitude = np.abs(np.fft.rfft(values[:n_steps], axis=0)).reshape(n_steps // 2 + 1, -1)
+    scale = magnitude.max()
+    if scale == 0.0:
+        return 0.0
+    top = np.arange(magnitude.shape[0]) >= (n_steps // 2) * 7 // 8
+    return float(magnitude[top].max() / scale)
+
+
+def interpolate_periodic(values: np.ndarray, n_steps: int) -> np.ndarray:
+    """Trigonometric interpolation of periodic samples ``values`` (Nc+1, ...) on ``t_k = k T / Nc``
+    to (n_steps+1, ...) on ``k T / n_steps``; the Nyquist harmonic of the coarse grid is dropped
+    (it is negligible wherever ``spectral_tail`` says the samples resolve the function)."""
+    coarse = values.shape[0] - 1
+    if coarse == n_steps:
+        return values.copy()
+    spectrum = np.fft.rfft(values[:coarse], axis=0)
+    if coarse % 2 == 0:
+        spectrum[coarse // 2] = 0.0
+    padded = np.zeros((n_steps // 2 + 1,) + spectrum.shape[1:], dtype=complex)
+    padded[:spectrum.shape[0]] = spectrum
+    fine = np.fft.irfft(padded, n=n_steps, axis=0) * (n_steps / coarse)
+    return np.concatenate([fine, fine[:1]], axis=0)
 
 
 def choose_independent(jacobian: np.ndarray, preferred: np.ndarray) -> np.ndarray:

@@ -206,3 +206,32 @@ def test_bad_input_is_named(four_bar):
     torque_driven = four_bar.replace(drives=(mc.TorqueDrive("O", rate=100.0, kp=10.0, kd=1.0),))
     with pytest.raises(LinearizationError, match="PrescribedDrive"):
         linearize.speed_family(torque_driven, n_steps=16)
+
+
+@pytest.mark.parametrize("scene", ["four_bar_fem4", "six_bar", "slider_crank", "two_link_arm"])
+def test_spectrally_interpolated_nominal_motion_equals_the_direct_one(scene):
+    """about() computes the nominal motion on a coarse grid and interpolates it when the coarse
+    samples resolve it to round-off; it must then equal the direct computation on the fine grid."""
+    from linearize._about import _nominal_motion
+
+    mechanism = mc.load(scene)
+    fast, direct = _nominal_motion(mechanism, 512), mc.nominal_motion(mechanism, n_steps=512)
+    for name in ("s", "sdot", "sddot", "lam", "drive_torque"):
+        a, b = getattr(fast, name), getattr(direct, name)
+        # Newton's and the interpolation's round-off, amplified by the conditioning (~10).
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max(), err_msg=name)
+    assert fast.constraint_residual < 1e-12
+
+
+def test_coefficients_from_coarse_samples_equal_those_evaluated_everywhere(four_bar):
+    from linearize._about import _coefficients
+
+    lin = linearize.about(four_bar, n_steps=512)
+    assert lin.coefficients.stride > 1 and lin.coefficients.interpolation_error < 1e-12
+    nominal = lin.nominal
+    everywhere = _coefficients(nominal.model, nominal.t, nominal.s, nominal.sdot, nominal.sddot,
+                               nominal.lam, period=nominal.period,
+                               independent=lin.coefficients.independent, label=str, stride=1)
+    for name in ("M", "C", "K", "f"):
+        a, b = getattr(lin.system, name), getattr(everywhere, name)
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max(), err_msg=name)
