@@ -83,9 +83,12 @@ class SimulationResult:
         observable over the run (``max |o_h - o_2h| / 3`` for a second-order method, on the common
         grid points), or of the coordinates (key ``"s"``) without observables; empty with
         ``estimate_error=False`` or after a failure.
-    n_steps, n_newton, n_jacobian, n_factorizations : counts of accepted steps, Newton iterations,
-        evaluations of the analytic derivatives (tangent terms) and LU factorisations of the
-        iteration matrix.
+    n_steps, n_newton, n_jacobian, n_factorizations : counts of accepted steps of the grid, Newton
+        iterations, evaluations of the analytic derivatives (tangent terms) and LU factorisations of
+        the iteration matrix (all attempts included).
+    n_rejected, n_substeps : step attempts whose Newton solve failed and was retried with half the
+        step (2, 4, ... substeps), and the substeps that replaced the rejected grid steps; 0 when
+        every step converged at the user's step.
     min_pivot_ratio : smallest ``min |u_kk| / max |u_kk|`` of the LU factors of the iteration
         matrix over the run, a cheap conditioning indicator; below ~1e-13 (logged as a warning) the
         Newton increments may carry large rounding errors.
@@ -107,6 +110,8 @@ class SimulationResult:
     n_newton: int
     n_jacobian: int
     n_factorizations: int
+    n_rejected: int
+    n_substeps: int
     min_pivot_ratio: float
     status: int
     message: str
@@ -481,8 +486,8 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
              s0: Sequence[float] | None = None, sdot0: Sequence[float] | None = None,
              t0: float = 0.0, period: float | None = None, method: str = "generalized-alpha",
              rho_inf: float = 0.8, observables: Sequence[str] | None = None, tol: float = 1e-10,
-             max_iterations: int = 20, jacobian_reuse: bool = True, estimate_error: bool = True,
-             throw: bool = True) -> SimulationResult:
+             max_iterations: int = 20, jacobian_reuse: bool = True, max_step_halvings: int = 6,
+             estimate_error: bool = True, throw: bool = True) -> SimulationResult:
     """Integrate the full nonlinear constrained equations of motion on a uniform time grid.
 
     Parameters
@@ -501,15 +506,26 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
     period : the period (s) used by ``n_periods`` / ``steps_per_period`` for a bare model without a
         ``period`` attribute.
     method : ``"generalized-alpha"``.
-    rho_inf : spectral radius at infinite step in [0, 1]: 1 conserves (no numerical damping), smaller
-        values damp unresolved high-frequency modes harder; second order for any value.
+    rho_inf : spectral radius at infinite step in [0, 1]: smaller values damp unresolved
+        high-frequency modes harder; second order for any value. Use ``rho_inf < 1`` whenever the
+        model has stiff modes the step does not resolve (the axial modes of elastic links: h omega
+        of 10-100 at ordinary steps): at 1 (no numerical damping, the trapezoidal rule) they keep
+        their start-up energy, the index-3 multipliers oscillate undamped, and Newton fails on
+        stiff nonlinear (geometrically stiffened) links; a warning is logged.
     observables : specs for ``model.observable(spec)`` (e.g. ``"coupler.deflection@0.5"``,
         ``"coupler.strain@0.25"``, ``"coupler.moment@0.5"``, ``"rocker.angle"``); default: the
         midspan deflection of every pinned-pinned elastic link of a Mechanism, none for a bare model.
     tol : Newton tolerance: iterations stop when the last position increment is below
         ``tol * max(1, max |s0|)`` (m or rad) and the constraint residual ``max |Phi|`` is below
         that times ``max(1, max row sum |Phi_s|)``.
-    max_iterations : Newton iterations allowed per step before the run is declared failed.
+    max_iterations : Newton iterations allowed per step (and per substep) before it is rejected.
+        Newton also gives up early when its increments grow.
+    max_step_halvings : a step whose Newton solve fails (no convergence, divergence, singular
+        matrix, non-finite values) is retried as 2, 4, ..., ``2**max_step_halvings`` equal
+        substeps (each by full Newton from the constant predictor) and the run goes on
+        at the user's step; the output stays on the uniform grid and ``n_rejected`` counts the
+        retries. 0 ends the run at the first failure. Substeps change the local error of that
+        step only (the method stays second order).
     jacobian_reuse : keep the tangent terms of the iteration matrix across iterations and steps
         while Newton contracts well (modified Newton); ``False`` re-evaluates them at every
         iteration (full Newton).
@@ -529,6 +545,14 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
     rho = float(rho_inf)
     if not 0.0 <= rho <= 1.0:
         raise ValueError(f"`rho_inf` must lie in [0, 1]; got {rho_inf!r}.")
+    if rho == 1.0:
+        logger.warning("rho_inf = 1 damps nothing: unresolved stiff (axial) modes and the "
+                       "multipliers keep their start-up oscillations, and Newton can fail on stiff "
+                       "nonlinear links; use rho_inf < 1 (default 0.8) unless every mode is "
+                       "resolved by the step.")
+    if int(max_step_halvings) != max_step_halvings or not 0 <= max_step_halvings <= 20:
+        raise ValueError("`max_step_halvings` must be an integer in [0, 20]; got "
+                         f"{max_step_halvings!r}.")
     tol = _positive(tol, "tol")
     if int(max_iterations) != max_iterations or max_iterations < 1:
         raise ValueError(f"`max_iterations` must be a positive integer; got {max_iterations!r}.")
@@ -541,16 +565,16 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
     _check_consistency(model, q0, v0, t0, length_scale)
     evaluators = _observable_evaluators(model, mechanism, observables)
 
-    run = _integrate(model, q0, v0, t0, h, n_steps, rho, tol * length_scale, int(max_iterations),
-                     jacobian_reuse)
+    options = (rho, tol * length_scale, int(max_iterations), jacobian_reuse,
+               int(max_step_halvings), length_scale)
+    run = _integrate(model, q0, v0, t0, h, n_steps, *options)
     obs = {spec: np.array([ev.value(q) for q in run["s"]]) for spec, ev in evaluators.items()}
     obs_error: dict[str, float] = {}
     if estimate_error and run["status"] == 0 and n_steps < 2:
         run["message"] += " No error estimate: a single step has no coarser grid to compare with."
     elif estimate_error and run["status"] == 0:
         # the coarse grid t0 + 2 k h, k <= n_steps // 2, is every other point of the fine one
-        coarse = _integrate(model, q0, v0, t0, 2.0 * h, n_steps // 2, rho, tol * length_scale,
-                            int(max_iterations), jacobian_reuse)
+        coarse = _integrate(model, q0, v0, t0, 2.0 * h, n_steps // 2, *options)
         if coarse["status"] != 0:
             run["message"] += (" Error estimate unavailable: the 2 dt run failed "
                                f"({coarse['message']})")
@@ -571,7 +595,8 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
                                            evaluators.items()},
         constraint_residual=run["residual"], observable_error=obs_error,
         n_steps=run["n_steps"], n_newton=run["n_newton"], n_jacobian=run["n_jacobian"],
-        n_factorizations=run["n_factorizations"], min_pivot_ratio=run["min_pivot_ratio"],
+        n_factorizations=run["n_factorizations"], n_rejected=run["n_rejected"],
+        n_substeps=run["n_substeps"], min_pivot_ratio=run["min_pivot_ratio"],
         status=run["status"], message=run["message"],
         run_time=time.perf_counter() - start_clock, method=method, rho_inf=rho, dt=h,
         coord_labels=tuple(getattr(model, "coord_labels", ())))
@@ -586,13 +611,182 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
     return result
 
 
-def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jacobian_reuse):
-    """The generalized-alpha loop; returns a dict of the arrays and counts (see ``simulate``)."""
+class _Stepper:
+    """Newton's method on (NR) for one step of any size from a given state, with the buffers, the
+    kept tangent terms and the counts shared by all steps of a run."""
+
+    def __init__(self, model, rho, abs_tol, max_iterations, jacobian_reuse, length_scale):
+        self.model = model
+        # a Newton increment larger than the configuration itself is outside the region of
+        # convergence: Newton from there found spurious roots of the step equations (positions of
+        # 1e3 m on the four-bar scene at 16 steps per period)
+        self.max_increment = length_scale
+        self.alpha_m, self.alpha_f, self.beta, self.gamma = _generalized_alpha_parameters(rho)
+        self.abs_tol, self.max_iterations, self.jacobian_reuse = abs_tol, max_iterations, \
+            jacobian_reuse
+        n, r = int(model.n_coords), int(model.n_constraints)
+        # the Newton iterates (updated in place); after a converged solve, the new state
+        self.q, self.v, self.sddot, self.lam = np.empty(n), np.empty(n), np.empty(n), np.empty(r)
+        self.qhat, self.vhat = np.empty(n), np.empty(n)
+        self.sddot_before, self.lam_before = np.empty(n), np.empty(r)
+        self.rhs = np.empty(n + r)
+        self.G = np.empty((n + r, n + r))
+        self.tangent = np.empty((n, n))
+        self.piv = np.empty(n + r, dtype=np.int64)
+        self.tangent_h = None      # the step the kept tangent terms were scaled with, or None
+        self.residual = np.nan     # max |Phi| at the last converged solve
+        self.counts = {"n_newton": 0, "n_jacobian": 0, "n_factorizations": 0}
+        self.min_pivot_ratio = np.inf
+
+    def drop_tangent(self):
+        self.tangent_h = None
+
+    def solve(self, q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, t, h,
+              full_newton=False):
+        """The step from ``t - h`` (state ``q_n, v_n``, alpha acceleration ``a_n``, ``sddot_n``,
+        ``lam_n``) to ``t``. The predictor extrapolates linearly from ``sddot_prev, lam_prev`` (at
+        ``t - 2h``) when ``extrapolate``; if modified Newton fails from it, the step is solved once
+        more by full Newton (Jacobian at every iterate) from the constant predictor, the most
+        robust variant on the stiff, geometrically nonlinear links (on the shipped six-bar and
+        four-bar scenes modified Newton failed at coarse steps where full Newton converged).
+        Returns "" on success (new state in ``q, v, sddot, lam``), else what went wrong."""
+        alpha_m, alpha_f, beta, gamma = self.alpha_m, self.alpha_f, self.beta, self.gamma
+        beta_p = h * h * beta * (1.0 - alpha_f) / (1.0 - alpha_m)
+        gamma_p = h * gamma * (1.0 - alpha_f) / (1.0 - alpha_m)
+        if self.tangent_h != h:
+            self.tangent_h = None
+        full_newton = full_newton or not self.jacobian_reuse
+        failure = ""
+        for attempt in range(2):
+            failure = self._newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev,
+                                   extrapolate, t, h, beta_p, gamma_p, full_newton)
+            if not failure:
+                if full_newton:
+                    self.tangent_h = None
+                return ""
+            self.tangent_h = None
+            if full_newton and not extrapolate:
+                break           # the retry would repeat this attempt exactly
+            extrapolate, full_newton = False, True
+        return failure
+
+    def _newton(self, q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, t, h,
+                beta_p, gamma_p, full_newton):
+        model, abs_tol, max_iterations = self.model, self.abs_tol, self.max_iterations
+        q, v, sddot, lam, qhat, vhat = self.q, self.v, self.sddot, self.lam, self.qhat, self.vhat
+        G, piv, tangent, counts = self.G, self.piv, self.tangent, self.counts
+        _start_step(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h,
+                    self.alpha_m, self.alpha_f, self.beta, self.gamma, beta_p, gamma_p, qhat, vhat,
+                    sddot, lam, q, v)
+        factorized = False
+        iterations, prev_dq, phi_scale = 0, np.inf, 1.0
+        candidate, growths = False, 0
+        min_pivot_ratio = np.inf
+        while True:
+            Phi = np.ascontiguousarray(model.constraints(q, t), dtype=np.float64)
+            if candidate:
+                # the increments say converged; accept if the constraints agree to tol as well
+                step_residual = _max_abs(Phi)
+                if step_residual <= abs_tol * phi_scale:
+                    self.residual = step_residual
+                    self.min_pivot_ratio = min(self.min_pivot_ratio, min_pivot_ratio)
+                    return ""
+                candidate = False
+                if iterations >= max_iterations:
+                    return (f"the constraint residual stalled at {step_residual:.3g} > "
+                            f"{abs_tol * phi_scale:.3g} after {iterations} iterations (`tol` "
+                            "below round-off?)")
+            M = np.ascontiguousarray(model.mass_matrix(q), dtype=np.float64)
+            Q = np.ascontiguousarray(model.forces(q, v, t), dtype=np.float64)
+            Phi_s = np.ascontiguousarray(model.constraint_jacobian(q, t), dtype=np.float64)
+            exact = self.tangent_h is None    # the matrix will be the Jacobian at this iterate
+            if exact:
+                dQ_ds, dQ_dv = model.force_jacobians(q, v, t)
+                _tangent_terms(
+                    np.ascontiguousarray(model.mass_matrix_jacobian(q, sddot), dtype=np.float64),
+                    np.ascontiguousarray(dQ_ds, dtype=np.float64),
+                    np.ascontiguousarray(dQ_dv, dtype=np.float64),
+                    np.ascontiguousarray(model.constraint_force_jacobian(q, lam, t),
+                                         dtype=np.float64),
+                    beta_p, gamma_p, tangent)
+                counts["n_jacobian"] += 1
+                self.tangent_h = h
+                factorized = False
+            if not factorized:
+                # M and Phi_s are evaluated for the residual anyway: the matrix takes them fresh
+                # once per step (they rotate with the links) and keeps the O(h) tangent terms,
+                # which are re-evaluated only when the iteration contracts slowly
+                phi_scale = _fill_iteration_matrix(M, tangent, Phi_s, G)
+                pivot_ratio = _lu_factor(G, piv)
+                counts["n_factorizations"] += 1
+                factorized = True
+                min_pivot_ratio = min(min_pivot_ratio, pivot_ratio)
+                if not pivot_ratio > 0.0:
+                    return ("the iteration matrix is singular (zero pivot): check for redundant "
+                            "constraints or a toggle position")
+            self.sddot_before[:], self.lam_before[:] = sddot, lam
+            dq = _newton_update(G, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p,
+                                self.rhs, q, v)
+            counts["n_newton"] += 1
+            iterations += 1
+            # contraction of the increments (Hairer & Wanner II, sec. IV.8), across refactorisations
+            theta = dq / prev_dq if math.isfinite(prev_dq) and prev_dq > 0.0 else 0.0
+            if not math.isfinite(dq):
+                # NaN or inf anywhere in M, Q, Phi, Phi_s or the matrix reaches the increment
+                return "the Newton increment is not finite (non-finite model output?)"
+            # error left in the iterate: about theta |dq| < |dq| / 4 (see below). The cheaper test
+            # theta / (1 - theta) |dq| <= tol (Hairer & Wanner II, sec. IV.8) was tried and
+            # accepted errors of ~100 tol in the elastic coordinates: a stale matrix contracts
+            # unevenly over 2-3 iterates. A candidate is accepted once Phi at it is also below tol
+            # times the row sums of Phi_s (checked above, in the evaluation the next iteration
+            # would need anyway).
+            if dq <= abs_tol:
+                candidate = True
+                continue
+            if iterations >= max_iterations:
+                return (f"Newton's method did not converge in {iterations} iterations (last "
+                        f"position increment {dq:.3g}, tolerance {abs_tol:.3g})")
+            wild = dq > self.max_increment
+            if wild and exact:
+                return (f"Newton's method diverged (position increment {dq:.3g} larger than the "
+                        f"configuration scale {self.max_increment:.3g})")
+            if (theta > 1.0 or wild) and not exact:
+                # a growing increment from a matrix evaluated elsewhere (an earlier iterate or
+                # step): on strongly nonlinear links (geometric stiffening couples the stiff axial
+                # and the bending coordinates) one such increment can throw the iterate out of
+                # Newton's region of convergence (the arm and four-bar scenes did). Undo it and
+                # take a true Newton step from the previous iterate instead.
+                sddot[:], lam[:] = self.sddot_before, self.lam_before
+                np.add(qhat, beta_p * sddot, out=q)
+                np.add(vhat, gamma_p * sddot, out=v)
+                self.tangent_h = None
+                continue
+            prev_dq = dq
+            # growing increments with the exact Jacobian: outside Newton's region of convergence;
+            # two in a row end the attempt (the caller then retries with a smaller step) instead
+            # of iterating to overflow
+            growths = growths + 1 if theta > 1.0 else 0
+            if growths >= 2:
+                return f"Newton's method diverged (position increment {dq:.3g})"
+            # contracting too slowly: re-evaluate the matrix at this iterate. An evaluation costs
+            # about one iteration, and at theta = 0.25 the stale matrix gains only 0.6 digits per
+            # iteration, whereas a fresh one converges quadratically.
+            if theta > 0.25 or full_newton:
+                self.tangent_h = None
+
+    def advance_alpha_acceleration(self, a, sddot_old):
+        """(GA1) for the step just solved: ``a`` becomes ``a_{n+1}``."""
+        _advance_alpha_acceleration(a, sddot_old, self.sddot, self.alpha_m, self.alpha_f)
+
+
+def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jacobian_reuse,
+               max_halvings, length_scale):
+    """The generalized-alpha loop on the uniform grid ``t0 + k h``; a step whose Newton solve fails
+    is retried as 2, 4, ..., ``2**max_halvings`` equal substeps. Returns a dict of the arrays and
+    counts (see ``simulate``)."""
     n = q0.shape[0]
     r = int(model.n_constraints)
-    alpha_m, alpha_f, beta, gamma = _generalized_alpha_parameters(rho)
-    beta_p = h * h * beta * (1.0 - alpha_f) / (1.0 - alpha_m)
-    gamma_p = h * gamma * (1.0 - alpha_f) / (1.0 - alpha_m)
+    stepper = _Stepper(model, rho, abs_tol, max_iterations, jacobian_reuse, length_scale)
 
     t_grid = t0 + h * np.arange(n_steps + 1)
     S = np.empty((n_steps + 1, n))
@@ -606,121 +800,67 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
     residual[0] = np.max(np.abs(model.constraints(q0, t0)), initial=0.0)
 
     a = sddot0.copy()          # alpha acceleration a_0 = sddot_0 (Arnold & Bruls 2007, sec. 4)
-    # the Newton iterates (updated in place); the accepted state of step k is S, V, A, L[k]
-    q, v, sddot, lam = np.empty(n), np.empty(n), np.empty(n), np.empty(r)
-    qhat, vhat = np.empty(n), np.empty(n)
-    rhs = np.empty(n + r)
-    G = np.empty((n + r, n + r))
-    tangent = np.empty((n, n))
-    piv = np.empty(n + r, dtype=np.int64)
-    have_tangent = False
-    counts = {"n_newton": 0, "n_jacobian": 0, "n_factorizations": 0}
-    min_pivot_ratio = np.inf
-
-    status, message, done = 0, "", 0
+    n_rejected, n_substeps, status, message, done = 0, 0, 0, "", 0
     for step in range(1, n_steps + 1):
         t = t_grid[step]
-        # predictors: linear extrapolation of sddot and lam (an O(h^2) guess, about one Newton
-        # iteration fewer per step than sddot_{n+1} = sddot_n); if Newton fails from it (it can,
-        # when the start-up transient of very stiff coordinates makes the extrapolation wild),
-        # the step is retried from the constant predictor with a freshly evaluated matrix
-        for attempt in range(2 if step >= 2 else 1):
-            extrapolate = attempt == 0 and step >= 2
-            _start_step(S[step - 1], V[step - 1], a, A[step - 1], L[step - 1],
-                        A[max(step - 2, 0)], L[max(step - 2, 0)], extrapolate, h, alpha_m,
-                        alpha_f, beta, gamma, beta_p, gamma_p, qhat, vhat, sddot, lam, q, v)
-            if attempt == 1:
-                have_tangent = False
-            factorized = False
-            iterations, prev_dq = 0, np.inf
-            converged, candidate, failure = False, False, ""
-            while True:
-                Phi = np.ascontiguousarray(model.constraints(q, t), dtype=np.float64)
-                if candidate:
-                    # the increments say converged; accept if the constraints agree to tol as well
-                    step_residual = _max_abs(Phi)
-                    if step_residual <= abs_tol * phi_scale:
-                        converged = True
-                        break
-                    candidate = False
-                    if iterations >= max_iterations:
-                        failure = (f"the constraint residual stalled at {step_residual:.3g} > "
-                                   f"{abs_tol * phi_scale:.3g} after {iterations} iterations (`tol` "
-                                   "below round-off?)")
-                        break
-                M = np.ascontiguousarray(model.mass_matrix(q), dtype=np.float64)
-                Q = np.ascontiguousarray(model.forces(q, v, t), dtype=np.float64)
-                Phi_s = np.ascontiguousarray(model.constraint_jacobian(q, t), dtype=np.float64)
-                if not have_tangent:
-                    dQ_ds, dQ_dv = model.force_jacobians(q, v, t)
-                    _tangent_terms(
-                        np.ascontiguousarray(model.mass_matrix_jacobian(q, sddot), dtype=np.float64),
-                        np.ascontiguousarray(dQ_ds, dtype=np.float64),
-                        np.ascontiguousarray(dQ_dv, dtype=np.float64),
-                        np.ascontiguousarray(model.constraint_force_jacobian(q, lam, t),
-                                             dtype=np.float64),
-                        beta_p, gamma_p, tangent)
-                    counts["n_jacobian"] += 1
-                    have_tangent, prev_dq = True, np.inf
-                    factorized = False
-                if not factorized:
-                    # M and Phi_s are evaluated for the residual anyway: the matrix takes them
-                    # fresh once per step (they rotate with the links) and keeps the O(h) tangent
-                    # terms, which are re-evaluated only when the iteration contracts slowly
-                    phi_scale = _fill_iteration_matrix(M, tangent, Phi_s, G)
-                    pivot_ratio = _lu_factor(G, piv)
-                    counts["n_factorizations"] += 1
-                    factorized, prev_dq = True, np.inf
-                    min_pivot_ratio = min(min_pivot_ratio, pivot_ratio)
-                    if not pivot_ratio > 0.0:
-                        failure = ("the iteration matrix is singular (zero pivot): check for "
-                                   "redundant constraints or a toggle position")
-                        break
-                dq = _newton_update(G, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p,
-                                    gamma_p, rhs, q, v)
-                counts["n_newton"] += 1
-                iterations += 1
-                theta = dq / prev_dq if math.isfinite(prev_dq) and prev_dq > 0.0 else 0.0
-                prev_dq = dq
-                if not math.isfinite(dq):
-                    # NaN or inf anywhere in M, Q, Phi, Phi_s or the matrix reaches the increment
-                    failure = "the Newton increment is not finite (non-finite model output?)"
-                    break
-                # error left in the iterate: about theta |dq| < |dq| / 4 (see below). The cheaper
-                # test theta / (1 - theta) |dq| <= tol (Hairer & Wanner II, sec. IV.8) was tried and
-                # accepted errors of ~100 tol in the elastic coordinates: a stale matrix contracts
-                # unevenly over 2-3 iterates. A candidate is accepted once Phi at it is also below
-                # tol times the row sums of Phi_s (checked above, in the evaluation the next
-                # iteration would need anyway).
-                if dq <= abs_tol:
-                    candidate = True
-                    continue
-                if iterations >= max_iterations:
-                    failure = (f"Newton's method did not converge in {iterations} iterations (last "
-                               f"position increment {dq:.3g}, tolerance {abs_tol:.3g})")
-                    break
-                # contracting too slowly (or not at all): re-evaluate the matrix at this iterate. An
-                # evaluation costs about one iteration, and at theta = 0.25 the stale matrix gains
-                # only 0.6 digits per iteration, whereas a fresh one converges quadratically.
-                if theta > 0.25 or not jacobian_reuse:
-                    have_tangent = False
-            if converged:
-                break
-        if not converged:
+        # predictor: linear extrapolation of sddot and lam (an O(h^2) guess, about one Newton
+        # iteration fewer per step than sddot_{n+1} = sddot_n)
+        failure = stepper.solve(S[step - 1], V[step - 1], a, A[step - 1], L[step - 1],
+                                A[max(step - 2, 0)], L[max(step - 2, 0)], step >= 2, t, h)
+        if failure and max_halvings:
+            n_rejected += 1
+            failure, failed_subdivisions, substeps = _substeps(
+                stepper, S[step - 1], V[step - 1], a, A[step - 1], L[step - 1], t - h, h,
+                max_halvings)
+            n_rejected += failed_subdivisions
+            n_substeps += substeps
+        elif not failure:
+            stepper.advance_alpha_acceleration(a, A[step - 1])
+        if failure:
             status = -1
+            retried = f" (also in {2 ** max_halvings} substeps)" if max_halvings else ""
             message = (f"generalized-alpha failed in the step from t = {t - h:.9g} s to "
-                       f"t = {t:.9g} s: {failure}. Try a smaller `dt`.")
+                       f"t = {t:.9g} s: {failure}{retried}. Try a smaller `dt` or `rho_inf`, or "
+                       "check the initial state.")
             break
-        S[step], V[step], A[step], L[step] = q, v, sddot, lam
-        residual[step] = step_residual
-        _advance_alpha_acceleration(a, A[step - 1], A[step], alpha_m, alpha_f)
+        S[step], V[step], A[step], L[step] = stepper.q, stepper.v, stepper.sddot, stepper.lam
+        residual[step] = stepper.residual
         done = step
-        if not jacobian_reuse:
-            have_tangent = False
     if status == 0:
         message = (f"generalized-alpha reached t = {t_grid[-1]:.9g} s in {n_steps} steps of "
-                   f"{h:.6g} s.")
+                   f"{h:.6g} s")
+        message += (f" ({n_rejected} rejected and retried in {n_substeps} substeps)."
+                    if n_rejected else ".")
     end = done + 1
     return {"t": t_grid[:end], "s": S[:end], "sdot": V[:end], "sddot": A[:end], "lam": L[:end],
-            "residual": residual[:end], "n_steps": done, "status": status, "message": message,
-            "min_pivot_ratio": float(min_pivot_ratio), **counts}
+            "residual": residual[:end], "n_steps": done, "n_rejected": n_rejected,
+            "n_substeps": n_substeps, "status": status, "message": message,
+            "min_pivot_ratio": float(stepper.min_pivot_ratio), **stepper.counts}
+
+
+def _substeps(stepper, q_n, v_n, a, sddot_n, lam_n, t_n, h, max_halvings):
+    """Retry the step from ``t_n`` as ``2**k`` equal substeps, k = 1 ... ``max_halvings``, until
+    all of them converge (full Newton from constant predictors: the extrapolation's history has the
+    wrong spacing).
+    On success the end state is in ``stepper`` and ``a`` (in place) is its alpha acceleration.
+    Returns (failure or "", failed attempts after the full step's, substeps taken)."""
+    q, v, a_n = np.empty_like(q_n), np.empty_like(v_n), a.copy()
+    sddot, lam = np.empty_like(sddot_n), np.empty_like(lam_n)
+    failure = ""
+    for level in range(1, max_halvings + 1):
+        m = 2 ** level
+        hs = h / m
+        q[:], v[:], a[:], sddot[:], lam[:] = q_n, v_n, a_n, sddot_n, lam_n
+        for j in range(1, m + 1):
+            failure = stepper.solve(q, v, a, sddot, lam, sddot, lam, False, t_n + j * hs, hs,
+                                    full_newton=True)
+            if failure:
+                break
+            stepper.advance_alpha_acceleration(a, sddot)
+            q[:], v[:], sddot[:], lam[:] = stepper.q, stepper.v, stepper.sddot, stepper.lam
+        if not failure:
+            logger.debug("step from t = %.9g s taken in %d substeps", t_n, m)
+            stepper.drop_tangent()     # the next full step needs tangent terms scaled for h
+            return "", level - 1, m
+    a[:] = a_n
+    return failure, max_halvings, 0
