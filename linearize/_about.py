@@ -124,15 +124,21 @@ def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, 
     if stride == 1:
         return coarse
     n_steps = len(t) - 1
-    fields = ("M", "C", "K", "f", "V", "Vdot", "Vddot")
     # The interpolation error that matters is that of the system's coefficients and of the basis;
     # the tails of V' and V'' are those of V weighted by k and k^2, and they reach the coefficients
     # only through M V'' and the like, which the tails of C and K already measure.
     tail = max(spectral_tail(getattr(coarse, name)) for name in ("M", "C", "K", "f", "V"))
+    fine = {name: interpolate_periodic(getattr(coarse, name), n_steps) for name in "MCKf"}
+    # V is the identity on the independent rows (and V', V'' zero there): interpolate the others.
+    dependent = np.setdiff1d(np.arange(coarse.V.shape[1]), coarse.independent)
+    for name in ("V", "Vdot", "Vddot"):
+        values = getattr(coarse, name)
+        full = np.repeat(values[:1], n_steps + 1, axis=0)
+        full[:, dependent] = interpolate_periodic(values[:, dependent], n_steps)
+        fine[name] = full
     return dataclasses.replace(
         coarse, t=t, stride=stride, interpolation_error=tail,
-        dependent_condition=np.repeat(coarse.dependent_condition, stride)[:n_steps + 1],
-        **{name: interpolate_periodic(getattr(coarse, name), n_steps) for name in fields})
+        dependent_condition=np.repeat(coarse.dependent_condition, stride)[:n_steps + 1], **fine)
 
 
 def _adaptive_coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label):
