@@ -318,6 +318,41 @@ def test_pendulum_order_two_against_minimal_coordinates(pendulum, rho_inf):
     assert np.all(np.abs(_observed_orders(lam_errors) - 2.0) < 0.2), lam_errors
 
 
+def _pendulum_reference_lam(t_end, th0, w0, t_eval):
+    """Pin reactions (n_t, 2) of the minimal-coordinate solution (see the test above)."""
+    ref = solve_ivp(pendulum_minimal_rhs, (0, t_end), [th0, w0], t_eval=t_eval, method="DOP853",
+                    rtol=1e-13, atol=1e-14)
+    th, w = ref.y
+    alpha = np.array([pendulum_minimal_rhs(0.0, z)[1] for z in ref.y.T])
+    m, c = PEND["m"], PEND["L"] / 2
+    acc_c = c * np.array([-np.sin(th) * alpha - np.cos(th) * w**2,
+                          np.cos(th) * alpha - np.sin(th) * w**2])
+    return (-(m * acc_c + np.array([[0.0], [m * G]]))).T
+
+
+def test_multipliers_converge_at_order_two_from_the_start(pendulum):
+    # Arnold & Bruls' perturbed start (perturbed_start=True) a_0 = sddot(t0 + (alpha_m - alpha_f) h): the multipliers
+    # after the first step carry only the local error, O(h^3) (with a_0 = sddot_0 it was O(h^2),
+    # the global order lost in the very first step), and their maximum error over a window
+    # that starts at t0 falls at order 2. The plain start loses one order in the first step.
+    # The swinging start (theta' = 3 rad/s) has a nonzero
+    # jerk, so the perturbation matters.
+    th0, w0, t_end = 0.3, 3.0, 0.05
+    first, window, first_plain = [], [], []
+    for n_steps in (10, 20, 40, 80):
+        kw = dict(t_end=t_end, dt=t_end / n_steps, s0=[0, 0, th0], sdot0=[0, 0, w0], rho_inf=0.5,
+                  tol=1e-14, estimate_error=False)
+        res = mechanisms.simulate(pendulum, perturbed_start=True, **kw)
+        plain = mechanisms.simulate(pendulum, **kw)
+        lam_ref = _pendulum_reference_lam(t_end, th0, w0, res.t)
+        first.append(np.max(np.abs(res.lam[1] - lam_ref[1])))
+        window.append(np.max(np.abs(res.lam - lam_ref)))
+        first_plain.append(np.max(np.abs(plain.lam[1] - lam_ref[1])))
+    assert np.all(np.abs(_observed_orders(first) - 3.0) < 0.15), first
+    assert np.all(np.abs(_observed_orders(window) - 2.0) < 0.1), window
+    assert np.all(np.abs(_observed_orders(first_plain) - 2.0) < 0.15), first_plain
+
+
 def test_double_pendulum_with_springs_converges_to_minimal_solution(soft_double):
     k = 1000.0
     f = double_pendulum_minimal(k, k)
