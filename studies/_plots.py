@@ -99,10 +99,12 @@ def plot_mechanism(result: Any, *, ax: Any = None, n_frames: int = 8) -> list:
     frames = np.linspace(0, n_samples, n_frames, endpoint=False).astype(int)
     artists = []
     for rank, k in enumerate(frames):
-        shade = 0.8 * (1.0 - rank / max(n_frames - 1, 1))
+        # One colour per link, so each link can be followed; later frames more opaque.
+        alpha = 0.2 + 0.8 * rank / max(n_frames - 1, 1)
         for j, (name, points) in enumerate(result.outlines.items()):
-            artists += ax.plot(points[k, :, 0], points[k, :, 1], color=(shade, shade, 1.0 - 0.5 * shade),
-                               lw=1.2, label=name if rank == n_frames - 1 else None)
+            artists += ax.plot(points[k, :, 0], points[k, :, 1], color=f"C{j % 10}", alpha=alpha,
+                               lw=1.5, label=name if rank == n_frames - 1 else None)
+    ax.legend(fontsize="x-small", title="later frames darker", title_fontsize="x-small")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
