@@ -36,6 +36,14 @@ stays O(1) as h -> 0 instead of having rows of size O(h^2). ``M`` and ``Phi_s`` 
 the residual at every iteration anyway, so the matrix is refactorised with them once per step; the
 tangent terms ``beta' K_t + gamma' C_t`` (the model's analytic derivatives) are kept across steps
 while the iteration contracts by 1/4 or better, and re-evaluated when it does not (modified Newton).
+
+Robustness (coarse grids, stiff geometrically nonlinear links, approximately consistent starts): an
+increment that grows while the matrix is not the Jacobian at the current iterate is undone and
+replaced by a true Newton step; an increment larger than the configuration scale, or two growing
+ones in a row, end the attempt. A failed attempt is repeated by full Newton from the constant
+predictor, and a step that still fails is retried as 2, 4, ..., ``2**max_step_halvings`` equal
+substeps (the alpha acceleration (GA1) carries over between steps of different sizes unchanged);
+the output stays on the user's uniform grid.
 """
 
 from __future__ import annotations
@@ -90,7 +98,8 @@ class SimulationResult:
         step (2, 4, ... substeps), and the substeps that replaced the rejected grid steps; 0 when
         every step converged at the user's step.
     min_pivot_ratio : smallest ``min |u_kk| / max |u_kk|`` of the LU factors of the iteration
-        matrix over the run, a cheap conditioning indicator; below ~1e-13 (logged as a warning) the
+        matrices of the converged Newton solves (failed attempts excluded: their matrices are
+        evaluated at diverging iterates), a cheap conditioning indicator; below ~1e-13 (logged as a warning) the
         Newton increments may carry large rounding errors.
     status : 0 success, -1 failure (the arrays then end at the last accepted step).
     message : what happened, naming the time of a failure.
