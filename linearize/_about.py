@@ -62,6 +62,56 @@ class LinearizedMechanism:
             "kni,ki->kn", c.Vdot, z)
         return s, sdot
 
+    def start_state(self, z0: np.ndarray, zdot0: np.ndarray, *, sample: int = 0
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """A state (s, s') (n,) that satisfies the nonlinear constraints exactly, with the
+        independent coordinates of ``z0, zdot0`` (m,) at grid sample ``sample``: to start a full
+        nonlinear run from the linear solution.
+
+        ``full_state`` is correct to first order only. Here, on top of it, (1) each link with
+        geometric stiffening gets the second-order axial shortening that keeps its projected
+        membrane strain what the linear state says (``u' = -P[w'^2/2]``: a bent link shortens its
+        chord; without it the nonlinear model would read the bending as a large stretch), and (2) the
+        dependent coordinates are solved from the position and velocity constraints by Newton with
+        the independent ones held.
+        """
+        z0 = np.asarray(z0, dtype=float)
+        zdot0 = np.asarray(zdot0, dtype=float)
+        m = len(self.labels)
+        if z0.shape != (m,) or zdot0.shape != (m,):
+            raise ValueError(f"z0 and zdot0 must have shape ({m},) (independent coordinates "
+                             f"{self.labels}); received {z0.shape} and {zdot0.shape}")
+        c = self.coefficients
+        model = self.nominal.model
+        if getattr(model, "mechanism", None) != self.mechanism:
+            # A speed family's member keeps the base speed's model, and a torque-driven mechanism's
+            # nominal model has its drive prescribed: the constraints are this mechanism's.
+            model = mechanisms.assemble(self.mechanism)
+        t = float(self.nominal.t[sample])
+        s = self.nominal.s[sample] + c.V[sample] @ z0
+        sdot = self.nominal.sdot[sample] + c.V[sample] @ zdot0 + c.Vdot[sample] @ z0
+        for layout in model.layouts.values():
+            if layout.shapes is None or not layout.stiffening or layout.membrane is None:
+                continue
+            slopes = layout.shapes.evaluate(layout.shapes.quadrature[0]).dw  # (n_gauss, n_e)
+            q, qdot = s[layout.elastic], sdot[layout.elastic]
+            s[layout.elastic] = q - layout.membrane @ (0.5 * (slopes @ q) ** 2)
+            sdot[layout.elastic] = qdot - layout.membrane @ ((slopes @ q) * (slopes @ qdot))
+        dependent = np.setdiff1d(np.arange(model.n_coords), c.independent)
+        for _ in range(20):
+            phi = model.constraints(s, t)
+            if np.abs(phi).max() < 1e-13:
+                break
+            s[dependent] -= np.linalg.solve(model.constraint_jacobian(s, t)[:, dependent], phi)
+        else:
+            raise LinearizationError(
+                f"no consistent state near the linear one at sample {sample} (constraint residual "
+                f"{np.abs(phi).max():.3g}): the deviation z0 is too large for the linkage")
+        jac = model.constraint_jacobian(s, t)
+        rhs = -model.constraint_rate(s, t) - jac[:, c.independent] @ sdot[c.independent]
+        sdot[dependent] = np.linalg.solve(jac[:, dependent], rhs)
+        return s, sdot
+
     def frozen_frequencies(self) -> np.ndarray:
         """Natural frequencies (N+1, m), rad/s, of the frozen-time systems ``(K(t_k), M(t_k))``
         (negative where an eigenvalue is negative: a frozen-time divergence), ascending."""

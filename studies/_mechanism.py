@@ -166,11 +166,8 @@ class MechanismProblem:
         # rheonomic drive constraint has the base speed)
         model = mechanisms.assemble(lin.mechanism)
         n = linear.system.n_steps
-        z = np.zeros((n + 1, x0.size))
-        zdot = np.zeros_like(z)
-        z[0], zdot[0] = x0, v0
-        s, sdot = lin.full_state(z, zdot)
-        s0, sdot0 = _project(model, s[0], sdot[0], float(lin.nominal.t[0]))
+        # On the constraints exactly, with the second-order axial shortening of stiffened links.
+        s0, sdot0 = lin.start_state(x0, v0)
         run = mechanisms.simulate(lin.mechanism, n_periods=n_periods, steps_per_period=steps_per_period,
                                   s0=s0, sdot0=sdot0, observables=list(linear.observables),
                                   estimate_error=True)
@@ -261,17 +258,3 @@ def _linear(lin: Any, system: Any, context: Any) -> Linear:
                   labels=tuple(lin.labels), observables=tuple(lin.observables),
                   units=tuple(model.observable(s).unit for s in lin.observables), gains=gains,
                   context=context)
-
-
-def _project(model, s: np.ndarray, sdot: np.ndarray, t: float, *, iterations: int = 10):
-    """Nearest state on the position and velocity constraints (Gauss-Newton, minimum-norm steps)."""
-    s = s.copy()
-    for _ in range(iterations):
-        phi = model.constraints(s, t)
-        if np.abs(phi).max() < 1e-14:
-            break
-        jac = model.constraint_jacobian(s, t)
-        s -= jac.T @ np.linalg.solve(jac @ jac.T, phi)
-    jac = model.constraint_jacobian(s, t)
-    residual = jac @ sdot + model.constraint_rate(s, t)
-    return s, sdot - jac.T @ np.linalg.solve(jac @ jac.T, residual)

@@ -235,3 +235,29 @@ def test_coefficients_from_coarse_samples_equal_those_evaluated_everywhere(four_
     for name in ("M", "C", "K", "f"):
         a, b = getattr(lin.system, name), getattr(everywhere, name)
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max(), err_msg=name)
+
+
+@pytest.mark.parametrize("scene", ["four_bar_fem4", "two_link_arm"])
+def test_start_state_is_consistent_and_departs_from_the_linear_state_at_second_order(scene):
+    """start_state meets the nonlinear position and velocity constraints to round-off and differs
+    from the first-order full_state by O(|z|^2) (the axial shortening and the constraint
+    curvature): halving z quarters the difference."""
+    lin = linearize.about(mc.load(scene), n_steps=128)
+    model = lin.nominal.model
+    rng = np.random.default_rng(2)
+    m = len(lin.labels)
+    z_unit, zdot_unit = rng.standard_normal(m) * 1e-4, rng.standard_normal(m) * 1e-2
+    differences = []
+    for scale in (1.0, 0.5, 0.25):
+        z, zdot = scale * z_unit, scale * zdot_unit
+        s, sdot = lin.start_state(z, zdot)
+        assert np.abs(model.constraints(s, 0.0)).max() < 1e-13
+        assert np.abs(model.constraint_jacobian(s, 0.0) @ sdot
+                      + model.constraint_rate(s, 0.0)).max() < 1e-11 * np.abs(sdot).max()
+        grid = np.zeros((lin.system.n_steps + 1, m))
+        grid_dot = grid.copy()
+        grid[0], grid_dot[0] = z, zdot
+        first_order = lin.full_state(grid, grid_dot)[0][0]
+        differences.append(np.abs(s - first_order).max())
+    ratios = np.array(differences[:-1]) / np.array(differences[1:])
+    assert np.all((ratios > 3.6) & (ratios < 4.4)), ratios
