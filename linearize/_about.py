@@ -209,8 +209,8 @@ def _adaptive_coefficients(model, t, s, sdot, sddot, lam, *, period, independent
 def _crank_angle(mechanism, t, period):
     if not mechanism.drives:
         return np.zeros_like(t)
-    drive = mechanism.drives[0]
-    return np.array([drive.angle(tk, period)[0] for tk in t])
+    return np.asarray(mechanisms.drive_law(mechanism.drives[0], period, np.asarray(t))[0],
+                      dtype=float)
 
 
 def _observable_maps(model, specs, s, V):
@@ -454,10 +454,10 @@ def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFam
 def _static_multipliers(model, nominal) -> np.ndarray:
     """Multipliers of the rigid mechanism held at rest in each nominal configuration (gravity and
     other static loads only): the rigid rows of ``Phi_s^T lam = Q(s, 0, t)``."""
+    from mechanisms._batch import constraint_terms, inertia_residual
+
     rigid = np.asarray(model.rigid_index, dtype=np.int64)
-    zero = np.zeros(model.n_coords)
-    out = np.empty_like(nominal.lam)
-    for k, (tk, sk) in enumerate(zip(nominal.t, nominal.s)):
-        Phi_r = model.constraint_jacobian(sk, tk)[:, rigid]
-        out[k] = np.linalg.solve(Phi_r.T, model.forces(sk, zero, tk)[rigid])
-    return out
+    zero = np.zeros_like(nominal.s)
+    forces = -inertia_residual(model, nominal.t, nominal.s, zero, zero)   # Q(s, 0, t)
+    Phi_r = constraint_terms(model, nominal.t, nominal.s)[0][:, :, rigid]
+    return np.linalg.solve(np.swapaxes(Phi_r, 1, 2), forces[:, rigid, None])[..., 0]

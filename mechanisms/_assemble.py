@@ -116,18 +116,19 @@ class _DriveInfo:
     feedforward: Callable | None
 
 
-def drive_law(drive: PrescribedDrive | TorqueDrive, period: float | None, t: float
+def drive_law(drive: PrescribedDrive | TorqueDrive, period: float | None, t
               ) -> tuple[float, float, float]:
     """Nominal relative angle of a drive at time ``t`` (s) with its first and second derivatives:
-    ``offset + rate t + sum_k cos_k cos(k w t) + sin_k sin(k w t)``, ``w = 2 pi / period``."""
+    ``offset + rate t + sum_k cos_k cos(k w t) + sin_k sin(k w t)``, ``w = 2 pi / period``.
+    ``t`` may also be an array: the three results are then arrays of its shape."""
     angle = drive.offset + drive.rate * t
-    rate = drive.rate
-    acc = 0.0
+    rate = drive.rate + 0.0 * t
+    acc = 0.0 * t
     if drive.harmonics:
         w = 2.0 * math.pi / period
         for k, ck, sk in drive.harmonics:
             kw = k * w
-            c, s = math.cos(kw * t), math.sin(kw * t)
+            c, s = np.cos(kw * t), np.sin(kw * t)
             angle += ck * c + sk * s
             rate += kw * (-ck * s + sk * c)
             acc -= kw * kw * (ck * c + sk * s)

@@ -158,8 +158,10 @@ def continue_positions(model, s, start, times, *, newton_stop, max_correction, c
 
     tb = model._tables
     rows = np.asarray(model.drive_rows, dtype=np.int64)
-    angles = np.array([[drive_law(info.drive, model.period, t)[0] for info in model._prescribed]
-                       for t in times]).reshape(len(times), len(rows))
+    times = np.asarray(times, dtype=float)
+    angles = np.zeros((len(times), len(rows)))
+    for j, info in enumerate(model._prescribed):     # same order as model.drive_rows
+        angles[:, j] = drive_law(info.drive, model.period, times)[0]
     rigid = np.asarray(model.rigid_index, dtype=np.int64)
     return _continue_positions(s, start, rows, angles, rigid, tb.phi0, tb.h_lin, tb.ct_int,
                                tb.ct_real, tb.shp, tb.idx, newton_stop, max_correction,
@@ -195,12 +197,13 @@ def constraint_terms(model, t, S, Sd=None, *, with_values=False):
     rate = np.zeros((n_samples, model.n_constraints))
     gamma = np.zeros((n_samples, model.n_constraints))
     phi = np.tile(tb.phi0, (n_samples, 1)) if with_values else np.zeros((0, model.n_constraints))
+    t = np.asarray(t, dtype=float)
     for info in model._prescribed:
-        law = np.array([drive_law(info.drive, model.period, tk) for tk in t])
-        rate[:, info.row] = -law[:, 1]
-        gamma[:, info.row] = law[:, 2]          # -Phi_tt of the drive row
+        angle, angle_rate, angle_acc = drive_law(info.drive, model.period, t)
+        rate[:, info.row] = -angle_rate
+        gamma[:, info.row] = angle_acc          # -Phi_tt of the drive row
         if with_values:
-            phi[:, info.row] -= law[:, 0]
+            phi[:, info.row] -= angle
     Sd = np.zeros((0, S.shape[1])) if Sd is None else np.ascontiguousarray(Sd, dtype=np.float64)
     _constraint_terms(S, Sd, tb.ct_int, tb.ct_real, tb.shp, tb.idx, tb.h_lin, J, gamma, phi)
     return (J, rate, gamma, phi) if with_values else (J, rate, gamma)

@@ -706,10 +706,7 @@ def _check_four_bar(mech: Mechanism, links: dict[str, Link], joints: dict[str, J
     # The scan is vectorised (it runs whenever a four-bar is made, e.g. at every point of a sweep).
     n_samples = 4096 * max(1, round(abs(drive.rate) * period / (2.0 * math.pi)))
     times = np.linspace(0.0, period, n_samples + 1)
-    theta = drive.offset + drive.rate * times
-    for k, cos_k, sin_k in drive.harmonics:   # the drive law of ``drive_law``, on an array
-        theta = theta + cos_k * np.cos(2 * math.pi * k * times / period) + sin_k * np.sin(
-            2 * math.pi * k * times / period)
+    theta = _drive_angle(drive, times, period)[0]
     d = np.hypot(o[0] + np.cos(theta) * crank_vec[0] - np.sin(theta) * crank_vec[1] - c[0],
                  o[1] + np.sin(theta) * crank_vec[0] + np.cos(theta) * crank_vec[1] - c[1])
     margins = np.minimum(d - low, high - d) / scale

@@ -131,8 +131,15 @@ class MechanismProblem:
         speed = params[SPEED]
         constant_rate = (type(drive).__name__ == "PrescribedDrive" and not drive.harmonics
                          and len(mechanism.drives) == 1)
+        family_key = (self.text, tuple(sorted(others.items())), n_steps, self.observable_specs)
+        at_scene_speed = math.isclose(speed, drive.rate, rel_tol=1e-12)
+        if constant_rate and at_scene_speed and family_key not in _families:
+            # One speed, the scene's own, and no family built yet: one linearisation, not the
+            # three a speed family costs.
+            lin = linearize.about(mechanism, n_steps=n_steps, observables=self.observable_specs)
+            return _linear(lin, lin.system, lin)
         if constant_rate and speed * drive.rate > 0:
-            family = _cached(_families, (self.text, tuple(sorted(others.items())), n_steps, self.observable_specs),
+            family = _cached(_families, family_key,
                              lambda: linearize.speed_family(mechanism, n_steps=n_steps,
                                                             observables=self.observable_specs))
             if speed == drive.rate:
