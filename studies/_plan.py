@@ -203,9 +203,15 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
     Grid studies resume an interrupted run; the other studies are skipped when the file already holds
     a complete result for the same request, and recomputed otherwise.
     """
+    from tqdm.auto import tqdm
+
     results, failures = {}, {}
-    with open_file(path) as handle:
-        for kind, options in studies.items():
+    with open_file(path) as handle, tqdm(studies.items(), desc="studies", unit="study",
+                                         disable=not progress or len(studies) < 2) as bar:
+        # An overall bar, since a study without grid points (steady state, nonlinear check,
+        # error against cost) has no bar of its own; grid studies nest theirs below it.
+        for kind, options in bar:
+            bar.set_postfix_str(kind)
             request = encode({"options": options, "scene": problem.text})
             group = handle.get(kind)
             grid = kind in ("sweep", "campbell", "stability_chart")
