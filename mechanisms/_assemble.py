@@ -46,6 +46,7 @@ from __future__ import annotations
 import logging
 import math
 import numbers
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Callable, Mapping
 
@@ -336,16 +337,38 @@ class Model:
 # ---------------------------------------------------------------------------------------------------
 # Assembly
 # ---------------------------------------------------------------------------------------------------
+# Recently assembled models, by the identity of their (immutable) mechanism: studies, the nominal
+# motion and the nonlinear runs assemble the same mechanism again and again. Each entry keeps its
+# mechanism alive, so an identity cannot be reused while it is cached; a Model is never modified.
+_RECENT_MODELS: "OrderedDict[int, tuple[Mechanism, Model]]" = OrderedDict()
+_RECENT_MODELS_SIZE = 16
+
+
 def assemble(mechanism: Mechanism, *, feedforward: Callable | Mapping[str, Callable] | None = None
              ) -> Model:
     """Assemble the equations of motion of ``mechanism``.
 
     ``feedforward`` is the nominal torque ``tau_nominal(t)`` (N m) of the torque drives: one callable
     when there is exactly one torque drive, or a mapping from the drive's joint name to a callable;
-    missing ones are zero.
+    missing ones are zero. Without it the model of a recently assembled mechanism (the same object)
+    is returned again.
     """
     if not isinstance(mechanism, Mechanism):
         raise TypeError(f"mechanism must be a Mechanism; received {type(mechanism).__name__}")
+    if feedforward is None:
+        recent = _RECENT_MODELS.get(id(mechanism))
+        if recent is not None and recent[0] is mechanism:
+            _RECENT_MODELS.move_to_end(id(mechanism))
+            return recent[1]
+    model = _assemble(mechanism, feedforward)
+    if feedforward is None:
+        _RECENT_MODELS[id(mechanism)] = (mechanism, model)
+        while len(_RECENT_MODELS) > _RECENT_MODELS_SIZE:
+            _RECENT_MODELS.popitem(last=False)
+    return model
+
+
+def _assemble(mechanism: Mechanism, feedforward) -> Model:
     layouts, coord_labels = _layout(mechanism)
     n = len(coord_labels)
 

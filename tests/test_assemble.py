@@ -742,3 +742,15 @@ def test_transverse_observable_of_a_clamped_free_arm_is_the_tip_deflection_from_
     assert transverse.value(s) == pytest.approx(distance, rel=1e-12)
     assert model.observable(f"{name}.deflection@1.0").value(s) == pytest.approx(0.0, abs=1e-15)
     _assert_gradient_matches_differences(model, transverse, s)
+
+
+def test_assemble_reuses_the_model_of_the_same_mechanism_object_only():
+    import mechanisms
+
+    mechanism = mechanisms.load("four_bar_fem1")
+    model = assemble(mechanism)
+    assert assemble(mechanism) is model
+    # An equal but distinct mechanism, and any feedforward, get a model of their own.
+    assert assemble(mechanisms.load("four_bar_fem1")) is not model
+    torque = mechanism.replace(drives=(mechanisms.TorqueDrive("O", rate=100.0),))
+    assert assemble(torque, feedforward=lambda t: 0.0) is not assemble(torque, feedforward=None)
