@@ -112,18 +112,6 @@ class LinearizedMechanism:
         sdot[dependent] = np.linalg.solve(jac[:, dependent], rhs)
         return s, sdot
 
-    def frozen_frequencies(self) -> np.ndarray:
-        """Natural frequencies (N+1, m), rad/s, of the frozen-time systems ``(K(t_k), M(t_k))``
-        (negative where an eigenvalue is negative: a frozen-time divergence), ascending."""
-        import scipy.linalg
-
-        out = np.empty(self.system.f.shape)
-        for k in range(out.shape[0]):
-            K = 0.5 * (self.system.K[k] + self.system.K[k].T)
-            lam = scipy.linalg.eigh(K, self.system.M[k], eigvals_only=True)
-            out[k] = np.sign(lam) * np.sqrt(np.abs(lam))
-        return out
-
 
 def default_observables(mechanism) -> tuple[str, ...]:
     """Midspan deflection (from the chord) of each pinned-pinned elastic link, tip deflection (from

@@ -101,11 +101,18 @@ def spectral_derivatives(values: np.ndarray, period: float) -> tuple[np.ndarray,
     d2 = np.fft.irfft(second, n=n_steps, axis=0)
     d1 = np.concatenate([d1, d1[:1]], axis=0)
     d2 = np.concatenate([d2, d2[:1]], axis=0)
+    return d1, d2, _tail(coefficients, n_steps)
+
+
+def _tail(coefficients: np.ndarray, n_steps: int) -> float:
+    """Largest |coefficient| in the top eighth of the band of a real FFT (``rfft`` of N samples),
+    relative to the largest of all (0 for a zero function)."""
     magnitude = np.abs(coefficients).reshape(coefficients.shape[0], -1).max(axis=1)
-    top = harmonics >= (n_steps // 2) * 7 // 8
     scale = magnitude.max()
-    tail = float(magnitude[top].max() / scale) if scale > 0 and top.any() else 0.0
-    return d1, d2, tail
+    if scale == 0.0:
+        return 0.0
+    top = np.arange(magnitude.shape[0]) >= (n_steps // 2) * 7 // 8
+    return float(magnitude[top].max() / scale)
 
 
 def spectral_tail(values: np.ndarray) -> float:
@@ -114,12 +121,7 @@ def spectral_tail(values: np.ndarray) -> float:
     spectrally converged function, and a bound on the error of interpolating it from these samples.
     """
     n_steps = values.shape[0] - 1
-    magnitude = np.abs(np.fft.rfft(values[:n_steps], axis=0)).reshape(n_steps // 2 + 1, -1)
-    scale = magnitude.max()
-    if scale == 0.0:
-        return 0.0
-    top = np.arange(magnitude.shape[0]) >= (n_steps // 2) * 7 // 8
-    return float(magnitude[top].max() / scale)
+    return _tail(np.fft.rfft(values[:n_steps], axis=0), n_steps)
 
 
 def interpolate_periodic(values: np.ndarray, n_steps: int) -> np.ndarray:

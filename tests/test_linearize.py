@@ -84,13 +84,6 @@ def _column(load_ratio, discretisation):
     return mechanism, column
 
 
-def _bending_frequency(mechanism):
-    lin = linearize.about(mechanism, n_steps=4)
-    frequencies = lin.frozen_frequencies()[0]
-    # The first bending coordinate's mode: the frequency whose eigenvector is mostly "b1"/"w".
-    return frequencies, lin
-
-
 @pytest.mark.parametrize("load_ratio", [0.0, 0.3, 0.75, 0.96])
 def test_geometric_stiffness_lowers_bending_frequency_as_euler_predicts(load_ratio):
     """With the exact first buckling mode sin(pi x / L) as a Ritz shape, the frequency under an end
