@@ -1,10 +1,18 @@
-"""The terms of the linearised equations along a whole sampled motion in one numba call.
+"""An assembled model evaluated along a whole sampled motion, one numba call per quantity.
 
-``linearize`` needs, at every sample of the nominal motion, the mass matrix, the residual
-``R = M s'' - Q + Phi_s^T lam``, ``D = -dQ/ds'``, ``K = d(M s'')/ds - dQ/ds + d(Phi_s^T lam)/ds`` and
-the constraint Jacobian. Evaluating them through the model's methods costs a few Python calls per
-sample; this kernel loops over the samples inside numba, calling the same element kernels
-(``_kernels``), so the result is identical to the method-by-method evaluation (tested).
+The nominal motion and ``linearize`` need the model at every sample of a period; through the
+model's methods that costs a few Python calls per sample. These kernels loop over the samples inside
+numba, calling the same element kernels (``_kernels``), so each result equals the method-by-method
+evaluation (tests/test_batch.py):
+
+* ``linear_terms``: mass matrix, residual ``R = M s'' - Q + Phi_s^T lam``, ``D = -dQ/ds'``,
+  ``K = d(M s'')/ds - dQ/ds + d(Phi_s^T lam)/ds`` and the constraint Jacobian (linearisation);
+* ``inertia_residual``: ``M s'' - Q`` (multipliers of the rigid inverse dynamics);
+* ``constraint_terms``: ``Phi``, ``Phi_s``, ``Phi_t`` and ``gamma`` (rates, accelerations, residuals);
+* ``continue_positions``: the plain Newton continuation steps of the nominal motion.
+
+They read the model's private tables (``Model._tables``): a change of the tables or of a kernel's
+signature must be made here too.
 """
 
 from __future__ import annotations
