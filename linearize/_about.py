@@ -145,6 +145,14 @@ COARSEST = 64
 INTERPOLATION_TOL = 1e-12
 
 
+def _coarsest_stride(n_steps: int) -> int:
+    """The largest power of two dividing ``n_steps`` that leaves at least ``COARSEST`` samples."""
+    stride = 1
+    while n_steps % (2 * stride) == 0 and n_steps // (2 * stride) >= COARSEST:
+        stride *= 2
+    return stride
+
+
 def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, stride=1):
     """``LinearCoefficients`` on the grid of ``t`` (N+1,), the model evaluated at every ``stride``-th
     sample (N divisible by ``stride``) and the results interpolated to the others."""
@@ -183,9 +191,7 @@ def _adaptive_coefficients(model, t, s, sdot, sddot, lam, *, period, independent
     """``_coefficients`` with the largest stride (a power of two dividing N, leaving at least
     ``COARSEST`` samples) whose coefficients the coarse samples resolve to ``INTERPOLATION_TOL``."""
     n_steps = len(t) - 1
-    stride = 1
-    while n_steps % (2 * stride) == 0 and n_steps // (2 * stride) >= COARSEST:
-        stride *= 2
+    stride = _coarsest_stride(n_steps)
     while True:
         coeffs = _coefficients(model, t, s, sdot, sddot, lam, period=period,
                                independent=independent, label=label, stride=stride)
@@ -264,9 +270,7 @@ def _nominal_motion(mechanism, n_steps):
     interpolated motion must meet the constraints at every fine sample as the direct computation
     does (positions 1e-12, rates and accelerations to 1e-9 of their scale); otherwise, or for a
     hand-written model, the direct computation on the fine grid."""
-    stride = 1
-    while n_steps % (2 * stride) == 0 and n_steps // (2 * stride) >= COARSEST:
-        stride *= 2
+    stride = _coarsest_stride(n_steps)
     if stride == 1:
         return mechanisms.nominal_motion(mechanism, n_steps=n_steps)
     started = time.perf_counter()
