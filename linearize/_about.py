@@ -362,27 +362,36 @@ class SpeedFamily:
     lam2: np.ndarray
     run_time: float
 
-    def at_speed(self, rate: float) -> LinearizedMechanism:
-        """The linearised mechanism at crank speed ``rate`` (rad/s, same sign as the base)."""
+    def _check_rate(self, rate) -> None:
         if not (isinstance(rate, (int, float, np.floating)) and math.isfinite(rate)
                 and rate * self.rate > 0):
             raise ValueError(f"rate must be a finite crank speed (rad/s) of the same sign as the "
                              f"scene's ({self.rate:g}); received {rate!r}")
-        started = time.perf_counter()
+
+    def system_at(self, rate: float) -> periodic.PeriodicSystem:
+        """Only the periodic system at crank speed ``rate`` (rad/s): what a grid point of a sweep
+        or chart needs, without the nominal motion and mechanism of ``at_speed``."""
+        self._check_rate(rate)
         w = rate
+        return periodic.PeriodicSystem(abs(self.base.nominal.period * self.rate / w), self.M,
+                                       self.C0 + w * self.C1,
+                                       self.K0 + w * self.K1 + w**2 * self.K2,
+                                       self.f0 + w**2 * self.f2)
+
+    def at_speed(self, rate: float) -> LinearizedMechanism:
+        """The linearised mechanism at crank speed ``rate`` (rad/s, same sign as the base)."""
+        started = time.perf_counter()
+        system = self.system_at(rate)
         scale = rate / self.rate
         base = self.base
-        lam = self.lam0 + w**2 * self.lam2
-        period = abs(base.nominal.period / scale)
+        lam = self.lam0 + rate**2 * self.lam2
         nominal = dataclasses.replace(
             base.nominal, t=base.nominal.t / scale, sdot=base.nominal.sdot * scale,
             sddot=base.nominal.sddot * scale**2, lam=lam,
-            drive_torque=-lam[:, base.nominal.model.drive_rows], period=period)
+            drive_torque=-lam[:, base.nominal.model.drive_rows], period=system.period)
         coeffs = dataclasses.replace(
-            base.coefficients, t=nominal.t, C=self.C0 + w * self.C1,
-            K=self.K0 + w * self.K1 + w**2 * self.K2, f=self.f0 + w**2 * self.f2,
+            base.coefficients, t=nominal.t, C=system.C, K=system.K, f=system.f,
             Vdot=base.coefficients.Vdot * scale, Vddot=base.coefficients.Vddot * scale**2)
-        system = periodic.PeriodicSystem(period, self.M, coeffs.C, coeffs.K, coeffs.f)
         if self.mechanism.spec is not None:
             mechanism = self.mechanism.with_parameter("drive.rate", rate)
         else:

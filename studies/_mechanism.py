@@ -16,7 +16,6 @@ from typing import Any, Mapping
 
 import numpy as np
 
-import periodic
 
 from ._problem import SPEED, Linear, NonlinearRun, resolve_values
 
@@ -142,16 +141,12 @@ class MechanismProblem:
             family = _cached(_families, family_key,
                              lambda: linearize.speed_family(mechanism, n_steps=n_steps,
                                                             observables=self.observable_specs))
-            if speed == drive.rate:
+            if at_scene_speed:
                 return _linear(family.base, family.base.system, family.base)
             if not context:
-                # SpeedFamily: M, C = C0 + W C1, K = K0 + W K1 + W^2 K2, f = f0 + W^2 f2 on the
-                # crank-angle grid, whose configuration (hence the observable gains) is the base's.
-                w = speed
-                system = periodic.PeriodicSystem(
-                    abs(family.base.nominal.period * family.rate / w), family.M, family.C0 + w * family.C1,
-                    family.K0 + w * family.K1 + w**2 * family.K2, family.f0 + w**2 * family.f2)
-                return _linear(family.base, system, None)
+                # On the crank-angle grid the configuration (hence the observable gains) is the
+                # base's; only the coefficients change with the speed.
+                return _linear(family.base, family.system_at(speed), None)
             lin = family.at_speed(speed)
         else:
             lin = linearize.about(self.mechanism(dict(others, speed=speed)), n_steps=n_steps,
