@@ -16,7 +16,6 @@ from typing import Any, Mapping
 
 import numpy as np
 
-
 from ._problem import SPEED, Linear, NonlinearRun, resolve_values
 
 # Units of scene parameters by their last key (docs/scenes.md); others are reported as "SI".
