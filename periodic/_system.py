@@ -57,37 +57,7 @@ class PeriodicSystem:
     f: np.ndarray
 
     def __init__(self, period, M, C, K, f=None):
-        period = _check_period(period)
-        mass = _as_samples("mass", M, ndim=3)
-        n_samples, n_dof = mass.shape[0], mass.shape[1]
-        if mass.shape[2] != n_dof:
-            raise PeriodicError(f"mass: expected shape (N+1, n, n), got {mass.shape} (matrices not square)")
-        if n_samples < 3:
-            raise PeriodicError(
-                f"mass: expected N+1 >= 3 samples (n_steps >= 2), got {n_samples} sample(s)"
-            )
-        damping = _as_samples("damping", C, ndim=3, shape=mass.shape)
-        stiffness = _as_samples("stiffness", K, ndim=3, shape=mass.shape)
-        if f is None:
-            force = np.zeros((n_samples, n_dof))
-        else:
-            force = _as_samples("force", f, ndim=2, shape=(n_samples, n_dof))
-        for name, samples in (("mass", mass), ("damping", damping), ("stiffness", stiffness), ("force", force)):
-            _check_periodic(name, samples)
-        ratios = mass_pivot_ratios(mass)
-        singular = np.flatnonzero(ratios <= _SINGULAR_PIVOT_RATIO)
-        if singular.size:
-            k = int(singular[0])
-            t_k = k * period / (n_samples - 1)
-            raise PeriodicError(
-                f"mass: the mass matrix is singular at sample {k} (t = {t_k:.6g} s; smallest/largest "
-                f"LU pivot {ratios[k]:.3g}); {singular.size} of {n_samples} samples are singular. "
-                "The Newmark start needs M(0) invertible and the problem must be an ODE in x: "
-                "eliminate massless coordinates (static condensation) or give them mass."
-            )
-        for arr in (mass, damping, stiffness, force):
-            arr.flags.writeable = False
-        _set(self, period, mass, damping, stiffness, force)
+        _validate_and_set(self, _check_period(period), M, C, K, f)
 
     @classmethod
     def from_functions(
@@ -115,7 +85,9 @@ class PeriodicSystem:
             if not callable(func):
                 raise TypeError(f"{name}: expected a callable of scalar t, got {type(func).__name__}")
             sampled.append(_sample(name, func, times))
-        return cls(period, *sampled)
+        system = object.__new__(cls)
+        _validate_and_set(system, period, *sampled)  # period already checked
+        return system
 
     def __repr__(self) -> str:
         return f"PeriodicSystem(period={self.period!r}, n_steps={self.n_steps}, n_dof={self.n_dof})"
@@ -159,6 +131,38 @@ def every_other_sample(system: PeriodicSystem) -> PeriodicSystem:
     arrays = (np.ascontiguousarray(a[::2]) for a in (system.M, system.C, system.K, system.f))
     _set(coarse, system.period, *arrays)
     return coarse
+
+
+def _validate_and_set(system: PeriodicSystem, period: float, M, C, K, f) -> None:
+    """Check the samples (``period`` is checked by the caller) and store read-only copies in ``system``."""
+    mass = _as_samples("mass", M, ndim=3)
+    n_samples, n_dof = mass.shape[0], mass.shape[1]
+    if mass.shape[2] != n_dof:
+        raise PeriodicError(f"mass: expected shape (N+1, n, n), got {mass.shape} (matrices not square)")
+    if n_samples < 3:
+        raise PeriodicError(f"mass: expected N+1 >= 3 samples (n_steps >= 2), got {n_samples} sample(s)")
+    damping = _as_samples("damping", C, ndim=3, shape=mass.shape)
+    stiffness = _as_samples("stiffness", K, ndim=3, shape=mass.shape)
+    if f is None:
+        force = np.zeros((n_samples, n_dof))
+    else:
+        force = _as_samples("force", f, ndim=2, shape=(n_samples, n_dof))
+    for name, samples in (("mass", mass), ("damping", damping), ("stiffness", stiffness), ("force", force)):
+        _check_periodic(name, samples)
+    ratios = mass_pivot_ratios(mass)
+    singular = np.flatnonzero(ratios <= _SINGULAR_PIVOT_RATIO)
+    if singular.size:
+        k = int(singular[0])
+        t_k = k * period / (n_samples - 1)
+        raise PeriodicError(
+            f"mass: the mass matrix is singular at sample {k} (t = {t_k:.6g} s; smallest/largest "
+            f"LU pivot {ratios[k]:.3g}); {singular.size} of {n_samples} samples are singular. "
+            "The Newmark start needs M(0) invertible and the problem must be an ODE in x: "
+            "eliminate massless coordinates (static condensation) or give them mass."
+        )
+    for arr in (mass, damping, stiffness, force):
+        arr.flags.writeable = False
+    _set(system, period, mass, damping, stiffness, force)
 
 
 def _set(obj, period, mass, damping, stiffness, force):
