@@ -10,7 +10,7 @@ and include sampling the coefficient functions (Newmark) or evaluating them (sci
     mu error    : max |mu - mu_ref| over the reference multipliers with |mu_ref| > 1e-6, matched one
                   to one (an unresolved stiff mode has no such partner, see the README)
 
-Cases: (a) smooth: the 2-DOF Mathieu-type demo of ``python -m periodic``; (b) stiff: 2 DOF whose
+Cases: (a) smooth: the 2-DOF Mathieu-type demo system ``periodic.demo_system``; (b) stiff: 2 DOF whose
 second mode is 3000 times faster than the forcing (an axial mode of a steel link), 1 % damped.
 
 Run: .venv/bin/python benchmarks/bench_periodic.py [--quick]
@@ -27,7 +27,7 @@ import scipy.integrate
 from scipy.optimize import linear_sum_assignment
 
 import periodic
-from periodic import __main__ as demo
+from periodic import _demo as demo
 
 TARGET = 1e-5
 
@@ -50,8 +50,8 @@ def smooth_case():
         2.0 * np.pi / demo.OMEGA,
         lambda t: demo.MASS,
         lambda t: demo.DAMPING,
-        lambda t: demo.STIFFNESS_MEAN + demo.STIFFNESS_PULSE * np.cos(demo.OMEGA * t),
-        lambda t: demo.FORCE * np.cos(demo.OMEGA * t),
+        demo.stiffness,
+        demo.force,
     )
 
 

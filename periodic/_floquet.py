@@ -19,15 +19,14 @@ coefficients), but they can dominate ``spectral_radius`` at small N.
 
 from __future__ import annotations
 
-import math
 import time
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from ._newmark import newmark_march
-from ._system import PeriodicError, PeriodicSystem
+from ._scheme import DEFAULT_SCHEME, Newmark, as_scheme
+from ._system import PeriodicSystem, ShootingError, check_system, check_tol
 
 #: Default tolerance of ``is_stable``: spectral radius <= 1 + STABILITY_TOL.  The multipliers of an
 #: undamped (conservative) system lie on the unit circle; numerically their moduli differ from 1 by
@@ -78,6 +77,9 @@ class FloquetResult:
         exact monodromy.  The two agree to O(h^2) when all modes are resolved; an unresolved damped
         mode makes them differ (its numerical multiplier is not exp(lam T)).
     n_steps : int
+    scheme : Newmark
+        The scheme used; ``scheme.error_factor * |mu_N - mu_{N/2}|`` estimates a multiplier's error
+        (with a second call on ``system.coarsened()``).
     run_time : float
         Wall time in s.
     """
@@ -93,22 +95,23 @@ class FloquetResult:
     liouville_log_det: float
     liouville_log_det_exact: float
     n_steps: int
+    scheme: Newmark
     run_time: float
 
 
 def floquet(
     system: PeriodicSystem,
     *,
-    beta: float = 0.25,
-    gamma: float = 0.5,
+    scheme: Newmark | str = DEFAULT_SCHEME,
     stability_tol: float = STABILITY_TOL,
 ) -> FloquetResult:
-    """Monodromy, multipliers and stability of ``system`` by Newmark(beta, gamma) with N steps."""
+    """Monodromy, multipliers and stability of ``system`` by ``scheme`` (a :class:`Newmark` or a name
+    in ``SCHEMES``) with N steps.  Raises :class:`ShootingError` if a step's matrix is singular."""
     start = time.perf_counter()
-    _check_system(system)
-    beta, gamma = check_scheme(beta, gamma)
-    stability_tol = _check_tol("stability_tol", stability_tol, STABILITY_TOL)
-    phi, _ = monodromy(system, beta, gamma, particular=False)
+    check_system(system)
+    scheme = as_scheme(scheme)
+    stability_tol = check_tol("stability_tol", stability_tol, STABILITY_TOL)
+    phi, _ = monodromy(system, scheme, particular=False)
     multipliers, step_rates = analyse_multipliers(phi, system.step)
     with np.errstate(divide="ignore"):
         exponents = np.log(multipliers.astype(complex)) / system.period
@@ -127,11 +130,12 @@ def floquet(
         liouville_log_det=float(np.linalg.slogdet(phi)[1]),
         liouville_log_det_exact=exact,
         n_steps=system.n_steps,
+        scheme=scheme,
         run_time=time.perf_counter() - start,
     )
 
 
-def monodromy(system: PeriodicSystem, beta: float, gamma: float, *, particular: bool):
+def monodromy(system: PeriodicSystem, scheme: Newmark, *, particular: bool):
     """``Phi`` (2n, 2n) and, if ``particular``, the end state ``b`` (2n,) of the forced solution from rest."""
     n = system.n_dof
     m = 2 * n + 1 if particular else 2 * n
@@ -145,7 +149,8 @@ def monodromy(system: PeriodicSystem, beta: float, gamma: float, *, particular: 
     a = np.empty((n, m))
     empty = np.empty((0, n, m))
     status = newmark_march(
-        system.M, system.C, system.K, system.f, system.step, beta, gamma, forced, x, v, a, empty, empty, empty
+        system.M, system.C, system.K, system.f, system.step, scheme.beta, scheme.gamma, forced, x, v, a,
+        empty, empty, empty,
     )
     raise_on_singular(system, status)
     phi = np.vstack((x[:, : 2 * n], v[:, : 2 * n]))
@@ -154,12 +159,12 @@ def monodromy(system: PeriodicSystem, beta: float, gamma: float, *, particular: 
 
 
 def raise_on_singular(system: PeriodicSystem, status: int) -> None:
-    """Turn a kernel status (sample index of a singular matrix, or -1) into a PeriodicError."""
+    """Turn a kernel status (sample index of a singular matrix, or -1) into a ShootingError."""
     if status < 0:
         return
     t_k = status * system.step
     what = "mass matrix M" if status == 0 else "effective matrix M + gamma h C + beta h^2 K"
-    raise PeriodicError(
+    raise ShootingError(
         f"system: the {what} is singular at sample {status} (t = {t_k:.6g} s); "
         "check the mass, damping and stiffness there"
     )
@@ -180,22 +185,6 @@ def analyse_multipliers(phi: np.ndarray, step: float):
     return values, rates
 
 
-def check_scheme(beta, gamma):
-    """Validate Newmark's parameters; warn when the scheme is only conditionally stable."""
-    beta = _check_real("beta", beta)
-    gamma = _check_real("gamma", gamma)
-    if beta < 0.0 or gamma < 0.0:
-        raise ValueError(f"beta, gamma: expected non-negative values, got beta={beta}, gamma={gamma}")
-    if not (2.0 * beta >= gamma >= 0.5):
-        warnings.warn(
-            f"beta={beta}, gamma={gamma}: Newmark's scheme is unconditionally stable only for "
-            "2 beta >= gamma >= 1/2; multipliers of modes above its stability limit are spurious",
-            RuntimeWarning,
-            stacklevel=3,
-        )
-    return beta, gamma
-
-
 def near_resonance(multipliers, step_rates, tol, multiplier_errors=None):
     """Indices of resolved multipliers within ``max(tol, 2 * error)`` of +1, and of unresolved ones within ``tol``."""
     distance = np.abs(1.0 - multipliers)
@@ -207,24 +196,3 @@ def near_resonance(multipliers, step_rates, tol, multiplier_errors=None):
     physical = np.flatnonzero(resolved & (distance <= limit))
     spurious = np.flatnonzero(~resolved & (distance <= tol))
     return physical, spurious
-
-
-def _check_system(system) -> None:
-    if not isinstance(system, PeriodicSystem):
-        raise TypeError(f"system: expected a periodic.PeriodicSystem, got {type(system).__name__}")
-
-
-def _check_real(name, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name}: expected a real number, got {type(value).__name__}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ValueError(f"{name}: expected a finite number, got {value}")
-    return value
-
-
-def _check_tol(name, value, upper=np.inf) -> float:
-    value = _check_real(name, value)
-    if not 0.0 <= value <= upper:
-        raise ValueError(f"{name}: expected a tolerance in [0, {upper:g}], got {value}")
-    return value

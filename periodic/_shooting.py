@@ -4,9 +4,10 @@ One kernel call integrates the 2n unit states and the particular solution from r
 one factorisation per step) and gives ``Phi`` and ``b``; a second call with one column integrates the
 periodic solution from ``z0 = [x0; v0]`` and stores it at every sample.  The error estimate repeats
 the computation on N/2 steps: for a scheme of order p, ``|x_N - x_{N/2}| / (2^p - 1)`` estimates the
-error of ``x_N`` (p = 2 for gamma = 1/2, else 1).  With ``gamma = 1/2`` Newmark's scheme is
-time-symmetric (swapping k and k+1 with h -> -h gives the same equations), so its global error
-expands in even powers of h and one Richardson step, ``x_N + (x_N - x_{N/2}) / 3``, is of order 4.
+error of ``x_N`` (``Newmark.error_factor``).  A time-symmetric scheme (``gamma = 1/2``) has a global
+error in even powers of h, so one Richardson step, ``x_N + (x_N - x_{N/2}) / 3``, is of order 4.
+The N/2 solution comes back in the result (``x_coarse``, ``error_factor``) so that callers estimate
+the error of anything linear in x (observables) without a second run.
 """
 
 from __future__ import annotations
@@ -22,16 +23,22 @@ from ._floquet import (
     RESONANCE_TOL,
     STABILITY_TOL,
     NearResonanceWarning,
-    _check_system,
-    _check_tol,
     analyse_multipliers,
-    check_scheme,
     monodromy,
     near_resonance,
     raise_on_singular,
 )
 from ._newmark import newmark_march
-from ._system import PeriodicError, PeriodicSystem
+from ._scheme import DEFAULT_SCHEME, Newmark, as_scheme
+from ._system import (
+    PeriodicError,
+    PeriodicSystem,
+    ShootingError,
+    check_coarsenable,
+    check_system,
+    check_tol,
+    every_other_sample,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -71,7 +78,16 @@ class SteadyState:
     error_estimate : float
         Estimated max abs error of ``x`` (units of x), from the N/2-step solution; NaN when skipped
         (``estimate_error=False``).  With ``extrapolated`` it is the estimate for the N-step result,
-        a conservative bound for the extrapolated one.
+        a conservative bound for the extrapolated one.  Always
+        ``error_factor * max|x[::2] - x_coarse|``.
+    x_coarse : ndarray (N/2+1, n) or None
+        Displacement of the N/2-step periodic solution at ``t[::2]`` (None when skipped).  The error of
+        any quantity ``o`` linear in x (an observable) is estimated, like ``error_estimate``, by
+        ``error_factor * |o(x[::2]) - o(x_coarse)|``, with no second run.
+    error_factor : float
+        The factor of that estimate (NaN when skipped): ``scheme.error_factor = 1 / (2^p - 1)`` for a
+        scheme of order p; with ``extrapolated``, ``1 / 2^p``, since then
+        ``x[::2] - x_coarse = 2^p / (2^p - 1) (x_N - x_{N/2})`` and the estimate stays the N-step one.
     multiplier_errors : ndarray (2n,) or None
         Estimated error of each multiplier from the N/2 run (None when skipped); with
         ``extrapolated`` the N-step estimate, a conservative bound.
@@ -84,6 +100,8 @@ class SteadyState:
     message : str
     n_steps : int
     extrapolated : bool
+    scheme : Newmark
+        The scheme used.
     run_time : float
         Wall time in s, including the N/2 run.
     """
@@ -100,12 +118,15 @@ class SteadyState:
     condition_number: float
     inverse_norm: float
     error_estimate: float
+    x_coarse: np.ndarray | None
+    error_factor: float
     multiplier_errors: np.ndarray | None
     periodicity_residual: float
     status: str
     message: str
     n_steps: int
     extrapolated: bool
+    scheme: Newmark
     run_time: float
 
 
@@ -125,43 +146,41 @@ def steady_state(
     *,
     extrapolate: bool = False,
     estimate_error: bool = True,
-    beta: float = 0.25,
-    gamma: float = 0.5,
+    scheme: Newmark | str = DEFAULT_SCHEME,
     resonance_tol: float = RESONANCE_TOL,
     stability_tol: float = STABILITY_TOL,
 ) -> SteadyState:
-    """Periodic steady state of ``system`` by Newmark shooting on its N steps.
+    """Periodic steady state of ``system`` by shooting with ``scheme`` (a :class:`Newmark` or a name in
+    ``SCHEMES``) on its N steps.
 
     ``extrapolate=True`` returns the Richardson extrapolation of the N and N/2 results (order 4;
-    needs ``gamma = 1/2``).  ``estimate_error=False`` skips the N/2 run (about a third of the cost)
-    when not extrapolating.  Both need an even N.  Raises :class:`PeriodicError` if ``I - Phi`` is
-    exactly singular (a multiplier at +1 to rounding).
+    needs a symmetric scheme, ``gamma = 1/2``).  ``estimate_error=False`` skips the N/2 run (about a
+    third of the cost) when not extrapolating.  Both need an even N >= 4.  Raises
+    :class:`ShootingError` if ``I - Phi`` is exactly singular (a multiplier at +1 to rounding) or a
+    step's matrix is.
     """
     start = time.perf_counter()
-    _check_system(system)
-    beta, gamma = check_scheme(beta, gamma)
-    resonance_tol = _check_tol("resonance_tol", resonance_tol)
-    stability_tol = _check_tol("stability_tol", stability_tol, STABILITY_TOL)
-    order = 2 if gamma == 0.5 else 1
-    if extrapolate and order != 2:
-        raise ValueError(
+    check_system(system)
+    scheme = as_scheme(scheme)
+    resonance_tol = check_tol("resonance_tol", resonance_tol)
+    stability_tol = check_tol("stability_tol", stability_tol, STABILITY_TOL)
+    if extrapolate and not scheme.symmetric:
+        raise PeriodicError(
             f"extrapolate: Richardson extrapolation to order 4 needs the symmetric scheme gamma = 1/2, "
-            f"got gamma = {gamma}; use gamma = 0.5 or extrapolate=False"
+            f"got gamma = {scheme.gamma}; use a symmetric scheme (e.g. scheme='trapezoidal') or extrapolate=False"
         )
     coarse_needed = bool(extrapolate or estimate_error)
-    if coarse_needed and system.n_steps % 2:
-        raise PeriodicError(
-            f"n_steps: the error estimate and extrapolation compare with N/2 steps and need an even "
-            f"n_steps, got {system.n_steps}; use an even n_steps or estimate_error=False"
-        )
-    fine = _shoot(system, beta, gamma)
+    if coarse_needed:
+        check_coarsenable(system.n_steps, "use an even n_steps or estimate_error=False (and extrapolate=False)")
+    fine = _shoot(system, scheme)
     phi, x, v, a = fine.phi, fine.x, fine.v, fine.a
-    error_estimate = float("nan")
-    multiplier_errors = None
+    error_estimate = error_factor = float("nan")
+    x_coarse = multiplier_errors = None
     multipliers, step_rates = analyse_multipliers(phi, system.step)
     if coarse_needed:
-        coarse = _shoot(system.coarsened(), beta, gamma)
-        factor = 1.0 / (2.0**order - 1.0)
+        coarse = _shoot(every_other_sample(system), scheme)
+        x_coarse = coarse.x
+        factor = error_factor = scheme.error_factor
         error_estimate = float(np.abs(x[::2] - coarse.x).max()) * factor
         coarse_multipliers = np.linalg.eigvals(coarse.phi)
         multiplier_errors = factor * np.abs(multipliers[:, None] - coarse_multipliers[None, :]).min(axis=1)
@@ -170,6 +189,8 @@ def steady_state(
             x = _richardson(x, coarse.x, factor)
             v = _richardson(v, coarse.v, factor)
             a = _richardson(a, coarse.a, factor)
+            # x[::2] - x_coarse is now (1 + factor) times the N-step difference.
+            error_factor = factor / (1.0 + factor)
             fine_multipliers = multipliers
             multipliers, step_rates = analyse_multipliers(phi, system.step)
             # The Richardson correction estimates the error of the N-step values: a conservative
@@ -195,25 +216,28 @@ def steady_state(
         condition_number=fine.condition_number,
         inverse_norm=fine.inverse_norm,
         error_estimate=error_estimate,
+        x_coarse=x_coarse,
+        error_factor=error_factor,
         multiplier_errors=multiplier_errors,
         periodicity_residual=fine.periodicity_residual,
         status=status,
         message=message,
         n_steps=system.n_steps,
         extrapolated=bool(extrapolate),
+        scheme=scheme,
         run_time=time.perf_counter() - start,
     )
 
 
-def _shoot(system: PeriodicSystem, beta: float, gamma: float) -> _Shot:
+def _shoot(system: PeriodicSystem, scheme: Newmark) -> _Shot:
     n = system.n_dof
-    phi, end = monodromy(system, beta, gamma, particular=True)
+    phi, end = monodromy(system, scheme, particular=True)
     system_matrix = np.eye(2 * n) - phi
     try:
         z0 = np.linalg.solve(system_matrix, end)
     except np.linalg.LinAlgError:
         distance = np.abs(1.0 - np.linalg.eigvals(phi)).min()
-        raise PeriodicError(
+        raise ShootingError(
             f"system: I - Phi is singular (a Floquet multiplier is within {distance:.3g} of +1): the "
             "system is at resonance and has no unique periodic solution"
         ) from None
@@ -226,7 +250,8 @@ def _shoot(system: PeriodicSystem, beta: float, gamma: float) -> _Shot:
     n_samples = system.n_steps + 1
     xs, vs, as_ = np.empty((n_samples, n, 1)), np.empty((n_samples, n, 1)), np.empty((n_samples, n, 1))
     status = newmark_march(
-        system.M, system.C, system.K, system.f, system.step, beta, gamma, np.ones(1), x, v, a, xs, vs, as_
+        system.M, system.C, system.K, system.f, system.step, scheme.beta, scheme.gamma, np.ones(1), x, v, a,
+        xs, vs, as_,
     )
     raise_on_singular(system, status)
     xs, vs, as_ = xs[:, :, 0], vs[:, :, 0], as_[:, :, 0]

@@ -22,7 +22,15 @@ _PERIODICITY_ERROR = 1e-6
 
 
 class PeriodicError(ValueError):
-    """Invalid periodic system or a periodic problem that cannot be solved."""
+    """Invalid input to ``periodic``: the message names the argument, what was expected and what was given.
+
+    Wrong types and unknown options raise ``TypeError`` instead.
+    """
+
+
+class ShootingError(RuntimeError):
+    """The computation failed on valid input: a matrix of the Newmark steps or ``I - Phi`` is exactly
+    singular (e.g. a free rigid-body mode, a multiplier at +1 to rounding)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,37 +57,7 @@ class PeriodicSystem:
     f: np.ndarray
 
     def __init__(self, period, M, C, K, f=None):
-        period = _check_period(period)
-        mass = _as_samples("mass", M, ndim=3)
-        n_samples, n_dof = mass.shape[0], mass.shape[1]
-        if mass.shape[2] != n_dof:
-            raise ValueError(f"mass: expected shape (N+1, n, n), got {mass.shape} (matrices not square)")
-        if n_samples < 3:
-            raise ValueError(
-                f"mass: expected N+1 >= 3 samples (n_steps >= 2), got {n_samples} sample(s)"
-            )
-        damping = _as_samples("damping", C, ndim=3, shape=mass.shape)
-        stiffness = _as_samples("stiffness", K, ndim=3, shape=mass.shape)
-        if f is None:
-            force = np.zeros((n_samples, n_dof))
-        else:
-            force = _as_samples("force", f, ndim=2, shape=(n_samples, n_dof))
-        for name, samples in (("mass", mass), ("damping", damping), ("stiffness", stiffness), ("force", force)):
-            _check_periodic(name, samples)
-        ratios = mass_pivot_ratios(mass)
-        singular = np.flatnonzero(ratios <= _SINGULAR_PIVOT_RATIO)
-        if singular.size:
-            k = int(singular[0])
-            t_k = k * period / (n_samples - 1)
-            raise PeriodicError(
-                f"mass: the mass matrix is singular at sample {k} (t = {t_k:.6g} s; smallest/largest "
-                f"LU pivot {ratios[k]:.3g}); {singular.size} of {n_samples} samples are singular. "
-                "The Newmark start needs M(0) invertible and the problem must be an ODE in x: "
-                "eliminate massless coordinates (static condensation) or give them mass."
-            )
-        for arr in (mass, damping, stiffness, force):
-            arr.flags.writeable = False
-        _set(self, period, mass, damping, stiffness, force)
+        _validate_and_set(self, _check_period(period), M, C, K, f)
 
     @classmethod
     def from_functions(
@@ -107,7 +85,9 @@ class PeriodicSystem:
             if not callable(func):
                 raise TypeError(f"{name}: expected a callable of scalar t, got {type(func).__name__}")
             sampled.append(_sample(name, func, times))
-        return cls(period, *sampled)
+        system = object.__new__(cls)
+        _validate_and_set(system, period, *sampled)  # period already checked
+        return system
 
     def __repr__(self) -> str:
         return f"PeriodicSystem(period={self.period!r}, n_steps={self.n_steps}, n_dof={self.n_dof})"
@@ -133,18 +113,56 @@ class PeriodicSystem:
         return np.arange(self.n_steps + 1) * self.step
 
     def coarsened(self) -> "PeriodicSystem":
-        """The same system on the grid of ``N/2`` steps (every other sample); ``N`` must be even."""
-        if self.n_steps % 2:
-            raise PeriodicError(
-                f"n_steps: coarsening to N/2 needs an even number of steps, got {self.n_steps}; "
-                "sample the system with an even n_steps (or skip the error estimate)"
-            )
-        if self.n_steps < 4:
-            raise PeriodicError(f"n_steps: coarsening needs n_steps >= 4, got {self.n_steps}")
-        coarse = object.__new__(PeriodicSystem)
-        # Every other sample of validated arrays is valid: no re-validation needed.
-        _set(coarse, self.period, *(np.ascontiguousarray(a[::2]) for a in (self.M, self.C, self.K, self.f)))
-        return coarse
+        """The same system on the grid of ``N/2`` steps (every other sample); ``N`` must be even, >= 4."""
+        check_coarsenable(self.n_steps, "sample the system with an even n_steps (or skip the error estimate)")
+        return every_other_sample(self)
+
+
+def check_coarsenable(n_steps: int, fix: str) -> None:
+    """Refuse an ``n_steps`` that has no N/2 grid of at least 2 steps; ``fix`` ends the message."""
+    if n_steps % 2 or n_steps < 4:
+        raise PeriodicError(f"n_steps: comparing with N/2 steps needs an even n_steps >= 4, got {n_steps}; {fix}")
+
+
+def every_other_sample(system: PeriodicSystem) -> PeriodicSystem:
+    """``system`` on N/2 steps, unchecked: the caller has called :func:`check_coarsenable`."""
+    coarse = object.__new__(PeriodicSystem)
+    # Every other sample of validated arrays is valid: no re-validation needed.
+    arrays = (np.ascontiguousarray(a[::2]) for a in (system.M, system.C, system.K, system.f))
+    _set(coarse, system.period, *arrays)
+    return coarse
+
+
+def _validate_and_set(system: PeriodicSystem, period: float, M, C, K, f) -> None:
+    """Check the samples (``period`` is checked by the caller) and store read-only copies in ``system``."""
+    mass = _as_samples("mass", M, ndim=3)
+    n_samples, n_dof = mass.shape[0], mass.shape[1]
+    if mass.shape[2] != n_dof:
+        raise PeriodicError(f"mass: expected shape (N+1, n, n), got {mass.shape} (matrices not square)")
+    if n_samples < 3:
+        raise PeriodicError(f"mass: expected N+1 >= 3 samples (n_steps >= 2), got {n_samples} sample(s)")
+    damping = _as_samples("damping", C, ndim=3, shape=mass.shape)
+    stiffness = _as_samples("stiffness", K, ndim=3, shape=mass.shape)
+    if f is None:
+        force = np.zeros((n_samples, n_dof))
+    else:
+        force = _as_samples("force", f, ndim=2, shape=(n_samples, n_dof))
+    for name, samples in (("mass", mass), ("damping", damping), ("stiffness", stiffness), ("force", force)):
+        _check_periodic(name, samples)
+    ratios = mass_pivot_ratios(mass)
+    singular = np.flatnonzero(ratios <= _SINGULAR_PIVOT_RATIO)
+    if singular.size:
+        k = int(singular[0])
+        t_k = k * period / (n_samples - 1)
+        raise PeriodicError(
+            f"mass: the mass matrix is singular at sample {k} (t = {t_k:.6g} s; smallest/largest "
+            f"LU pivot {ratios[k]:.3g}); {singular.size} of {n_samples} samples are singular. "
+            "The Newmark start needs M(0) invertible and the problem must be an ODE in x: "
+            "eliminate massless coordinates (static condensation) or give them mass."
+        )
+    for arr in (mass, damping, stiffness, force):
+        arr.flags.writeable = False
+    _set(system, period, mass, damping, stiffness, force)
 
 
 def _set(obj, period, mass, damping, stiffness, force):
@@ -160,7 +178,31 @@ def _check_period(period) -> float:
         raise TypeError(f"period: expected a positive real number (s), got {type(period).__name__}")
     value = float(period)
     if not math.isfinite(value) or value <= 0.0:
-        raise ValueError(f"period: expected a finite positive number (s), got {value!r}")
+        raise PeriodicError(f"period: expected a finite positive number (s), got {value!r}")
+    return value
+
+
+def check_system(system) -> None:
+    """Refuse anything but a :class:`PeriodicSystem` (a TypeError naming ``system``)."""
+    if not isinstance(system, PeriodicSystem):
+        raise TypeError(f"system: expected a periodic.PeriodicSystem, got {type(system).__name__}")
+
+
+def check_real(name: str, value) -> float:
+    """A finite real number as float (TypeError for other types, PeriodicError if not finite)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name}: expected a real number, got {type(value).__name__}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise PeriodicError(f"{name}: expected a finite number, got {value}")
+    return value
+
+
+def check_tol(name: str, value, upper: float = np.inf) -> float:
+    """A tolerance in [0, upper] as float."""
+    value = check_real(name, value)
+    if not 0.0 <= value <= upper:
+        raise PeriodicError(f"{name}: expected a tolerance in [0, {upper:g}], got {value}")
     return value
 
 
@@ -168,7 +210,7 @@ def _check_n_steps(n_steps) -> int:
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)):
         raise TypeError(f"n_steps: expected an integer >= 2, got {type(n_steps).__name__}")
     if n_steps < 2:
-        raise ValueError(f"n_steps: expected an integer >= 2, got {n_steps}")
+        raise PeriodicError(f"n_steps: expected an integer >= 2, got {n_steps}")
     return int(n_steps)
 
 
@@ -182,10 +224,10 @@ def _as_samples(name: str, values, *, ndim: int, shape=None) -> np.ndarray:
     expected = "(N+1, n, n)" if ndim == 3 else "(N+1, n)"
     if arr.ndim != ndim or (shape is not None and arr.shape != tuple(shape)):
         want = expected if shape is None else f"{expected} = {tuple(shape)}"
-        raise ValueError(f"{name}: expected shape {want}, got {arr.shape}")
+        raise PeriodicError(f"{name}: expected shape {want}, got {arr.shape}")
     if not np.isfinite(arr).all():
         bad = np.argwhere(~np.isfinite(arr))[0]
-        raise ValueError(f"{name}: expected finite values, got {arr[tuple(bad)]} at index {tuple(int(i) for i in bad)}")
+        raise PeriodicError(f"{name}: expected finite values, got {arr[tuple(bad)]} at index {tuple(int(i) for i in bad)}")
     return arr
 
 
@@ -218,12 +260,12 @@ def _sample(name: str, func, times: np.ndarray) -> np.ndarray:
             try:
                 value = func(t)
             except Exception as exc:  # any failure of user code is reported with its argument and time
-                raise ValueError(f"{name}: the callable raised {type(exc).__name__} at t = {t:.6g} s: {exc}") from exc
+                raise PeriodicError(f"{name}: the callable raised {type(exc).__name__} at t = {t:.6g} s: {exc}") from exc
             shape = np.shape(value)
             if out is None:
                 out = np.empty((times.size,) + shape)
             elif shape != out.shape[1:]:  # checked: assignment alone would broadcast a scalar
-                raise ValueError(
+                raise PeriodicError(
                     f"{name}: the callable returned shape {shape} at t = {t:.6g} s but {out.shape[1:]} at t = 0"
                 )
             try:

@@ -115,14 +115,41 @@ def test_steady_state_options():
         periodic.steady_state(system, n_steps=4)  # unknown option
     with pytest.raises(TypeError, match="system: expected a periodic.PeriodicSystem"):
         periodic.steady_state(arrays())
-    with pytest.raises(ValueError, match="extrapolate: .*gamma = 1/2"):
-        periodic.steady_state(system, extrapolate=True, beta=0.36, gamma=0.7)
-    with pytest.raises(ValueError, match="beta, gamma"):
-        periodic.floquet(system, beta=-0.1)
-    with pytest.raises(ValueError, match="resonance_tol"):
+    with pytest.raises(PeriodicError, match="extrapolate: .*gamma = 1/2"):
+        periodic.steady_state(system, extrapolate=True, scheme=periodic.Newmark(beta=0.36, gamma=0.7))
+    with pytest.raises(PeriodicError, match="beta, gamma"):
+        periodic.floquet(system, scheme=periodic.Newmark(beta=-0.1))
+    with pytest.raises(TypeError):
+        periodic.floquet(system, beta=0.3)  # the scheme is one object: scheme=periodic.Newmark(...)
+    with pytest.raises(PeriodicError, match="resonance_tol"):
         periodic.steady_state(system, resonance_tol=-1.0)
-    with pytest.raises(ValueError, match=r"stability_tol: expected a tolerance in \[0, 1e-06\]"):
+    with pytest.raises(PeriodicError, match=r"stability_tol: expected a tolerance in \[0, 1e-06\]"):
         periodic.floquet(system, stability_tol=1e-3)
+
+
+def test_scheme_validates_itself():
+    with pytest.raises(TypeError, match="beta: expected a real number, got str"):
+        periodic.Newmark(beta="0.25")
+    with pytest.raises(PeriodicError, match="gamma: expected a finite number, got nan"):
+        periodic.Newmark(gamma=np.nan)
+    with pytest.warns(RuntimeWarning, match=r"beta=0\.16.*unconditionally stable only for 2 beta >= gamma >= 1/2"):
+        scheme = periodic.Newmark(beta=0.16, gamma=0.5)  # linear acceleration-like, conditionally stable
+    assert (scheme.order, scheme.error_factor, scheme.symmetric, scheme.unconditionally_stable) == (2, 1 / 3, True, False)
+    damped = periodic.Newmark(beta=0.3025, gamma=0.6)
+    assert (damped.order, damped.error_factor, damped.symmetric) == (1, 1.0, False)
+    assert damped == periodic.SCHEMES["damped"] and periodic.Newmark() == periodic.SCHEMES["trapezoidal"]
+    with pytest.raises(Exception):
+        damped.beta = 0.3  # frozen
+
+
+def test_scheme_by_name_or_object():
+    system = PeriodicSystem(1.0, *arrays())
+    by_name = periodic.floquet(system, scheme="damped")
+    assert by_name.scheme == periodic.Newmark(beta=0.3025, gamma=0.6)
+    with pytest.raises(PeriodicError, match=r"scheme: expected one of 'trapezoidal', 'damped' or a periodic.Newmark, got 'trapezium'"):
+        periodic.steady_state(system, scheme="trapezium")
+    with pytest.raises(TypeError, match=r"scheme: expected a periodic.Newmark .*got tuple"):
+        periodic.steady_state(system, scheme=(0.25, 0.5))
 
 
 def test_complex_samples_are_refused():
@@ -138,6 +165,9 @@ def test_odd_n_steps_needs_estimate_error_false():
         periodic.steady_state(system)
     result = periodic.steady_state(system, estimate_error=False)
     assert np.isnan(result.error_estimate) and result.multiplier_errors is None
+    two_steps = PeriodicSystem(1.0, *(a[:3] for a in arrays()))  # N = 2: no N/2 grid of 2 steps
+    with pytest.raises(PeriodicError, match="n_steps: .*even n_steps >= 4, got 2.*estimate_error=False"):
+        periodic.steady_state(two_steps)
 
 
 def test_from_functions_refuses_complex_values():

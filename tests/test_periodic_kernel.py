@@ -1,13 +1,20 @@
-"""periodic: the numba Newmark kernel against a slow, obvious numpy twin; the demo command and its
-steady state against a long damped transient (scipy DOP853)."""
+"""periodic: the numba Newmark kernel against a slow, obvious numpy twin; the demo (``python -m periodic``
+and ``studies._demo.write_demo``) and its steady state against a long damped transient (scipy DOP853)."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
 
 import periodic
-from periodic import __main__ as demo
+from periodic import _demo as demo
+from periodic import __main__ as demo_command
 from periodic._newmark import mass_pivot_ratios, newmark_march
+from studies._demo import write_demo
 
 
 def newmark_numpy(M, C, K, f, h, beta, gamma, forced, x0, v0):
@@ -73,16 +80,37 @@ def test_mass_pivot_ratios_against_singular_values():
     assert np.all(ratios[[0, 1, 3, 4]] > 1e-3) and np.all(smallest_sv[[0, 1, 3, 4]] > 1e-3)
 
 
-def test_demo_writes_result_and_figure(tmp_path, capsys):
+def test_demo_writes_result_and_figure(tmp_path):
     prefix = tmp_path / "new" / "demo"
-    assert demo.main(["--out", str(prefix), "--n-steps", "64"]) == 0
+    paths = write_demo(prefix, n_steps=64)
+    assert paths == [prefix.with_suffix(".h5"), prefix.with_suffix(".png")]
     assert sorted(p.name for p in prefix.parent.iterdir()) == ["demo.h5", "demo.png"]  # no temporaries left
     with h5py.File(prefix.with_suffix(".h5")) as h5:
         assert h5["t"].shape == (65,) and h5["x"].shape == (65, 2) and h5["v"].shape == (65, 2)
         assert h5["multipliers"].shape == (4,)
         assert 0.0 < h5.attrs["error_estimate"] < 1e-3 and h5.attrs["run_time_s"] > 0.0
         assert '"n_steps": 64' in h5.attrs["settings"] and h5.attrs["package_version"]
+    with pytest.raises(ValueError, match="n_steps: expected an even integer >= 4"):
+        write_demo(prefix, n_steps=63)
+
+
+def test_demo_command_prints_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert demo_command.main(["--n-steps", "64"]) == 0
     assert "error estimate" in capsys.readouterr().out
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_periodic_imports_neither_h5py_nor_matplotlib():
+    """``periodic`` is usable without the file and figure libraries, its demo command included."""
+    code = (
+        "import sys; from periodic.__main__ import main; main(['--n-steps', '8']); "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('h5py', 'matplotlib')))"
+    )
+    root = str(Path(periodic.__file__).parents[1])  # this checkout's periodic, not an installed one
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, (root, os.environ.get("PYTHONPATH"))))}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
+    assert out.splitlines()[-1] == "[]"
 
 
 @pytest.mark.slow
@@ -93,12 +121,10 @@ def test_demo_steady_state_equals_long_damped_transient():
     import scipy.integrate
 
     def rhs(t, y):
-        stiffness = demo.STIFFNESS_MEAN + demo.STIFFNESS_PULSE * np.cos(demo.OMEGA * t)
-        force = demo.FORCE * np.cos(demo.OMEGA * t)
-        acceleration = np.linalg.solve(demo.MASS, force - demo.DAMPING @ y[2:] - stiffness @ y[:2])
+        acceleration = np.linalg.solve(demo.MASS, demo.force(t) - demo.DAMPING @ y[2:] - demo.stiffness(t) @ y[:2])
         return np.concatenate((y[2:], acceleration))
 
-    system = demo.demo_system(256)
+    system = periodic.demo_system(256)
     n_periods = 60
     transient = scipy.integrate.solve_ivp(
         rhs, (0.0, n_periods * system.period), np.zeros(4), method="DOP853", rtol=1e-10, atol=1e-13,

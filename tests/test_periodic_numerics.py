@@ -338,8 +338,18 @@ def test_exactly_singular_shooting_matrix_raises():
     """A free mass (K = C = 0) has Phi = [[1, T], [0, 1]] exactly: no unique periodic solution."""
     zeros = np.zeros((9, 1, 1))
     system = PeriodicSystem(1.0, np.ones((9, 1, 1)), zeros, zeros, np.ones((9, 1)))
-    with pytest.raises(periodic.PeriodicError, match=r"I - Phi is singular .*resonance"):
+    with pytest.raises(periodic.ShootingError, match=r"I - Phi is singular .*resonance") as caught:
         periodic.steady_state(system)
+    # A numerical failure on valid input, not bad input.
+    assert isinstance(caught.value, RuntimeError) and not isinstance(caught.value, ValueError)
+
+
+def test_singular_step_matrix_raises():
+    """M + gamma h C + beta h^2 K = 1 + (1/64) (-256) / 4 = 0 at every step (h = 1/8): valid input, failed step."""
+    ones = np.ones((9, 1, 1))
+    system = PeriodicSystem(1.0, ones, 0.0 * ones, -256.0 * ones)
+    with pytest.raises(periodic.ShootingError, match=r"effective matrix .* singular at sample 1 \(t = 0\.125 s\)"):
+        periodic.floquet(system)
 
 
 @pytest.mark.parametrize("beta", [1.0 / 6.0, 0.3])
@@ -349,26 +359,58 @@ def test_other_beta_with_gamma_half_is_symmetric_order_2_and_4(beta):
     errors, errors4 = [], []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # beta = 1/6 is only conditionally stable
-        for n_steps in GRID:
-            system = PeriodicSystem.from_functions(TWO_PI, *functions, n_steps=int(n_steps))
-            truth = np.array([exact(t)[0] for t in system.t])
-            errors.append(np.abs(periodic.steady_state(system, beta=beta).x - truth).max())
-            errors4.append(np.abs(periodic.steady_state(system, beta=beta, extrapolate=True).x - truth).max())
+        scheme = periodic.Newmark(beta=beta, gamma=0.5)
+    for n_steps in GRID:
+        system = PeriodicSystem.from_functions(TWO_PI, *functions, n_steps=int(n_steps))
+        truth = np.array([exact(t)[0] for t in system.t])
+        errors.append(np.abs(periodic.steady_state(system, scheme=scheme).x - truth).max())
+        errors4.append(np.abs(periodic.steady_state(system, scheme=scheme, extrapolate=True).x - truth).max())
     assert observed_order(GRID, errors) == pytest.approx(2.0, abs=0.1)
     assert observed_order(GRID, errors4) == pytest.approx(4.0, abs=0.3)
 
 
-def test_numerically_damped_newmark_is_order_1_with_an_honest_estimate():
-    """gamma > 1/2 (here 0.6, beta = (gamma + 1/2)^2 / 4) is first order; the estimate uses 2^1 - 1."""
+@pytest.mark.parametrize("name", sorted(periodic.SCHEMES))
+def test_every_registered_scheme_has_its_declared_order_and_an_honest_estimate(name):
+    """Observed order of x on the manufactured solution = ``scheme.order``; ``error_estimate`` (which uses
+    ``scheme.error_factor``) within 20 % of the true error at the finest N; a symmetric scheme gains
+    two orders by Richardson extrapolation.  E.g. "damped" (gamma = 0.6, beta = (gamma + 1/2)^2 / 4)
+    is first order and its estimate uses 2^1 - 1.  A newly registered scheme is checked here."""
+    scheme = periodic.SCHEMES[name]
+    assert scheme.unconditionally_stable  # the shooting integrates every mode over a whole period
     functions, exact = manufactured_functions()
-    errors = []
+    errors, errors_extrapolated = [], []
     for n_steps in GRID:
         system = PeriodicSystem.from_functions(TWO_PI, *functions, n_steps=int(n_steps))
-        result = periodic.steady_state(system, beta=0.3025, gamma=0.6)
+        result = periodic.steady_state(system, scheme=name)
         truth = np.array([exact(t)[0] for t in system.t])
         errors.append(np.abs(result.x - truth).max())
-    assert observed_order(GRID, errors) == pytest.approx(1.0, abs=0.1)
+        if scheme.symmetric:
+            extrapolated = periodic.steady_state(system, scheme=scheme, extrapolate=True)
+            errors_extrapolated.append(np.abs(extrapolated.x - truth).max())
+    assert result.scheme == scheme
+    assert observed_order(GRID, errors) == pytest.approx(scheme.order, abs=0.1)
     assert result.error_estimate / errors[-1] == pytest.approx(1.0, abs=0.2)
+    if scheme.symmetric:
+        assert observed_order(GRID, errors_extrapolated) == pytest.approx(scheme.order + 2, abs=0.3)
+
+
+def test_coarse_solution_comes_back_for_observable_error_estimates(manufactured_runs):
+    """``x_coarse`` is the N/2-step solution; ``error_factor * |o(x[::2]) - o(x_coarse)|`` estimates the
+    error of an observable ``o`` linear in x (here a fixed combination of the coordinates)."""
+    weights = np.array([1.0, -2.0, 0.5])
+    for system, truth, plain, extrapolated in manufactured_runs[1:]:
+        coarse = periodic.steady_state(system.coarsened(), estimate_error=False)
+        np.testing.assert_array_equal(plain.x_coarse, coarse.x)
+        np.testing.assert_array_equal(extrapolated.x_coarse, coarse.x)
+        assert plain.error_factor == 1.0 / 3.0 and extrapolated.error_factor == 0.25
+        for result in (plain, extrapolated):
+            difference = np.abs(result.x[::2] - result.x_coarse).max()
+            assert result.error_estimate == pytest.approx(result.error_factor * difference, rel=1e-9)
+        estimate = plain.error_factor * np.abs(plain.x[::2] @ weights - plain.x_coarse @ weights).max()
+        true_error = np.abs(plain.x @ weights - truth[:, 0] @ weights).max()
+        assert estimate / true_error == pytest.approx(1.0, abs=0.2), system.n_steps
+    skipped = periodic.steady_state(system, estimate_error=False)
+    assert skipped.x_coarse is None and np.isnan(skipped.error_factor) and np.isnan(skipped.error_estimate)
 
 
 def test_multiplier_error_estimates_match_true_errors(constant_runs):
