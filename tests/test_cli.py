@@ -11,7 +11,6 @@ import mechanisms
 import studies
 from studies import _grid
 from studies.cli import main
-from tests.test_studies_store import assert_same
 
 SMALL_FOUR_BAR = """
 [studies]
@@ -59,7 +58,7 @@ def test_run_writes_every_declared_study_and_resumes(mathieu_run, monkeypatch, c
     assert "sweep" in capsys.readouterr().out
 
 
-def test_jobs_do_not_change_the_numbers(mathieu_run, tmp_path):
+def test_jobs_do_not_change_the_numbers(mathieu_run, tmp_path, assert_same):
     path = tmp_path / "pool.h5"
     assert main(["run", "mathieu", "--out", str(path), "--jobs", "2", "--quiet"]) == 0
     serial, pooled = studies.load(mathieu_run), studies.load(path)
@@ -160,7 +159,7 @@ def test_argparse_errors_exit_2(capsys):
     assert exit_.value.code == 2
 
 
-def test_dask_scheduler_from_the_command_line(mathieu_run, tmp_path):
+def test_dask_scheduler_from_the_command_line(mathieu_run, tmp_path, assert_same):
     distributed = pytest.importorskip("distributed")
     path = tmp_path / "dask.h5"
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, protocol="tcp",
@@ -173,12 +172,12 @@ def test_dask_scheduler_from_the_command_line(mathieu_run, tmp_path):
 
 
 def test_a_study_that_cannot_be_computed_is_reported_and_the_rest_written(tmp_path, monkeypatch, capsys):
-    from studies import _studies
+    from studies._kinds import nonlinear_check
 
     def fails(*args, **kwargs):
         raise RuntimeError("Newton's method did not converge")
 
-    monkeypatch.setattr(_studies, "nonlinear_check", fails)
+    monkeypatch.setattr(nonlinear_check, "nonlinear_check", fails)
     path = tmp_path / "m.h5"
     assert main(["run", "mathieu", "--out", str(path), "--quiet"]) == 1
     assert "nonlinear_check  FAILED: RuntimeError: Newton's method" in capsys.readouterr().out

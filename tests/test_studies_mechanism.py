@@ -84,10 +84,8 @@ def test_slow_four_bar_deflects_like_a_beam_under_its_inertia_load():
     assert np.abs(response - quasi_static).max() <= 0.05 * np.abs(quasi_static).max()
 
 
-def test_process_pool_sweep_of_a_mechanism_gives_the_same_numbers(four_bar):
+def test_process_pool_sweep_of_a_mechanism_gives_the_same_numbers(four_bar, assert_same):
     from concurrent.futures import ProcessPoolExecutor
-
-    from tests.test_studies_store import assert_same
 
     speeds = [60.0, 90.0, 130.0, 170.0]
     serial = studies.sweep(four_bar, "speed", speeds, n_steps=32)
