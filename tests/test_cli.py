@@ -194,3 +194,56 @@ def test_speed_of_a_scene_with_oscillating_drives_is_its_fundamental_frequency()
     assert problem.parameters["speed"] == pytest.approx(2 * math.pi / period, rel=1e-15)
     linear = problem.linearize({"speed": 4 * math.pi / period}, n_steps=8, context=False)
     assert linear.system.period == pytest.approx(period / 2, rel=1e-15)
+
+
+# ---------------------------------------------------------------------------------------------------
+# exit codes: bad input 2, a numerical failure 1, an internal error (a bug) 1 in one line
+# ---------------------------------------------------------------------------------------------------
+def test_a_bad_scene_exits_2_naming_it(tmp_path, capsys):
+    scene = tmp_path / "bad.toml"
+    scene.write_text(mechanisms.load("four_bar_thesis").to_toml().replace("[links.coupler]",
+                                                                          "[links.coupler]\nlenght = 1.0"))
+    assert main(["run", str(scene), "--out", str(tmp_path / "bad.h5"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("flexvib: error: ") and "lenght" in err and "Traceback" not in err
+
+
+def _raise_in_run(monkeypatch, error):
+    from studies import _plan
+
+    def run_plan(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(_plan, "run_plan", run_plan)
+
+
+def test_a_numerical_failure_exits_1(tmp_path, monkeypatch, capsys):
+    _raise_in_run(monkeypatch, np.linalg.LinAlgError("singular matrix"))
+    assert main(["run", "mathieu", "--out", str(tmp_path / "m.h5"), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert err == "flexvib: error: LinAlgError: singular matrix\n"
+
+
+@pytest.mark.parametrize("error", [TypeError("unsupported operand"), KeyError("speed")])
+def test_an_internal_error_exits_1_in_one_line_without_traceback(error, tmp_path, monkeypatch, capsys):
+    monkeypatch.delenv("FLEXVIB_DEBUG", raising=False)
+    _raise_in_run(monkeypatch, error)
+    assert main(["run", "mathieu", "--out", str(tmp_path / "m.h5"), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"flexvib: internal error: {type(error).__name__}: ")
+    assert "please report; set FLEXVIB_DEBUG=1 for the traceback" in err
+    assert "Traceback" not in err and err.count("\n") == 1
+
+
+def test_flexvib_debug_prints_the_traceback_of_an_internal_error(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("FLEXVIB_DEBUG", "1")
+    _raise_in_run(monkeypatch, TypeError("unsupported operand"))
+    assert main(["run", "mathieu", "--out", str(tmp_path / "m.h5"), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "flexvib: internal error: TypeError: unsupported operand" in err
+
+
+def test_studies_error_is_public_and_a_value_error():
+    assert issubclass(studies.StudiesError, ValueError) and issubclass(studies.ComputationError, RuntimeError)
+    with pytest.raises(studies.StudiesError, match="n_steps"):
+        studies.steady_state(studies.mathieu_problem(), n_steps=15)
