@@ -124,7 +124,7 @@ def periods_to_target(history, steps_per_period, target):
 
 def bench_shooting_vs_brute_force(repeats, scene):
     mechanism = mechanisms.load(scene).with_parameter("links.coupler.damping.ratio", 0.01)
-    problem = studies.MechanismProblem(name=f"{scene}_1pct", text=mechanism.to_toml())
+    problem = studies.MechanismProblem.from_mechanism(mechanism)
     lin = linearize.about(mechanism, n_steps=2048)
     reference = periodic.steady_state(lin.system, extrapolate=True)
     target = peak(lin.observe(reference.x)[SPEC])

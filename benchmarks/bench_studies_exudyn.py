@@ -143,7 +143,7 @@ def main():
     reference = periodic.steady_state(lin.system, extrapolate=True)
     target = float(np.abs(lin.observe(reference.x)[SPEC]).max())
 
-    problem = studies.MechanismProblem(name="four_bar_fem4_1pct", text=mechanism.to_toml())
+    problem = studies.MechanismProblem.from_mechanism(mechanism)
 
     def shoot(n):
         from studies import _mechanism

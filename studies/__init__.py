@@ -1,32 +1,40 @@
 """Parametric studies of periodic mechanisms: steady state, sweeps, Campbell diagrams, stability
-charts, nonlinear checks, error against run time; HDF5 results and the ``flexvib`` command."""
+charts, nonlinear checks, error against run time; HDF5 results and the ``flexvib`` command.
 
+Every result's ``plot(*, axes=None)`` returns a :class:`Plot` (figure, axes, artists by name). Bad
+input raises :class:`StudiesError` (a ``ValueError``); a study that cannot be computed raises a
+``RuntimeError`` (:class:`ComputationError` here)."""
+
+from ._errors import ComputationError as ComputationError
+from ._errors import StudiesError as StudiesError
 from ._grid import PointOutcome as PointOutcome
 from ._grid import run_grid as run_grid
+from ._kinds.campbell import CampbellResult as CampbellResult
+from ._kinds.campbell import campbell as campbell
+from ._kinds.error_cost import ErrorCostResult as ErrorCostResult
+from ._kinds.error_cost import error_cost as error_cost
+from ._kinds.nonlinear_check import NonlinearCheck as NonlinearCheck
+from ._kinds.nonlinear_check import nonlinear_check as nonlinear_check
+from ._kinds.stability_chart import StabilityChart as StabilityChart
+from ._kinds.stability_chart import stability_chart as stability_chart
+from ._kinds.steady_state import SteadyStateResult as SteadyStateResult
+from ._kinds.steady_state import steady_state as steady_state
+from ._kinds.sweep import SweepResult as SweepResult
+from ._kinds.sweep import sweep as sweep
 from ._mechanism import MechanismProblem as MechanismProblem
+from ._plots import Plot as Plot
+from ._problem import Description as Description
 from ._problem import Linear as Linear
 from ._problem import NonlinearRun as NonlinearRun
 from ._problem import PeriodicCoefficients as PeriodicCoefficients
 from ._problem import PeriodicProblem as PeriodicProblem
 from ._problem import mathieu_problem as mathieu_problem
-from ._results import CampbellResult as CampbellResult
-from ._results import ErrorCostResult as ErrorCostResult
-from ._results import NonlinearCheck as NonlinearCheck
-from ._results import StabilityChart as StabilityChart
-from ._results import SteadyStateResult as SteadyStateResult
-from ._results import SweepResult as SweepResult
 from ._store import load as load
 from ._store import open_file as open_file
-from ._studies import campbell as campbell
-from ._studies import error_cost as error_cost
-from ._studies import nonlinear_check as nonlinear_check
-from ._studies import stability_chart as stability_chart
-from ._studies import steady_state as steady_state
-from ._studies import sweep as sweep
 
 __all__ = [
-    "CampbellResult", "ErrorCostResult", "Linear", "MechanismProblem", "NonlinearCheck", "NonlinearRun",
-    "PeriodicCoefficients", "PeriodicProblem", "PointOutcome", "StabilityChart", "SteadyStateResult",
-    "SweepResult", "campbell", "error_cost", "load", "mathieu_problem", "nonlinear_check", "open_file",
-    "run_grid", "stability_chart", "steady_state", "sweep",
+    "CampbellResult", "ComputationError", "Description", "ErrorCostResult", "Linear", "MechanismProblem",
+    "NonlinearCheck", "NonlinearRun", "PeriodicCoefficients", "PeriodicProblem", "Plot", "PointOutcome",
+    "StabilityChart", "SteadyStateResult", "StudiesError", "SweepResult", "campbell", "error_cost", "load",
+    "mathieu_problem", "nonlinear_check", "open_file", "run_grid", "stability_chart", "steady_state", "sweep",
 ]

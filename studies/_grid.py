@@ -21,6 +21,8 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from ._errors import StudiesError
+
 from ._store import encode, write_attrs
 
 logger = logging.getLogger(__name__)
@@ -95,7 +97,7 @@ class GridStore:
         if name in parent:
             group = parent[name]
             if group.attrs.get("kind") != kind or group.attrs.get("settings") != text:
-                raise ValueError(
+                raise StudiesError(
                     f"{parent.file.filename}: group {name!r} holds a {group.attrs.get('kind')!r} study "
                     f"with other settings ({group.attrs.get('settings')}); to resume, run with exactly "
                     f"the same settings, else write to a new file or another study name")

@@ -10,13 +10,15 @@ else is linearised afresh at each point.
 from __future__ import annotations
 
 import math
+import tomllib
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
 
-from ._problem import SPEED, Linear, NonlinearRun, resolve_values
+from ._errors import ComputationError, StudiesError
+from ._problem import SPEED, Description, Linear, NonlinearRun, resolve_values
 
 # Units of scene parameters by their last key (docs/scenes.md); others are reported as "SI".
 _UNITS = {"rate": "rad/s", "length": "m", "width": "m", "thickness": "m", "area": "m^2",
@@ -40,6 +42,30 @@ def _cached(cache: OrderedDict, key: Any, make):
     return value
 
 
+def _build(text: str, source: str):
+    """The ``mechanisms.Mechanism`` of scene ``text`` (its scene dict kept as ``spec``)."""
+    import mechanisms
+
+    try:
+        spec = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise mechanisms.MechanismError(f"{source}: not valid TOML: {error}") from None
+    return mechanisms.build(spec, source=source)
+
+
+def _with_values(spec: Mapping[str, Any], changes: Mapping[str, Any]) -> dict[str, Any]:
+    """A copy of the scene dict ``spec`` with the values at dotted paths replaced (the tables on each
+    path copied, the rest shared: ``mechanisms.build`` copies what it keeps)."""
+    result = dict(spec)
+    for path, value in changes.items():
+        table, parts = result, path.split(".")
+        for key in parts[:-1]:
+            table[key] = dict(table.get(key, {}))
+            table = table[key]
+        table[parts[-1]] = value
+    return result
+
+
 def _get_path(spec: Mapping[str, Any], path: str) -> Any:
     node: Any = spec
     for part in path.split("."):
@@ -55,39 +81,58 @@ class MechanismProblem:
 
     ``parameter_paths``: the scene parameters studies may vary besides ``"speed"`` (their nominal
     values are read from the scene); ``observable_specs``: observable specs (None:
-    ``linearize.default_observables``).
+    ``linearize.default_observables``). The text travels to worker processes; in each process the
+    scene is built into a ``mechanisms.Mechanism`` once (``from_scene`` and ``from_mechanism`` hand
+    over the one they have), and a parameter change builds its variant from that mechanism's scene
+    dict, without writing or parsing text.
     """
 
     name: str
     text: str
     parameter_paths: tuple[str, ...] = ()
     observable_specs: tuple[str, ...] | None = None
+    #: the nominal parameter values, read from the scene once (and pickled with the problem)
+    _nominal: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         mechanism = self.mechanism()
-        spec = mechanism.to_spec()
+        nominal = {SPEED: _speed(mechanism)}
         for path in self.parameter_paths:
             try:
-                value = _get_path(spec, path)
+                value = _get_path(mechanism.spec, path)
             except KeyError:
-                raise ValueError(f"scene {self.name!r} has no parameter {path!r} (dotted path of a "
-                                 f"number in the scene file, e.g. 'links.coupler.thickness')") from None
+                raise StudiesError(f"scene {self.name!r} has no parameter {path!r} (dotted path of a "
+                                   f"number in the scene file, e.g. 'links.coupler.thickness')") from None
             if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ValueError(f"scene {self.name!r}: parameter {path!r} is {value!r}, not a number")
+                raise StudiesError(f"scene {self.name!r}: parameter {path!r} is {value!r}, not a number")
+            nominal[path] = float(value)
+        object.__setattr__(self, "_nominal", nominal)
 
     @classmethod
     def from_scene(cls, name_or_path: str, *, parameter_paths=(), observables=None) -> "MechanismProblem":
+        """The problem of a built-in scene name or a .toml file."""
         import mechanisms
 
-        mechanism = mechanisms.load(name_or_path)
-        return cls(name=mechanism.name, text=mechanism.to_toml(), parameter_paths=tuple(parameter_paths),
+        return cls.from_mechanism(mechanisms.load(name_or_path), parameter_paths=parameter_paths,
+                                  observables=observables)
+
+    @classmethod
+    def from_mechanism(cls, mechanism: Any, *, parameter_paths=(), observables=None) -> "MechanismProblem":
+        """The problem of a ``mechanisms.Mechanism`` (kept as this process's built scene)."""
+        import mechanisms
+
+        text = mechanism.to_toml()
+        if mechanism.spec is None:  # made from parts: variants are built from a scene dict
+            mechanism = mechanisms.build(tomllib.loads(text), source=f"scene {mechanism.name!r}")
+        _cached(_mechanisms, text, lambda: mechanism)
+        return cls(name=mechanism.name, text=text, parameter_paths=tuple(parameter_paths),
                    observable_specs=None if observables is None else tuple(observables))
 
     def mechanism(self, values: Mapping[str, float] | None = None):
         """The ``mechanisms.Mechanism`` at ``values`` (cached per process)."""
         import mechanisms
 
-        base = _cached(_mechanisms, self.text, lambda: mechanisms.loads(self.text, source=f"scene {self.name!r}"))
+        base = _cached(_mechanisms, self.text, lambda: _build(self.text, f"scene {self.name!r}"))
         changes = {}
         for key, value in (values or {}).items():
             if key == SPEED:
@@ -97,14 +142,12 @@ class MechanismProblem:
         if not changes:
             return base
         return _cached(_mechanisms, (self.text, tuple(sorted(changes.items()))),
-                       lambda: base.with_parameters(changes))
+                       lambda: mechanisms.build(_with_values(base.spec, changes),
+                                                source=f"{self.name} with {changes}"))
 
     @property
     def parameters(self) -> dict[str, float]:
-        spec = self.mechanism().to_spec()
-        values = {SPEED: _speed(self.mechanism())}
-        values.update({path: float(_get_path(spec, path)) for path in self.parameter_paths})
-        return values
+        return dict(self._nominal)
 
     @property
     def units(self) -> dict[str, str]:
@@ -112,7 +155,28 @@ class MechanismProblem:
                 for name in self.parameters}
 
     def resolve(self, values: Mapping[str, float] | None) -> dict[str, float]:
-        return resolve_values(self.name, self.parameters, values)
+        return resolve_values(self.name, self._nominal, values)
+
+    def describe(self, values: Mapping[str, float] | None = None) -> Description:
+        """Coordinate labels, observables and units at ``values`` from the assembled model (cached by
+        ``mechanisms.assemble``), without linearising. When the constraints fix every rigid
+        coordinate (prescribed drives) the independent coordinates are the elastic ones; otherwise
+        ``linearize`` picks further ones along the motion, and a coarse linearisation names them."""
+        import linearize
+        import mechanisms
+
+        params = self.resolve(values)
+        mechanism = self.mechanism({k: v for k, v in params.items() if k != SPEED and v != self._nominal[k]})
+        model = mechanisms.assemble(mechanism)
+        specs = (linearize.default_observables(mechanism) if self.observable_specs is None
+                 else tuple(self.observable_specs))
+        elastic = np.sort(np.asarray(model.elastic_index, dtype=np.int64))
+        if model.n_coords - model.n_constraints == elastic.size:
+            labels = tuple(model.coord_labels[i] for i in elastic)
+        else:
+            labels = tuple(self.linearize(values, n_steps=4).labels)
+        return Description(labels=labels, observables=tuple(specs),
+                           units=tuple(model.observable(spec).unit for spec in specs))
 
     def linearize(self, values: Mapping[str, float] | None = None, *, n_steps: int,
                   context: bool = True) -> Linear:
@@ -122,8 +186,7 @@ class MechanismProblem:
         import linearize
 
         params = self.resolve(values)
-        nominal = self.parameters
-        others = {k: v for k, v in params.items() if k != SPEED and v != nominal[k]}
+        others = {k: v for k, v in params.items() if k != SPEED and v != self._nominal[k]}
         mechanism = self.mechanism(others)
         drive = mechanism.drives[0]
         speed = params[SPEED]
@@ -156,7 +219,7 @@ class MechanismProblem:
     supports_nonlinear = True
 
     def simulate(self, linear: Linear, x0: np.ndarray, v0: np.ndarray, *, n_periods: int,
-                 steps_per_period: int, values: Mapping[str, float] | None = None) -> NonlinearRun:
+                 steps_per_period: int) -> NonlinearRun:
         """``mechanisms.simulate`` from the nominal state plus ``x = V z`` (projected onto the
         constraints, which ``V z`` satisfies to first order only); observables as deviations from
         their values along the nominal motion, with the simulation's Richardson error estimates."""
@@ -173,9 +236,9 @@ class MechanismProblem:
                                   s0=s0, sdot0=sdot0, observables=list(linear.observables),
                                   estimate_error=True)
         if not run.success:
-            raise RuntimeError(f"nonlinear run of {self.name!r} failed: {run.message}")
+            raise ComputationError(f"nonlinear run of {self.name!r} failed: {run.message}")
         if steps_per_period != n:
-            raise ValueError(f"steps_per_period ({steps_per_period}) must equal the linear grid's "
+            raise StudiesError(f"steps_per_period ({steps_per_period}) must equal the linear grid's "
                              f"n_steps ({n}) to subtract the nominal motion sample by sample")
         observables = {}
         for spec in linear.observables:
@@ -232,9 +295,9 @@ def _speed_changes(mechanism, speed: float) -> dict[str, float]:
     rate scaled in proportion (so the drives still turn whole turns per period) and an explicit
     period scaled inversely; for oscillating drives (rate 0) the period alone."""
     if not (math.isfinite(speed) and speed > 0):
-        raise ValueError(f"parameter 'speed': expected a positive number (rad/s), got {speed!r}")
+        raise StudiesError(f"parameter 'speed': expected a positive number (rad/s), got {speed!r}")
     factor = speed / _speed(mechanism)
-    spec = mechanism.to_spec()
+    spec = mechanism.spec
     changes: dict[str, float] = {}
     if "drive" in spec:
         if mechanism.drives[0].rate:

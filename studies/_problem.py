@@ -5,11 +5,15 @@ A *problem* is any picklable object with
 * ``name`` (str) and ``text`` (str, the scene description stored with the results);
 * ``parameters`` (dict name -> nominal value, SI units) including ``"speed"`` (crank speed, rad/s);
 * ``units`` (dict name -> unit of each parameter);
-* ``linearize(values, *, n_steps, context=True) -> Linear``, ``values`` a dict of parameter values
-  that override the nominal ones; ``context=False`` may skip what only the nonlinear route needs;
+* ``resolve(values) -> dict``: the nominal parameters overridden by ``values`` (a dict of parameter
+  values), checked (``StudiesError`` naming an unknown parameter);
+* ``describe(values=None) -> Description``: the names of the coordinates, the observables and
+  their units at ``values``, without linearising (results carry them);
+* ``linearize(values, *, n_steps, context=True) -> Linear``; ``context=False`` may skip what only
+  the nonlinear route needs;
 * optionally ``simulate(linear, x0, v0, *, n_periods, steps_per_period) -> NonlinearRun``, the full
-  nonlinear model started from the independent coordinates ``x0, v0`` of the linear system at t = 0
-  (needed only by the nonlinear check).
+  nonlinear model at the parameters of ``linear`` started from its independent coordinates
+  ``x0, v0`` at t = 0 (needed only by the nonlinear check).
 
 Two kinds ship here: :class:`PeriodicProblem` (a time-periodic linear system written down directly,
 optionally with a nonlinear force, integrated by scipy for the nonlinear route) and, in
@@ -27,7 +31,20 @@ import numpy as np
 
 import periodic
 
+from ._errors import ComputationError, StudiesError
+
 SPEED = "speed"
+
+
+@dataclass(frozen=True)
+class Description:
+    """What a problem's linear systems are made of, known without linearising: ``labels`` (m,) the
+    names of the coordinates, ``observables`` (n_obs,) the observable specs and ``units`` (n_obs,)
+    the unit of each (the same as the ``Linear`` of ``linearize`` at the same values)."""
+
+    labels: tuple[str, ...]
+    observables: tuple[str, ...]
+    units: tuple[str, ...]
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,8 +66,8 @@ class Linear:
     gains : ndarray (N+1, n_obs, m)
         ``observable_k(t_i) = gains[i, k] @ z(t_i)`` (observables are linear in ``z``).
     context : object
-        The model-specific object behind it (a ``linearize`` result for mechanisms), for the
-        nonlinear route and drawings; None for plain periodic problems.
+        What the nonlinear route and drawings need: the ``linearize`` result for mechanisms (None
+        when linearised with ``context=False``), the resolved parameter dict for periodic problems.
     """
 
     system: periodic.PeriodicSystem
@@ -118,14 +135,14 @@ class PeriodicProblem:
     def __post_init__(self) -> None:
         names = [name for name, _ in self.parameter_values]
         if SPEED not in names:
-            raise ValueError(f"PeriodicProblem {self.name!r}: parameters must include {SPEED!r} "
+            raise StudiesError(f"PeriodicProblem {self.name!r}: parameters must include {SPEED!r} "
                              f"(rad/s), got {names}")
         if sorted(names) != sorted(name for name, _ in self.parameter_units):
-            raise ValueError(f"PeriodicProblem {self.name!r}: parameter_units must name the same "
+            raise StudiesError(f"PeriodicProblem {self.name!r}: parameter_units must name the same "
                              f"parameters as parameter_values ({names})")
         for spec, _, row in self.observable_rows:
             if len(row) != len(self.labels):
-                raise ValueError(f"PeriodicProblem {self.name!r}: observable {spec!r} has {len(row)} "
+                raise StudiesError(f"PeriodicProblem {self.name!r}: observable {spec!r} has {len(row)} "
                                  f"weights for {len(self.labels)} coordinates")
 
     @property
@@ -137,13 +154,19 @@ class PeriodicProblem:
         return dict(self.parameter_units)
 
     def resolve(self, values: Mapping[str, float] | None) -> dict[str, float]:
-        """Nominal parameters overridden by ``values``; unknown names raise ``ValueError``."""
+        """Nominal parameters overridden by ``values``; unknown names raise ``StudiesError``."""
         return resolve_values(self.name, self.parameters, values)
+
+    def describe(self, values: Mapping[str, float] | None = None) -> Description:
+        """The coordinate labels, observables and their units (the same at every parameter value)."""
+        return Description(labels=tuple(self.labels),
+                           observables=tuple(spec for spec, _, _ in self.observable_rows),
+                           units=tuple(unit for _, unit, _ in self.observable_rows))
 
     def linearize(self, values: Mapping[str, float] | None = None, *, n_steps: int,
                   context: bool = True) -> Linear:
-        """The sampled system at ``values`` (``context`` is accepted for the problem protocol; a
-        periodic problem has no model-specific object)."""
+        """The sampled system at ``values``; its ``context`` is the resolved parameter dict (the
+        ``context`` argument is accepted for the problem protocol)."""
         params = self.resolve(values)
         coefficients = self.coefficients(params)
         system = periodic.PeriodicSystem.from_functions(
@@ -152,22 +175,23 @@ class PeriodicProblem:
         rows = np.array([row for _, _, row in self.observable_rows], dtype=float).reshape(
             len(self.observable_rows), len(self.labels))
         gains = np.ascontiguousarray(np.broadcast_to(rows, (n_steps + 1,) + rows.shape))
-        return Linear(system=system, crank_angle=params[SPEED] * system.t, labels=self.labels,
-                      observables=tuple(spec for spec, _, _ in self.observable_rows),
-                      units=tuple(unit for _, unit, _ in self.observable_rows), gains=gains)
+        names = self.describe()
+        return Linear(system=system, crank_angle=params[SPEED] * system.t, labels=names.labels,
+                      observables=names.observables, units=names.units, gains=gains, context=params)
 
     @property
     def supports_nonlinear(self) -> bool:
         return self.nonlinear_force is not None
 
     def simulate(self, linear: Linear, x0: np.ndarray, v0: np.ndarray, *, n_periods: int,
-                 steps_per_period: int, values: Mapping[str, float] | None = None) -> NonlinearRun:
-        """Integrate ``M x'' + C x' + K x + g = f`` from ``(x0, v0)`` at t = 0 with DOP853 (rtol 1e-10)."""
+                 steps_per_period: int) -> NonlinearRun:
+        """Integrate ``M x'' + C x' + K x + g = f`` at the parameters of ``linear`` from ``(x0, v0)`` at
+        t = 0 with DOP853 (rtol 1e-10)."""
         from scipy.integrate import solve_ivp
 
         if self.nonlinear_force is None:
-            raise ValueError(f"problem {self.name!r} has no nonlinear model (nonlinear_force=None)")
-        params = self.resolve(values)
+            raise StudiesError(f"problem {self.name!r} has no nonlinear model (nonlinear_force=None)")
+        params = linear.context
         coefficients = self.coefficients(params)
         force = self.nonlinear_force
         m = len(self.labels)
@@ -183,7 +207,7 @@ class PeriodicProblem:
         solution = solve_ivp(rhs, (0.0, t_eval[-1]), np.concatenate([x0, v0]), method="DOP853",
                              t_eval=t_eval, rtol=1e-10, atol=1e-12)
         if not solution.success:
-            raise RuntimeError(f"problem {self.name!r}: nonlinear run failed: {solution.message}")
+            raise ComputationError(f"problem {self.name!r}: nonlinear run failed: {solution.message}")
         run_time = time.perf_counter() - start
         x = solution.y[:m].T
         observables = {spec: x @ np.asarray(row, dtype=float) for spec, _, row in self.observable_rows}
@@ -203,11 +227,11 @@ def resolve_values(name: str, nominal: Mapping[str, float],
 
             close = difflib.get_close_matches(str(key), list(params), n=1)
             hint = f"; did you mean {close[0]!r}?" if close else ""
-            raise ValueError(f"problem {name!r} has no parameter {key!r}{hint} "
+            raise StudiesError(f"problem {name!r} has no parameter {key!r}{hint} "
                              f"(parameters: {sorted(params)})")
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
                 or not math.isfinite(float(value)):
-            raise ValueError(f"parameter {key!r}: expected a finite number, got {value!r}")
+            raise StudiesError(f"parameter {key!r}: expected a finite number, got {value!r}")
         params[key] = float(value)
     return params
 
@@ -221,7 +245,7 @@ def _mathieu_coefficients(values: Mapping[str, float]) -> PeriodicCoefficients:
     w0, zeta, eps = values["natural_frequency"], values["damping_ratio"], values["epsilon"]
     speed, amplitude = values[SPEED], values["force"]
     if speed <= 0.0:
-        raise ValueError(f"parameter 'speed': expected a positive number (rad/s), got {speed}")
+        raise StudiesError(f"parameter 'speed': expected a positive number (rad/s), got {speed}")
     return PeriodicCoefficients(
         period=2.0 * math.pi / speed,
         mass=lambda t: np.eye(1),

@@ -20,6 +20,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ._errors import StudiesError
+
 _REGISTRY: dict[str, type] = {}
 
 
@@ -121,8 +123,8 @@ class Result:
             elif field.default_factory is not dataclasses.MISSING:
                 values[field.name] = field.default_factory()
             else:
-                raise ValueError(f"{group.file.filename}: group {group.name!r} has no {field.name!r}; "
-                                 f"the file is not a complete {cls.__name__} result")
+                raise StudiesError(f"{group.file.filename}: group {group.name!r} has no {field.name!r}; "
+                                   f"the file is not a complete {cls.__name__} result")
         return cls(**values)
 
 
@@ -189,7 +191,7 @@ def load(path: str | Path) -> dict[str, Result]:
     try:
         handle = h5py.File(path, "r")
     except OSError as error:
-        raise ValueError(f"{str(path)!r} is not an HDF5 result file: {error}") from None
+        raise StudiesError(f"{str(path)!r} is not an HDF5 result file: {error}") from None
     with handle:
         return {name: read_group(group) for name, group in handle.items()}
 
@@ -198,8 +200,8 @@ def read_group(group: Any) -> Result:
     """The result stored in one study group (its class from the ``kind`` attribute)."""
     kind = group.attrs.get("kind")
     if kind not in _REGISTRY:
-        raise ValueError(f"{group.file.filename}: group {group.name!r} has unknown kind {kind!r} "
-                         f"(known: {sorted(_REGISTRY)})")
+        raise StudiesError(f"{group.file.filename}: group {group.name!r} has unknown kind {kind!r} "
+                           f"(known: {sorted(_REGISTRY)})")
     return _REGISTRY[kind].from_hdf5(group)
 
 

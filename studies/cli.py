@@ -10,6 +10,10 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
+from ._errors import UsageError, input_errors, is_numerical_failure
+
+__all__ = ["UsageError", "load_scene", "main"]
+
 logger = logging.getLogger("flexvib")
 
 DEFAULT_SCENE = "four_bar_thesis"
@@ -29,8 +33,8 @@ _MATHIEU_STUDIES = {
 }
 
 
-class UsageError(Exception):
-    """Bad input on the command line: reported as ``flexvib: error: ...`` with exit code 2."""
+#: Set to 1 for the traceback of an internal error (a bug), which is otherwise one line.
+DEBUG_VARIABLE = "FLEXVIB_DEBUG"
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -73,19 +77,35 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``flexvib`` console script; returns the exit code."""
+    """Entry point of the ``flexvib`` console script; returns the exit code: 0 done, 2 bad input
+    (command line, scene, studies table), 1 a computation failed (or an internal error, a bug)."""
     parser = _parser()
     args = parser.parse_args(argv)
     try:
         return args.handler(args)
-    except (UsageError, ValueError, FileNotFoundError, KeyError, TypeError) as error:
-        message = error.args[0] if isinstance(error, KeyError) and error.args else error
-        print(f"flexvib: error: {message}", file=sys.stderr)
-        return 2
     except BrokenPipeError:
         # The reader went away (`flexvib info FILE | head`): stop quietly, as command-line tools do.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except Exception as error:
+        return _report(error)
+
+
+def _report(error: Exception) -> int:
+    """Print what went wrong in one line; the exit code (see ``studies._errors`` for the classes)."""
+    if isinstance(error, input_errors()):
+        print(f"flexvib: error: {error}", file=sys.stderr)
+        return 2
+    if is_numerical_failure(error):
+        print(f"flexvib: error: {type(error).__name__}: {error}", file=sys.stderr)
+        return 1
+    if os.environ.get(DEBUG_VARIABLE, "") not in ("", "0"):
+        import traceback
+
+        traceback.print_exception(error, file=sys.stderr)
+    print(f"flexvib: internal error: {type(error).__name__}: {error} (please report; set "
+          f"{DEBUG_VARIABLE}=1 for the traceback)", file=sys.stderr)
+    return 1
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -118,9 +138,8 @@ def load_scene(scene: str) -> tuple[Any, dict[str, Any]]:
     # the studies' speed is the motion's fundamental frequency 2 pi / period (the crank speed)
     table = dict(mechanism.studies) or default_table(2.0 * math.pi / mechanism.period)
     common, declared = plan(table)
-    problem = MechanismProblem(name=mechanism.name, text=mechanism.to_toml(),
-                               parameter_paths=parameters_needed(declared),
-                               observable_specs=common["observables"])
+    problem = MechanismProblem.from_mechanism(mechanism, parameter_paths=parameters_needed(declared),
+                                              observables=common["observables"])
     return problem, declared
 
 
@@ -147,6 +166,7 @@ def _executor(args: argparse.Namespace):
 
 
 def _run(args: argparse.Namespace) -> int:
+    from ._kinds import kind_of
     from ._plan import run_plan
 
     if not args.quiet:
@@ -162,36 +182,13 @@ def _run(args: argparse.Namespace) -> int:
             client.close()
         elif executor is not None:
             executor.shutdown()
-    for kind, result in results.items():
-        print(f"{kind:16s} {_summary(result)}")
-    for kind, message in failures.items():
-        print(f"{kind:16s} FAILED: {message}")
+    for name, result in results.items():
+        print(f"{name:16s} {kind_of(result).summary(result)}")
+    for name, message in failures.items():
+        print(f"{name:16s} FAILED: {message}")
     print(f"wrote {out}")
     # exit code 1: the input was fine but a study could not be computed
     return 1 if failures else 0
-
-
-def _summary(result: Any) -> str:
-    kind = type(result).__name__
-    run_time = getattr(result, "run_time", float("nan"))
-    if kind == "SteadyStateResult":
-        errors = ", ".join(f"{k} +- {v:.2g}" for k, v in result.response_error.items())
-        return f"spectral radius {result.spectral_radius:.6f}, {result.status}; errors {errors}; {run_time:.3g} s"
-    if kind in ("SweepResult", "CampbellResult", "StabilityChart"):
-        done, failed = int(result.done.sum()), int((result.status == "failed").sum())
-        extra = ""
-        if kind == "SweepResult":
-            extra = f", {len(result.resonances)} resonances, {len(result.instabilities)} unstable intervals"
-        return f"{done}/{result.done.size} points ({failed} failed){extra}; {run_time:.3g} s"
-    if kind == "NonlinearCheck":
-        diffs = ", ".join(f"{k} {100 * v:.3g} %" for k, v in result.relative_difference.items())
-        return (f"nonlinear - linear: {diffs} of peak to peak; {result.nonlinear_run_time:.3g} s "
-                f"nonlinear vs {result.linear_run_time:.3g} s linear")
-    if kind == "ErrorCostResult":
-        best = ", ".join(f"{k} {v[-1, -1]:.2g}" for k, v in result.error.items())
-        return (f"{len(result.n_steps)} step counts x {len(result.resolutions)} resolutions; finest relative "
-                f"error {best} in {result.run_time[-1, -1]:.3g} s")
-    return kind
 
 
 def _plot(args: argparse.Namespace) -> int:
@@ -201,23 +198,20 @@ def _plot(args: argparse.Namespace) -> int:
     matplotlib.rcParams["svg.fonttype"] = "none"  # keep text as text: editable and searchable
     import matplotlib.pyplot as plt
 
+    from ._kinds import kind_of
     from ._store import load
 
+    if not args.file.is_file():
+        raise UsageError(f"result file {str(args.file)!r} does not exist")
     results = load(args.file)
     outdir = args.outdir or args.file.with_name(args.file.stem + "_figures")
     outdir.mkdir(parents=True, exist_ok=True)
     written = []
     for name, result in results.items():
-        figures = {name: result.plot()}
-        if type(result).__name__ == "SteadyStateResult":
-            figures[f"{name}_multipliers"] = result.plot_multipliers()
-            if result.outlines:
-                figures[f"{name}_mechanism"] = result.plot_mechanism()
-        for stem, artists in figures.items():
-            first = next(iter(artists.values()))[0] if isinstance(artists, dict) else artists[0]
-            figure = first.figure if getattr(first, "figure", None) is not None else first.axes.figure
-            for suffix in ("png", "svg"):
-                target = outdir / f"{stem}.{suffix}"
+        for suffix, draw in kind_of(result).figures(result).items():
+            figure = draw().figure
+            for extension in ("png", "svg"):
+                target = outdir / f"{name}{suffix}.{extension}"
                 figure.savefig(target, dpi=150)
                 written.append(target)
             plt.close(figure)

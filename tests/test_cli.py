@@ -11,7 +11,6 @@ import mechanisms
 import studies
 from studies import _grid
 from studies.cli import main
-from tests.test_studies_store import assert_same
 
 SMALL_FOUR_BAR = """
 [studies]
@@ -59,7 +58,7 @@ def test_run_writes_every_declared_study_and_resumes(mathieu_run, monkeypatch, c
     assert "sweep" in capsys.readouterr().out
 
 
-def test_jobs_do_not_change_the_numbers(mathieu_run, tmp_path):
+def test_jobs_do_not_change_the_numbers(mathieu_run, tmp_path, assert_same):
     path = tmp_path / "pool.h5"
     assert main(["run", "mathieu", "--out", str(path), "--jobs", "2", "--quiet"]) == 0
     serial, pooled = studies.load(mathieu_run), studies.load(path)
@@ -160,7 +159,7 @@ def test_argparse_errors_exit_2(capsys):
     assert exit_.value.code == 2
 
 
-def test_dask_scheduler_from_the_command_line(mathieu_run, tmp_path):
+def test_dask_scheduler_from_the_command_line(mathieu_run, tmp_path, assert_same):
     distributed = pytest.importorskip("distributed")
     path = tmp_path / "dask.h5"
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, protocol="tcp",
@@ -173,12 +172,12 @@ def test_dask_scheduler_from_the_command_line(mathieu_run, tmp_path):
 
 
 def test_a_study_that_cannot_be_computed_is_reported_and_the_rest_written(tmp_path, monkeypatch, capsys):
-    from studies import _studies
+    from studies._kinds import nonlinear_check
 
     def fails(*args, **kwargs):
         raise RuntimeError("Newton's method did not converge")
 
-    monkeypatch.setattr(_studies, "nonlinear_check", fails)
+    monkeypatch.setattr(nonlinear_check, "nonlinear_check", fails)
     path = tmp_path / "m.h5"
     assert main(["run", "mathieu", "--out", str(path), "--quiet"]) == 1
     assert "nonlinear_check  FAILED: RuntimeError: Newton's method" in capsys.readouterr().out
@@ -195,3 +194,56 @@ def test_speed_of_a_scene_with_oscillating_drives_is_its_fundamental_frequency()
     assert problem.parameters["speed"] == pytest.approx(2 * math.pi / period, rel=1e-15)
     linear = problem.linearize({"speed": 4 * math.pi / period}, n_steps=8, context=False)
     assert linear.system.period == pytest.approx(period / 2, rel=1e-15)
+
+
+# ---------------------------------------------------------------------------------------------------
+# exit codes: bad input 2, a numerical failure 1, an internal error (a bug) 1 in one line
+# ---------------------------------------------------------------------------------------------------
+def test_a_bad_scene_exits_2_naming_it(tmp_path, capsys):
+    scene = tmp_path / "bad.toml"
+    scene.write_text(mechanisms.load("four_bar_thesis").to_toml().replace("[links.coupler]",
+                                                                          "[links.coupler]\nlenght = 1.0"))
+    assert main(["run", str(scene), "--out", str(tmp_path / "bad.h5"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("flexvib: error: ") and "lenght" in err and "Traceback" not in err
+
+
+def _raise_in_run(monkeypatch, error):
+    from studies import _plan
+
+    def run_plan(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(_plan, "run_plan", run_plan)
+
+
+def test_a_numerical_failure_exits_1(tmp_path, monkeypatch, capsys):
+    _raise_in_run(monkeypatch, np.linalg.LinAlgError("singular matrix"))
+    assert main(["run", "mathieu", "--out", str(tmp_path / "m.h5"), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert err == "flexvib: error: LinAlgError: singular matrix\n"
+
+
+@pytest.mark.parametrize("error", [TypeError("unsupported operand"), KeyError("speed")])
+def test_an_internal_error_exits_1_in_one_line_without_traceback(error, tmp_path, monkeypatch, capsys):
+    monkeypatch.delenv("FLEXVIB_DEBUG", raising=False)
+    _raise_in_run(monkeypatch, error)
+    assert main(["run", "mathieu", "--out", str(tmp_path / "m.h5"), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"flexvib: internal error: {type(error).__name__}: ")
+    assert "please report; set FLEXVIB_DEBUG=1 for the traceback" in err
+    assert "Traceback" not in err and err.count("\n") == 1
+
+
+def test_flexvib_debug_prints_the_traceback_of_an_internal_error(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("FLEXVIB_DEBUG", "1")
+    _raise_in_run(monkeypatch, TypeError("unsupported operand"))
+    assert main(["run", "mathieu", "--out", str(tmp_path / "m.h5"), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "flexvib: internal error: TypeError: unsupported operand" in err
+
+
+def test_studies_error_is_public_and_a_value_error():
+    assert issubclass(studies.StudiesError, ValueError) and issubclass(studies.ComputationError, RuntimeError)
+    with pytest.raises(studies.StudiesError, match="n_steps"):
+        studies.steady_state(studies.mathieu_problem(), n_steps=15)

@@ -9,11 +9,9 @@ import math
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
 from scipy.special import mathieu_a, mathieu_b
 
 import studies
-from studies import PeriodicCoefficients, PeriodicProblem
 
 
 def forced_amplitude(speed, w0=1.0, zeta=0.05, force=1.0):
@@ -89,22 +87,13 @@ def test_speed_sweep_peak_to_peak_and_resonances():
     assert result.instabilities == () and np.all(result.status == "ok") and result.done.all()
 
 
-def _principal_tongue(w0, epsilon):
-    """Speeds bounding the principal (Omega ~ 2 w0) instability tongue of the undamped Mathieu
-    equation: with tau = Omega t / 2 it reads y'' + (a - 2 q cos 2 tau) y = 0, a = 4 w0^2 / Omega^2,
-    |q| = epsilon a / 2; unstable for b_1(q) < a < a_1(q)."""
-    lower = brentq(lambda a: a - float(mathieu_b(1, epsilon * a / 2)), 0.3, 3.0)
-    upper = brentq(lambda a: a - float(mathieu_a(1, epsilon * a / 2)), 0.3, 3.0)
-    return sorted((2 * w0 / math.sqrt(lower), 2 * w0 / math.sqrt(upper)))
-
-
-def test_sweep_marks_the_principal_parametric_instability():
+def test_sweep_marks_the_principal_parametric_instability(principal_tongue):
     problem = studies.mathieu_problem(epsilon=0.4, damping_ratio=0.0, force=0.0)
     speeds = np.linspace(1.5, 2.5, 41)
     result = studies.sweep(problem, "speed", speeds, n_steps=128)
     assert len(result.instabilities) == 1
     start, end = result.instabilities[0]
-    low, high = _principal_tongue(1.0, 0.4)
+    low, high = principal_tongue(1.0, 0.4)
     # The ends are interpolated between the last stable and the first unstable grid point; Newmark's
     # frequency error (w h)^2 / 12 < 1e-4 here is far below the spacing, so each true boundary lies
     # within one grid spacing of the marked one.
@@ -180,25 +169,7 @@ def test_stability_chart_error_estimate_of_a_damped_oscillator():
 # ---------------------------------------------------------------------------------------------------
 # Campbell diagram: two modes whose frequencies cross as the speed grows
 # ---------------------------------------------------------------------------------------------------
-def crossing_coefficients(values):
-    """x1'' + c x1' + (1 + 0.5 W^2) x1 = cos W t,  x2'' + c x2' + (4 - 0.5 W^2) x2 = 0."""
-    speed, c = values["speed"], values["damping"]
-    k1, k2 = 1.0 + 0.5 * speed**2, 4.0 - 0.5 * speed**2
-    return PeriodicCoefficients(period=2 * math.pi / speed, mass=lambda t: np.eye(2),
-                                damping=lambda t: c * np.eye(2),
-                                stiffness=lambda t: np.diag([k1, k2]),
-                                force=lambda t: np.array([math.cos(speed * t), 0.0]))
-
-
-def crossing_problem(damping=0.02):
-    return PeriodicProblem(name="crossing", coefficients=crossing_coefficients,
-                           parameter_values=(("speed", 1.0), ("damping", damping)),
-                           parameter_units=(("speed", "rad/s"), ("damping", "1/s")),
-                           observable_rows=(("x1", "m", (1.0, 0.0)), ("x2", "m", (0.0, 1.0))),
-                           labels=("x1", "x2"))
-
-
-def test_campbell_tracks_crossing_modes_by_mac():
+def test_campbell_tracks_crossing_modes_by_mac(crossing_problem):
     speeds = np.linspace(0.5, 2.5, 11)  # crossing at sqrt(3) = 1.732, between grid points
     result = studies.campbell(crossing_problem(), speeds, n_steps=256, frozen_samples=8)
     first = result.mode_labels.index("mode 1 (x1)")
@@ -250,7 +221,7 @@ def test_nonlinear_difference_is_first_order_in_the_nonlinearity():
     assert double / small == pytest.approx(2.0, rel=0.05)
 
 
-def test_nonlinear_check_needs_a_nonlinear_model():
+def test_nonlinear_check_needs_a_nonlinear_model(crossing_problem):
     with pytest.raises(ValueError, match="no nonlinear model"):
         studies.nonlinear_check(crossing_problem())
 
@@ -269,7 +240,7 @@ def test_error_cost_shows_second_order_and_a_sharp_estimate():
     assert result.run_time.shape == (1, 4) and np.all(result.run_time > 0)
 
 
-def test_error_cost_over_a_resolution_parameter():
+def test_error_cost_over_a_resolution_parameter(crossing_problem):
     problem = crossing_problem()
     result = studies.error_cost(problem, {"speed": 0.8}, n_steps=(32, 64),
                                 resolution=("damping", (0.02, 0.04)))

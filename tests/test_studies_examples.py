@@ -8,7 +8,6 @@ from pathlib import Path
 import pytest
 
 import mechanisms
-from tests.test_studies import _principal_tongue
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -20,10 +19,10 @@ def example(name):
     return module
 
 
-def test_mathieu_tongue_matches_the_characteristic_curves():
+def test_mathieu_tongue_matches_the_characteristic_curves(principal_tongue):
     result = example("mathieu_tongue").main(epsilon=0.4, count=101)
     assert len(result.instabilities) == 1
-    low, high = _principal_tongue(1.0, 0.4)
+    low, high = principal_tongue(1.0, 0.4)
     # ends interpolated between grid points 0.01 apart; Newmark's shift (w h)^2 / 12 < 1e-4 is far less
     start, end = result.instabilities[0]
     assert abs(start - low) <= 0.01 and abs(end - high) <= 0.01

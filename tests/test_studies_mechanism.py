@@ -84,13 +84,54 @@ def test_slow_four_bar_deflects_like_a_beam_under_its_inertia_load():
     assert np.abs(response - quasi_static).max() <= 0.05 * np.abs(quasi_static).max()
 
 
-def test_process_pool_sweep_of_a_mechanism_gives_the_same_numbers(four_bar):
+def test_process_pool_sweep_of_a_mechanism_gives_the_same_numbers(four_bar, assert_same):
     from concurrent.futures import ProcessPoolExecutor
-
-    from tests.test_studies_store import assert_same
 
     speeds = [60.0, 90.0, 130.0, 170.0]
     serial = studies.sweep(four_bar, "speed", speeds, n_steps=32)
     with ProcessPoolExecutor(2) as pool:
         pooled = studies.sweep(four_bar, "speed", speeds, n_steps=32, executor=pool)
     assert_same(serial, pooled)
+
+
+@pytest.mark.parametrize("scene", mechanisms.scenes())
+def test_describe_names_what_the_linearisation_gives(scene):
+    """Labels, observables and units without linearising are those of the linear system."""
+    problem = MechanismProblem.from_scene(scene)
+    names = problem.describe()
+    linear = problem.linearize(None, n_steps=16)
+    assert names == studies.Description(labels=linear.labels, observables=linear.observables,
+                                        units=linear.units)
+    assert names.observables == linearize.default_observables(mechanisms.load(scene))
+
+
+def test_a_sweep_builds_the_scene_once_and_never_rewrites_it(monkeypatch):
+    """Scene -> Mechanism once per process: per-point work neither writes nor parses scene text; a
+    parameter sweep builds each variant from the scene dict."""
+    from studies import _mechanism
+
+    calls = []
+    for name in ("to_spec", "to_toml", "with_parameters"):
+        original = getattr(mechanisms.Mechanism, name)
+        monkeypatch.setattr(mechanisms.Mechanism, name,
+                            lambda self, *a, _name=name, _original=original, **k:
+                            calls.append(_name) or _original(self, *a, **k))
+    for name in ("build", "loads"):
+        original = getattr(mechanisms, name)
+        monkeypatch.setattr(mechanisms, name,
+                            lambda *a, _name=name, _original=original, **k: calls.append(_name) or _original(*a, **k))
+    _mechanism._mechanisms.clear()
+    _mechanism._families.clear()
+    problem = MechanismProblem.from_scene("four_bar_thesis", parameter_paths=("links.coupler.thickness",))
+    # the text that travels to worker processes, written once (to_toml writes the scene dict)
+    assert [c for c in calls if c != "to_spec"] == ["to_toml"] and calls.count("to_spec") <= 1
+    calls.clear()
+    studies.sweep(problem, "speed", np.linspace(60.0, 150.0, 10), n_steps=16)
+    assert calls == []
+    thickness = np.linspace(1.2e-3, 2.0e-3, 5)
+    sweep = studies.sweep(problem, "links.coupler.thickness", thickness, n_steps=16)
+    assert calls == ["build"] * 5
+    # the variants are the scene's: the same numbers as changing the Mechanism itself
+    variant = mechanisms.load("four_bar_thesis").with_parameter("links.coupler.thickness", float(thickness[2]))
+    direct = periodic.floquet(linearize.about(variant, n_steps=16).system).spectral_radius
+    assert sweep.spectral_radius[2] == pytest.approx(direct, rel=1e-12)

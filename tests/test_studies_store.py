@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 from concurrent.futures import ProcessPoolExecutor
 
 import h5py
@@ -11,34 +10,12 @@ import pytest
 
 import studies
 from studies import _grid
-from tests.test_studies import crossing_problem
 
 SPEEDS = np.linspace(0.3, 2.4, 12)
 
 
-def assert_same(a, b):
-    """Two results equal field by field, arrays to the last bit (NaN equal to NaN)."""
-    assert type(a) is type(b)
-    for field in dataclasses.fields(a):
-        if field.name.endswith("run_time"):
-            continue
-        x, y = getattr(a, field.name), getattr(b, field.name)
-        if isinstance(x, np.ndarray):
-            assert x.dtype.kind == y.dtype.kind and x.shape == y.shape, field.name
-            if x.dtype.kind in "fc":
-                np.testing.assert_array_equal(x, y, err_msg=field.name)
-            else:
-                assert (x == y).all(), field.name
-        elif isinstance(x, dict) and x and isinstance(next(iter(x.values())), np.ndarray):
-            assert x.keys() == y.keys(), field.name
-            for key in x:
-                np.testing.assert_array_equal(x[key], y[key], err_msg=f"{field.name}[{key}]")
-        elif field.name != "settings":
-            np.testing.assert_equal(x, y, err_msg=field.name)  # NaN equals NaN here, also in dicts
-
-
 @pytest.fixture(scope="module")
-def results():
+def results(crossing_problem):
     mathieu = studies.mathieu_problem(epsilon=0.3, damping_ratio=0.05, cubic=1e-3)
     return {
         "steady": studies.steady_state(mathieu, {"speed": 1.3}, n_steps=64),
@@ -52,7 +29,7 @@ def results():
     }
 
 
-def test_round_trip_of_every_result(results, tmp_path):
+def test_round_trip_of_every_result(results, tmp_path, assert_same):
     path = tmp_path / "run.h5"
     for name, result in results.items():
         result.save(path, name)
@@ -70,7 +47,7 @@ def test_round_trip_of_every_result(results, tmp_path):
         assert handle["steady"]["response/x"].attrs["units"] == "m"
 
 
-def test_resume_after_an_interrupted_sweep_equals_an_uninterrupted_one(tmp_path, monkeypatch):
+def test_resume_after_an_interrupted_sweep_equals_an_uninterrupted_one(tmp_path, monkeypatch, assert_same):
     problem = studies.mathieu_problem(epsilon=0.3, damping_ratio=0.05)
     with studies.open_file(tmp_path / "whole.h5") as out:
         whole = studies.sweep(problem, "speed", SPEEDS, n_steps=32, out=out)
@@ -110,7 +87,7 @@ def test_resume_refuses_other_settings(tmp_path):
             studies.sweep(problem, "speed", SPEEDS[:4], n_steps=16, out=out)
 
 
-def test_process_pool_gives_the_same_numbers(results):
+def test_process_pool_gives_the_same_numbers(results, crossing_problem, assert_same):
     mathieu = studies.mathieu_problem(epsilon=0.3, damping_ratio=0.05, cubic=1e-3)
     with ProcessPoolExecutor(2) as pool:
         pooled = studies.sweep(mathieu, "speed", SPEEDS, n_steps=32, executor=pool)
@@ -119,7 +96,7 @@ def test_process_pool_gives_the_same_numbers(results):
     assert_same(results["campbell"], campbell)
 
 
-def test_dask_local_cluster_gives_the_same_numbers(results):
+def test_dask_local_cluster_gives_the_same_numbers(results, assert_same):
     distributed = pytest.importorskip("distributed")
     mathieu = studies.mathieu_problem(epsilon=0.3, damping_ratio=0.05, cubic=1e-3)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, protocol="tcp", host="127.0.0.1",
@@ -146,9 +123,9 @@ def test_each_figure_has_its_axes(results, name):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    artists = results[name].plot()
-    first = next(iter(artists.values()))[0] if isinstance(artists, dict) else artists[0]
-    figure = first.figure if hasattr(first, "figure") and first.figure else first.axes.figure
+    drawing = results[name].plot()
+    figure = drawing.figure
+    assert drawing.artists and all(ax.figure is figure for ax in drawing.axes)
     labels = [(ax.get_xlabel(), ax.get_ylabel()) for ax in figure.axes]
     assert labels == AXES[name]
     plt.close(figure)

@@ -1,0 +1,146 @@
+"""What a study kind declares (:class:`StudyKind`) and the checks of its ``[studies.<kind>]`` table.
+
+Each kind lives in one module of ``studies._kinds`` and the registry there lists them; ``_plan`` (the
+``[studies]`` table) and ``cli`` (summaries, figures) only iterate that registry.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from ._errors import StudiesError
+from ._problem import SPEED
+
+#: Keys of an axis table: a parameter and its values (``values = [...]`` or ``start, stop, count``).
+AXIS_KEYS = ("parameter", "start", "stop", "count", "values", "spacing")
+
+
+def _no_parameters(options: Mapping[str, Any]) -> tuple[str, ...]:
+    return ()
+
+
+def _no_default(nominal_speed: float) -> None:
+    return None
+
+
+def _one_figure(result: Any) -> dict[str, Callable]:
+    return {"": result.plot}
+
+
+@dataclass(frozen=True)
+class StudyKind:
+    """One kind of study, as a scene declares it (``[studies.<name>]``) and as the CLI shows it.
+
+    ``name``: the table's name, the HDF5 group of a run and the key of the registry.
+    ``result``: the result class (``plot(*, axes=None) -> Plot``, ``to_hdf5``).
+    ``keys``: the keys its table accepts (anything else is rejected, with the nearest key suggested).
+    ``check(where, table, n_steps) -> options``: the table's values checked, defaults filled in
+    (``n_steps`` is the ``[studies]`` default); ``where`` names the table in messages.
+    ``run(problem, options, *, out, executor, progress) -> result``: the study from checked options
+    (``out`` the open HDF5 file a grid study writes its points into as they finish).
+    ``summary(result) -> str``: the one line ``flexvib run`` prints.
+    ``grid``: a resumable grid study (writes itself into ``out``; otherwise the plan writes the result).
+    ``point``: the top-level point function of a grid study (picklable, run in workers).
+    ``varies(options) -> (path, ...)``: the scene parameters (besides ``speed``) it changes.
+    ``default(nominal_speed) -> table | None``: its table in the studies run for a scene without a
+    ``[studies]`` table (None: not run by default).
+    ``figures(result) -> {suffix: draw}``: the figures ``flexvib plot`` writes, ``draw() -> Plot``,
+    each saved as ``<group name><suffix>.png/.svg``.
+    """
+
+    name: str
+    result: type
+    keys: tuple[str, ...]
+    check: Callable[[str, Mapping[str, Any], int], dict[str, Any]]
+    run: Callable[..., Any]
+    summary: Callable[[Any], str]
+    grid: bool = False
+    point: Callable | None = None
+    varies: Callable[[Mapping[str, Any]], tuple[str, ...]] = _no_parameters
+    default: Callable[[float], Mapping[str, Any] | None] = _no_default
+    figures: Callable[[Any], dict[str, Callable]] = _one_figure
+
+
+# ---------------------------------------------------------------------------------------------------
+# checks of scene-table values: each names the table and key, what was expected and what was given
+# ---------------------------------------------------------------------------------------------------
+def reject_unknown(where: str, keys, allowed) -> None:
+    for key in keys:
+        if key not in allowed:
+            close = difflib.get_close_matches(str(key), list(allowed), n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise StudiesError(f"[{where}]: unknown key {key!r}{hint} (keys: {', '.join(allowed)})")
+
+
+def number(where: str, key: str, value: Any, *, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise StudiesError(f"[{where}] {key}: expected a finite number, got {value!r}")
+    if positive and value <= 0:
+        raise StudiesError(f"[{where}] {key}: expected a positive number, got {value!r}")
+    return float(value)
+
+
+def integer(where: str, key: str, value: Any, minimum: int, *, even: bool = False) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum or (even and value % 2):
+        kind = "an even integer" if even else "an integer"
+        raise StudiesError(f"[{where}] {key}: expected {kind} >= {minimum}, got {value!r}")
+    return value
+
+
+def boolean(where: str, key: str, value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise StudiesError(f"[{where}] {key}: expected true or false, got {value!r}")
+    return value
+
+
+def steps(where: str, table: Mapping[str, Any], default: int) -> int:
+    """The table's ``n_steps`` (even, >= 4), ``default`` when absent."""
+    return integer(where, "n_steps", table.get("n_steps", default), 4, even=True)
+
+
+def speed_values(where: str, table: Mapping[str, Any]) -> dict[str, float]:
+    """``{"speed": value}`` of a table's optional ``speed`` key (empty: the scene's speed)."""
+    return {SPEED: number(where, "speed", table["speed"], positive=True)} if "speed" in table else {}
+
+
+def sub_table(where: str, table: Mapping[str, Any], key: str, expected: str) -> Mapping[str, Any]:
+    """The sub-table ``key`` of an axis (``x = {parameter = ..., ...}``), its keys checked."""
+    value = table.get(key)
+    if not isinstance(value, Mapping):
+        raise StudiesError(f"[{where}] {key}: expected a table {expected}, got {value!r}")
+    reject_unknown(f"{where}.{key}", value, AXIS_KEYS)
+    return value
+
+
+def axis(where: str, table: Mapping[str, Any], *, parameter: bool = True) -> tuple[str, np.ndarray]:
+    """``(parameter, values)`` of an axis table: ``values = [...]`` or ``start, stop, count`` with
+    ``spacing`` "linear" (default) or "log"; the parameter defaults to the crank speed."""
+    name = table.get("parameter", SPEED) if parameter else SPEED
+    if not isinstance(name, str):
+        raise StudiesError(f"[{where}] parameter: expected a parameter name ('speed' or a dotted scene "
+                           f"path), got {name!r}")
+    if "values" in table:
+        if any(k in table for k in ("start", "stop", "count")):
+            raise StudiesError(f"[{where}]: give either values or start, stop, count, not both")
+        values = table["values"]
+        if not isinstance(values, list) or not values:
+            raise StudiesError(f"[{where}] values: expected a non-empty list of numbers, got {values!r}")
+        return name, np.array([number(where, "values", v) for v in values])
+    missing = [k for k in ("start", "stop", "count") if k not in table]
+    if missing:
+        raise StudiesError(f"[{where}]: missing {', '.join(missing)} (or give values = [...])")
+    start, stop = number(where, "start", table["start"]), number(where, "stop", table["stop"])
+    count = integer(where, "count", table["count"], 1)
+    spacing = table.get("spacing", "linear")
+    if spacing == "linear":
+        return name, np.linspace(start, stop, count)
+    if spacing == "log":
+        if start <= 0 or stop <= 0:
+            raise StudiesError(f"[{where}] spacing = 'log' needs positive start and stop")
+        return name, np.geomspace(start, stop, count)
+    raise StudiesError(f"[{where}] spacing: expected 'linear' or 'log', got {spacing!r}")

@@ -1,0 +1,199 @@
+"""``[studies.campbell]``: frozen-time natural frequency bands and Floquet characteristic
+frequencies against the crank speed, modes tracked by MAC."""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import Executor
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+import periodic
+
+from .._errors import StudiesError
+from .._grid import run_grid
+from .._kind import StudyKind, axis, integer, steps
+from .._numerics import HALVING_ERROR_RATIO, characteristic_frequencies, frozen_modes, track_modes
+from .._plots import Plot, axes_for, cost_line, drawn, largest
+from .._problem import SPEED
+from .._store import register
+from .._studies import GridResult, check_grid, check_n_steps, collect, grid_summary, open_store
+
+
+@register
+@dataclass(frozen=True, eq=False)
+class CampbellResult(GridResult):
+    """Campbell diagram: frozen-time natural frequencies against crank speed.
+
+    ``speeds`` (n,) rad/s; ``crank_angle`` (n_frozen,) rad at which the frozen systems are taken;
+    ``frozen`` (n, n_frozen, m) rad/s ascending at each sample; ``shapes`` (n, m, m) mode shapes at
+    crank angle 0 (columns); ``multipliers`` (n, 2m) and ``multipliers_coarse`` (n, 2m) with N and
+    N/2 steps; ``period`` (n,) s; after the grid: ``order``
+    (n, m) tracked mode j is frequency column ``order[i, j]`` at speed i (MAC tracking),
+    ``tracking_mac`` (n, m) the MAC of each step, ``band_min``/``band_max``/``band_mean`` (n, m) rad/s
+    band of each tracked mode over the crank angle, ``characteristic`` (n, 2m) rad/s Floquet
+    characteristic frequencies unfolded to the nearest frozen mean frequency and
+    ``characteristic_error`` (n, 2m) rad/s their estimated error (N against N/2), ``mode_labels`` (m,),
+    ``harmonics`` the k of the lines ``k * speed``.
+    """
+
+    labels: tuple[str, ...]
+    speeds: np.ndarray
+    crank_angle: np.ndarray = None
+    frozen: np.ndarray = None
+    shapes: np.ndarray = None
+    multipliers: np.ndarray = None
+    multipliers_coarse: np.ndarray = None
+    period: np.ndarray = None
+    order: np.ndarray = None
+    tracking_mac: np.ndarray = None
+    band_min: np.ndarray = None
+    band_max: np.ndarray = None
+    band_mean: np.ndarray = None
+    characteristic: np.ndarray = None
+    characteristic_error: np.ndarray = None
+    mode_labels: tuple = ()
+    harmonics: tuple = ()
+    run_time: float = float("nan")
+
+    _units = {"speeds": "rad/s", "crank_angle": "rad", "frozen": "rad/s", "shapes": "1",
+              "multipliers": "1", "multipliers_coarse": "1", "period": "s", "order": "1",
+              "tracking_mac": "1", "characteristic_error": "rad/s", "band_min": "rad/s",
+              "band_max": "rad/s", "band_mean": "rad/s", "characteristic": "rad/s", **GridResult._units}
+
+    def plot(self, *, axes: Any = None) -> Plot:
+        """Frozen-frequency bands of the tracked modes (shaded), their mean (line), Floquet
+        characteristic frequencies (dots) and the lines k * speed."""
+        axes = axes_for(1, axes, height=4.8)
+        ax = axes[0]
+        artists: dict[str, list] = {}
+        speeds = self.speeds
+        if self.band_min is not None:
+            for j, name in enumerate(self.mode_labels):
+                artists[name] = [ax.fill_between(speeds, self.band_min[:, j], self.band_max[:, j],
+                                                 color=f"C{j % 10}", alpha=0.25, lw=0)]
+                artists[name] += ax.plot(speeds, self.band_mean[:, j], color=f"C{j % 10}", label=name)
+            artists["characteristic"] = ax.plot(np.repeat(speeds, self.characteristic.shape[1]),
+                                                self.characteristic.reshape(-1), ".", color="k", ms=2,
+                                                label="Floquet characteristic")
+            # Show the range the harmonics reach (where resonances can occur) and at least the lowest
+            # mode; higher modes (e.g. axial) would squash the interesting part.
+            top = 1.15 * max(max(self.harmonics) * speeds[-1], np.nanmax(self.band_max[:, 0]))
+            artists["harmonics"] = []
+            for k in self.harmonics:
+                artists["harmonics"] += ax.plot(speeds, k * speeds, color="0.6", lw=0.7, ls="--")
+                ax.annotate(f"{k}x", (speeds[-1], min(k * speeds[-1], top)), fontsize="x-small")
+            ax.set_ylim(0.0, top)
+            ax.legend(fontsize="x-small", loc="upper left")
+        ax.set_xlabel("crank speed (rad/s)")
+        ax.set_ylabel("frequency (rad/s)")
+        # The error of the characteristic frequencies drawn (an unresolved axial mode far above the
+        # plotted range would otherwise set it).
+        error = float("nan")
+        if self.characteristic_error is not None:
+            shown = np.asarray(self.characteristic) <= ax.get_ylim()[1]
+            error = largest(np.where(shown, self.characteristic_error, np.nan))
+        ax.set_title(f"{self.problem}: Campbell diagram\n" + cost_line(
+            f"characteristic frequencies shown to {error:.2g} rad/s", self.run_time), fontsize="small")
+        return drawn(axes, artists)
+
+
+def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, frozen_samples: int):
+    """One speed of a Campbell diagram: frozen frequencies over the crank angle, mode shapes at crank
+    angle 0, Floquet multipliers."""
+    linear = problem.linearize(values, n_steps=n_steps, context=False)
+    index, frozen, shapes = frozen_modes(linear.system, frozen_samples)
+    result = periodic.floquet(linear.system)
+    coarse = periodic.floquet(linear.system.coarsened())
+    status = "ok" if result.resolved.all() else "unresolved_mode"
+    message = "" if status == "ok" else (f"{int((~result.resolved).sum())} multipliers belong to modes "
+                                         f"the {n_steps} steps do not resolve")
+    return ({"frozen": frozen, "shapes": shapes, "multipliers": result.multipliers,
+             "multipliers_coarse": coarse.multipliers,
+             "period": linear.system.period, "crank_angle": np.asarray(linear.crank_angle)[index]},
+            status, message)
+
+
+def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, frozen_samples: int = 64,
+             max_harmonic: int = 6, executor: Executor | None = None, out: Any = None,
+             name: str = "campbell", progress: bool = False) -> CampbellResult:
+    """Campbell diagram over crank ``speeds`` (rad/s): frozen-time natural frequency bands over the
+    crank angle, Floquet characteristic frequencies, lines ``k * speed`` (k <= ``max_harmonic``),
+    modes tracked across speeds by MAC of their shapes at crank angle 0 and labelled."""
+    start = time.perf_counter()
+    grid = check_grid("speeds", speeds)
+    if (grid <= 0).any() or (np.diff(grid) <= 0).any():
+        raise StudiesError(f"speeds: expected positive, increasing crank speeds (rad/s), got {speeds!r}")
+    n_steps = check_n_steps(n_steps)
+    labels = problem.describe({SPEED: float(grid[0])}).labels
+    settings = {"speeds": grid, "n_steps": n_steps, "frozen_samples": frozen_samples,
+                "scene": problem.text}
+    units = {"frozen": "rad/s", "shapes": "1", "multipliers": "1", "multipliers_coarse": "1", "period": "s",
+             "crank_angle": "rad"}
+    header = dict(problem=problem.name, scene=problem.text, labels=labels)
+    store = open_store(out, name, grid.shape, "CampbellResult", settings, units, header,
+                       {"speeds": (grid, "rad/s")})
+    points = [((i,), {SPEED: float(v)}) for i, v in enumerate(grid)]
+    outcomes = run_grid(campbell_point, problem, points,
+                        {"n_steps": n_steps, "frozen_samples": frozen_samples}, executor=executor,
+                        store=store, progress=progress, description=f"{name} over speed")
+    fields = collect(outcomes, grid.shape)
+    extra: dict[str, Any] = {}
+    if "frozen" in fields:
+        fields["crank_angle"] = fields["crank_angle"][np.flatnonzero(fields["done"])[0]]
+        order, confidence = track_modes(fields["shapes"])
+        rows = np.arange(grid.size)[:, None]
+        band_min = fields["frozen"].min(axis=1)[rows, order]
+        band_max = fields["frozen"].max(axis=1)[rows, order]
+        band_mean = fields["frozen"].mean(axis=1)[rows, order]
+        characteristic, characteristic_error = [], []
+        for i in range(grid.size):
+            fine = characteristic_frequencies(fields["multipliers"][i], fields["period"][i], band_mean[i])
+            halved = characteristic_frequencies(fields["multipliers_coarse"][i], fields["period"][i],
+                                                band_mean[i])
+            characteristic.append(fine)
+            # the N/2 difference over the scheme's ratio estimates the error of the N-step value
+            characteristic_error.append(np.array([np.nanmin(np.abs(halved - f)) / HALVING_ERROR_RATIO
+                                                  if np.isfinite(f) else np.nan for f in fine]))
+        characteristic, characteristic_error = np.array(characteristic), np.array(characteristic_error)
+        first = fields["shapes"][0]
+        mode_labels = tuple(f"mode {j + 1} ({labels[int(np.argmax(np.abs(first[:, j])))]})"
+                            if np.isfinite(first[:, j]).all() else f"mode {j + 1}"
+                            for j in range(first.shape[1]))
+        extra = dict(order=order, tracking_mac=confidence, band_min=band_min, band_max=band_max,
+                     band_mean=band_mean, characteristic=characteristic,
+                     characteristic_error=characteristic_error, mode_labels=mode_labels,
+                     harmonics=tuple(range(1, max_harmonic + 1)))
+    result = CampbellResult(**header, settings=settings, speeds=grid, run_time=time.perf_counter() - start,
+                            **fields, **extra)
+    if store is not None:
+        result.to_hdf5(store.group)
+    return result
+
+
+def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
+    _, grid = axis(where, table, parameter=False)
+    return {"speeds": grid, "n_steps": steps(where, table, n_steps),
+            "frozen_samples": integer(where, "frozen_samples", table.get("frozen_samples", 64), 2),
+            "max_harmonic": integer(where, "max_harmonic", table.get("max_harmonic", 6), 1)}
+
+
+def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, progress: bool
+         ) -> CampbellResult:
+    return campbell(problem, options["speeds"], n_steps=options["n_steps"],
+                    frozen_samples=options["frozen_samples"], max_harmonic=options["max_harmonic"],
+                    executor=executor, out=out, name=KIND.name, progress=progress)
+
+
+def _default(nominal_speed: float) -> dict[str, Any]:
+    """40 speeds from 0.2 to 4 times the scene's."""
+    return {"start": 0.2 * abs(nominal_speed), "stop": 4.0 * abs(nominal_speed), "count": 40}
+
+
+KIND = StudyKind(name="campbell", result=CampbellResult,
+                 keys=("start", "stop", "count", "values", "spacing", "frozen_samples", "max_harmonic",
+                       "n_steps"),
+                 check=_check, run=_run, summary=grid_summary, grid=True, point=campbell_point,
+                 default=_default)

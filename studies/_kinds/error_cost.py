@@ -1,0 +1,165 @@
+"""``[studies.error_cost]``: the error of the steady response against run time, over steps per
+period and optionally a resolution parameter (e.g. a number of elements)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+import periodic
+
+from .._errors import StudiesError
+from .._kind import StudyKind, axis, integer, speed_values, sub_table
+from .._numerics import solve_steady
+from .._plots import Plot, axes_for, drawn
+from .._store import Result, register
+from .._studies import check_grid, check_n_steps, check_parameter
+
+
+@register
+@dataclass(frozen=True, eq=False)
+class ErrorCostResult(Result):
+    """Error against run time.
+
+    ``resolutions`` (n_r,) values of ``resolution_parameter`` (e.g. a number of elements; empty name
+    when only the steps vary); ``n_steps`` (n_s,) steps per period; ``n_dof`` (n_r,) size of the linear
+    system; ``error`` {spec: (n_r, n_s)} max abs difference from the reference over the period,
+    divided by the reference's peak-to-peak; ``error_estimate`` {spec: (n_r, n_s)} the self-estimated
+    error (same scaling); ``run_time`` (n_r, n_s) s of linearisation plus shooting; the reference is
+    the finest resolution with ``reference_steps`` steps and Richardson extrapolation.
+    """
+
+    problem: str
+    scene: str
+    resolution_parameter: str
+    units: Mapping[str, str]
+    settings: Mapping[str, Any]
+    resolutions: np.ndarray
+    n_steps: np.ndarray
+    n_dof: np.ndarray
+    error: Mapping[str, np.ndarray]
+    error_estimate: Mapping[str, np.ndarray]
+    run_time: np.ndarray
+    reference_steps: int
+    reference_run_time: float
+
+    _units = {"resolutions": "1", "n_steps": "1", "n_dof": "1", "error": "1", "error_estimate": "1",
+              "run_time": "s"}
+
+    def plot(self, *, axes: Any = None) -> Plot:
+        """Relative error of each observable against run time, one line per resolution."""
+        axes = axes_for(1, axes, height=4.8)
+        ax = axes[0]
+        artists: dict[str, list] = {}
+        for spec in self.error:
+            artists[spec] = []
+            for i, level in enumerate(self.resolutions):
+                name = f"{spec}" + (f", {self.resolution_parameter} = {level:g}" if self.resolution_parameter
+                                    else "")
+                artists[spec] += ax.loglog(self.run_time[i], self.error[spec][i], "o-", label=name)
+                for n, x, y in zip(self.n_steps, self.run_time[i], self.error[spec][i]):
+                    ax.annotate(f"N={n}", (x, y), fontsize="x-small")
+        ax.set_xlabel("run time (s)")
+        ax.set_ylabel("relative error (1)")
+        ax.legend(fontsize="x-small")
+        return drawn(axes, artists)
+
+
+def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
+               n_steps: Sequence[int] = (32, 64, 128, 256), resolution: tuple[str, Sequence[float]] | None = None,
+               reference_steps: int | None = None) -> ErrorCostResult:
+    """Error of the steady response against run time, over steps per period and (optionally) a
+    resolution parameter such as a number of elements ``("links.coupler.discretisation.n_elements",
+    (1, 2, 4))``. The reference is the finest resolution at ``reference_steps`` (default 4 x the
+    largest ``n_steps``) with Richardson extrapolation (order 4). Runs in-process so the times are
+    comparable."""
+    steps = [check_n_steps(n) for n in n_steps]
+    if sorted(steps) != steps or len(set(steps)) != len(steps):
+        raise StudiesError(f"n_steps: expected increasing step counts, got {n_steps!r}")
+    base = steps[0]
+    if any(n % base for n in steps):
+        raise StudiesError(f"n_steps: every entry must be a multiple of the first ({base}) so the "
+                           f"responses can be compared on common samples, got {n_steps!r}")
+    reference_steps = check_n_steps(reference_steps or 4 * steps[-1])
+    if reference_steps % base:
+        raise StudiesError(f"reference_steps: must be a multiple of {base}, got {reference_steps}")
+    if resolution is None:
+        name, levels = "", np.array([0.0])
+    else:
+        name = check_parameter(problem, resolution[0])
+        levels = check_grid("resolution values", resolution[1])
+
+    def at(level: float) -> dict[str, float]:
+        merged = dict(values or {})
+        if name:
+            merged[name] = level
+        return merged
+
+    start = time.perf_counter()
+    reference_linear = problem.linearize(at(levels[-1]), n_steps=reference_steps)
+    reference_state = periodic.steady_state(reference_linear.system, extrapolate=True)
+    reference = reference_linear.observe(reference_state.x)[:: reference_steps // base]
+    reference_time = time.perf_counter() - start
+    specs = reference_linear.observables
+    scale = np.maximum(np.ptp(reference, axis=0), np.finfo(float).tiny)
+    error = {s: np.full((levels.size, len(steps)), np.nan) for s in specs}
+    estimate = {s: np.full((levels.size, len(steps)), np.nan) for s in specs}
+    run_time = np.full((levels.size, len(steps)), np.nan)
+    n_dof = np.zeros(levels.size)
+    for i, level in enumerate(levels):
+        for j, n in enumerate(steps):
+            tick = time.perf_counter()
+            linear = problem.linearize(at(level), n_steps=n)
+            steady = solve_steady(linear)
+            run_time[i, j] = time.perf_counter() - tick
+            n_dof[i] = linear.system.n_dof
+            response = steady.response[:: n // base]
+            for k, spec in enumerate(specs):
+                error[spec][i, j] = np.abs(response[:, k] - reference[:, k]).max() / scale[k]
+                estimate[spec][i, j] = steady.response_error[k] / scale[k]
+    return ErrorCostResult(
+        problem=problem.name, scene=problem.text, resolution_parameter=name,
+        units=dict(zip(specs, reference_linear.units)),
+        settings={"values": dict(values or {}), "n_steps": steps, "reference_steps": reference_steps,
+                  "resolution": [name, levels] if name else None},
+        resolutions=levels, n_steps=np.array(steps), n_dof=n_dof, error=error, error_estimate=estimate,
+        run_time=run_time, reference_steps=reference_steps, reference_run_time=reference_time)
+
+
+def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
+    # here n_steps is the list of step counts compared, not the [studies] default
+    step_list = table.get("n_steps", [32, 64, 128, 256])
+    if not isinstance(step_list, list) or not step_list:
+        raise StudiesError(f"[{where}] n_steps: expected a list of even step counts, got {step_list!r}")
+    resolution = None
+    if "resolution" in table:
+        resolution = axis(f"{where}.resolution",
+                          sub_table(where, table, "resolution", "{parameter = ..., values = [...]}"))
+    reference = table.get("reference_steps")
+    return {"values": speed_values(where, table),
+            "n_steps": tuple(integer(where, "n_steps", n, 4, even=True) for n in step_list),
+            "resolution": resolution,
+            "reference_steps": None if reference is None else
+            integer(where, "reference_steps", reference, 4, even=True)}
+
+
+def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> ErrorCostResult:
+    return error_cost(problem, **options)
+
+
+def _summary(result: ErrorCostResult) -> str:
+    best = ", ".join(f"{k} {v[-1, -1]:.2g}" for k, v in result.error.items())
+    return (f"{len(result.n_steps)} step counts x {len(result.resolutions)} resolutions; finest relative "
+            f"error {best} in {result.run_time[-1, -1]:.3g} s")
+
+
+def _varies(options: Mapping[str, Any]) -> tuple[str, ...]:
+    return () if options["resolution"] is None else (options["resolution"][0],)
+
+
+KIND = StudyKind(name="error_cost", result=ErrorCostResult, keys=("speed", "n_steps", "reference_steps",
+                                                                   "resolution"),
+                 check=_check, run=_run, summary=_summary, varies=_varies)

@@ -1,0 +1,146 @@
+"""``[studies.stability_chart]``: the spectral radius of the monodromy over two parameters, with its
+error estimate; the boundary ``|mu| = 1`` drawn."""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import Executor
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+import periodic
+
+from .._errors import StudiesError
+from .._grid import run_grid
+from .._kind import StudyKind, axis, steps, sub_table
+from .._numerics import HALVING_ERROR_RATIO
+from .._plots import Plot, axes_for, cost_line, drawn, label, largest
+from .._problem import SPEED
+from .._store import register
+from .._studies import GridResult, check_grid, check_n_steps, check_parameter, collect, grid_summary, \
+    open_store
+
+
+@register
+@dataclass(frozen=True, eq=False)
+class StabilityChart(GridResult):
+    """Spectral radius over two parameters.
+
+    ``first`` (n1,) values of ``parameters[0]``, ``second`` (n2,) of ``parameters[1]`` (units
+    ``parameter_units``); ``spectral_radius`` (n1, n2) and ``spectral_radius_error`` (n1, n2) its
+    estimated error (N against N/2 steps); ``stability_tol`` the tolerance of
+    ``|mu| = 1``; ``run_time`` s.
+    """
+
+    parameters: tuple[str, str]
+    parameter_units: tuple[str, str]
+    first: np.ndarray
+    second: np.ndarray
+    spectral_radius: np.ndarray = None
+    spectral_radius_error: np.ndarray = None
+    stability_tol: float = 1e-6
+    run_time: float = float("nan")
+
+    _units = {"spectral_radius": "1", "spectral_radius_error": "1", **GridResult._units}
+
+    def _unit(self, name: str, key: str | None = None) -> str:
+        if name == "first":
+            return self.parameter_units[0]
+        if name == "second":
+            return self.parameter_units[1]
+        return super()._unit(name, key)
+
+    def plot(self, *, axes: Any = None) -> Plot:
+        """Spectral radius map (colour) with the boundary |mu| = 1 (black contour)."""
+        axes = axes_for(1, axes, height=4.8)
+        ax = axes[0]
+        radius = np.asarray(self.spectral_radius, dtype=float)
+        mesh = ax.pcolormesh(self.first, self.second, radius.T, shading="nearest", cmap="viridis",
+                             vmin=np.nanmin(radius), vmax=max(np.nanmax(radius), 1.0 + 1e-3))
+        artists = {"spectral_radius": [mesh]}
+        level = 1.0 + self.stability_tol
+        if np.nanmin(radius) < level < np.nanmax(radius) and min(radius.shape) > 1:
+            artists["stability_limit"] = [ax.contour(self.first, self.second, radius.T, levels=[level],
+                                                     colors="k", linewidths=1.0)]
+        artists["colorbar"] = [ax.figure.colorbar(mesh, ax=ax, label="spectral radius |mu|max")]
+        ax.set_xlabel(label(self.parameters[0], self.parameter_units[0]))
+        ax.set_ylabel(label(self.parameters[1], self.parameter_units[1]))
+        ax.set_title(f"{self.problem}: stability chart (black: |mu| = 1)\n" + cost_line(
+            f"spectral radius to {largest(self.spectral_radius_error):.2g}", self.run_time),
+            fontsize="small")
+        return drawn(axes, artists)
+
+
+def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int):
+    """Spectral radius of the monodromy at one point of a stability chart, with its error estimate."""
+    linear = problem.linearize(values, n_steps=n_steps, context=False)
+    result = periodic.floquet(linear.system)
+    coarse = periodic.floquet(linear.system.coarsened())
+    unresolved = ~result.resolved & (np.abs(result.multipliers) > 1.0 + result.stability_tol)
+    status = "unresolved_mode" if unresolved.any() else "ok"
+    message = ("an unstable multiplier belongs to a mode the step does not resolve: refine n_steps"
+               if unresolved.any() else "")
+    # the N/2 difference over the scheme's ratio estimates the N-step error of the multipliers
+    error = abs(result.spectral_radius - coarse.spectral_radius) / HALVING_ERROR_RATIO
+    return {"spectral_radius": result.spectral_radius, "spectral_radius_error": error}, status, message
+
+
+def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tuple[str, Sequence[float]],
+                    *, n_steps: int = 128, executor: Executor | None = None, out: Any = None,
+                    name: str = "stability_chart", progress: bool = False) -> StabilityChart:
+    """Spectral radius of the monodromy, and its error estimate (N against N/2 steps), over a grid of
+    two parameters ``(name, values)``; the boundary ``|mu| = 1`` is drawn by ``plot``."""
+    start = time.perf_counter()
+    if not (isinstance(first, tuple) and len(first) == 2 and isinstance(second, tuple) and len(second) == 2):
+        raise TypeError(f"first, second: expected (parameter name, values) pairs, got {first!r}, {second!r}")
+    names = (check_parameter(problem, first[0]), check_parameter(problem, second[0]))
+    if names[0] == names[1]:
+        raise StudiesError(f"stability_chart: the two parameters must differ, got {names[0]!r} twice")
+    axes = (check_grid(f"{names[0]} values", first[1]), check_grid(f"{names[1]} values", second[1]))
+    n_steps = check_n_steps(n_steps)
+    shape = (axes[0].size, axes[1].size)
+    settings = {"parameters": names, "first": axes[0], "second": axes[1], "n_steps": int(n_steps),
+                "scene": problem.text}
+    units = (problem.units[names[0]], problem.units[names[1]])
+    header = dict(problem=problem.name, scene=problem.text, parameters=names, parameter_units=units,
+                  stability_tol=periodic.STABILITY_TOL)
+    store = open_store(out, name, shape, "StabilityChart", settings,
+                       {"spectral_radius": "1", "spectral_radius_error": "1"}, header,
+                       {"first": (axes[0], units[0]), "second": (axes[1], units[1])})
+    # The crank speed varies fastest, so that consecutive points (and a worker's batch) share the
+    # other parameter and reuse one speed family of the linearisation.
+    speed_first = names[0] == SPEED
+    points = [((i, j), {names[0]: float(axes[0][i]), names[1]: float(axes[1][j])})
+              for outer in range(shape[1 if speed_first else 0])
+              for inner in range(shape[0 if speed_first else 1])
+              for i, j in [(inner, outer) if speed_first else (outer, inner)]]
+    outcomes = run_grid(chart_point, problem, points, {"n_steps": int(n_steps)}, executor=executor,
+                        store=store, progress=progress, description=f"{name}")
+    fields = collect(outcomes, shape)
+    result = StabilityChart(**header, settings=settings, first=axes[0], second=axes[1],
+                            run_time=time.perf_counter() - start, **fields)
+    if store is not None:
+        result.to_hdf5(store.group)
+    return result
+
+
+_AXIS_TABLE = "{parameter = ..., start = ..., stop = ..., count = ...}"
+
+
+def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
+    first, second = (axis(f"{where}.{key}", sub_table(where, table, key, _AXIS_TABLE)) for key in ("x", "y"))
+    # a chart has its own default (128 steps), not the [studies] n_steps
+    return {"first": first, "second": second, "n_steps": steps(where, table, 128)}
+
+
+def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, progress: bool
+         ) -> StabilityChart:
+    return stability_chart(problem, options["first"], options["second"], n_steps=options["n_steps"],
+                           executor=executor, out=out, name=KIND.name, progress=progress)
+
+
+KIND = StudyKind(name="stability_chart", result=StabilityChart, keys=("x", "y", "n_steps"), check=_check,
+                 run=_run, summary=grid_summary, grid=True, point=chart_point,
+                 varies=lambda options: (options["first"][0], options["second"][0]))

@@ -1,0 +1,155 @@
+"""``[studies.steady_state]``: the periodic response over one period, Floquet multipliers, error
+estimates and run time; figures of the response, the multipliers and the deformed mechanism."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from .._kind import StudyKind, speed_values, steps
+from .._numerics import solve_steady
+from .._plots import Plot, axes_for, cost_line, drawn, label, plot_multipliers
+from .._store import Result, register
+from .._studies import check_n_steps
+
+
+@register
+@dataclass(frozen=True, eq=False)
+class SteadyStateResult(Result):
+    """Periodic steady response over one period, with Floquet multipliers.
+
+    ``t`` (N+1,) s; ``crank_angle`` (N+1,) rad; ``x`` (N+1, m) independent coordinates (SI unit of each
+    coordinate, see ``labels``); ``response`` {spec: (N+1,)} observables; ``response_error``
+    {spec: float} estimated max abs error of each; ``multipliers`` (2m,) complex; ``error_estimate``
+    max abs error of ``x``; ``run_time`` s (linearisation, N and N/2 shooting); for mechanisms
+    ``outlines`` {link: (N+1, n_points, 2)} m, points along each link over the period with the
+    deflection magnified ``magnification`` times (empty for other problems).
+    """
+
+    problem: str
+    parameters: Mapping[str, float]
+    scene: str
+    labels: tuple[str, ...]
+    units: Mapping[str, str]
+    t: np.ndarray
+    crank_angle: np.ndarray
+    x: np.ndarray
+    response: Mapping[str, np.ndarray]
+    response_error: Mapping[str, float]
+    multipliers: np.ndarray
+    spectral_radius: float
+    error_estimate: float
+    status: str
+    message: str
+    n_steps: int
+    run_time: float
+    shooting_run_time: float
+    outlines: Mapping[str, np.ndarray] = field(default_factory=dict)
+    magnification: float = float("nan")
+
+    _units = {"t": "s", "crank_angle": "rad", "x": "SI (see labels)", "response": "@observables",
+              "multipliers": "1", "outlines": "m"}
+
+    def plot(self, *, axes: Any = None) -> Plot:
+        """Each observable over one crank revolution (one axes each) and the multipliers (last axes)."""
+        specs = list(self.response)
+        axes = axes_for(len(specs) + 1, axes)
+        artists: dict[str, list] = {}
+        angle = np.degrees(self.crank_angle - self.crank_angle[0])
+        for ax, spec in zip(axes, specs):
+            artists[spec] = ax.plot(angle, self.response[spec], color="C0")
+            ax.set_xlabel("crank angle (deg)")
+            ax.set_ylabel(label(spec, self.units[spec]))
+            ax.set_title(f"{spec}: error estimate {self.response_error[spec]:.2g} {self.units[spec]}",
+                         fontsize="small")
+        artists["multipliers"] = plot_multipliers(
+            self.multipliers, ax=axes[-1],
+            title=f"spectral radius {self.spectral_radius:.6f}\n" + cost_line(
+                f"max coordinate error {self.error_estimate:.2g} (N against N/2)", self.run_time))
+        return drawn(axes, artists)
+
+    def plot_multipliers(self, *, axes: Any = None) -> Plot:
+        """The Floquet multipliers in the complex plane with the unit circle."""
+        axes = axes_for(1, axes, width=4.8, height=4.8)
+        artists = plot_multipliers(self.multipliers, ax=axes[0], title=f"{self.problem}: Floquet multipliers")
+        return drawn(axes, {"multipliers": artists})
+
+    def plot_mechanism(self, *, axes: Any = None, n_frames: int = 8) -> Plot:
+        """Link outlines at ``n_frames`` crank angles over the period, later frames darker; the elastic
+        deflection is magnified ``magnification`` times."""
+        if not self.outlines:
+            from .._errors import StudiesError
+
+            raise StudiesError(f"{self.problem}: no link outlines to draw (not a mechanism problem)")
+        axes = axes_for(1, axes, height=4.8)
+        ax = axes[0]
+        n_samples = next(iter(self.outlines.values())).shape[0] - 1
+        frames = np.linspace(0, n_samples, n_frames, endpoint=False).astype(int)
+        artists: dict[str, list] = {name: [] for name in self.outlines}
+        for rank, k in enumerate(frames):
+            # One colour per link, so each link can be followed; later frames more opaque.
+            alpha = 0.2 + 0.8 * rank / max(n_frames - 1, 1)
+            for j, (name, points) in enumerate(self.outlines.items()):
+                artists[name] += ax.plot(points[k, :, 0], points[k, :, 1], color=f"C{j % 10}", alpha=alpha,
+                                         lw=1.5, label=name if rank == n_frames - 1 else None)
+        ax.legend(fontsize="x-small", title="later frames darker", title_fontsize="x-small")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.set_title(f"{self.problem}: deformed mechanism over one period (deflection x "
+                     f"{self.magnification:.3g})", fontsize="small")
+        return drawn(axes, artists)
+
+
+def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_steps: int = 256
+                 ) -> SteadyStateResult:
+    """Periodic response of the problem's observables over one period, Floquet multipliers, error
+    estimates (N against N/2 steps) and run time."""
+    n_steps = check_n_steps(n_steps)
+    start = time.perf_counter()
+    linear = problem.linearize(values, n_steps=n_steps)
+    steady = solve_steady(linear)
+    state = steady.state
+    drawing = {}
+    if hasattr(problem, "outlines"):
+        outlines, magnification = problem.outlines(linear, state.x)
+        drawing = {"outlines": outlines, "magnification": magnification}
+    return SteadyStateResult(
+        problem=problem.name, parameters=problem.resolve(values), scene=problem.text,
+        labels=tuple(linear.labels), units=dict(zip(linear.observables, linear.units)),
+        t=state.t, crank_angle=np.asarray(linear.crank_angle, dtype=float), x=state.x,
+        response={spec: steady.response[:, k] for k, spec in enumerate(linear.observables)},
+        response_error={spec: float(steady.response_error[k])
+                        for k, spec in enumerate(linear.observables)},
+        multipliers=state.multipliers, spectral_radius=state.spectral_radius,
+        error_estimate=steady.error_estimate, status=state.status, message=state.message,
+        n_steps=n_steps, run_time=time.perf_counter() - start, shooting_run_time=steady.run_time,
+        **drawing)
+
+
+def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
+    return {"values": speed_values(where, table), "n_steps": steps(where, table, n_steps)}
+
+
+def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> SteadyStateResult:
+    return steady_state(problem, options["values"], n_steps=options["n_steps"])
+
+
+def _summary(result: SteadyStateResult) -> str:
+    errors = ", ".join(f"{k} +- {v:.2g}" for k, v in result.response_error.items())
+    return (f"spectral radius {result.spectral_radius:.6f}, {result.status}; errors {errors}; "
+            f"{result.run_time:.3g} s")
+
+
+def _figures(result: SteadyStateResult) -> dict[str, Any]:
+    figures = {"": result.plot, "_multipliers": result.plot_multipliers}
+    if result.outlines:
+        figures["_mechanism"] = result.plot_mechanism
+    return figures
+
+
+KIND = StudyKind(name="steady_state", result=SteadyStateResult, keys=("speed", "n_steps"), check=_check,
+                 run=_run, summary=_summary, default=lambda nominal_speed: {}, figures=_figures)

@@ -1,0 +1,218 @@
+"""``[studies.sweep]``: peak-to-peak response and stability against one parameter, resonances and
+parametric instabilities marked."""
+
+from __future__ import annotations
+
+import math
+import time
+from concurrent.futures import Executor
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+import periodic
+
+from .._grid import run_grid
+from .._kind import AXIS_KEYS, StudyKind, axis, integer, steps
+from .._numerics import crossings, frozen_modes, peak_to_peak, solve_steady, unstable_intervals
+from .._plots import Plot, axes_for, cost_line, drawn, label, largest
+from .._problem import SPEED
+from .._store import register
+from .._studies import GridResult, check_grid, check_integer, check_n_steps, check_parameter, collect, \
+    grid_summary, open_store
+
+#: Frozen-time eigenproblems per period for the resonance bands of a sweep (the bands of smooth
+#: coefficients converge fast in the number of samples; 32 resolves a band edge to well under 1 %
+#: for coefficients with a few harmonics).
+FROZEN_SAMPLES = 32
+#: A sweep point whose peak-to-peak error estimate exceeds this fraction of the value gets the status
+#: ``STATUS_INACCURATE`` (its numbers are kept, and flagged).
+INACCURATE = 0.1
+STATUS_INACCURATE = "inaccurate"
+
+
+@register
+@dataclass(frozen=True, eq=False)
+class SweepResult(GridResult):
+    """Peak-to-peak response and stability against one parameter.
+
+    ``values`` (n,) of ``parameter`` (unit ``parameter_unit``); ``speed`` (n,) crank speed rad/s at
+    each point; ``peak_to_peak`` {spec: (n,)} and ``peak_to_peak_error`` {spec: (n,)} (twice the max
+    error estimate); ``spectral_radius`` (n,); ``multipliers`` (n, 2m) complex; ``error_estimate`` (n,)
+    max error of the coordinates; ``frozen_min``, ``frozen_max``, ``frozen_mean`` (n, m) rad/s the
+    band of each frozen-time natural frequency (ascending order) over the period; ``resonances``
+    ((k, mode, value), ...) where ``k * speed`` crosses the mean of frozen frequency ``mode``
+    (0-based); ``instabilities`` ((start, end), ...) parameter intervals with spectral radius above 1
+    (parametric instability); ``run_time`` s wall time of the whole sweep.
+    """
+
+    parameter: str
+    parameter_unit: str
+    labels: tuple[str, ...]
+    units: Mapping[str, str]
+    values: np.ndarray
+    speed: np.ndarray = None
+    peak_to_peak: Mapping[str, np.ndarray] = field(default_factory=dict)
+    peak_to_peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
+    spectral_radius: np.ndarray = None
+    multipliers: np.ndarray = None
+    error_estimate: np.ndarray = None
+    frozen_min: np.ndarray = None
+    frozen_max: np.ndarray = None
+    frozen_mean: np.ndarray = None
+    resonances: tuple = ()
+    instabilities: tuple = ()
+    run_time: float = float("nan")
+
+    _units = {"values": "@parameter_unit", "speed": "rad/s", "peak_to_peak": "@observables",
+              "peak_to_peak_error": "@observables", "spectral_radius": "1", "multipliers": "1",
+              "error_estimate": "SI (see labels)", "frozen_min": "rad/s", "frozen_max": "rad/s",
+              "frozen_mean": "rad/s", **GridResult._units}
+
+    def plot(self, *, axes: Any = None) -> Plot:
+        """Peak-to-peak of each observable and the spectral radius against the swept parameter, with
+        resonances (dotted lines, labelled k:mode) and parametric instabilities (shaded)."""
+        specs = list(self.peak_to_peak)
+        axes = axes_for(len(specs) + 1, axes)
+        x = self.values
+        artists: dict[str, list] = {}
+        xlabel = label(self.parameter, self.parameter_unit)
+        for ax, spec in zip(axes, specs):
+            artists[spec] = ax.semilogy(x, self.peak_to_peak[spec], ".-", color="C0", label="peak to peak")
+            ax.set_ylabel(label(f"{spec} peak to peak", self.units[spec]))
+        if self.spectral_radius is not None:
+            artists["spectral_radius"] = axes[-1].plot(x, self.spectral_radius, ".-", color="C1")
+            artists["stability_limit"] = [axes[-1].axhline(1.0, color="k", lw=0.8)]
+        axes[-1].set_ylabel("spectral radius |mu|max")
+        relative = [np.asarray(self.peak_to_peak_error.get(spec), dtype=float)
+                    / np.asarray(self.peak_to_peak[spec], dtype=float)
+                    for spec in specs if self.peak_to_peak_error.get(spec) is not None]
+        axes[0].set_title(cost_line(f"{len(x)} points, largest estimated error "
+                                    f"{100 * largest(relative):.2g} % of peak to peak",
+                                    self.run_time), fontsize="small", pad=14)  # above the k:mode labels
+        for ax in axes:
+            ax.set_xlabel(xlabel)
+            for start, end in self.instabilities:
+                artists.setdefault("instabilities", []).append(ax.axvspan(start, end, color="C3", alpha=0.2))
+        for k, mode, value in self.resonances:
+            for ax in axes:
+                artists.setdefault("resonances", []).append(ax.axvline(value, color="0.5", ls=":", lw=0.8))
+            axes[0].annotate(f"{k}:{mode + 1}", (value, 1.0), xycoords=("data", "axes fraction"),
+                             fontsize="x-small", ha="center", va="bottom")
+        return drawn(axes, artists)
+
+
+def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, frozen_samples: int):
+    """One sweep point: steady state, multipliers, frozen frequency bands (a top-level function so
+    that process pools and Dask can pickle it)."""
+    linear = problem.linearize(values, n_steps=n_steps, context=False)
+    steady = solve_steady(linear)
+    _, frozen, _ = frozen_modes(linear.system, frozen_samples)
+    response = steady.response
+    data = {
+        "speed": 2.0 * math.pi / linear.system.period,
+        "spectral_radius": steady.state.spectral_radius,
+        "multipliers": steady.state.multipliers,
+        "error_estimate": steady.error_estimate,
+        "frozen_min": frozen.min(axis=0),
+        "frozen_max": frozen.max(axis=0),
+        "frozen_mean": frozen.mean(axis=0),
+    }
+    status, message = steady.state.status, steady.state.message
+    for k, spec in enumerate(linear.observables):
+        value, sampling = peak_to_peak(response[:, k])
+        data[f"peak_to_peak/{spec}"] = value
+        # The extremes of two functions each within e of the truth differ by at most 2 e; the
+        # sampling correction of the extremes is added as a bound on what the refinement leaves.
+        error = 2.0 * float(steady.response_error[k]) + sampling
+        data[f"peak_to_peak_error/{spec}"] = error
+        if status == "ok" and not error <= INACCURATE * value:
+            status = STATUS_INACCURATE
+            message = (f"{spec}: peak-to-peak error estimate {error:.3g} exceeds {INACCURATE:.0%} of the "
+                       f"value {value:.3g}; refine n_steps (typically near a resonance)")
+    return data, status, message
+
+
+def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int = 256,
+          max_harmonic: int = 4, executor: Executor | None = None, out: Any = None,
+          name: str = "sweep", progress: bool = False) -> SweepResult:
+    """Sweep ``parameter`` (e.g. ``"speed"``) over ``values``: peak-to-peak of each observable and its
+    error, spectral radius, multipliers, frozen frequency bands; resonances ``k * speed`` (k = 1 ..
+    ``max_harmonic``) crossing a mean frozen frequency and parametric instabilities (spectral radius
+    above 1) marked. ``out``: h5py File/Group to write into (resumable)."""
+    start = time.perf_counter()
+    parameter = check_parameter(problem, parameter)
+    grid = check_grid("values", values)
+    n_steps = check_n_steps(n_steps)
+    max_harmonic = check_integer("max_harmonic", max_harmonic, 1)
+    names = problem.describe({parameter: float(grid[0])})
+    obs_units = dict(zip(names.observables, names.units))
+    settings = {"parameter": parameter, "values": grid, "n_steps": n_steps, "scene": problem.text,
+                "frozen_samples": FROZEN_SAMPLES}
+    units = {"speed": "rad/s", "spectral_radius": "1", "multipliers": "1",
+             "error_estimate": "SI (see labels)", "frozen_min": "rad/s", "frozen_max": "rad/s",
+             "frozen_mean": "rad/s"}
+    units.update({f"peak_to_peak/{s}": u for s, u in obs_units.items()})
+    units.update({f"peak_to_peak_error/{s}": u for s, u in obs_units.items()})
+    header = dict(problem=problem.name, scene=problem.text, parameter=parameter,
+                  parameter_unit=problem.units[parameter], labels=names.labels, units=obs_units)
+    store = open_store(out, name, grid.shape, "SweepResult", settings, units, header,
+                       {"values": (grid, problem.units[parameter])})
+    points = [((i,), {parameter: float(v)}) for i, v in enumerate(grid)]
+    outcomes = run_grid(sweep_point, problem, points,
+                        {"n_steps": n_steps, "frozen_samples": FROZEN_SAMPLES}, executor=executor,
+                        store=store, progress=progress, description=f"{name} over {parameter}")
+    fields = collect(outcomes, grid.shape)
+    peak = {spec: fields.pop(f"peak_to_peak/{spec}") for spec in obs_units if f"peak_to_peak/{spec}" in fields}
+    peak_error = {spec: fields.pop(f"peak_to_peak_error/{spec}") for spec in obs_units
+                  if f"peak_to_peak_error/{spec}" in fields}
+    resonances, instabilities = (), ()
+    if "spectral_radius" in fields:
+        resonances = _resonances(grid, fields["speed"], fields["frozen_mean"], max_harmonic)
+        instabilities = tuple(unstable_intervals(grid, fields["spectral_radius"],
+                                                 tol=periodic.STABILITY_TOL))
+    result = SweepResult(**header, settings=settings, values=grid, peak_to_peak=peak,
+                         peak_to_peak_error=peak_error, resonances=resonances,
+                         instabilities=instabilities, run_time=time.perf_counter() - start, **fields)
+    if store is not None:
+        result.to_hdf5(store.group)
+    return result
+
+
+def _resonances(grid: np.ndarray, speed: np.ndarray, frozen_mean: np.ndarray, max_harmonic: int):
+    found = []
+    for mode in range(frozen_mean.shape[1]):
+        for k in range(1, max_harmonic + 1):
+            for _, value in crossings(grid, k * speed - frozen_mean[:, mode]):
+                found.append((k, mode, value))
+    return tuple(sorted(found, key=lambda item: item[2]))
+
+
+def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
+    parameter, grid = axis(where, table)
+    return {"parameter": parameter, "values": grid,
+            "max_harmonic": integer(where, "max_harmonic", table.get("max_harmonic", 4), 1),
+            "n_steps": steps(where, table, n_steps)}
+
+
+def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, progress: bool) -> SweepResult:
+    return sweep(problem, options["parameter"], options["values"], n_steps=options["n_steps"],
+                 max_harmonic=options["max_harmonic"], executor=executor, out=out, name=KIND.name,
+                 progress=progress)
+
+
+def _summary(result: SweepResult) -> str:
+    return grid_summary(result, f", {len(result.resonances)} resonances, {len(result.instabilities)} "
+                                f"unstable intervals")
+
+
+def _default(nominal_speed: float) -> dict[str, Any]:
+    """100 speeds from 0.2 to 4 times the scene's."""
+    return {"parameter": SPEED, "start": 0.2 * abs(nominal_speed), "stop": 4.0 * abs(nominal_speed),
+            "count": 100}
+
+
+KIND = StudyKind(name="sweep", result=SweepResult, keys=AXIS_KEYS + ("max_harmonic", "n_steps"),
+                 check=_check, run=_run, summary=_summary, grid=True, point=sweep_point,
+                 varies=lambda options: (options["parameter"],), default=_default)
