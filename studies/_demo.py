@@ -16,6 +16,7 @@ import numpy as np
 
 import periodic
 
+from ._errors import StudiesError
 from ._store import versions
 
 
@@ -25,7 +26,7 @@ def write_demo(prefix: str | Path, *, n_steps: int = 512, extrapolate: bool = Fa
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)):
         raise TypeError(f"n_steps: expected an even integer >= 4, got {type(n_steps).__name__}")
     if n_steps < 4 or n_steps % 2:
-        raise ValueError(f"n_steps: expected an even integer >= 4 (the error estimate uses N/2 steps), got {n_steps}")
+        raise StudiesError(f"n_steps: expected an even integer >= 4 (the error estimate uses N/2 steps), got {n_steps}")
     prefix = Path(prefix)
     system = periodic.demo_system(int(n_steps))
     result = periodic.steady_state(system, extrapolate=extrapolate)

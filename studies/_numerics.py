@@ -15,10 +15,9 @@ import periodic
 from ._problem import Linear
 
 
-#: Ratio of the difference between the N/2-step and N-step values to the N-step error: 2**p - 1 for
-#: a scheme of order p (Newmark's average acceleration: p = 2). Every error estimate of the studies
-#: divides by it.
-HALVING_ERROR_RATIO = 3.0
+#: The integration scheme of every study. Its ``error_factor`` (``1 / (2**order - 1)``) turns the
+#: difference between an N-step and an N/2-step value into the error estimate of the N-step value.
+STUDY_SCHEME = periodic.SCHEMES["trapezoidal"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -26,9 +25,8 @@ class Steady:
     """Steady state of a :class:`Linear` with error estimates.
 
     ``state`` the N-step ``periodic.SteadyState``; ``response`` (N+1, n_obs) observables;
-    ``response_error`` (n_obs,) estimated max abs error of each observable, ``|o_N - o_{N/2}| / 3``
-    (Newmark's average-acceleration scheme is of order 2, so the N/2 difference is 3 times the N-step
-    error to leading order); ``error_estimate`` the same for the coordinates ``z``; ``run_time`` s.
+    ``response_error`` (n_obs,) estimated max abs error of each observable, ``|o_N - o_{N/2}|`` times the
+    scheme's ``error_factor`` (1/3 for the order-2 trapezoidal rule); ``error_estimate`` the same for the coordinates ``z``; ``run_time`` s.
     """
 
     state: periodic.SteadyState
@@ -39,12 +37,13 @@ class Steady:
 
 
 def solve_steady(linear: Linear) -> Steady:
-    fine = periodic.steady_state(linear.system, estimate_error=False)
-    coarse = periodic.steady_state(linear.system.coarsened(), estimate_error=False)
+    fine = periodic.steady_state(linear.system, scheme=STUDY_SCHEME, estimate_error=False)
+    coarse = periodic.steady_state(linear.system.coarsened(), scheme=STUDY_SCHEME, estimate_error=False)
     response = linear.observe(fine.x)
     coarse_response = linear.observe(coarse.x, stride=2)
-    response_error = np.abs(response[::2] - coarse_response).max(axis=0) / HALVING_ERROR_RATIO
-    error = float(np.abs(fine.x[::2] - coarse.x).max()) / HALVING_ERROR_RATIO
+    factor = STUDY_SCHEME.error_factor
+    response_error = np.abs(response[::2] - coarse_response).max(axis=0) * factor
+    error = float(np.abs(fine.x[::2] - coarse.x).max()) * factor
     return Steady(state=fine, response=response, response_error=response_error, error_estimate=error,
                   run_time=fine.run_time + coarse.run_time)
 

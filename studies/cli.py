@@ -1,4 +1,4 @@
-"""The ``flexvib`` command: ``scenes``, ``run``, ``plot``, ``info`` (see ``flexvib --help``)."""
+"""The ``flexvib`` command: ``scenes``, ``run``, ``plot``, ``info``, ``demo`` (see ``flexvib --help``)."""
 
 from __future__ import annotations
 
@@ -73,6 +73,15 @@ def _parser() -> argparse.ArgumentParser:
                                            "error estimates and run times.")
     info.add_argument("file", type=Path, help="result file written by 'flexvib run'")
     info.set_defaults(handler=_info)
+    demo = commands.add_parser(
+        "demo", help="the periodic engine alone on a 2-DOF example (HDF5 and PNG)",
+        description="Periodic steady state and Floquet multipliers of a damped 2-DOF Mathieu-type system "
+                    "with harmonic forcing (periodic.demo_system), written to PREFIX.h5 and PREFIX.png.")
+    demo.add_argument("--out", type=Path, required=True, help="prefix of the two files written")
+    demo.add_argument("--n-steps", type=int, default=512, help="steps per period (even, >= 4; default 512)")
+    demo.add_argument("--extrapolate", action="store_true",
+                      help="Richardson-extrapolate N and N/2 steps (order 4)")
+    demo.set_defaults(handler=_demo)
     return parser
 
 
@@ -109,6 +118,14 @@ def _report(error: Exception) -> int:
 
 
 # ---------------------------------------------------------------------------------------------------
+def _demo(args: argparse.Namespace) -> int:
+    from ._demo import write_demo
+
+    for path in write_demo(args.out, n_steps=args.n_steps, extrapolate=args.extrapolate):
+        print(path)
+    return 0
+
+
 def _scenes(args: argparse.Namespace) -> int:
     import mechanisms
 

@@ -247,3 +247,12 @@ def test_studies_error_is_public_and_a_value_error():
     assert issubclass(studies.StudiesError, ValueError) and issubclass(studies.ComputationError, RuntimeError)
     with pytest.raises(studies.StudiesError, match="n_steps"):
         studies.steady_state(studies.mathieu_problem(), n_steps=15)
+
+
+def test_demo_writes_the_periodic_example_and_rejects_an_odd_step_count(tmp_path, capsys):
+    prefix = tmp_path / "demo"
+    assert main(["demo", "--out", str(prefix), "--n-steps", "64"]) == 0
+    assert capsys.readouterr().out.split() == [str(prefix) + ".h5", str(prefix) + ".png"]
+    assert main(["demo", "--out", str(tmp_path / "odd"), "--n-steps", "63"]) == 2
+    assert "n_steps: expected an even integer >= 4" in capsys.readouterr().err
+    assert not list(tmp_path.glob("odd*"))

@@ -15,7 +15,7 @@ import periodic
 from .._errors import StudiesError
 from .._grid import run_grid
 from .._kind import StudyKind, axis, integer, steps
-from .._numerics import HALVING_ERROR_RATIO, characteristic_frequencies, frozen_modes, track_modes
+from .._numerics import STUDY_SCHEME, characteristic_frequencies, frozen_modes, track_modes
 from .._plots import Plot, axes_for, cost_line, drawn, largest
 from .._problem import SPEED
 from .._store import register
@@ -105,8 +105,8 @@ def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, f
     angle 0, Floquet multipliers."""
     linear = problem.linearize(values, n_steps=n_steps, context=False)
     index, frozen, shapes = frozen_modes(linear.system, frozen_samples)
-    result = periodic.floquet(linear.system)
-    coarse = periodic.floquet(linear.system.coarsened())
+    result = periodic.floquet(linear.system, scheme=STUDY_SCHEME)
+    coarse = periodic.floquet(linear.system.coarsened(), scheme=STUDY_SCHEME)
     status = "ok" if result.resolved.all() else "unresolved_mode"
     message = "" if status == "ok" else (f"{int((~result.resolved).sum())} multipliers belong to modes "
                                          f"the {n_steps} steps do not resolve")
@@ -154,8 +154,8 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
             halved = characteristic_frequencies(fields["multipliers_coarse"][i], fields["period"][i],
                                                 band_mean[i])
             characteristic.append(fine)
-            # the N/2 difference over the scheme's ratio estimates the error of the N-step value
-            characteristic_error.append(np.array([np.nanmin(np.abs(halved - f)) / HALVING_ERROR_RATIO
+            # the N/2 difference times the scheme's error factor estimates the error of the N-step value
+            characteristic_error.append(np.array([np.nanmin(np.abs(halved - f)) * STUDY_SCHEME.error_factor
                                                   if np.isfinite(f) else np.nan for f in fine]))
         characteristic, characteristic_error = np.array(characteristic), np.array(characteristic_error)
         first = fields["shapes"][0]

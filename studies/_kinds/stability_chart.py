@@ -15,7 +15,7 @@ import periodic
 from .._errors import StudiesError
 from .._grid import run_grid
 from .._kind import StudyKind, axis, steps, sub_table
-from .._numerics import HALVING_ERROR_RATIO
+from .._numerics import STUDY_SCHEME
 from .._plots import Plot, axes_for, cost_line, drawn, label, largest
 from .._problem import SPEED
 from .._store import register
@@ -76,14 +76,14 @@ class StabilityChart(GridResult):
 def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int):
     """Spectral radius of the monodromy at one point of a stability chart, with its error estimate."""
     linear = problem.linearize(values, n_steps=n_steps, context=False)
-    result = periodic.floquet(linear.system)
-    coarse = periodic.floquet(linear.system.coarsened())
+    result = periodic.floquet(linear.system, scheme=STUDY_SCHEME)
+    coarse = periodic.floquet(linear.system.coarsened(), scheme=STUDY_SCHEME)
     unresolved = ~result.resolved & (np.abs(result.multipliers) > 1.0 + result.stability_tol)
     status = "unresolved_mode" if unresolved.any() else "ok"
     message = ("an unstable multiplier belongs to a mode the step does not resolve: refine n_steps"
                if unresolved.any() else "")
-    # the N/2 difference over the scheme's ratio estimates the N-step error of the multipliers
-    error = abs(result.spectral_radius - coarse.spectral_radius) / HALVING_ERROR_RATIO
+    # the N/2 difference times the scheme's error factor estimates the N-step error of the radius
+    error = abs(result.spectral_radius - coarse.spectral_radius) * STUDY_SCHEME.error_factor
     return {"spectral_radius": result.spectral_radius, "spectral_radius_error": error}, status, message
 
 
