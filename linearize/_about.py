@@ -204,8 +204,8 @@ def _crank_angle(mechanism, t, period):
 
 def _observable_maps(model, specs, s, V):
     """Linear maps (N+1, m) from z to each observable. A link observable's gradient depends on the
-    link's elastic coordinates only (``mechanisms._observables``), and those are zero all along the
-    rigid nominal motion: one gradient serves every sample."""
+    link's elastic coordinates only (``depends_on_elastic_only``), and those are zero all along
+    the rigid nominal motion: one gradient serves every sample."""
     maps = {}
     rigid_nominal = not np.any(s[:, np.asarray(model.elastic_index, dtype=np.int64)])
     for spec in specs:
@@ -239,8 +239,10 @@ def _finish(mechanism, model, nominal, coeffs, specs, angle, started):
 def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMechanism:
     """Linearise ``mechanism`` about its nominal rigid motion over one period of ``n_steps`` steps.
 
-    ``observables``: specs (see ``mechanisms._observables``), default ``default_observables``.
-    Raises ``LinearizationError`` at a toggle position (naming the crank angle).
+    ``observables``: specs of ``model.observable`` (e.g. ``"coupler.deflection@0.5"``), default
+    ``default_observables``. Raises ``LinearizationError`` (a ``ValueError``) at a toggle position
+    (naming the crank angle), the nominal motion's ``mechanisms.MechanismError`` (a ``ValueError``)
+    or ``mechanisms.ConvergenceError`` (a ``RuntimeError``).
     """
     started = time.perf_counter()
     if not isinstance(mechanism, mechanisms.Mechanism):
@@ -252,7 +254,8 @@ def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMecha
     independent = _independent_coordinates(model, nominal)
     angle = _crank_angle(mechanism, nominal.t, nominal.period)
     coeffs = _adaptive_coefficients(
-        model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, _multipliers_of(model, nominal),
+        model, nominal.t, nominal.s, nominal.sdot, nominal.sddot,
+        _multipliers_of(model, nominal),
         period=nominal.period, independent=independent,
         label=lambda k: f"crank angle {angle[k]:.6g} rad (t = {nominal.t[k]:.6g} s)")
     return _finish(mechanism, model, nominal, coeffs, specs, angle, started)

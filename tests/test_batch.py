@@ -4,6 +4,7 @@ for any other ``ConstrainedModel``), on a mechanism with every kind of term: ela
 geometric stiffening, gravity, damping, point masses and a torque drive."""
 
 import numpy as np
+import pytest
 
 import mechanisms as mc
 
@@ -83,3 +84,20 @@ def test_batched_constraint_terms_equal_the_model_methods():
         np.testing.assert_allclose(rate[k], model.constraint_rate(S[k], t[k]), rtol=0, atol=1e-15)
         np.testing.assert_allclose(gamma[k], model.constraint_gamma(S[k], Sd[k], t[k]), rtol=1e-13,
                                    atol=1e-13 * np.abs(gamma[k]).max())
+
+
+def test_batched_evaluations_check_the_sample_shapes():
+    """A multiplier array of the wrong width (the nominal motion's, with a drive row the model with
+    feedforward does not have) is rejected, not read past its end."""
+    mechanism = mc.four_bar(discretisation="fem", n_elements=2).replace(
+        drives=(mc.TorqueDrive("O", rate=100.0, kp=3.0, kd=0.1),))
+    model = mc.assemble(mechanism)
+    n, r = model.n_coords, model.n_constraints
+    t = np.zeros(3)
+    S = np.zeros((3, n))
+    with pytest.raises(ValueError, match=rf"lam must have shape \(3, {r}\).*\(3, {r + 1}\)"):
+        model.linear_terms_along(t, S, S, S, np.zeros((3, r + 1)))
+    with pytest.raises(ValueError, match=rf"sdot must have shape \(3, {n}\)"):
+        model.inertia_residual_along(t, S, S[:2], S)
+    with pytest.raises(ValueError, match="t must be a 1-d array"):
+        model.constraint_terms_along(np.zeros((3, 1)), S)
