@@ -144,7 +144,7 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
     # O(h^3), without solving for rates inside the loop).
     # An assembled model runs the plain steps in one numba loop, which hands back the first step
     # that needs care (a large correction or a struggling Newton) to the step-halving path here.
-    fast = isinstance(model, Model)
+    fast = isinstance(model, Model)    # the numba path reads the assembled model's tables
     k = 1
     while k <= n_steps:
         if fast and k >= 3:
@@ -185,8 +185,8 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
     residual = float(np.abs(positions.values).max())
     if residual > _RESIDUAL_REQUIRED:
         raise ConvergenceError(f"the nominal motion's constraint residual {residual:.3g} exceeds "
-                             f"{_RESIDUAL_REQUIRED:g}: the Jacobian is too ill-conditioned "
-                             f"(max condition number {condition.max():.3g})")
+                               f"{_RESIDUAL_REQUIRED:g}: the Jacobian is too ill-conditioned "
+                               f"(max condition number {condition.max():.3g})")
     velocity_residual = float(np.abs(np.einsum("krn,kn->kr", jacobians, sdot) + rates).max())
     acceleration_residual = float(np.abs(np.einsum("krn,kn->kr", jacobians, sddot)
                                          - gamma).max())
@@ -195,9 +195,9 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
     # closure error of 1e-6 or more means it ended on another assembly branch.
     if closure > 1e-6:
         raise ConvergenceError(f"the nominal motion does not close over one period (state at T "
-                             f"differs from t = 0 by {closure:.3g}): the continuation switched "
-                             f"assembly branch; check for toggle positions or give a larger "
-                             f"n_steps")
+                               f"differs from t = 0 by {closure:.3g}): the continuation switched "
+                               f"assembly branch; check for toggle positions or give a larger "
+                               f"n_steps")
     run_time = time.perf_counter() - started
     logger.info("nominal motion: %d steps in %.3f s, residual %.2e, max condition %.3g",
                 n_steps, run_time, residual, condition.max())
