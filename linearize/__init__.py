@@ -7,4 +7,4 @@ from ._core import (LinearCoefficients as LinearCoefficients,
 from ._about import (LinearizedMechanism as LinearizedMechanism, SpeedFamily as SpeedFamily,
                      about as about, default_observables as default_observables,
                      speed_family as speed_family)
-from ._geometric import axial_force as axial_force, geometric_stiffness as geometric_stiffness
+from ._geometric import geometric_stiffness as geometric_stiffness

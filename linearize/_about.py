@@ -104,9 +104,10 @@ class LinearizedMechanism:
                 break
             s[dependent] -= np.linalg.solve(model.constraint_jacobian(s, t)[:, dependent], phi)
         else:
-            raise LinearizationError(
-                f"no consistent state near the linear one at sample {sample} (constraint residual "
-                f"{np.abs(phi).max():.3g}): the deviation z0 is too large for the linkage")
+            raise mechanisms.ConvergenceError(
+                f"no consistent state near the linear one at sample {sample}: Newton on the "
+                f"dependent coordinates left a constraint residual {np.abs(phi).max():.3g}; the "
+                f"deviation z0 is probably too large for the linkage")
         jac = model.constraint_jacobian(s, t)
         rhs = -model.constraint_rate(s, t) - jac[:, c.independent] @ sdot[c.independent]
         sdot[dependent] = np.linalg.solve(jac[:, dependent], rhs)
@@ -114,14 +115,10 @@ class LinearizedMechanism:
 
 
 def default_observables(mechanism) -> tuple[str, ...]:
-    """Midspan deflection (from the chord) of each pinned-pinned elastic link, tip deflection (from
-    the root tangent) of each clamped-free one."""
-    specs = []
-    for link in mechanism.links:
-        if isinstance(link, mechanisms.ElasticLink):
-            specs.append(f"{link.name}.deflection@0.5" if link.boundary == "pinned-pinned"
-                         else f"{link.name}.transverse@1.0")
-    return tuple(specs)
+    """The observables ``about`` reports when none are asked for: ``mechanisms.default_observables``
+    (midspan deflection of each pinned-pinned elastic link, tip deflection of each clamped-free
+    one), the rule ``mechanisms.simulate`` uses too."""
+    return mechanisms.default_observables(mechanism)
 
 
 def _independent_coordinates(model, nominal) -> np.ndarray:
@@ -160,10 +157,8 @@ def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, 
     t_c, s_c, sdot_c, sddot_c, lam_c = t[pick], s[pick], sdot[pick], sddot[pick], lam[pick]
     extra = None
     if _has_stiffening(model):
-        from mechanisms._batch import constraint_terms
-
-        extra = geometric_stiffness(model, t_c, s_c, sdot_c, sddot_c, lam_c,
-                                    jacobian=constraint_terms(model, t_c, s_c)[0])
+        jacobian = mechanisms.constraint_terms_along(model, t_c, s_c).jacobian
+        extra = geometric_stiffness(model, t_c, s_c, sdot_c, sddot_c, lam_c, jacobian=jacobian)
     coarse = linear_coefficients(model, t_c, s_c, sdot_c, sddot_c, lam_c, period=period,
                                  independent=independent, extra_stiffness=extra,
                                  time_label=lambda k: label(k * stride))
@@ -209,8 +204,8 @@ def _crank_angle(mechanism, t, period):
 
 def _observable_maps(model, specs, s, V):
     """Linear maps (N+1, m) from z to each observable. A link observable's gradient depends on the
-    link's elastic coordinates only (``mechanisms._observables``), and those are zero all along the
-    rigid nominal motion: one gradient serves every sample."""
+    link's elastic coordinates only (``depends_on_elastic_only``), and those are zero all along
+    the rigid nominal motion: one gradient serves every sample."""
     maps = {}
     rigid_nominal = not np.any(s[:, np.asarray(model.elastic_index, dtype=np.int64)])
     for spec in specs:
@@ -244,8 +239,10 @@ def _finish(mechanism, model, nominal, coeffs, specs, angle, started):
 def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMechanism:
     """Linearise ``mechanism`` about its nominal rigid motion over one period of ``n_steps`` steps.
 
-    ``observables``: specs (see ``mechanisms._observables``), default ``default_observables``.
-    Raises ``LinearizationError`` at a toggle position (naming the crank angle).
+    ``observables``: specs of ``model.observable`` (e.g. ``"coupler.deflection@0.5"``), default
+    ``default_observables``. Raises ``LinearizationError`` (a ``ValueError``) at a toggle position
+    (naming the crank angle), the nominal motion's ``mechanisms.MechanismError`` (a ``ValueError``)
+    or ``mechanisms.ConvergenceError`` (a ``RuntimeError``).
     """
     started = time.perf_counter()
     if not isinstance(mechanism, mechanisms.Mechanism):
@@ -257,7 +254,8 @@ def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMecha
     independent = _independent_coordinates(model, nominal)
     angle = _crank_angle(mechanism, nominal.t, nominal.period)
     coeffs = _adaptive_coefficients(
-        model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, nominal.lam,
+        model, nominal.t, nominal.s, nominal.sdot, nominal.sddot,
+        _multipliers_of(model, nominal),
         period=nominal.period, independent=independent,
         label=lambda k: f"crank angle {angle[k]:.6g} rad (t = {nominal.t[k]:.6g} s)")
     return _finish(mechanism, model, nominal, coeffs, specs, angle, started)
@@ -287,10 +285,8 @@ def _nominal_motion(mechanism, n_steps):
     t = np.linspace(0.0, coarse.period, n_steps + 1)
     s = interpolate_periodic(periodic_part, n_steps) + np.outer(t / coarse.period, drift)
     fine = {name: interpolate_periodic(a, n_steps) for name, a in arrays.items()}
-    model = coarse.model
-    from mechanisms._batch import constraint_terms
-
-    jacobian, rate, gamma, phi = constraint_terms(model, t, s, fine["sdot"], with_values=True)
+    terms = mechanisms.constraint_terms_along(coarse.model, t, s, fine["sdot"], values=True)
+    jacobian, rate, gamma, phi = terms.jacobian, terms.rate, terms.gamma, terms.values
     velocity = np.abs(np.einsum("krn,kn->kr", jacobian, fine["sdot"]) + rate).max()
     acceleration = np.abs(np.einsum("krn,kn->kr", jacobian, fine["sddot"]) - gamma).max()
     position = np.abs(phi).max()
@@ -305,27 +301,23 @@ def _nominal_motion(mechanism, n_steps):
         run_time=time.perf_counter() - started, **fine)
 
 
+def _multipliers_of(model, nominal):
+    """The nominal multipliers (N+1, r) of ``model``'s constraints. The nominal motion prescribes
+    every drive; the model with feedforward has no row for a torque drive (its torque is in Q), so
+    that drive's multiplier is left out (rows matched by their labels)."""
+    if model is nominal.model:
+        return nominal.lam
+    labels = list(nominal.model.constraint_labels)
+    return nominal.lam[:, [labels.index(label) for label in model.constraint_labels]]
+
+
 def _model_with_feedforward(mechanism, nominal):
     """The model whose torque drives apply the nominal inverse-dynamics torque (interpolated
     periodically on the grid), so that the nominal motion is a solution of the full equations."""
-    torque_joints = [d.joint for d in mechanism.drives if isinstance(d, mechanisms.TorqueDrive)]
-    if not torque_joints:
+    if not any(isinstance(d, mechanisms.TorqueDrive) for d in mechanism.drives):
         return nominal.model
-    feedforward = {}
-    for i, drive in enumerate(mechanism.drives):
-        if isinstance(drive, mechanisms.TorqueDrive):
-            torque = nominal.drive_torque[:, i].copy()
-            feedforward[drive.joint] = _periodic_interpolant(nominal.t, torque, nominal.period)
-    return mechanisms.assemble(mechanism, feedforward=feedforward)
-
-
-def _periodic_interpolant(t, values, period):
-    from scipy.interpolate import CubicSpline
-
-    values = values.copy()
-    values[-1] = values[0]  # equal up to the nominal motion's closure error (round-off)
-    spline = CubicSpline(t, values, bc_type="periodic")
-    return lambda time_: float(spline(time_ % period))
+    return mechanisms.assemble(mechanism,
+                               feedforward=mechanisms.feedforward_torques(mechanism, nominal))
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -455,10 +447,9 @@ def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFam
 def _static_multipliers(model, nominal) -> np.ndarray:
     """Multipliers of the rigid mechanism held at rest in each nominal configuration (gravity and
     other static loads only): the rigid rows of ``Phi_s^T lam = Q(s, 0, t)``."""
-    from mechanisms._batch import constraint_terms, inertia_residual
-
     rigid = np.asarray(model.rigid_index, dtype=np.int64)
     zero = np.zeros_like(nominal.s)
-    forces = -inertia_residual(model, nominal.t, nominal.s, zero, zero)   # Q(s, 0, t)
-    Phi_r = constraint_terms(model, nominal.t, nominal.s)[0][:, :, rigid]
+    # Q(s, 0, t) = -(M 0 - Q(s, 0, t))
+    forces = -mechanisms.inertia_residual_along(model, nominal.t, nominal.s, zero, zero)
+    Phi_r = mechanisms.constraint_terms_along(model, nominal.t, nominal.s).jacobian[:, :, rigid]
     return np.linalg.solve(np.swapaxes(Phi_r, 1, 2), forces[:, rigid, None])[..., 0]

@@ -1,6 +1,6 @@
 """Linearisation of constrained equations of motion about a periodic nominal motion.
 
-The model (see ``mechanisms._protocol``) obeys
+The model (any ``mechanisms.ConstrainedModel``) obeys
 
     R(s, s', s'', lam, t) = M(s) s'' - Q(s, s', t) + Phi_s(s, t)^T lam = 0,     Phi(s, t) = 0.
 
@@ -33,6 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import mechanisms
+
 __all__ = ["LinearizationError", "LinearCoefficients", "linear_coefficients",
            "spectral_derivatives", "choose_independent"]
 
@@ -44,7 +46,11 @@ WARN_CONDITION = 1.0e6
 
 
 class LinearizationError(ValueError):
-    """The constrained equations cannot be linearised as asked (toggle position, bad nominal)."""
+    """The mechanism or the request cannot be linearised as asked: a toggle (dead-centre) position
+    along the prescribed motion, an over-constrained linkage, a drive that ``speed_family`` cannot
+    scale, a joint kind the geometric stiffness does not know. The scene's fault, hence a
+    ``ValueError``; numerical failures on a valid mechanism raise ``mechanisms.ConvergenceError``
+    (a ``RuntimeError``)."""
 
 
 @dataclass(frozen=True)
@@ -178,7 +184,9 @@ def linear_coefficients(model, t: np.ndarray, s0: np.ndarray, sdot0: np.ndarray,
     m = independent.size
     label = time_label or (lambda k: f"t = {t[k]:.6g} s")
 
-    mass, damping, stiffness, residual, jacobian = _linear_terms(model, t, s0, sdot0, sddot0, lam0)
+    terms = mechanisms.linear_terms_along(model, t, s0, sdot0, sddot0, lam0)
+    mass, damping, stiffness, residual, jacobian = (
+        terms.mass, terms.damping, terms.stiffness, terms.residual, terms.jacobian)
     Phi_d = jacobian[:, :, dependent]
     singular_values = np.linalg.svd(Phi_d, compute_uv=False)
     with np.errstate(divide="ignore"):
@@ -209,33 +217,6 @@ def linear_coefficients(model, t: np.ndarray, s0: np.ndarray, sdot0: np.ndarray,
     return LinearCoefficients(t=t, M=M_z, C=C_z, K=K_z, f=f_z, V=V, Vdot=Vdot, Vddot=Vddot,
                               independent=independent, dependent_condition=condition,
                               spectral_error=tail, rigid_residual=rigid_residual)
-
-
-def _linear_terms(model, t, s0, sdot0, sddot0, lam0):
-    """Mass, damping ``-dQ/ds'``, stiffness, residual and constraint Jacobian at every sample:
-    (N, n, n) x 3, (N, n), (N, r, n). An assembled ``mechanisms.Model`` is evaluated in one numba
-    call; any other model through the protocol's methods, sample by sample."""
-    import mechanisms
-    from mechanisms._batch import linear_terms
-
-    if isinstance(model, mechanisms.Model):
-        return linear_terms(model, t, s0, sdot0, sddot0, lam0)
-    n_samples, n = s0.shape
-    mass = np.empty((n_samples, n, n))
-    damping = np.empty((n_samples, n, n))
-    stiffness = np.empty((n_samples, n, n))
-    residual = np.empty((n_samples, n))
-    jacobian = np.empty((n_samples, model.n_constraints, n))
-    for k in range(n_samples):
-        s, sd, sdd, lam, tk = s0[k], sdot0[k], sddot0[k], lam0[k], t[k]
-        mass[k] = model.mass_matrix(s)
-        jacobian[k] = model.constraint_jacobian(s, tk)
-        dQ_ds, dQ_dsdot = model.force_jacobians(s, sd, tk)
-        damping[k] = -dQ_dsdot
-        stiffness[k] = (model.mass_matrix_jacobian(s, sdd) - dQ_ds
-                        + model.constraint_force_jacobian(s, lam, tk))
-        residual[k] = mass[k] @ sdd - model.forces(s, sd, tk) + jacobian[k].T @ lam
-    return mass, damping, stiffness, residual, jacobian
 
 
 def _worst_constraints(Phi_d: np.ndarray, model) -> str:

@@ -21,17 +21,25 @@ with ``e`` the unit vector of the link's x-axis, ``a(xi) = R'' + xi (theta'' e_p
 rigid acceleration, and ``F_J = -Phi_J,R^T lam_J`` the force joint J exerts on the link (the block of
 the constraint Jacobian on the link's frame position ``R``). Its axial part integrates in closed form:
 ``e . int_x^L mu (g - a) dxi = mu [ e.(g - R'') (L - x) + theta'^2 (L^2 - x^2) / 2 ]``.
+
+The joints come from ``model.joint_rows(name)`` (``mechanisms.JointRows``): their constraint rows,
+kind and attachment points.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from mechanisms import GROUND, Revolute
+import mechanisms
 
-__all__ = ["axial_force", "geometric_stiffness"]
+from ._core import LinearizationError
+
+__all__ = ["geometric_stiffness"]
+
+# Joint kinds that load a link with one force at one material point, ``-Phi_J,R^T lam_J`` (a pin:
+# both components; a slider: the guide's normal force). A new kind must say here how it loads a
+# link before a stiffened link may use it.
+_POINT_FORCE_JOINTS = ("revolute", "slider")
 
 
 class _LinkLoading:
@@ -47,18 +55,18 @@ class _LinkLoading:
         self.slopes = layout.shapes.evaluate(self.x).dw       # (n_gauss, n_elastic)
         self.mu = link.density * link.area
         self.length = link.length
-        labels = model.constraint_labels
         self.joints = []                                      # (abscissa, rows)
         for joint in model.mechanism.joints:
-            if isinstance(joint, Revolute):
-                ends = [(joint.link_a, joint.point_a), (joint.link_b, joint.point_b)]
-                rows = [labels.index(f"{joint.name}.x"), labels.index(f"{joint.name}.y")]
-            else:
-                ends = [(joint.link, joint.point)]
-                rows = [labels.index(f"{joint.name}.n")]
-            self.joints += [(_abscissa(point, link), rows) for link_name, point in ends
+            rows = model.joint_rows(joint.name)
+            if rows.kind not in _POINT_FORCE_JOINTS:
+                raise LinearizationError(
+                    f"the geometric stiffness of link {name!r} needs the load of joint "
+                    f"{joint.name!r}, whose kind {rows.kind!r} it does not know (known: "
+                    f"{', '.join(_POINT_FORCE_JOINTS)}); turn geometric_stiffening off on the link")
+            # an elastic link's points lie on its axis: x is the abscissa
+            self.joints += [(x, list(rows.rows)) for link_name, (x, _) in rows.ends
                             if link_name == name]
-        self.masses = [(_abscissa(pm.point, link), pm.mass)
+        self.masses = [(link.point_position(pm.point)[0], pm.mass)
                        for pm in model.mechanism.point_masses if pm.link == name]
 
     def axial_force(self, gravity, s, sdot, sddot, lam, jacobian, x):
@@ -82,22 +90,11 @@ class _LinkLoading:
         return N
 
 
-def axial_force(model, name: str, s, sdot, sddot, lam, x, *, t: float = 0.0) -> np.ndarray:
-    """Axial force ``N`` (N, tension positive) at abscissae ``x`` (m) of elastic link ``name`` in the
-    rigid motion ``s, sdot, sddot`` (n,) at time ``t`` with multipliers ``lam`` (r,)."""
-    if name not in model.layouts or model.layouts[name].shapes is None:
-        raise ValueError(f"name must be an elastic link of the model; received {name!r}")
-    loading = _LinkLoading(model, name)
-    gravity = np.asarray(model.mechanism.gravity, dtype=float)
-    one = [np.asarray(a, dtype=float)[None] for a in (s, sdot, sddot, lam)]
-    return loading.axial_force(gravity, *one, model.constraint_jacobian(s, t)[None],
-                               np.atleast_1d(np.asarray(x, dtype=float)))[0]
-
-
 def geometric_stiffness(model, t, s, sdot, sddot, lam, jacobian=None) -> np.ndarray:
-    """``K_G`` (N+1, n, n): the geometric stiffness of every link with geometric stiffening on,
-    along the rigid motion ``s, sdot, sddot`` (N+1, n) at times ``t`` (N+1,) with multipliers
-    ``lam`` (N+1, r); ``jacobian`` (N+1, r, n), the constraint Jacobian there, if already known."""
+    """``K_G`` (N+1, n, n): the geometric stiffness of every link with geometric stiffening on of
+    the assembled ``mechanisms.Model`` ``model``, along the rigid motion ``s, sdot, sddot``
+    (N+1, n) at times ``t`` (N+1,) with multipliers ``lam`` (N+1, r); ``jacobian`` (N+1, r, n),
+    the constraint Jacobian there, if already known."""
     n = model.n_coords
     K_G = np.zeros((len(t), n, n))
     loadings = [_LinkLoading(model, name) for name, layout in model.layouts.items()
@@ -105,7 +102,7 @@ def geometric_stiffness(model, t, s, sdot, sddot, lam, jacobian=None) -> np.ndar
     if not loadings:
         return K_G
     if jacobian is None:
-        jacobian = np.stack([model.constraint_jacobian(s[k], t[k]) for k in range(len(t))])
+        jacobian = mechanisms.constraint_terms_along(model, t, s).jacobian
     gravity = np.asarray(model.mechanism.gravity, dtype=float)
     for link in loadings:
         N = link.axial_force(gravity, s, sdot, sddot, lam, jacobian, link.x)
@@ -113,10 +110,3 @@ def geometric_stiffness(model, t, s, sdot, sddot, lam, jacobian=None) -> np.ndar
                                                        link.weights * N, link.slopes)
     return K_G
 
-
-def _abscissa(point, link) -> float:
-    if point == "start":
-        return 0.0
-    if point == "end":
-        return float(link.length)
-    return float(point)

@@ -45,7 +45,6 @@ from __future__ import annotations
 
 import logging
 import math
-import numbers
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Callable, Mapping
@@ -54,7 +53,8 @@ import numpy as np
 from scipy.linalg import eigh
 from scipy.sparse.csgraph import connected_components
 
-from . import _kernels
+from . import _batch, _kernels
+from ._batch import ConstraintTerms, LinearTerms
 from ._beams import BeamShapes, beam_matrices, beam_shapes, membrane_projection
 from ._observables import make_observable
 from ._parts import (GROUND, DampingMatrix, ElasticLink, Mechanism, MechanismError, ModalDamping,
@@ -117,6 +117,24 @@ class _DriveInfo:
     feedforward: Callable | None
 
 
+@dataclass(frozen=True)
+class JointRows:
+    """Where a joint lives in the constraints: ``model.joint_rows(name)``.
+
+    ``kind``: ``"revolute"`` (rows ``"J.x", "J.y"``, ``Phi = r_a - r_b``) or ``"slider"`` (row
+    ``"J.n"``, ``Phi = n . (r - origin)``); ``rows``: indices into ``Phi`` and ``lam``; ``ends``:
+    ``(link name, (x, y))`` for each side of the joint on a link (the ground side left out), with
+    the attachment point's position (m) in the undeformed link frame. Both kinds act at one
+    material point of each link they join, with the force ``-Phi_J,R^T lam_J`` on the link
+    (``Phi_J,R`` the joint's rows of the constraint Jacobian on the link's frame position R).
+    """
+
+    name: str
+    kind: str
+    rows: tuple[int, ...]
+    ends: tuple[tuple[str, tuple[float, float]], ...]
+
+
 def drive_law(drive: PrescribedDrive | TorqueDrive, period: float | None, t
               ) -> tuple[float, float, float]:
     """Nominal relative angle of a drive at time ``t`` (s) with its first and second derivatives:
@@ -140,12 +158,14 @@ class Model:
     """The assembled equations of motion of a mechanism (implements ``ConstrainedModel``).
 
     ``M(s) s'' = Q(s, s', t) - Phi_s^T lam``, ``Phi(s, t) = 0``; see ``mechanisms._protocol`` for the
-    meaning and shapes of every method. Extra attributes: ``mechanism``, ``period`` (s or ``None``),
-    ``layouts`` (name -> ``LinkLayout``), ``drive_rows`` (constraint rows of prescribed drives).
+    meaning and shapes of every method. Extra attributes: ``mechanism``, ``period`` (s),
+    ``layouts`` (name -> ``LinkLayout``), ``drive_rows`` (constraint rows of prescribed drives);
+    ``joint_rows(name)`` the rows of a joint; the batched evaluations along a sampled motion
+    ``linear_terms_along``, ``inertia_residual_along``, ``constraint_terms_along``.
     """
 
     def __init__(self, mechanism, layouts, coord_labels, constraint_labels, tables, drives,
-                 period):
+                 period, joint_rows):
         self.mechanism = mechanism
         self.layouts: dict[str, LinkLayout] = layouts
         self.coord_labels = tuple(coord_labels)
@@ -167,6 +187,7 @@ class Model:
         self._torque_drives = tuple(d for d in drives if d.row < 0)
         self._prescribed = tuple(d for d in drives if d.row >= 0)
         self.drive_rows = np.array([d.row for d in self._prescribed], dtype=np.int64)
+        self._joint_rows: dict[str, JointRows] = joint_rows
 
     # --- input checks --------------------------------------------------------------------------
     def _vector(self, value, size, name):
@@ -318,7 +339,109 @@ class Model:
             tau += float(info.feedforward(t))
         return tau
 
-    # --- observables ---------------------------------------------------------------------------
+    # --- along a sampled motion: one numba call per quantity ----------------------------------
+    def _samples(self, t, arrays, widths):
+        """``t`` as a float array (N,) and each of ``arrays`` as a contiguous float array
+        (N, width), checked."""
+        t = np.asarray(t, dtype=np.float64)
+        if t.ndim != 1:
+            raise ValueError(f"t must be a 1-d array of sample times (s); received shape {t.shape}")
+        out = []
+        for (name, value), width in zip(arrays.items(), widths):
+            array = np.ascontiguousarray(value, dtype=np.float64)
+            if array.shape != (len(t), width):
+                raise ValueError(f"{name} must have shape ({len(t)}, {width}) (samples of t, "
+                                 f"entries); received shape {array.shape}")
+            out.append(array)
+        return t, out
+
+    def linear_terms_along(self, t, s, sdot, sddot, lam) -> LinearTerms:
+        """``LinearTerms`` (mass, damping ``-dQ/ds'``, stiffness, residual, constraint Jacobian)
+        along the samples ``t`` (N,), ``s, sdot, sddot`` (N, n), ``lam`` (N, r); equal to the
+        per-sample methods. Torque drives (whose law is Python) are added vectorised."""
+        n, r = self.n_coords, self.n_constraints
+        t, (s, sdot, sddot, lam) = self._samples(
+            t, {"s": s, "sdot": sdot, "sddot": sddot, "lam": lam}, (n, n, n, r))
+        n_samples = len(t)
+        M, D, K = (np.zeros((n_samples, n, n)) for _ in range(3))
+        R = np.zeros((n_samples, n))
+        J = np.zeros((n_samples, r, n))
+        tb = self._tables
+        _batch.linear_terms_kernel(s, sdot, sddot, lam, self._gx, self._gy, tb.mp_int, tb.mp_real,
+                                   tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, tb.ct_int,
+                                   tb.ct_real, tb.h_lin, M, D, K, R, J)
+        for info in self._torque_drives:
+            # tau h enters Q; its derivatives are -kp h h^T (positions) and -kd h h^T (rates).
+            hh = np.outer(info.gradient, info.gradient)
+            R -= self._torques_along(info, t, s, sdot)[:, None] * info.gradient
+            K += info.drive.kp * hh
+            D += info.drive.kd * hh
+        return LinearTerms(mass=M, damping=D, stiffness=K, residual=R, jacobian=J)
+
+    def inertia_residual_along(self, t, s, sdot, sddot) -> np.ndarray:
+        """``M(s) s'' - Q(s, s', t)`` (N, n) along the samples ``t`` (N,), ``s, sdot, sddot``
+        (N, n), torque drives included: minus the constraint forces of the inverse dynamics."""
+        n = self.n_coords
+        t, (s, sdot, sddot) = self._samples(t, {"s": s, "sdot": sdot, "sddot": sddot}, (n, n, n))
+        out = np.zeros(s.shape)
+        tb = self._tables
+        _batch.inertia_residual_kernel(s, sdot, sddot, self._gx, self._gy, tb.mp_int, tb.mp_real,
+                                       tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, out)
+        for info in self._torque_drives:
+            out -= self._torques_along(info, t, s, sdot)[:, None] * info.gradient
+        return out
+
+    def constraint_terms_along(self, t, s, sdot=None, *, values: bool = False) -> ConstraintTerms:
+        """``ConstraintTerms`` along the samples ``t`` (N,), ``s`` (N, n): Phi_s, Phi_t, with
+        ``sdot`` (N, n) also gamma, with ``values`` also Phi; equal to the per-sample methods."""
+        n, r = self.n_coords, self.n_constraints
+        arrays = {"s": s} if sdot is None else {"s": s, "sdot": sdot}
+        t, checked = self._samples(t, arrays, (n, n))
+        s = checked[0]
+        sdot = checked[1] if sdot is not None else np.zeros((0, n))
+        n_samples = len(t)
+        tb = self._tables
+        J = np.zeros((n_samples, r, n))
+        rate = np.zeros((n_samples, r))
+        gamma = np.zeros((n_samples, r))
+        phi = np.tile(tb.phi0, (n_samples, 1)) if values else np.zeros((0, r))
+        for info in self._prescribed:
+            angle, angle_rate, angle_acc = drive_law(info.drive, self.period, t)
+            rate[:, info.row] = -angle_rate
+            gamma[:, info.row] = angle_acc          # -Phi_tt of the drive row
+            if values:
+                phi[:, info.row] -= angle
+        _batch.constraint_terms_kernel(s, sdot, tb.ct_int, tb.ct_real, tb.shp, tb.idx, tb.h_lin, J,
+                                       gamma, phi)
+        return ConstraintTerms(jacobian=J, rate=rate, gamma=gamma if len(sdot) else None,
+                               values=phi if values else None)
+
+    def _continue_positions(self, s, start, times, *, newton_stop, max_correction, column_scale):
+        """Fill ``s[start:]`` (N+1, n) by the nominal motion's fast continuation
+        (``_batch.continue_positions_kernel``); returns the first sample it could not do
+        (``len(s)`` when all are done). Needs ``start >= 3``; ``column_scale`` (n_rigid,) scales
+        the corrections as the careful path (``_kinematics``) does."""
+        tb = self._tables
+        times = np.asarray(times, dtype=np.float64)
+        angles = np.zeros((len(times), len(self._prescribed)))
+        for j, info in enumerate(self._prescribed):     # the order of self.drive_rows
+            angles[:, j] = drive_law(info.drive, self.period, times)[0]
+        return _batch.continue_positions_kernel(
+            s, start, self.drive_rows, angles, self.rigid_index, tb.phi0, tb.h_lin, tb.ct_int,
+            tb.ct_real, tb.shp, tb.idx, newton_stop, max_correction,
+            np.ascontiguousarray(column_scale, dtype=np.float64), 8)
+
+    def _torques_along(self, info, t, s, sdot):
+        """The torque (N m) of torque drive ``info`` at each sample (N,)."""
+        return np.array([self._torque(info, s[k], sdot[k], t[k]) for k in range(len(t))])
+
+    # --- joints and observables ----------------------------------------------------------------
+    def joint_rows(self, name: str) -> JointRows:
+        """The constraint rows, kind and attachment points of joint ``name`` (``JointRows``)."""
+        if name not in self._joint_rows:
+            raise ValueError(f"unknown joint {name!r}; joints are {list(self._joint_rows)}")
+        return self._joint_rows[name]
+
     def observable(self, spec: str):
         """A scalar of ``s`` named by ``spec`` (see ``mechanisms._observables``)."""
         return make_observable(self, spec)
@@ -442,88 +565,76 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
             k0[lay.elastic, lay.elastic] = k_ee
         c0[lay.elastic, lay.elastic] = _damping_matrix(link, m_ee, k_ee,
                                                        strain_rate_beta=lay.stiffening)
-    for index, pm in enumerate(mechanism.point_masses):
-        where = f"point_masses[{index}]"
-        lay = _known_link(layouts, pm.link, where + ".link")
-        _positive(pm.mass, where + ".mass")
-        _non_negative(pm.inertia, where + ".inertia")
-        cx, cy, su, sw, dw = _point_local(lay, pm.point, where + ".point")
+    for pm in mechanism.point_masses:
+        lay = layouts[pm.link]
+        cx, cy, su, sw, dw = _point_local(lay, pm.point)
         mp_int.append((lay.offset, *push(su, sw, dw)))
         mp_real.append((pm.mass, pm.inertia, cx, cy))
 
     # constraints
     constraint_labels, ct_int, ct_real, phi0 = [], [], [], []
-    joints = {}
-    for index, joint in enumerate(mechanism.joints):
-        where = f"joints[{index}]"
-        if not isinstance(joint, (Revolute, Slider)):
-            raise MechanismError(f"{where} must be a Revolute or a Slider; received "
-                            f"{type(joint).__name__}")
-        if joint.name in joints:
-            raise MechanismError(f"{where}: joint name {joint.name!r} is used twice")
-        joints[joint.name] = joint
+    joint_rows = {}
+    for joint in mechanism.joints:
         row = len(constraint_labels)
         if isinstance(joint, Revolute):
             constraint_labels += [f"{joint.name}.x", f"{joint.name}.y"]
             phi0 += [0.0, 0.0]
-            for link_name, point, sign, side in ((joint.link_a, joint.point_a, 1.0, "a"),
-                                                 (joint.link_b, joint.point_b, -1.0, "b")):
+            ends = []
+            for link_name, point, sign in ((joint.link_a, joint.point_a, 1.0),
+                                           (joint.link_b, joint.point_b, -1.0)):
                 if link_name == GROUND:
-                    gx, gy = _ground_point(point, f"{where}.point_{side}")
-                    phi0[row] += sign * gx
-                    phi0[row + 1] += sign * gy
+                    phi0[row] += sign * float(point[0])
+                    phi0[row + 1] += sign * float(point[1])
                     continue
-                lay = _known_link(layouts, link_name, f"{where}.link_{side}")
-                cx, cy, su, sw, _ = _point_local(lay, point, f"{where}.point_{side}")
+                lay = layouts[link_name]
+                cx, cy, su, sw, _ = _point_local(lay, point)
+                ends.append((link_name, (cx, cy)))
                 stored = push(su, sw)
                 for axis in (0, 1):
                     ct_int.append((row + axis, lay.offset, *stored))
                     ct_real.append((sign * (axis == 0), sign * (axis == 1), cx, cy))
-        else:
+            joint_rows[joint.name] = JointRows(joint.name, "revolute", (row, row + 1), tuple(ends))
+        elif isinstance(joint, Slider):
             constraint_labels.append(f"{joint.name}.n")
-            lay = _known_link(layouts, joint.link, f"{where}.link")
-            _finite(joint.angle, f"{where}.angle")
-            ox, oy = _ground_point(joint.origin, f"{where}.origin")
+            lay = layouts[joint.link]
+            ox, oy = (float(c) for c in joint.origin)
             nx, ny = -math.sin(joint.angle), math.cos(joint.angle)
             phi0.append(-(nx * ox + ny * oy))
-            cx, cy, su, sw, _ = _point_local(lay, joint.point, f"{where}.point")
+            cx, cy, su, sw, _ = _point_local(lay, joint.point)
             ct_int.append((row, lay.offset, *push(su, sw)))
             ct_real.append((nx, ny, cx, cy))
+            joint_rows[joint.name] = JointRows(joint.name, "slider", (row,),
+                                               ((joint.link, (cx, cy)),))
+        else:  # Mechanism accepts Revolute and Slider only: a new kind needs its rows here
+            raise NotImplementedError(f"assemble() has no constraint rows for joint "
+                                      f"{joint.name!r} of type {type(joint).__name__}")
 
-    # drives
+    # drives (a Mechanism has checked them: each names a revolute joint, with finite numbers)
     if feedforward is not None and not callable(feedforward) and not isinstance(feedforward,
                                                                                  Mapping):
-        raise TypeError("feedforward must be a callable tau(t) or a mapping joint name -> callable")
+        raise TypeError(f"feedforward must be a callable tau(t) or a mapping joint name -> "
+                        f"callable; received {type(feedforward).__name__}")
     torque_joints = [d.joint for d in mechanism.drives if isinstance(d, TorqueDrive)]
     if callable(feedforward) and len(torque_joints) != 1:
         raise MechanismError(f"feedforward is a single callable but the mechanism has "
-                         f"{len(torque_joints)} torque drives; pass a mapping joint name -> callable")
+                             f"{len(torque_joints)} torque drives; pass a mapping joint name -> "
+                             f"callable")
     if isinstance(feedforward, Mapping):
         for key in feedforward:
             if key not in torque_joints:
                 raise MechanismError(f"feedforward names joint {key!r}, which has no TorqueDrive; "
-                                 f"torque drives act at {torque_joints}")
+                                     f"torque drives act at {torque_joints}")
     drive_rows_h = []
     drives = []
-    for index, drive in enumerate(mechanism.drives):
-        where = f"drives[{index}]"
-        if not isinstance(drive, (PrescribedDrive, TorqueDrive)):
-            raise MechanismError(f"{where} must be a PrescribedDrive or a TorqueDrive; received "
-                            f"{type(drive).__name__}")
-        joint = joints.get(drive.joint)
-        if not isinstance(joint, Revolute):
-            raise MechanismError(f"{where}.joint must name a revolute joint; received "
-                             f"{drive.joint!r} (revolute joints: "
-                             f"{[j.name for j in joints.values() if isinstance(j, Revolute)]})")
-        for key in ("rate", "offset") + (("kp", "kd") if isinstance(drive, TorqueDrive) else ()):
-            _finite(getattr(drive, key), f"{where}.{key}")
+    for drive in mechanism.drives:
+        joint = mechanism.joint(drive.joint)
         gradient = np.zeros(n)
         for link_name, point, sign in ((joint.link_a, joint.point_a, -1.0),
                                        (joint.link_b, joint.point_b, 1.0)):
             if link_name == GROUND:
                 continue
             lay = layouts[link_name]
-            *_, dw = _point_local(lay, point, f"joint {joint.name!r}")
+            *_, dw = _point_local(lay, point)
             gradient[lay.offset + 2] += sign
             gradient[lay.elastic] += sign * dw
         if isinstance(drive, PrescribedDrive):
@@ -535,7 +646,6 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
         else:
             law = feedforward if callable(feedforward) else (feedforward or {}).get(drive.joint)
             drives.append(_DriveInfo(drive, gradient, -1, law))
-    period = _period(mechanism)
     r = len(constraint_labels)
     h_lin = np.zeros((r, n))
     for row, gradient in drive_rows_h:
@@ -555,31 +665,20 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
         h_lin,
         k0 if has_matrices else np.zeros((0, 0)),
         c0 if has_matrices else np.zeros((0, 0)))
-    gx, gy = mechanism.gravity
-    _finite(gx, "gravity[0]")
-    _finite(gy, "gravity[1]")
-    return Model(mechanism, layouts, coord_labels, constraint_labels, tables, tuple(drives), period)
+    # A Mechanism always has its period (given, or 2 pi / |rate| of the first drive).
+    return Model(mechanism, layouts, coord_labels, constraint_labels, tables, tuple(drives),
+                 float(mechanism.period), joint_rows)
 
 
 def _layout(mechanism):
+    """Where each link's coordinates live in ``s``, and their labels. The parts and how they fit
+    were checked when the ``Mechanism`` was made (``_parts``): nothing is checked again here."""
     layouts: dict[str, LinkLayout] = {}
     labels: list[str] = []
-    for index, link in enumerate(mechanism.links):
-        where = f"links[{index}]"
-        if not isinstance(link, (RigidLink, ElasticLink)):
-            raise MechanismError(f"{where} must be a RigidLink or an ElasticLink; received "
-                            f"{type(link).__name__}")
-        if not isinstance(link.name, str) or not link.name or link.name == GROUND:
-            raise MechanismError(f"{where}.name must be a non-empty string other than {GROUND!r}; "
-                             f"received {link.name!r}")
-        if link.name in layouts:
-            raise MechanismError(f"{where}: link name {link.name!r} is used twice")
-        _positive(link.length, f"link {link.name!r}: length")
+    for link in mechanism.links:
         offset = len(labels)
         labels += [f"{link.name}.x", f"{link.name}.y", f"{link.name}.theta"]
         if isinstance(link, RigidLink):
-            _positive(link.mass, f"link {link.name!r}: mass")
-            _non_negative(link.inertia, f"link {link.name!r}: inertia")
             layouts[link.name] = LinkLayout(link, offset, 0, None, False)
             continue
         shapes = beam_shapes(link)
@@ -614,114 +713,35 @@ def _damping_matrix(link: ElasticLink, m_ee: np.ndarray, k_ee: np.ndarray, *,
     if damping is None:
         return np.zeros((n_e, n_e))
     if isinstance(damping, Rayleigh):
-        _non_negative(damping.alpha, f"link {link.name!r}: damping.alpha")
-        _non_negative(damping.beta, f"link {link.name!r}: damping.beta")
         if strain_rate_beta:
             return damping.alpha * m_ee
         return damping.alpha * m_ee + damping.beta * k_ee
     if isinstance(damping, ModalDamping):
+        # The number of modes is the discretisation's: checked here, not by ModalDamping.
         ratios = np.asarray(damping.ratios, dtype=float)
-        if ratios.ndim != 1 or len(ratios) > n_e or not np.all(np.isfinite(ratios)) or np.any(
-                ratios < 0):
+        if len(ratios) > n_e:
             raise MechanismError(f"link {link.name!r}: damping.ratios must be at most {n_e} "
-                             f"non-negative numbers; received {damping.ratios!r}")
+                                 f"numbers (one per elastic coordinate); received "
+                                 f"{damping.ratios!r}")
         omega2, modes = eigh(k_ee, m_ee)  # mass-normalised: modes^T M modes = I
         omega = np.sqrt(np.maximum(omega2[:len(ratios)], 0.0))
         mphi = m_ee @ modes[:, :len(ratios)]
         return mphi @ np.diag(2.0 * ratios * omega) @ mphi.T
-    if isinstance(damping, DampingMatrix):
-        matrix = np.asarray(damping.matrix, dtype=float)
-        if matrix.shape != (n_e, n_e) or not np.all(np.isfinite(matrix)):
-            raise MechanismError(f"link {link.name!r}: damping.matrix must be a finite ({n_e}, {n_e}) "
-                             f"matrix (one row per elastic coordinate); received shape "
-                             f"{matrix.shape}")
-        return matrix
-    raise MechanismError(f"link {link.name!r}: damping must be Rayleigh, ModalDamping, DampingMatrix "
-                    f"or None; received {type(damping).__name__}")
+    # DampingMatrix (ElasticLink accepts these three kinds and None only); its size is the
+    # discretisation's, checked here.
+    matrix = np.asarray(damping.matrix, dtype=float)
+    if matrix.shape != (n_e, n_e):
+        raise MechanismError(f"link {link.name!r}: damping.matrix must be a ({n_e}, {n_e}) matrix "
+                             f"(one row per elastic coordinate); received shape {matrix.shape}")
+    return matrix
 
 
-def _point_local(lay: LinkLayout, point, where):
-    """Local position ``c`` and shape rows ``(Su, Sw, Sw')`` of a point of a link."""
-    link = lay.link
+def _point_local(lay: LinkLayout, point):
+    """Local position ``(cx, cy)`` (m) and shape rows ``(Su, Sw, Sw')`` of a point of a link (the
+    position from the one point lookup, ``point_position``; a rigid link's rows are empty)."""
+    cx, cy = lay.link.point_position(point)
     if lay.shapes is None:
-        if isinstance(point, str):
-            if point == "start":
-                local = (0.0, 0.0)
-            elif point == "end":
-                local = (link.length, 0.0)
-            elif point in link.points:
-                local = tuple(float(c) for c in link.points[point])
-            else:
-                raise MechanismError(f"{where}: link {link.name!r} has no point {point!r}; use "
-                                 f"'start', 'end', {sorted(link.points)} or a float in "
-                                 f"[0, {link.length}]")
-        else:
-            local = (_abscissa(point, link, where), 0.0)
         empty = np.zeros(0)
-        return local[0], local[1], empty, empty, empty
-    if point == "start":
-        x = 0.0
-    elif point == "end":
-        x = link.length
-    elif isinstance(point, str):
-        raise MechanismError(f"{where}: elastic link {link.name!r} has no named point {point!r}; use "
-                         f"'start', 'end' or a float in [0, {link.length}]")
-    else:
-        x = _abscissa(point, link, where)
-    v = lay.shapes.evaluate([x])
-    return x, 0.0, v.u[0], v.w[0], v.dw[0]
-
-
-def _abscissa(point, link, where):
-    if not isinstance(point, numbers.Real) or not math.isfinite(point) or not (
-            0.0 <= point <= link.length):
-        raise MechanismError(f"{where}: a point on link {link.name!r} must be 'start', 'end', a named "
-                         f"point or a float in [0, {link.length}]; received {point!r}")
-    return float(point)
-
-
-def _ground_point(point, where):
-    try:
-        gx, gy = (float(c) for c in point)
-    except (TypeError, ValueError):
-        raise MechanismError(f"{where}: a ground point must be a pair (x, y) in metres; received "
-                         f"{point!r}") from None
-    if not (math.isfinite(gx) and math.isfinite(gy)):
-        raise MechanismError(f"{where}: a ground point must be finite; received {point!r}")
-    return gx, gy
-
-
-def _known_link(layouts, name, where):
-    if name not in layouts:
-        raise MechanismError(f"{where}: unknown link {name!r}; links are {list(layouts)}")
-    return layouts[name]
-
-
-def _period(mechanism):
-    if mechanism.period is not None:
-        _positive(mechanism.period, "period")
-        return float(mechanism.period)
-    if not mechanism.drives:
-        return None
-    first = mechanism.drives[0]
-    if first.rate != 0.0:
-        return 2.0 * math.pi / abs(first.rate)
-    if any(d.harmonics for d in mechanism.drives):
-        raise MechanismError("period is required: a drive has harmonics and the first drive's rate "
-                         "is zero")
-    return None
-
-
-def _finite(value, where):
-    if not isinstance(value, numbers.Real) or not math.isfinite(value):
-        raise MechanismError(f"{where} must be a finite number; received {value!r}")
-
-
-def _positive(value, where):
-    if not isinstance(value, numbers.Real) or not math.isfinite(value) or value <= 0:
-        raise MechanismError(f"{where} must be a positive finite number; received {value!r}")
-
-
-def _non_negative(value, where):
-    if not isinstance(value, numbers.Real) or not math.isfinite(value) or value < 0:
-        raise MechanismError(f"{where} must be a non-negative finite number; received {value!r}")
+        return cx, cy, empty, empty, empty
+    v = lay.shapes.evaluate([cx])
+    return cx, cy, v.u[0], v.w[0], v.dw[0]

@@ -205,10 +205,13 @@ def _elastic_velocity(sdot, nnz, lx, ly, cols):
 
 
 @numba.njit(cache=True)
-def _point_motion(s, sdot, gx, gy, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols):
-    """Fill L (eq. 1) and return A p, theta', A S q' and v = g - c (eq. 2), the acceleration that
-    gravity minus the velocity terms give the point: c = -theta'^2 A p + 2 theta' J A S q'."""
-    apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
+def _point_motion(s, sdot, gx, gy, i, mp_int, mp_real, shp, idx, lx, ly, cols):
+    """For mass point ``i``: fill L (eq. 1) and return A p, theta', A S q' and v = g - c (eq. 2),
+    the acceleration that gravity minus the velocity terms give the point:
+    c = -theta'^2 A p + 2 theta' J A S q'."""
+    off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
+    apx, apy = _fill_l(s, off, nnz, mp_real[i, 2], mp_real[i, 3], ptr, iptr, shp, idx, lx, ly,
+                       cols)
     wt = sdot[off + 2]
     asv_x, asv_y = _elastic_velocity(sdot, nnz, lx, ly, cols)
     vx = gx + wt * wt * apx + 2.0 * wt * asv_y
@@ -290,13 +293,12 @@ def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, 
     out (n,) zeroed."""
     lx, ly, cols = _scratch(mp_int[:, 1])
     for i in range(mp_int.shape[0]):
-        off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
-        m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
+        m = mp_real[i, 0]
         if m == 0.0:
             continue
-        apx, apy, wt, asv_x, asv_y, vx, vy = _point_motion(s, sdot, gx, gy, off, nnz, cx, cy, ptr,
-                                                           iptr, shp, idx, lx, ly, cols)
-        for a in range(3 + nnz):
+        apx, apy, wt, asv_x, asv_y, vx, vy = _point_motion(s, sdot, gx, gy, i, mp_int, mp_real,
+                                                           shp, idx, lx, ly, cols)
+        for a in range(3 + mp_int[i, 1]):
             out[cols[a]] += m * (lx[a] * vx + ly[a] * vy)
     slope, eps, kappa, coef = _group_scratch(sp_int)
     slope_rate, eps_rate, kappa_rate, coef_rate = _group_scratch(sp_int)
@@ -329,14 +331,14 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
     (n, n) zeroed."""
     lx, ly, cols = _scratch(mp_int[:, 1])
     for i in range(mp_int.shape[0]):
-        off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
-        m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
+        m = mp_real[i, 0]
         if m == 0.0:
             continue
-        apx, apy, wt, asv_x, asv_y, vx, vy = _point_motion(s, sdot, gx, gy, off, nnz, cx, cy, ptr,
-                                                           iptr, shp, idx, lx, ly, cols)
+        apx, apy, wt, asv_x, asv_y, vx, vy = _point_motion(s, sdot, gx, gy, i, mp_int, mp_real,
+                                                           shp, idx, lx, ly, cols)
+        nnz = mp_int[i, 1]
         nl = 3 + nnz
-        t = off + 2
+        t = mp_int[i, 0] + 2
         # d(g - c)/dtheta = w^2 J A p + 2 w A S q', with J A p = (-apy, apx)
         dtx = -wt * wt * apy + 2.0 * wt * asv_x
         dty = wt * wt * apx + 2.0 * wt * asv_y

@@ -12,7 +12,9 @@ and the constraints (joints and drives) form a square system, solved on the unif
   ``mechanisms._protocol``): ``Phi_r^T lam = Q_r - (M s'')_r``, and the drive torques from them.
 
 The scaled Jacobian's condition number is tracked: a toggle position (singular Jacobian) raises
-``MechanismError`` naming the joints and the crank angle, an ill-conditioned one warns.
+``MechanismError`` naming the joints and the crank angle, an ill-conditioned one warns. A
+continuation that fails on a mechanism that is fine (it switched assembly branch, or cannot reach
+the required residual) raises ``ConvergenceError``.
 """
 
 from __future__ import annotations
@@ -22,13 +24,13 @@ import math
 import time
 import warnings
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
-from ._assemble import assemble
-from ._parts import (GROUND, Mechanism, MechanismError, PrescribedDrive, Revolute, TorqueDrive,
-                     _pin_position)
+from ._assemble import Model, assemble
+from ._batch import constraint_terms_along, inertia_residual_along, scaled_correction
+from ._parts import GROUND, Mechanism, MechanismError, PrescribedDrive, Revolute, TorqueDrive
 
 logger = logging.getLogger(__name__)
 
@@ -41,9 +43,17 @@ _RESIDUAL_REQUIRED = 1e-12
 # 1e6 (errors of 1e-10 m from rounding) we warn and above 1e10 (a toggle) we stop.
 _COND_WARN, _COND_SINGULAR = 1e6, 1e10
 # A Newton correction larger than 0.05 (rad, or a twentieth of the link scale) after a second-order
-# predictor means a jump towards another assembly branch: the step is halved instead.
+# predictor means a jump towards another assembly branch: the step is halved instead. Both
+# continuation paths (the numba one of an assembled model and _RigidSystem's) measure the
+# correction alike: how far Newton moved from the predictor (``_batch.scaled_correction``).
 _MAX_CORRECTION = 0.05
 _MAX_HALVINGS = 12
+
+
+class ConvergenceError(RuntimeError):
+    """A numerical method failed on a valid mechanism: the nominal motion's continuation switched
+    assembly branch or could not reach its residual (``mechanisms.SimulationError``, a failed
+    nonlinear run, is one too). Invalid input raises ``MechanismError`` (a ``ValueError``)."""
 
 
 @dataclass(frozen=True)
@@ -91,7 +101,8 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
     nominal law here, and their torque is the inverse-dynamics one.
 
     Raises ``MechanismError`` when the linkage cannot be assembled, the crank cannot turn through
-    the period or the constraint Jacobian is singular (toggle), naming joints and crank angle.
+    the period or the constraint Jacobian is singular (toggle), naming joints and crank angle;
+    ``ConvergenceError`` when the continuation fails on a mechanism that is fine.
     """
     started = time.perf_counter()
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 2:
@@ -133,12 +144,13 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
     # O(h^3), without solving for rates inside the loop).
     # An assembled model runs the plain steps in one numba loop, which hands back the first step
     # that needs care (a large correction or a struggling Newton) to the step-halving path here.
-    fast = _fast_continuation(model)
+    fast = isinstance(model, Model)    # the numba path reads the assembled model's tables
     k = 1
     while k <= n_steps:
         if fast and k >= 3:
-            k = fast(model, s, k, times, newton_stop=_NEWTON_STOP, max_correction=_MAX_CORRECTION,
-                     column_scale=system.column_scale)
+            k = model._continue_positions(s, k, times, newton_stop=_NEWTON_STOP,
+                                          max_correction=_MAX_CORRECTION,
+                                          column_scale=system.column_scale)
             if k > n_steps:
                 break
         if k >= 3:
@@ -150,13 +162,8 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
         k += 1
 
     # Conditioning, rates and multipliers along the whole grid, with stacked linear algebra.
-    batch = _batch_terms(model)
-    if batch:
-        jacobians, rates, _ = batch(model, times, s)
-    else:
-        jacobians = np.stack([model.constraint_jacobian(s[k], times[k])
-                              for k in range(len(times))])
-        rates = np.stack([model.constraint_rate(s[k], times[k]) for k in range(len(times))])
+    positions = constraint_terms_along(model, times, s, values=True)
+    jacobians, rates = positions.jacobian, positions.rate
     rigid_jacobians = jacobians[:, :, rigid]
     scaled = system.row_scale[None, :, None] * rigid_jacobians * system.column_scale[None, None, :]
     singular_values = np.linalg.svd(scaled, compute_uv=False)
@@ -168,26 +175,18 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
                               times[int(np.argmax(~(condition < _COND_WARN)))])
     sdot = np.zeros_like(s)
     sdot[:, rigid] = np.linalg.solve(rigid_jacobians, -rates[..., None])[..., 0]
-    if batch:
-        gamma = batch(model, times, s, sdot)[2]
-    else:
-        gamma = np.stack([model.constraint_gamma(s[k], sdot[k], times[k])
-                          for k in range(len(times))])
+    gamma = constraint_terms_along(model, times, s, sdot).gamma
     sddot = np.zeros_like(s)
     sddot[:, rigid] = np.linalg.solve(rigid_jacobians, gamma[..., None])[..., 0]
-    inertia = _inertia_residual(model, times, s, sdot, sddot)      # M s'' - Q, (N+1, n)
+    inertia = inertia_residual_along(model, times, s, sdot, sddot)      # M s'' - Q, (N+1, n)
     lam = np.linalg.solve(np.swapaxes(rigid_jacobians, 1, 2), -inertia[:, rigid, None])[..., 0]
 
     drive_torque = _drive_torques(model, s, sdot, lam, times)
-    if batch:
-        residual = float(np.abs(batch(model, times, s, with_values=True)[3]).max())
-    else:
-        residual = max(float(np.abs(model.constraints(s[k], times[k])).max())
-                       for k in range(len(times)))
+    residual = float(np.abs(positions.values).max())
     if residual > _RESIDUAL_REQUIRED:
-        raise MechanismError(f"the nominal motion's constraint residual {residual:.3g} exceeds "
-                             f"{_RESIDUAL_REQUIRED:g}: the Jacobian is too ill-conditioned "
-                             f"(max condition number {condition.max():.3g})")
+        raise ConvergenceError(f"the nominal motion's constraint residual {residual:.3g} exceeds "
+                               f"{_RESIDUAL_REQUIRED:g}: the Jacobian is too ill-conditioned "
+                               f"(max condition number {condition.max():.3g})")
     velocity_residual = float(np.abs(np.einsum("krn,kn->kr", jacobians, sdot) + rates).max())
     acceleration_residual = float(np.abs(np.einsum("krn,kn->kr", jacobians, sddot)
                                          - gamma).max())
@@ -195,10 +194,10 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
     # The continuation closes on itself up to Newton's accuracy amplified by the conditioning; a
     # closure error of 1e-6 or more means it ended on another assembly branch.
     if closure > 1e-6:
-        raise MechanismError(f"the nominal motion does not close over one period (state at T "
-                             f"differs from t = 0 by {closure:.3g}): the continuation switched "
-                             f"assembly branch; check for toggle positions or give a larger "
-                             f"n_steps")
+        raise ConvergenceError(f"the nominal motion does not close over one period (state at T "
+                               f"differs from t = 0 by {closure:.3g}): the continuation switched "
+                               f"assembly branch; check for toggle positions or give a larger "
+                               f"n_steps")
     run_time = time.perf_counter() - started
     logger.info("nominal motion: %d steps in %.3f s, residual %.2e, max condition %.3g",
                 n_steps, run_time, residual, condition.max())
@@ -240,7 +239,6 @@ class _RigidSystem:
         scale = 1.0
         if mechanism is not None:
             scale = max(link.length for link in mechanism.links)
-        self.scale = scale
         self.column_scale = np.array([1.0 if labels[i].endswith(".theta") else scale
                                       for i in rigid])
         self.row_scale = np.array([1.0 if label.startswith("drive:") else 1.0 / scale
@@ -276,24 +274,29 @@ class _RigidSystem:
 
     def newton(self, s: np.ndarray, t: float, max_iterations: int) -> tuple[np.ndarray, bool,
                                                                              float]:
-        """Newton on the rigid coordinates; returns (s, converged, scaled size of all corrections)."""
+        """Newton on the rigid coordinates from the predictor ``s``; returns (s, converged, how
+        far it moved from the predictor, ``scaled_correction``)."""
+        predicted = s
         s = s.copy()
-        total = 0.0
         for _ in range(max_iterations):
             phi = self.model.constraints(s, t)
             if np.abs(phi).max() < _NEWTON_STOP:
-                return s, True, total
+                return s, True, self.correction(s, predicted)
             jac = self.jacobian(s, t)
             try:
                 step = np.linalg.solve(jac, phi)
             except np.linalg.LinAlgError:
-                return s, False, total
+                return s, False, np.inf
             if not np.isfinite(step).all():
-                return s, False, total
+                return s, False, np.inf
             s[self.rigid] -= step
-            total += float(np.abs(step / self.column_scale).max())
         phi = self.model.constraints(s, t)
-        return s, bool(np.abs(phi).max() < _RESIDUAL_REQUIRED), total
+        return s, bool(np.abs(phi).max() < _RESIDUAL_REQUIRED), self.correction(s, predicted)
+
+    def correction(self, corrected: np.ndarray, predicted: np.ndarray) -> float:
+        return float(scaled_correction(np.ascontiguousarray(corrected, dtype=np.float64),
+                                       np.ascontiguousarray(predicted, dtype=np.float64),
+                                       self.rigid, self.column_scale))
 
     def assemble(self, guess: np.ndarray) -> np.ndarray:
         """Positions at t = 0 from a rough guess: damped Newton (backtracking on |Phi|)."""
@@ -377,40 +380,6 @@ class _RigidSystem:
         sddot[self.rigid] = np.linalg.solve(jac, self.model.constraint_gamma(s, sdot, t))
         return sdot, sddot, cond
 
-    def multipliers(self, s: np.ndarray, sdot: np.ndarray, sddot: np.ndarray,
-                    t: float) -> np.ndarray:
-        """Rigid rows of M s'' = Q - Phi_s^T lam, solved for lam (square: n_rigid = r)."""
-        rhs = (self.model.forces(s, sdot, t) - self.model.mass_matrix(s) @ sddot)[self.rigid]
-        return np.linalg.solve(self.jacobian(s, t).T, rhs)
-
-
-def _batch_terms(model: Any):
-    """The batched constraint terms for an assembled model, or None for a hand-written one."""
-    from ._assemble import Model
-    from ._batch import constraint_terms
-
-    return constraint_terms if isinstance(model, Model) else None
-
-
-def _fast_continuation(model: Any):
-    """The numba continuation for an assembled model, or None for a hand-written one."""
-    from ._assemble import Model
-    from ._batch import continue_positions
-
-    return continue_positions if isinstance(model, Model) else None
-
-
-def _inertia_residual(model: Any, times: np.ndarray, s: np.ndarray, sdot: np.ndarray,
-                      sddot: np.ndarray) -> np.ndarray:
-    """``M(s) s'' - Q(s, s', t)`` at every sample (N+1, n): one numba call for an assembled model."""
-    from ._assemble import Model
-    from ._batch import inertia_residual
-
-    if isinstance(model, Model):
-        return inertia_residual(model, times, s, sdot, sddot)
-    return np.stack([model.mass_matrix(s[k]) @ sddot[k] - model.forces(s[k], sdot[k], times[k])
-                     for k in range(len(times))])
-
 
 def _drive_torques(model: Any, s: np.ndarray, sdot: np.ndarray, lam: np.ndarray,
                    times: np.ndarray) -> np.ndarray:
@@ -455,7 +424,7 @@ def _initial_guess(mech: Mechanism, labels: list[str], n: int, period: float) ->
     origins: dict[str, np.ndarray] = {}
 
     def world(name: str, point: Any) -> np.ndarray:
-        local = np.array(_pin_position(links[name], point, f"link {name!r}"))
+        local = np.array(links[name].point_position(point))
         c, s = math.cos(angles[name]), math.sin(angles[name])
         return origins[name] + np.array([c * local[0] - s * local[1], s * local[0] + c * local[1]])
 
@@ -480,3 +449,24 @@ def _initial_guess(mech: Mechanism, labels: list[str], n: int, period: float) ->
         s[index[f"{name}.x"]], s[index[f"{name}.y"]] = x, y
         s[index[f"{name}.theta"]] = angles[name]
     return s
+
+
+def feedforward_torques(mechanism: Mechanism, nominal: NominalMotion
+                        ) -> dict[str, Callable[[float], float]]:
+    """The nominal inverse-dynamics torque (N m) of each ``TorqueDrive`` of ``mechanism``, by joint
+    name, as a function of time: a periodic cubic spline through ``nominal.drive_torque`` (the
+    mechanism's ``nominal_motion``). ``assemble(mechanism, feedforward=...)`` with it gives the model
+    whose nominal motion solves the full equations: the one drive law of ``simulate`` and
+    ``linearize``."""
+    from scipy.interpolate import CubicSpline
+
+    feedforward = {}
+    for i, drive in enumerate(mechanism.drives):
+        if not isinstance(drive, TorqueDrive):
+            continue
+        torque = np.array(nominal.drive_torque[:, i], dtype=float)
+        torque[-1] = torque[0]   # equal up to the nominal motion's closure error (round-off)
+        spline = CubicSpline(nominal.t, torque, bc_type="periodic")
+        feedforward[drive.joint] = (
+            lambda t, spline=spline, period=nominal.period: float(spline(t % period)))
+    return feedforward

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._parts import ElasticLink
+
 _KINDS = {"deflection": "m", "transverse": "m", "strain": "1", "moment": "N m", "angle": "rad"}
 
 
@@ -97,6 +99,16 @@ class LinkObservable:
             grad = self.flexural_rigidity * ddw
         out[self.coords][3:] = grad
         return out
+
+
+def default_observables(mechanism) -> tuple[str, ...]:
+    """The observables reported when none are asked for (by ``simulate`` and ``linearize``): the
+    midspan deflection from the chord (``"link.deflection@0.5"``) of each pinned-pinned elastic
+    link, the tip deflection from the root tangent (``"link.transverse@1.0"``) of each
+    clamped-free one, in the order of ``mechanism.links``."""
+    return tuple(f"{link.name}.deflection@0.5" if link.boundary == "pinned-pinned"
+                 else f"{link.name}.transverse@1.0"
+                 for link in mechanism.links if isinstance(link, ElasticLink))
 
 
 def make_observable(model, spec: str) -> LinkObservable:

@@ -46,8 +46,9 @@ _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
 
 
 def _check_name(kind: str, name: object) -> None:
-    # Names become parts of dotted parameter paths ("links.coupler.thickness") and of observable
-    # specs ("coupler.deflection@0.5", "joint:B.fx"), so dots, '@' and ':' are not allowed.
+    # Names become parts of dotted parameter paths ("links.coupler.thickness"), of observable
+    # specs ("coupler.deflection@0.5") and of constraint labels ("B.x", "drive:O"), so dots, '@'
+    # and ':' are not allowed.
     if not isinstance(name, str) or not _NAME.match(name):
         raise MechanismError(f"{kind} name must be a word of letters, digits, '_' or '-' starting "
                              f"with a letter (no dots), got {name!r}")
@@ -212,6 +213,11 @@ class RigidLink:
                 raise MechanismError(f"{owner}: point name {key!r} is reserved for the pins")
             _check_pair(owner, f"points.{key}", point, "m")
 
+    def point_position(self, point: PointRef) -> tuple[float, float]:
+        """Position (m) of ``point`` (``"start"``, ``"end"``, a key of ``points`` or a distance
+        along the link) in the link frame."""
+        return _pin_position(self, point, f"link {self.name!r}")
+
     @classmethod
     def uniform(cls, name: str, length: float, *, width: float, thickness: float, density: float,
                 **kwargs) -> "RigidLink":
@@ -282,6 +288,11 @@ class ElasticLink:
     @property
     def mass(self) -> float:
         return self.density * self.area * self.length
+
+    def point_position(self, point: PointRef) -> tuple[float, float]:
+        """Position (m) of ``point`` (``"start"``, ``"end"`` or a distance along the link) in the
+        undeformed link frame: ``(x, 0)``, ``x`` the point's abscissa."""
+        return _pin_position(self, point, f"link {self.name!r}")
 
     def first_bending_frequency(self) -> float:
         """First pinned-pinned (or clamped-free) bending frequency of the link alone, rad/s."""
@@ -521,7 +532,9 @@ class Mechanism:
 
 
 def _pin_position(link: Link, point: object, owner: str) -> tuple[float, float]:
-    """Position of a named point in the undeformed link frame, m; raises for unknown points."""
+    """Position of a point of a link in its undeformed link frame, m; raises ``MechanismError``
+    naming ``owner`` for an unknown point. The one point lookup of the package (the links'
+    ``point_position``, the assembler, the initial guess of the nominal motion)."""
     if point == "start":
         return (0.0, 0.0)
     if point == "end":

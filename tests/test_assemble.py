@@ -583,6 +583,135 @@ def test_bad_mechanisms_are_rejected_with_the_offending_part_named(change, culpr
         assemble(change(fourbar()))
 
 
+def _joints(m, index, joint):
+    return m.joints[:index] + (joint,) + m.joints[index + 1:]
+
+
+def _coupler(**changes):
+    return ElasticLink.rectangular("coupler", L2, youngs_modulus=E, **{**STEEL, **changes})
+
+
+# Every check that assemble() made a second time before it was removed, and the constructor's
+# message that now catches it (assemble trusts a Mechanism: it is validated when it is made).
+CONSTRUCTOR_CHECKS = {
+    "link type": (lambda m: _replace(m, links=m.links + ("rod",)),
+                  "links must be RigidLink or ElasticLink"),
+    "link name empty": (lambda m: RigidLink("", 0.1, mass=0.1, inertia=1e-5), "link name must be"),
+    "link name ground": (lambda m: RigidLink(GROUND, 0.1, mass=0.1, inertia=1e-5), "reserved"),
+    "link name twice": (lambda m: _replace(m, links=m.links + (m.links[0],)),
+                        "duplicate link name 'crank'"),
+    "elastic length": (lambda m: ElasticLink.rectangular("coupler", -0.2, youngs_modulus=E,
+                                                         **STEEL), "length must be positive"),
+    "rigid mass": (lambda m: RigidLink("crank", L1, mass=0.0, inertia=1e-5),
+                   "mass must be positive"),
+    "rigid inertia": (lambda m: RigidLink("crank", L1, mass=0.1, inertia=-1e-5),
+                      "inertia must be zero or positive"),
+    "point mass link": (lambda m: _replace(m, point_masses=(PointMass("cupler", 0.1, 0.01),)),
+                        "names unknown link 'cupler'"),
+    "point mass mass": (lambda m: PointMass("coupler", 0.1, 0.0), "mass must be positive"),
+    "point mass inertia": (lambda m: PointMass("coupler", 0.1, 0.01, -1.0),
+                           "inertia must be zero or positive"),
+    "point mass point": (lambda m: _replace(m, point_masses=(PointMass("coupler", 0.5, 0.01),)),
+                         "distance in \\[0, 0.2794\\] m, got 0.5"),
+    "point mass named point on an elastic link": (
+        lambda m: _replace(m, point_masses=(PointMass("coupler", "tip", 0.01),)),
+        "has no point 'tip'"),
+    "joint type": (lambda m: _replace(m, joints=m.joints + ("pin",)),
+                   "joints must be Revolute or Slider"),
+    "joint name twice": (lambda m: _replace(m, joints=_joints(m, 1, Revolute(
+        "O", "crank", "end", "coupler", "start"))), "duplicate joint name 'O'"),
+    "revolute ground point": (lambda m: Revolute("O", GROUND, (0.0, math.inf), "crank", "start"),
+                              "point_a \\(a ground point\\) must be a pair of finite"),
+    "revolute point": (lambda m: _replace(m, joints=_joints(m, 1, Revolute(
+        "A", "crank", "end", "coupler", -0.1))), "got -0.1"),
+    "slider link": (lambda m: _replace(m, joints=_joints(m, 3, Slider("C", "rockr", "end"))),
+                    "names unknown link 'rockr'"),
+    "slider angle": (lambda m: Slider("C", "rocker", "end", angle=math.nan),
+                     "angle must be a finite number"),
+    "slider origin": (lambda m: Slider("C", "rocker", "end", origin=(0.0,)),
+                      "origin must be a pair"),
+    "drive type": (lambda m: _replace(m, drives=("motor",)),
+                   "drives must be PrescribedDrive or TorqueDrive"),
+    "drive joint": (lambda m: _replace(m, drives=(PrescribedDrive("Q", rate=1.0),)),
+                    "drive names joint 'Q', which is not a revolute joint"),
+    "drive rate": (lambda m: PrescribedDrive("O", rate=math.inf), "rate must be a finite number"),
+    "drive offset": (lambda m: TorqueDrive("O", rate=1.0, offset=math.nan),
+                     "offset must be a finite number"),
+    "drive kp": (lambda m: TorqueDrive("O", rate=1.0, kp=-1.0), "kp must be zero or positive"),
+    "drive kd": (lambda m: TorqueDrive("O", rate=1.0, kd=math.nan), "kd must be a finite number"),
+    "period": (lambda m: m.replace(period=-1.0), "period must be positive"),
+    "period needed": (lambda m: _replace(m, drives=(PrescribedDrive(
+        "O", harmonics=((1, 0.1, 0.0),)),)), "give the period"),
+    "gravity": (lambda m: _replace(m, gravity=(0.0, math.nan)),
+                "gravity must be a pair of finite numbers"),
+    "rayleigh": (lambda m: Rayleigh(alpha=-1.0), "alpha must be zero or positive"),
+    "modal ratios": (lambda m: mk.ModalDamping((0.01, -0.02)),
+                     "ratios\\[1\\] must be zero or positive"),
+    "damping matrix": (lambda m: mk.DampingMatrix(((1.0, math.nan), (0.0, 1.0))),
+                       "matrix\\[0\\]\\[1\\] must be a finite number"),
+    "damping type": (lambda m: _coupler(damping=0.02), "damping must be Rayleigh"),
+}
+
+
+@pytest.mark.parametrize("check", sorted(CONSTRUCTOR_CHECKS))
+def test_the_constructors_reject_what_assemble_no_longer_checks(check):
+    make, message = CONSTRUCTOR_CHECKS[check]
+    with pytest.raises(mk.MechanismError, match=message):
+        make(fourbar())
+
+
+def test_damping_sized_by_the_discretisation_is_checked_by_assemble():
+    """The only damping checks left in assemble: sizes that depend on the link's discretisation."""
+    too_many = fourbar().replace(links=(fourbar().links[0], _coupler(
+        discretisation=Ritz(1, 1), damping=mk.ModalDamping((0.01, 0.02, 0.03))),
+        fourbar().links[2]))
+    with pytest.raises(mk.MechanismError, match="damping.ratios must be at most 2"):
+        assemble(too_many)
+    wrong = too_many.replace(links=(too_many.links[0], _coupler(
+        discretisation=Ritz(1, 1), damping=mk.DampingMatrix(((1.0,),))), too_many.links[2]))
+    with pytest.raises(mk.MechanismError, match=r"damping.matrix must be a \(2, 2\) matrix"):
+        assemble(wrong)
+
+
+def test_joint_rows_name_the_rows_kind_and_attachments():
+    mechanism = mk.slider_crank(n_elements=2)
+    model = assemble(mechanism)
+    seen = []
+    for joint in mechanism.joints:
+        rows = model.joint_rows(joint.name)
+        seen += rows.rows
+        if isinstance(joint, Revolute):
+            assert rows.kind == "revolute"
+            assert [model.constraint_labels[i] for i in rows.rows] == [f"{joint.name}.x",
+                                                                       f"{joint.name}.y"]
+            ends = [(link, point) for link, point in ((joint.link_a, joint.point_a),
+                                                      (joint.link_b, joint.point_b))
+                    if link != GROUND]
+        else:
+            assert rows.kind == "slider"
+            assert [model.constraint_labels[i] for i in rows.rows] == [f"{joint.name}.n"]
+            ends = [(joint.link, joint.point)]
+        assert rows.ends == tuple((link, mechanism.link(link).point_position(point))
+                                  for link, point in ends)
+    # every row is a joint's or a drive's, once
+    assert sorted(seen + list(model.drive_rows)) == list(range(model.n_constraints))
+    with pytest.raises(ValueError, match="unknown joint 'Z'"):
+        model.joint_rows("Z")
+
+
+def test_point_position_is_the_one_point_lookup():
+    crank = RigidLink("crank", 0.1, mass=0.1, inertia=1e-5, points={"cam": (0.02, 0.01)})
+    assert crank.point_position("start") == (0.0, 0.0)
+    assert crank.point_position("end") == (0.1, 0.0)
+    assert crank.point_position("cam") == (0.02, 0.01)
+    assert crank.point_position(0.04) == (0.04, 0.0)
+    assert _coupler().point_position("end") == (L2, 0.0)
+    with pytest.raises(mk.MechanismError, match="has no point 'cam'"):
+        _coupler().point_position("cam")
+    with pytest.raises(mk.MechanismError, match="got 0.2"):
+        crank.point_position(0.2)
+
+
 def test_bad_call_arguments_are_rejected():
     model = assemble(fourbar())
     with pytest.raises(ValueError, match=r"s must have shape \(12,\)"):

@@ -1,21 +1,26 @@
-"""The batched evaluation of the linearisation terms equals the model's own methods, sample by
-sample (the protocol path of linearize._core), on a mechanism with every kind of term: elastic
-links with geometric stiffening, gravity, damping, point masses and a torque drive."""
+"""The batched evaluations of an assembled model along a sampled motion (``Model.*_along``, one
+numba call each) equal the model's own per-sample methods (the path ``mechanisms.*_along`` takes
+for any other ``ConstrainedModel``), on a mechanism with every kind of term: elastic links with
+geometric stiffening, gravity, damping, point masses and a torque drive."""
 
 import numpy as np
+import pytest
 
 import mechanisms as mc
-from linearize._core import _linear_terms
-from mechanisms._batch import linear_terms
+
+_BATCHED = ("linear_terms_along", "inertia_residual_along", "constraint_terms_along")
 
 
 class _ProtocolOnly:
-    """Hides the Model class so that _linear_terms takes its sample-by-sample path."""
+    """Hides the model's batched methods so that ``mechanisms.*_along`` takes its sample-by-sample
+    path through the protocol's methods."""
 
     def __init__(self, model):
         self._model = model
 
     def __getattr__(self, name):
+        if name in _BATCHED:
+            raise AttributeError(name)
         return getattr(self._model, name)
 
 
@@ -32,10 +37,11 @@ def test_batched_terms_equal_method_by_method_evaluation():
     S[:, model.elastic_index] *= 1e-3
     Sd, Sdd = rng.standard_normal((2, n_samples, n))
     Lam = rng.standard_normal((n_samples, r))
-    fast = linear_terms(model, t, S, Sd, Sdd, Lam)
-    slow = _linear_terms(_ProtocolOnly(model), t, S, Sd, Sdd, Lam)
-    for name, a, b in zip("MDKRJ", fast, slow):
+    fast = mc.linear_terms_along(model, t, S, Sd, Sdd, Lam)
+    slow = mc.linear_terms_along(_ProtocolOnly(model), t, S, Sd, Sdd, Lam)
+    for name in ("mass", "damping", "stiffness", "residual", "jacobian"):
         # Same element kernels, same operations up to summation order: round-off only.
+        a, b = getattr(fast, name), getattr(slow, name)
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-13 * np.abs(b).max(), err_msg=name)
 
 
@@ -48,10 +54,11 @@ def test_batched_inertia_residual_equals_the_model_methods():
     t = rng.uniform(0, 0.08, n_samples)
     S, Sd, Sdd = rng.standard_normal((3, n_samples, model.n_coords))
     S[:, model.elastic_index] *= 1e-3
-    from mechanisms._batch import inertia_residual
-    fast = inertia_residual(model, t, S, Sd, Sdd)
+    fast = model.inertia_residual_along(t, S, Sd, Sdd)
     slow = np.stack([model.mass_matrix(S[k]) @ Sdd[k] - model.forces(S[k], Sd[k], t[k])
                      for k in range(n_samples)])
+    np.testing.assert_array_equal(mc.inertia_residual_along(_ProtocolOnly(model), t, S, Sd, Sdd),
+                                  slow)
     np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-13 * np.abs(slow).max())
 
 
@@ -63,11 +70,34 @@ def test_batched_constraint_terms_equal_the_model_methods():
     n_samples = 4
     t = rng.uniform(0, 0.07, n_samples)
     S, Sd = rng.standard_normal((2, n_samples, model.n_coords))
-    from mechanisms._batch import constraint_terms
-    J, rate, gamma, phi = constraint_terms(model, t, S, Sd, with_values=True)
+    terms = model.constraint_terms_along(t, S, Sd, values=True)
+    J, rate, gamma, phi = terms.jacobian, terms.rate, terms.gamma, terms.values
+    assert model.constraint_terms_along(t, S).gamma is None
+    assert model.constraint_terms_along(t, S).values is None
+    slow = mc.constraint_terms_along(_ProtocolOnly(model), t, S, Sd, values=True)
+    for name in ("jacobian", "rate", "gamma", "values"):
+        a, b = getattr(terms, name), getattr(slow, name)
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-13 * np.abs(b).max(), err_msg=name)
     for k in range(n_samples):
         np.testing.assert_allclose(phi[k], model.constraints(S[k], t[k]), rtol=0, atol=1e-14)
         np.testing.assert_allclose(J[k], model.constraint_jacobian(S[k], t[k]), rtol=0, atol=1e-15)
         np.testing.assert_allclose(rate[k], model.constraint_rate(S[k], t[k]), rtol=0, atol=1e-15)
         np.testing.assert_allclose(gamma[k], model.constraint_gamma(S[k], Sd[k], t[k]), rtol=1e-13,
                                    atol=1e-13 * np.abs(gamma[k]).max())
+
+
+def test_batched_evaluations_check_the_sample_shapes():
+    """A multiplier array of the wrong width (the nominal motion's, with a drive row the model with
+    feedforward does not have) is rejected, not read past its end."""
+    mechanism = mc.four_bar(discretisation="fem", n_elements=2).replace(
+        drives=(mc.TorqueDrive("O", rate=100.0, kp=3.0, kd=0.1),))
+    model = mc.assemble(mechanism)
+    n, r = model.n_coords, model.n_constraints
+    t = np.zeros(3)
+    S = np.zeros((3, n))
+    with pytest.raises(ValueError, match=rf"lam must have shape \(3, {r}\).*\(3, {r + 1}\)"):
+        model.linear_terms_along(t, S, S, S, np.zeros((3, r + 1)))
+    with pytest.raises(ValueError, match=rf"sdot must have shape \(3, {n}\)"):
+        model.inertia_residual_along(t, S, S[:2], S)
+    with pytest.raises(ValueError, match="t must be a 1-d array"):
+        model.constraint_terms_along(np.zeros((3, 1)), S)

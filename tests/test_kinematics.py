@@ -133,6 +133,36 @@ def test_drive_torque_against_kinetic_energy_rate(four_bar):
     np.testing.assert_allclose(own, kinetic, rtol=1e-12)
 
 
+def test_feedforward_torque_makes_the_nominal_motion_solve_the_torque_driven_model():
+    """With the nominal inverse-dynamics torque as feedforward (``feedforward_torques``, the drive
+    law of simulate and linearize), the nominal motion of a torque-driven four-bar solves the rigid
+    rows of the full equations of the model without a drive row, ``M s'' - Q + Phi_s^T lam = 0``
+    with the nominal multipliers of the joint rows: the spline passes through the tabulated torque
+    at the grid samples, and the PD part vanishes on the nominal law."""
+    mechanism = mechanisms.four_bar(discretisation="fem", n_elements=2,
+                                    gravity=(0.0, -9.81)).replace(
+        drives=(mechanisms.TorqueDrive("O", rate=100.0, kp=3.0, kd=0.1),))
+    nominal = mechanisms.nominal_motion(mechanism, n_steps=128)
+    feedforward = mechanisms.feedforward_torques(mechanism, nominal)
+    assert list(feedforward) == ["O"]
+    torque = np.array([feedforward["O"](t) for t in nominal.t])
+    scale = np.abs(nominal.drive_torque).max()
+    np.testing.assert_allclose(torque, nominal.drive_torque[:, 0], rtol=0, atol=1e-12 * scale)
+    assert feedforward["O"](nominal.t[5] + 3 * nominal.period) == pytest.approx(torque[5],
+                                                                               abs=1e-12 * scale)
+    model = mechanisms.assemble(mechanism, feedforward=feedforward)
+    assert model.n_constraints == nominal.model.n_constraints - 1
+    lam = np.zeros((len(nominal.t), model.n_constraints))
+    for joint in mechanism.joints:
+        lam[:, model.joint_rows(joint.name).rows] = nominal.lam[
+            :, nominal.model.joint_rows(joint.name).rows]
+    residual = mechanisms.linear_terms_along(model, nominal.t, nominal.s, nominal.sdot,
+                                             nominal.sddot, lam).residual[:, model.rigid_index]
+    inertia = mechanisms.inertia_residual_along(nominal.model, nominal.t, nominal.s, nominal.sdot,
+                                                nominal.sddot)
+    assert np.abs(residual).max() < 1e-11 * np.abs(inertia).max()
+
+
 def test_rigid_limit_elastic_coupler_equals_rigid_coupler(four_bar):
     """Held at zero deformation, the elastic coupler must move and load the drive exactly like a
     rigid uniform bar of the same mass (line mass: inertia m l^2 / 12)."""

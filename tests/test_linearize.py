@@ -254,3 +254,52 @@ def test_start_state_is_consistent_and_departs_from_the_linear_state_at_second_o
         differences.append(np.abs(s - first_order).max())
     ratios = np.array(differences[:-1]) / np.array(differences[1:])
     assert np.all((ratios > 3.6) & (ratios < 4.4)), ratios
+
+
+def test_geometric_stiffness_refuses_a_joint_kind_it_does_not_know(four_bar):
+    """The axial force of a stiffened link needs each joint's load on it; a kind that the
+    geometric stiffness does not know raises instead of being treated as another kind."""
+    import dataclasses
+
+    model = mc.assemble(four_bar)
+
+    class NewJointKind:
+        def __init__(self, model):
+            self._model = model
+
+        def __getattr__(self, name):
+            return getattr(self._model, name)
+
+        def joint_rows(self, name):
+            rows = self._model.joint_rows(name)
+            return dataclasses.replace(rows, kind="cam") if name == "B" else rows
+
+    nominal = mc.nominal_motion(four_bar, n_steps=16)
+    args = (nominal.t, nominal.s, nominal.sdot, nominal.sddot, nominal.lam)
+    assert np.abs(linearize.geometric_stiffness(model, *args)).max() > 0
+    with pytest.raises(LinearizationError, match=r"joint 'B', whose kind 'cam'"):
+        linearize.geometric_stiffness(NewJointKind(model), *args)
+
+
+def test_one_default_observable_rule_for_simulate_and_linearize():
+    arm, four_bar = mc.load("two_link_arm"), mc.load("four_bar_fem4")
+    assert mc.default_observables(arm) == ("upper.transverse@1.0", "forearm.transverse@1.0")
+    assert mc.default_observables(four_bar) == ("coupler.deflection@0.5",)
+    assert linearize.default_observables(arm) == mc.default_observables(arm)
+    run = mc.simulate(arm, n_periods=0.02, steps_per_period=200, estimate_error=False)
+    assert tuple(run.observables) == mc.default_observables(arm)
+    assert linearize.about(arm, n_steps=64).observables == mc.default_observables(arm)
+
+
+def test_error_classes_say_whose_fault_it_is():
+    """Bad input (the scene, the arguments) raises ValueError subclasses; a numerical failure on a
+    valid mechanism raises RuntimeError subclasses (the studies CLI maps them to exit 2 and 1)."""
+    for bad_input in (mc.MechanismError, LinearizationError):
+        assert issubclass(bad_input, ValueError) and not issubclass(bad_input, RuntimeError)
+    for failure in (mc.ConvergenceError, mc.SimulationError):
+        assert issubclass(failure, RuntimeError) and not issubclass(failure, ValueError)
+    assert issubclass(mc.SimulationError, mc.ConvergenceError)
+    lin = linearize.about(mc.load("four_bar_fem4"), n_steps=64)
+    m = len(lin.labels)
+    with pytest.raises(mc.ConvergenceError, match="no consistent state near the linear one"):
+        lin.start_state(np.full(m, 1.0), np.zeros(m))     # 1 m deflections of a 0.28 m coupler
