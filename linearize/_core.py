@@ -48,7 +48,7 @@ WARN_CONDITION = 1.0e6
 class LinearizationError(ValueError):
     """The mechanism or the request cannot be linearised as asked: a toggle (dead-centre) position
     along the prescribed motion, an over-constrained linkage, a drive that ``speed_family`` cannot
-    scale, a joint kind the geometric stiffness does not know. The scene's fault, hence a
+    scale, a joint whose load on a stiffened link is not a point force. The scene's fault, hence a
     ``ValueError``; numerical failures on a valid mechanism raise ``mechanisms.ConvergenceError``
     (a ``RuntimeError``)."""
 

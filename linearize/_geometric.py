@@ -36,12 +36,6 @@ from ._core import LinearizationError
 
 __all__ = ["geometric_stiffness"]
 
-# Joint kinds that load a link with one force at one material point, ``-Phi_J,R^T lam_J`` (a pin:
-# both components; a slider: the guide's normal force). A new kind must say here how it loads a
-# link before a stiffened link may use it.
-_POINT_FORCE_JOINTS = ("revolute", "slider")
-
-
 class _LinkLoading:
     """What the axial force of one stiffened link needs, gathered once: quadrature, shape slopes,
     the constraint rows of its joints and the abscissae of its joints and point masses."""
@@ -58,11 +52,12 @@ class _LinkLoading:
         self.joints = []                                      # (abscissa, rows)
         for joint in model.mechanism.joints:
             rows = model.joint_rows(joint.name)
-            if rows.kind not in _POINT_FORCE_JOINTS:
+            # the axial force below is that of point loads -Phi_J,R^T lam_J (mechanisms.JointRows)
+            if not rows.point_force:
                 raise LinearizationError(
                     f"the geometric stiffness of link {name!r} needs the load of joint "
-                    f"{joint.name!r}, whose kind {rows.kind!r} it does not know (known: "
-                    f"{', '.join(_POINT_FORCE_JOINTS)}); turn geometric_stiffening off on the link")
+                    f"{joint.name!r} (kind {rows.kind!r}), which does not act at one point of the "
+                    f"link; turn geometric_stiffening off on the link")
             # an elastic link's points lie on its axis: x is the abscissa
             self.joints += [(x, list(rows.rows)) for link_name, (x, _) in rows.ends
                             if link_name == name]

@@ -124,15 +124,18 @@ class JointRows:
     ``kind``: ``"revolute"`` (rows ``"J.x", "J.y"``, ``Phi = r_a - r_b``) or ``"slider"`` (row
     ``"J.n"``, ``Phi = n . (r - origin)``); ``rows``: indices into ``Phi`` and ``lam``; ``ends``:
     ``(link name, (x, y))`` for each side of the joint on a link (the ground side left out), with
-    the attachment point's position (m) in the undeformed link frame. Both kinds act at one
-    material point of each link they join, with the force ``-Phi_J,R^T lam_J`` on the link
-    (``Phi_J,R`` the joint's rows of the constraint Jacobian on the link's frame position R).
+    the attachment point's position (m) in the undeformed link frame. ``point_force``: the joint
+    acts at one material point of each link it joins (its ``ends``), with the force
+    ``-Phi_J,R^T lam_J`` on the link (``Phi_J,R`` the joint's rows of the constraint Jacobian on the
+    link's frame position R); true of both kinds, and what the geometric stiffness of ``linearize``
+    needs to know of a joint, so a new point-force joint needs no change there.
     """
 
     name: str
     kind: str
     rows: tuple[int, ...]
     ends: tuple[tuple[str, tuple[float, float]], ...]
+    point_force: bool = True
 
 
 def drive_law(drive: PrescribedDrive | TorqueDrive, period: float | None, t

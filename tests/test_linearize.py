@@ -256,29 +256,34 @@ def test_start_state_is_consistent_and_departs_from_the_linear_state_at_second_o
     assert np.all((ratios > 3.6) & (ratios < 4.4)), ratios
 
 
-def test_geometric_stiffness_refuses_a_joint_kind_it_does_not_know(four_bar):
-    """The axial force of a stiffened link needs each joint's load on it; a kind that the
-    geometric stiffness does not know raises instead of being treated as another kind."""
+def test_geometric_stiffness_refuses_a_joint_whose_load_it_does_not_know(four_bar):
+    """The axial force of a stiffened link needs each joint's load on it: a joint that does not act
+    at one point of the link (``JointRows.point_force`` false) raises instead of being treated as
+    a point load, and a new kind that does act at one point needs nothing new (same stiffness)."""
     import dataclasses
 
     model = mc.assemble(four_bar)
 
     class NewJointKind:
-        def __init__(self, model):
-            self._model = model
+        def __init__(self, model, point_force):
+            self._model, self._point_force = model, point_force
 
         def __getattr__(self, name):
             return getattr(self._model, name)
 
         def joint_rows(self, name):
             rows = self._model.joint_rows(name)
-            return dataclasses.replace(rows, kind="cam") if name == "B" else rows
+            return (dataclasses.replace(rows, kind="cam", point_force=self._point_force)
+                    if name == "B" else rows)
 
     nominal = mc.nominal_motion(four_bar, n_steps=16)
     args = (nominal.t, nominal.s, nominal.sdot, nominal.sddot, nominal.lam)
-    assert np.abs(linearize.geometric_stiffness(model, *args)).max() > 0
-    with pytest.raises(LinearizationError, match=r"joint 'B', whose kind 'cam'"):
-        linearize.geometric_stiffness(NewJointKind(model), *args)
+    stiffness = linearize.geometric_stiffness(model, *args)
+    assert np.abs(stiffness).max() > 0
+    np.testing.assert_array_equal(linearize.geometric_stiffness(NewJointKind(model, True), *args),
+                                  stiffness)
+    with pytest.raises(LinearizationError, match=r"joint 'B' \(kind 'cam'\), which does not act"):
+        linearize.geometric_stiffness(NewJointKind(model, False), *args)
 
 
 def test_one_default_observable_rule_for_simulate_and_linearize():
