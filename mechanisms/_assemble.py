@@ -57,7 +57,7 @@ from . import _batch, _kernels
 from ._batch import ConstraintTerms, LinearTerms
 from ._beams import BeamShapes, beam_matrices, beam_shapes, membrane_projection
 from ._observables import make_observable
-from ._parts import (GROUND, DampingMatrix, ElasticLink, Mechanism, MechanismError, ModalDamping,
+from ._parts import (GROUND, ArgumentError, DampingMatrix, ElasticLink, Mechanism, MechanismError, ModalDamping,
                      PrescribedDrive, Rayleigh, Revolute, RigidLink, Slider, TorqueDrive)
 
 logger = logging.getLogger(__name__)
@@ -196,11 +196,11 @@ class Model:
     def _vector(self, value, size, name):
         array = np.ascontiguousarray(value, dtype=np.float64)
         if array.shape != (size,):
-            raise ValueError(f"{name} must have shape ({size},); received shape {array.shape}")
+            raise ArgumentError(f"{name} must have shape ({size},); received shape {array.shape}")
         if not math.isfinite(array.sum()):  # fast path; a sum can overflow, so look closer
             bad = np.flatnonzero(~np.isfinite(array))
             if bad.size:
-                raise ValueError(f"{name} must be finite; received non-finite entries at "
+                raise ArgumentError(f"{name} must be finite; received non-finite entries at "
                                  f"{bad.tolist()}")
         return array
 
@@ -308,7 +308,7 @@ class Model:
         sdot = self._vector(sdot, self.n_coords, "sdot")
         if s is None:
             if self._strain_rate_damping:
-                raise ValueError("s is required: Kelvin-Voigt damping of a link with geometric "
+                raise ArgumentError("s is required: Kelvin-Voigt damping of a link with geometric "
                                  "stiffening depends on the positions; call damping_power(sdot, s)")
             s = np.zeros(self.n_coords)
         else:
@@ -322,7 +322,7 @@ class Model:
         s = self._vector(s, self.n_coords, "s")
         sdot = self._vector(sdot, self.n_coords, "sdot")
         if self._prescribed and lam is None:
-            raise ValueError("lam is required: the torque of a prescribed drive is its multiplier")
+            raise ArgumentError("lam is required: the torque of a prescribed drive is its multiplier")
         if lam is not None:
             lam = self._vector(lam, self.n_constraints, "lam")
         return np.array([-lam[info.row] if info.row >= 0 else self._torque(info, s, sdot, t)
@@ -348,12 +348,12 @@ class Model:
         (N, width), checked."""
         t = np.asarray(t, dtype=np.float64)
         if t.ndim != 1:
-            raise ValueError(f"t must be a 1-d array of sample times (s); received shape {t.shape}")
+            raise ArgumentError(f"t must be a 1-d array of sample times (s); received shape {t.shape}")
         out = []
         for (name, value), width in zip(arrays.items(), widths):
             array = np.ascontiguousarray(value, dtype=np.float64)
             if array.shape != (len(t), width):
-                raise ValueError(f"{name} must have shape ({len(t)}, {width}) (samples of t, "
+                raise ArgumentError(f"{name} must have shape ({len(t)}, {width}) (samples of t, "
                                  f"entries); received shape {array.shape}")
             out.append(array)
         return t, out
@@ -442,7 +442,7 @@ class Model:
     def joint_rows(self, name: str) -> JointRows:
         """The constraint rows, kind and attachment points of joint ``name`` (``JointRows``)."""
         if name not in self._joint_rows:
-            raise ValueError(f"unknown joint {name!r}; joints are {list(self._joint_rows)}")
+            raise ArgumentError(f"unknown joint {name!r}; joints are {list(self._joint_rows)}")
         return self._joint_rows[name]
 
     def observable(self, spec: str):
@@ -452,7 +452,7 @@ class Model:
     def link_coordinates(self, name: str) -> slice:
         """The slice of ``s`` holding link ``name``'s coordinates ``(x, y, theta, q...)``."""
         if name not in self.layouts:
-            raise ValueError(f"unknown link {name!r}; links are {list(self.layouts)}")
+            raise ArgumentError(f"unknown link {name!r}; links are {list(self.layouts)}")
         return self.layouts[name].coords
 
     def __repr__(self):

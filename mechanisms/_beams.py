@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
-from ._parts import ElasticLink, Fem, MechanismError, Ritz, UserShapes
+from ._parts import ArgumentError, ElasticLink, Fem, MechanismError, Ritz, UserShapes
 
 logger = logging.getLogger(__name__)
 
@@ -81,7 +81,7 @@ class BeamShapes:
         length = self.link.length
         if x.ndim != 1 or not np.all(np.isfinite(x)) or np.any(x < -1e-12 * length) or np.any(
                 x > length * (1 + 1e-12)):
-            raise ValueError(f"x must be finite abscissae in [0, {length}] m on link "
+            raise ArgumentError(f"x must be finite abscissae in [0, {length}] m on link "
                              f"{self.link.name!r}; received {x!r}")
         x = np.clip(x, 0.0, length)  # only round-off beyond the ends (checked above) is clipped
         disc = self.link.discretisation

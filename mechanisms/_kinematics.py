@@ -30,7 +30,7 @@ import numpy as np
 
 from ._assemble import Model, assemble
 from ._batch import constraint_terms_along, inertia_residual_along, scaled_correction
-from ._parts import GROUND, Mechanism, MechanismError, PrescribedDrive, Revolute, TorqueDrive
+from ._parts import GROUND, ArgumentError, Mechanism, MechanismError, PrescribedDrive, Revolute, TorqueDrive
 
 logger = logging.getLogger(__name__)
 
@@ -106,13 +106,13 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
     """
     started = time.perf_counter()
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 2:
-        raise ValueError(f"n_steps must be an integer >= 2, got {n_steps!r}")
+        raise ArgumentError(f"n_steps must be an integer >= 2, got {n_steps!r}")
     model, mechanism = _model_of(mechanism_or_model)
     if period is None:
         period = mechanism.period if mechanism is not None else getattr(model, "period", None)
     if period is None or not (isinstance(period, (int, float)) and math.isfinite(period)
                               and period > 0):
-        raise ValueError(f"period must be a positive number of seconds (give period=...), got "
+        raise ArgumentError(f"period must be a positive number of seconds (give period=...), got "
                          f"{period!r}")
     n, r = model.n_coords, model.n_constraints
     rigid = np.asarray(model.rigid_index, dtype=np.int64)
@@ -127,12 +127,12 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
     system = _RigidSystem(model, rigid, mechanism, float(period))
     if s0 is None:
         if mechanism is None:
-            raise ValueError("s0 (a guess of the coordinates at t = 0) is required for a model "
+            raise ArgumentError("s0 (a guess of the coordinates at t = 0) is required for a model "
                              "without a mechanism")
         s0 = _initial_guess(mechanism, labels, n, float(period))
     s0 = np.array(s0, dtype=np.float64)
     if s0.shape != (n,) or not np.isfinite(s0).all():
-        raise ValueError(f"s0 must be a finite vector of shape ({n},), got shape {s0.shape}")
+        raise ArgumentError(f"s0 must be a finite vector of shape ({n},), got shape {s0.shape}")
     s0[np.asarray(model.elastic_index, dtype=np.int64)] = 0.0  # the rigid mechanism
 
     times = np.linspace(0.0, period, n_steps + 1)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._parts import ElasticLink
+from ._parts import ArgumentError, ElasticLink
 
 _KINDS = {"deflection": "m", "transverse": "m", "strain": "1", "moment": "N m", "angle": "rad"}
 
@@ -52,7 +52,7 @@ class LinkObservable:
     def _q(self, s):
         s = np.asarray(s, dtype=float)
         if s.shape != (self.n_coords,):
-            raise ValueError(f"s must have shape ({self.n_coords},); received shape {s.shape}")
+            raise ArgumentError(f"s must have shape ({self.n_coords},); received shape {s.shape}")
         return s, s[self.coords][3:]
 
     def value(self, s) -> float:
@@ -119,27 +119,27 @@ def make_observable(model, spec: str) -> LinkObservable:
     head, _, where = spec.partition("@")
     name, _, kind = head.rpartition(".")
     if name not in model.layouts:
-        raise ValueError(f"observable {spec!r}: unknown link {name!r}; links are "
+        raise ArgumentError(f"observable {spec!r}: unknown link {name!r}; links are "
                          f"{list(model.layouts)}")
     if kind not in _KINDS:
-        raise ValueError(f"observable {spec!r}: unknown quantity {kind!r}; expected one of "
+        raise ArgumentError(f"observable {spec!r}: unknown quantity {kind!r}; expected one of "
                          f"{sorted(_KINDS)}")
     lay = model.layouts[name]
     common = dict(spec=spec, unit=_KINDS[kind], kind=kind, n_coords=model.n_coords,
                   coords=lay.coords, theta_index=lay.offset + 2, length=lay.link.length)
     if kind == "angle":
         if where:
-            raise ValueError(f"observable {spec!r}: 'angle' takes no '@fraction'")
+            raise ArgumentError(f"observable {spec!r}: 'angle' takes no '@fraction'")
         return LinkObservable(**common, x=0.0, rows=(), flexural_rigidity=0.0, membrane=())
     if lay.shapes is None:
-        raise ValueError(f"observable {spec!r}: {kind} needs an elastic link; {name!r} is rigid")
+        raise ArgumentError(f"observable {spec!r}: {kind} needs an elastic link; {name!r} is rigid")
     try:
         fraction = float(where) if where else 0.5
     except ValueError:
-        raise ValueError(f"observable {spec!r}: the part after '@' must be a fraction of the "
+        raise ArgumentError(f"observable {spec!r}: the part after '@' must be a fraction of the "
                          f"length in [0, 1]; received {where!r}") from None
     if not 0.0 <= fraction <= 1.0:
-        raise ValueError(f"observable {spec!r}: fraction must be in [0, 1]; received {fraction}")
+        raise ArgumentError(f"observable {spec!r}: fraction must be in [0, 1]; received {fraction}")
     x = fraction * lay.link.length
     v = lay.shapes.evaluate([x, lay.link.length])
     rows = (v.u[0], v.w[0], v.du[0], v.dw[0], v.ddw[0], v.u[1], v.w[1])

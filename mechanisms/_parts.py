@@ -42,6 +42,13 @@ class MechanismError(ValueError):
     assembled or whose crank cannot turn, a singular constraint Jacobian."""
 
 
+class ArgumentError(ValueError):
+    """A bad argument to a function or method of ``mechanisms`` (a shape, a non-finite value, an
+    unknown joint, link or observable name, an option that needs another): the message names the
+    argument, what was expected and what was received. Numerical failures on good input raise
+    ``ConvergenceError`` (a ``RuntimeError``) instead."""
+
+
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
 
 

@@ -59,6 +59,7 @@ import numpy as np
 
 from ._kinematics import ConvergenceError
 from ._observables import default_observables
+from ._parts import ArgumentError
 
 __all__ = ["SimulationError", "SimulationResult", "simulate"]
 
@@ -327,10 +328,10 @@ def _generalized_alpha_parameters(rho_inf: float) -> tuple[float, float, float, 
 def _as_vector(value: Any, n: int, name: str) -> np.ndarray:
     arr = np.array(value, dtype=np.float64)
     if arr.shape != (n,):
-        raise ValueError(f"`{name}` must have shape ({n},) (one value per coordinate); got shape "
+        raise ArgumentError(f"`{name}` must have shape ({n},) (one value per coordinate); got shape "
                          f"{arr.shape}.")
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"`{name}` must be finite; got non-finite entries at indices "
+        raise ArgumentError(f"`{name}` must be finite; got non-finite entries at indices "
                          f"{np.flatnonzero(~np.isfinite(arr)).tolist()}.")
     return arr
 
@@ -341,7 +342,7 @@ def _positive(value: Any, name: str) -> float:
     except (TypeError, ValueError):
         raise TypeError(f"`{name}` must be a real number; got {value!r}.") from None
     if not (math.isfinite(x) and x > 0.0):
-        raise ValueError(f"`{name}` must be positive and finite; got {value!r}.")
+        raise ArgumentError(f"`{name}` must be positive and finite; got {value!r}.")
     return x
 
 
@@ -365,16 +366,16 @@ def _time_grid(t0: float, t_end, n_periods, dt, steps_per_period, period) -> tup
                         f"dt={dt!r}, steps_per_period={steps_per_period!r}.")
     needs_period = n_periods is not None or steps_per_period is not None
     if needs_period and period is None:
-        raise ValueError("`n_periods` and `steps_per_period` need the period: this system has no "
+        raise ArgumentError("`n_periods` and `steps_per_period` need the period: this system has no "
                          "drive rate or `period` attribute; pass `period=` (s) or use `t_end`, "
                          "`dt`.")
     duration = (_positive(t_end, "t_end") - t0 if t_end is not None
                 else _positive(n_periods, "n_periods") * period)
     if duration <= 0.0:
-        raise ValueError(f"`t_end` must be after `t0` = {t0}; got t_end={t_end!r}.")
+        raise ArgumentError(f"`t_end` must be after `t0` = {t0}; got t_end={t_end!r}.")
     if steps_per_period is not None:
         if int(steps_per_period) != steps_per_period or steps_per_period < 1:
-            raise ValueError("`steps_per_period` must be a positive integer; got "
+            raise ArgumentError("`steps_per_period` must be a positive integer; got "
                              f"{steps_per_period!r}.")
         h_wanted = period / int(steps_per_period)
     else:
@@ -420,10 +421,10 @@ def _initial_state(model, nominal, s0, sdot0, t0: float):
     n = int(model.n_coords)
     if s0 is None:
         if nominal is None:
-            raise ValueError("`s0` is required when simulating a bare model: only a Mechanism (or a "
+            raise ArgumentError("`s0` is required when simulating a bare model: only a Mechanism (or a "
                              "model assembled from one) has a nominal rigid motion to start from.")
         if float(nominal.t[0]) != t0:
-            raise ValueError(f"the nominal motion starts at t = {float(nominal.t[0])} s; pass `s0` "
+            raise ArgumentError(f"the nominal motion starts at t = {float(nominal.t[0])} s; pass `s0` "
                              f"and `sdot0` to start at t0 = {t0} s.")
         s_start = np.array(nominal.s[0], dtype=np.float64)
         v_start = np.array(nominal.sdot[0], dtype=np.float64)
@@ -447,7 +448,7 @@ def _consistent_accelerations(model, q, v, t):
     b = np.concatenate([model.forces(q, v, t), model.constraint_gamma(q, v, t)])
     cond = np.linalg.cond(A)
     if not np.isfinite(cond) or cond > 1e13:
-        raise ValueError(f"the augmented mass matrix at t = {t} s is singular (condition number "
+        raise ArgumentError(f"the augmented mass matrix at t = {t} s is singular (condition number "
                          f"{cond:.3g}): check for redundant constraints or massless coordinates.")
     x = np.linalg.solve(A, b)
     return x[:n], x[n:]
@@ -460,7 +461,7 @@ def _check_consistency(model, q, v, t, length_scale):
         worst = int(np.argmax(np.abs(phi)))
         labels = list(getattr(model, "constraint_labels", ()))
         name = labels[worst] if worst < len(labels) else f"#{worst}"
-        raise ValueError(f"`s0` violates the constraints at t0 = {t} s: "
+        raise ArgumentError(f"`s0` violates the constraints at t0 = {t} s: "
                          f"|Phi| = {abs(phi[worst]):.3g} at constraint {name!r} (allowed 1e-8 x "
                          f"{length_scale:.3g}); start from an assembled configuration (e.g. "
                          "mechanisms.nominal_motion).")
@@ -469,7 +470,7 @@ def _check_consistency(model, q, v, t, length_scale):
     speed_scale = max(np.max(np.abs(v), initial=0.0), 1.0) * max(length_scale, 1.0)
     if np.max(np.abs(vel), initial=0.0) > 1e-8 * speed_scale:
         worst = int(np.argmax(np.abs(vel)))
-        raise ValueError(f"`sdot0` violates the velocity constraints at t0 = {t} s: "
+        raise ArgumentError(f"`sdot0` violates the velocity constraints at t0 = {t} s: "
                          f"|Phi_s sdot + Phi_t| = {abs(vel[worst]):.3g} at constraint #{worst}; "
                          "project it onto the constraint tangent space or start from the nominal "
                          "motion.")
@@ -558,21 +559,21 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
     """
     start_clock = time.perf_counter()
     if method not in _METHODS:
-        raise ValueError(f"`method` must be one of {_METHODS}; got {method!r}.")
+        raise ArgumentError(f"`method` must be one of {_METHODS}; got {method!r}.")
     rho = float(rho_inf)
     if not 0.0 <= rho <= 1.0:
-        raise ValueError(f"`rho_inf` must lie in [0, 1]; got {rho_inf!r}.")
+        raise ArgumentError(f"`rho_inf` must lie in [0, 1]; got {rho_inf!r}.")
     if rho == 1.0:
         logger.warning("rho_inf = 1 damps nothing: unresolved stiff (axial) modes and the "
                        "multipliers keep their start-up oscillations, and Newton can fail on stiff "
                        "nonlinear links; use rho_inf < 1 (default 0.8) unless every mode is "
                        "resolved by the step.")
     if int(max_step_halvings) != max_step_halvings or not 0 <= max_step_halvings <= 20:
-        raise ValueError("`max_step_halvings` must be an integer in [0, 20]; got "
+        raise ArgumentError("`max_step_halvings` must be an integer in [0, 20]; got "
                          f"{max_step_halvings!r}.")
     tol = _positive(tol, "tol")
     if int(max_iterations) != max_iterations or max_iterations < 1:
-        raise ValueError(f"`max_iterations` must be a positive integer; got {max_iterations!r}.")
+        raise ArgumentError(f"`max_iterations` must be a positive integer; got {max_iterations!r}.")
     model, mechanism, nominal = _resolve_model(system, need_nominal=s0 is None)
     t0 = float(t0)
     h, n_steps = _time_grid(t0, t_end, n_periods, dt, steps_per_period,

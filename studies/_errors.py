@@ -28,8 +28,8 @@ def input_errors() -> tuple[type[BaseException], ...]:
     import mechanisms
     import periodic
 
-    return (UsageError, StudiesError, mechanisms.MechanismError, linearize.LinearizationError,
-            periodic.PeriodicError)
+    return (UsageError, StudiesError, mechanisms.MechanismError, mechanisms.ArgumentError,
+            linearize.LinearizationError, periodic.PeriodicError)
 
 
 def numerical_failures() -> tuple[type[BaseException], ...]:
