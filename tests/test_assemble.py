@@ -287,6 +287,7 @@ def derived(request):
     return model, _derive_fourbar(stiffening, rotary, kind=kind)
 
 
+@pytest.mark.slow
 def test_assembler_matches_sympy_lagrange(derived):
     """Mass matrix, force vector and constraint Jacobian of the thesis four-bar against the sympy
     derivation, to 1e-10 relative. The integrals are exact in sympy; the assembler's Gauss rule is
@@ -817,6 +818,7 @@ def test_torque_drive_feedforward_enters_the_forces():
 # ---------------------------------------------------------------------------------------------------
 # geometric stiffening: the nonlinear model agrees with the linearisation (no membrane locking)
 # ---------------------------------------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("n_elements", [2, 4])
 def test_stiffened_nonlinear_run_matches_the_linear_steady_state(n_elements):
     """The thesis four-bar at 40 rad/s with geometric stiffening: a full nonlinear run started on

@@ -77,6 +77,7 @@ EXPECTED_LABELS = {
 }
 
 
+@pytest.mark.slow
 def test_plot_draws_every_figure_with_its_axes(mathieu_run, tmp_path, capsys):
     outdir = tmp_path / "figures"
     assert main(["plot", str(mathieu_run), "--outdir", str(outdir)]) == 0
@@ -95,6 +96,7 @@ def test_info_summarises(mathieu_run, capsys):
     assert "numpy" in out and "error_estimate" in out
 
 
+@pytest.mark.slow
 def test_small_four_bar_scene_end_to_end(tmp_path, capsys):
     scene = tmp_path / "small.toml"
     scene.write_text(mechanisms.load("four_bar_thesis").to_toml() + SMALL_FOUR_BAR)
@@ -161,6 +163,7 @@ def test_argparse_errors_exit_2(capsys):
     assert exit_.value.code == 2
 
 
+@pytest.mark.slow
 def test_dask_scheduler_from_the_command_line(mathieu_run, tmp_path, assert_same):
     distributed = pytest.importorskip("distributed")
     path = tmp_path / "dask.h5"

@@ -42,6 +42,7 @@ def differences():
     return {speed: _relative_difference(speed) for speed in (40.0, 70.0, 100.0)}
 
 
+@pytest.mark.slow
 def test_stiffened_coupler_keeps_the_linear_amplitude_at_100_rad_s(differences):
     """The damping locking removed 42.5 % of the amplitude; the genuine correction, estimated from
     the 40 rad/s run by its amplitude^2 scaling (see below), is ~10 %: the bound 10 % is four times

@@ -91,6 +91,7 @@ def test_torque_driven_rigid_four_bar_linearises_to_its_minimal_model(rigid_four
     np.testing.assert_allclose(lin.system.f, 0.0, atol=1e-9 * np.abs(lin.system.K).max())
 
 
+@pytest.mark.slow
 def test_floquet_multipliers_match_the_minimal_model(rigid_four_bar):
     """Multipliers of the linearised redundant model (Newmark, Richardson-extrapolated) against a
     DOP853 integration of the minimal variational equation at rtol 1e-12."""

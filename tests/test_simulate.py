@@ -388,6 +388,7 @@ def test_constraint_residual_stays_at_newton_tolerance(soft_double):
     assert np.max(res.constraint_residual[-100:]) <= bound
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rho_inf", [0.8, 0.0])
 def test_stiff_springs_stable_at_large_steps_and_rigid_limit(rho_inf):
     # springs with omega = sqrt(k / mp) ~ 7e4-1e5 rad/s; steps of 2e-3 s give h omega ~ 150-200,
@@ -432,6 +433,7 @@ def _energy(model, res):
                      for s, v in zip(res.s, res.sdot)])
 
 
+@pytest.mark.slow
 def test_undriven_energy_conserved_to_second_order(soft_double):
     s0, sd0 = double_pendulum_initial(1.2, 0.5, 2.0, -1.0)
     t_end = 1.0
@@ -446,6 +448,7 @@ def test_undriven_energy_conserved_to_second_order(soft_double):
     assert drifts[-1] < 1e-3 * abs(_energy(soft_double, res)[0])
 
 
+@pytest.mark.slow
 def test_drive_work_equals_energy_change():
     omega = 2 * math.pi
     model = double_pendulum_model(1000.0, 1000.0,
