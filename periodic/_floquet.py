@@ -24,7 +24,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._newmark import newmark_march
 from ._scheme import DEFAULT_SCHEME, Newmark, as_scheme
 from ._system import PeriodicSystem, ShootingError, check_system, check_tol
 
@@ -148,10 +147,7 @@ def monodromy(system: PeriodicSystem, scheme: Newmark, *, particular: bool):
         forced[-1] = 1.0
     a = np.empty((n, m))
     empty = np.empty((0, n, m))
-    status = newmark_march(
-        system.M, system.C, system.K, system.f, system.step, scheme.beta, scheme.gamma, forced, x, v, a,
-        empty, empty, empty,
-    )
+    status = scheme.march(system, forced, x, v, a, empty, empty, empty)
     raise_on_singular(system, status)
     phi = np.vstack((x[:, : 2 * n], v[:, : 2 * n]))
     end = np.concatenate((x[:, -1], v[:, -1])) if particular else None

@@ -16,6 +16,7 @@ import warnings
 from dataclasses import dataclass
 from types import MappingProxyType
 
+from ._newmark import newmark_march
 from ._system import PeriodicError, check_real
 
 
@@ -75,6 +76,15 @@ class Newmark:
     @property
     def unconditionally_stable(self) -> bool:
         return 2.0 * self.beta >= self.gamma >= 0.5
+
+    def march(self, system, forced, x, v, a, x_hist, v_hist, a_hist) -> int:
+        """Integrate the columns of ``x, v`` (n, m) over one period of ``system`` in place (``a``
+        (n, m) receives the end accelerations); column j carries the force ``forced[j] * f(t)``.
+        ``x_hist, v_hist, a_hist`` (N+1, n, m) receive every sample, or have length 0. Returns the
+        kernel's status: -1, or the sample whose matrix was singular (see ``raise_on_singular``). The shooting and ``floquet``
+        call only this, so a scheme of another family is a class with its own ``march``."""
+        return newmark_march(system.M, system.C, system.K, system.f, system.step, self.beta, self.gamma,
+                             forced, x, v, a, x_hist, v_hist, a_hist)
 
 
 #: Named schemes, all unconditionally stable (the shooting integrates every mode of the system, stiff

@@ -28,7 +28,6 @@ from ._floquet import (
     near_resonance,
     raise_on_singular,
 )
-from ._newmark import newmark_march
 from ._scheme import DEFAULT_SCHEME, Newmark, as_scheme
 from ._system import (
     PeriodicError,
@@ -249,10 +248,7 @@ def _shoot(system: PeriodicSystem, scheme: Newmark) -> _Shot:
     a = np.empty((n, 1))
     n_samples = system.n_steps + 1
     xs, vs, as_ = np.empty((n_samples, n, 1)), np.empty((n_samples, n, 1)), np.empty((n_samples, n, 1))
-    status = newmark_march(
-        system.M, system.C, system.K, system.f, system.step, scheme.beta, scheme.gamma, np.ones(1), x, v, a,
-        xs, vs, as_,
-    )
+    status = scheme.march(system, np.ones(1), x, v, a, xs, vs, as_)
     raise_on_singular(system, status)
     xs, vs, as_ = xs[:, :, 0], vs[:, :, 0], as_[:, :, 0]
     residual = float(np.abs(xs[-1] - xs[0]).max())
