@@ -97,12 +97,13 @@ class LinearRange:
 @dataclass(frozen=True)
 class _LinkProbe:
     """What the measures of one elastic link need, fixed by the configuration on the grid:
-    ``columns`` (n_e,) of the link's elastic coordinates in ``z``; ``w, dw, ddw`` (n_x, n_e) the
-    shape rows at the sample abscissae; ``axial`` (N+1, n_x) the nominal axial force (N, tension
+    ``columns`` (n_e,) of the link's elastic coordinates in ``z``; ``x`` (n_x,) the sample
+    abscissae (m, ``sample_abscissae``); ``w, dw, ddw`` (n_x, n_e) the shape rows there; ``axial`` (N+1, n_x) the nominal axial force (N, tension
     positive) there, or ``None``; and the link's constants."""
 
     link: mechanisms.ElasticLink
     columns: np.ndarray
+    x: np.ndarray
     w: np.ndarray
     dw: np.ndarray
     ddw: np.ndarray
@@ -146,9 +147,10 @@ def link_probes(model, independent, axial) -> tuple[_LinkProbe, ...]:
     for name, layout in model.layouts.items():
         if layout.shapes is None:
             continue
-        values = layout.shapes.evaluate(sample_abscissae(layout.link))
+        x = sample_abscissae(layout.link)
+        values = layout.shapes.evaluate(x)
         columns = np.array([column[i] for i in range(layout.elastic.start, layout.elastic.stop)])
-        probes.append(_LinkProbe(link=layout.link, columns=columns, w=values.w, dw=values.dw,
+        probes.append(_LinkProbe(link=layout.link, columns=columns, x=x, w=values.w, dw=values.dw,
                                  ddw=values.ddw, axial=axial[name], stiffened=layout.stiffening))
     return tuple(probes)
 
