@@ -245,7 +245,7 @@ def _finish(mechanism, model, nominal, coeffs, specs, angle, started):
     system = periodic.PeriodicSystem(nominal.period, coeffs.M, coeffs.C, coeffs.K, coeffs.f)
     labels = tuple(model.coord_labels[i] for i in coeffs.independent)
     axial = _nominal_axial_forces(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot,
-                                  _multipliers_of(model, nominal))
+                                  _multipliers_of(model, nominal), stride=coeffs.stride)
     return LinearizedMechanism(
         mechanism=mechanism, nominal=nominal, system=system, labels=labels,
         crank_angle=angle, observables=tuple(specs),
@@ -254,14 +254,19 @@ def _finish(mechanism, model, nominal, coeffs, specs, angle, started):
         range_probes=link_probes(model, coeffs.independent, axial))
 
 
-def _nominal_axial_forces(model, t, s, sdot, sddot, lam):
+def _nominal_axial_forces(model, t, s, sdot, sddot, lam, *, stride=1):
     """Axial force (N+1, n_x) of every elastic link along the rigid motion, at the abscissae of
-    the linear-range measures (``linearize._range.sample_abscissae``)."""
+    the linear-range measures (``linearize._range.sample_abscissae``): computed on every
+    ``stride``-th sample and interpolated like the coefficients (it is a combination of the
+    multipliers and accelerations that the coefficients' spectral check already resolves)."""
     abscissae = {name: sample_abscissae(layout.link) for name, layout in model.layouts.items()
                  if layout.shapes is not None}
     if not abscissae:
         return {}
-    return axial_forces(model, t, s, sdot, sddot, lam, abscissae)
+    pick = slice(None, None, stride)
+    coarse = axial_forces(model, t[pick], s[pick], sdot[pick], sddot[pick], lam[pick], abscissae)
+    return {name: None if force is None else interpolate_periodic(force, len(t) - 1)
+            for name, force in coarse.items()}
 
 
 def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMechanism:
@@ -485,7 +490,8 @@ def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFam
                                  "speed")
     # The axial force is linear in s'^2, s'' and lam: its part at rest plus rate^2 times the rest.
     zero = np.zeros_like(nominal.s)
-    axial0 = _nominal_axial_forces(model, nominal.t, nominal.s, zero, zero, lam_static)
+    axial0 = _nominal_axial_forces(model, nominal.t, nominal.s, zero, zero, lam_static,
+                                   stride=base.coefficients.stride)
     at_rate = {probe.link.name: probe.axial for probe in base.range_probes}
     axial2 = {name: None if force is None else (at_rate[name] - force) / rate**2
               for name, force in axial0.items()}
