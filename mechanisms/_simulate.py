@@ -168,15 +168,16 @@ _NO_TRANSPOSE = np.array([ord("N")], dtype=np.int8)
 def _lu_factor(A_T, piv):
     """LU factorisation with partial pivoting, ``P A = L U`` (LAPACK dgetrf), of the (n, n) matrix
     ``A`` whose transpose ``A_T`` is given (C order, hence ``A`` in LAPACK's column-major order);
-    ``A_T`` is overwritten with the factors, ``piv`` (n + 2,) int32 with the pivot rows.
+    ``A_T`` is overwritten with the factors, ``piv`` (n + 3,) int32 with the pivot rows (1-based)
+    followed by room for the integers LAPACK takes by reference (n, nrhs, info).
 
     Returns ``min |u_kk| / max |u_kk|`` (0.0 when a pivot is exactly zero) as a cheap singularity
     indicator."""
     n = A_T.shape[0]
-    piv[n] = n      # the integers LAPACK takes by reference ride at the end of ``piv``
+    piv[n] = n
     _dgetrf(piv[n:].ctypes, piv[n:].ctypes, A_T.ctypes, piv[n:].ctypes, piv.ctypes,
-            piv[n + 1:].ctypes)
-    if piv[n + 1] != 0:
+            piv[n + 2:].ctypes)
+    if piv[n + 2] != 0:
         return 0.0  # info > 0: u_kk exactly zero at k = info
     umax = 0.0
     umin = np.inf
@@ -190,12 +191,13 @@ def _lu_factor(A_T, piv):
 
 @numba.njit(cache=True)
 def _lu_solve(LU_T, piv, b):
-    """Solve ``A x = b`` (n,) in place from ``_lu_factor``'s output (LAPACK dgetrs)."""
+    """Solve ``A x = b`` in place, ``b`` (n,) contiguous, from ``_lu_factor``'s output (LAPACK
+    dgetrs)."""
     n = LU_T.shape[0]
     piv[n] = n
-    piv[n + 1] = 1  # one right-hand side
+    piv[n + 1] = 1  # one right-hand side; info goes to piv[n + 2] (dgetrs zeroes it first)
     _dgetrs(_NO_TRANSPOSE.ctypes, piv[n:].ctypes, piv[n + 1:].ctypes, LU_T.ctypes, piv[n:].ctypes,
-            piv.ctypes, b.ctypes, piv[n:].ctypes, piv[n + 1:].ctypes)
+            piv.ctypes, b.ctypes, piv[n:].ctypes, piv[n + 2:].ctypes)
 
 
 @numba.njit(cache=True)
@@ -642,7 +644,7 @@ class _Stepper:
         self.rhs = np.empty(n + r)
         self.G = np.empty((n + r, n + r))
         self.tangent = np.empty((n, n))
-        self.piv = np.empty(n + r + 2, dtype=np.int32)
+        self.piv = np.empty(n + r + 3, dtype=np.int32)
         self.tangent_h = None      # the step the kept tangent terms were scaled with, or None
         self.residual = np.nan     # max |Phi| at the last converged solve
         self.counts = {"n_newton": 0, "n_jacobian": 0, "n_factorizations": 0}
