@@ -53,6 +53,8 @@ class _LinkLoading:
         self.joints = []                                      # (abscissa, rows)
         for joint in model.mechanism.joints:
             rows = model.joint_rows(joint.name)
+            if all(link_name != name for link_name, _ in rows.ends):
+                continue  # the joint does not touch this link
             # the axial force below is that of point loads -Phi_J,R^T lam_J (mechanisms.JointRows)
             if not rows.point_force:
                 raise LinearizationError(

@@ -156,10 +156,20 @@ def link_probes(model, independent, axial) -> tuple[_LinkProbe, ...]:
 
 
 def linear_range(probes, z: np.ndarray) -> LinearRange:
-    """The ``LinearRange`` of the independent-coordinate history ``z`` (N+1, m)."""
+    """The ``LinearRange`` of the independent-coordinate history ``z`` (N+1, m); a non-finite
+    history raises ``mechanisms.ArgumentError`` (no verdict can be read from it)."""
+    z = np.asarray(z, dtype=float)
+    if not np.isfinite(z).all():
+        raise mechanisms.ArgumentError(
+            f"z: expected a finite history of the independent coordinates; received "
+            f"{int((~np.isfinite(z)).sum())} non-finite entries of {z.size}")
     links = tuple(probe.measures(z) for probe in probes)
     exceeded = [text for link in links for text in link.exceeded()]
+    # a measure that could not be computed is said, never passed over as within its limit
+    unknown = [f"link {link.link!r}: compression not computed (a joint is not a point force)"
+               for link in links if np.isnan(link.peak_compression_over_euler)]
     if exceeded:
         return LinearRange(links, "outside_linear_range",
-                           "outside the linear range: " + "; ".join(exceeded))
-    return LinearRange(links, "ok", "every elastic link within the linear range")
+                           "outside the linear range: " + "; ".join(exceeded + unknown))
+    return LinearRange(links, "ok", "; ".join(["every computed measure within the linear range"] + unknown)
+                       if unknown else "every elastic link within the linear range")

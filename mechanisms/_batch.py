@@ -216,7 +216,10 @@ def continue_positions_kernel(s, start, drive_rows, drive_angles, rigid, phi0, h
             for i in range(r):
                 for j in range(n_rigid):
                     jac_r[i, j] = jac[i, rigid[j]]
-            step = np.linalg.solve(jac_r, phi)
+            try:
+                step = np.linalg.solve(jac_r, phi)
+            except Exception:  # singular (a toggle): the careful Python path names it
+                return k
             for j in range(n_rigid):
                 q[rigid[j]] -= step[j]
         if not converged or scaled_correction(q, predicted, rigid,

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import linearize
+from tests._columns import euler_column
 import mechanisms as mc
 import periodic
 from linearize import LinearizationError
@@ -63,34 +64,13 @@ def test_speed_family_equals_direct_linearisation_at_every_speed():
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-11 * np.abs(b).max(), err_msg=name)
 
 
-def _column(load_ratio, discretisation):
-    """A pinned-pinned steel column carrying a heavy point mass on a vertical slider, loaded by
-    gravity: end load P = load_ratio * P_Euler. A rigid crank at rest only supplies the drive that
-    every mechanism needs. The column's own weight is 1e-6 of P."""
-    column = mc.ElasticLink.rectangular("column", 0.5, width=0.02, thickness=0.002, density=7800.0,
-                                       youngs_modulus=2.0e11, discretisation=discretisation)
-    euler_load = math.pi**2 * column.youngs_modulus * column.second_moment / column.length**2
-    mass = 1e6 * column.mass
-    base = mc.RigidLink.uniform("base", 0.1, width=0.02, thickness=0.002, density=7800.0)
-    mechanism = mc.Mechanism(
-        name="column", links=(base, column),
-        joints=(mc.Revolute("O", "ground", (0.0, 0.0), "base", "start"),
-                mc.Revolute("A", "base", "end", "column", "start"),
-                mc.Slider("top", "column", "end", origin=(0.1, 0.0), angle=math.pi / 2)),
-        drives=(mc.PrescribedDrive("O", rate=0.0),),
-        point_masses=(mc.PointMass("column", "end", mass),),
-        gravity=(0.0, -load_ratio * euler_load / mass),
-        initial_angles={"base": 0.0, "column": math.pi / 2}, period=1.0)
-    return mechanism, column
-
-
 @pytest.mark.parametrize("load_ratio", [0.0, 0.3, 0.75, 0.96])
 def test_geometric_stiffness_lowers_bending_frequency_as_euler_predicts(load_ratio):
     """With the exact first buckling mode sin(pi x / L) as a Ritz shape, the frequency under an end
     load P is omega_1 sqrt(1 - P / P_E) exactly. The column's own weight adds a compression
     mu g (L - x) whose work on that mode equals an end load of mu g L / 2, so the closed form is
     omega_1 sqrt(1 - (P + mu g L / 2) / P_E)."""
-    mechanism, column = _column(load_ratio, mc.Ritz(n_bending=1, n_axial=1))
+    mechanism, column = euler_column(load_ratio, mc.Ritz(n_bending=1, n_axial=1))
     lin = linearize.about(mechanism, n_steps=4)
     assert lin.labels == ("column.b1", "column.a1")
     M, K = lin.system.M[0], lin.system.K[0]
@@ -109,8 +89,8 @@ def test_bending_frequency_vanishes_at_the_euler_load_with_finite_elements():
     towards zero at the elements' order (h^4 for the cubic Hermite buckling load)."""
     ratios = []
     for n_elements in (2, 4, 8):
-        mechanism, _ = _column(1.0, mc.Fem(n_elements))
-        unloaded, _ = _column(0.0, mc.Fem(n_elements))
+        mechanism, _ = euler_column(1.0, mc.Fem(n_elements))
+        unloaded, _ = euler_column(0.0, mc.Fem(n_elements))
         lin, lin0 = linearize.about(mechanism, n_steps=4), linearize.about(unloaded, n_steps=4)
         bend = [i for i, label in enumerate(lin.labels) if not label.startswith("column.u")]
         import scipy.linalg
@@ -284,6 +264,14 @@ def test_geometric_stiffness_refuses_a_joint_whose_load_it_does_not_know(four_ba
                                   stiffness)
     with pytest.raises(LinearizationError, match=r"joint 'B' \(kind 'cam'\), which does not act"):
         linearize.geometric_stiffness(NewJointKind(model, False), *args)
+
+    class GroundJointNotAPointForce(NewJointKind):
+        def joint_rows(self, name):  # the crank's ground pin O touches no stiffened link
+            rows = self._model.joint_rows(name)
+            return dataclasses.replace(rows, kind="cam", point_force=False) if name == "O" else rows
+
+    np.testing.assert_array_equal(
+        linearize.geometric_stiffness(GroundJointNotAPointForce(model, True), *args), stiffness)
 
 
 def test_one_default_observable_rule_for_simulate_and_linearize():

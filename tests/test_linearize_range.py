@@ -12,7 +12,7 @@ import linearize
 import mechanisms as mc
 import periodic
 
-from .test_linearize import _column
+from tests._columns import euler_column
 
 
 def test_section_height_and_euler_load_closed_forms():
@@ -35,7 +35,7 @@ def test_compression_over_euler_is_where_the_linearised_bending_frequency_vanish
     """The column of test_linearize: the peak compression (at its foot) is the end load plus its
     own weight, and with the exact buckling mode the frequency is omega_1 sqrt(1 - P_eff / P_E)
     with the link's own ``euler_load``: the measure reaches 1 where the frequency vanishes."""
-    mechanism, column = _column(load_ratio, mc.Ritz(n_bending=1, n_axial=1))
+    mechanism, column = euler_column(load_ratio, mc.Ritz(n_bending=1, n_axial=1))
     lin = linearize.about(mechanism, n_steps=4)
     g = -mechanism.gravity[1]
     measures = lin.linear_range(np.zeros(lin.system.f.shape)).links[0]
@@ -166,3 +166,14 @@ def test_two_link_arm_nonlinear_run_follows_the_linear_solution():
     for spec, linear in lin.observe(steady.x).items():
         nonlinear = run.observables[spec][-257:]
         assert np.abs(nonlinear - linear).max() < 0.01 * np.abs(linear).max(), spec
+
+
+def test_a_non_finite_history_gets_no_verdict(thesis_family):
+    """A NaN or infinite solution must not read as 'within the linear range'."""
+    lin = thesis_family.at_speed(60.0)
+    z = np.zeros(lin.system.f.shape)
+    assert lin.linear_range(z).status == "ok"
+    for bad in (np.nan, np.inf):
+        z[3, 0] = bad
+        with pytest.raises(mc.ArgumentError, match="z: expected a finite history"):
+            lin.linear_range(z)
