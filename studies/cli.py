@@ -203,9 +203,15 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{name:16s} {kind_of(result).summary(result)}")
     for name, message in failures.items():
         print(f"{name:16s} FAILED: {message}")
+    # a single study whose computation failed (a nonlinear check whose run failed) is written with
+    # the status "failed"; grid studies report their failed points in their summary
+    failed = sorted(name for name, result in results.items()
+                    if isinstance(getattr(result, "status", None), str) and result.status == "failed")
+    if failed:
+        print(f"failed: {', '.join(failed)}")
     print(f"wrote {out}")
     # exit code 1: the input was fine but a study could not be computed
-    return 1 if failures else 0
+    return 1 if failures or failed else 0
 
 
 def _plot(args: argparse.Namespace) -> int:
