@@ -16,7 +16,7 @@ __all__ = ["UsageError", "load_scene", "main"]
 
 logger = logging.getLogger("flexvib")
 
-DEFAULT_SCENE = "four_bar_thesis"
+DEFAULT_SCENE = "four_bar_ritz"
 #: A built-in non-mechanism scene: the damped, forced Mathieu oscillator (studies.mathieu_problem),
 #: whose every number is known independently; small and fast, for trying the command out.
 MATHIEU = "mathieu"
