@@ -17,7 +17,8 @@ import periodic
 
 from ._core import (WARN_CONDITION, LinearCoefficients, LinearizationError, choose_independent,
                     interpolate_periodic, linear_coefficients, spectral_tail)
-from ._geometric import geometric_stiffness
+from ._geometric import axial_forces, geometric_stiffness
+from ._range import LinearRange, link_probes, linear_range, sample_abscissae
 
 logger = logging.getLogger(__name__)
 
@@ -32,7 +33,8 @@ class LinearizedMechanism:
     by ``labels``; ``nominal``: the ``mechanisms.NominalMotion`` it is linearised about (same grid);
     ``crank_angle`` (N+1,) rad: the first drive's angle on the grid; ``observables``: the specs that
     ``observe`` reports; ``coefficients``: the ``LinearCoefficients`` with the basis ``V`` (N+1, n, m)
-    and the conditioning diagnostics; ``run_time`` (s) of the linearisation.
+    and the conditioning diagnostics; ``run_time`` (s) of the linearisation; ``range_probes``: what
+    ``linear_range`` needs per elastic link (shape rows, the nominal axial force).
     """
 
     mechanism: Any
@@ -44,14 +46,27 @@ class LinearizedMechanism:
     observable_maps: dict
     coefficients: LinearCoefficients
     run_time: float
+    range_probes: tuple = dataclasses.field(default=(), repr=False, compare=False)
 
-    def observe(self, z: np.ndarray) -> dict[str, np.ndarray]:
-        """Observable deviations (N+1,) from the independent-coordinate history ``z`` (N+1, m)."""
+    def _history(self, z) -> np.ndarray:
         z = np.asarray(z, dtype=float)
         if z.shape != self.system.f.shape:
             raise ValueError(f"z must have shape {self.system.f.shape} (samples, independent "
                              f"coordinates); received shape {z.shape}")
+        return z
+
+    def observe(self, z: np.ndarray) -> dict[str, np.ndarray]:
+        """Observable deviations (N+1,) from the independent-coordinate history ``z`` (N+1, m)."""
+        z = self._history(z)
         return {spec: np.einsum("ki,ki->k", gmap, z) for spec, gmap in self.observable_maps.items()}
+
+    def linear_range(self, z: np.ndarray) -> LinearRange:
+        """The linear-range measures (``linearize.LinearRange``) of the periodic solution ``z``
+        (N+1, m) of ``system``: per elastic link, peak deflection over length and over section
+        height, peak slope, peak nominal compression over the Euler load, peak bending stress over
+        the yield strength; status ``"outside_linear_range"`` where one passes its
+        ``LINEAR_RANGE_LIMITS`` entry."""
+        return linear_range(self.range_probes, self._history(z))
 
     def full_state(self, z: np.ndarray, zdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Full coordinates and rates (N+1, n): nominal motion plus ``x = V z``,
@@ -229,11 +244,29 @@ def _finish(mechanism, model, nominal, coeffs, specs, angle, started):
         array[-1] = array[0]
     system = periodic.PeriodicSystem(nominal.period, coeffs.M, coeffs.C, coeffs.K, coeffs.f)
     labels = tuple(model.coord_labels[i] for i in coeffs.independent)
+    axial = _nominal_axial_forces(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot,
+                                  _multipliers_of(model, nominal), stride=coeffs.stride)
     return LinearizedMechanism(
         mechanism=mechanism, nominal=nominal, system=system, labels=labels,
         crank_angle=angle, observables=tuple(specs),
         observable_maps=_observable_maps(model, specs, nominal.s, coeffs.V), coefficients=coeffs,
-        run_time=time.perf_counter() - started)
+        run_time=time.perf_counter() - started,
+        range_probes=link_probes(model, coeffs.independent, axial))
+
+
+def _nominal_axial_forces(model, t, s, sdot, sddot, lam, *, stride=1):
+    """Axial force (N+1, n_x) of every elastic link along the rigid motion, at the abscissae of
+    the linear-range measures (``linearize._range.sample_abscissae``): computed on every
+    ``stride``-th sample and interpolated like the coefficients (it is a combination of the
+    multipliers and accelerations that the coefficients' spectral check already resolves)."""
+    abscissae = {name: sample_abscissae(layout.link) for name, layout in model.layouts.items()
+                 if layout.shapes is not None}
+    if not abscissae:
+        return {}
+    pick = slice(None, None, stride)
+    coarse = axial_forces(model, t[pick], s[pick], sdot[pick], sddot[pick], lam[pick], abscissae)
+    return {name: None if force is None else interpolate_periodic(force, len(t) - 1)
+            for name, force in coarse.items()}
 
 
 def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMechanism:
@@ -336,7 +369,9 @@ class SpeedFamily:
     on the crank-angle grid ``phi_k = offset + 2 pi k / N`` (``f0`` is the gravity load, ``C0`` the
     material damping, ``K1`` couples damping with the moving basis). Each array has the grid as its
     first axis. ``at_speed(Omega)`` returns the ``LinearizedMechanism`` at any speed of the same sign
-    as the base mechanism's, for the cost of a few array operations.
+    as the base mechanism's, for the cost of a few array operations. The nominal axial force of
+    each elastic link is likewise ``N0 + Omega^2 N2`` (``axial0``, ``axial2``: link name ->
+    (N+1, n_x) at the linear-range abscissae): ``linear_range(Omega, z)`` uses it.
     """
 
     mechanism: Any
@@ -353,6 +388,19 @@ class SpeedFamily:
     lam0: np.ndarray
     lam2: np.ndarray
     run_time: float
+    axial0: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
+    axial2: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
+
+    def _range_probes(self, rate: float) -> tuple:
+        return tuple(probe if probe.axial is None else dataclasses.replace(
+            probe, axial=self.axial0[probe.link.name] + rate**2 * self.axial2[probe.link.name])
+            for probe in self.base.range_probes)
+
+    def linear_range(self, rate: float, z: np.ndarray) -> LinearRange:
+        """``at_speed(rate).linear_range(z)`` for the cost of a few array operations: the measures
+        of the periodic solution ``z`` (N+1, m) of ``system_at(rate)``."""
+        self._check_rate(rate)
+        return linear_range(self._range_probes(rate), self.base._history(z))
 
     def _check_rate(self, rate) -> None:
         if not (isinstance(rate, (int, float, np.floating)) and math.isfinite(rate)
@@ -390,7 +438,8 @@ class SpeedFamily:
             mechanism = self.mechanism.replace(
                 drives=(dataclasses.replace(self.mechanism.drives[0], rate=rate),))
         return dataclasses.replace(base, mechanism=mechanism, nominal=nominal, system=system,
-                                   coefficients=coeffs, run_time=time.perf_counter() - started)
+                                   coefficients=coeffs, range_probes=self._range_probes(rate),
+                                   run_time=time.perf_counter() - started)
 
 
 def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFamily:
@@ -439,9 +488,16 @@ def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFam
         raise LinearizationError("the coefficients are not polynomial in the crank speed as "
                                  "expected (speed-dependent forces?); use linearize.about() per "
                                  "speed")
+    # The axial force is linear in s'^2, s'' and lam: its part at rest plus rate^2 times the rest.
+    zero = np.zeros_like(nominal.s)
+    axial0 = _nominal_axial_forces(model, nominal.t, nominal.s, zero, zero, lam_static,
+                                   stride=base.coefficients.stride)
+    at_rate = {probe.link.name: probe.axial for probe in base.range_probes}
+    axial2 = {name: None if force is None else (at_rate[name] - force) / rate**2
+              for name, force in axial0.items()}
     return SpeedFamily(mechanism=mechanism, base=base, rate=rate, M=c1.M, C0=c0.C, C1=C1,
                        K0=c0.K, K1=K1, K2=K2, f0=c0.f, f2=f2, lam0=lam_static, lam2=lam2,
-                       run_time=time.perf_counter() - started)
+                       run_time=time.perf_counter() - started, axial0=axial0, axial2=axial2)
 
 
 def _static_multipliers(model, nominal) -> np.ndarray:

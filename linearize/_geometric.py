@@ -34,7 +34,8 @@ import mechanisms
 
 from ._core import LinearizationError
 
-__all__ = ["geometric_stiffness"]
+__all__ = ["geometric_stiffness", "axial_forces"]
+
 
 class _LinkLoading:
     """What the axial force of one stiffened link needs, gathered once: quadrature, shape slopes,
@@ -105,3 +106,23 @@ def geometric_stiffness(model, t, s, sdot, sddot, lam, jacobian=None) -> np.ndar
                                                        link.weights * N, link.slopes)
     return K_G
 
+
+
+def axial_forces(model, t, s, sdot, sddot, lam, abscissae, jacobian=None) -> dict[str, np.ndarray]:
+    """The axial force ``N`` (N+1, len(x)) in N, tension positive, of each elastic link of ``model``
+    named in ``abscissae`` (link name -> abscissae ``x`` (m)), along the rigid motion ``s, sdot,
+    sddot`` (N+1, n) at times ``t`` with multipliers ``lam`` (N+1, r): the rigid inverse dynamics
+    of the module docstring, for every elastic link whether stiffened or not. A link loaded by a
+    joint that is not a point force gets ``None``."""
+    if jacobian is None:
+        jacobian = mechanisms.constraint_terms_along(model, t, s).jacobian
+    gravity = np.asarray(model.mechanism.gravity, dtype=float)
+    forces = {}
+    for name, x in abscissae.items():
+        try:
+            loading = _LinkLoading(model, name)
+        except LinearizationError:
+            forces[name] = None
+            continue
+        forces[name] = loading.axial_force(gravity, s, sdot, sddot, lam, jacobian, x)
+    return forces

@@ -27,7 +27,7 @@ _RIGID_KEYS = ("type", "length", "mass", "inertia", "centroid", "points", "width
                "density")
 _ELASTIC_KEYS = ("type", "length", "density", "youngs_modulus", "width", "thickness", "area",
                  "second_moment", "discretisation", "boundary", "axial", "geometric_stiffening",
-                 "rotary_inertia", "damping")
+                 "rotary_inertia", "damping", "yield_strength")
 _DISCRETISATION_KEYS = {"ritz": ("type", "n_bending", "n_axial"), "fem": ("type", "n_elements")}
 _DAMPING_KEYS = {"rayleigh": ("type", "alpha", "beta", "ratio"), "modal": ("type", "ratios"),
                  "matrix": ("type", "matrix"), "none": ("type",)}
@@ -180,7 +180,9 @@ def _elastic_link(name: str, t: _Table) -> ElasticLink:
                                          ("pinned-pinned", "clamped-free")),
                        axial=t.boolean("axial", True),
                        geometric_stiffening=t.boolean("geometric_stiffening", True),
-                       rotary_inertia=t.boolean("rotary_inertia", False))
+                       rotary_inertia=t.boolean("rotary_inertia", False),
+                       yield_strength=(t.number("yield_strength", "Pa", positive=True)
+                                       if t.has("yield_strength") else None))
     if not t.has("damping"):
         return link
     d = t.table("damping")
@@ -365,6 +367,8 @@ def _link_spec(link: RigidLink | ElasticLink) -> dict[str, Any]:
              "second_moment": link.second_moment, "boundary": link.boundary, "axial": link.axial,
              "geometric_stiffening": link.geometric_stiffening,
              "rotary_inertia": link.rotary_inertia}
+    if link.yield_strength is not None:
+        entry["yield_strength"] = link.yield_strength
     d = link.discretisation
     entry["discretisation"] = ({"type": "fem", "n_elements": d.n_elements} if isinstance(d, Fem)
                                else {"type": "ritz", "n_bending": d.n_bending,

@@ -245,7 +245,8 @@ class ElasticLink:
     """A slender Euler-Bernoulli beam in a floating frame (see the module docstring).
 
     ``area`` in m^2, ``second_moment`` (I of the section about the bending axis) in m^4, ``density``
-    in kg/m^3, ``youngs_modulus`` in Pa.
+    in kg/m^3, ``youngs_modulus`` in Pa; ``yield_strength`` (Pa, optional): the material's yield
+    stress, against which ``linearize`` compares the peak bending stress (``None``: not compared).
     """
 
     name: str
@@ -260,6 +261,7 @@ class ElasticLink:
     geometric_stiffening: bool = True  # strain u' + P[w'^2/2] (projected, see _beams); False: seed eq. 2.13
     rotary_inertia: bool = False
     damping: Damping = None
+    yield_strength: float | None = None
 
     def __post_init__(self) -> None:
         _check_name("link", self.name)
@@ -267,6 +269,8 @@ class ElasticLink:
         for key, unit in (("length", "m"), ("density", "kg/m^3"), ("youngs_modulus", "Pa"),
                           ("area", "m^2"), ("second_moment", "m^4")):
             _check_number(owner, key, getattr(self, key), unit, positive=True)
+        if self.yield_strength is not None:
+            _check_number(owner, "yield_strength", self.yield_strength, "Pa", positive=True)
         if not isinstance(self.discretisation, (Ritz, UserShapes, Fem)):
             raise MechanismError(f"{owner}: discretisation must be Ritz, UserShapes or Fem, got "
                                  f"{self.discretisation!r}")
@@ -300,6 +304,22 @@ class ElasticLink:
         """Position (m) of ``point`` (``"start"``, ``"end"`` or a distance along the link) in the
         undeformed link frame: ``(x, 0)``, ``x`` the point's abscissa."""
         return _pin_position(self, point, f"link {self.name!r}")
+
+    @property
+    def section_height(self) -> float:
+        """Depth ``h`` (m) of the section in the bending plane, ``sqrt(12 I / A)``: exactly the
+        ``thickness`` of a rectangular section (``A = b h``, ``I = b h^3 / 12``), and for any other
+        section the depth of the rectangle with the same ``A`` and ``I``. The outer fibre is at
+        ``h / 2`` from the neutral axis."""
+        return math.sqrt(12.0 * self.second_moment / self.area)
+
+    @property
+    def euler_load(self) -> float:
+        """Euler buckling load (N) of the link alone, ``pi^2 E I / (K L)^2``, with the effective
+        length factor ``K = 1`` for a pinned-pinned link (its frame is its chord: both ends pinned)
+        and ``K = 2`` for a clamped-free one (a cantilever)."""
+        k = 1.0 if self.boundary == "pinned-pinned" else 2.0
+        return math.pi**2 * self.youngs_modulus * self.second_moment / (k * self.length) ** 2
 
     def first_bending_frequency(self) -> float:
         """First pinned-pinned (or clamped-free) bending frequency of the link alone, rad/s."""

@@ -210,10 +210,10 @@ def slider_crank(*, crank_speed: float = 150.0, crank: float = 0.15, rod: float 
     return build(spec, source="slider_crank()")
 
 
-def two_link_arm(*, period: float = 0.5, shoulder_amplitude: float = 0.5,
-                 elbow_offset: float = 1.0, elbow_amplitude: float = 0.4,
+def two_link_arm(*, period: float = 1.0, shoulder_amplitude: float = 0.3,
+                 elbow_offset: float = 1.0, elbow_amplitude: float = 0.25,
                  upper_length: float = 0.4, forearm_length: float = 0.3, width: float = 0.025,
-                 thickness: float = 0.002, payload: float = 0.2, n_elements: int = 2,
+                 thickness: float = 0.005, payload: float = 0.2, n_elements: int = 2,
                  damping_ratio: float = 0.02, gravity: tuple[float, float] = (0.0, 0.0),
                  name: str = "two_link_arm") -> Mechanism:
     """A two-link arm (seed Fig. 1.3) moving in a horizontal plane: elastic aluminium links

@@ -221,7 +221,9 @@ def test_slider_crank_torque_against_energy_rate(slider_crank):
 def test_two_link_arm_with_gravity_against_energy_balance():
     """Two prescribed joints and gravity: d(T + V)/dt = tau_shoulder q1' + tau_elbow q2', with the
     arm's forward kinematics and energies written here by hand (uniform rods, tip payload)."""
-    mech = mechanisms.load("two_link_arm").with_parameter("gravity", [0.0, -9.81])
+    # the former shipped arm (2 mm links, period 0.5 s, amplitudes 0.5 and 0.4 rad), vertical
+    mech = mechanisms.two_link_arm(thickness=0.002, period=0.5, shoulder_amplitude=0.5,
+                                   elbow_amplitude=0.4, gravity=(0.0, -9.81))
     motion = mechanisms.nominal_motion(mech, n_steps=N_STEPS)
     period, w = 0.5, 2 * math.pi / 0.5
     t = motion.t[:-1]

@@ -118,7 +118,7 @@ def test_replace_recomputes_the_default_period_and_drops_the_spec():
     base = mechanisms.load("slider_crank")
     faster = base.replace(drives=(PrescribedDrive("O", rate=300.0),))
     assert faster.period == pytest.approx(2 * math.pi / 300) and faster.spec is None
-    assert mechanisms.load("two_link_arm").replace(name="arm").period == 0.5
+    assert mechanisms.load("two_link_arm").replace(name="arm").period == 1.0  # the explicit period
     with pytest.raises(TypeError, match="unknown fields"):
         base.replace(crank_speed=3.0)
 

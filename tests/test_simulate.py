@@ -791,7 +791,7 @@ def test_shipped_scenes_run_at_coarse_steps(spp, linear_starts):
 
 
 def test_two_link_arm_approaches_the_linear_solution_quadratically():
-    # The arm at 1 % and 3 % of its shipped joint amplitudes: from the linear periodic state the
+    # The former shipped arm at 1 % and 3 % of its joint amplitudes: from the linear periodic state the
     # nonlinear run differs from the linear solution by the neglected terms, quadratic in the
     # deflections, so the difference grows 9x when the amplitudes triple (+-25 % for the cubic
     # terms and the integration errors, each below a tenth of its deviation), and stays a small
@@ -799,7 +799,9 @@ def test_two_link_arm_approaches_the_linear_solution_quadratically():
     spec = "forearm.transverse@1"
     results = []
     for scale in (0.01, 0.03):
-        mech = mechanisms.two_link_arm(shoulder_amplitude=0.5 * scale,
+        # the former shipped arm (2 mm links, period 0.5 s, amplitudes 0.5 and 0.4 rad), scaled
+        mech = mechanisms.two_link_arm(thickness=0.002, period=0.5,
+                                       shoulder_amplitude=0.5 * scale,
                                        elbow_amplitude=0.4 * scale)
         results.append(_against_linear(mech, spec, 128))
     (dev1, amp1, err1, _), (dev3, _, err3, _) = results

@@ -1,0 +1,165 @@
+"""Linear-range measures: how far a periodic solution of the linearised mechanism is from the
+small-deformation, pre-buckling, elastic regime the linearisation assumes.
+
+Per elastic link, over one period and along the link (at ``4 n + 1`` abscissae for ``n`` Hermite
+elements, both sides of each node, 33 for Ritz or user shapes): the peak transverse deflection ``w``
+in the link's frame over its length and over its section height, the peak slope ``w'`` (rad), the
+peak compressive axial force of the nominal motion over the link's Euler load, and the peak bending
+stress ``E h |w''| / 2`` (``M c / I`` with ``M = E I w''``, ``c = h / 2``) over the yield strength.
+The thresholds are ``LINEAR_RANGE_LIMITS`` (docs/methods.md gives their reasons).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from types import MappingProxyType
+
+import numpy as np
+
+import mechanisms
+
+__all__ = ["LINEAR_RANGE_LIMITS", "LinkRange", "LinearRange"]
+
+# The thresholds beyond which a solution is ``outside_linear_range`` (docs/methods.md, linearize).
+LINEAR_RANGE_LIMITS = MappingProxyType({
+    # Floating-frame small deflection: the frame's rigid motion carries the large motion and the
+    # deflection must stay small against the length (small angles: sin and tan of 0.3 rad are
+    # within 1.5 % and 3 % of it). Measured: four_bar_thesis at 100 rad/s (deflection / length
+    # 0.057, slope 0.18 rad) follows its nonlinear run to 0.02 %.
+    "deflection_over_length": 0.1,
+    "slope": 0.3,
+    # Stiffened links linearise the membrane strain u' + P[w'^2/2]; the stretching that neglects
+    # grows with (deflection / section height)^2. Measured peak differences, nonlinear against
+    # linear: six_bar 0.2-1.8 % at 2.3-2.9, four_bar_fem4 3 % at 5.1 (100 rad/s), 24 % at 13.5
+    # (150 rad/s).
+    "deflection_over_height": 6.0,
+    # Compression against the Euler load: the bending frequency falls as sqrt(1 - P / P_E), at
+    # half the Euler load by 29 %. A link without geometric stiffening does not see this drop.
+    "compression_over_euler": 0.5,
+    # Linear elasticity: the bending stress of the outer fibre against the yield strength.
+    "stress_over_yield": 1.0,
+})
+
+_MEASURES = (("peak_deflection_over_length", "deflection_over_length", "peak deflection / length"),
+             ("peak_deflection_over_height", "deflection_over_height",
+              "peak deflection / section height"),
+             ("peak_slope", "slope", "peak slope (rad)"),
+             ("peak_compression_over_euler", "compression_over_euler",
+              "peak compressive axial force / Euler load"),
+             ("peak_stress_over_yield", "stress_over_yield", "peak bending stress / yield strength"))
+
+
+@dataclass(frozen=True)
+class LinkRange:
+    """The linear-range measures of one elastic link over one period (all dimensionless except
+    ``peak_slope``, rad). ``peak_compression_over_euler`` is 0 when the link is never compressed
+    and NaN when its load cannot be computed (a joint that is not a point force);
+    ``peak_stress_over_yield`` is NaN without a ``yield_strength``; ``stiffened``: the link has
+    geometric stiffening (its model sees the compression's effect on its bending)."""
+
+    link: str
+    peak_deflection_over_length: float
+    peak_deflection_over_height: float
+    peak_slope: float
+    peak_compression_over_euler: float
+    peak_stress_over_yield: float
+    stiffened: bool
+
+    def exceeded(self) -> list[str]:
+        """The measures above their ``LINEAR_RANGE_LIMITS``, each in words."""
+        found = []
+        for field, limit_name, words in _MEASURES:
+            value, limit = getattr(self, field), LINEAR_RANGE_LIMITS[limit_name]
+            if limit_name == "deflection_over_height" and not self.stiffened:
+                continue  # the unstiffened strain has no membrane term to neglect
+            if not value > limit:
+                continue
+            text = f"link {self.link!r}: {words} {value:.3g} > {limit:g}"
+            if limit_name == "compression_over_euler" and not self.stiffened:
+                text += (" (this link has no geometric stiffening: the model cannot see buckling "
+                         "there; turn geometric_stiffening on)")
+            found.append(text)
+        return found
+
+
+@dataclass(frozen=True)
+class LinearRange:
+    """``links``: one ``LinkRange`` per elastic link; ``status``: ``"ok"`` or
+    ``"outside_linear_range"``; ``message``: each measure above its threshold (link, measure,
+    value, threshold), or that all are within."""
+
+    links: tuple[LinkRange, ...]
+    status: str
+    message: str
+
+
+@dataclass(frozen=True)
+class _LinkProbe:
+    """What the measures of one elastic link need, fixed by the configuration on the grid:
+    ``columns`` (n_e,) of the link's elastic coordinates in ``z``; ``x`` (n_x,) the sample
+    abscissae (m, ``sample_abscissae``); ``w, dw, ddw`` (n_x, n_e) the shape rows there; ``axial`` (N+1, n_x) the nominal axial force (N, tension
+    positive) there, or ``None``; and the link's constants."""
+
+    link: mechanisms.ElasticLink
+    columns: np.ndarray
+    x: np.ndarray
+    w: np.ndarray
+    dw: np.ndarray
+    ddw: np.ndarray
+    axial: np.ndarray | None
+    stiffened: bool
+
+    def measures(self, z: np.ndarray) -> LinkRange:
+        link = self.link
+        q = z[:, self.columns].T                                     # (n_e, N+1)
+        deflection = np.abs(self.w @ q).max()
+        slope = np.abs(self.dw @ q).max()
+        if link.yield_strength is None:
+            stress = math.nan
+        else:
+            # sigma = M c / I with M = E I w'' and c = h / 2
+            stress = (link.youngs_modulus * link.section_height / 2 * np.abs(self.ddw @ q).max()
+                      / link.yield_strength)
+        compression = (math.nan if self.axial is None
+                       else max(0.0, -float(self.axial.min())) / link.euler_load)
+        return LinkRange(link=link.name, peak_deflection_over_length=float(deflection / link.length),
+                         peak_deflection_over_height=float(deflection / link.section_height),
+                         peak_slope=float(slope), peak_compression_over_euler=compression,
+                         peak_stress_over_yield=float(stress), stiffened=self.stiffened)
+
+
+def sample_abscissae(link) -> np.ndarray:
+    """Abscissae (m) where the measures look: ``4 n + 1`` evenly spaced for ``n`` Hermite elements
+    (the nodes among them), 33 otherwise, each interior one also just to its left (the curvature of
+    Hermite elements jumps at a node; the shapes take the element to the right there)."""
+    disc = link.discretisation
+    n = 4 * disc.n_elements if isinstance(disc, mechanisms.Fem) else 32
+    x = np.linspace(0.0, link.length, n + 1)
+    return np.sort(np.concatenate([x, x[1:] - 1e-9 * link.length]))
+
+
+def link_probes(model, independent, axial) -> tuple[_LinkProbe, ...]:
+    """One ``_LinkProbe`` per elastic link of ``model``; ``independent`` (m,) the indices of ``z``
+    in ``s``; ``axial``: link name -> (N+1, n_x) axial force at ``sample_abscissae``."""
+    column = {int(i): k for k, i in enumerate(independent)}
+    probes = []
+    for name, layout in model.layouts.items():
+        if layout.shapes is None:
+            continue
+        x = sample_abscissae(layout.link)
+        values = layout.shapes.evaluate(x)
+        columns = np.array([column[i] for i in range(layout.elastic.start, layout.elastic.stop)])
+        probes.append(_LinkProbe(link=layout.link, columns=columns, x=x, w=values.w, dw=values.dw,
+                                 ddw=values.ddw, axial=axial[name], stiffened=layout.stiffening))
+    return tuple(probes)
+
+
+def linear_range(probes, z: np.ndarray) -> LinearRange:
+    """The ``LinearRange`` of the independent-coordinate history ``z`` (N+1, m)."""
+    links = tuple(probe.measures(z) for probe in probes)
+    exceeded = [text for link in links for text in link.exceeded()]
+    if exceeded:
+        return LinearRange(links, "outside_linear_range",
+                           "outside the linear range: " + "; ".join(exceeded))
+    return LinearRange(links, "ok", "every elastic link within the linear range")
