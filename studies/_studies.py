@@ -140,7 +140,7 @@ def worst_cases(status: np.ndarray, message: np.ndarray, point: Any, *, count: i
     chosen = np.argwhere(ranks == ranks.min())
     cases = []
     for index in map(tuple, chosen[:count]):
-        text = str(message[index])
+        text = str(message[index]).removeprefix(f"{status[index]}: ")
         text = text if len(text) <= width else text[:width - 3] + "..."
         cases.append(f"{point(index)}: {status[index]}" + (f" ({text})" if text else ""))
     more = f"; and {len(chosen) - count} more" if len(chosen) > count else ""
