@@ -120,7 +120,7 @@ def many_elements():
 def zero_damping():
     """No damping: multipliers on the unit circle (Liouville: det Phi = 1); the verdict is marginal,
     neither stable with margin nor unstable."""
-    result = _steady(_scene({"links.coupler.damping.ratio": 0.0}), 60.0, n_steps=256)
+    result = _steady(_scene({"links.coupler.damping.ratio": 0.0}), 30.0, n_steps=256)
     log_det = float(np.sum(np.log(np.abs(result.multipliers))))
     return (result.status, result.message,
             f"spectral radius {result.spectral_radius:.8f} +- {result.spectral_radius_error:.2g}",
