@@ -56,6 +56,8 @@ from typing import Any, Mapping, Sequence
 
 import numba
 import numpy as np
+from llvmlite import binding as llvm_binding
+from numba.extending import get_cython_function_address
 
 from ._kinematics import ConvergenceError
 from ._observables import default_observables
@@ -143,68 +145,62 @@ class SimulationResult:
 # Numba kernels
 # ---------------------------------------------------------------------------------------------------
 # The iteration matrix (n + r ~ 20-70) is factorised once and reused over a modified-Newton
-# iteration, and its pivots give ``min_pivot_ratio``: numba's np.linalg.solve (which factorises at
-# every solve) made the thesis four-bar's runs 14-18 % slower (20 revolutions at 125 and 400 steps
-# per period), so the LU is written out here. ``periodic._newmark`` has its own (the packages do not
-# import each other).
+# iteration, and its pivots give ``min_pivot_ratio``. LAPACK's dgetrf / dgetrs (scipy's bundled
+# LAPACK) do the work; numba's np.linalg.solve, which factorises and copies at every solve, made the
+# thesis four-bar's runs 14-18 % slower (20 revolutions at 125 and 400 steps per period), whereas
+# direct dgetrf / dgetrs calls cost 0-4 % (125) and 3-10 % (400) against the hand-written LU they
+# replaced (medians of interleaved runs; a cold OpenBLAS call takes ~2-3 us more). The kernels
+# reach LAPACK through symbols registered with LLVM (not through ctypes pointers, which
+# numba refuses to cache): the cached machine code names the symbol, and importing this module
+# binds it to scipy's function in every process.
+for _name in ("dgetrf", "dgetrs"):
+    llvm_binding.add_symbol(f"flexvib_mechanisms_{_name}",
+                            get_cython_function_address("scipy.linalg.cython_lapack", _name))
+_INT_P, _DOUBLE_P = numba.types.CPointer(numba.int32), numba.types.CPointer(numba.float64)
+# Fortran signatures, all arguments by reference: dgetrf(m, n, a, lda, ipiv, info),
+# dgetrs(trans, n, nrhs, a, lda, ipiv, b, ldb, info)
+_dgetrf = numba.types.ExternalFunction("flexvib_mechanisms_dgetrf", numba.void(
+    _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P, _INT_P))
+_dgetrs = numba.types.ExternalFunction("flexvib_mechanisms_dgetrs", numba.void(
+    numba.types.CPointer(numba.int8), _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P, _DOUBLE_P,
+    _INT_P, _INT_P))
+_NO_TRANSPOSE = np.array([ord("N")], dtype=np.int8)
+
+
 @numba.njit(cache=True)
-def _lu_factor(A, piv):
-    """In-place LU factorisation with partial pivoting, ``P A = L U`` (Golub & Van Loan alg. 3.4.1).
+def _lu_factor(A_T, piv):
+    """LU factorisation with partial pivoting, ``P A = L U`` (LAPACK dgetrf), of the (n, n) matrix
+    ``A`` whose transpose ``A_T`` is given (C order, hence ``A`` in LAPACK's column-major order);
+    ``A_T`` is overwritten with the factors, ``piv`` (n + 3,) int32 with the pivot rows (1-based)
+    followed by room for the integers LAPACK takes by reference (n, nrhs, info).
 
     Returns ``min |u_kk| / max |u_kk|`` (0.0 when a pivot is exactly zero) as a cheap singularity
     indicator."""
-    n = A.shape[0]
+    n = A_T.shape[0]
+    piv[n] = n
+    _dgetrf(piv[n:].ctypes, piv[n:].ctypes, A_T.ctypes, piv[n:].ctypes, piv.ctypes,
+            piv[n + 2:].ctypes)
+    if piv[n + 2] != 0:
+        return 0.0  # info > 0: u_kk exactly zero at k = info
     umax = 0.0
     umin = np.inf
     for k in range(n):
-        p = k
-        big = abs(A[k, k])
-        for i in range(k + 1, n):
-            if abs(A[i, k]) > big:
-                big = abs(A[i, k])
-                p = i
-        piv[k] = p
-        if p != k:
-            for j in range(n):
-                tmp = A[k, j]
-                A[k, j] = A[p, j]
-                A[p, j] = tmp
-        pivot = A[k, k]
-        umax = max(umax, abs(pivot))
-        umin = min(umin, abs(pivot))
-        if pivot == 0.0:
-            return 0.0
-        for i in range(k + 1, n):
-            A[i, k] /= pivot
-            lik = A[i, k]
-            if lik != 0.0:
-                for j in range(k + 1, n):
-                    A[i, j] -= lik * A[k, j]
+        umax = max(umax, abs(A_T[k, k]))
+        umin = min(umin, abs(A_T[k, k]))
     if umax == 0.0:
         return 0.0
     return umin / umax
 
 
 @numba.njit(cache=True)
-def _lu_solve(LU, piv, b):
-    """Solve ``A x = b`` in place from ``_lu_factor``'s output."""
-    n = LU.shape[0]
-    for k in range(n):
-        p = piv[k]
-        if p != k:
-            tmp = b[k]
-            b[k] = b[p]
-            b[p] = tmp
-    for i in range(n):
-        acc = b[i]
-        for j in range(i):
-            acc -= LU[i, j] * b[j]
-        b[i] = acc
-    for i in range(n - 1, -1, -1):
-        acc = b[i]
-        for j in range(i + 1, n):
-            acc -= LU[i, j] * b[j]
-        b[i] = acc / LU[i, i]
+def _lu_solve(LU_T, piv, b):
+    """Solve ``A x = b`` in place, ``b`` (n,) contiguous, from ``_lu_factor``'s output (LAPACK
+    dgetrs)."""
+    n = LU_T.shape[0]
+    piv[n] = n
+    piv[n + 1] = 1  # one right-hand side; info goes to piv[n + 2] (dgetrs zeroes it first)
+    _dgetrs(_NO_TRANSPOSE.ctypes, piv[n:].ctypes, piv[n + 1:].ctypes, LU_T.ctypes, piv[n:].ctypes,
+            piv.ctypes, b.ctypes, piv[n:].ctypes, piv[n + 2:].ctypes)
 
 
 @numba.njit(cache=True)
@@ -219,7 +215,8 @@ def _tangent_terms(dMa_ds, dQ_ds, dQ_dv, dPhiTlam_ds, beta_p, gamma_p, out):
 
 @numba.njit(cache=True)
 def _fill_iteration_matrix(M, tangent, Phi_s, out):
-    """The Newton matrix of (NR): ``[[M + beta' K_t + gamma' C_t, Phi_s^T], [Phi_s, 0]]``.
+    """The transpose of the Newton matrix of (NR), ``[[M + beta' K_t + gamma' C_t, Phi_s^T],
+    [Phi_s, 0]]``, into ``out`` (n + r, n + r): the matrix in column-major order for LAPACK.
 
     Returns ``max(1, max_k sum_j |Phi_s[k, j]|)``, the factor from a position error to the
     constraint residual that the acceptance test allows for."""
@@ -227,7 +224,7 @@ def _fill_iteration_matrix(M, tangent, Phi_s, out):
     r = Phi_s.shape[0]
     for i in range(n):
         for j in range(n):
-            out[i, j] = M[i, j] + tangent[i, j]
+            out[j, i] = M[i, j] + tangent[i, j]
     row_sum_max = 1.0
     for k in range(r):
         row_sum = 0.0
@@ -650,7 +647,7 @@ class _Stepper:
         self.rhs = np.empty(n + r)
         self.G = np.empty((n + r, n + r))
         self.tangent = np.empty((n, n))
-        self.piv = np.empty(n + r, dtype=np.int64)
+        self.piv = np.empty(n + r + 3, dtype=np.int32)
         self.tangent_h = None      # the step the kept tangent terms were scaled with, or None
         self.residual = np.nan     # max |Phi| at the last converged solve
         self.counts = {"n_newton": 0, "n_jacobian": 0, "n_factorizations": 0}

@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.linalg
 import sympy as sp
 from scipy.integrate import solve_ivp
 
@@ -274,13 +275,39 @@ def test_lu_kernels_solve_like_numpy():
     for n in (1, 5, 30):
         A = rng.normal(size=(n, n)) + n * np.eye(n) * rng.choice([0.0, 1.0])
         b = rng.normal(size=n)
-        LU, piv = A.copy(), np.empty(n, dtype=np.int64)
+        # the kernels take A transposed (A in LAPACK's column-major order), the pivots as int32
+        LU, piv = A.T.copy(), np.empty(n + 3, dtype=np.int32)
         assert _lu_factor(LU, piv) > 0.0
         x = b.copy()
         _lu_solve(LU, piv, x)
         # backward stable: residual ~ n eps |A| |x|
         assert np.linalg.norm(A @ x - b) <= 1e-12 * n * np.linalg.norm(A) * np.linalg.norm(x)
-    assert _lu_factor(np.zeros((3, 3)), np.empty(3, dtype=np.int64)) == 0.0
+    assert _lu_factor(np.zeros((3, 3)), np.empty(6, dtype=np.int32)) == 0.0
+
+
+@pytest.mark.parametrize("n", [1, 2, 13, 60])
+def test_lu_kernels_match_numpy_solve_and_the_pivots_of_A(n):
+    rng = np.random.default_rng(n)
+    A = rng.normal(size=(n, n)) + np.sqrt(n) * np.eye(n)  # well conditioned
+    B = rng.normal(size=(n, 3 * n + 1))                   # many right-hand sides, one factorisation
+    LU, piv = A.T.copy(), np.empty(n + 3, dtype=np.int32)
+    ratio = _lu_factor(LU, piv)
+    # the pivot ratio is that of P A = L U (partial pivoting by rows of A, not of A^T)
+    U = scipy.linalg.lu(A)[2]
+    pivots = np.abs(np.diag(U))
+    assert ratio == pytest.approx(pivots.min() / pivots.max(), rel=1e-12)
+    assert np.linalg.cond(A) < 1e3
+    for j in range(B.shape[1]):
+        x = B[:, j].copy()
+        _lu_solve(LU, piv, x)
+        np.testing.assert_allclose(x, np.linalg.solve(A, B[:, j]), rtol=0, atol=1e-12)
+
+
+def test_lu_factor_reports_an_exactly_zero_pivot():
+    # rank 2 of 3 with no zero entries: elimination leaves an exact zero pivot (dyadic entries),
+    # which the Newton iteration reports as a singular iteration matrix (ratio not > 0)
+    A = np.array([[2.0, 1.0, 3.0], [4.0, 2.0, 6.0], [1.0, 3.0, 0.5]])
+    assert _lu_factor(A.T.copy(), np.empty(6, dtype=np.int32)) == 0.0
 
 
 # ---------------------------------------------------------------------------------------------------
