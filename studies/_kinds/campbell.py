@@ -52,6 +52,9 @@ class CampbellResult(GridResult):
     shapes: np.ndarray = None
     multipliers: np.ndarray = None
     multipliers_coarse: np.ndarray = None
+    spectral_radius: np.ndarray = None
+    spectral_radius_error: np.ndarray = None
+    is_stable: np.ndarray = None
     period: np.ndarray = None
     order: np.ndarray = None
     tracking_mac: np.ndarray = None
@@ -63,9 +66,6 @@ class CampbellResult(GridResult):
     mode_labels: tuple = ()
     harmonics: tuple = ()
     run_time: float = float("nan")
-    spectral_radius: np.ndarray = None
-    spectral_radius_error: np.ndarray = None
-    is_stable: np.ndarray = None
 
     _units = {"speeds": "rad/s", "crank_angle": "rad", "frozen": "rad/s", "shapes": "1",
               "multipliers": "1", "multipliers_coarse": "1", "period": "s", "order": "1",
