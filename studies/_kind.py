@@ -28,6 +28,10 @@ def _no_default(nominal_speed: float) -> None:
     return None
 
 
+def _one_run(options: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
+    return {"": options}
+
+
 def _one_figure(result: Any) -> dict[str, Callable]:
     return {"": result.plot}
 
@@ -51,6 +55,8 @@ class StudyKind:
     ``[studies]`` table (None: not run by default).
     ``figures(result) -> {suffix: draw}``: the figures ``flexvib plot`` writes, ``draw() -> Plot``,
     each saved as ``<group name><suffix>.png/.svg``.
+    ``runs(options) -> {suffix: options}``: a table that declares several runs of a single (not grid)
+    study, e.g. a nonlinear check at several ``speeds``, each written as group ``<name><suffix>``.
     """
 
     name: str
@@ -64,6 +70,7 @@ class StudyKind:
     varies: Callable[[Mapping[str, Any]], tuple[str, ...]] = _no_parameters
     default: Callable[[float], Mapping[str, Any] | None] = _no_default
     figures: Callable[[Any], dict[str, Callable]] = _one_figure
+    runs: Callable[[Mapping[str, Any]], dict[str, Mapping[str, Any]]] = _one_run
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -98,9 +105,16 @@ def boolean(where: str, key: str, value: Any) -> bool:
     return value
 
 
-def steps(where: str, table: Mapping[str, Any], default: int) -> int:
-    """The table's ``n_steps`` (even, >= 4), ``default`` when absent."""
-    return integer(where, "n_steps", table.get("n_steps", default), 4, even=True)
+def steps(where: str, table: Mapping[str, Any], default: int, *, minimum: int = 16, multiple: int = 4) -> int:
+    """The table's ``n_steps`` (``default`` when absent): a multiple of ``multiple`` and at least the
+    study's ``minimum`` (docs/studies.md)."""
+    from ._studies import check_n_steps
+
+    value = table.get("n_steps", default)
+    try:
+        return check_n_steps(value, minimum=minimum, multiple=multiple, study=f"a {where.split('.')[-1]} study")
+    except StudiesError as error:
+        raise StudiesError(f"[{where}] {error}") from None
 
 
 def speed_values(where: str, table: Mapping[str, Any]) -> dict[str, float]:

@@ -198,22 +198,24 @@ class MechanismProblem:
             # One speed, the scene's own, and no family built yet: one linearisation, not the
             # three a speed family costs.
             lin = linearize.about(mechanism, n_steps=n_steps, observables=self.observable_specs)
-            return _linear(lin, lin.system, lin)
+            return _linear(lin, lin.system, lin, linear_range=lin.linear_range)
         if constant_rate and speed * drive.rate > 0:
             family = _cached(_families, family_key,
                              lambda: linearize.speed_family(mechanism, n_steps=n_steps,
                                                             observables=self.observable_specs))
             if at_scene_speed:
-                return _linear(family.base, family.base.system, family.base)
+                return _linear(family.base, family.base.system, family.base,
+                               linear_range=family.base.linear_range)
             if not context:
                 # On the crank-angle grid the configuration (hence the observable gains) is the
                 # base's; only the coefficients change with the speed.
-                return _linear(family.base, family.system_at(speed), None)
+                return _linear(family.base, family.system_at(speed), None,
+                               linear_range=_family_range(family, speed))
             lin = family.at_speed(speed)
         else:
             lin = linearize.about(self.mechanism(dict(others, speed=speed)), n_steps=n_steps,
                                   observables=self.observable_specs)
-        return _linear(lin, lin.system, lin)
+        return _linear(lin, lin.system, lin, linear_range=lin.linear_range)
 
     # --- nonlinear route --------------------------------------------------------------------------------
     supports_nonlinear = True
@@ -311,7 +313,13 @@ def _speed_changes(mechanism, speed: float) -> dict[str, float]:
     return changes
 
 
-def _linear(lin: Any, system: Any, context: Any) -> Linear:
+def _family_range(family: Any, speed: float):
+    """The linear-range measures at ``speed`` of a speed family, for the cost of a few array
+    operations (without building its result at that speed)."""
+    return lambda z: family.linear_range(speed, z)
+
+
+def _linear(lin: Any, system: Any, context: Any, *, linear_range: Any = None) -> Linear:
     """A study's ``Linear`` from a ``linearize`` result (gains and units of its observables). The
     crank angle is the phase ``2 pi t / T`` (the drive angle less its offset for a crank turning once
     per period; the phase of an oscillating drive)."""
@@ -321,4 +329,5 @@ def _linear(lin: Any, system: Any, context: Any) -> Linear:
     return Linear(system=system, crank_angle=phase,
                   labels=tuple(lin.labels), observables=tuple(lin.observables),
                   units=tuple(model.observable(s).unit for s in lin.observables), gains=gains,
-                  context=context)
+                  context=context,
+                  linear_range=linear_range)

@@ -12,6 +12,7 @@ from scipy.optimize import linear_sum_assignment
 
 import periodic
 
+from . import _verdicts as verdicts
 from ._problem import Linear
 
 
@@ -22,30 +23,53 @@ STUDY_SCHEME = periodic.SCHEMES["trapezoidal"]
 
 @dataclass(frozen=True, eq=False)
 class Steady:
-    """Steady state of a :class:`Linear` with error estimates.
+    """Steady state of a :class:`Linear` with error estimates and its verdict.
 
     ``state`` the N-step ``periodic.SteadyState``; ``response`` (N+1, n_obs) observables;
     ``response_error`` (n_obs,) estimated max abs error of each observable, ``|o_N - o_{N/2}|`` times the
-    scheme's ``error_factor`` (1/3 for the order-2 trapezoidal rule); ``error_estimate`` the same for the coordinates ``z``; ``run_time`` s.
+    scheme's ``error_factor`` (1/3 for the order-2 trapezoidal rule); ``error_estimate`` the same for
+    the coordinates ``z``; ``spectral_radius_error`` the estimated error of the spectral radius;
+    ``instability_kind`` ("fold", "period_doubling", "secondary_hopf", or "" when neither unstable nor
+    marginal); ``linear_range`` {"<link>.<measure>": value} (empty without a mechanism); ``status``,
+    ``message``, ``is_stable`` the point's verdict (see ``studies._verdicts``); ``run_time`` s.
     """
 
     state: periodic.SteadyState
     response: np.ndarray
     response_error: np.ndarray
     error_estimate: float
+    spectral_radius_error: float
+    instability_kind: str
+    linear_range: dict
+    status: str
+    message: str
+    is_stable: bool
     run_time: float
 
 
 def solve_steady(linear: Linear) -> Steady:
-    fine = periodic.steady_state(linear.system, scheme=STUDY_SCHEME, estimate_error=False)
-    coarse = periodic.steady_state(linear.system.coarsened(), scheme=STUDY_SCHEME, estimate_error=False)
+    """The steady state on N steps, its error estimate from N/2 (trusted only when N/4 shows the
+    asymptotic range: N a multiple of 4) and its verdict: stability with its error bar, error trust,
+    near resonance or unresolved modes, linear range."""
+    runs = [periodic.steady_state(system, scheme=STUDY_SCHEME, estimate_error=False)
+            for system in (linear.system, linear.system.coarsened(), linear.system.coarsened().coarsened())]
+    fine, coarse, quarter = runs
     response = linear.observe(fine.x)
     coarse_response = linear.observe(coarse.x, stride=2)
     factor = STUDY_SCHEME.error_factor
     response_error = np.abs(response[::2] - coarse_response).max(axis=0) * factor
     error = float(np.abs(fine.x[::2] - coarse.x).max()) * factor
+    errors = verdicts.multiplier_errors(fine.multipliers, coarse.multipliers, factor)
+    stable = verdicts.stability(fine.multipliers, errors, fine.step_rates)
+    ranges, range_status, range_message = verdicts.linear_range(linear, fine.x)
+    status, message = verdicts.combine([
+        (fine.status, fine.message), (stable.status, stable.message),
+        verdicts.error_trust(fine.x, coarse.x, quarter.x, STUDY_SCHEME.order),
+        (range_status, range_message)])
     return Steady(state=fine, response=response, response_error=response_error, error_estimate=error,
-                  run_time=fine.run_time + coarse.run_time)
+                  spectral_radius_error=stable.spectral_radius_error, instability_kind=stable.kind,
+                  linear_range=ranges, status=status, message=message, is_stable=stable.is_stable,
+                  run_time=sum(run.run_time for run in runs))
 
 
 def peak_to_peak(samples: np.ndarray) -> tuple[float, float]:

@@ -79,12 +79,13 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
     from tqdm.auto import tqdm
 
     results, failures = {}, {}
-    with open_file(path) as handle, tqdm(studies.items(), desc="studies", unit="study",
-                                         disable=not progress or len(studies) < 2) as bar:
+    runs = [(name + suffix, KINDS[name], each) for name, options in studies.items()
+            for suffix, each in KINDS[name].runs(options).items()]
+    with open_file(path) as handle, tqdm(runs, desc="studies", unit="study",
+                                         disable=not progress or len(runs) < 2) as bar:
         # An overall bar, since a study without grid points (steady state, nonlinear check,
         # error against cost) has no bar of its own; grid studies nest theirs below it.
-        for name, options in bar:
-            kind = KINDS[name]
+        for name, kind, options in bar:
             bar.set_postfix_str(name)
             request = encode({"options": options, "scene": problem.text})
             group = handle.get(name)
@@ -100,8 +101,9 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
             except Exception as error:
                 if not is_numerical_failure(error):
                     raise  # bad input stops the run (exit code 2), a bug too
-                # a study that cannot be computed (a nonlinear run whose Newton iteration fails) is
-                # reported and the others go on; grid points fail one by one inside the grid.
+                # a study that cannot be computed is reported and the others go on; grid points
+                # fail one by one inside the grid, a nonlinear run that fails gives its check the
+                # verdict "failed".
                 logger.error("%s failed: %s: %s", name, type(error).__name__, error)
                 failures[name] = f"{type(error).__name__}: {error}"
                 continue

@@ -91,3 +91,36 @@ def plot_multipliers(multipliers: np.ndarray, *, ax: Any, title: str = "") -> li
 def drawn(axes: list, artists: Mapping[str, list]) -> Plot:
     """The :class:`Plot` of artists drawn into ``axes``."""
     return Plot(figure=axes[0].figure, axes=list(axes), artists=dict(artists))
+
+
+_KIND_WORDS = {"fold": "fold", "period_doubling": "period doubling", "secondary_hopf": "secondary Hopf"}
+
+#: How figures mark a point whose status is not ``ok``: one marker and colour per status (legend).
+STATUS_STYLE = {
+    "failed": {"marker": "X", "color": "k"},
+    "unstable": {"marker": "x", "color": "C3"},
+    "outside_linear_range": {"marker": "s", "color": "C4", "mfc": "none"},
+    "inaccurate": {"marker": "d", "color": "C1", "mfc": "none"},
+    "near_resonance": {"marker": "^", "color": "C6", "mfc": "none"},
+    "marginal": {"marker": "o", "color": "C8", "mfc": "none"},
+    "unresolved_stiff_mode": {"marker": "v", "color": "0.5", "mfc": "none"},
+}
+
+
+def headline(status: str, kind: str = "") -> str:
+    """A status in words for a title: "UNSTABLE (period doubling)", "marginal", "outside linear range"."""
+    if status == "unstable":
+        return f"UNSTABLE ({_KIND_WORDS.get(kind, kind)})" if kind else "UNSTABLE"
+    return str(status).replace("_", " ")
+
+
+def mark_statuses(ax: Any, x: np.ndarray, y: np.ndarray, status: np.ndarray) -> list:
+    """Mark the points whose ``status`` is not ``ok`` (one style per status, labelled "unstable",
+    "marginal", ... for the legend) at ``(x, y)`` (same shapes); returns the artists."""
+    x, y, status = (np.asarray(a).reshape(-1) for a in (x, y, status))
+    artists = []
+    for name, style in STATUS_STYLE.items():
+        chosen = status == name
+        if chosen.any():
+            artists += ax.plot(x[chosen], y[chosen], ls="none", ms=7, label=headline(name), **style)
+    return artists

@@ -68,6 +68,9 @@ class Linear:
     context : object
         What the nonlinear route and drawings need: the ``linearize`` result for mechanisms (None
         when linearised with ``context=False``), the resolved parameter dict for periodic problems.
+    linear_range : callable or None
+        ``linear_range(z) -> linearize.LinearRange``: the linear-range measures of a solution ``z``
+        (N+1, m) per elastic link (mechanisms; None for problems without links).
     """
 
     system: periodic.PeriodicSystem
@@ -77,6 +80,7 @@ class Linear:
     units: tuple[str, ...]
     gains: np.ndarray
     context: Any = None
+    linear_range: Callable[[np.ndarray], Any] | None = None
 
     def observe(self, z: np.ndarray, *, stride: int = 1) -> np.ndarray:
         """Observables of ``z`` (N/stride + 1, m) sampled every ``stride`` samples: (N/stride + 1, n_obs)."""

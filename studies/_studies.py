@@ -16,16 +16,22 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from . import _verdicts as verdicts
 from ._errors import StudiesError
 from ._grid import STATUS_FAILED, GridStore
 from ._store import Result
 
 
-def check_n_steps(n_steps: Any) -> int:
-    if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 4 \
-            or n_steps % 2:
-        raise StudiesError(f"n_steps: expected an even integer >= 4 (the error estimate halves it), "
-                           f"got {n_steps!r}")
+def check_n_steps(n_steps: Any, *, minimum: int = 16, multiple: int = 4, study: str = "this study") -> int:
+    """``n_steps`` as an int: a multiple of ``multiple`` (4 where the error check compares N, N/2 and
+    N/4 steps; 2 where it compares N and N/2) and at least ``minimum`` (docs/studies.md lists each
+    study's minimum: below it the N/2 error estimate is far from the true error)."""
+    if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < minimum \
+            or n_steps % multiple:
+        reason = ("compares N, N/2 and N/4 steps" if multiple == 4 else "compares N and N/2 steps")
+        raise StudiesError(f"n_steps: expected an even integer, a multiple of {multiple} and at least "
+                           f"{minimum} for {study} (its error estimate {reason}; the minimum is in "
+                           f"docs/studies.md), got {n_steps!r}")
     return int(n_steps)
 
 
@@ -106,7 +112,36 @@ class GridResult(Result):
     _units = {"done": "1", "status": "1", "message": "1", "point_run_time": "s"}
 
 
-def grid_summary(result: GridResult, extra: str = "") -> str:
-    """``flexvib run``'s line for a grid study: points done and failed, ``extra``, run time."""
-    done, failed = int(result.done.sum()), int((result.status == STATUS_FAILED).sum())
-    return f"{done}/{result.done.size} points ({failed} failed){extra}; {result.run_time:.3g} s"
+def grid_summary(result: GridResult, extra: str = "", *, point: Any = None) -> str:
+    """``flexvib run``'s line for a grid study: points done, the count of each status, ``extra``, run
+    time, and the worst cases (``point(index) -> str`` names a grid point, e.g. "speed 185")."""
+    done = int(result.done.sum())
+    line = f"{done}/{result.done.size} points: {status_counts(result.status[result.done])}{extra}; " \
+           f"{result.run_time:.3g} s"
+    worst = worst_cases(result.status, result.message, point or (lambda index: f"point {index}"))
+    return line + (f"\n    worst: {worst}" if worst else "")
+
+
+def status_counts(status: np.ndarray) -> str:
+    """"40 ok, 10 unstable, 7 marginal": the count of each status, most severe first."""
+    names, counts = np.unique(np.asarray(status, dtype=str), return_counts=True)
+    order = sorted(range(names.size), key=lambda i: verdicts.severity(str(names[i])))
+    return ", ".join(f"{counts[i]} {names[i]}" for i in order) or "none"
+
+
+def worst_cases(status: np.ndarray, message: np.ndarray, point: Any, *, count: int = 3,
+                width: int = 160) -> str:
+    """The ``count`` points of the most severe status (not ``ok``) with their messages, shortened to
+    ``width`` characters each."""
+    status, message = np.asarray(status, dtype=str), np.asarray(message, dtype=str)
+    ranks = np.vectorize(verdicts.severity, otypes=[int])(status) if status.size else np.array([])
+    if not status.size or ranks.min() >= verdicts.severity("ok"):
+        return ""
+    chosen = np.argwhere(ranks == ranks.min())
+    cases = []
+    for index in map(tuple, chosen[:count]):
+        text = str(message[index]).removeprefix(f"{status[index]}: ")
+        text = text if len(text) <= width else text[:width - 3] + "..."
+        cases.append(f"{point(index)}: {status[index]}" + (f" ({text})" if text else ""))
+    more = f"; and {len(chosen) - count} more" if len(chosen) > count else ""
+    return "; ".join(cases) + more

@@ -16,10 +16,14 @@ from .._errors import StudiesError
 from .._grid import run_grid
 from .._kind import StudyKind, axis, integer, steps
 from .._numerics import STUDY_SCHEME, characteristic_frequencies, frozen_modes, track_modes
-from .._plots import Plot, axes_for, cost_line, drawn, largest
+from .._plots import Plot, axes_for, cost_line, drawn, largest, mark_statuses
 from .._problem import SPEED
+from .. import _verdicts as verdicts
 from .._store import register
 from .._studies import GridResult, check_grid, check_n_steps, collect, grid_summary, open_store
+
+#: The fewest steps per period a Campbell diagram accepts (docs/studies.md).
+MIN_STEPS = 16
 
 
 @register
@@ -36,7 +40,9 @@ class CampbellResult(GridResult):
     band of each tracked mode over the crank angle, ``characteristic`` (n, 2m) rad/s Floquet
     characteristic frequencies unfolded to the nearest frozen mean frequency and
     ``characteristic_error`` (n, 2m) rad/s their estimated error (N against N/2), ``mode_labels`` (m,),
-    ``harmonics`` the k of the lines ``k * speed``.
+    ``harmonics`` the k of the lines ``k * speed``; ``spectral_radius``, ``spectral_radius_error``,
+    ``is_stable`` (n,) the stability verdict at each speed (``status``, ``message``: unstable, marginal,
+    unresolved_stiff_mode ...).
     """
 
     labels: tuple[str, ...]
@@ -46,6 +52,9 @@ class CampbellResult(GridResult):
     shapes: np.ndarray = None
     multipliers: np.ndarray = None
     multipliers_coarse: np.ndarray = None
+    spectral_radius: np.ndarray = None
+    spectral_radius_error: np.ndarray = None
+    is_stable: np.ndarray = None
     period: np.ndarray = None
     order: np.ndarray = None
     tracking_mac: np.ndarray = None
@@ -61,7 +70,8 @@ class CampbellResult(GridResult):
     _units = {"speeds": "rad/s", "crank_angle": "rad", "frozen": "rad/s", "shapes": "1",
               "multipliers": "1", "multipliers_coarse": "1", "period": "s", "order": "1",
               "tracking_mac": "1", "characteristic_error": "rad/s", "band_min": "rad/s",
-              "band_max": "rad/s", "band_mean": "rad/s", "characteristic": "rad/s", **GridResult._units}
+              "band_max": "rad/s", "band_mean": "rad/s", "characteristic": "rad/s", "spectral_radius": "1",
+              "spectral_radius_error": "1", "is_stable": "1", **GridResult._units}
 
     def plot(self, *, axes: Any = None) -> Plot:
         """Frozen-frequency bands of the tracked modes (shaded), their mean (line), Floquet
@@ -86,6 +96,8 @@ class CampbellResult(GridResult):
                 artists["harmonics"] += ax.plot(speeds, k * speeds, color="0.6", lw=0.7, ls="--")
                 ax.annotate(f"{k}x", (speeds[-1], min(k * speeds[-1], top)), fontsize="x-small")
             ax.set_ylim(0.0, top)
+            # the speeds whose verdict is not ok (unstable, marginal, ...) marked along the axis
+            artists["status"] = mark_statuses(ax, speeds, np.full(speeds.shape, 0.02 * top), self.status)
             ax.legend(fontsize="x-small", loc="upper left")
         ax.set_xlabel("crank speed (rad/s)")
         ax.set_ylabel("frequency (rad/s)")
@@ -107,11 +119,17 @@ def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, f
     index, frozen, shapes = frozen_modes(linear.system, frozen_samples)
     result = periodic.floquet(linear.system, scheme=STUDY_SCHEME)
     coarse = periodic.floquet(linear.system.coarsened(), scheme=STUDY_SCHEME)
-    status = "ok" if result.resolved.all() else "unresolved_mode"
-    message = "" if status == "ok" else (f"{int((~result.resolved).sum())} multipliers belong to modes "
-                                         f"the {n_steps} steps do not resolve")
+    stable = verdicts.stability(result.multipliers, verdicts.multiplier_errors(
+        result.multipliers, coarse.multipliers, STUDY_SCHEME.error_factor), result.step_rates)
+    unresolved = int((~result.resolved).sum())
+    status, message = verdicts.combine([
+        (stable.status, stable.message),
+        ("unresolved_stiff_mode" if unresolved else "ok",
+         f"{unresolved} multipliers belong to modes the {n_steps} steps do not resolve (stiff modes; "
+         f"refine n_steps to see their characteristic frequencies)" if unresolved else "")])
     return ({"frozen": frozen, "shapes": shapes, "multipliers": result.multipliers,
-             "multipliers_coarse": coarse.multipliers,
+             "multipliers_coarse": coarse.multipliers, "spectral_radius": stable.spectral_radius,
+             "spectral_radius_error": stable.spectral_radius_error, "is_stable": float(stable.is_stable),
              "period": linear.system.period, "crank_angle": np.asarray(linear.crank_angle)[index]},
             status, message)
 
@@ -126,12 +144,12 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
     grid = check_grid("speeds", speeds)
     if (grid <= 0).any() or (np.diff(grid) <= 0).any():
         raise StudiesError(f"speeds: expected positive, increasing crank speeds (rad/s), got {speeds!r}")
-    n_steps = check_n_steps(n_steps)
+    n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, multiple=2, study="a Campbell diagram")
     labels = problem.describe({SPEED: float(grid[0])}).labels
     settings = {"speeds": grid, "n_steps": n_steps, "frozen_samples": frozen_samples,
                 "scene": problem.text}
     units = {"frozen": "rad/s", "shapes": "1", "multipliers": "1", "multipliers_coarse": "1", "period": "s",
-             "crank_angle": "rad"}
+             "crank_angle": "rad", "spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1"}
     header = dict(problem=problem.name, scene=problem.text, labels=labels)
     store = open_store(out, name, grid.shape, "CampbellResult", settings, units, header,
                        {"speeds": (grid, "rad/s")})
@@ -140,6 +158,8 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
                         {"n_steps": n_steps, "frozen_samples": frozen_samples}, executor=executor,
                         store=store, progress=progress, description=f"{name} over speed")
     fields = collect(outcomes, grid.shape)
+    if "is_stable" in fields:
+        fields["is_stable"] = fields["is_stable"] == 1.0
     extra: dict[str, Any] = {}
     if "frozen" in fields:
         fields["crank_angle"] = fields["crank_angle"][np.flatnonzero(fields["done"])[0]]
@@ -175,7 +195,7 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
     _, grid = axis(where, table, parameter=False)
-    return {"speeds": grid, "n_steps": steps(where, table, n_steps),
+    return {"speeds": grid, "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS, multiple=2),
             "frozen_samples": integer(where, "frozen_samples", table.get("frozen_samples", 64), 2),
             "max_harmonic": integer(where, "max_harmonic", table.get("max_harmonic", 6), 1)}
 
@@ -187,6 +207,10 @@ def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, p
                     executor=executor, out=out, name=KIND.name, progress=progress)
 
 
+def _summary(result: CampbellResult) -> str:
+    return grid_summary(result, point=lambda index: f"speed {result.speeds[index]:.4g} rad/s")
+
+
 def _default(nominal_speed: float) -> dict[str, Any]:
     """40 speeds from 0.2 to 4 times the scene's."""
     return {"start": 0.2 * abs(nominal_speed), "stop": 4.0 * abs(nominal_speed), "count": 40}
@@ -195,5 +219,5 @@ def _default(nominal_speed: float) -> dict[str, Any]:
 KIND = StudyKind(name="campbell", result=CampbellResult,
                  keys=("start", "stop", "count", "values", "spacing", "frozen_samples", "max_harmonic",
                        "n_steps"),
-                 check=_check, run=_run, summary=grid_summary, grid=True, point=campbell_point,
+                 check=_check, run=_run, summary=_summary, grid=True, point=campbell_point,
                  default=_default)

@@ -76,14 +76,15 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
     (1, 2, 4))``. The reference is the finest resolution at ``reference_steps`` (default 4 x the
     largest ``n_steps``) with Richardson extrapolation (order 4). Runs in-process so the times are
     comparable."""
-    steps = [check_n_steps(n) for n in n_steps]
+    steps = [check_n_steps(n, minimum=4, multiple=2, study="an error-against-cost study") for n in n_steps]
     if sorted(steps) != steps or len(set(steps)) != len(steps):
         raise StudiesError(f"n_steps: expected increasing step counts, got {n_steps!r}")
     base = steps[0]
     if any(n % base for n in steps):
         raise StudiesError(f"n_steps: every entry must be a multiple of the first ({base}) so the "
                            f"responses can be compared on common samples, got {n_steps!r}")
-    reference_steps = check_n_steps(reference_steps or 4 * steps[-1])
+    reference_steps = check_n_steps(reference_steps or 4 * steps[-1], minimum=4, multiple=2,
+                                    study="an error-against-cost study")
     if reference_steps % base:
         raise StudiesError(f"reference_steps: must be a multiple of {base}, got {reference_steps}")
     if resolution is None:

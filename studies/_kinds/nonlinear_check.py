@@ -9,12 +9,29 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .._errors import StudiesError
+from .._errors import StudiesError, is_numerical_failure
 from .._kind import StudyKind, boolean, integer, number, speed_values, steps
 from .._numerics import solve_steady
-from .._plots import Plot, axes_for, drawn, label
+from .._plots import Plot, axes_for, drawn, headline, label
+from .._problem import SPEED
 from .._store import Result, register
 from .._studies import check_integer, check_n_steps
+from .._verdicts import combine
+
+#: The fewest steps per period a nonlinear check accepts (docs/studies.md): the nonlinear run takes
+#: the linear grid's steps, and its own error estimate needs them.
+MIN_STEPS = 32
+#: Default ``tolerance``: the nonlinear and linear results agree when their difference is within the
+#: sum of both error estimates plus this fraction of the linear peak-to-peak (what the linear model
+#: leaves out, terms of second order in the deflection, is a few per mille of the peak-to-peak of the
+#: shipped four-bar at low speed, about 1-2 % at 50-70 rad/s).
+TOLERANCE = 0.02
+#: Default ``periodic_tol``: the nonlinear run has settled when its periodicity defect over the last
+#: period (max |o(t) - o(t - T)|) is within twice its error estimate plus this fraction of the linear
+#: peak-to-peak.
+PERIODIC_TOL = 0.05
+#: The verdicts, most severe first.
+VERDICTS = ("failed", "not_periodic", "differs", "agrees")
 
 
 @register
@@ -32,6 +49,14 @@ class NonlinearCheck(Result):
     ``rest_difference`` {spec: float} over the last period, ``periods_to_steady`` (periods until the
     periodicity defect fell below ``steady_tol`` times the peak-to-peak, NaN if never); costs
     ``linear_run_time``, ``nonlinear_run_time``, ``rest_run_time`` s.
+
+    ``verdict``: ``"agrees"`` (every observable's difference within ``linear_error + nonlinear_error +
+    tolerance * peak-to-peak``), ``"differs"`` (not so: ``message`` gives the relative difference and
+    the linear-range measures that explain it), ``"not_periodic"`` (the periodicity defect exceeds
+    ``2 nonlinear_error + periodic_tol * peak-to-peak``: the machine does not settle) or ``"failed"``
+    (the nonlinear run failed; ``message`` says why, the nonlinear fields are empty). ``status``,
+    ``is_stable``: the linear steady state's verdict (``failed`` when the run failed), its message
+    first in ``message``; ``linear_range`` {"<link>.<measure>": value} of the linear solution.
     """
 
     problem: str
@@ -55,28 +80,39 @@ class NonlinearCheck(Result):
     rest_difference: Mapping[str, float] = field(default_factory=dict)
     periods_to_steady: float = float("nan")
     rest_run_time: float = float("nan")
+    verdict: str = ""
+    status: str = "ok"
+    message: str = ""
+    is_stable: bool = True
+    linear_range: Mapping[str, float] = field(default_factory=dict)
 
     _units = {"t_linear": "s", "linear": "@observables", "t": "s", "nonlinear": "@observables",
               "t_rest": "s", "rest": "@observables"}
 
     def plot(self, *, axes: Any = None) -> Plot:
-        """Nonlinear run from the linear state (and from rest) against the linear periodic solution."""
+        """Nonlinear run from the linear state (and from rest) against the linear periodic solution,
+        the verdict in each title."""
         specs = list(self.linear)
         axes = axes_for(len(specs), axes)
         period = self.t_linear[-1]
+        # a failed run has no nonlinear samples: the linear solution over one period alone
+        t_end = self.t[-1] if self.t is not None and np.size(self.t) else period
         artists: dict[str, list] = {}
         for ax, spec in zip(axes, specs):
-            repeats = int(round(self.t[-1] / period))
-            t_lin = np.concatenate([self.t_linear[:-1] + p * period for p in range(repeats)] + [[self.t[-1]]])
+            repeats = max(int(round(t_end / period)), 1)
+            t_lin = np.concatenate([self.t_linear[:-1] + p * period for p in range(repeats)] + [[t_end]])
             y_lin = np.concatenate([self.linear[spec][:-1]] * repeats + [[self.linear[spec][-1]]])
-            lines = ax.plot(self.t, self.nonlinear[spec], color="C0", label="nonlinear from linear state")
+            lines = []
+            if spec in self.nonlinear:
+                lines += ax.plot(self.t, self.nonlinear[spec], color="C0", label="nonlinear from linear state")
             lines += ax.plot(t_lin, y_lin, "--", color="C1", label="linear periodic")
             if self.rest:
                 lines += ax.plot(self.t_rest, self.rest[spec], color="0.6", lw=0.6, label="nonlinear from rest")
             ax.set_xlabel("time (s)")
             ax.set_ylabel(label(spec, self.units[spec]))
-            ax.set_title(f"{spec}: max difference {self.difference[spec]:.2g} "
-                         f"({100 * self.relative_difference[spec]:.2g} % of peak to peak)\n"
+            ax.set_title(f"{spec}: {self.verdict.upper().replace('_', ' ')} (linear: "
+                         f"{headline(self.status)}), max difference {self.difference.get(spec, float('nan')):.2g} "
+                         f"({100 * self.relative_difference.get(spec, float('nan')):.2g} % of peak to peak)\n"
                          f"estimated errors: linear {self.linear_error.get(spec, float('nan')):.2g}, "
                          f"nonlinear {self.nonlinear_error.get(spec, float('nan')):.2g}; run time "
                          f"linear {self.linear_run_time:.3g} s, nonlinear "
@@ -88,23 +124,48 @@ class NonlinearCheck(Result):
 
 def nonlinear_check(problem: Any, values: Mapping[str, float] | None = None, *, n_steps: int = 256,
                     n_periods: int = 5, from_rest: bool = False, max_periods_from_rest: int = 200,
-                    steady_tol: float = 0.01) -> NonlinearCheck:
+                    steady_tol: float = 0.01, tolerance: float = TOLERANCE,
+                    periodic_tol: float = PERIODIC_TOL) -> NonlinearCheck:
     """Run the full nonlinear model from the linear periodic state for ``n_periods`` periods (and
-    optionally from rest for up to ``max_periods_from_rest``) and compare with the linear solution."""
+    optionally from rest for up to ``max_periods_from_rest``), compare with the linear solution and
+    say the verdict (``agrees``, ``differs``, ``not_periodic``, ``failed``: see :class:`NonlinearCheck`).
+    A nonlinear run that fails numerically gives the verdict ``failed`` (status ``failed``), not an
+    exception: the linear results are kept."""
     if not getattr(problem, "supports_nonlinear", False):
         raise StudiesError(f"problem {problem.name!r} has no nonlinear model to check against")
-    n_steps = check_n_steps(n_steps)
+    n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a nonlinear check")
     check_integer("n_periods", n_periods, 2)
     check_integer("max_periods_from_rest", max_periods_from_rest, 2)
+    for name, value in (("tolerance", tolerance), ("periodic_tol", periodic_tol)):
+        if not (isinstance(value, (int, float)) and 0.0 <= value < 1.0):
+            raise StudiesError(f"{name}: expected a fraction of the peak-to-peak in [0, 1), got {value!r}")
     start = time.perf_counter()
     linear = problem.linearize(values, n_steps=n_steps)
     steady = solve_steady(linear)
     linear_time = time.perf_counter() - start
     specs = linear.observables
-    run = problem.simulate(linear, steady.state.x[0], steady.state.v[0], n_periods=n_periods,
-                           steps_per_period=n_steps)
     lin = {spec: steady.response[:, k] for k, spec in enumerate(specs)}
+    linear_error = {spec: float(steady.response_error[k]) for k, spec in enumerate(specs)}
     scale = {spec: max(float(np.ptp(lin[spec])), np.finfo(float).tiny) for spec in specs}
+    common = dict(
+        problem=problem.name, scene=problem.text, parameters=problem.resolve(values),
+        units=dict(zip(specs, linear.units)),
+        settings={"n_steps": n_steps, "n_periods": n_periods, "from_rest": from_rest,
+                  "max_periods_from_rest": max_periods_from_rest, "steady_tol": steady_tol,
+                  "tolerance": tolerance, "periodic_tol": periodic_tol},
+        t_linear=steady.state.t, linear=lin, linear_error=linear_error, linear_run_time=linear_time,
+        is_stable=steady.is_stable, linear_range=steady.linear_range)
+    linear_words = f"linear steady state {steady.status}" + (f" ({steady.message})" if steady.message else "")
+    try:
+        run = problem.simulate(linear, steady.state.x[0], steady.state.v[0], n_periods=n_periods,
+                               steps_per_period=n_steps)
+    except Exception as error:
+        if not is_numerical_failure(error):
+            raise
+        message = f"the nonlinear run failed: {type(error).__name__}: {error}; {linear_words}"
+        return NonlinearCheck(**common, t=np.empty(0), nonlinear={}, nonlinear_error={}, difference={},
+                              relative_difference={}, periodicity_defect={}, nonlinear_run_time=float("nan"),
+                              verdict="failed", status="failed", message=message)
     difference, relative, defect = {}, {}, {}
     for spec in specs:
         last = run.observables[spec][-(n_steps + 1):]
@@ -112,6 +173,13 @@ def nonlinear_check(problem: Any, values: Mapping[str, float] | None = None, *, 
         difference[spec] = float(np.abs(last - lin[spec]).max())
         relative[spec] = difference[spec] / scale[spec]
         defect[spec] = float(np.abs(last - previous).max())
+    nonlinear_error = {spec: float(run.error.get(spec, float("nan"))) for spec in specs}
+    verdict, words = _verdict(specs, scale, difference, defect, linear_error, nonlinear_error,
+                              tolerance, periodic_tol)
+    if verdict == "differs" and steady.linear_range:
+        words += "; linear-range measures: " + ", ".join(f"{k} {v:.3g}" for k, v in steady.linear_range.items()
+                                                         if np.isfinite(v))
+    status, message = combine([(steady.status, steady.message)])
     extra: dict[str, Any] = {}
     if from_rest:
         zero = np.zeros(linear.system.n_dof)
@@ -129,25 +197,60 @@ def nonlinear_check(problem: Any, values: Mapping[str, float] | None = None, *, 
                                       for s in specs},
                      periods_to_steady=periods, rest_run_time=rest.run_time)
     return NonlinearCheck(
-        problem=problem.name, scene=problem.text, parameters=problem.resolve(values),
-        units=dict(zip(specs, linear.units)),
-        settings={"n_steps": n_steps, "n_periods": n_periods, "from_rest": from_rest,
-                  "max_periods_from_rest": max_periods_from_rest, "steady_tol": steady_tol},
-        t_linear=steady.state.t, linear=lin,
-        linear_error={spec: float(steady.response_error[k]) for k, spec in enumerate(specs)},
-        t=run.t, nonlinear=dict(run.observables),
-        nonlinear_error={spec: float(run.error.get(spec, float("nan"))) for spec in specs},
-        difference=difference, relative_difference=relative,
-        periodicity_defect=defect, linear_run_time=linear_time, nonlinear_run_time=run.run_time, **extra)
+        **common, t=run.t, nonlinear=dict(run.observables), nonlinear_error=nonlinear_error,
+        difference=difference, relative_difference=relative, periodicity_defect=defect,
+        nonlinear_run_time=run.run_time, verdict=verdict, status=status,
+        message=f"{words}; {linear_words}", **extra)
+
+
+def _verdict(specs, scale, difference, defect, linear_error, nonlinear_error, tolerance, periodic_tol):
+    """The worst verdict over the observables and its words."""
+    def known(value):  # an error estimate the integrator does not give counts as zero
+        return value if np.isfinite(value) else 0.0
+
+    found = []
+    for spec in specs:
+        settle = 2.0 * known(nonlinear_error[spec]) + periodic_tol * scale[spec]
+        allowed = known(linear_error[spec]) + known(nonlinear_error[spec]) + tolerance * scale[spec]
+        if not defect[spec] <= settle:
+            found.append(("not_periodic", f"{spec}: the nonlinear run does not settle: periodicity defect "
+                          f"{defect[spec]:.3g} over the last period is {defect[spec] / scale[spec]:.3g} of the "
+                          f"linear peak to peak (allowed {settle / scale[spec]:.3g})"))
+        elif not difference[spec] <= allowed:
+            found.append(("differs", f"{spec}: nonlinear and linear differ by {100 * difference[spec] / scale[spec]:.3g} % "
+                          f"of the linear peak to peak (allowed: the two error estimates and the "
+                          f"tolerance, {100 * allowed / scale[spec]:.3g} %)"))
+        else:
+            found.append(("agrees", f"{spec}: agrees within {100 * difference[spec] / scale[spec]:.3g} % of the "
+                          f"peak to peak (allowed {100 * allowed / scale[spec]:.3g} %)"))
+    verdict = min((v for v, _ in found), key=VERDICTS.index, default="agrees")
+    return verdict, "; ".join(words for v, words in found if v == verdict)
 
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
-    return {"values": speed_values(where, table), "n_steps": steps(where, table, n_steps),
+    if "speed" in table and "speeds" in table:
+        raise StudiesError(f"[{where}]: give either speed or speeds, not both")
+    speeds = table.get("speeds")
+    if speeds is not None and (not isinstance(speeds, list) or not speeds):
+        raise StudiesError(f"[{where}] speeds: expected a non-empty list of crank speeds (rad/s), got {speeds!r}")
+    return {"values": speed_values(where, table),
+            "speeds": None if speeds is None else tuple(number(where, "speeds", v, positive=True) for v in speeds),
+            "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS),
+            "tolerance": number(where, "tolerance", table.get("tolerance", TOLERANCE)),
+            "periodic_tol": number(where, "periodic_tol", table.get("periodic_tol", PERIODIC_TOL)),
             "n_periods": integer(where, "n_periods", table.get("n_periods", 5), 2),
             "from_rest": boolean(where, "from_rest", table.get("from_rest", False)),
             "max_periods_from_rest": integer(where, "max_periods_from_rest",
                                              table.get("max_periods_from_rest", 200), 2),
             "steady_tol": number(where, "steady_tol", table.get("steady_tol", 0.01), positive=True)}
+
+
+def _runs(options: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """One check per speed of ``speeds`` (groups ``nonlinear_check@<speed>``), else one."""
+    single = {k: v for k, v in options.items() if k != "speeds"}
+    if not options.get("speeds"):
+        return {"": single}
+    return {f"@{speed:g}": dict(single, values={SPEED: speed}) for speed in options["speeds"]}
 
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> NonlinearCheck:
@@ -156,11 +259,14 @@ def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> NonlinearCheck:
 
 
 def _summary(result: NonlinearCheck) -> str:
+    speed = result.parameters.get(SPEED, float("nan"))
     diffs = ", ".join(f"{k} {100 * v:.3g} %" for k, v in result.relative_difference.items())
-    return (f"nonlinear - linear: {diffs} of peak to peak; {result.nonlinear_run_time:.3g} s "
-            f"nonlinear vs {result.linear_run_time:.3g} s linear")
+    numbers = (f"nonlinear - linear: {diffs} of peak to peak; {result.nonlinear_run_time:.3g} s nonlinear vs "
+               f"{result.linear_run_time:.3g} s linear" if diffs else f"{result.linear_run_time:.3g} s linear")
+    return f"{result.verdict.upper()} at speed {speed:.4g} rad/s: {result.message}\n    {numbers}"
 
 
 KIND = StudyKind(name="nonlinear_check", result=NonlinearCheck,
-                 keys=("speed", "n_periods", "from_rest", "max_periods_from_rest", "steady_tol", "n_steps"),
-                 check=_check, run=_run, summary=_summary, default=lambda nominal_speed: {"n_periods": 3})
+                 keys=("speed", "speeds", "n_periods", "from_rest", "max_periods_from_rest", "steady_tol",
+                       "tolerance", "periodic_tol", "n_steps"),
+                 check=_check, run=_run, summary=_summary, runs=_runs, default=lambda nominal_speed: {"n_periods": 3})

@@ -16,11 +16,15 @@ from .._errors import StudiesError
 from .._grid import run_grid
 from .._kind import StudyKind, axis, steps, sub_table
 from .._numerics import STUDY_SCHEME
-from .._plots import Plot, axes_for, cost_line, drawn, label, largest
+from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses
 from .._problem import SPEED
+from .. import _verdicts as verdicts
 from .._store import register
 from .._studies import GridResult, check_grid, check_n_steps, check_parameter, collect, grid_summary, \
     open_store
+
+#: The fewest steps per period a stability chart accepts (docs/studies.md).
+MIN_STEPS = 16
 
 
 @register
@@ -30,8 +34,9 @@ class StabilityChart(GridResult):
 
     ``first`` (n1,) values of ``parameters[0]``, ``second`` (n2,) of ``parameters[1]`` (units
     ``parameter_units``); ``spectral_radius`` (n1, n2) and ``spectral_radius_error`` (n1, n2) its
-    estimated error (N against N/2 steps); ``stability_tol`` the tolerance of
-    ``|mu| = 1``; ``run_time`` s.
+    estimated error (N against N/2 steps); ``is_stable`` (n1, n2) bool, ``status`` and ``message``
+    each cell's verdict (unstable only beyond the radius's error bar, marginal within it);
+    ``stability_tol`` the tolerance of ``|mu| = 1``; ``run_time`` s.
     """
 
     parameters: tuple[str, str]
@@ -42,8 +47,9 @@ class StabilityChart(GridResult):
     spectral_radius_error: np.ndarray = None
     stability_tol: float = 1e-6
     run_time: float = float("nan")
+    is_stable: np.ndarray = None
 
-    _units = {"spectral_radius": "1", "spectral_radius_error": "1", **GridResult._units}
+    _units = {"spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1", **GridResult._units}
 
     def _unit(self, name: str, key: str | None = None) -> str:
         if name == "first":
@@ -65,6 +71,11 @@ class StabilityChart(GridResult):
             artists["stability_limit"] = [ax.contour(self.first, self.second, radius.T, levels=[level],
                                                      colors="k", linewidths=1.0)]
         artists["colorbar"] = [ax.figure.colorbar(mesh, ax=ax, label="spectral radius |mu|max")]
+        # each cell's verdict: unstable cells crossed, marginal / inaccurate ... marked, with a legend
+        first, second = np.meshgrid(self.first, self.second, indexing="ij")
+        artists["status"] = mark_statuses(ax, first, second, self.status)
+        if artists["status"]:
+            ax.legend(fontsize="x-small", loc="upper left", framealpha=0.6)
         ax.set_xlabel(label(self.parameters[0], self.parameter_units[0]))
         ax.set_ylabel(label(self.parameters[1], self.parameter_units[1]))
         ax.set_title(f"{self.problem}: stability chart (black: |mu| = 1)\n" + cost_line(
@@ -78,13 +89,17 @@ def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int):
     linear = problem.linearize(values, n_steps=n_steps, context=False)
     result = periodic.floquet(linear.system, scheme=STUDY_SCHEME)
     coarse = periodic.floquet(linear.system.coarsened(), scheme=STUDY_SCHEME)
+    stable = verdicts.stability(result.multipliers, verdicts.multiplier_errors(
+        result.multipliers, coarse.multipliers, STUDY_SCHEME.error_factor), result.step_rates)
     unresolved = ~result.resolved & (np.abs(result.multipliers) > 1.0 + result.stability_tol)
-    status = "unresolved_mode" if unresolved.any() else "ok"
-    message = ("an unstable multiplier belongs to a mode the step does not resolve: refine n_steps"
-               if unresolved.any() else "")
-    # the N/2 difference times the scheme's error factor estimates the N-step error of the radius
-    error = abs(result.spectral_radius - coarse.spectral_radius) * STUDY_SCHEME.error_factor
-    return {"spectral_radius": result.spectral_radius, "spectral_radius_error": error}, status, message
+    status, message = verdicts.combine([
+        (stable.status, stable.message),
+        ("unresolved_stiff_mode" if unresolved.any() else "ok",
+         "an unstable multiplier belongs to a mode the step does not resolve: refine n_steps"
+         if unresolved.any() else "")])
+    return {"spectral_radius": result.spectral_radius,
+            "spectral_radius_error": stable.spectral_radius_error,
+            "is_stable": float(stable.is_stable)}, status, message
 
 
 def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tuple[str, Sequence[float]],
@@ -99,7 +114,7 @@ def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tu
     if names[0] == names[1]:
         raise StudiesError(f"stability_chart: the two parameters must differ, got {names[0]!r} twice")
     axes = (check_grid(f"{names[0]} values", first[1]), check_grid(f"{names[1]} values", second[1]))
-    n_steps = check_n_steps(n_steps)
+    n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, multiple=2, study="a stability chart")
     shape = (axes[0].size, axes[1].size)
     settings = {"parameters": names, "first": axes[0], "second": axes[1], "n_steps": int(n_steps),
                 "scene": problem.text}
@@ -107,7 +122,7 @@ def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tu
     header = dict(problem=problem.name, scene=problem.text, parameters=names, parameter_units=units,
                   stability_tol=periodic.STABILITY_TOL)
     store = open_store(out, name, shape, "StabilityChart", settings,
-                       {"spectral_radius": "1", "spectral_radius_error": "1"}, header,
+                       {"spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1"}, header,
                        {"first": (axes[0], units[0]), "second": (axes[1], units[1])})
     # The crank speed varies fastest, so that consecutive points (and a worker's batch) share the
     # other parameter and reuse one speed family of the linearisation.
@@ -119,11 +134,19 @@ def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tu
     outcomes = run_grid(chart_point, problem, points, {"n_steps": int(n_steps)}, executor=executor,
                         store=store, progress=progress, description=f"{name}")
     fields = collect(outcomes, shape)
+    if "is_stable" in fields:
+        fields["is_stable"] = fields["is_stable"] == 1.0
     result = StabilityChart(**header, settings=settings, first=axes[0], second=axes[1],
                             run_time=time.perf_counter() - start, **fields)
     if store is not None:
         result.to_hdf5(store.group)
     return result
+
+
+def _summary(result: StabilityChart) -> str:
+    (a, b), (ua, ub) = result.parameters, result.parameter_units
+    return grid_summary(result, point=lambda index: f"{a} {result.first[index[0]]:.4g} {ua}, "
+                                                    f"{b} {result.second[index[1]]:.4g} {ub}")
 
 
 _AXIS_TABLE = "{parameter = ..., start = ..., stop = ..., count = ...}"
@@ -132,7 +155,7 @@ _AXIS_TABLE = "{parameter = ..., start = ..., stop = ..., count = ...}"
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
     first, second = (axis(f"{where}.{key}", sub_table(where, table, key, _AXIS_TABLE)) for key in ("x", "y"))
     # a chart has its own default (128 steps), not the [studies] n_steps
-    return {"first": first, "second": second, "n_steps": steps(where, table, 128)}
+    return {"first": first, "second": second, "n_steps": steps(where, table, 128, minimum=MIN_STEPS, multiple=2)}
 
 
 def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, progress: bool
@@ -142,5 +165,5 @@ def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, p
 
 
 KIND = StudyKind(name="stability_chart", result=StabilityChart, keys=("x", "y", "n_steps"), check=_check,
-                 run=_run, summary=grid_summary, grid=True, point=chart_point,
+                 run=_run, summary=_summary, grid=True, point=chart_point,
                  varies=lambda options: (options["first"][0], options["second"][0]))

@@ -11,9 +11,13 @@ import numpy as np
 
 from .._kind import StudyKind, speed_values, steps
 from .._numerics import solve_steady
-from .._plots import Plot, axes_for, cost_line, drawn, label, plot_multipliers
+from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
 from .._store import Result, register
 from .._studies import check_n_steps
+
+#: The fewest steps per period a steady state accepts (docs/studies.md): N/4 = 4 steps is the
+#: coarsest level of the error check.
+MIN_STEPS = 16
 
 
 @register
@@ -24,7 +28,11 @@ class SteadyStateResult(Result):
     ``t`` (N+1,) s; ``crank_angle`` (N+1,) rad; ``x`` (N+1, m) independent coordinates (SI unit of each
     coordinate, see ``labels``); ``response`` {spec: (N+1,)} observables; ``response_error``
     {spec: float} estimated max abs error of each; ``multipliers`` (2m,) complex; ``error_estimate``
-    max abs error of ``x``; ``run_time`` s (linearisation, N and N/2 shooting); for mechanisms
+    max abs error of ``x``; ``spectral_radius_error`` its estimated error; ``status``, ``message``,
+    ``is_stable`` the verdict (``studies._verdicts``: stability with its error bar, error trust, near
+    resonance, unresolved modes, linear range); ``instability_kind`` ("fold", "period_doubling",
+    "secondary_hopf" or ""); ``linear_range`` {"<link>.<measure>": value} the linear-range measures
+    (empty for problems without links); ``run_time`` s (linearisation, N, N/2, N/4 shooting); for mechanisms
     ``outlines`` {link: (N+1, n_points, 2)} m, points along each link over the period with the
     deflection magnified ``magnification`` times (empty for other problems).
     """
@@ -49,6 +57,15 @@ class SteadyStateResult(Result):
     shooting_run_time: float
     outlines: Mapping[str, np.ndarray] = field(default_factory=dict)
     magnification: float = float("nan")
+    is_stable: bool = True
+    spectral_radius_error: float = float("nan")
+    instability_kind: str = ""
+    linear_range: Mapping[str, float] = field(default_factory=dict)
+
+    @property
+    def headline(self) -> str:
+        """The verdict in a few words, for titles: "UNSTABLE (period doubling)", "marginal", "ok"."""
+        return headline(self.status, self.instability_kind)
 
     _units = {"t": "s", "crank_angle": "rad", "x": "SI (see labels)", "response": "@observables",
               "multipliers": "1", "outlines": "m"}
@@ -65,16 +82,19 @@ class SteadyStateResult(Result):
             ax.set_ylabel(label(spec, self.units[spec]))
             ax.set_title(f"{spec}: error estimate {self.response_error[spec]:.2g} {self.units[spec]}",
                          fontsize="small")
+        axes[0].figure.suptitle(f"{self.problem}: {self.headline}", fontsize="medium",
+                                color="C3" if self.status != "ok" else "k")
         artists["multipliers"] = plot_multipliers(
             self.multipliers, ax=axes[-1],
-            title=f"spectral radius {self.spectral_radius:.6f}\n" + cost_line(
+            title=f"spectral radius {self.spectral_radius:.6f} +- {self.spectral_radius_error:.2g}\n" + cost_line(
                 f"max coordinate error {self.error_estimate:.2g} (N against N/2)", self.run_time))
         return drawn(axes, artists)
 
     def plot_multipliers(self, *, axes: Any = None) -> Plot:
         """The Floquet multipliers in the complex plane with the unit circle."""
         axes = axes_for(1, axes, width=4.8, height=4.8)
-        artists = plot_multipliers(self.multipliers, ax=axes[0], title=f"{self.problem}: Floquet multipliers")
+        artists = plot_multipliers(self.multipliers, ax=axes[0],
+                                   title=f"{self.problem}: Floquet multipliers, {self.headline}")
         return drawn(axes, {"multipliers": artists})
 
     def plot_mechanism(self, *, axes: Any = None, n_frames: int = 8) -> Plot:
@@ -100,7 +120,7 @@ class SteadyStateResult(Result):
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
         ax.set_title(f"{self.problem}: deformed mechanism over one period (deflection x "
-                     f"{self.magnification:.3g})", fontsize="small")
+                     f"{self.magnification:.3g}), {self.headline}", fontsize="small")
         return drawn(axes, artists)
 
 
@@ -108,7 +128,7 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
                  ) -> SteadyStateResult:
     """Periodic response of the problem's observables over one period, Floquet multipliers, error
     estimates (N against N/2 steps) and run time."""
-    n_steps = check_n_steps(n_steps)
+    n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a steady state")
     start = time.perf_counter()
     linear = problem.linearize(values, n_steps=n_steps)
     steady = solve_steady(linear)
@@ -125,13 +145,15 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
         response_error={spec: float(steady.response_error[k])
                         for k, spec in enumerate(linear.observables)},
         multipliers=state.multipliers, spectral_radius=state.spectral_radius,
-        error_estimate=steady.error_estimate, status=state.status, message=state.message,
+        error_estimate=steady.error_estimate, status=steady.status, message=steady.message,
         n_steps=n_steps, run_time=time.perf_counter() - start, shooting_run_time=steady.run_time,
-        **drawing)
+        is_stable=steady.is_stable, spectral_radius_error=steady.spectral_radius_error,
+        instability_kind=steady.instability_kind, linear_range=steady.linear_range, **drawing)
 
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
-    return {"values": speed_values(where, table), "n_steps": steps(where, table, n_steps)}
+    return {"values": speed_values(where, table),
+            "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS)}
 
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> SteadyStateResult:
@@ -140,8 +162,9 @@ def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> SteadyStateResul
 
 def _summary(result: SteadyStateResult) -> str:
     errors = ", ".join(f"{k} +- {v:.2g}" for k, v in result.response_error.items())
-    return (f"spectral radius {result.spectral_radius:.6f}, {result.status}; errors {errors}; "
-            f"{result.run_time:.3g} s")
+    words = f"{result.headline}: {result.message}" if result.message else result.headline
+    return (f"{words}; spectral radius {result.spectral_radius:.6f} +- "
+            f"{result.spectral_radius_error:.2g}; errors {errors}; {result.run_time:.3g} s")
 
 
 def _figures(result: SteadyStateResult) -> dict[str, Any]:

@@ -16,9 +16,10 @@ import periodic
 from .._grid import run_grid
 from .._kind import AXIS_KEYS, StudyKind, axis, integer, steps
 from .._numerics import crossings, frozen_modes, peak_to_peak, solve_steady, unstable_intervals
-from .._plots import Plot, axes_for, cost_line, drawn, label, largest
+from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses
 from .._problem import SPEED
 from .._store import register
+from .._verdicts import combine
 from .._studies import GridResult, check_grid, check_integer, check_n_steps, check_parameter, collect, \
     grid_summary, open_store
 
@@ -30,6 +31,9 @@ FROZEN_SAMPLES = 32
 #: ``STATUS_INACCURATE`` (its numbers are kept, and flagged).
 INACCURATE = 0.1
 STATUS_INACCURATE = "inaccurate"
+#: The fewest steps per period a sweep accepts (docs/studies.md): N/4 = 4 steps is the coarsest level
+#: of the error check.
+MIN_STEPS = 16
 
 
 @register
@@ -44,7 +48,10 @@ class SweepResult(GridResult):
     band of each frozen-time natural frequency (ascending order) over the period; ``resonances``
     ((k, mode, value), ...) where ``k * speed`` crosses the mean of frozen frequency ``mode``
     (0-based); ``instabilities`` ((start, end), ...) parameter intervals with spectral radius above 1
-    (parametric instability); ``run_time`` s wall time of the whole sweep.
+    (parametric instability: unstable beyond the radius's error bar); ``spectral_radius_error`` (n,);
+    ``is_stable`` (n,) bool; ``status``, ``message`` (n,) each point's verdict; ``linear_range``
+    {"<link>.<measure>": (n,)} the linear-range measures (mechanisms); ``run_time`` s wall time of
+    the whole sweep.
     """
 
     parameter: str
@@ -64,8 +71,11 @@ class SweepResult(GridResult):
     resonances: tuple = ()
     instabilities: tuple = ()
     run_time: float = float("nan")
+    spectral_radius_error: np.ndarray = None
+    is_stable: np.ndarray = None
+    linear_range: Mapping[str, np.ndarray] = field(default_factory=dict)
 
-    _units = {"values": "@parameter_unit", "speed": "rad/s", "peak_to_peak": "@observables",
+    _units = {"spectral_radius_error": "1", "is_stable": "1", "linear_range": "1", "values": "@parameter_unit", "speed": "rad/s", "peak_to_peak": "@observables",
               "peak_to_peak_error": "@observables", "spectral_radius": "1", "multipliers": "1",
               "error_estimate": "SI (see labels)", "frozen_min": "rad/s", "frozen_max": "rad/s",
               "frozen_mean": "rad/s", **GridResult._units}
@@ -85,6 +95,14 @@ class SweepResult(GridResult):
             artists["spectral_radius"] = axes[-1].plot(x, self.spectral_radius, ".-", color="C1")
             artists["stability_limit"] = [axes[-1].axhline(1.0, color="k", lw=0.8)]
         axes[-1].set_ylabel("spectral radius |mu|max")
+        # each point's verdict: unstable, marginal, inaccurate, outside the linear range ... marked
+        curves = [self.peak_to_peak[spec] for spec in specs] + [self.spectral_radius]
+        artists["status"] = []
+        for ax, y in zip(axes, curves):
+            if y is not None:
+                artists["status"] += mark_statuses(ax, x, y, self.status)
+        if artists["status"]:
+            axes[-1].legend(fontsize="x-small", loc="best")
         relative = [np.asarray(self.peak_to_peak_error.get(spec), dtype=float)
                     / np.asarray(self.peak_to_peak[spec], dtype=float)
                     for spec in specs if self.peak_to_peak_error.get(spec) is not None]
@@ -113,13 +131,16 @@ def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, froz
     data = {
         "speed": 2.0 * math.pi / linear.system.period,
         "spectral_radius": steady.state.spectral_radius,
+        "spectral_radius_error": steady.spectral_radius_error,
+        "is_stable": float(steady.is_stable),
         "multipliers": steady.state.multipliers,
         "error_estimate": steady.error_estimate,
         "frozen_min": frozen.min(axis=0),
         "frozen_max": frozen.max(axis=0),
         "frozen_mean": frozen.mean(axis=0),
     }
-    status, message = steady.state.status, steady.state.message
+    data.update({f"linear_range/{name}": value for name, value in steady.linear_range.items()})
+    verdicts = [(steady.status, steady.message)]
     for k, spec in enumerate(linear.observables):
         value, sampling = peak_to_peak(response[:, k])
         data[f"peak_to_peak/{spec}"] = value
@@ -127,10 +148,11 @@ def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, froz
         # sampling correction of the extremes is added as a bound on what the refinement leaves.
         error = 2.0 * float(steady.response_error[k]) + sampling
         data[f"peak_to_peak_error/{spec}"] = error
-        if status == "ok" and not error <= INACCURATE * value:
-            status = STATUS_INACCURATE
-            message = (f"{spec}: peak-to-peak error estimate {error:.3g} exceeds {INACCURATE:.0%} of the "
-                       f"value {value:.3g}; refine n_steps (typically near a resonance)")
+        if not error <= INACCURATE * value:
+            verdicts.append((STATUS_INACCURATE,
+                             f"{spec}: peak-to-peak error estimate {error:.3g} exceeds {INACCURATE:.0%} of "
+                             f"the value {value:.3g}; refine n_steps (typically near a resonance)"))
+    status, message = combine(verdicts)
     return data, status, message
 
 
@@ -144,13 +166,14 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
     start = time.perf_counter()
     parameter = check_parameter(problem, parameter)
     grid = check_grid("values", values)
-    n_steps = check_n_steps(n_steps)
+    n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a sweep")
     max_harmonic = check_integer("max_harmonic", max_harmonic, 1)
     names = problem.describe({parameter: float(grid[0])})
     obs_units = dict(zip(names.observables, names.units))
     settings = {"parameter": parameter, "values": grid, "n_steps": n_steps, "scene": problem.text,
                 "frozen_samples": FROZEN_SAMPLES}
-    units = {"speed": "rad/s", "spectral_radius": "1", "multipliers": "1",
+    units = {"speed": "rad/s", "spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1",
+             "linear_range": "1", "multipliers": "1",
              "error_estimate": "SI (see labels)", "frozen_min": "rad/s", "frozen_max": "rad/s",
              "frozen_mean": "rad/s"}
     units.update({f"peak_to_peak/{s}": u for s, u in obs_units.items()})
@@ -167,13 +190,18 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
     peak = {spec: fields.pop(f"peak_to_peak/{spec}") for spec in obs_units if f"peak_to_peak/{spec}" in fields}
     peak_error = {spec: fields.pop(f"peak_to_peak_error/{spec}") for spec in obs_units
                   if f"peak_to_peak_error/{spec}" in fields}
+    ranges = {name: fields.pop(f"linear_range/{name}") for name in
+              [key.split("/", 1)[1] for key in fields if key.startswith("linear_range/")]}
     resonances, instabilities = (), ()
+    if "is_stable" in fields:
+        fields["is_stable"] = fields["is_stable"] == 1.0
     if "spectral_radius" in fields:
         resonances = _resonances(grid, fields["speed"], fields["frozen_mean"], max_harmonic)
-        instabilities = tuple(unstable_intervals(grid, fields["spectral_radius"],
-                                                 tol=periodic.STABILITY_TOL))
+        # unstable where the radius exceeds 1 beyond its own error bar (periodic.stability_verdict)
+        lower = fields["spectral_radius"] - np.nan_to_num(fields.get("spectral_radius_error", 0.0))
+        instabilities = tuple(unstable_intervals(grid, lower, tol=periodic.STABILITY_TOL))
     result = SweepResult(**header, settings=settings, values=grid, peak_to_peak=peak,
-                         peak_to_peak_error=peak_error, resonances=resonances,
+                         peak_to_peak_error=peak_error, resonances=resonances, linear_range=ranges,
                          instabilities=instabilities, run_time=time.perf_counter() - start, **fields)
     if store is not None:
         result.to_hdf5(store.group)
@@ -193,7 +221,7 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
     parameter, grid = axis(where, table)
     return {"parameter": parameter, "values": grid,
             "max_harmonic": integer(where, "max_harmonic", table.get("max_harmonic", 4), 1),
-            "n_steps": steps(where, table, n_steps)}
+            "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS)}
 
 
 def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, progress: bool) -> SweepResult:
@@ -203,8 +231,12 @@ def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, p
 
 
 def _summary(result: SweepResult) -> str:
-    return grid_summary(result, f", {len(result.resonances)} resonances, {len(result.instabilities)} "
-                                f"unstable intervals")
+    unit = result.parameter_unit if result.parameter_unit not in ("", "1") else ""
+    intervals = ", ".join(f"{a:.4g}-{b:.4g}" for a, b in result.instabilities)
+    return grid_summary(result, f"; {len(result.resonances)} resonances, {len(result.instabilities)} "
+                                f"unstable intervals" + (f" ({result.parameter} {intervals} {unit})"
+                                                         if intervals else ""),
+                        point=lambda index: f"{result.parameter} {result.values[index]:.4g} {unit}".rstrip())
 
 
 def _default(nominal_speed: float) -> dict[str, Any]:
