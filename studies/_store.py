@@ -46,9 +46,14 @@ def open_file(path: str | Path, mode: str = "a"):
     """Open (create) a result file and stamp it with versions and creation time."""
     import h5py
 
-    if mode != "r":
-        Path(path).parent.mkdir(parents=True, exist_ok=True)  # as a user expects of --out a/b.h5
-    handle = h5py.File(path, mode)
+    try:
+        if mode != "r":
+            Path(path).parent.mkdir(parents=True, exist_ok=True)  # as a user expects of --out a/b.h5
+        handle = h5py.File(path, mode)
+    except OSError as error:  # a folder, no permission, not HDF5, locked by another run
+        raise StudiesError(f"result file {str(path)!r}: cannot open it {'to read' if mode == 'r' else 'to write'} "
+                           f"({error}); expected the path of a new file or of an HDF5 file written "
+                           f"by flexvib") from None
     if "flexvib_version" not in handle.attrs and mode != "r":
         stamp = versions()
         handle.attrs["flexvib_version"] = stamp["flexvib"]

@@ -267,6 +267,10 @@ def _plot(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Study attributes ``flexvib info`` does not print: shown in its header line, or bulky and internal.
+_INFO_HIDDEN = ("kind", "problem", "complete", "request", "scene", "outlines", "labels", "mode_labels")
+
+
 def _info(args: argparse.Namespace) -> int:
     import h5py
 
@@ -282,20 +286,22 @@ def _info(args: argparse.Namespace) -> int:
         print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, created "
               f"{handle.attrs.get('created', '?')}")
         print(f"  versions: {handle.attrs.get('versions', '?')}")
-        for name, group in handle.items():
-            attrs = study_attrs(group)
+        for name, item in handle.items():
+            if not hasattr(item, "items"):  # a dataset at the root (e.g. a `flexvib demo` file)
+                print(f"{name}: {item.shape} {item.attrs.get('units', '')}")
+                continue
+            attrs = study_attrs(item)
             print(f"[{name}] {attrs.get('kind')} of {attrs.get('problem', '?')}, "
                   f"{'complete' if attrs.get('complete') else 'INCOMPLETE'}")
-            if "done" in group:
-                done = group["done"][()]
+            if "done" in item:
+                done = item["done"][()]
                 print(f"  points done: {int(done.sum())} of {done.size}")
-            for key in ("parameter", "parameters", "n_steps", "spectral_radius", "error_estimate",
-                        "response_error", "status", "resonances", "instabilities", "difference",
-                        "relative_difference", "periodicity_defect", "periods_to_steady", "run_time",
-                        "linear_run_time", "nonlinear_run_time", "rest_run_time", "reference_run_time"):
-                if key in attrs and key in group.attrs:
-                    print(f"  {key}: {attrs[key]}")
-            for key, dataset in group.items():
+            # every headline attribute the study wrote (a new kind's too); the bulky or internal ones
+            # (the scene text, the request it was run for) are left out
+            for key, value in attrs.items():
+                if key not in _INFO_HIDDEN:
+                    print(f"  {key}: {value}")
+            for key, dataset in item.items():
                 if hasattr(dataset, "shape"):
                     print(f"  {key}: {dataset.shape} {dataset.attrs.get('units', '')}")
                 else:
