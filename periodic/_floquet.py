@@ -58,7 +58,7 @@ class FloquetResult:
         ``scheme.error_factor * |mu_N - mu_{N/2}|`` (nearest N/2 multiplier) with ``estimate_error``,
         else None.
     spectral_radius_error : float
-        Error estimate of ``critical_multiplier`` (NaN without ``estimate_error``: the verdict then
+        Error bar of ``critical_multiplier``, twice its error estimate (NaN without ``estimate_error``: the verdict then
         has no error bar, only ``stability_tol``).
     critical_multiplier : complex
         The multiplier that decides stability (see :func:`periodic.stability_verdict`).

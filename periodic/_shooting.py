@@ -73,7 +73,8 @@ class SteadyState:
     spectral_radius : float
         ``max |multipliers|`` over all modes, unresolved ones included.
     spectral_radius_error : float
-        Error estimate of ``critical_multiplier`` (the error bar of the stability verdict; NaN when
+        Error bar of ``critical_multiplier`` (twice its N/2 error estimate, see
+        :func:`periodic.stability_verdict`; NaN when
         ``multiplier_errors`` is None).
     critical_multiplier : complex
         The multiplier that decides stability: the largest among the resolved modes and the

@@ -1,9 +1,13 @@
 """Verdicts in words: the status vocabulary, stability with its own error bar, and the asymptotic-range
 check of the N/2 error estimate.
 
-Stability.  A multiplier ``mu`` with error estimate ``e`` (from the N/2 run) is decided unstable only
-where ``|mu| - 1 > e + stability_tol``; where ``||mu| - 1| <= e + stability_tol`` the verdict is
-``marginal`` (an undamped system, whose multipliers lie on the unit circle up to the scheme's error).
+Stability.  A multiplier ``mu`` with error estimate ``e`` (from the N/2 run) has the error bar
+``E = ERROR_BAR_FACTOR * e``; it is decided unstable only where ``|mu| - 1 > E + stability_tol``; where
+``||mu| - 1| <= E + stability_tol`` the verdict is ``marginal`` (an undamped system, whose multipliers
+lie on the unit circle up to the scheme's error).  The factor 2: where the exact multiplier is on the
+circle and the scheme's moves it out by ``c h^2``, the N/2 estimate is ``c h^2 (1 + O(h^2))``, as
+large as the excess itself; a bar of one estimate would decide such a case by the sign of the O(h^2)
+remainder (``near_resonance`` uses the same factor).
 The critical multiplier is the largest one among the resolved modes (``step_rate <= 1``, see
 ``periodic._floquet``) and the unresolved ones that grow beyond their error bar: the scheme is
 A-stable, so an unresolved decaying mode stays inside the unit circle whatever its (wrong) value,
@@ -53,6 +57,8 @@ _SEVERITY = {status: rank for rank, status in enumerate(STATUSES)}
 #: (a Jordan block, e.g. on a transition curve of Mathieu's equation).  1e-6 stays above both, and far
 #: below growth rates of practical interest (|lam| > 1e-6 / T).
 STABILITY_TOL = 1e-6
+#: The error bar of a multiplier is this many times its N/2 error estimate (see the module notes).
+ERROR_BAR_FACTOR = 2.0
 #: A multiplier whose mode changes by more than a factor e per step (``step_rate > 1``) is unresolved.
 RESOLVED_STEP_RATE = 1.0
 #: The estimate is trusted where the observed order log2(ratio) is within this of the scheme's order.
@@ -101,7 +107,8 @@ class Stability:
     spectral_radius : float
         ``|critical_multiplier|``: the radius over the resolved modes and the growing unresolved ones.
     spectral_radius_error : float
-        Error estimate of ``critical_multiplier`` (0 when no errors were given).
+        Error bar of ``critical_multiplier``: ``ERROR_BAR_FACTOR`` times its error estimate (0 when no
+        errors were given).  Unstable only where ``spectral_radius - 1`` exceeds it plus the tolerance.
     critical_multiplier : complex
         The multiplier that decides the verdict (NaN when there is none).
     kind : str
@@ -119,28 +126,41 @@ class Stability:
 
 
 def stability_verdict(multipliers, multiplier_errors, step_rates, *, stability_tol: float = STABILITY_TOL) -> Stability:
-    """Stability of multipliers (2n,) complex with errors (2n,) (or None: no error bar) and the step
-    rates (2n,) of their modes; see the module notes for the rules."""
-    multipliers = np.asarray(multipliers, dtype=complex)
-    moduli = np.abs(multipliers)
-    errors = np.zeros(moduli.shape) if multiplier_errors is None else np.asarray(multiplier_errors, dtype=float)
-    growing = moduli - 1.0 > errors + stability_tol
-    candidates = np.flatnonzero((np.asarray(step_rates) <= RESOLVED_STEP_RATE) | growing)
-    if candidates.size == 0:  # only unresolved decaying modes: A-stability keeps them inside the circle
-        candidates = np.arange(moduli.size)
-    if candidates.size == 0:
+    """Stability of multipliers (2n,) complex with error estimates (2n,) (or None: no error bar) and
+    the step rates (2n,) of their modes; see the module notes for the rules."""
+    # A plain loop: for the 2n <= 100 multipliers of practical systems it costs less than the numpy
+    # calls it replaces, and the verdict runs with every steady state.
+    values = np.asarray(multipliers, dtype=complex).tolist()
+    rates = np.asarray(step_rates, dtype=float).tolist()
+    if multiplier_errors is None:
+        errors = [0.0] * len(values)
+    else:
+        errors = (ERROR_BAR_FACTOR * np.asarray(multiplier_errors, dtype=float)).tolist()
+    if not values:
         return Stability("ok", "stable: no multipliers (no coordinates)", True, 0.0, 0.0, complex("nan"), "")
-    i = candidates[np.argmax(moduli[candidates])]
-    mu, radius, error = complex(multipliers[i]), float(moduli[i]), float(errors[i])
+    critical = largest = None  # indices: among the candidates, and among all (the fallback)
+    for i, (value, rate, error) in enumerate(zip(values, rates, errors)):
+        modulus = abs(value)
+        if largest is None or modulus > abs(values[largest]):
+            largest = i
+        if (rate <= RESOLVED_STEP_RATE or modulus - 1.0 > error + stability_tol) and (
+            critical is None or modulus > abs(values[critical])
+        ):
+            critical = i
+    if critical is None:  # only unresolved decaying modes: A-stability keeps them inside the circle
+        critical = largest
+    mu, error = values[critical], errors[critical]
+    radius = abs(mu)
     excess = radius - 1.0
     bar = error + stability_tol
     if excess < -bar:
-        return Stability("ok", f"stable: spectral radius {radius:.6g} (error {error:.2g})", True, radius, error, mu, "")
+        error_text = "no error estimate" if multiplier_errors is None else f"error bar {error:.2g}"
+        return Stability("ok", f"stable: spectral radius {radius:.6g} ({error_text})", True, radius, error, mu, "")
     if abs(mu.imag) <= error + _REAL_AXIS_TOL * radius:
         kind = "fold" if mu.real > 0.0 else "period_doubling"
     else:
         kind = "secondary_hopf"
-    where = f"Floquet multiplier {mu:.6g}, |mu| - 1 = {excess:.3g}, its error {error:.2g} + tolerance {stability_tol:.2g}"
+    where = f"Floquet multiplier {mu:.6g}, |mu| - 1 = {excess:.3g}, its error bar {error:.2g} + tolerance {stability_tol:.2g}"
     if excess > bar:
         message = f"unstable: {_KIND_WORDS[kind]}; {where}: the periodic solution is not reached by the system"
         return Stability("unstable", message, False, radius, error, mu, kind)
