@@ -130,8 +130,8 @@ def stability_verdict(multipliers, multiplier_errors, step_rates, *, stability_t
     the step rates (2n,) of their modes; see the module notes for the rules."""
     # A plain loop: for the 2n <= 100 multipliers of practical systems it costs less than the numpy
     # calls it replaces, and the verdict runs with every steady state.
-    values = np.asarray(multipliers, dtype=complex).tolist()
-    rates = np.asarray(step_rates, dtype=float).tolist()
+    values = [complex(value) for value in np.asarray(multipliers).tolist()]
+    rates = np.asarray(step_rates).tolist()
     if multiplier_errors is None:
         errors = [0.0] * len(values)
     else:
