@@ -13,7 +13,10 @@ and include sampling the coefficient functions (Newmark) or evaluating them (sci
 Cases: (a) smooth: the 2-DOF Mathieu-type demo system ``periodic.demo_system``; (b) stiff: 2 DOF whose
 second mode is 3000 times faster than the forcing (an axial mode of a steel link), 1 % damped.
 
-Run: .venv/bin/python benchmarks/bench_periodic.py [--quick]
+``--overhead`` instead times ``steady_state`` with and without the error estimate (N/2 and N/4 runs)
+and ``floquet`` on a random 12-DOF system at N = 256 and the 2-DOF one at N = 64 (medians of many calls).
+
+Run: .venv/bin/python benchmarks/bench_periodic.py [--quick | --overhead]
 """
 
 from __future__ import annotations
@@ -180,10 +183,31 @@ def run_case(case, quick):
               f"Newmark {newmark_best * 1e3:.2f} ms; scipy / Newmark: {ratios}")
 
 
+def overhead():
+    """Median call times of steady_state (with / without the estimate) and floquet, in microseconds."""
+    rng = np.random.default_rng(1)
+    for n, n_steps, repeats in ((12, 256, 400), (2, 64, 3000)):
+        A, B = rng.normal(size=(n, n)), rng.normal(size=(n, n))
+        mass, stiffness = A @ A.T + n * np.eye(n), 50.0 * (B @ B.T + n * np.eye(n))
+        damping, force = 1e-3 * stiffness + 0.1 * mass, rng.normal(size=n)
+        system = periodic.PeriodicSystem.from_functions(
+            1.0, lambda t: mass, lambda t: damping, lambda t: stiffness * (1.0 + 0.1 * np.cos(2 * np.pi * t)),
+            lambda t: force * np.cos(2 * np.pi * t), n_steps=n_steps)
+        for label, call in (("steady_state", lambda: (periodic.steady_state(system),)),
+                            ("steady_state(estimate_error=False)", lambda: (periodic.steady_state(system, estimate_error=False),)),
+                            ("floquet", lambda: (periodic.floquet(system),))):  # timed() wants a tuple
+            call()
+            print(f"n={n} N={n_steps} {label}: {timed(call, repeats)[0] * 1e6:.1f} us")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repeats")
+    parser.add_argument("--overhead", action="store_true", help="only the call times of steady_state and floquet")
     args = parser.parse_args()
+    if args.overhead:
+        overhead()
+        return
     case = stiff_case()
     periodic.steady_state(case.system(8))  # JIT warm-up outside the timings
     for case in (smooth_case(), stiff_case()):

@@ -25,17 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._scheme import DEFAULT_SCHEME, Newmark, as_scheme
-from ._system import PeriodicSystem, ShootingError, check_system, check_tol
+from ._system import PeriodicSystem, ShootingError, check_coarsenable, check_system, check_tol, every_other_sample
+from ._verdict import RESOLVED_STEP_RATE, STABILITY_TOL, stability_verdict
 
-#: Default tolerance of ``is_stable``: spectral radius <= 1 + STABILITY_TOL.  The multipliers of an
-#: undamped (conservative) system lie on the unit circle; numerically their moduli differ from 1 by
-#: rounding, about eps * cond(eigenvectors) ~ 1e-14..1e-12, and by up to sqrt(eps) ~ 1.5e-8 times a
-#: modest factor where two multipliers collide (a Jordan block, e.g. on a transition curve of
-#: Mathieu's equation).  1e-6 stays above both, and far below growth rates of practical interest
-#: (|lam| > 1e-6 / T).
-STABILITY_TOL = 1e-6
-#: A multiplier whose mode changes by more than a factor e per step (``step_rate > 1``) is unresolved.
-RESOLVED_STEP_RATE = 1.0
 #: Default of ``resonance_tol``: a resolved multiplier within this distance of +1 amplifies the
 #: periodic response by more than 1/resonance_tol = 100 relative to the forcing's quasi-static level.
 RESONANCE_TOL = 1e-2
@@ -56,12 +48,25 @@ class FloquetResult:
     multipliers : ndarray (2n,) complex
         Eigenvalues of ``Phi``, sorted by decreasing modulus.
     spectral_radius : float
-        ``max |multipliers|``.
+        ``max |multipliers|`` (all modes, unresolved ones included).
     is_stable : bool
-        ``spectral_radius <= 1 + stability_tol``.
+        False only where ``status`` is ``"unstable"``.
     stability_tol : float
-        Tolerance used for ``is_stable``: at most ``STABILITY_TOL`` = 1e-6 (larger values are refused,
-        they would hide growth), smaller values are allowed.
+        Tolerance of the stability verdict: at most ``STABILITY_TOL`` = 1e-6 (larger values are
+        refused, they would hide growth), smaller values are allowed.
+    multiplier_errors : ndarray (2n,) or None
+        ``scheme.error_factor * |mu_N - mu_{N/2}|`` (nearest N/2 multiplier) with ``estimate_error``,
+        else None.
+    spectral_radius_error : float
+        Error bar of ``critical_multiplier``, twice its error estimate (NaN without ``estimate_error``: the verdict then
+        has no error bar, only ``stability_tol``).
+    critical_multiplier : complex
+        The multiplier that decides stability (see :func:`periodic.stability_verdict`).
+    instability_kind : str
+        ``"fold"``, ``"period_doubling"``, ``"secondary_hopf"`` where unstable or marginal, else ``""``.
+    status : str
+        ``"ok"``, ``"unstable"`` or ``"marginal"``.
+    message : str
     exponents : ndarray (2n,) complex
         Characteristic exponents ``log(multipliers) / T`` (1/s, principal branch; the imaginary part
         is defined modulo 2 pi / T; ``-inf`` real part for a zero multiplier).
@@ -88,6 +93,12 @@ class FloquetResult:
     spectral_radius: float
     is_stable: bool
     stability_tol: float
+    multiplier_errors: np.ndarray | None
+    spectral_radius_error: float
+    critical_multiplier: complex
+    instability_kind: str
+    status: str
+    message: str
     exponents: np.ndarray
     step_rates: np.ndarray
     resolved: np.ndarray
@@ -103,15 +114,25 @@ def floquet(
     *,
     scheme: Newmark | str = DEFAULT_SCHEME,
     stability_tol: float = STABILITY_TOL,
+    estimate_error: bool = False,
 ) -> FloquetResult:
     """Monodromy, multipliers and stability of ``system`` by ``scheme`` (a :class:`Newmark` or a name
-    in ``SCHEMES``) with N steps.  Raises :class:`ShootingError` if a step's matrix is singular."""
+    in ``SCHEMES``) with N steps.  ``estimate_error=True`` also runs N/2 steps (N even >= 4) for the
+    multipliers' errors, the error bar of the stability verdict.  Raises :class:`ShootingError` if a
+    step's matrix is singular."""
     start = time.perf_counter()
     check_system(system)
     scheme = as_scheme(scheme)
     stability_tol = check_tol("stability_tol", stability_tol, STABILITY_TOL)
+    if estimate_error:
+        check_coarsenable(system.n_steps, "use an even n_steps or estimate_error=False")
     phi, _ = monodromy(system, scheme, particular=False)
     multipliers, step_rates = analyse_multipliers(phi, system.step)
+    errors = None
+    if estimate_error:
+        coarse_phi, _ = monodromy(every_other_sample(system), scheme, particular=False)
+        errors = multiplier_errors(multipliers, coarse_phi, scheme.error_factor)
+    stability = stability_verdict(multipliers, errors, step_rates, stability_tol=stability_tol)
     with np.errstate(divide="ignore"):
         exponents = np.log(multipliers.astype(complex)) / system.period
     trace = np.trace(np.linalg.solve(system.M, system.C), axis1=1, axis2=2)
@@ -121,8 +142,14 @@ def floquet(
         monodromy=phi,
         multipliers=multipliers,
         spectral_radius=radius,
-        is_stable=bool(radius <= 1.0 + stability_tol),
+        is_stable=stability.is_stable,
         stability_tol=stability_tol,
+        multiplier_errors=errors,
+        spectral_radius_error=stability.spectral_radius_error if estimate_error else float("nan"),
+        critical_multiplier=stability.critical_multiplier,
+        instability_kind=stability.kind,
+        status=stability.status,
+        message=stability.message,
         exponents=exponents,
         step_rates=step_rates,
         resolved=step_rates <= RESOLVED_STEP_RATE,
@@ -152,6 +179,12 @@ def monodromy(system: PeriodicSystem, scheme: Newmark, *, particular: bool):
     phi = np.vstack((x[:, : 2 * n], v[:, : 2 * n]))
     end = np.concatenate((x[:, -1], v[:, -1])) if particular else None
     return phi, end
+
+
+def multiplier_errors(multipliers: np.ndarray, coarse_phi: np.ndarray, factor: float) -> np.ndarray:
+    """``factor * |mu - nearest eigenvalue of coarse_phi|`` (2n,): the error estimate of each multiplier."""
+    coarse = np.linalg.eigvals(coarse_phi)
+    return factor * np.abs(multipliers[:, None] - coarse[None, :]).min(axis=1)
 
 
 def raise_on_singular(system: PeriodicSystem, status: int) -> None:

@@ -8,6 +8,11 @@ error of ``x_N`` (``Newmark.error_factor``).  A time-symmetric scheme (``gamma =
 error in even powers of h, so one Richardson step, ``x_N + (x_N - x_{N/2}) / 3``, is of order 4.
 The N/2 solution comes back in the result (``x_coarse``, ``error_factor``) so that callers estimate
 the error of anything linear in x (observables) without a second run.
+
+The estimate is trusted only in its asymptotic range: a third run on N/4 steps (a quarter of the cost
+of the N-step run) gives the ratio of successive differences, checked by
+:func:`periodic.error_verdict`; stability is decided with the multipliers' own error bars by
+:func:`periodic.stability_verdict`.  ``status`` is the worst of the two and of the resonance check.
 """
 
 from __future__ import annotations
@@ -21,10 +26,10 @@ import numpy as np
 
 from ._floquet import (
     RESONANCE_TOL,
-    STABILITY_TOL,
     NearResonanceWarning,
     analyse_multipliers,
     monodromy,
+    multiplier_errors as estimate_multiplier_errors,
     near_resonance,
     raise_on_singular,
 )
@@ -34,10 +39,12 @@ from ._system import (
     PeriodicSystem,
     ShootingError,
     check_coarsenable,
+    check_quarterable,
     check_system,
     check_tol,
     every_other_sample,
 )
+from ._verdict import STABILITY_TOL, STATUSES, error_verdict, stability_verdict, worst_status
 
 logger = logging.getLogger(__name__)
 
@@ -64,8 +71,19 @@ class SteadyState:
     step_rates : ndarray (2n,)
         ``|lam h|`` estimate of each multiplier's mode; > 1 means unresolved (see ``periodic._floquet``).
     spectral_radius : float
+        ``max |multipliers|`` over all modes, unresolved ones included.
+    spectral_radius_error : float
+        Error bar of ``critical_multiplier`` (twice its N/2 error estimate, see
+        :func:`periodic.stability_verdict`; NaN when
+        ``multiplier_errors`` is None).
+    critical_multiplier : complex
+        The multiplier that decides stability: the largest among the resolved modes and the
+        unresolved ones growing beyond their error bar (:func:`periodic.stability_verdict`).
+    instability_kind : str
+        ``"fold"``, ``"period_doubling"`` or ``"secondary_hopf"`` where unstable or marginal, else ``""``.
     is_stable : bool
-        ``spectral_radius <= 1 + stability_tol``.
+        False only where the stability verdict is ``"unstable"``: ``|critical_multiplier| - 1`` above its
+        error plus ``stability_tol``.
     condition_number : float
         2-norm condition number of ``I - Phi`` (N-step monodromy) solved for the initial state: it
         bounds the rounding error of the periodic initial state (relative error <~ cond * eps).  It
@@ -83,6 +101,15 @@ class SteadyState:
         Displacement of the N/2-step periodic solution at ``t[::2]`` (None when skipped).  The error of
         any quantity ``o`` linear in x (an observable) is estimated, like ``error_estimate``, by
         ``error_factor * |o(x[::2]) - o(x_coarse)|``, with no second run.
+    x_quarter : ndarray (N/4+1, n) or None
+        Displacement of the N/4-step periodic solution at ``t[::4]`` (None without ``estimate_error``).
+    error_trusted : bool
+        The estimate is in its asymptotic range (:func:`periodic.error_verdict` on
+        ``max|x_N - x_{N/2}|`` and ``max|x_{N/2} - x_{N/4}|`` of the N-step, not extrapolated, runs);
+        False when not checked (``estimate_error=False``).
+    error_ratio : float
+        ``max|x_{N/2} - x_{N/4}| / max|x_N - x_{N/2}|``, ``2**order`` in the asymptotic range (NaN when
+        not checked).
     error_factor : float
         The factor of that estimate (NaN when skipped): ``scheme.error_factor = 1 / (2^p - 1)`` for a
         scheme of order p; with ``extrapolated``, ``1 / 2^p``, since then
@@ -93,16 +120,20 @@ class SteadyState:
     periodicity_residual : float
         ``max |x(T) - x(0)|`` of the final forced run (rounding times conditioning).
     status : str
-        ``"ok"``, ``"near_resonance"`` (a resolved multiplier near +1; also warned with
-        :class:`NearResonanceWarning`) or ``"unresolved_stiff_mode"`` (a multiplier near +1 belongs to a
-        mode the step does not resolve; the exact multiplier is not near +1, see ``message``).
+        The most severe (:data:`periodic.STATUSES`) of: the stability verdict (``"unstable"``,
+        ``"marginal"``), the error check (``"inaccurate"``), ``"near_resonance"`` (a resolved multiplier
+        near +1; also warned with :class:`NearResonanceWarning`; an untrusted error estimate there is
+        reported in the message but stays ``"near_resonance"``: refining would not help) and
+        ``"unresolved_stiff_mode"`` (a multiplier near +1 belongs to a mode the step does not
+        resolve; the exact multiplier is not near +1); else ``"ok"``.
     message : str
+        Every non-ok part in words, most severe first (for ``"ok"``: the radius and the error check).
     n_steps : int
     extrapolated : bool
     scheme : Newmark
         The scheme used.
     run_time : float
-        Wall time in s, including the N/2 run.
+        Wall time in s, including the N/2 and N/4 runs.
     """
 
     t: np.ndarray
@@ -113,12 +144,18 @@ class SteadyState:
     multipliers: np.ndarray
     step_rates: np.ndarray
     spectral_radius: float
+    spectral_radius_error: float
+    critical_multiplier: complex
+    instability_kind: str
     is_stable: bool
     condition_number: float
     inverse_norm: float
     error_estimate: float
     x_coarse: np.ndarray | None
     error_factor: float
+    x_quarter: np.ndarray | None
+    error_trusted: bool
+    error_ratio: float
     multiplier_errors: np.ndarray | None
     periodicity_residual: float
     status: str
@@ -153,10 +190,11 @@ def steady_state(
     ``SCHEMES``) on its N steps.
 
     ``extrapolate=True`` returns the Richardson extrapolation of the N and N/2 results (order 4;
-    needs a symmetric scheme, ``gamma = 1/2``).  ``estimate_error=False`` skips the N/2 run (about a
-    third of the cost) when not extrapolating.  Both need an even N >= 4.  Raises
-    :class:`ShootingError` if ``I - Phi`` is exactly singular (a multiplier at +1 to rounding) or a
-    step's matrix is.
+    needs a symmetric scheme, ``gamma = 1/2``, and an even N >= 4).  ``estimate_error=True`` runs N/2
+    and N/4 steps (N a multiple of 4, >= 8) for the error estimate and its asymptotic-range check
+    (together about 3/4 of the cost of the N-step run); ``estimate_error=False`` skips both when not
+    extrapolating (the stability verdict then has no error bar).  Raises :class:`ShootingError` if
+    ``I - Phi`` is exactly singular (a multiplier at +1 to rounding) or a step's matrix is.
     """
     start = time.perf_counter()
     check_system(system)
@@ -168,21 +206,29 @@ def steady_state(
             f"extrapolate: Richardson extrapolation to order 4 needs the symmetric scheme gamma = 1/2, "
             f"got gamma = {scheme.gamma}; use a symmetric scheme (e.g. scheme='trapezoidal') or extrapolate=False"
         )
-    coarse_needed = bool(extrapolate or estimate_error)
-    if coarse_needed:
-        check_coarsenable(system.n_steps, "use an even n_steps or estimate_error=False (and extrapolate=False)")
+    if estimate_error:
+        check_quarterable(system.n_steps, "use such an n_steps or estimate_error=False")
+    elif extrapolate:
+        check_coarsenable(system.n_steps, "use an even n_steps or extrapolate=False")
     fine = _shoot(system, scheme)
     phi, x, v, a = fine.phi, fine.x, fine.v, fine.a
-    error_estimate = error_factor = float("nan")
-    x_coarse = multiplier_errors = None
+    error_estimate = error_factor = error_ratio = float("nan")
+    x_coarse = x_quarter = multiplier_errors = check = None
     multipliers, step_rates = analyse_multipliers(phi, system.step)
-    if coarse_needed:
-        coarse = _shoot(every_other_sample(system), scheme)
+    if estimate_error or extrapolate:
+        coarse_system = every_other_sample(system)
+        coarse = _shoot(coarse_system, scheme)
         x_coarse = coarse.x
         factor = error_factor = scheme.error_factor
-        error_estimate = float(np.abs(x[::2] - coarse.x).max()) * factor
-        coarse_multipliers = np.linalg.eigvals(coarse.phi)
-        multiplier_errors = factor * np.abs(multipliers[:, None] - coarse_multipliers[None, :]).min(axis=1)
+        difference = float(np.abs(x[::2] - coarse.x).max())
+        error_estimate = difference * factor
+        multiplier_errors = estimate_multiplier_errors(multipliers, coarse.phi, factor)
+        if estimate_error:
+            x_quarter = _shoot(every_other_sample(coarse_system), scheme, conditioning=False).x
+            coarse_difference = float(np.abs(coarse.x[::2] - x_quarter).max())
+            check = error_verdict(difference, coarse_difference, scheme.order, scale=float(np.abs(x).max()),
+                                  n_steps=system.n_steps)
+            error_ratio = check.ratio
         if extrapolate:
             phi = phi + factor * (phi - coarse.phi)
             x = _richardson(x, coarse.x, factor)
@@ -195,13 +241,14 @@ def steady_state(
             # The Richardson correction estimates the error of the N-step values: a conservative
             # bound for the extrapolated ones, as for error_estimate.
             multiplier_errors = np.abs(multipliers[:, None] - fine_multipliers[None, :]).min(axis=1)
+    stability = stability_verdict(multipliers, multiplier_errors, step_rates, stability_tol=stability_tol)
     physical, spurious = near_resonance(multipliers, step_rates, resonance_tol, multiplier_errors)
-    status, message = _verdict(multipliers, step_rates, physical, spurious, fine, error_estimate)
-    if status == STATUS_NEAR_RESONANCE:
-        warnings.warn(message, NearResonanceWarning, stacklevel=2)
-    elif status == STATUS_UNRESOLVED:
-        logger.info(message)
-    radius = float(np.abs(multipliers[0]))
+    resonance = _resonance_verdict(multipliers, step_rates, physical, spurious, fine, error_estimate)
+    status, message = _combine(stability, resonance, check)
+    if resonance[0] == STATUS_NEAR_RESONANCE:
+        warnings.warn(resonance[1], NearResonanceWarning, stacklevel=2)
+    elif resonance[0] == STATUS_UNRESOLVED:
+        logger.info(resonance[1])
     return SteadyState(
         t=system.t,
         x=x,
@@ -210,13 +257,19 @@ def steady_state(
         monodromy=phi,
         multipliers=multipliers,
         step_rates=step_rates,
-        spectral_radius=radius,
-        is_stable=bool(radius <= 1.0 + stability_tol),
+        spectral_radius=float(np.abs(multipliers[0])),
+        spectral_radius_error=float("nan") if multiplier_errors is None else stability.spectral_radius_error,
+        critical_multiplier=stability.critical_multiplier,
+        instability_kind=stability.kind,
+        is_stable=stability.is_stable,
         condition_number=fine.condition_number,
         inverse_norm=fine.inverse_norm,
         error_estimate=error_estimate,
         x_coarse=x_coarse,
         error_factor=error_factor,
+        x_quarter=x_quarter,
+        error_trusted=check is not None and check.trusted,
+        error_ratio=error_ratio,
         multiplier_errors=multiplier_errors,
         periodicity_residual=fine.periodicity_residual,
         status=status,
@@ -228,7 +281,9 @@ def steady_state(
     )
 
 
-def _shoot(system: PeriodicSystem, scheme: Newmark) -> _Shot:
+def _shoot(system: PeriodicSystem, scheme: Newmark, *, conditioning: bool = True) -> _Shot:
+    """The periodic solution on ``system``'s grid; ``conditioning=False`` skips the SVD of ``I - Phi``
+    (condition number and inverse norm NaN), for the N/4 run of the error check, which needs x only."""
     n = system.n_dof
     phi, end = monodromy(system, scheme, particular=True)
     system_matrix = np.eye(2 * n) - phi
@@ -240,9 +295,11 @@ def _shoot(system: PeriodicSystem, scheme: Newmark) -> _Shot:
             f"system: I - Phi is singular (a Floquet multiplier is within {distance:.3g} of +1): the "
             "system is at resonance and has no unique periodic solution"
         ) from None
-    singular_values = np.linalg.svd(system_matrix, compute_uv=False)
-    condition_number = float(singular_values[0] / singular_values[-1])
-    inverse_norm = float(1.0 / singular_values[-1])
+    condition_number = inverse_norm = float("nan")
+    if conditioning:
+        singular_values = np.linalg.svd(system_matrix, compute_uv=False)
+        condition_number = float(singular_values[0] / singular_values[-1])
+        inverse_norm = float(1.0 / singular_values[-1])
     x = np.ascontiguousarray(z0[:n, None])
     v = np.ascontiguousarray(z0[n:, None])
     a = np.empty((n, 1))
@@ -265,7 +322,26 @@ def _richardson(fine: np.ndarray, coarse: np.ndarray, factor: float) -> np.ndarr
     return out
 
 
-def _verdict(multipliers, step_rates, physical, spurious, shot: _Shot, error_estimate):
+def _combine(stability, resonance, check):
+    """``(status, message)``: the worst of the stability verdict, the resonance verdict ``(status,
+    message)`` and the error check (None when not run), with every non-ok message, most severe first."""
+    parts = [(stability.status, stability.message), resonance]
+    if check is not None:
+        if resonance[0] == STATUS_NEAR_RESONANCE and not check.trusted:
+            # Near resonance the response hangs on the multipliers' discretisation error, so the levels
+            # disagree at any N: the resonance, not the step, is the cause (refining would not help).
+            parts.append((STATUS_NEAR_RESONANCE, f"error estimate not trusted near resonance ({check.message})"))
+        else:
+            parts.append((check.status, check.message))
+    status = worst_status(*(part[0] for part in parts))
+    if status == STATUS_OK:
+        checked = "" if check is None else f"; {check.message}"
+        return status, f"ok: {stability.message}{checked}"
+    ranked = sorted((part for part in parts if part[0] != STATUS_OK), key=lambda part: STATUSES.index(part[0]))
+    return status, "; ".join(part[1] for part in ranked)
+
+
+def _resonance_verdict(multipliers, step_rates, physical, spurious, shot: _Shot, error_estimate):
     """Status and message from the indices of near-+1 multipliers with resolved / unresolved modes."""
     if not (physical.size or spurious.size):
         return STATUS_OK, "ok"

@@ -124,6 +124,15 @@ def check_coarsenable(n_steps: int, fix: str) -> None:
         raise PeriodicError(f"n_steps: comparing with N/2 steps needs an even n_steps >= 4, got {n_steps}; {fix}")
 
 
+def check_quarterable(n_steps: int, fix: str) -> None:
+    """Refuse an ``n_steps`` that has no N/4 grid of at least 2 steps; ``fix`` ends the message."""
+    if n_steps % 4 or n_steps < 8:
+        raise PeriodicError(
+            f"n_steps: the error check compares N, N/2 and N/4 steps and needs a multiple of 4 >= 8, "
+            f"got {n_steps}; {fix}"
+        )
+
+
 def every_other_sample(system: PeriodicSystem) -> PeriodicSystem:
     """``system`` on N/2 steps, unchecked: the caller has called :func:`check_coarsenable`."""
     coarse = object.__new__(PeriodicSystem)

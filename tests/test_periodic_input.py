@@ -161,13 +161,22 @@ def test_complex_samples_are_refused():
 def test_odd_n_steps_needs_estimate_error_false():
     M, C, K, f = (a[:8] for a in arrays())  # N = 7
     system = PeriodicSystem(1.0, M, C, K, f)
-    with pytest.raises(PeriodicError, match="n_steps: .*even.*estimate_error=False"):
+    with pytest.raises(PeriodicError, match="n_steps: .*N/4.*multiple of 4 >= 8, got 7.*estimate_error=False"):
         periodic.steady_state(system)
     result = periodic.steady_state(system, estimate_error=False)
     assert np.isnan(result.error_estimate) and result.multiplier_errors is None
     two_steps = PeriodicSystem(1.0, *(a[:3] for a in arrays()))  # N = 2: no N/2 grid of 2 steps
-    with pytest.raises(PeriodicError, match="n_steps: .*even n_steps >= 4, got 2.*estimate_error=False"):
+    with pytest.raises(PeriodicError, match="n_steps: .*multiple of 4 >= 8, got 2.*estimate_error=False"):
         periodic.steady_state(two_steps)
+    with pytest.raises(PeriodicError, match="n_steps: .*multiple of 4 >= 8, got 6.*estimate_error=False"):
+        periodic.steady_state(PeriodicSystem(1.0, *(a[:7] for a in arrays())))  # even, but N/4 is no grid
+    # Richardson alone needs only the N/2 grid; floquet's error estimate too.
+    assert periodic.steady_state(PeriodicSystem(1.0, *(a[:7] for a in arrays())), extrapolate=True,
+                                 estimate_error=False).extrapolated
+    with pytest.raises(PeriodicError, match="n_steps: .*even n_steps >= 4, got 7.*estimate_error=False"):
+        periodic.floquet(system, estimate_error=True)
+    with pytest.raises(PeriodicError, match="n_steps: .*even n_steps >= 4, got 7.*extrapolate=False"):
+        periodic.steady_state(system, extrapolate=True, estimate_error=False)
 
 
 def test_from_functions_refuses_complex_values():

@@ -1,0 +1,236 @@
+"""Verdicts in words: the status vocabulary, stability with its own error bar, and the asymptotic-range
+check of the N/2 error estimate.
+
+Stability.  A multiplier ``mu`` with error estimate ``e`` (from the N/2 run) has the error bar
+``E = ERROR_BAR_FACTOR * e``; it is decided unstable only where ``|mu| - 1 > E + stability_tol``; where
+``||mu| - 1| <= E + stability_tol`` the verdict is ``marginal`` (an undamped system, whose multipliers
+lie on the unit circle up to the scheme's error).  The factor 2: where the exact multiplier is on the
+circle and the scheme's moves it out by ``c h^2``, the N/2 estimate is ``c h^2 (1 + O(h^2))``, as
+large as the excess itself; a bar of one estimate would decide such a case by the sign of the O(h^2)
+remainder (``near_resonance`` uses the same factor).
+The critical multiplier is the largest one among the resolved modes (``step_rate <= 1``, see
+``periodic._floquet``) and the unresolved ones that grow beyond their error bar: the scheme is
+A-stable, so an unresolved decaying mode stays inside the unit circle whatever its (wrong) value,
+while a mode that grows in the scheme grows in the system (the trapezoidal map sends the right
+half-plane outside the unit circle).  Its kind: real near +1 a fold or divergence, real near -1
+period doubling, a complex pair a secondary Hopf (Neimark-Sacker) bifurcation.
+
+Error estimate.  ``|x_N - x_{N/2}| / (2^p - 1)`` estimates the error of ``x_N`` only in the asymptotic
+range, where the error is ``C h^p``.  A third level N/4 tests it: the ratio of successive differences
+``r = |x_{N/2} - x_{N/4}| / |x_N - x_{N/2}|`` tends to ``2^p``.  If the errors shrank geometrically
+by ``r`` per halving of h, the estimate would be ``(r - 1) / (2^p - 1)`` times the true error: the
+accepted band ``|log2 r - p| <= ORDER_TOLERANCE`` (r in [2.83, 5.66] at order 2) keeps that factor in
+[0.61, 1.55].  A ratio near 2^p can also be a coincidence of a grid far too coarse (measured: the
+four-bar at N = 8 has r = 3.06 and an estimate 22x too small): an N/4 grid of 2 steps puts the
+fundamental harmonic at its Nyquist frequency and resolves nothing, so the N/4 grid must have at
+least ``MIN_QUARTER_STEPS`` = 4 steps (N >= 16).  Finally an estimate may be trustworthy and still
+too large: above ``MAX_RELATIVE_ERROR`` of the solution's size the result is ``inaccurate`` too.
+The measurements behind these numbers are in docs/methods.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._system import PeriodicError
+
+#: The status vocabulary of every result of the project, most severe first.
+STATUSES = (
+    "failed",
+    "unstable",
+    "outside_linear_range",
+    "inaccurate",
+    "near_resonance",
+    "marginal",
+    "unresolved_stiff_mode",
+    "ok",
+)
+_SEVERITY = {status: rank for rank, status in enumerate(STATUSES)}
+
+#: Default tolerance of the stability verdict: unstable only where spectral radius - 1 exceeds its
+#: error estimate plus STABILITY_TOL.  The multipliers of an undamped (conservative) system lie on the
+#: unit circle; numerically their moduli differ from 1 by rounding, about eps * cond(eigenvectors) ~
+#: 1e-14..1e-12, and by up to sqrt(eps) ~ 1.5e-8 times a modest factor where two multipliers collide
+#: (a Jordan block, e.g. on a transition curve of Mathieu's equation).  1e-6 stays above both, and far
+#: below growth rates of practical interest (|lam| > 1e-6 / T).
+STABILITY_TOL = 1e-6
+#: The error bar of a multiplier is this many times its N/2 error estimate (see the module notes).
+ERROR_BAR_FACTOR = 2.0
+#: A multiplier whose mode changes by more than a factor e per step (``step_rate > 1``) is unresolved.
+RESOLVED_STEP_RATE = 1.0
+#: The estimate is trusted where the observed order log2(ratio) is within this of the scheme's order.
+ORDER_TOLERANCE = 0.5
+#: ... and where the N/4 grid has at least this many steps per period (2 steps sample the fundamental
+#: harmonic at its Nyquist frequency).
+MIN_QUARTER_STEPS = 4
+#: An estimated error above this fraction of the solution's size is too large, however trustworthy.
+MAX_RELATIVE_ERROR = 0.1
+#: Differences below this fraction of the solution's size are round-off: nothing left to estimate.
+ROUNDOFF_LIMIT = 1e-10
+# A multiplier within this relative distance of the real axis (plus its error) counts as real: two
+# real multipliers that collide split into a complex pair of imaginary part ~ sqrt(eps).
+_REAL_AXIS_TOL = 1e-7
+
+_KIND_WORDS = {
+    "fold": "a real multiplier past +1 (fold or divergence)",
+    "period_doubling": "a real multiplier past -1 (period doubling)",
+    "secondary_hopf": "a complex pair off the unit circle (secondary Hopf, quasi-periodic growth)",
+}
+
+
+def worst_status(*statuses: str) -> str:
+    """The most severe of ``statuses`` in the order of :data:`STATUSES` (``"ok"`` if none given)."""
+    worst = len(STATUSES) - 1
+    for status in statuses:
+        try:
+            worst = min(worst, _SEVERITY[status])
+        except (KeyError, TypeError):
+            raise PeriodicError(f"status: expected one of {', '.join(STATUSES)}, got {status!r}") from None
+    return STATUSES[worst]
+
+
+@dataclass(frozen=True)
+class Stability:
+    """Stability verdict of a set of Floquet multipliers with their error estimates.
+
+    Attributes
+    ----------
+    status : str
+        ``"ok"`` (stable), ``"unstable"`` or ``"marginal"`` (spectral radius within its error bar of 1).
+    message : str
+        The verdict in words, with the critical multiplier, its error and the tolerance.
+    is_stable : bool
+        False only for ``"unstable"``.
+    spectral_radius : float
+        ``|critical_multiplier|``: the radius over the resolved modes and the growing unresolved ones.
+    spectral_radius_error : float
+        Error bar of ``critical_multiplier``: ``ERROR_BAR_FACTOR`` times its error estimate (0 when no
+        errors were given).  Unstable only where ``spectral_radius - 1`` exceeds it plus the tolerance.
+    critical_multiplier : complex
+        The multiplier that decides the verdict (NaN when there is none).
+    kind : str
+        For ``"unstable"`` and ``"marginal"``: ``"fold"`` (real, near +1), ``"period_doubling"`` (real,
+        near -1), ``"secondary_hopf"`` (complex pair); ``""`` when stable.
+    """
+
+    status: str
+    message: str
+    is_stable: bool
+    spectral_radius: float
+    spectral_radius_error: float
+    critical_multiplier: complex
+    kind: str
+
+
+def stability_verdict(multipliers, multiplier_errors, step_rates, *, stability_tol: float = STABILITY_TOL) -> Stability:
+    """Stability of multipliers (2n,) complex with error estimates (2n,) (or None: no error bar) and
+    the step rates (2n,) of their modes; see the module notes for the rules."""
+    # A plain loop: for the 2n <= 100 multipliers of practical systems it costs less than the numpy
+    # calls it replaces, and the verdict runs with every steady state.
+    values = [complex(value) for value in np.asarray(multipliers).tolist()]
+    rates = np.asarray(step_rates).tolist()
+    if multiplier_errors is None:
+        errors = [0.0] * len(values)
+    else:
+        errors = (ERROR_BAR_FACTOR * np.asarray(multiplier_errors, dtype=float)).tolist()
+    if not values:
+        return Stability("ok", "stable: no multipliers (no coordinates)", True, 0.0, 0.0, complex("nan"), "")
+    critical = largest = None  # indices: among the candidates, and among all (the fallback)
+    for i, (value, rate, error) in enumerate(zip(values, rates, errors)):
+        modulus = abs(value)
+        if largest is None or modulus > abs(values[largest]):
+            largest = i
+        if (rate <= RESOLVED_STEP_RATE or modulus - 1.0 > error + stability_tol) and (
+            critical is None or modulus > abs(values[critical])
+        ):
+            critical = i
+    if critical is None:  # only unresolved decaying modes: A-stability keeps them inside the circle
+        critical = largest
+    mu, error = values[critical], errors[critical]
+    radius = abs(mu)
+    excess = radius - 1.0
+    bar = error + stability_tol
+    if excess < -bar:
+        error_text = "no error estimate" if multiplier_errors is None else f"error bar {error:.2g}"
+        return Stability("ok", f"stable: spectral radius {radius:.6g} ({error_text})", True, radius, error, mu, "")
+    if abs(mu.imag) <= error + _REAL_AXIS_TOL * radius:
+        kind = "fold" if mu.real > 0.0 else "period_doubling"
+    else:
+        kind = "secondary_hopf"
+    where = f"Floquet multiplier {mu:.6g}, |mu| - 1 = {excess:.3g}, its error bar {error:.2g} + tolerance {stability_tol:.2g}"
+    if excess > bar:
+        message = f"unstable: {_KIND_WORDS[kind]}; {where}: the periodic solution is not reached by the system"
+        return Stability("unstable", message, False, radius, error, mu, kind)
+    message = (
+        f"marginal: the spectral radius is 1 within its error bar ({where}): neutrally stable to this "
+        "accuracy (undamped?); refine n_steps to shrink the error bar, or add damping"
+    )
+    return Stability("marginal", message, True, radius, error, mu, kind)
+
+
+@dataclass(frozen=True)
+class ErrorCheck:
+    """Whether the N/2 error estimate is in its asymptotic range.
+
+    Attributes
+    ----------
+    trusted : bool
+    ratio : float
+        ``|x_{N/2} - x_{N/4}| / |x_N - x_{N/2}|`` (max norms); ``2**order`` in the asymptotic range.
+    status : str
+        ``"ok"`` or ``"inaccurate"``.
+    message : str
+        Why; for ``"inaccurate"`` it starts with ``"refine n_steps: "``.
+    """
+
+    trusted: bool
+    ratio: float
+    status: str
+    message: str
+
+
+def error_verdict(
+    difference_fine: float,
+    difference_coarse: float,
+    order: int,
+    *,
+    scale: float,
+    n_steps: int | None = None,
+    order_tolerance: float = ORDER_TOLERANCE,
+    max_relative_error: float = MAX_RELATIVE_ERROR,
+    roundoff: float = ROUNDOFF_LIMIT,
+) -> ErrorCheck:
+    """Trust of the N/2 estimate ``difference_fine / (2**order - 1)`` from ``difference_fine =
+    max|x_N - x_{N/2}|`` and ``difference_coarse = max|x_{N/2} - x_{N/4}|`` (units of x) for a scheme of
+    ``order``; ``scale`` is the size of the solution (e.g. ``max|x_N|``, units of x); ``n_steps`` (N,
+    optional) checks that the N/4 grid has at least ``MIN_QUARTER_STEPS``.  See the module notes."""
+    fine, coarse, scale = float(difference_fine), float(difference_coarse), float(scale)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = float(np.float64(coarse) / np.float64(fine))
+    ideal = 2.0**order
+    if max(fine, coarse) <= roundoff * scale or max(fine, coarse) == 0.0:
+        return ErrorCheck(True, ratio, "ok", (
+            f"error estimate trusted: the N, N/2 and N/4 solutions agree to round-off ({roundoff:g} of the "
+            "solution's size)"))
+    if n_steps is not None and n_steps // 4 < MIN_QUARTER_STEPS:
+        return ErrorCheck(False, ratio, "inaccurate", (
+            f"refine n_steps: the N/4 grid of the error check has {n_steps // 4} steps per period, too few to "
+            f"resolve even the fundamental harmonic, so the N/2 error estimate is not trusted; use n_steps "
+            f">= {4 * MIN_QUARTER_STEPS}"))
+    observed_order = math.log2(ratio) if 0.0 < ratio < math.inf else math.nan
+    if not abs(observed_order - order) <= order_tolerance:  # also refuses NaN
+        low, high = 2.0 ** (order - order_tolerance), 2.0 ** (order + order_tolerance)
+        return ErrorCheck(False, ratio, "inaccurate", (
+            f"refine n_steps: the ratio of successive differences |x_N/2 - x_N/4| / |x_N - x_N/2| is "
+            f"{ratio:.3g}, expected about {ideal:g} (between {low:.3g} and {high:.3g}) in the asymptotic "
+            f"range of this order-{order} scheme: the N/2 error estimate is not trusted"))
+    relative_error = fine / (ideal - 1.0) / scale
+    if relative_error > max_relative_error:
+        return ErrorCheck(True, ratio, "inaccurate", (
+            f"refine n_steps: the estimated error is {relative_error:.3g} of the solution's size "
+            f"(> {max_relative_error:g}; ratio of successive differences {ratio:.3g})"))
+    return ErrorCheck(True, ratio, "ok", (
+        f"error estimate trusted: ratio of successive differences {ratio:.3g} (asymptotic value {ideal:g})"))
