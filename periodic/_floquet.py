@@ -57,8 +57,12 @@ class FloquetResult:
     multiplier_errors : ndarray (2n,) or None
         ``scheme.error_factor * |mu_N - mu_{N/2}|`` (nearest N/2 multiplier) with ``estimate_error``,
         else None.
+    multipliers_coarse : ndarray (2n,) complex or None
+        The N/2-step multipliers (decreasing modulus) with ``estimate_error``, else None: callers
+        estimate the errors of quantities derived from the multipliers (characteristic frequencies)
+        from them without another run.
     spectral_radius_error : float
-        Error bar of ``critical_multiplier``, twice its error estimate (NaN without ``estimate_error``: the verdict then
+        Error bar of ``|critical_multiplier|``, twice the N/2 error estimate of its modulus (NaN without ``estimate_error``: the verdict then
         has no error bar, only ``stability_tol``).
     critical_multiplier : complex
         The multiplier that decides stability (see :func:`periodic.stability_verdict`).
@@ -94,6 +98,7 @@ class FloquetResult:
     is_stable: bool
     stability_tol: float
     multiplier_errors: np.ndarray | None
+    multipliers_coarse: np.ndarray | None
     spectral_radius_error: float
     critical_multiplier: complex
     instability_kind: str
@@ -128,11 +133,14 @@ def floquet(
         check_coarsenable(system.n_steps, "use an even n_steps or estimate_error=False")
     phi, _ = monodromy(system, scheme, particular=False)
     multipliers, step_rates = analyse_multipliers(phi, system.step)
-    errors = None
+    errors = coarse = None
     if estimate_error:
         coarse_phi, _ = monodromy(every_other_sample(system), scheme, particular=False)
-        errors = multiplier_errors(multipliers, coarse_phi, scheme.error_factor)
-    stability = stability_verdict(multipliers, errors, step_rates, stability_tol=stability_tol)
+        coarse = sorted_eigenvalues(coarse_phi)
+        errors = multiplier_errors(multipliers, coarse, scheme.error_factor)
+    stability = stability_verdict(
+        multipliers, None if coarse is None else modulus_errors(multipliers, coarse, scheme.error_factor),
+        step_rates, stability_tol=stability_tol)
     with np.errstate(divide="ignore"):
         exponents = np.log(multipliers.astype(complex)) / system.period
     trace = np.trace(np.linalg.solve(system.M, system.C), axis1=1, axis2=2)
@@ -145,6 +153,7 @@ def floquet(
         is_stable=stability.is_stable,
         stability_tol=stability_tol,
         multiplier_errors=errors,
+        multipliers_coarse=coarse,
         spectral_radius_error=stability.spectral_radius_error if estimate_error else float("nan"),
         critical_multiplier=stability.critical_multiplier,
         instability_kind=stability.kind,
@@ -181,10 +190,25 @@ def monodromy(system: PeriodicSystem, scheme: Newmark, *, particular: bool):
     return phi, end
 
 
-def multiplier_errors(multipliers: np.ndarray, coarse_phi: np.ndarray, factor: float) -> np.ndarray:
-    """``factor * |mu - nearest eigenvalue of coarse_phi|`` (2n,): the error estimate of each multiplier."""
-    coarse = np.linalg.eigvals(coarse_phi)
+def sorted_eigenvalues(phi: np.ndarray) -> np.ndarray:
+    """Eigenvalues of ``phi`` in decreasing modulus, complex (numpy returns a real array when they
+    all are real)."""
+    values = np.linalg.eigvals(phi).astype(complex)
+    return values[np.argsort(-np.abs(values), kind="stable")]
+
+
+def multiplier_errors(multipliers: np.ndarray, coarse: np.ndarray, factor: float) -> np.ndarray:
+    """``factor * |mu - nearest N/2 multiplier|`` (2n,): the error estimate of each multiplier."""
     return factor * np.abs(multipliers[:, None] - coarse[None, :]).min(axis=1)
+
+
+def modulus_errors(multipliers: np.ndarray, coarse: np.ndarray, factor: float) -> np.ndarray:
+    """``factor * ||mu| - |nearest N/2 multiplier||`` (2n,): the error estimate of each multiplier's
+    modulus, the error bar of the stability verdict. The phase error of a lightly damped mode (its
+    frequency error over a period) is usually far larger and does not move the multiplier across
+    the unit circle, so it must not widen the bar."""
+    nearest = np.abs(multipliers[:, None] - coarse[None, :]).argmin(axis=1)
+    return factor * np.abs(np.abs(multipliers) - np.abs(coarse[nearest]))
 
 
 def raise_on_singular(system: PeriodicSystem, status: int) -> None:

@@ -1,7 +1,9 @@
 """Verdicts in words: the status vocabulary, stability with its own error bar, and the asymptotic-range
 check of the N/2 error estimate.
 
-Stability.  A multiplier ``mu`` with error estimate ``e`` (from the N/2 run) has the error bar
+Stability.  A multiplier ``mu`` whose modulus has the error estimate ``e`` (from the N/2 run: the
+phase error of a lightly damped mode is far larger and does not move it across the unit circle) has
+the error bar
 ``E = ERROR_BAR_FACTOR * e``; it is decided unstable only where ``|mu| - 1 > E + stability_tol``; where
 ``||mu| - 1| <= E + stability_tol`` the verdict is ``marginal`` (an undamped system, whose multipliers
 lie on the unit circle up to the scheme's error).  The factor 2: where the exact multiplier is on the

@@ -67,8 +67,12 @@ def test_outside_linear_range_without_stiffening_says_it_cannot_see_buckling():
 
 def test_inaccurate_when_the_quarter_grid_is_not_asymptotic_and_failed_point_recorded():
     result = studies.sweep(studies.mathieu_problem(epsilon=0.0), "speed", [0.5, -1.0, 0.8], n_steps=16)
-    assert list(result.status) == ["ok", "failed", "inaccurate"]
+    assert list(result.status) == ["inaccurate", "failed", "inaccurate"]
     assert "refine n_steps" in result.message[2]
+    # at 0.5 rad/s the lightly damped mode's multiplier, 0.56 from +1, is "near" it only within its
+    # (untrusted) error estimate: the step, not a resonance, is named as the cause
+    assert "refine n_steps" in result.message[0] and "possibly near resonance" in result.message[0]
+    assert list(studies.sweep(studies.mathieu_problem(epsilon=0.0), "speed", [0.5], n_steps=32).status) == ["ok"]
     assert list(result.is_stable) == [True, False, True]
 
 
@@ -79,7 +83,7 @@ def test_unresolved_stiff_mode_in_a_campbell_diagram(four_bar):
 
 def test_sweep_marks_and_stores_the_instability(four_bar, tmp_path):
     with studies.open_file(tmp_path / "s.h5") as out:
-        sweep = studies.sweep(four_bar, "speed", [100.0, 186.0], n_steps=128, out=out)
+        sweep = studies.sweep(four_bar, "speed", [100.0, 186.0], n_steps=256, out=out)
     assert list(sweep.status[:1]) == ["ok"] and sweep.status[1] == "unstable"
     assert list(sweep.is_stable) == [True, False]
     back = studies.load(tmp_path / "s.h5")["sweep"]

@@ -117,19 +117,16 @@ def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, f
     angle 0, Floquet multipliers."""
     linear = problem.linearize(values, n_steps=n_steps, context=False)
     index, frozen, shapes = frozen_modes(linear.system, frozen_samples)
-    result = periodic.floquet(linear.system, scheme=STUDY_SCHEME)
-    coarse = periodic.floquet(linear.system.coarsened(), scheme=STUDY_SCHEME)
-    stable = verdicts.stability(result.multipliers, verdicts.multiplier_errors(
-        result.multipliers, coarse.multipliers, STUDY_SCHEME.error_factor), result.step_rates)
+    result = periodic.floquet(linear.system, scheme=STUDY_SCHEME, estimate_error=True)
     unresolved = int((~result.resolved).sum())
     status, message = verdicts.combine([
-        (stable.status, stable.message),
+        (result.status, result.message),
         ("unresolved_stiff_mode" if unresolved else "ok",
          f"{unresolved} multipliers belong to modes the {n_steps} steps do not resolve (stiff modes; "
          f"refine n_steps to see their characteristic frequencies)" if unresolved else "")])
     return ({"frozen": frozen, "shapes": shapes, "multipliers": result.multipliers,
-             "multipliers_coarse": coarse.multipliers, "spectral_radius": stable.spectral_radius,
-             "spectral_radius_error": stable.spectral_radius_error, "is_stable": float(stable.is_stable),
+             "multipliers_coarse": result.multipliers_coarse, "spectral_radius": result.spectral_radius,
+             "spectral_radius_error": result.spectral_radius_error, "is_stable": float(result.is_stable),
              "period": linear.system.period, "crank_angle": np.asarray(linear.crank_angle)[index]},
             status, message)
 

@@ -87,19 +87,16 @@ class StabilityChart(GridResult):
 def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int):
     """Spectral radius of the monodromy at one point of a stability chart, with its error estimate."""
     linear = problem.linearize(values, n_steps=n_steps, context=False)
-    result = periodic.floquet(linear.system, scheme=STUDY_SCHEME)
-    coarse = periodic.floquet(linear.system.coarsened(), scheme=STUDY_SCHEME)
-    stable = verdicts.stability(result.multipliers, verdicts.multiplier_errors(
-        result.multipliers, coarse.multipliers, STUDY_SCHEME.error_factor), result.step_rates)
+    result = periodic.floquet(linear.system, scheme=STUDY_SCHEME, estimate_error=True)
     unresolved = ~result.resolved & (np.abs(result.multipliers) > 1.0 + result.stability_tol)
     status, message = verdicts.combine([
-        (stable.status, stable.message),
+        (result.status, result.message),
         ("unresolved_stiff_mode" if unresolved.any() else "ok",
          "an unstable multiplier belongs to a mode the step does not resolve: refine n_steps"
          if unresolved.any() else "")])
     return {"spectral_radius": result.spectral_radius,
-            "spectral_radius_error": stable.spectral_radius_error,
-            "is_stable": float(stable.is_stable)}, status, message
+            "spectral_radius_error": result.spectral_radius_error,
+            "is_stable": float(result.is_stable)}, status, message
 
 
 def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tuple[str, Sequence[float]],
