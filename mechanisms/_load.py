@@ -18,8 +18,8 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ._parts import (GROUND, DampingMatrix, ElasticLink, Fem, Mechanism, MechanismError,
-                     ModalDamping, PointMass, PrescribedDrive, Rayleigh, Revolute, RigidLink, Ritz,
-                     Slider, TorqueDrive, UserShapes, _is_number)
+                     ModalDamping, PointMass, PrescribedDrive, Rayleigh, RigidLink, Ritz,
+                     TorqueDrive, UserShapes, JOINT_TYPES, _is_number)
 
 _TOP_KEYS = ("name", "description", "period", "gravity", "initial_angles", "links", "joints",
              "drive", "drives", "point_masses", "studies")
@@ -31,8 +31,6 @@ _ELASTIC_KEYS = ("type", "length", "density", "youngs_modulus", "width", "thickn
 _DISCRETISATION_KEYS = {"ritz": ("type", "n_bending", "n_axial"), "fem": ("type", "n_elements")}
 _DAMPING_KEYS = {"rayleigh": ("type", "alpha", "beta", "ratio"), "modal": ("type", "ratios"),
                  "matrix": ("type", "matrix"), "none": ("type",)}
-_REVOLUTE_KEYS = ("type", "link_a", "point_a", "link_b", "point_b")
-_SLIDER_KEYS = ("type", "link", "point", "origin", "angle")
 _PRESCRIBED_KEYS = ("type", "joint", "rate", "offset", "harmonics")
 _TORQUE_KEYS = _PRESCRIBED_KEYS + ("kp", "kd")
 _POINT_MASS_KEYS = ("link", "point", "mass", "inertia")
@@ -219,17 +217,12 @@ def _elastic_link(name: str, t: _Table) -> ElasticLink:
                           "damping": damping})
 
 
-def _joint(name: str, data: object, path: str) -> Revolute | Slider:
-    kind = _Table(data, path, tuple(dict.fromkeys(_REVOLUTE_KEYS + _SLIDER_KEYS))).string(
-        "type", "revolute", ("revolute", "slider"))
-    if kind == "slider":
-        t = _Table(data, path, _SLIDER_KEYS)
-        return Slider(name, t.string("link"), t.point("point"), t.pair("origin", "m", (0.0, 0.0)),
-                      t.number("angle", "rad", 0.0))
-    t = _Table(data, path, _REVOLUTE_KEYS)
-    link_a = t.string("link_a")
-    point_a = t.pair("point_a", "m") if link_a == GROUND else t.point("point_a")
-    return Revolute(name, link_a, point_a, t.string("link_b"), t.point("point_b"))
+def _joint(name: str, data: object, path: str):
+    """A joint from its ``[joints.<name>]`` table: the class its ``type`` names reads its own keys."""
+    every_key = tuple(dict.fromkeys(key for cls in JOINT_TYPES.values() for key in cls.KEYS))
+    kind = _Table(data, path, every_key).string("type", next(iter(JOINT_TYPES)), tuple(JOINT_TYPES))
+    cls = JOINT_TYPES[kind]
+    return cls.from_table(name, _Table(data, path, cls.KEYS))
 
 
 def _drive(data: object, path: str, joint: str | None) -> PrescribedDrive | TorqueDrive:
@@ -324,15 +317,7 @@ def to_spec(mech: Mechanism) -> dict[str, Any]:
     spec["links"] = {link.name: _link_spec(link) for link in mech.links}
     spec["joints"] = {}
     for joint in mech.joints:
-        if isinstance(joint, Revolute):
-            spec["joints"][joint.name] = {
-                "type": "revolute", "link_a": joint.link_a,
-                "point_a": list(joint.point_a) if joint.link_a == GROUND else joint.point_a,
-                "link_b": joint.link_b, "point_b": joint.point_b}
-        else:
-            spec["joints"][joint.name] = {"type": "slider", "link": joint.link,
-                                          "point": joint.point, "origin": list(joint.origin),
-                                          "angle": joint.angle}
+        spec["joints"][joint.name] = joint.to_table()
     spec["drives"] = {}
     for drive in mech.drives:
         entry = {"type": "torque" if isinstance(drive, TorqueDrive) else "prescribed",

@@ -30,7 +30,7 @@ import math
 import numpy as np
 import re
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Union
+from typing import Any, Callable, ClassVar, Mapping, Union
 
 GROUND = "ground"
 
@@ -349,6 +349,11 @@ class PointMass:
 # ---------------------------------------------------------------------------------------------------
 # Joints
 # ---------------------------------------------------------------------------------------------------
+# A joint class declares what the rest of ``mechanisms`` needs of it: ``TYPE`` (its scene-file
+# ``type``), ``KEYS`` (its scene-table keys), ``from_table(name, table)`` and ``to_table()`` (the scene
+# file both ways; ``table`` reads keys with their units and checks, see ``_load._Table``),
+# ``n_equations`` and ``ends`` (the link points it joins, ground left out). Its constraint rows are
+# written in ``_assemble``; register the class in ``JOINT_TYPES`` below.
 @dataclass(frozen=True)
 class Revolute:
     """A pin between ``(link_a, point_a)`` and ``(link_b, point_b)``; ``link_a`` may be ``"ground"``,
@@ -359,6 +364,28 @@ class Revolute:
     point_a: PointRef | tuple[float, float]
     link_b: str
     point_b: PointRef
+
+    TYPE: ClassVar[str] = "revolute"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "link_a", "point_a", "link_b", "point_b")
+    n_equations: ClassVar[int] = 2
+
+    @classmethod
+    def from_table(cls, name: str, table) -> "Revolute":
+        link_a = table.string("link_a")
+        point_a = table.pair("point_a", "m") if link_a == GROUND else table.point("point_a")
+        return cls(name, link_a, point_a, table.string("link_b"), table.point("point_b"))
+
+    def to_table(self) -> dict[str, Any]:
+        return {"type": self.TYPE, "link_a": self.link_a,
+                "point_a": list(self.point_a) if self.link_a == GROUND else self.point_a,
+                "link_b": self.link_b, "point_b": self.point_b}
+
+    @property
+    def ends(self) -> tuple[tuple[str, PointRef], ...]:
+        """``(link, point)`` of each side on a link (the ground side left out)."""
+        ground = self.link_a == GROUND
+        return ((self.link_b, self.point_b),) if ground else ((self.link_a, self.point_a),
+                                                              (self.link_b, self.point_b))
 
     def __post_init__(self) -> None:
         _check_name("joint", self.name)
@@ -382,13 +409,32 @@ class Slider:
     origin: tuple[float, float] = (0.0, 0.0)
     angle: float = 0.0
 
+    TYPE: ClassVar[str] = "slider"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "link", "point", "origin", "angle")
+    n_equations: ClassVar[int] = 1
+
     def __post_init__(self) -> None:
         _check_name("joint", self.name)
         _check_pair(f"joint {self.name!r}", "origin", self.origin, "m")
         _check_number(f"joint {self.name!r}", "angle", self.angle, "rad")
 
+    @classmethod
+    def from_table(cls, name: str, table) -> "Slider":
+        return cls(name, table.string("link"), table.point("point"), table.pair("origin", "m", (0.0, 0.0)),
+                   table.number("angle", "rad", 0.0))
+
+    def to_table(self) -> dict[str, Any]:
+        return {"type": self.TYPE, "link": self.link, "point": self.point, "origin": list(self.origin),
+                "angle": self.angle}
+
+    @property
+    def ends(self) -> tuple[tuple[str, PointRef], ...]:
+        return ((self.link, self.point),)
+
 
 Joint = Union[Revolute, Slider]
+#: The joint classes by their scene-file ``type`` (the first is the default type).
+JOINT_TYPES: dict[str, type] = {cls.TYPE: cls for cls in (Revolute, Slider)}
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -608,22 +654,19 @@ def _validate(mech: Mechanism) -> None:
                                  f"{GROUND!r}){hint}")
         return links[name]
 
-    joints: dict[str, Joint] = _by_name(mech.joints, (Revolute, Slider), "joint")
+    joints: dict[str, Joint] = _by_name(mech.joints, tuple(JOINT_TYPES.values()), "joint")
     neighbours: dict[str, set[str]] = {name: set() for name in links}
     grounded: set[str] = set()
     for joint in mech.joints:
         owner = f"joint {joint.name!r}"
-        if isinstance(joint, Revolute):
-            _pin_position(known_link(owner, joint.link_b), joint.point_b, owner)
-            if joint.link_a == GROUND:
-                grounded.add(joint.link_b)
-            else:
-                _pin_position(known_link(owner, joint.link_a), joint.point_a, owner)
-                neighbours[joint.link_a].add(joint.link_b)
-                neighbours[joint.link_b].add(joint.link_a)
-        else:
-            _pin_position(known_link(owner, joint.link), joint.point, owner)
-            grounded.add(joint.link)
+        ends = joint.ends
+        for link_name, point in ends:
+            _pin_position(known_link(owner, link_name), point, owner)
+        if len(ends) == 1:  # the other side is the ground
+            grounded.add(ends[0][0])
+        for (first, _), (second, _) in zip(ends, ends[1:]):
+            neighbours[first].add(second)
+            neighbours[second].add(first)
 
     driven: set[str] = set()
     for drive in mech.drives:
@@ -662,7 +705,7 @@ def _validate(mech: Mechanism) -> None:
     # Mobility (Gruebler): the rigid coordinates (3 per link) must be fixed by the joints and drives,
     # so that the nominal motion is determined and the rigid subsystem is square.
     n_rigid = 3 * len(mech.links)
-    n_equations = sum(2 if isinstance(j, Revolute) else 1 for j in mech.joints) + len(mech.drives)
+    n_equations = sum(j.n_equations for j in mech.joints) + len(mech.drives)
     if n_equations != n_rigid:
         mobility = n_rigid - n_equations + len(mech.drives)
         raise MechanismError(

@@ -9,6 +9,7 @@ from ._floquet import NearResonanceWarning as NearResonanceWarning
 from ._floquet import floquet as floquet
 from ._scheme import SCHEMES as SCHEMES
 from ._scheme import Newmark as Newmark
+from ._scheme import Scheme as Scheme
 from ._shooting import SteadyState as SteadyState
 from ._shooting import steady_state as steady_state
 from ._system import PeriodicError as PeriodicError
@@ -30,6 +31,7 @@ __all__ = [
     "FloquetResult",
     "NearResonanceWarning",
     "Newmark",
+    "Scheme",
     "PeriodicError",
     "PeriodicSystem",
     "ShootingError",

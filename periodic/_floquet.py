@@ -216,7 +216,7 @@ def raise_on_singular(system: PeriodicSystem, status: int) -> None:
     if status < 0:
         return
     t_k = status * system.step
-    what = "mass matrix M" if status == 0 else "effective matrix M + gamma h C + beta h^2 K"
+    what = "mass matrix M" if status == 0 else "step's effective matrix (M + gamma h C + beta h^2 K for Newmark)"
     raise ShootingError(
         f"system: the {what} is singular at sample {status} (t = {t_k:.6g} s); "
         "check the mass, damping and stiffness there"

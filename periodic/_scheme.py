@@ -15,6 +15,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 from types import MappingProxyType
+from typing import Protocol, runtime_checkable
 
 from ._newmark import newmark_march
 from ._system import PeriodicError, check_real
@@ -102,9 +103,24 @@ SCHEMES = MappingProxyType(
 DEFAULT_SCHEME = SCHEMES["trapezoidal"]
 
 
-def as_scheme(scheme) -> Newmark:
-    """A :class:`Newmark` given as itself or by its name in :data:`SCHEMES`."""
-    if isinstance(scheme, Newmark):
+@runtime_checkable
+class Scheme(Protocol):
+    """What the shooting and ``floquet`` need of a time-stepping scheme (:class:`Newmark` is one; a
+    scheme of another family is any object with these members): its ``order`` of convergence, the
+    ``error_factor`` ``1 / (2**order - 1)`` of the N/2 error estimate, whether it is ``symmetric``
+    (Richardson extrapolation allowed) and ``march``, which integrates the columns of a state over
+    one period (see :meth:`Newmark.march` for the arguments)."""
+
+    order: int
+    error_factor: float
+    symmetric: bool
+
+    def march(self, system, forced, x, v, a, x_hist, v_hist, a_hist) -> int: ...
+
+
+def as_scheme(scheme) -> Scheme:
+    """A :class:`Scheme` given as itself or by its name in :data:`SCHEMES`."""
+    if isinstance(scheme, Scheme):
         return scheme
     if isinstance(scheme, str):
         try:
@@ -113,4 +129,5 @@ def as_scheme(scheme) -> Newmark:
             raise PeriodicError(
                 f"scheme: expected one of {', '.join(map(repr, SCHEMES))} or a periodic.Newmark, got {scheme!r}"
             ) from None
-    raise TypeError(f"scheme: expected a periodic.Newmark or a name in periodic.SCHEMES, got {type(scheme).__name__}")
+    raise TypeError(f"scheme: expected a periodic.Newmark (or another object with order, error_factor, symmetric "
+                    f"and march) or a name in periodic.SCHEMES, got {type(scheme).__name__}")

@@ -207,7 +207,7 @@ def steady_state(
     if extrapolate and not scheme.symmetric:
         raise PeriodicError(
             f"extrapolate: Richardson extrapolation to order 4 needs the symmetric scheme gamma = 1/2, "
-            f"got gamma = {scheme.gamma}; use a symmetric scheme (e.g. scheme='trapezoidal') or extrapolate=False"
+            f"got {scheme!r}; use a symmetric scheme (e.g. scheme='trapezoidal') or extrapolate=False"
         )
     if estimate_error:
         check_quarterable(system.n_steps, "use such an n_steps or estimate_error=False")

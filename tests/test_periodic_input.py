@@ -152,6 +152,35 @@ def test_scheme_by_name_or_object():
         periodic.steady_state(system, scheme=(0.25, 0.5))
 
 
+def test_a_scheme_of_another_family_is_any_object_with_order_error_factor_symmetric_and_march():
+    """The shooting asks a scheme only for its order, error factor, symmetry and march: a class that
+    is not a Newmark (here one that counts its marches and delegates the step to the trapezoidal
+    rule) runs, and gives the trapezoidal result."""
+    class CountingTrapezoidal:
+        order, error_factor, symmetric = 2, 1.0 / 3.0, True
+
+        def __init__(self):
+            self.marches = 0
+
+        def march(self, system, forced, x, v, a, x_hist, v_hist, a_hist):
+            self.marches += 1
+            return periodic.SCHEMES["trapezoidal"].march(system, forced, x, v, a, x_hist, v_hist, a_hist)
+
+    system = PeriodicSystem(1.0, *arrays())
+    scheme = CountingTrapezoidal()
+    result = periodic.steady_state(system, scheme=scheme)
+    reference = periodic.steady_state(system)
+    assert scheme.marches == 6  # N, N/2 and N/4: the 2n+1 columns and the stored periodic run each
+    np.testing.assert_array_equal(result.x, reference.x)
+    assert result.status == reference.status and result.scheme is scheme
+
+    class NoMarch:
+        order, error_factor, symmetric = 2, 1.0 / 3.0, True
+
+    with pytest.raises(TypeError, match="or another object with order, error_factor, symmetric and march"):
+        periodic.steady_state(system, scheme=NoMarch())
+
+
 def test_complex_samples_are_refused():
     M, C, K, f = arrays()
     with pytest.raises(TypeError, match="force: expected real values"):

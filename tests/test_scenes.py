@@ -311,8 +311,9 @@ def test_docs_name_every_key_and_their_example_runs():
     from mechanisms import _load
 
     text = DOCS.read_text()
-    keys = set(_load._TOP_KEYS + _load._RIGID_KEYS + _load._ELASTIC_KEYS + _load._REVOLUTE_KEYS
-               + _load._SLIDER_KEYS + _load._TORQUE_KEYS + _load._POINT_MASS_KEYS)
+    joint_keys = tuple(key for joint in mechanisms.JOINT_TYPES.values() for key in joint.KEYS)
+    keys = set(_load._TOP_KEYS + _load._RIGID_KEYS + _load._ELASTIC_KEYS + joint_keys
+               + _load._TORQUE_KEYS + _load._POINT_MASS_KEYS)
     for table in (_load._DISCRETISATION_KEYS, _load._DAMPING_KEYS):
         keys.update(k for ks in table.values() for k in ks)
     assert [key for key in sorted(keys) if f"`{key}`" not in text] == []
