@@ -14,7 +14,7 @@ from ._batch import (ConstraintTerms as ConstraintTerms, LinearTerms as LinearTe
 from ._beams import (BeamShapes as BeamShapes, beam_matrices as beam_matrices,
                      beam_shapes as beam_shapes)
 from ._parts import ArgumentError as ArgumentError, MechanismError as MechanismError
-from ._parts import JOINT_TYPES as JOINT_TYPES
+from ._parts import DISCRETISATION_TYPES as DISCRETISATION_TYPES, JOINT_TYPES as JOINT_TYPES
 from ._load import build as build, load as load, loads as loads, scenes as scenes
 from ._scenes import (four_bar as four_bar, six_bar as six_bar, slider_crank as slider_crank,
                       two_link_arm as two_link_arm)

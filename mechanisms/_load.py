@@ -17,9 +17,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Mapping
 
-from ._parts import (GROUND, DampingMatrix, ElasticLink, Fem, Mechanism, MechanismError,
-                     ModalDamping, PointMass, PrescribedDrive, Rayleigh, RigidLink, Ritz,
-                     TorqueDrive, UserShapes, JOINT_TYPES, _is_number)
+from ._parts import (DISCRETISATION_TYPES, GROUND, JOINT_TYPES, DampingMatrix, ElasticLink,
+                     Mechanism, MechanismError, ModalDamping, PointMass, PrescribedDrive, Rayleigh,
+                     RigidLink, TorqueDrive, UserShapes, _is_number)
 
 _TOP_KEYS = ("name", "description", "period", "gravity", "initial_angles", "links", "joints",
              "drive", "drives", "point_masses", "studies")
@@ -28,7 +28,8 @@ _RIGID_KEYS = ("type", "length", "mass", "inertia", "centroid", "points", "width
 _ELASTIC_KEYS = ("type", "length", "density", "youngs_modulus", "width", "thickness", "area",
                  "second_moment", "discretisation", "boundary", "axial", "geometric_stiffening",
                  "rotary_inertia", "damping", "yield_strength")
-_DISCRETISATION_KEYS = {"ritz": ("type", "n_bending", "n_axial"), "fem": ("type", "n_elements")}
+_DISCRETISATION_KEYS = tuple(dict.fromkeys(key for cls in DISCRETISATION_TYPES.values()
+                                           for key in cls.KEYS))
 _DAMPING_KEYS = {"rayleigh": ("type", "alpha", "beta", "ratio"), "modal": ("type", "ratios"),
                  "matrix": ("type", "matrix"), "none": ("type",)}
 _PRESCRIBED_KEYS = ("type", "joint", "rate", "offset", "harmonics")
@@ -166,11 +167,10 @@ def _elastic_link(name: str, t: _Table) -> ElasticLink:
         second_moment = t.number("second_moment", "m^4", positive=True)
 
     d = t.table("discretisation")
-    kind = _Table(d, f"{t.path}.discretisation", ("type", "n_bending", "n_axial", "n_elements")
-                  ).string("type", "fem", tuple(_DISCRETISATION_KEYS))
-    dt = _Table(d, f"{t.path}.discretisation", _DISCRETISATION_KEYS[kind])
-    discretisation = (Fem(dt.integer("n_elements", 1)) if kind == "fem"
-                      else Ritz(dt.integer("n_bending", 2), dt.integer("n_axial", 1)))
+    kind = _Table(d, f"{t.path}.discretisation", _DISCRETISATION_KEYS
+                  ).string("type", next(iter(DISCRETISATION_TYPES)), tuple(DISCRETISATION_TYPES))
+    cls = DISCRETISATION_TYPES[kind]
+    discretisation = cls.from_table(_Table(d, f"{t.path}.discretisation", cls.KEYS))
 
     link = ElasticLink(name, length, density=density, youngs_modulus=modulus, area=area,
                        second_moment=second_moment, discretisation=discretisation,
@@ -354,10 +354,7 @@ def _link_spec(link: RigidLink | ElasticLink) -> dict[str, Any]:
              "rotary_inertia": link.rotary_inertia}
     if link.yield_strength is not None:
         entry["yield_strength"] = link.yield_strength
-    d = link.discretisation
-    entry["discretisation"] = ({"type": "fem", "n_elements": d.n_elements} if isinstance(d, Fem)
-                               else {"type": "ritz", "n_bending": d.n_bending,
-                                     "n_axial": d.n_axial})
+    entry["discretisation"] = link.discretisation.to_table()
     if isinstance(link.damping, Rayleigh):
         entry["damping"] = {"type": "rayleigh", "alpha": link.damping.alpha,
                             "beta": link.damping.beta}

@@ -104,9 +104,20 @@ class Ritz:
     n_bending: int = 2
     n_axial: int = 1
 
+    # the scene file (see Revolute for the pattern; the shapes themselves are in _beams.beam_shapes)
+    TYPE: ClassVar[str] = "ritz"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "n_bending", "n_axial")
+
     def __post_init__(self) -> None:
         _check_count("Ritz", "n_bending", self.n_bending, 1)
         _check_count("Ritz", "n_axial", self.n_axial, 0)
+
+    @classmethod
+    def from_table(cls, table) -> "Ritz":
+        return cls(table.integer("n_bending", 2), table.integer("n_axial", 1))
+
+    def to_table(self) -> dict[str, Any]:
+        return {"type": self.TYPE, "n_bending": self.n_bending, "n_axial": self.n_axial}
 
 
 @dataclass(frozen=True)
@@ -134,11 +145,25 @@ class Fem:
 
     n_elements: int = 1
 
+    TYPE: ClassVar[str] = "fem"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "n_elements")
+
     def __post_init__(self) -> None:
         _check_count("Fem", "n_elements", self.n_elements, 1)
 
+    @classmethod
+    def from_table(cls, table) -> "Fem":
+        return cls(table.integer("n_elements", 1))
+
+    def to_table(self) -> dict[str, Any]:
+        return {"type": self.TYPE, "n_elements": self.n_elements}
+
 
 Discretisation = Union[Ritz, UserShapes, Fem]
+#: The discretisations a scene file can name, by ``type`` (the first is the default). A class listed
+#: here declares ``TYPE``, ``KEYS``, ``from_table(table)`` and ``to_table()``; its shape functions
+#: are built in ``_beams.beam_shapes``. (``UserShapes`` holds callables: Python only.)
+DISCRETISATION_TYPES: dict[str, type] = {cls.TYPE: cls for cls in (Fem, Ritz)}
 
 
 # ---------------------------------------------------------------------------------------------------

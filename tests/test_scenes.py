@@ -314,8 +314,8 @@ def test_docs_name_every_key_and_their_example_runs():
     joint_keys = tuple(key for joint in mechanisms.JOINT_TYPES.values() for key in joint.KEYS)
     keys = set(_load._TOP_KEYS + _load._RIGID_KEYS + _load._ELASTIC_KEYS + joint_keys
                + _load._TORQUE_KEYS + _load._POINT_MASS_KEYS)
-    for table in (_load._DISCRETISATION_KEYS, _load._DAMPING_KEYS):
-        keys.update(k for ks in table.values() for k in ks)
+    keys.update(key for cls in mechanisms.DISCRETISATION_TYPES.values() for key in cls.KEYS)
+    keys.update(k for ks in _load._DAMPING_KEYS.values() for k in ks)
     assert [key for key in sorted(keys) if f"`{key}`" not in text] == []
     example = re.search(r"```toml\n(.*?)```", text, re.S).group(1)
     motion = mechanisms.nominal_motion(mechanisms.loads(example), n_steps=16)
