@@ -4,11 +4,12 @@ and ``linearize.speed_family``: the same with its coefficients as polynomials in
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import math
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -34,7 +35,9 @@ class LinearizedMechanism:
     ``crank_angle`` (N+1,) rad: the first drive's angle on the grid; ``observables``: the specs that
     ``observe`` reports; ``coefficients``: the ``LinearCoefficients`` with the basis ``V`` (N+1, n, m)
     and the conditioning diagnostics; ``run_time`` (s) of the linearisation; ``range_probes``: what
-    ``linear_range`` needs per elastic link (shape rows, the nominal axial force).
+    ``linear_range`` needs per elastic link (shape rows, the nominal axial force), computed on first
+    use by ``range_source`` (a linearisation that is never asked for its linear range does not pay
+    for the axial forces).
     """
 
     mechanism: Any
@@ -46,12 +49,16 @@ class LinearizedMechanism:
     observable_maps: dict
     coefficients: LinearCoefficients
     run_time: float
-    range_probes: tuple = dataclasses.field(default=(), repr=False, compare=False)
+    range_source: Callable[[], tuple] | None = dataclasses.field(default=None, repr=False, compare=False)
+
+    @functools.cached_property
+    def range_probes(self) -> tuple:
+        return () if self.range_source is None else self.range_source()
 
     def _history(self, z) -> np.ndarray:
         z = np.asarray(z, dtype=float)
         if z.shape != self.system.f.shape:
-            raise ValueError(f"z must have shape {self.system.f.shape} (samples, independent "
+            raise LinearizationError(f"z must have shape {self.system.f.shape} (samples, independent "
                              f"coordinates); received shape {z.shape}")
         return z
 
@@ -94,7 +101,7 @@ class LinearizedMechanism:
         zdot0 = np.asarray(zdot0, dtype=float)
         m = len(self.labels)
         if z0.shape != (m,) or zdot0.shape != (m,):
-            raise ValueError(f"z0 and zdot0 must have shape ({m},) (independent coordinates "
+            raise LinearizationError(f"z0 and zdot0 must have shape ({m},) (independent coordinates "
                              f"{self.labels}); received {z0.shape} and {zdot0.shape}")
         c = self.coefficients
         model = self.nominal.model
@@ -244,14 +251,19 @@ def _finish(mechanism, model, nominal, coeffs, specs, angle, started):
         array[-1] = array[0]
     system = periodic.PeriodicSystem(nominal.period, coeffs.M, coeffs.C, coeffs.K, coeffs.f)
     labels = tuple(model.coord_labels[i] for i in coeffs.independent)
-    axial = _nominal_axial_forces(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot,
-                                  _multipliers_of(model, nominal), stride=coeffs.stride)
     return LinearizedMechanism(
         mechanism=mechanism, nominal=nominal, system=system, labels=labels,
         crank_angle=angle, observables=tuple(specs),
         observable_maps=_observable_maps(model, specs, nominal.s, coeffs.V), coefficients=coeffs,
         run_time=time.perf_counter() - started,
-        range_probes=link_probes(model, coeffs.independent, axial))
+        range_source=functools.partial(_range_probes, model, nominal, coeffs))
+
+
+def _range_probes(model, nominal, coeffs) -> tuple:
+    """The ``LinearizedMechanism.range_probes`` of a linearisation about ``nominal``."""
+    axial = _nominal_axial_forces(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot,
+                                  _multipliers_of(model, nominal), stride=coeffs.stride)
+    return link_probes(model, coeffs.independent, axial)
 
 
 def _nominal_axial_forces(model, t, s, sdot, sddot, lam, *, stride=1):
@@ -405,7 +417,7 @@ class SpeedFamily:
     def _check_rate(self, rate) -> None:
         if not (isinstance(rate, (int, float, np.floating)) and math.isfinite(rate)
                 and rate * self.rate > 0):
-            raise ValueError(f"rate must be a finite crank speed (rad/s) of the same sign as the "
+            raise LinearizationError(f"rate must be a finite crank speed (rad/s) of the same sign as the "
                              f"scene's ({self.rate:g}); received {rate!r}")
 
     def system_at(self, rate: float) -> periodic.PeriodicSystem:
@@ -438,7 +450,8 @@ class SpeedFamily:
             mechanism = self.mechanism.replace(
                 drives=(dataclasses.replace(self.mechanism.drives[0], rate=rate),))
         return dataclasses.replace(base, mechanism=mechanism, nominal=nominal, system=system,
-                                   coefficients=coeffs, range_probes=self._range_probes(rate),
+                                   coefficients=coeffs,
+                                   range_source=functools.partial(self._range_probes, rate),
                                    run_time=time.perf_counter() - started)
 
 

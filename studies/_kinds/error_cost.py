@@ -13,7 +13,7 @@ import periodic
 
 from .._errors import StudiesError
 from .._kind import StudyKind, axis, integer, speed_values, sub_table
-from .._numerics import solve_steady
+from .._numerics import STUDY_SCHEME, solve_steady
 from .._plots import Plot, axes_for, drawn
 from .._store import Result, register
 from .._studies import check_grid, check_n_steps, check_parameter
@@ -101,7 +101,7 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
 
     start = time.perf_counter()
     reference_linear = problem.linearize(at(levels[-1]), n_steps=reference_steps)
-    reference_state = periodic.steady_state(reference_linear.system, extrapolate=True)
+    reference_state = periodic.steady_state(reference_linear.system, scheme=STUDY_SCHEME, extrapolate=True)
     reference = reference_linear.observe(reference_state.x)[:: reference_steps // base]
     reference_time = time.perf_counter() - start
     specs = reference_linear.observables
