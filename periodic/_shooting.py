@@ -365,7 +365,10 @@ def _resonance_verdict(multipliers, step_rates, physical, spurious, shot: _Shot,
         return STATUS_NEAR_RESONANCE, (
             f"near resonance: {closeness} (its mode is resolved, step rate {step_rates[i]:.3g}); "
             f"{conditioning}. The periodic response is amplified about 1/|1 - mu| times and is sensitive "
-            "to the parameters."
+            "to the parameters"
+            + ("; this multiplier is on the unit circle (an undamped mode): at exact resonance such a "
+               "system has no periodic solution (its response grows without bound), whatever the step."
+               if abs(abs(multipliers[i]) - 1.0) <= 1e-6 else ".")
         )
     return STATUS_UNRESOLVED, (
         f"{closeness}, but its mode changes by exp({step_rates[i]:.3g}) per step: a stiff mode the step "
