@@ -11,11 +11,17 @@ circle and the scheme's moves it out by ``c h^2``, the N/2 estimate is ``c h^2 (
 large as the excess itself; a bar of one estimate would decide such a case by the sign of the O(h^2)
 remainder (``near_resonance`` uses the same factor).
 The critical multiplier is the largest one among the resolved modes (``step_rate <= 1``, see
-``periodic._floquet``) and the unresolved ones that grow beyond their error bar: the scheme is
-A-stable, so an unresolved decaying mode stays inside the unit circle whatever its (wrong) value,
-while a mode that grows in the scheme grows in the system (the trapezoidal map sends the right
-half-plane outside the unit circle).  Its kind: real near +1 a fold or divergence, real near -1
-period doubling, a complex pair a secondary Hopf (Neimark-Sacker) bifurcation.
+``periodic._floquet``).  An unresolved mode's discrete multiplier does not approximate the exact
+one: with constant coefficients the A-stable scheme keeps a decaying mode inside the unit circle
+whatever its (wrong) value, but with time-varying coefficients an undamped stiff mode can leave the
+circle by a discretisation artefact (the undamped four-bar's axial modes: |mu| - 1 = 1.2e-3 at
+N = 256 while every resolved multiplier is within 1e-7 of the circle), and a real instability of
+such a mode cannot be resolved either.  So an unresolved mode outside the circle beyond its error
+bar, while the resolved ones are stable or marginal, gives ``inaccurate`` ("refine n_steps"), not
+``unstable``; a real divergence fast enough to be unresolved at a usable step (growth by more than
+e per step) is rare, and refining shows it.  The kind of the critical multiplier: real near +1 a
+fold or divergence, real near -1 period doubling, a complex pair a secondary Hopf
+(Neimark-Sacker) bifurcation.
 
 Error estimate.  ``|x_N - x_{N/2}| / (2^p - 1)`` estimates the error of ``x_N`` only in the asymptotic
 range, where the error is ``C h^p``.  A third level N/4 tests it: the ratio of successive differences
@@ -101,13 +107,15 @@ class Stability:
     Attributes
     ----------
     status : str
-        ``"ok"`` (stable), ``"unstable"`` or ``"marginal"`` (spectral radius within its error bar of 1).
+        ``"ok"`` (stable), ``"unstable"``, ``"marginal"`` (spectral radius within its error bar of 1) or
+        ``"inaccurate"`` (an unresolved mode outside the circle: refine n_steps).
     message : str
         The verdict in words, with the critical multiplier, its error and the tolerance.
     is_stable : bool
         False only for ``"unstable"``.
     spectral_radius : float
-        ``|critical_multiplier|``: the radius over the resolved modes and the growing unresolved ones.
+        ``|critical_multiplier|``: the radius over the resolved modes (over the growing unresolved
+        one for ``"inaccurate"``).
     spectral_radius_error : float
         Error bar of ``critical_multiplier``: ``ERROR_BAR_FACTOR`` times its error estimate (0 when no
         errors were given).  Unstable only where ``spectral_radius - 1`` exceeds it plus the tolerance.
@@ -140,21 +148,33 @@ def stability_verdict(multipliers, multiplier_errors, step_rates, *, stability_t
         errors = (ERROR_BAR_FACTOR * np.asarray(multiplier_errors, dtype=float)).tolist()
     if not values:
         return Stability("ok", "stable: no multipliers (no coordinates)", True, 0.0, 0.0, complex("nan"), "")
-    critical = largest = None  # indices: among the candidates, and among all (the fallback)
+    critical = largest = growing = None  # the largest resolved, the largest, the largest growing unresolved
     for i, (value, rate, error) in enumerate(zip(values, rates, errors)):
         modulus = abs(value)
         if largest is None or modulus > abs(values[largest]):
             largest = i
-        if (rate <= RESOLVED_STEP_RATE or modulus - 1.0 > error + stability_tol) and (
-            critical is None or modulus > abs(values[critical])
-        ):
-            critical = i
-    if critical is None:  # only unresolved decaying modes: A-stability keeps them inside the circle
+        if rate <= RESOLVED_STEP_RATE:
+            if critical is None or modulus > abs(values[critical]):
+                critical = i
+        elif modulus - 1.0 > error + stability_tol and (growing is None or modulus > abs(values[growing])):
+            growing = i
+    if critical is None:  # only unresolved modes: the largest stands in
         critical = largest
     mu, error = values[critical], errors[critical]
     radius = abs(mu)
     excess = radius - 1.0
     bar = error + stability_tol
+    if growing is not None and excess <= bar and abs(values[growing]) > radius:
+        # An unresolved mode's discrete multiplier does not approximate the exact one (its N/2 error
+        # estimate is not asymptotic either): with time-varying coefficients an undamped stiff mode
+        # can leave the unit circle by a discretisation artefact (the undamped four-bar's axial modes
+        # at N = 128..1024), and a real instability of such a mode cannot be resolved either.
+        g = values[growing]
+        message = (f"inaccurate: refine n_steps: a mode the step does not resolve (step rate "
+                   f"{rates[growing]:.3g} > {RESOLVED_STEP_RATE:g}) has the multiplier {g:.6g}, |mu| - 1 = "
+                   f"{abs(g) - 1.0:.3g}; the resolved modes are within {radius:.6g} of the origin, so "
+                   f"its growth cannot be told from the discretisation error at this step")
+        return Stability("inaccurate", message, True, abs(g), errors[growing], g, "")
     if excess < -bar:
         error_text = "no error estimate" if multiplier_errors is None else f"error bar {error:.2g}"
         return Stability("ok", f"stable: spectral radius {radius:.6g} ({error_text})", True, radius, error, mu, "")

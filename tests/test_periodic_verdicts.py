@@ -117,13 +117,21 @@ def test_spurious_growth_within_the_error_bar_is_marginal():
 
 
 def test_unresolved_modes_are_never_the_critical_multiplier():
-    """An unresolved decaying mode (step rate > 1) near the unit circle does not decide stability; a mode
-    that grows in the A-stable scheme grows in the system and does, resolved or not."""
+    """An unresolved decaying mode (step rate > 1) near the unit circle does not decide stability. An
+    unresolved mode outside the circle cannot be told from a discretisation artefact (with
+    time-varying coefficients an undamped stiff mode can leave the circle at a coarse step): the
+    verdict is inaccurate, refine n_steps; a resolved growing mode is unstable."""
     multipliers = np.array([0.9999995, -0.6 + 0.2j, -0.6 - 0.2j])
     verdict = periodic.stability_verdict(multipliers, None, np.array([40.0, 0.3, 0.3]))
     assert verdict.status == "ok" and verdict.critical_multiplier == -0.6 + 0.2j
-    growing = periodic.stability_verdict(np.array([3.0, 0.5]), None, np.array([40.0, 0.3]))
-    assert growing.status == "unstable" and growing.critical_multiplier == 3.0
+    unresolved = periodic.stability_verdict(np.array([3.0, 0.5]), None, np.array([40.0, 0.3]))
+    assert unresolved.status == "inaccurate" and unresolved.critical_multiplier == 3.0
+    assert unresolved.message.startswith("inaccurate: refine n_steps") and unresolved.is_stable
+    resolved = periodic.stability_verdict(np.array([3.0, 0.5]), None, np.array([0.5, 0.3]))
+    assert resolved.status == "unstable" and not resolved.is_stable
+    # a resolved instability is unstable whatever an unresolved mode does
+    both = periodic.stability_verdict(np.array([5.0, 1.5]), None, np.array([40.0, 0.3]))
+    assert both.status == "unstable" and both.critical_multiplier == 1.5
 
 
 def test_error_verdict_rules():
