@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._scheme import DEFAULT_SCHEME, Newmark, as_scheme
-from ._system import PeriodicSystem, ShootingError, check_coarsenable, check_system, check_tol, every_other_sample
+from ._system import PeriodicSystem, ShootingError, check_quarterable, check_system, check_tol, every_other_sample
 from ._verdict import RESOLVED_STEP_RATE, STABILITY_TOL, stability_verdict
 
 #: Default of ``resonance_tol``: a resolved multiplier within this distance of +1 amplifies the
@@ -130,17 +130,19 @@ def floquet(
     scheme = as_scheme(scheme)
     stability_tol = check_tol("stability_tol", stability_tol, STABILITY_TOL)
     if estimate_error:
-        check_coarsenable(system.n_steps, "use an even n_steps or estimate_error=False")
+        check_quarterable(system.n_steps, "use such an n_steps or estimate_error=False")
     phi, _ = monodromy(system, scheme, particular=False)
     multipliers, step_rates = analyse_multipliers(phi, system.step)
-    errors = coarse = None
+    errors = coarse = quarter = None
     if estimate_error:
-        coarse_phi, _ = monodromy(every_other_sample(system), scheme, particular=False)
-        coarse = sorted_eigenvalues(coarse_phi)
+        coarse_system = every_other_sample(system)
+        coarse = sorted_eigenvalues(monodromy(coarse_system, scheme, particular=False)[0])
+        quarter = sorted_eigenvalues(monodromy(every_other_sample(coarse_system), scheme, particular=False)[0])
         errors = multiplier_errors(multipliers, coarse, scheme.error_factor)
     stability = stability_verdict(
         multipliers, None if coarse is None else modulus_errors(multipliers, coarse, scheme.error_factor),
-        step_rates, stability_tol=stability_tol)
+        step_rates, stability_tol=stability_tol, coarse=coarse, quarter=quarter, order=scheme.order,
+        n_steps=system.n_steps)
     with np.errstate(divide="ignore"):
         exponents = np.log(multipliers.astype(complex)) / system.period
     trace = np.trace(np.linalg.solve(system.M, system.C), axis1=1, axis2=2)

@@ -17,7 +17,6 @@ of the N-step run) gives the ratio of successive differences, checked by
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import time
 import warnings
@@ -55,6 +54,7 @@ logger = logging.getLogger(__name__)
 STATUS_OK = "ok"
 STATUS_NEAR_RESONANCE = "near_resonance"
 STATUS_UNRESOLVED = "unresolved_stiff_mode"
+STATUS_INACCURATE = "inaccurate"
 
 
 @dataclass(frozen=True)
@@ -217,6 +217,7 @@ def steady_state(
     phi, x, v, a = fine.phi, fine.x, fine.v, fine.a
     error_estimate = error_factor = error_ratio = float("nan")
     x_coarse = x_quarter = multiplier_errors = radius_errors = check = None
+    coarse_multipliers = quarter_multipliers = None
     multipliers, step_rates = analyse_multipliers(phi, system.step)
     if estimate_error or extrapolate:
         coarse_system = every_other_sample(system)
@@ -229,7 +230,8 @@ def steady_state(
         multiplier_errors = estimate_multiplier_errors(multipliers, coarse_multipliers, factor)
         radius_errors = modulus_errors(multipliers, coarse_multipliers, factor)
         if estimate_error:
-            x_quarter = _shoot(every_other_sample(coarse_system), scheme, conditioning=False).x
+            quarter = _shoot(every_other_sample(coarse_system), scheme, conditioning=False)
+            x_quarter, quarter_multipliers = quarter.x, sorted_eigenvalues(quarter.phi)
             coarse_difference = float(np.abs(coarse.x[::2] - x_quarter).max())
             check = error_verdict(difference, coarse_difference, scheme.order, scale=float(np.abs(x).max()),
                                   n_steps=system.n_steps)
@@ -247,15 +249,16 @@ def steady_state(
             # bound for the extrapolated ones, as for error_estimate.
             multiplier_errors = estimate_multiplier_errors(multipliers, fine_multipliers, 1.0)
             radius_errors = modulus_errors(multipliers, fine_multipliers, 1.0)
-    stability = stability_verdict(multipliers, radius_errors, step_rates, stability_tol=stability_tol)
+    stability = stability_verdict(multipliers, radius_errors, step_rates, stability_tol=stability_tol,
+                                  coarse=coarse_multipliers if estimate_error and not extrapolate else None,
+                                  quarter=quarter_multipliers, order=scheme.order, n_steps=system.n_steps)
     physical, spurious = near_resonance(multipliers, step_rates, resonance_tol, multiplier_errors)
     resonance = _resonance_verdict(multipliers, step_rates, physical, spurious, fine, error_estimate)
-    if (check is not None and not check.trusted and physical.size
-            and np.all(np.abs(1.0 - multipliers[physical]) > resonance_tol)):
-        # near +1 only when widened by the multipliers' error estimate, which the failed check voids:
-        # the step, not a resonance, is the first cause (refining n_steps settles it)
-        check = dataclasses.replace(check, message=f"{check.message} (possibly {resonance[1]})")
-        resonance = (STATUS_OK, "ok")
+    if physical.size and np.all(np.abs(1.0 - multipliers[physical]) > resonance_tol):
+        # near +1 only within twice the multipliers' error estimate, not within resonance_tol: at this
+        # step a resonance can neither be shown nor excluded, and refining n_steps settles it
+        resonance = (STATUS_INACCURATE, f"refine n_steps: possibly {resonance[1]} (the multiplier is "
+                     f"farther than resonance_tol = {resonance_tol:g} from +1, but within twice its error)")
     status, message = _combine(stability, resonance, check)
     if resonance[0] == STATUS_NEAR_RESONANCE:
         warnings.warn(resonance[1], NearResonanceWarning, stacklevel=2)

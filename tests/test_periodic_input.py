@@ -199,10 +199,10 @@ def test_odd_n_steps_needs_estimate_error_false():
         periodic.steady_state(two_steps)
     with pytest.raises(PeriodicError, match="n_steps: .*multiple of 4 >= 8, got 6.*estimate_error=False"):
         periodic.steady_state(PeriodicSystem(1.0, *(a[:7] for a in arrays())))  # even, but N/4 is no grid
-    # Richardson alone needs only the N/2 grid; floquet's error estimate too.
+    # Richardson alone needs only the N/2 grid; floquet's error estimate checks N/4 like steady_state.
     assert periodic.steady_state(PeriodicSystem(1.0, *(a[:7] for a in arrays())), extrapolate=True,
                                  estimate_error=False).extrapolated
-    with pytest.raises(PeriodicError, match="n_steps: .*even n_steps >= 4, got 7.*estimate_error=False"):
+    with pytest.raises(PeriodicError, match="n_steps: .*multiple of 4 >= 8, got 7.*estimate_error=False"):
         periodic.floquet(system, estimate_error=True)
     with pytest.raises(PeriodicError, match="n_steps: .*even n_steps >= 4, got 7.*extrapolate=False"):
         periodic.steady_state(system, extrapolate=True, estimate_error=False)
