@@ -29,7 +29,7 @@ def check_n_steps(n_steps: Any, *, minimum: int = 16, multiple: int = 4, study: 
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < minimum \
             or n_steps % multiple:
         reason = ("compares N, N/2 and N/4 steps" if multiple == 4 else "compares N and N/2 steps")
-        raise StudiesError(f"n_steps: expected an even integer, a multiple of {multiple} and at least "
+        raise StudiesError(f"n_steps: expected an integer, a multiple of {multiple} and at least "
                            f"{minimum} for {study} (its error estimate {reason}; the minimum is in "
                            f"docs/studies.md), got {n_steps!r}")
     return int(n_steps)

@@ -23,7 +23,7 @@ from .._store import register
 from .._studies import GridResult, check_grid, check_n_steps, collect, grid_summary, open_store
 
 #: The fewest steps per period a Campbell diagram accepts (docs/studies.md).
-MIN_STEPS = 16
+MIN_STEPS = 32
 
 
 @register
@@ -141,7 +141,7 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
     grid = check_grid("speeds", speeds)
     if (grid <= 0).any() or (np.diff(grid) <= 0).any():
         raise StudiesError(f"speeds: expected positive, increasing crank speeds (rad/s), got {speeds!r}")
-    n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, multiple=2, study="a Campbell diagram")
+    n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a Campbell diagram")
     labels = problem.describe({SPEED: float(grid[0])}).labels
     settings = {"speeds": grid, "n_steps": n_steps, "frozen_samples": frozen_samples,
                 "scene": problem.text}
@@ -192,7 +192,7 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
     _, grid = axis(where, table, parameter=False)
-    return {"speeds": grid, "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS, multiple=2),
+    return {"speeds": grid, "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS),
             "frozen_samples": integer(where, "frozen_samples", table.get("frozen_samples", 64), 2),
             "max_harmonic": integer(where, "max_harmonic", table.get("max_harmonic", 6), 1)}
 

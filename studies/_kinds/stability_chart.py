@@ -24,7 +24,7 @@ from .._studies import GridResult, check_grid, check_n_steps, check_parameter, c
     open_store
 
 #: The fewest steps per period a stability chart accepts (docs/studies.md).
-MIN_STEPS = 16
+MIN_STEPS = 32
 
 
 @register
@@ -111,7 +111,7 @@ def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tu
     if names[0] == names[1]:
         raise StudiesError(f"stability_chart: the two parameters must differ, got {names[0]!r} twice")
     axes = (check_grid(f"{names[0]} values", first[1]), check_grid(f"{names[1]} values", second[1]))
-    n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, multiple=2, study="a stability chart")
+    n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a stability chart")
     shape = (axes[0].size, axes[1].size)
     settings = {"parameters": names, "first": axes[0], "second": axes[1], "n_steps": int(n_steps),
                 "scene": problem.text}
@@ -152,7 +152,7 @@ _AXIS_TABLE = "{parameter = ..., start = ..., stop = ..., count = ...}"
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
     first, second = (axis(f"{where}.{key}", sub_table(where, table, key, _AXIS_TABLE)) for key in ("x", "y"))
     # a chart has its own default (128 steps), not the [studies] n_steps
-    return {"first": first, "second": second, "n_steps": steps(where, table, 128, minimum=MIN_STEPS, multiple=2)}
+    return {"first": first, "second": second, "n_steps": steps(where, table, 128, minimum=MIN_STEPS)}
 
 
 def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, progress: bool
