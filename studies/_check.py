@@ -18,6 +18,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+import periodic
+
 from ._kinds.nonlinear_check import nonlinear_check
 from ._kinds.steady_state import steady_state
 from ._mechanism import MechanismProblem
@@ -126,7 +128,8 @@ def zero_damping():
             f"spectral radius {result.spectral_radius:.8f} +- {result.spectral_radius_error:.2g}",
             f"Liouville (no damping): |det Phi| = 1, so no multiplier inside the circle without "
             f"another outside; computed log|det Phi| = {log_det:.2g}",
-            "marginal", result.status == "marginal")
+            "marginal, and |log det Phi| < 1e-4 (Liouville)",
+            result.status == "marginal" and abs(log_det) < 1e-4)
 
 
 def exact_resonance():
@@ -135,10 +138,10 @@ def exact_resonance():
     problem = mathieu_problem(speed=1.0, natural_frequency=1.0, damping_ratio=0.0, epsilon=0.0)
     try:
         result = steady_state(problem, n_steps=64)
-    except Exception as error:  # refusing is also right: there is nothing to compute
+    except periodic.ShootingError as error:  # refusing is also right: there is nothing to compute
         return ("failed", f"{type(error).__name__}: {error}", "no result",
                 "closed form: x = t sin(t) / 2 grows without bound; no periodic solution",
-                "near_resonance or failed", True)
+                "near_resonance or failed", "resonance" in str(error))
     # the discrete multipliers sit on the unit circle a phase error away from +1: the tool must say
     # resonance, and must not trust the "periodic" solution it finds (near_resonance, inaccurate)
     return (result.status, result.message, f"spectral radius {result.spectral_radius:.8f}",
@@ -170,15 +173,18 @@ def euler_load():
 
     mechanism = mechanisms.load("four_bar_thesis")
     result = _steady(mechanism, 200.0, n_steps=128)
-    coupler = mechanism.link("coupler") if hasattr(mechanism, "link") else \
-        next(link for link in mechanism.links if link.name == "coupler")
+    coupler = mechanism.link("coupler")
     euler = math.pi ** 2 * coupler.youngs_modulus * coupler.second_moment / coupler.length ** 2
     ratio = result.linear_range.get("coupler.peak_compression_over_euler", float("nan"))
     return (result.status, result.message,
-            f"peak compression / Euler load {ratio:.3g}; spectral radius {result.spectral_radius:.4f}",
+            f"peak compression / Euler load {ratio:.3g} (tool's Euler load {coupler.euler_load:.4g} N); "
+            f"spectral radius {result.spectral_radius:.4f}",
             f"Euler load pi^2 E I / L^2 = {euler:.4g} N (closed form); the stiffened model "
             f"({BASE_SCENE}) is unstable beyond 183 rad/s",
-            "outside_linear_range (cannot see buckling)", result.status == "outside_linear_range")
+            "outside_linear_range, compression above half the closed-form Euler load, saying the model "
+            "cannot see buckling",
+            result.status == "outside_linear_range" and ratio > 0.5 and "cannot see buckling" in result.message
+            and math.isclose(coupler.euler_load, euler, rel_tol=1e-12))
 
 
 def near_toggle():

@@ -275,6 +275,7 @@ def _info(args: argparse.Namespace) -> int:
     import h5py
 
     from ._store import study_attrs
+    from ._studies import status_counts
 
     if not args.file.is_file():
         raise UsageError(f"result file {str(args.file)!r} does not exist")
@@ -296,6 +297,9 @@ def _info(args: argparse.Namespace) -> int:
             if "done" in item:
                 done = item["done"][()]
                 print(f"  points done: {int(done.sum())} of {done.size}")
+                if "status" in item:  # a grid study: its verdicts, most severe first
+                    statuses = item["status"].asstr()[()][done]
+                    print(f"  statuses: {status_counts(statuses)}")
             # every headline attribute the study wrote (a new kind's too); the bulky or internal ones
             # (the scene text, the request it was run for) are left out
             for key, value in attrs.items():

@@ -94,6 +94,11 @@ def test_info_summarises(mathieu_run, capsys):
     out = capsys.readouterr().out
     assert "[sweep] SweepResult of mathieu, complete" in out and "points done: 57 of 57" in out
     assert "numpy" in out and "error_estimate" in out
+    # each grid study's verdicts are tallied, as the run's summary does
+    sweep = studies.load(mathieu_run)["sweep"]
+    names, counts = np.unique(sweep.status, return_counts=True)
+    tally = out.split("[sweep]")[1].split("statuses: ")[1].splitlines()[0]
+    assert sorted(tally.split(", ")) == sorted(f"{c} {n}" for n, c in zip(names, counts))
 
 
 @pytest.mark.slow
