@@ -162,7 +162,11 @@ def nonlinear_check(problem: Any, values: Mapping[str, float] | None = None, *, 
     except Exception as error:
         if not is_numerical_failure(error):
             raise
-        message = f"the nonlinear run failed: {type(error).__name__}: {error}; {linear_words}"
+        # the integrator's own advice names its arguments; say what a study table can change
+        message = (f"the nonlinear run failed: {type(error).__name__}: {error}. In a [studies."
+                   f"nonlinear_check] table: raise n_steps (the run takes n_steps per period, now "
+                   f"{n_steps}) or check a lower speed; a linear state far outside the linear range "
+                   f"may not be a start the full model can take; {linear_words}")
         return NonlinearCheck(**common, t=np.empty(0), nonlinear={}, nonlinear_error={}, difference={},
                               relative_difference={}, periodicity_defect={}, nonlinear_run_time=float("nan"),
                               verdict="failed", status="failed", message=message)
