@@ -17,7 +17,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Mapping
 
-from ._parts import (DISCRETISATION_TYPES, GROUND, JOINT_TYPES, DampingMatrix, ElasticLink,
+from ._parts import (DISCRETISATION_TYPES, JOINT_TYPES, DampingMatrix, ElasticLink,
                      Mechanism, MechanismError, ModalDamping, PointMass, PrescribedDrive, Rayleigh,
                      RigidLink, TorqueDrive, UserShapes, _is_number)
 

@@ -10,7 +10,7 @@ The vocabulary, most severe first (``periodic.STATUSES``): ``failed``, ``unstabl
 
 from __future__ import annotations
 
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable
 
 import numpy as np
 
@@ -27,10 +27,6 @@ def combine(parts: Iterable[tuple[str, str]]) -> tuple[str, str]:
     parts.sort(key=lambda part: severity(part[0]))
     status = periodic.worst_status(*(status for status, _ in parts))
     return status, "; ".join(dict.fromkeys(message for _, message in parts if message))
-
-
-def worst(statuses: Sequence[str]) -> str:
-    return periodic.worst_status(*statuses)
 
 
 def severity(status: str) -> int:
