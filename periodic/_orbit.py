@@ -29,8 +29,9 @@ PeriodMap = Callable[[np.ndarray, float], "tuple[np.ndarray, np.ndarray]"]
 #: Armijo constant of the line search: a step of length ``lam`` is accepted when the residual norm
 #: falls by at least this fraction of ``lam`` times itself.
 _SUFFICIENT_DECREASE = 1e-4
-#: The line search halves the Newton step at most this many times (down to 1/64 of it).
-_MAX_HALVINGS = 6
+#: The line search halves the Newton step at most this many times (down to 1/1024 of it): near a
+#: multiplier at +1 the step is long and the residual curved, and only a short one decreases it.
+_MAX_HALVINGS = 10
 #: ``J = monodromy - I`` with a condition number above this is singular: Newton's step would be
 #: rounding noise (a multiplier at +1 to about 1e-12: a fold, or a free mode of an unforced system).
 _SINGULAR_CONDITION = 1e12
