@@ -116,8 +116,7 @@ class DuffingPeriodMap:
             raise PeriodicError(f"state: expected shape (2,) (x, v), got {state.shape}")
         self.calls += 1
         system = self.at(value)
-        c, k, e, k3, force, omega = (system.damping, system.stiffness, system.pump, system.cubic,
-                                     system.force, system.omega)
+        c, k, e, k3, force = system.damping, system.stiffness, system.pump, system.cubic, system.force
         n = self.n_steps
         h = system.period / n
         x0, v0 = float(state[0]), float(state[1])
