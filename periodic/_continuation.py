@@ -151,18 +151,21 @@ class _Corrector:
             tangent = -tangent
         return tangent
 
-    def solve(self, y_pred, normal, *, fixed_parameter: bool):
-        """Newton from ``y_pred`` on the hyperplane ``normal . (y - y_pred) = 0``; returns the
-        :class:`NewtonResult` (``extra``: the monodromy)."""
+    def solve(self, y_pred, normal, *, fixed_parameter: float | None = None):
+        """Newton from ``y_pred`` on the hyperplane ``normal . (y - y_pred) = 0``, or at the parameter
+        value ``fixed_parameter`` exactly (``normal = e_p``); returns the :class:`NewtonResult`
+        (``extra``: the monodromy)."""
         n = y_pred.size - 1
         column = {}
 
         def evaluate(y):
             state, parameter = self.unscaled(y)
+            if fixed_parameter is not None:  # the exact value, not its scaled round trip
+                parameter = fixed_parameter
             end, monodromy = self.map(state, parameter)
             jacobian = np.empty((n + 1, n + 1))
             jacobian[:n, :n] = monodromy - np.eye(n)
-            if fixed_parameter:  # the last row fixes dp = 0: the column does not matter
+            if fixed_parameter is not None:  # the last row fixes dp = 0: the column does not matter
                 jacobian[:n, n] = 0.0
             else:
                 if "dP/dp" not in column:  # once per solve, at its first iterate (see the module notes)
@@ -177,8 +180,10 @@ class _Corrector:
 
         return newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative)
 
-    def orbit(self, found, start_time) -> PeriodicOrbit:
+    def orbit(self, found, start_time, fixed_parameter: float | None = None) -> PeriodicOrbit:
         state, parameter = self.unscaled(found.y)
+        if fixed_parameter is not None:
+            parameter = fixed_parameter
         return classify(parameter, state, found.extra, residual=found.residual, iterations=found.iterations,
                         map_calls=self.map.calls, converged=found.converged, reason=found.reason,
                         stability_tol=self.stability_tol, start_time=start_time)
@@ -302,7 +307,7 @@ class _Follower:
                                "(a fold, or a jump to another branch)")
                 step *= 0.5
                 continue
-            new = corrector.orbit(found, self.start_time)
+            new = corrector.orbit(found, self.start_time, fixed)
             passed = (new.parameter - self.stop) * self.direction > 0.0
             if passed:  # the end point exactly at stop, between the last point and this one
                 new, found = self._at_stop(y, found.y)
@@ -334,7 +339,7 @@ class _Follower:
         return y, tangent / np.linalg.norm(tangent)
 
     def _predict(self, y, tangent, step):
-        """``(y_pred, normal, fixed_parameter)`` of the next step."""
+        """``(y_pred, normal, fixed parameter value or None)`` of the next step."""
         ds = step / self.corrector.P
         if self.method == "natural":
             current = self.orbits[-1].parameter
@@ -344,12 +349,11 @@ class _Follower:
                 tangent = np.zeros_like(tangent)
                 tangent[-1] = self.direction
             y_pred = y + tangent * (ds_parameter / tangent[-1])
-            if ds >= remaining:
-                y_pred[-1] = self.stop / self.corrector.P  # exactly at stop
+            parameter = self.stop if ds >= remaining else current + ds_parameter * self.corrector.P
             normal = np.zeros_like(y)
             normal[-1] = 1.0
-            return y_pred, normal, True
-        return y + ds * tangent, tangent, False
+            return y_pred, normal, parameter
+        return y + ds * tangent, tangent, None
 
     def _at_stop(self, y_before, y_after):
         """The orbit at ``parameter = stop`` between two scaled points (arclength passing ``stop``)."""
@@ -360,10 +364,10 @@ class _Follower:
         y_pred[-1] = self.stop / corrector.P
         normal = np.zeros_like(y_pred)
         normal[-1] = 1.0
-        found = corrector.solve(y_pred, normal, fixed_parameter=True)
+        found = corrector.solve(y_pred, normal, fixed_parameter=self.stop)
         if not found.converged:
             return None, found
-        return corrector.orbit(found, self.start_time), found
+        return corrector.orbit(found, self.start_time, self.stop), found
 
     def _crossing(self, before: PeriodicOrbit, after: PeriodicOrbit, y_before, y_after) -> bool:
         """Record a bifurcation between two accepted points (inserting its orbit); True to stop."""
@@ -392,10 +396,11 @@ class _Follower:
         corrector = self.corrector
         chord = y_after - y_before
         normal = chord / np.linalg.norm(chord)
-        fixed = self.method == "natural"
-        if fixed:
+        natural = self.method == "natural"
+        if natural:
             normal = np.zeros_like(chord)
             normal[-1] = 1.0
+        p_before, p_after = corrector.unscaled(y_before)[1], corrector.unscaled(y_after)[1]
         solved = {}
 
         def test_function(fraction):
@@ -403,10 +408,11 @@ class _Follower:
                 return value_before
             if fraction >= 1.0:
                 return value_after
+            fixed = p_before + fraction * (p_after - p_before) if natural else None
             found = corrector.solve(y_before + fraction * chord, normal, fixed_parameter=fixed)
             if not found.converged:
                 raise _NotLocated(found.reason)
-            solved[fraction] = found
+            solved[fraction] = found, fixed
             multipliers = np.linalg.eigvals(found.extra).astype(complex)
             return _test_functions(multipliers)[kind]
 
@@ -416,10 +422,10 @@ class _Follower:
             fraction = brentq(test_function, 0.0, 1.0, xtol=LOCATE_XTOL)
         except (_NotLocated, RuntimeError, ValueError):
             return None
-        found = solved.get(fraction)
-        if found is None:
+        if fraction not in solved:
             return None
-        return corrector.orbit(found, self.start_time)
+        found, fixed = solved[fraction]
+        return corrector.orbit(found, self.start_time, fixed)
 
     def _finish(self, why, *, max_points=0, min_step=0.0, reason="") -> OrbitBranch:
         orbits = self.orbits

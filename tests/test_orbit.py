@@ -272,6 +272,7 @@ def test_period_doubling_on_the_mathieu_tongue_and_the_transient_that_doubles_th
     for n_steps in (128, 256):
         branch = periodic.continue_orbits(mathieu_map(n_steps), np.zeros(2), 0.1, 0.4, stop_at_instability=False)
         assert [kind for _, kind in branch.bifurcations] == ["period_doubling", "period_doubling"]
+        assert branch.parameters[-1] == 0.4 and np.all(np.diff(branch.parameters) > 0.0)
         edges[n_steps] = np.array([parameter for parameter, _ in branch.bifurcations])
         inside = (branch.parameters > edges[n_steps][0] + 1e-3) & (branch.parameters < edges[n_steps][1] - 1e-3)
         outside = (branch.parameters < edges[n_steps][0] - 1e-3) | (branch.parameters > edges[n_steps][1] + 1e-3)
