@@ -37,7 +37,9 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ._orbit import (
+    DEFAULT_ERROR_FACTOR,
     CountingMap,
+    ErrorEstimate,
     PeriodicOrbit,
     check_iterations,
     check_state,
@@ -81,7 +83,8 @@ class OrbitBranch:
     stable : ndarray (m,) bool
         ``is_stable`` of each orbit (True also where ``marginal``: see ``statuses``).
     statuses : tuple of str (m,)
-        Each orbit's status (``"ok"``, ``"unstable"``, ``"marginal"``).
+        Each orbit's status (``"ok"``, ``"unstable"``, ``"marginal"``; ``"inaccurate"`` where the N/2
+        orbit of ``estimate`` was not found).
     orbits : tuple of PeriodicOrbit (m,)
         The orbits themselves (monodromy, messages, residuals).
     bifurcations : tuple of (float, str)
@@ -100,7 +103,7 @@ class OrbitBranch:
     method : str
         ``"natural"`` or ``"arclength"``.
     map_calls : int
-        Calls of the period map.
+        Calls of the period map (and of the N/2 map of ``estimate``).
     run_time : float
         Wall time, s.
     """
@@ -124,9 +127,11 @@ class _Corrector:
     """Newton on ``[P(x, p) - x; normal . (y - y_pred)] = 0`` in the scaled unknowns ``y``."""
 
     def __init__(self, period_map: CountingMap, state_scale: float, parameter_scale: float, floor: float,
-                 tol: float, max_iterations: int, stability_tol: float):
+                 tol: float, max_iterations: int, stability_tol: float, estimator: ErrorEstimate):
         self.map, self.X, self.P, self.floor = period_map, state_scale, parameter_scale, floor
         self.tol, self.max_iterations, self.stability_tol = tol, max_iterations, stability_tol
+        self.estimator = estimator
+        self.calls_of_last_solve = 0
 
     def scaled(self, state, parameter) -> np.ndarray:
         return np.append(state / self.X, parameter / self.P)
@@ -178,15 +183,19 @@ class _Corrector:
         def relative(y, value):
             return relative_residual(y[:-1] * self.X, value[:-1] * self.X, self.floor)
 
-        return newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative)
+        calls_before = self.map.calls
+        found = newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative)
+        self.calls_of_last_solve = self.map.calls - calls_before
+        return found
 
     def orbit(self, found, start_time, fixed_parameter: float | None = None) -> PeriodicOrbit:
         state, parameter = self.unscaled(found.y)
         if fixed_parameter is not None:
             parameter = fixed_parameter
-        return classify(parameter, state, found.extra, residual=found.residual, iterations=found.iterations,
-                        map_calls=self.map.calls, converged=found.converged, reason=found.reason,
-                        stability_tol=self.stability_tol, start_time=start_time)
+        orbit = classify(parameter, state, found.extra, residual=found.residual, iterations=found.iterations,
+                         map_calls=self.calls_of_last_solve, converged=found.converged, reason=found.reason,
+                         stability_tol=self.stability_tol, start_time=start_time)
+        return self.estimator.apply(orbit, stability_tol=self.stability_tol, start_time=start_time)
 
 
 def _test_functions(multipliers: np.ndarray) -> dict:
@@ -207,6 +216,7 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
                     method: str = "natural", min_step: float | None = None, max_step: float | None = None,
                     tol: float = 1e-10, max_iterations: int = 10, max_points: int = 500,
                     stop_at_instability: bool = True, state_scale: float | None = None,
+                    estimate=None, error_factor: float = DEFAULT_ERROR_FACTOR,
                     stability_tol: float = STABILITY_TOL) -> OrbitBranch:
     """Follow the periodic orbit of ``period_map`` from ``parameter = start`` (near ``guess`` (n,)) to
     ``stop``.
@@ -221,7 +231,10 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
     the scale of the state in the arclength norm and the residual's absolute floor (default: the
     largest rms state met so far for the former, 0 for the latter).  With ``stop_at_instability`` the
     branch ends at the first bifurcation where a multiplier leaves the unit circle (the located
-    orbit is its last point), else it goes on and records every crossing.  Nothing is raised on a
+    orbit is its last point), else it goes on and records every crossing.  ``estimate`` and
+    ``error_factor``: the error bars of each orbit's verdict, as for :func:`periodic.find_orbit` (the
+    map on N/2 steps costs a Newton solve on it per point, about a third more calls; the bifurcations
+    are detected and located on the N-step multipliers either way).  Nothing is raised on a
     numerical failure: see ``OrbitBranch.status``.
     """
     start_time = time.perf_counter()
@@ -242,6 +255,8 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
     max_points = check_iterations("max_points", max_points)
     floor = 0.0 if state_scale is None else check_tol("state_scale", state_scale)
     counted = CountingMap(period_map, guess.size)
+    estimator = ErrorEstimate(estimate, error_factor, guess.size, tol=tol, max_iterations=max_iterations,
+                              state_scale=floor)
 
     first = solve_fixed_point(counted, guess, start, tol=tol, max_iterations=max(max_iterations, 20),
                               state_scale=floor)
@@ -249,12 +264,13 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
                            residual=first.residual, iterations=first.iterations, map_calls=counted.calls,
                            converged=first.converged, reason=first.reason, stability_tol=stability_tol,
                            start_time=start_time)
+    first_orbit = estimator.apply(first_orbit, stability_tol=stability_tol, start_time=start_time)
     if not first.converged:
         return _branch([], [], [], "failed", f"failed: the first orbit was not found: {first_orbit.message}",
-                       method, counted.calls, start_time, guess.size)
+                       method, counted.calls + estimator.calls, start_time, guess.size)
     rms = float(np.sqrt(np.mean(first.y**2)))
     scale = state_scale if state_scale else (rms if rms > 0.0 else 1.0)
-    corrector = _Corrector(counted, scale, span, floor, tol, max_iterations, stability_tol)
+    corrector = _Corrector(counted, scale, span, floor, tol, max_iterations, stability_tol, estimator)
     follower = _Follower(corrector, method, direction, stop, stop_at_instability, start_time,
                          adaptive_scale=not state_scale)
     return follower.run(first_orbit, step=step, min_step=min_step, max_step=max_step, max_points=max_points)
@@ -456,7 +472,8 @@ class _Follower:
                 message += (f"; the last orbit's critical multiplier {mu.real:.6g} is real and near +1: the branch "
                             "probably turns at a fold there, method='arclength' follows it through")
         return _branch(orbits, self.bifurcations, self.indices, status, message, self.method,
-                       self.corrector.map.calls, self.start_time, last.state.size)
+                       self.corrector.map.calls + self.corrector.estimator.calls, self.start_time,
+                       last.state.size)
 
 
 class _NotLocated(RuntimeError):

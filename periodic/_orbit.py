@@ -285,42 +285,64 @@ def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1
     max_iterations = check_iterations("max_iterations", max_iterations)
     state_scale = check_tol("state_scale", state_scale)
     counted = CountingMap(period_map, guess.size)
+    estimator = ErrorEstimate(estimate, error_factor, guess.size, tol=tol, max_iterations=max_iterations,
+                              state_scale=state_scale)
     found = solve_fixed_point(counted, guess, parameter, tol=tol, max_iterations=max_iterations,
                               state_scale=state_scale)
     monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(guess.size)
-    errors, state_error, coarse_failure, coarse_calls = _estimate(estimate, found, parameter, monodromy, tol=tol,
-                                                    max_iterations=max_iterations, state_scale=state_scale,
-                                                    error_factor=error_factor)
     orbit = classify(parameter, found.y, monodromy, residual=found.residual, iterations=found.iterations,
-                     map_calls=counted.calls + coarse_calls, converged=found.converged, reason=found.reason, errors=errors,
-                     state_error=state_error, stability_tol=stability_tol, start_time=start_time)
-    if coarse_failure:
-        status = worst_status(orbit.status, "inaccurate")
-        message = f"{orbit.message}; inaccurate: no error estimate, {coarse_failure}"
-        orbit = replace(orbit, status=status, message=message)
-    return orbit
+                     map_calls=counted.calls, converged=found.converged, reason=found.reason,
+                     stability_tol=stability_tol, start_time=start_time)
+    return estimator.apply(orbit, stability_tol=stability_tol, start_time=start_time)
 
 
-def _estimate(estimate, found: NewtonResult, parameter, monodromy, *, tol, max_iterations, state_scale,
-              error_factor):
-    """``(multiplier errors or None, state error, failure words, coarse map calls)`` from ``estimate`` (see find_orbit)."""
-    if estimate is None or not found.converged:
-        return None, math.nan, "", 0
-    n = found.y.size
-    if not callable(estimate):
-        errors = np.broadcast_to(np.asarray(estimate, dtype=float), (n,)).copy()
-        if not np.all(errors >= 0.0):
-            raise PeriodicError(f"estimate: expected multiplier errors >= 0 (a float or ({n},)), got {estimate}")
-        return errors, math.nan, "", 0
-    error_factor = check_tol("error_factor", error_factor, 1.0)
-    counted = CountingMap(estimate, n)
-    coarse = solve_fixed_point(counted, found.y, parameter, tol=tol,
-                               max_iterations=max_iterations, state_scale=state_scale)
-    if not coarse.converged:
-        return None, math.nan, f"the orbit of the coarse map (estimate) was not found: {coarse.reason}", counted.calls
-    multipliers = sorted_eigenvalues(monodromy)
-    coarse_multipliers = sorted_eigenvalues(coarse.extra)
-    errors = modulus_errors(multipliers, coarse_multipliers, error_factor)
-    # the modulus errors, not the complex ones: a lightly damped mode's phase error is far larger and
-    # does not move its multiplier across the unit circle (see periodic._floquet.modulus_errors)
-    return errors, error_factor * float(np.max(np.abs(found.y - coarse.y))), "", counted.calls
+class ErrorEstimate:
+    """The error bars of an orbit's verdict from ``estimate`` (see :func:`find_orbit`): None, the
+    multipliers' modulus errors (a float or (n,)), or the period map on N/2 steps with its
+    ``error_factor``.  ``calls`` counts the coarse map's calls (each orbit's ``map_calls`` has its own)."""
+
+    def __init__(self, estimate, error_factor, n: int, *, tol, max_iterations, state_scale):
+        self.errors, self.coarse, self.calls = None, None, 0
+        self.tol, self.max_iterations, self.state_scale = tol, max_iterations, state_scale
+        if estimate is None:
+            return
+        if callable(estimate):
+            self.coarse = CountingMap(estimate, n)
+            self.error_factor = check_tol("error_factor", error_factor, 1.0)
+            return
+        try:
+            errors = np.broadcast_to(np.asarray(estimate, dtype=float), (n,)).copy()
+        except (TypeError, ValueError):
+            errors = None
+        if errors is None or not np.all(errors >= 0.0):  # also refuses NaN
+            raise PeriodicError(f"estimate: expected the multipliers' errors >= 0 (a float or ({n},)) or the "
+                                f"period map on N/2 steps, got {estimate!r}")
+        self.errors = errors
+
+    def apply(self, orbit: PeriodicOrbit, *, stability_tol: float, start_time: float) -> PeriodicOrbit:
+        """``orbit`` judged again with the error bars (unchanged without an estimate or if not converged)."""
+        if not orbit.converged or (self.errors is None and self.coarse is None):
+            return orbit
+        errors, state_error, map_calls = self.errors, math.nan, orbit.map_calls
+        if self.coarse is not None:
+            calls_before = self.coarse.calls
+            coarse = solve_fixed_point(self.coarse, orbit.state, orbit.parameter, tol=self.tol,
+                                       max_iterations=self.max_iterations, state_scale=self.state_scale)
+            made = self.coarse.calls - calls_before
+            self.calls += made
+            map_calls = orbit.map_calls + made
+            if not coarse.converged:
+                return replace(orbit, status=worst_status(orbit.status, "inaccurate"),
+                               map_calls=map_calls, message=(
+                                   f"{orbit.message}; inaccurate: no error estimate, the orbit of the coarse map "
+                                   f"(estimate) was not found ({coarse.reason}); near a fold the N/2 map's "
+                                   "branch may turn before this parameter (its fold moves with the step): "
+                                   "refine n_steps to estimate the error there"))
+            # the modulus errors, not the complex ones: a lightly damped mode's phase error is far larger
+            # and does not move its multiplier across the unit circle (periodic._floquet.modulus_errors)
+            errors = modulus_errors(orbit.multipliers, sorted_eigenvalues(coarse.extra), self.error_factor)
+            state_error = self.error_factor * float(np.max(np.abs(orbit.state - coarse.y)))
+        return classify(orbit.parameter, orbit.state, orbit.monodromy, residual=orbit.residual,
+                        iterations=orbit.iterations, map_calls=map_calls, converged=True,
+                        errors=errors, state_error=state_error, stability_tol=stability_tol,
+                        start_time=start_time)

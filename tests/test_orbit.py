@@ -235,11 +235,21 @@ def test_natural_continuation_stops_at_the_fold_and_says_so():
 
 def test_arclength_continuation_stops_at_the_first_fold_when_asked():
     period_map = periodic.duffing_period_map("omega", n_steps=128, damping=DAMPING, cubic=CUBIC, force=FORCE)
-    branch = periodic.continue_orbits(period_map, np.zeros(2), 0.9, 1.15, method="arclength")
+    branch = periodic.continue_orbits(period_map, np.zeros(2), 0.9, 1.15, method="arclength",
+                                      estimate=period_map.coarsened())
     assert branch.status == "unstable" and "fold" in branch.message
     assert len(branch.bifurcations) == 1 and branch.bifurcation_indices == (len(branch.parameters) - 1,)
-    assert branch.statuses[-1] == "marginal" and np.all(branch.stable)
-    assert abs(branch.bifurcations[0][0] - 1.0181) < 1e-4
+    assert np.all(branch.stable) and abs(branch.bifurcations[0][0] - 1.0181) < 1e-4
+    # with the N/2 map as estimate, the orbits away from the fold carry their error estimates ...
+    away = branch.parameters < 1.01
+    assert away.sum() > 10 and all(branch.orbits[i].status == "ok" and np.isfinite(branch.orbits[i].state_error)
+                                   and np.all(np.isfinite(branch.orbits[i].multiplier_errors))
+                                   for i in np.flatnonzero(away))
+    # ... but at the fold the N/2 map has no orbit (its own fold is ~6e-4 lower): inaccurate, and why
+    fold = branch.orbits[-1]
+    assert fold.status == "inaccurate" and fold.is_stable and "coarse map" in fold.message
+    assert abs(fold.multipliers[0] - 1.0) < 1e-6
+    assert sum(orbit.map_calls for orbit in branch.orbits) <= branch.map_calls
 
 
 # The damped Mathieu-Duffing equation x'' + c x' + (d + e cos t) x + k3 x^3 = 0 (T = 2 pi): its trivial
