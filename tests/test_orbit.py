@@ -390,3 +390,7 @@ def test_bad_input_names_the_argument():
         periodic.duffing_period_map("omega", mass=2.0)
     with pytest.raises(TypeError):
         periodic.find_orbit(period_map, [0.0, 0.0], 1.0, tolerance=1e-8)
+    with pytest.raises(periodic.PeriodicError, match="estimate"):
+        periodic.find_orbit(period_map, [0.0, 0.0], 1.0, estimate=-1e-3)
+    with pytest.raises(periodic.PeriodicError, match="estimate"):
+        periodic.continue_orbits(period_map, [0.0, 0.0], 1.0, 1.1, estimate=[1e-3, 1e-3, 1e-3])
