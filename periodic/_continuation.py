@@ -323,14 +323,15 @@ class _Follower:
                                "(a fold, or a jump to another branch)")
                 step *= 0.5
                 continue
-            new = corrector.orbit(found, self.start_time, fixed)
-            passed = (new.parameter - self.stop) * self.direction > 0.0
-            if passed:  # the end point exactly at stop, between the last point and this one
+            parameter = fixed if fixed is not None else corrector.unscaled(found.y)[1]
+            if (parameter - self.stop) * self.direction > 0.0:  # passed: the end point exactly at stop
                 new, found = self._at_stop(y, found.y)
                 if new is None:
                     last_reason = "the orbit at stop was not found"
                     step *= 0.5
                     continue
+            else:
+                new = corrector.orbit(found, self.start_time, fixed)
             if self._crossing(current, new, y, found.y):
                 return self._finish("instability")
             self.orbits.append(new)
