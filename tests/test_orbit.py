@@ -154,6 +154,7 @@ def test_orbit_on_the_upper_branch_equals_harmonic_balance():
     assert orbit.state_error < 1e-3 * upper_amplitude
 
 
+@pytest.mark.slow  # with the branches' fixture: two continuations through both folds, ~1 s
 def test_folds_against_the_single_harmonic_balance_and_the_backbone(branches):
     (lower_omega, lower_amplitude), (upper_omega, upper_amplitude) = single_harmonic_folds()
     folds = {}
