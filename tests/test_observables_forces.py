@@ -282,3 +282,54 @@ def test_bad_specs_name_what_is_wrong():
                         ("joint.A.fx@0.5", "takes no '@'")):
         with pytest.raises(mc.ArgumentError, match=words):
             model.observable(spec)
+
+
+def test_torque_drive_torque_is_the_inverse_dynamics_torque_plus_its_pd_change():
+    """A torque drive's nominal torque is the prescribed version's (-lam of its drive row, the
+    inverse dynamics); its change is the PD law's: central differences of the model's torque at
+    ``s0 + eps x``, ``s0' + eps x'``."""
+    arm = mc.load("two_link_arm")
+    elbow = next(d for d in arm.drives if d.joint == "elbow")
+    torque_driven = arm.replace(drives=tuple(
+        mc.TorqueDrive("elbow", elbow.rate, elbow.offset, elbow.harmonics, kp=40.0, kd=0.5)
+        if d.joint == "elbow" else d for d in arm.drives))
+    specs = ("drive.elbow.torque", "drive.shoulder.torque")
+    prescribed = linearize.about(arm, n_steps=N_STEPS, observables=specs)
+    driven = linearize.about(torque_driven, n_steps=N_STEPS, observables=specs)
+    for spec in specs:
+        expected = prescribed.observable_maps[spec].nominal
+        np.testing.assert_allclose(driven.observable_maps[spec].nominal, expected,
+                                   atol=1e-8 * np.abs(expected).max(), err_msg=spec)
+    model = mc.assemble(torque_driven)   # no feedforward: the PD part alone
+    index = [d.joint for d in torque_driven.drives].index("elbow")
+    c = driven.coefficients
+    rng = np.random.default_rng(11)
+    m = len(driven.labels)
+    torque_map = driven.observable_maps["drive.elbow.torque"]
+    for k in (0, 29):
+        z, zdot = rng.normal(size=(2, m)) * 1e-3
+        x = c.V[k] @ z
+        xdot = c.V[k] @ zdot + c.Vdot[k] @ z
+        nominal = driven.nominal
+        lam = np.zeros(model.n_constraints)
+
+        def torque(eps):
+            return model.drive_torques(nominal.s[k] + eps * x, nominal.sdot[k] + eps * xdot,
+                                       nominal.t[k], lam)[index]
+
+        difference = (torque(1e-3) - torque(-1e-3)) / 2e-3
+        predicted = torque_map.position[k] @ z + torque_map.rate[k] @ zdot
+        assert predicted == pytest.approx(difference, rel=1e-7)
+
+
+def test_slider_force_is_normal_to_its_rail_and_agrees_with_the_nonlinear_model():
+    """A slider on the x-axis pushes its link along y only; the crank pin's force and the slider's
+    agree with the full nonlinear model's multipliers (a nonlinear check)."""
+    import studies
+
+    specs = ("joint.B.fx", "joint.B.fy", "joint.A.force", "drive.O.torque")
+    problem = studies.MechanismProblem.from_scene("slider_crank", observables=specs)
+    check = studies.nonlinear_check(problem, n_steps=128, n_periods=2)
+    assert np.abs(check.linear["joint.B.fx"]).max() < 1e-9 * np.abs(check.linear["joint.B.fy"]).max()
+    for spec in specs[1:]:
+        assert check.relative_difference[spec] < 0.01, (spec, check.relative_difference[spec])

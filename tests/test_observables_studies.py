@@ -90,3 +90,23 @@ def test_linear_forces_torque_and_stress_agree_with_the_full_nonlinear_model():
     assert check.verdict == "agrees", check.message
     for spec in SPECS:
         assert check.relative_difference[spec] < 0.01, (spec, check.relative_difference[spec])
+
+
+@pytest.mark.slow
+def test_torque_driven_arm_agrees_with_the_full_nonlinear_model():
+    """A torque drive's total torque (feedforward plus PD change), the other drive's, a joint
+    force, the tip's point error and the root stress against the full model (the run's own
+    multipliers and torque law)."""
+    arm = mc.load("two_link_arm")
+    elbow = next(d for d in arm.drives if d.joint == "elbow")
+    driven = arm.replace(drives=tuple(
+        mc.TorqueDrive("elbow", elbow.rate, elbow.offset, elbow.harmonics, kp=40.0, kd=0.5)
+        if d.joint == "elbow" else d for d in arm.drives))
+    specs = ("drive.elbow.torque", "drive.shoulder.torque", "joint.elbow.force",
+             "forearm.point_error@end", "forearm.stress_top@0.0")
+    check = studies.nonlinear_check(
+        studies.MechanismProblem.from_mechanism(driven, observables=specs), n_steps=128,
+        n_periods=2)
+    assert check.verdict == "agrees", check.message
+    for spec in specs:
+        assert check.relative_difference[spec] < 0.01, (spec, check.relative_difference[spec])
