@@ -194,6 +194,10 @@ class MultiplierObservable:
     def value_from(self, lam) -> float:
         return float(self.weights @ np.asarray(lam, dtype=float))
 
+    def value(self, s) -> float:
+        raise _not_of_coordinates(self.spec, "a sum of multipliers: MultiplierObservable."
+                                             "value_from(lam) (SimulationResult.lam)")
+
 
 @dataclass(frozen=True)
 class TorqueLawObservable:
@@ -208,6 +212,10 @@ class TorqueLawObservable:
     kp: float
     kd: float
 
+    def value(self, s) -> float:
+        raise _not_of_coordinates(self.spec, "the drive's torque law: Model.drive_torques(s, "
+                                             "sdot, t, lam)")
+
 
 @dataclass(frozen=True)
 class PairMagnitude:
@@ -218,6 +226,10 @@ class PairMagnitude:
     unit: str
     kind: str
     components: tuple      # (observable a, observable b)
+
+    def value(self, s) -> float:
+        raise _not_of_coordinates(self.spec, "the magnitude of a change or of a force: "
+                                             "linearize.about(...).observe")
 
 
 @dataclass(frozen=True)
@@ -247,8 +259,12 @@ class StressObservable:
 
     depends_on_elastic_only = True
 
-    def value(self, s, axial_force: float = 0.0) -> float:
-        """The stress at ``s``; ``axial_force`` (N) is used only without axial coordinates."""
+    def value(self, s, axial_force: float | None = None) -> float:
+        """The stress at ``s``; ``axial_force`` (N) is required without axial coordinates (and
+        used only then)."""
+        if self.strain is None and axial_force is None:
+            raise _not_of_coordinates(self.spec, "the nominal axial force of an axially rigid "
+                                                 "link: pass axial_force, or linearize.about")
         normal = (self.axial_stiffness * self.strain.value(s) if self.strain is not None
                   else axial_force)
         return float(normal / self.area - self.moment.value(s) * self.fibre / self.second_moment)
@@ -260,6 +276,11 @@ class StressObservable:
         if self.strain is not None:
             grad = grad + self.axial_stiffness * self.strain.gradient(s) / self.area
         return grad
+
+
+def _not_of_coordinates(spec: str, where: str) -> ArgumentError:
+    return ArgumentError(f"observable {spec!r} is not a function of the coordinates s alone (it "
+                         f"is {where}); mechanisms.simulate reports only such observables")
 
 
 def make_observable(model, spec: str):

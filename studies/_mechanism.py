@@ -268,9 +268,14 @@ class MechanismProblem:
                 feedback = np.array([model.drive_torques(sk, vk, tk, lk)[obs.drive_index]
                                      for sk, vk, tk, lk in zip(run.s, run.sdot, run.t, run.lam)])
                 return periodic(observable_map.nominal) + feedback
+            if getattr(obs, "needs_axial_force", False):   # its elastic part; nominal below
+                def value(sk):
+                    return obs.value(sk, axial_force=0.0)
+            else:
+                value = obs.value
             values = (run.observables[obs.spec] if obs.spec in run.observables
-                      else np.array([obs.value(sk) for sk in run.s]))
-            values = values - periodic([obs.value(sk) for sk in lin.nominal.s])
+                      else np.array([value(sk) for sk in run.s]))
+            values = values - periodic([value(sk) for sk in lin.nominal.s])
             if observable_map.nominal is not None:   # the axially rigid link's nominal axial stress
                 values = values + periodic(observable_map.nominal)
             return values
@@ -320,7 +325,8 @@ class MechanismProblem:
 def _of_coordinates(observable: Any) -> bool:
     """Whether ``observable`` is a function of the coordinates alone (``mechanisms.simulate``
     evaluates it): not a force, torque, magnitude or the stress of an axially rigid link."""
-    return (hasattr(observable, "value") and hasattr(observable, "gradient")
+    return (callable(getattr(observable, "value", None))
+            and callable(getattr(observable, "gradient", None))
             and not getattr(observable, "needs_axial_force", False))
 
 

@@ -333,3 +333,14 @@ def test_slider_force_is_normal_to_its_rail_and_agrees_with_the_nonlinear_model(
     assert np.abs(check.linear["joint.B.fx"]).max() < 1e-9 * np.abs(check.linear["joint.B.fy"]).max()
     for spec in specs[1:]:
         assert check.relative_difference[spec] < 0.01, (spec, check.relative_difference[spec])
+
+
+def test_simulate_refuses_observables_that_are_not_functions_of_the_coordinates():
+    """mechanisms.simulate evaluates observables of s alone: a force says where to read it."""
+    model = mc.assemble(mc.four_bar(discretisation="fem", n_elements=2, axial=False))
+    s = np.zeros(model.n_coords)
+    for spec, words in (("joint.A.fx", "value_from"), ("joint.A.force", "magnitude"),
+                        ("coupler.stress_top@0.5", "axial_force")):
+        with pytest.raises(mc.ArgumentError, match=words):
+            model.observable(spec).value(s)
+    assert model.observable("coupler.stress_top@0.5").value(s, axial_force=0.0) == 0.0
