@@ -344,3 +344,22 @@ def test_simulate_refuses_observables_that_are_not_functions_of_the_coordinates(
         with pytest.raises(mc.ArgumentError, match=words):
             model.observable(spec).value(s)
     assert model.observable("coupler.stress_top@0.5").value(s, axial_force=0.0) == 0.0
+
+
+def test_a_named_point_of_a_plate_is_where_its_pin_is():
+    """The six-bar plate's named point C carries joint C: its position is link4's start, and its
+    linear displacement is that of link4's start (the pin keeps them together to first order)."""
+    specs = ("plate.point_error_x@C", "plate.point_error_y@C", "link4.point_error_x@start",
+             "link4.point_error_y@start", "plate.point_error@C")
+    lin = linearize.about(mc.load("six_bar"), n_steps=N_STEPS, observables=specs)
+    model = lin.nominal.model
+    s0 = lin.nominal.s[5]
+    for axis in "xy":
+        assert (model.observable(f"plate.point_error_{axis}@C").value(s0)
+                == pytest.approx(model.observable(f"link4.point_error_{axis}@start").value(s0),
+                                 abs=1e-12))
+    observed = lin.observe(periodic.steady_state(lin.system).x)
+    for axis in "xy":
+        plate, link4 = observed[f"plate.point_error_{axis}@C"], observed[f"link4.point_error_{axis}@start"]
+        np.testing.assert_allclose(plate, link4, atol=1e-9 * np.abs(plate).max())
+    assert np.abs(observed["plate.point_error@C"]).max() > 0.0
