@@ -19,7 +19,7 @@ import periodic
 from ._core import (WARN_CONDITION, LinearCoefficients, LinearizationError, choose_independent,
                     interpolate_periodic, linear_coefficients, spectral_tail)
 from ._geometric import axial_forces, geometric_stiffness
-from ._observe import ObservableMap, evaluate_maps, observable_maps
+from ._observe import ObservableMap, evaluate_maps, needs_multiplier_maps, observable_maps
 from ._range import LinearRange, link_probes, linear_range, sample_abscissae
 
 logger = logging.getLogger(__name__)
@@ -181,7 +181,8 @@ def _coarsest_stride(n_steps: int) -> int:
     return stride
 
 
-def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, stride=1):
+def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, stride=1,
+                  multipliers=False):
     """``LinearCoefficients`` on the grid of ``t`` (N+1,), the model evaluated at every ``stride``-th
     sample (N divisible by ``stride``) and the results interpolated to the others."""
     pick = slice(None, None, stride)
@@ -192,7 +193,7 @@ def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, 
         extra = geometric_stiffness(model, t_c, s_c, sdot_c, sddot_c, lam_c, jacobian=jacobian)
     coarse = linear_coefficients(model, t_c, s_c, sdot_c, sddot_c, lam_c, period=period,
                                  independent=independent, extra_stiffness=extra,
-                                 time_label=lambda k: label(k * stride))
+                                 time_label=lambda k: label(k * stride), multipliers=multipliers)
     if stride == 1:
         return coarse
     n_steps = len(t) - 1
@@ -214,14 +215,16 @@ def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, 
         dependent_condition=np.repeat(coarse.dependent_condition, stride)[:n_steps + 1], **fine)
 
 
-def _adaptive_coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label):
+def _adaptive_coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label,
+                           multipliers=False):
     """``_coefficients`` with the largest stride (a power of two dividing N, leaving at least
     ``COARSEST`` samples) whose coefficients the coarse samples resolve to ``INTERPOLATION_TOL``."""
     n_steps = len(t) - 1
     stride = _coarsest_stride(n_steps)
     while True:
         coeffs = _coefficients(model, t, s, sdot, sddot, lam, period=period,
-                               independent=independent, label=label, stride=stride)
+                               independent=independent, label=label, stride=stride,
+                               multipliers=multipliers)
         if stride == 1 or coeffs.interpolation_error < INTERPOLATION_TOL:
             return coeffs
         stride //= 2
@@ -307,7 +310,8 @@ def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMecha
         model, nominal.t, nominal.s, nominal.sdot, nominal.sddot,
         _multipliers_of(model, nominal),
         period=nominal.period, independent=independent,
-        label=lambda k: f"crank angle {angle[k]:.6g} rad (t = {nominal.t[k]:.6g} s)")
+        label=lambda k: f"crank angle {angle[k]:.6g} rad (t = {nominal.t[k]:.6g} s)",
+        multipliers=needs_multiplier_maps(model, specs))
     return _finish(mechanism, model, nominal, coeffs, specs, angle, started)
 
 
@@ -510,7 +514,8 @@ def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFam
                              lam_static + w**2 * lam2,
                              period=abs(2 * math.pi / w) if w else math.inf,
                              independent=independent, label=lambda k: f"sample {k}",
-                             stride=base.coefficients.stride)
+                             stride=base.coefficients.stride,
+                             multipliers=bool(base.coefficients.multiplier_maps))
 
     # Three speeds fix a quadratic exactly: 0, rate, 2 rate.
     c0, c1, c2 = at(0.0), base.coefficients, at(2.0 * rate)

@@ -183,12 +183,14 @@ def choose_independent(jacobian: np.ndarray, preferred: np.ndarray) -> np.ndarra
 def linear_coefficients(model, t: np.ndarray, s0: np.ndarray, sdot0: np.ndarray,
                         sddot0: np.ndarray, lam0: np.ndarray, *, period: float,
                         independent: np.ndarray, extra_stiffness: np.ndarray | None = None,
-                        time_label=None) -> LinearCoefficients:
+                        time_label=None, multipliers: bool = False) -> LinearCoefficients:
     """Linearise ``model`` about the nominal motion given on the uniform grid ``t`` (N+1,).
 
     ``s0, sdot0, sddot0`` (N+1, n), ``lam0`` (N+1, r); ``independent`` (m,) coordinate indices;
     ``extra_stiffness`` (N+1, n, n) is added to ``K`` (the geometric stiffness of axially loaded
     links). ``time_label(k)`` describes sample k in error messages (e.g. the crank angle).
+    ``multipliers``: also the maps of the multipliers' change (``multiplier_maps``, else ``()``),
+    which joint forces and drive torques need.
     """
     n_samples, n = s0.shape
     independent = np.asarray(independent, dtype=np.int64)
@@ -226,12 +228,14 @@ def linear_coefficients(model, t: np.ndarray, s0: np.ndarray, sdot0: np.ndarray,
     K_z = Vt @ (mass @ Vddot + damping @ Vdot + stiffness @ V)
     f_z = -np.einsum("kni,kn->ki", V, residual)
     rigid_residual = float(np.abs(residual[:, rigid_rows]).max()) if rigid_rows.size else 0.0
-    # mu = -Phi_d^-T [M x'' + D x' + K x]_d (module docstring), one solve for the three maps
-    blocks = np.concatenate([(mass @ Vddot + damping @ Vdot + stiffness @ V)[:, dependent],
-                             (2.0 * mass @ Vdot + damping @ V)[:, dependent],
-                             (mass @ V)[:, dependent]], axis=2)
-    maps = -np.linalg.solve(np.swapaxes(Phi_d, 1, 2), blocks)
-    multiplier_maps = (maps[:, :, :m], maps[:, :, m:2 * m], maps[:, :, 2 * m:])
+    multiplier_maps = ()
+    if multipliers:
+        # mu = -Phi_d^-T [M x'' + D x' + K x]_d (module docstring), one solve for the three maps
+        blocks = np.concatenate([(mass @ Vddot + damping @ Vdot + stiffness @ V)[:, dependent],
+                                 (2.0 * mass @ Vdot + damping @ V)[:, dependent],
+                                 (mass @ V)[:, dependent]], axis=2)
+        maps = -np.linalg.solve(np.swapaxes(Phi_d, 1, 2), blocks)
+        multiplier_maps = (maps[:, :, :m], maps[:, :, m:2 * m], maps[:, :, 2 * m:])
     return LinearCoefficients(t=t, M=M_z, C=C_z, K=K_z, f=f_z, V=V, Vdot=Vdot, Vddot=Vddot,
                               independent=independent, dependent_condition=condition,
                               spectral_error=tail, rigid_residual=rigid_residual,

@@ -102,6 +102,15 @@ def evaluate_maps(maps: dict[str, ObservableMap], z: np.ndarray, period: float, 
     return {spec: m.evaluate(z, zdot, zddot, stride=stride) for spec, m in maps.items()}
 
 
+def needs_multiplier_maps(model, specs) -> bool:
+    """Whether any spec is (or has a component that is) a sum of multipliers: only those need
+    ``linear_coefficients(..., multipliers=True)``."""
+    def needs(obs):
+        return (type(obs).__name__ == "MultiplierObservable"
+                or any(needs(c) for c in getattr(obs, "components", ())))
+    return any(needs(model.observable(spec)) for spec in specs)
+
+
 def observable_maps(model, specs, *, t, s, sdot, sddot, lam, coefficients, drive_torque
                     ) -> dict[str, ObservableMap]:
     """The ``ObservableMap`` of each spec of ``model.observable`` along the nominal motion ``s,
