@@ -8,5 +8,6 @@ from ._about import (LinearizedMechanism as LinearizedMechanism, SpeedFamily as 
                      about as about, default_observables as default_observables,
                      speed_family as speed_family)
 from ._geometric import geometric_stiffness as geometric_stiffness
+from ._observe import ObservableMap as ObservableMap
 from ._range import (LINEAR_RANGE_LIMITS as LINEAR_RANGE_LIMITS, LinearRange as LinearRange,
                      LinkRange as LinkRange)

@@ -19,11 +19,13 @@ import periodic
 from ._core import (WARN_CONDITION, LinearCoefficients, LinearizationError, choose_independent,
                     interpolate_periodic, linear_coefficients, spectral_tail)
 from ._geometric import axial_forces, geometric_stiffness
+from ._observe import ObservableMap, evaluate_maps, needs_multiplier_maps, observable_maps
 from ._range import LinearRange, link_probes, linear_range, sample_abscissae
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["LinearizedMechanism", "SpeedFamily", "about", "speed_family", "default_observables"]
+__all__ = ["LinearizedMechanism", "SpeedFamily", "about", "speed_family", "default_observables",
+           "ObservableMap"]
 
 
 @dataclass(frozen=True)
@@ -33,7 +35,9 @@ class LinearizedMechanism:
     ``system``: the ``periodic.PeriodicSystem`` in the independent coordinates ``z`` (m,), labelled
     by ``labels``; ``nominal``: the ``mechanisms.NominalMotion`` it is linearised about (same grid);
     ``crank_angle`` (N+1,) rad: the first drive's angle on the grid; ``observables``: the specs that
-    ``observe`` reports; ``coefficients``: the ``LinearCoefficients`` with the basis ``V`` (N+1, n, m)
+    ``observe`` reports, ``observable_maps`` {spec: ``ObservableMap``} how each follows from ``z``
+    (``linearize._observe``: deviations, or totals for forces, torques and stresses);
+    ``coefficients``: the ``LinearCoefficients`` with the basis ``V`` (N+1, n, m)
     and the conditioning diagnostics; ``run_time`` (s) of the linearisation; ``range_probes``: what
     ``linear_range`` needs per elastic link (shape rows, the nominal axial force), computed on first
     use by ``range_source`` (a linearisation that is never asked for its linear range does not pay
@@ -62,10 +66,15 @@ class LinearizedMechanism:
                              f"coordinates); received shape {z.shape}")
         return z
 
-    def observe(self, z: np.ndarray) -> dict[str, np.ndarray]:
-        """Observable deviations (N+1,) from the independent-coordinate history ``z`` (N+1, m)."""
+    def observe(self, z: np.ndarray, zdot: np.ndarray | None = None,
+                zddot: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Each observable (N+1,) along the independent-coordinate history ``z`` (N+1, m): the
+        deviation from its nominal value, or for forces, torques and stresses the total
+        (``linearize._observe``). Joint forces and torques need ``zdot``, ``zddot`` (N+1, m); when
+        not given they are the spectral derivatives of ``z`` as a periodic history (a steady
+        state)."""
         z = self._history(z)
-        return {spec: np.einsum("ki,ki->k", gmap, z) for spec, gmap in self.observable_maps.items()}
+        return evaluate_maps(self.observable_maps, z, self.system.period, zdot=zdot, zddot=zddot)
 
     def linear_range(self, z: np.ndarray) -> LinearRange:
         """The linear-range measures (``linearize.LinearRange``) of the periodic solution ``z``
@@ -172,7 +181,8 @@ def _coarsest_stride(n_steps: int) -> int:
     return stride
 
 
-def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, stride=1):
+def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, stride=1,
+                  multipliers=False):
     """``LinearCoefficients`` on the grid of ``t`` (N+1,), the model evaluated at every ``stride``-th
     sample (N divisible by ``stride``) and the results interpolated to the others."""
     pick = slice(None, None, stride)
@@ -183,7 +193,7 @@ def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, 
         extra = geometric_stiffness(model, t_c, s_c, sdot_c, sddot_c, lam_c, jacobian=jacobian)
     coarse = linear_coefficients(model, t_c, s_c, sdot_c, sddot_c, lam_c, period=period,
                                  independent=independent, extra_stiffness=extra,
-                                 time_label=lambda k: label(k * stride))
+                                 time_label=lambda k: label(k * stride), multipliers=multipliers)
     if stride == 1:
         return coarse
     n_steps = len(t) - 1
@@ -192,6 +202,7 @@ def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, 
     # only through M V'' and the like, which the tails of C and K already measure.
     tail = max(spectral_tail(getattr(coarse, name)) for name in ("M", "C", "K", "f", "V"))
     fine = {name: interpolate_periodic(getattr(coarse, name), n_steps) for name in "MCKf"}
+    fine["multiplier_maps"] = tuple(interpolate_periodic(a, n_steps) for a in coarse.multiplier_maps)
     # V is the identity on the independent rows (and V', V'' zero there): interpolate the others.
     dependent = np.setdiff1d(np.arange(coarse.V.shape[1]), coarse.independent)
     for name in ("V", "Vdot", "Vddot"):
@@ -204,14 +215,16 @@ def _coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label, 
         dependent_condition=np.repeat(coarse.dependent_condition, stride)[:n_steps + 1], **fine)
 
 
-def _adaptive_coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label):
+def _adaptive_coefficients(model, t, s, sdot, sddot, lam, *, period, independent, label,
+                           multipliers=False):
     """``_coefficients`` with the largest stride (a power of two dividing N, leaving at least
     ``COARSEST`` samples) whose coefficients the coarse samples resolve to ``INTERPOLATION_TOL``."""
     n_steps = len(t) - 1
     stride = _coarsest_stride(n_steps)
     while True:
         coeffs = _coefficients(model, t, s, sdot, sddot, lam, period=period,
-                               independent=independent, label=label, stride=stride)
+                               independent=independent, label=label, stride=stride,
+                               multipliers=multipliers)
         if stride == 1 or coeffs.interpolation_error < INTERPOLATION_TOL:
             return coeffs
         stride //= 2
@@ -222,22 +235,6 @@ def _crank_angle(mechanism, t, period):
         return np.zeros_like(t)
     return np.asarray(mechanisms.drive_law(mechanism.drives[0], period, np.asarray(t))[0],
                       dtype=float)
-
-
-def _observable_maps(model, specs, s, V):
-    """Linear maps (N+1, m) from z to each observable. A link observable's gradient depends on the
-    link's elastic coordinates only (``depends_on_elastic_only``), and those are zero all along
-    the rigid nominal motion: one gradient serves every sample."""
-    maps = {}
-    rigid_nominal = not np.any(s[:, np.asarray(model.elastic_index, dtype=np.int64)])
-    for spec in specs:
-        obs = model.observable(spec)
-        if rigid_nominal and getattr(obs, "depends_on_elastic_only", False):
-            gradients = np.broadcast_to(obs.gradient(s[0]), s.shape)
-        else:
-            gradients = np.stack([obs.gradient(sk) for sk in s])
-        maps[spec] = np.einsum("kn,kni->ki", gradients, V)
-    return maps
 
 
 def _finish(mechanism, model, nominal, coeffs, specs, angle, started):
@@ -254,9 +251,20 @@ def _finish(mechanism, model, nominal, coeffs, specs, angle, started):
     return LinearizedMechanism(
         mechanism=mechanism, nominal=nominal, system=system, labels=labels,
         crank_angle=angle, observables=tuple(specs),
-        observable_maps=_observable_maps(model, specs, nominal.s, coeffs.V), coefficients=coeffs,
+        observable_maps=_nominal_maps(model, specs, nominal, coeffs), coefficients=coeffs,
         run_time=time.perf_counter() - started,
         range_source=functools.partial(_range_probes, model, nominal, coeffs))
+
+
+def _nominal_maps(model, specs, nominal, coeffs, *, sdot=None, sddot=None, lam=None):
+    """``observable_maps`` along ``nominal`` (its rates, accelerations and multipliers unless
+    given: a speed family passes them at other speeds)."""
+    return observable_maps(
+        model, specs, t=nominal.t, s=nominal.s,
+        sdot=nominal.sdot if sdot is None else sdot,
+        sddot=nominal.sddot if sddot is None else sddot,
+        lam=_multipliers_of(model, nominal) if lam is None else lam, coefficients=coeffs,
+        drive_torque=nominal.drive_torque)
 
 
 def _range_probes(model, nominal, coeffs) -> tuple:
@@ -302,7 +310,8 @@ def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMecha
         model, nominal.t, nominal.s, nominal.sdot, nominal.sddot,
         _multipliers_of(model, nominal),
         period=nominal.period, independent=independent,
-        label=lambda k: f"crank angle {angle[k]:.6g} rad (t = {nominal.t[k]:.6g} s)")
+        label=lambda k: f"crank angle {angle[k]:.6g} rad (t = {nominal.t[k]:.6g} s)",
+        multipliers=needs_multiplier_maps(model, specs))
     return _finish(mechanism, model, nominal, coeffs, specs, angle, started)
 
 
@@ -383,7 +392,10 @@ class SpeedFamily:
     first axis. ``at_speed(Omega)`` returns the ``LinearizedMechanism`` at any speed of the same sign
     as the base mechanism's, for the cost of a few array operations. The nominal axial force of
     each elastic link is likewise ``N0 + Omega^2 N2`` (``axial0``, ``axial2``: link name ->
-    (N+1, n_x) at the linear-range abscissae): ``linear_range(Omega, z)`` uses it.
+    (N+1, n_x) at the linear-range abscissae): ``linear_range(Omega, z)`` uses it. The maps of
+    the observables that depend on the speed (forces, torques, the nominal axial stress: their
+    arrays are polynomials of degree two at most in ``Omega``) are kept at ``Omega = 0`` and
+    ``2 rate`` (``speed_maps``) besides the base's; ``observable_maps_at(Omega)`` interpolates.
     """
 
     mechanism: Any
@@ -402,6 +414,25 @@ class SpeedFamily:
     run_time: float
     axial0: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
     axial2: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
+    speed_maps: tuple = dataclasses.field(default=(), repr=False, compare=False)
+
+    def observable_maps_at(self, rate: float) -> dict[str, ObservableMap]:
+        """The observable maps at crank speed ``rate`` (rad/s): the base's for the observables of
+        the configuration; for the others the quadratic through their arrays at speeds 0,
+        ``self.rate`` and ``2 self.rate`` (exact: each is a polynomial of degree <= 2)."""
+        self._check_rate(rate)
+        maps = dict(self.base.observable_maps)
+        if not self.speed_maps:
+            return maps
+        u = rate / self.rate
+        weights = (0.5 * (u - 1.0) * (u - 2.0), -u * (u - 2.0), 0.5 * u * (u - 1.0))
+        at_zero, at_double = self.speed_maps
+        for spec in at_zero:
+            samples = (at_zero[spec].arrays(), maps[spec].arrays(), at_double[spec].arrays())
+            maps[spec] = maps[spec].with_arrays({
+                name: sum(w * arrays[name] for w, arrays in zip(weights, samples))
+                for name in samples[1]})
+        return maps
 
     def _range_probes(self, rate: float) -> tuple:
         return tuple(probe if probe.axial is None else dataclasses.replace(
@@ -451,6 +482,7 @@ class SpeedFamily:
                 drives=(dataclasses.replace(self.mechanism.drives[0], rate=rate),))
         return dataclasses.replace(base, mechanism=mechanism, nominal=nominal, system=system,
                                    coefficients=coeffs,
+                                   observable_maps=self.observable_maps_at(rate),
                                    range_source=functools.partial(self._range_probes, rate),
                                    run_time=time.perf_counter() - started)
 
@@ -482,7 +514,8 @@ def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFam
                              lam_static + w**2 * lam2,
                              period=abs(2 * math.pi / w) if w else math.inf,
                              independent=independent, label=lambda k: f"sample {k}",
-                             stride=base.coefficients.stride)
+                             stride=base.coefficients.stride,
+                             multipliers=bool(base.coefficients.multiplier_maps))
 
     # Three speeds fix a quadratic exactly: 0, rate, 2 rate.
     c0, c1, c2 = at(0.0), base.coefficients, at(2.0 * rate)
@@ -508,9 +541,18 @@ def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFam
     at_rate = {probe.link.name: probe.axial for probe in base.range_probes}
     axial2 = {name: None if force is None else (at_rate[name] - force) / rate**2
               for name, force in axial0.items()}
+    # Observables whose maps change with the speed, at speeds 0 and 2 rate (SpeedFamily).
+    varying = [spec for spec, m in base.observable_maps.items() if m.total or m.needs_derivatives]
+    speed_maps = ()
+    if varying:
+        speed_maps = tuple(
+            _nominal_maps(model, varying, nominal, c, sdot=w * ds, sddot=w**2 * dds,
+                          lam=lam_static + w**2 * lam2)
+            for w, c in ((0.0, c0), (2.0 * rate, c2)))
     return SpeedFamily(mechanism=mechanism, base=base, rate=rate, M=c1.M, C0=c0.C, C1=C1,
                        K0=c0.K, K1=K1, K2=K2, f0=c0.f, f2=f2, lam0=lam_static, lam2=lam2,
-                       run_time=time.perf_counter() - started, axial0=axial0, axial2=axial2)
+                       run_time=time.perf_counter() - started, axial0=axial0, axial2=axial2,
+                       speed_maps=speed_maps)
 
 
 def _static_multipliers(model, nominal) -> np.ndarray:

@@ -24,6 +24,15 @@ elastic coordinates, plus any rigid coordinate that is a degree of freedom of it
 ``V`` is a smooth periodic function of time (a function of the configuration), so ``V'`` and ``V''``
 are computed by Fourier (spectral) differentiation over the period; the size of the highest
 harmonics that the grid holds is reported as the error estimate of that step.
+
+The multipliers' change ``mu`` along a solution follows from the rows of the dependent coordinates,
+where ``Phi_s0^T`` is the invertible block ``Phi_d^T``:
+
+    mu = A_x z + A_v z' + A_a z'',      A_a = -Phi_d^-T (M0 V)_d,
+    A_v = -Phi_d^-T (2 M0 V' + D V)_d,  A_x = -Phi_d^-T (M0 V'' + D V' + K V)_d
+
+(the rigid rows of ``R0`` are round-off, ``rigid_residual``, and left out), so joint forces and
+drive torques, which are sums of multipliers, are linear in ``z, z', z''``.
 """
 
 from __future__ import annotations
@@ -65,7 +74,9 @@ class LinearCoefficients:
     ``rigid_residual`` the largest rigid-row residual of the nominal motion (should be round-off);
     ``stride``: the model was evaluated at every ``stride``-th sample and the coefficients
     interpolated spectrally to the others (1: evaluated everywhere), with ``interpolation_error``
-    the relative size of the highest harmonics the coarse samples resolve (``spectral_tail``).
+    the relative size of the highest harmonics the coarse samples resolve (``spectral_tail``);
+    ``multiplier_maps``: ``(A_x, A_v, A_a)`` each (N+1, r, m), the change of the multipliers
+    ``mu = A_x z + A_v z' + A_a z''`` (module docstring).
     """
 
     t: np.ndarray
@@ -82,6 +93,7 @@ class LinearCoefficients:
     rigid_residual: float
     stride: int = 1
     interpolation_error: float = 0.0
+    multiplier_maps: tuple = ()
 
 
 def spectral_derivatives(values: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -171,12 +183,14 @@ def choose_independent(jacobian: np.ndarray, preferred: np.ndarray) -> np.ndarra
 def linear_coefficients(model, t: np.ndarray, s0: np.ndarray, sdot0: np.ndarray,
                         sddot0: np.ndarray, lam0: np.ndarray, *, period: float,
                         independent: np.ndarray, extra_stiffness: np.ndarray | None = None,
-                        time_label=None) -> LinearCoefficients:
+                        time_label=None, multipliers: bool = False) -> LinearCoefficients:
     """Linearise ``model`` about the nominal motion given on the uniform grid ``t`` (N+1,).
 
     ``s0, sdot0, sddot0`` (N+1, n), ``lam0`` (N+1, r); ``independent`` (m,) coordinate indices;
     ``extra_stiffness`` (N+1, n, n) is added to ``K`` (the geometric stiffness of axially loaded
     links). ``time_label(k)`` describes sample k in error messages (e.g. the crank angle).
+    ``multipliers``: also the maps of the multipliers' change (``multiplier_maps``, else ``()``),
+    which joint forces and drive torques need.
     """
     n_samples, n = s0.shape
     independent = np.asarray(independent, dtype=np.int64)
@@ -214,9 +228,18 @@ def linear_coefficients(model, t: np.ndarray, s0: np.ndarray, sdot0: np.ndarray,
     K_z = Vt @ (mass @ Vddot + damping @ Vdot + stiffness @ V)
     f_z = -np.einsum("kni,kn->ki", V, residual)
     rigid_residual = float(np.abs(residual[:, rigid_rows]).max()) if rigid_rows.size else 0.0
+    multiplier_maps = ()
+    if multipliers:
+        # mu = -Phi_d^-T [M x'' + D x' + K x]_d (module docstring), one solve for the three maps
+        blocks = np.concatenate([(mass @ Vddot + damping @ Vdot + stiffness @ V)[:, dependent],
+                                 (2.0 * mass @ Vdot + damping @ V)[:, dependent],
+                                 (mass @ V)[:, dependent]], axis=2)
+        maps = -np.linalg.solve(np.swapaxes(Phi_d, 1, 2), blocks)
+        multiplier_maps = (maps[:, :, :m], maps[:, :, m:2 * m], maps[:, :, 2 * m:])
     return LinearCoefficients(t=t, M=M_z, C=C_z, K=K_z, f=f_z, V=V, Vdot=Vdot, Vddot=Vddot,
                               independent=independent, dependent_condition=condition,
-                              spectral_error=tail, rigid_residual=rigid_residual)
+                              spectral_error=tail, rigid_residual=rigid_residual,
+                              multiplier_maps=multiplier_maps)
 
 
 def _worst_constraints(Phi_d: np.ndarray, model) -> str:

@@ -27,7 +27,7 @@ _RIGID_KEYS = ("type", "length", "mass", "inertia", "centroid", "points", "width
                "density")
 _ELASTIC_KEYS = ("type", "length", "density", "youngs_modulus", "width", "thickness", "area",
                  "second_moment", "discretisation", "boundary", "axial", "geometric_stiffening",
-                 "rotary_inertia", "damping", "yield_strength")
+                 "rotary_inertia", "damping", "yield_strength", "outer_fibre")
 _DISCRETISATION_KEYS = tuple(dict.fromkeys(key for cls in DISCRETISATION_TYPES.values()
                                            for key in cls.KEYS))
 _DAMPING_KEYS = {"rayleigh": ("type", "alpha", "beta", "ratio"), "modal": ("type", "ratios"),
@@ -180,7 +180,9 @@ def _elastic_link(name: str, t: _Table) -> ElasticLink:
                        geometric_stiffening=t.boolean("geometric_stiffening", True),
                        rotary_inertia=t.boolean("rotary_inertia", False),
                        yield_strength=(t.number("yield_strength", "Pa", positive=True)
-                                       if t.has("yield_strength") else None))
+                                       if t.has("yield_strength") else None),
+                       outer_fibre=(t.number("outer_fibre", "m", positive=True)
+                                    if t.has("outer_fibre") else None))
     if not t.has("damping"):
         return link
     d = t.table("damping")
@@ -354,6 +356,8 @@ def _link_spec(link: RigidLink | ElasticLink) -> dict[str, Any]:
              "rotary_inertia": link.rotary_inertia}
     if link.yield_strength is not None:
         entry["yield_strength"] = link.yield_strength
+    if link.outer_fibre is not None:
+        entry["outer_fibre"] = link.outer_fibre
     entry["discretisation"] = link.discretisation.to_table()
     if isinstance(link.damping, Rayleigh):
         entry["damping"] = {"type": "rayleigh", "alpha": link.damping.alpha,

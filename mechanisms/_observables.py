@@ -14,6 +14,23 @@ Specs (``link`` a link name, ``f`` a fraction of the link length in [0, 1], defa
 * ``"link.moment@f"``: bending moment ``EI w''(x)``, N m (for Hermite elements, at a node the element
   to the right is used).
 * ``"link.angle"``: the frame angle ``theta``, rad (for an elastic link: the chord or root tangent).
+* ``"link.point_error_x@p"``, ``"link.point_error_y@p"``: the global x, y position (m) of a point of
+  any link (``p`` a fraction of the length, or a named point of a rigid link's ``points``,
+  ``"start"``, ``"end"``). Its value is the position; its change from the rigid nominal motion is
+  the displacement of the point from its rigid nominal position (the output precision).
+  ``"link.point_error@p"``: the magnitude of that displacement (``PairMagnitude``).
+
+Quantities that are not functions of ``s`` alone (``linearize`` supplies the nominal motion):
+
+* ``"joint.J.fx"``, ``"joint.J.fy"``: the force (N, global axes) of joint ``J`` on its ``link_b``
+  from its ``link_a`` (a slider: on its link from the ground), a weighted sum of the joint's
+  multipliers (``MultiplierObservable``); ``"joint.J.force"`` its magnitude.
+* ``"drive.J.torque"``: the torque (N m) of the drive at joint ``J`` on its ``link_b``:
+  ``-lam`` of a prescribed drive's row (``MultiplierObservable``), the torque law of a torque drive
+  (``TorqueLawObservable``).
+* ``"link.stress_top@f"``, ``"link.stress_bottom@f"``: normal stress (Pa) at the extreme fibres
+  ``y = +c`` (the frame's +y side, where positive deflection points) and ``y = -c`` of an elastic
+  link: ``N / A -+ M c / I`` with ``M = EI w''`` the ``moment`` observable (``StressObservable``).
 """
 
 from __future__ import annotations
@@ -25,6 +42,9 @@ import numpy as np
 from ._parts import ArgumentError, ElasticLink
 
 _KINDS = {"deflection": "m", "transverse": "m", "strain": "1", "moment": "N m", "angle": "rad"}
+_POINT_KINDS = {"point_error_x": 0, "point_error_y": 1}
+_STRESS_KINDS = {"stress_top": 1.0, "stress_bottom": -1.0}  # sign of the fibre's y
+_JOINT_KINDS = ("fx", "fy", "force")
 
 
 @dataclass(frozen=True)
@@ -111,20 +131,201 @@ def default_observables(mechanism) -> tuple[str, ...]:
                  for link in mechanism.links if isinstance(link, ElasticLink))
 
 
-def make_observable(model, spec: str) -> LinkObservable:
+@dataclass(frozen=True)
+class PointObservable:
+    """Global x or y position (m) of a material point of a link (module docstring):
+    ``r = R + A(theta) (p + S q)``, ``p = (px, py)`` its undeformed local position, ``S = [Su; Sw]``
+    the link's shape rows there (empty for a rigid link). ``value(s)`` -> float, ``gradient(s)``
+    -> (n,); the gradient depends on the frame angle, so it is evaluated at each sample."""
+
+    spec: str
+    unit: str
+    kind: str
+    n_coords: int
+    coords: slice          # the link's coordinates in s
+    axis: int              # 0: x, 1: y
+    local: tuple           # (px, py) m
+    su: np.ndarray         # (n_elastic,)
+    sw: np.ndarray         # (n_elastic,)
+
+    depends_on_elastic_only = False
+
+    def _parts(self, s):
+        s = np.asarray(s, dtype=float)
+        if s.shape != (self.n_coords,):
+            raise ArgumentError(f"s must have shape ({self.n_coords},); received shape {s.shape}")
+        link = s[self.coords]
+        q = link[3:]
+        lx = self.local[0] + (self.su @ q if q.size else 0.0)
+        ly = self.local[1] + (self.sw @ q if q.size else 0.0)
+        return link, lx, ly, np.cos(link[2]), np.sin(link[2])
+
+    def value(self, s) -> float:
+        link, lx, ly, c, sn = self._parts(s)
+        if self.axis == 0:
+            return float(link[0] + c * lx - sn * ly)
+        return float(link[1] + sn * lx + c * ly)
+
+    def gradient(self, s) -> np.ndarray:
+        _, lx, ly, c, sn = self._parts(s)
+        out = np.zeros(self.n_coords)
+        start = self.coords.start
+        out[start + self.axis] = 1.0
+        if self.axis == 0:
+            out[start + 2] = -sn * lx - c * ly
+            out[start + 3:self.coords.stop] = c * self.su - sn * self.sw
+        else:
+            out[start + 2] = c * lx - sn * ly
+            out[start + 3:self.coords.stop] = sn * self.su + c * self.sw
+        return out
+
+
+@dataclass(frozen=True)
+class MultiplierObservable:
+    """A weighted sum of the constraint multipliers, ``weights @ lam``: a joint's force component
+    (N) or a prescribed drive's torque (N m). Not a function of ``s``: ``linearize`` evaluates it
+    from the nominal multipliers and their linearised change."""
+
+    spec: str
+    unit: str
+    kind: str
+    weights: np.ndarray    # (r,)
+
+    def value_from(self, lam) -> float:
+        return float(self.weights @ np.asarray(lam, dtype=float))
+
+    def value(self, s) -> float:
+        raise _not_of_coordinates(self.spec, "a sum of multipliers: MultiplierObservable."
+                                             "value_from(lam) (SimulationResult.lam)")
+
+
+@dataclass(frozen=True)
+class TorqueLawObservable:
+    """The torque (N m) a torque drive applies: ``feedforward(t) + kp (angle(t) - h.s) +
+    kd (rate(t) - h.s')``; its change with ``x = s - s0`` is ``-kp h.x - kd h.x'``."""
+
+    spec: str
+    unit: str
+    kind: str
+    drive_index: int       # position in mechanism.drives (and in NominalMotion.drive_torque)
+    gradient: np.ndarray   # h (n,)
+    kp: float
+    kd: float
+
+    def value(self, s) -> float:
+        raise _not_of_coordinates(self.spec, "the drive's torque law: Model.drive_torques(s, "
+                                             "sdot, t, lam)")
+
+
+@dataclass(frozen=True)
+class PairMagnitude:
+    """The magnitude ``hypot(a, b)`` of a vector given by two observables: for joint forces the
+    total force's magnitude, for point errors the magnitude of the displacement."""
+
+    spec: str
+    unit: str
+    kind: str
+    components: tuple      # (observable a, observable b)
+
+    def value(self, s) -> float:
+        raise _not_of_coordinates(self.spec, "the magnitude of a change or of a force: "
+                                             "linearize.about(...).observe")
+
+
+@dataclass(frozen=True)
+class StressObservable:
+    """Normal stress (Pa) at an extreme fibre ``y = fibre`` (signed, m) of an elastic link at
+    abscissa ``x``: ``sigma = N / A - M fibre / I`` with ``M = EI w''`` (``moment``). ``N`` is
+    ``EA`` times the membrane strain (``strain``) when the link has axial coordinates: they carry
+    the axial load of the motion, so this is the total axial force. A link without axial
+    coordinates is axially rigid: its ``N`` is the nominal axial force of the rigid inverse dynamics
+    (``needs_axial_force``; ``linearize`` supplies it) and has no elastic change."""
+
+    spec: str
+    unit: str
+    kind: str
+    link: str
+    x: float
+    fibre: float
+    area: float
+    second_moment: float
+    axial_stiffness: float
+    moment: LinkObservable
+    strain: LinkObservable | None
+
+    @property
+    def needs_axial_force(self) -> bool:
+        return self.strain is None
+
+    depends_on_elastic_only = True
+
+    def value(self, s, axial_force: float | None = None) -> float:
+        """The stress at ``s``; ``axial_force`` (N) is required without axial coordinates (and
+        used only then)."""
+        if self.strain is None and axial_force is None:
+            raise _not_of_coordinates(self.spec, "the nominal axial force of an axially rigid "
+                                                 "link: pass axial_force, or linearize.about")
+        normal = (self.axial_stiffness * self.strain.value(s) if self.strain is not None
+                  else axial_force)
+        return float(normal / self.area - self.moment.value(s) * self.fibre / self.second_moment)
+
+    def gradient(self, s) -> np.ndarray:
+        """Gradient of the elastic part (the nominal axial force of an axially rigid link is not a
+        function of ``s``)."""
+        grad = -self.moment.gradient(s) * self.fibre / self.second_moment
+        if self.strain is not None:
+            grad = grad + self.axial_stiffness * self.strain.gradient(s) / self.area
+        return grad
+
+
+def _not_of_coordinates(spec: str, where: str) -> ArgumentError:
+    return ArgumentError(f"observable {spec!r} is not a function of the coordinates s alone (it "
+                         f"is {where}); mechanisms.simulate reports only such observables")
+
+
+def make_observable(model, spec: str):
     """Parse ``spec`` against ``model`` (a ``mechanisms.Model``)."""
     if not isinstance(spec, str):
         raise TypeError(f"spec must be a string such as 'coupler.deflection@0.5'; received "
                         f"{type(spec).__name__}")
     head, _, where = spec.partition("@")
+    parts = head.split(".")
+    if len(parts) == 3 and parts[0] in ("joint", "drive") and parts[0] not in model.layouts:
+        if where:
+            raise ArgumentError(f"observable {spec!r}: a {parts[0]} quantity takes no '@'")
+        if parts[0] == "joint":
+            return _joint_observable(model, spec, parts[1], parts[2])
+        return _drive_observable(model, spec, parts[1], parts[2])
     name, _, kind = head.rpartition(".")
     if name not in model.layouts:
         raise ArgumentError(f"observable {spec!r}: unknown link {name!r}; links are "
-                         f"{list(model.layouts)}")
-    if kind not in _KINDS:
+                            f"{list(model.layouts)} (or 'joint.<name>.fx|fy|force', "
+                            f"'drive.<joint>.torque')")
+    known = sorted([*_KINDS, *_POINT_KINDS, "point_error", *_STRESS_KINDS])
+    if kind not in known:
         raise ArgumentError(f"observable {spec!r}: unknown quantity {kind!r}; expected one of "
-                         f"{sorted(_KINDS)}")
+                            f"{known}")
     lay = model.layouts[name]
+    if kind in _POINT_KINDS or kind == "point_error":
+        return _point_observable(model, spec, lay, kind, where)
+    if kind in _STRESS_KINDS:
+        return _stress_observable(model, spec, name, lay, kind, where)
+    return _link_observable(model, spec, lay, kind, where)
+
+
+def _fraction(spec: str, where: str) -> float:
+    try:
+        fraction = float(where) if where else 0.5
+    except ValueError:
+        raise ArgumentError(f"observable {spec!r}: the part after '@' must be a fraction of the "
+                            f"length in [0, 1]; received {where!r}") from None
+    if not 0.0 <= fraction <= 1.0:
+        raise ArgumentError(f"observable {spec!r}: fraction must be in [0, 1]; received {fraction}")
+    return fraction
+
+
+def _link_observable(model, spec, lay, kind, where) -> LinkObservable:
+    name = lay.link.name
     common = dict(spec=spec, unit=_KINDS[kind], kind=kind, n_coords=model.n_coords,
                   coords=lay.coords, theta_index=lay.offset + 2, length=lay.link.length)
     if kind == "angle":
@@ -133,14 +334,7 @@ def make_observable(model, spec: str) -> LinkObservable:
         return LinkObservable(**common, x=0.0, rows=(), flexural_rigidity=0.0, membrane=())
     if lay.shapes is None:
         raise ArgumentError(f"observable {spec!r}: {kind} needs an elastic link; {name!r} is rigid")
-    try:
-        fraction = float(where) if where else 0.5
-    except ValueError:
-        raise ArgumentError(f"observable {spec!r}: the part after '@' must be a fraction of the "
-                         f"length in [0, 1]; received {where!r}") from None
-    if not 0.0 <= fraction <= 1.0:
-        raise ArgumentError(f"observable {spec!r}: fraction must be in [0, 1]; received {fraction}")
-    x = fraction * lay.link.length
+    x = _fraction(spec, where) * lay.link.length
     v = lay.shapes.evaluate([x, lay.link.length])
     rows = (v.u[0], v.w[0], v.du[0], v.dw[0], v.ddw[0], v.u[1], v.w[1])
     membrane = ()
@@ -148,3 +342,87 @@ def make_observable(model, spec: str) -> LinkObservable:
         membrane = (v.du[0] @ lay.membrane, lay.shapes.evaluate(lay.shapes.quadrature[0]).dw)
     return LinkObservable(**common, x=x, rows=rows, membrane=membrane,
                           flexural_rigidity=lay.link.youngs_modulus * lay.link.second_moment)
+
+
+def _point_observable(model, spec, lay, kind, where):
+    """A point's x or y position, or (``point_error``) the magnitude of its displacement."""
+    if kind == "point_error":
+        return PairMagnitude(spec, "m", kind, tuple(
+            _point_observable(model, f"{spec.partition('@')[0]}_{axis}@{where}", lay,
+                              f"point_error_{axis}", where) for axis in "xy"))
+    link = lay.link
+    try:
+        fraction = float(where) if where else 0.5
+    except ValueError:
+        try:                                   # a named point ("start", "end", a key of points)
+            px, py = link.point_position(where)
+        except ValueError as error:
+            raise ArgumentError(f"observable {spec!r}: {error}") from None
+    else:
+        px, py = _fraction(spec, where) * link.length, 0.0
+    if lay.shapes is None:
+        su = sw = np.zeros(0)
+    else:
+        v = lay.shapes.evaluate([px])
+        su, sw = v.u[0], v.w[0]
+    return PointObservable(spec, "m", kind, model.n_coords, lay.coords, _POINT_KINDS[kind],
+                           (float(px), float(py)), su, sw)
+
+
+def _stress_observable(model, spec, name, lay, kind, where) -> StressObservable:
+    if lay.shapes is None:
+        raise ArgumentError(f"observable {spec!r}: stress needs an elastic link; {name!r} is rigid")
+    fraction = _fraction(spec, where)
+    link = lay.link
+    moment = _link_observable(model, f"{name}.moment@{fraction!r}", lay, "moment", repr(fraction))
+    strain = None
+    quadrature = lay.shapes.quadrature[0]
+    if np.any(lay.shapes.evaluate(quadrature).du):   # the link has axial coordinates
+        strain = _link_observable(model, f"{name}.strain@{fraction!r}", lay, "strain",
+                                  repr(fraction))
+    return StressObservable(spec, "Pa", kind, name, fraction * link.length,
+                            _STRESS_KINDS[kind] * link.fibre_distance, link.area,
+                            link.second_moment, link.youngs_modulus * link.area, moment, strain)
+
+
+def _joint_observable(model, spec, joint_name, kind):
+    if kind not in _JOINT_KINDS:
+        raise ArgumentError(f"observable {spec!r}: unknown joint quantity {kind!r}; expected one "
+                            f"of {list(_JOINT_KINDS)}")
+    try:
+        rows = model.joint_rows(joint_name)
+    except ArgumentError as error:
+        raise ArgumentError(f"observable {spec!r}: {error}") from None
+    if kind == "force":
+        return PairMagnitude(spec, "N", kind, (_joint_observable(model, f"joint.{joint_name}.fx",
+                                                                 joint_name, "fx"),
+                                               _joint_observable(model, f"joint.{joint_name}.fy",
+                                                                 joint_name, "fy")))
+    axis = 0 if kind == "fx" else 1
+    weights = np.zeros(model.n_constraints)
+    if rows.kind == "revolute":
+        # Phi = r_a - r_b: the force on link_b is -(dPhi/dR_b)^T lam = +lam.
+        weights[rows.rows[axis]] = 1.0
+    else:
+        # slider, Phi = n . (r - origin): the force on the link is -n lam
+        angle = model.mechanism.joint(joint_name).angle
+        normal = (-np.sin(angle), np.cos(angle))
+        weights[rows.rows[0]] = -normal[axis]
+    return MultiplierObservable(spec, "N", kind, weights)
+
+
+def _drive_observable(model, spec, joint_name, kind):
+    if kind != "torque":
+        raise ArgumentError(f"observable {spec!r}: unknown drive quantity {kind!r}; expected "
+                            f"'torque'")
+    drives = [info for info in model._drives if info.drive.joint == joint_name]
+    if not drives:
+        raise ArgumentError(f"observable {spec!r}: no drive at joint {joint_name!r}; drives act "
+                            f"at {[info.drive.joint for info in model._drives]}")
+    info = drives[0]
+    if info.row >= 0:
+        weights = np.zeros(model.n_constraints)
+        weights[info.row] = -1.0          # Model.drive_torques: the torque is -lam of the row
+        return MultiplierObservable(spec, "N m", kind, weights)
+    return TorqueLawObservable(spec, "N m", kind, model._drives.index(info), info.gradient,
+                               float(info.drive.kp), float(info.drive.kd))

@@ -271,7 +271,9 @@ class ElasticLink:
 
     ``area`` in m^2, ``second_moment`` (I of the section about the bending axis) in m^4, ``density``
     in kg/m^3, ``youngs_modulus`` in Pa; ``yield_strength`` (Pa, optional): the material's yield
-    stress, against which ``linearize`` compares the peak bending stress (``None``: not compared).
+    stress, against which ``linearize`` compares the peak bending stress (``None``: not compared);
+    ``outer_fibre`` (m, optional): distance of the extreme fibre from the neutral axis for the stress
+    observables (``None``: ``section_height / 2``, exact for a rectangular section).
     """
 
     name: str
@@ -287,10 +289,13 @@ class ElasticLink:
     rotary_inertia: bool = False
     damping: Damping = None
     yield_strength: float | None = None
+    outer_fibre: float | None = None
 
     def __post_init__(self) -> None:
         _check_name("link", self.name)
         owner = f"link {self.name!r}"
+        if self.outer_fibre is not None:
+            _check_number(owner, "outer_fibre", self.outer_fibre, "m", positive=True)
         for key, unit in (("length", "m"), ("density", "kg/m^3"), ("youngs_modulus", "Pa"),
                           ("area", "m^2"), ("second_moment", "m^4")):
             _check_number(owner, key, getattr(self, key), unit, positive=True)
@@ -337,6 +342,12 @@ class ElasticLink:
         section the depth of the rectangle with the same ``A`` and ``I``. The outer fibre is at
         ``h / 2`` from the neutral axis."""
         return math.sqrt(12.0 * self.second_moment / self.area)
+
+    @property
+    def fibre_distance(self) -> float:
+        """Distance ``c`` (m) of the extreme fibres from the neutral axis: ``outer_fibre`` when
+        given, else ``section_height / 2``."""
+        return self.outer_fibre if self.outer_fibre is not None else 0.5 * self.section_height
 
     @property
     def euler_load(self) -> float:

@@ -207,10 +207,12 @@ class MechanismProblem:
                 return _linear(family.base, family.base.system, family.base,
                                linear_range=family.base.linear_range)
             if not context:
-                # On the crank-angle grid the configuration (hence the observable gains) is the
-                # base's; only the coefficients change with the speed.
+                # On the crank-angle grid the configuration (hence the gains of the observables of
+                # the configuration) is the base's; the coefficients and the maps of forces,
+                # torques and stresses change with the speed.
                 return _linear(family.base, family.system_at(speed), None,
-                               linear_range=_family_range(family, speed))
+                               linear_range=_family_range(family, speed),
+                               maps=family.observable_maps_at(speed))
             lin = family.at_speed(speed)
         else:
             lin = linearize.about(self.mechanism(dict(others, speed=speed)), n_steps=n_steps,
@@ -223,8 +225,10 @@ class MechanismProblem:
     def simulate(self, linear: Linear, x0: np.ndarray, v0: np.ndarray, *, n_periods: int,
                  steps_per_period: int) -> NonlinearRun:
         """``mechanisms.simulate`` from the nominal state plus ``x = V z`` (projected onto the
-        constraints, which ``V z`` satisfies to first order only); observables as deviations from
-        their values along the nominal motion, with the simulation's Richardson error estimates."""
+        constraints, which ``V z`` satisfies to first order only); observables as the linear route
+        reports them (``MechanismLinear``): functions of the coordinates as deviations from their
+        values along the nominal motion, with the simulation's Richardson error estimates; joint
+        forces and drive torques as totals from the run's multipliers and rates (error NaN)."""
         import mechanisms
 
         lin = linear.context
@@ -234,22 +238,54 @@ class MechanismProblem:
         n = linear.system.n_steps
         # On the constraints exactly, with the second-order axial shortening of stiffened links.
         s0, sdot0 = lin.start_state(x0, v0)
+        observers = {spec: model.observable(spec) for spec in linear.observables}
+        # the observables that are functions of s the integrator evaluates (with its error
+        # estimates); forces, torques and magnitudes come from its multipliers and rates below
+        direct = [spec for spec, obs in observers.items() if _of_coordinates(obs)]
         run = mechanisms.simulate(lin.mechanism, n_periods=n_periods, steps_per_period=steps_per_period,
-                                  s0=s0, sdot0=sdot0, observables=list(linear.observables),
-                                  estimate_error=True)
+                                  s0=s0, sdot0=sdot0, observables=direct, estimate_error=True)
         if not run.success:
             raise ComputationError(f"nonlinear run of {self.name!r} failed: {run.message}")
         if steps_per_period != n:
             raise StudiesError(f"steps_per_period ({steps_per_period}) must equal the linear grid's "
                              f"n_steps ({n}) to subtract the nominal motion sample by sample")
-        observables = {}
-        for spec in linear.observables:
-            observable = model.observable(spec)
-            nominal = np.array([observable.value(sk) for sk in lin.nominal.s[:-1]])
-            reps = int(math.ceil(run.t.size / n))
-            observables[spec] = run.observables[spec] - np.tile(nominal, reps)[: run.t.size]
+        reps = int(math.ceil(run.t.size / n))
+
+        def periodic(values):   # a quantity on the nominal grid, repeated over the run
+            return np.tile(np.asarray(values)[:-1], reps)[: run.t.size]
+
+        def along_run(obs, observable_map):
+            """The observable along the run as the linear route reports it: deviations of
+            functions of s, totals of forces and torques."""
+            kind = type(obs).__name__
+            if kind == "PairMagnitude":
+                return np.hypot(*(along_run(c, m) for c, m in
+                                  zip(obs.components, observable_map.components)))
+            if kind == "MultiplierObservable":
+                return run.lam @ obs.weights
+            if kind == "TorqueLawObservable":
+                # the run's model applies the nominal torque as feedforward (the map's nominal)
+                feedback = np.array([model.drive_torques(sk, vk, tk, lk)[obs.drive_index]
+                                     for sk, vk, tk, lk in zip(run.s, run.sdot, run.t, run.lam)])
+                return periodic(observable_map.nominal) + feedback
+            if getattr(obs, "needs_axial_force", False):   # its elastic part; nominal below
+                def value(sk):
+                    return obs.value(sk, axial_force=0.0)
+            else:
+                value = obs.value
+            values = (run.observables[obs.spec] if obs.spec in run.observables
+                      else np.array([value(sk) for sk in run.s]))
+            values = values - periodic([value(sk) for sk in lin.nominal.s])
+            if observable_map.nominal is not None:   # the axially rigid link's nominal axial stress
+                values = values + periodic(observable_map.nominal)
+            return values
+
+        maps = dict(zip(linear.observables, linear.maps))
+        observables = {spec: along_run(obs, maps[spec]) for spec, obs in observers.items()}
+        error = {spec: float(run.observable_error.get(spec, float("nan")))
+                 for spec in linear.observables}
         return NonlinearRun(t=run.t, observables=observables, run_time=run.run_time,
-                            error=dict(run.observable_error), message=run.message)
+                            error=error, message=run.message)
 
     # --- drawings ----------------------------------------------------------------------------------------
     def outlines(self, linear: Linear, z: np.ndarray, *, n_points: int = 21,
@@ -286,6 +322,14 @@ class MechanismProblem:
         return outlines, float(magnification)
 
 
+def _of_coordinates(observable: Any) -> bool:
+    """Whether ``observable`` is a function of the coordinates alone (``mechanisms.simulate``
+    evaluates it): not a force, torque, magnitude or the stress of an axially rigid link."""
+    return (callable(getattr(observable, "value", None))
+            and callable(getattr(observable, "gradient", None))
+            and not getattr(observable, "needs_axial_force", False))
+
+
 def _speed(mechanism) -> float:
     """The studies' ``speed`` of a mechanism: the fundamental angular frequency ``2 pi / period`` of its
     periodic motion, rad/s (the crank speed of a crank turning once per period)."""
@@ -319,15 +363,45 @@ def _family_range(family: Any, speed: float):
     return lambda z: family.linear_range(speed, z)
 
 
-def _linear(lin: Any, system: Any, context: Any, *, linear_range: Any = None) -> Linear:
-    """A study's ``Linear`` from a ``linearize`` result (gains and units of its observables). The
-    crank angle is the phase ``2 pi t / T`` (the drive angle less its offset for a crank turning once
-    per period; the phase of an oscillating drive)."""
-    model = lin.nominal.model
-    gains = np.ascontiguousarray(np.stack([lin.observable_maps[s] for s in lin.observables], axis=1))
+@dataclass(frozen=True, eq=False)
+class MechanismLinear(Linear):
+    """A ``Linear`` whose observables follow ``linearize.ObservableMap``s (``maps``, in the order
+    of ``observables``): deviations linear in ``z`` (``gains`` holds their ``z`` gains, zero for
+    the others) and the totals of joint forces, drive torques and stresses, which also need
+    ``z'`` and ``z''`` (spectral derivatives of the periodic ``z``) and a nominal part, and
+    magnitudes (``hypot`` of two such)."""
+
+    maps: tuple = ()
+
+    def observe(self, z: np.ndarray, *, stride: int = 1) -> np.ndarray:
+        """Observables of the periodic ``z`` (N/stride + 1, m) sampled every ``stride`` samples:
+        (N/stride + 1, n_obs). The N/2 solution of the error estimate goes through the same
+        formulas on its own grid, so its difference from the N-step one estimates their error."""
+        import linearize
+
+        if not any(m.total or m.needs_derivatives or m.components for m in self.maps):
+            return super().observe(z, stride=stride)
+        zdot = zddot = None
+        if any(m.needs_derivatives for m in self.maps):
+            zdot, zddot, _ = linearize.spectral_derivatives(z, self.system.period)
+        return np.stack([m.evaluate(z, zdot, zddot, stride=stride) for m in self.maps], axis=1)
+
+
+def _linear(lin: Any, system: Any, context: Any, *, linear_range: Any = None,
+            maps: Mapping[str, Any] | None = None) -> Linear:
+    """A study's ``Linear`` from a ``linearize`` result (maps, gains and units of its observables;
+    ``maps`` instead of ``lin``'s at another speed). The crank angle is the phase ``2 pi t / T``
+    (the drive angle less its offset for a crank turning once per period; the phase of an
+    oscillating drive)."""
+    maps = lin.observable_maps if maps is None else maps
+    ordered = tuple(maps[s] for s in lin.observables)
+    n_samples, m = system.f.shape
+    gains = np.zeros((n_samples, len(ordered), m))
+    for k, observable_map in enumerate(ordered):
+        if observable_map.position is not None and not observable_map.components:
+            gains[:, k] = observable_map.position
     phase = 2.0 * math.pi * np.asarray(system.t) / system.period
-    return Linear(system=system, crank_angle=phase,
-                  labels=tuple(lin.labels), observables=tuple(lin.observables),
-                  units=tuple(model.observable(s).unit for s in lin.observables), gains=gains,
-                  context=context,
-                  linear_range=linear_range)
+    return MechanismLinear(system=system, crank_angle=phase,
+                           labels=tuple(lin.labels), observables=tuple(lin.observables),
+                           units=tuple(observable_map.unit for observable_map in ordered),
+                           gains=gains, context=context, linear_range=linear_range, maps=ordered)

@@ -64,15 +64,13 @@ def solve_steady(linear: Linear) -> Steady:
                   message=message, is_stable=state.is_stable, run_time=state.run_time)
 
 
-def peak_to_peak(samples: np.ndarray) -> tuple[float, float]:
-    """Peak-to-peak of a periodic signal sampled at ``t_0 .. t_N`` (``t_N`` repeats ``t_0``), (N+1,).
-
-    The extremes of the samples miss the true ones by up to ``A (k dphi)^2 / 8`` for a harmonic k of
-    amplitude A sampled every ``dphi`` rad; each extreme is refined by the parabola through it and its
-    two neighbours (error of higher order). Returns ``(value, correction)`` where ``correction`` (the
-    change made by the refinement) bounds the sampling error of the unrefined value and is reported as
-    part of the error estimate.
-    """
+def extremes(samples: np.ndarray) -> tuple[float, float, float, float]:
+    """Largest and smallest value of a periodic signal sampled at ``t_0 .. t_N`` (``t_N`` repeats
+    ``t_0``), (N+1,), each refined by the parabola through it and its two neighbours: the sampled
+    extremes miss the true ones by up to ``A (k dphi)^2 / 8`` for a harmonic k of amplitude A
+    sampled every ``dphi`` rad (the refinement's error is of higher order). Returns ``(high, low,
+    high_change, low_change)``, the changes the refinement made bounding the sampling error of the
+    unrefined extremes."""
     values = samples[:-1]
     n = values.size
     refined = []
@@ -83,7 +81,44 @@ def peak_to_peak(samples: np.ndarray) -> tuple[float, float]:
         offset = 0.0 if curvature == 0.0 else 0.5 * (left - right) / curvature
         refined.append((centre - 0.25 * (left - right) * offset, centre))
     (high, high_sampled), (low, low_sampled) = refined
-    return float(high - low), float(abs((high - low) - (high_sampled - low_sampled)))
+    return float(high), float(low), float(abs(high - high_sampled)), float(abs(low - low_sampled))
+
+
+def peak_to_peak(samples: np.ndarray) -> tuple[float, float]:
+    """Peak-to-peak of a periodic signal sampled at ``t_0 .. t_N`` (``t_N`` repeats ``t_0``), (N+1,),
+    from its refined ``extremes``. Returns ``(value, correction)`` where ``correction`` (the change
+    made by the refinement) bounds the sampling error of the unrefined value and is reported as
+    part of the error estimate.
+    """
+    values = samples[:-1]
+    high, low, _, _ = extremes(samples)
+    sampled = float(values.max() - values.min())
+    return float(high - low), float(abs((high - low) - sampled))
+
+
+def peak(samples: np.ndarray) -> tuple[float, float]:
+    """The largest magnitude of a periodic signal (N+1,), ``max(|high|, |low|)`` of its refined
+    ``extremes`` (N): ``(value, correction)``, the correction bounding the sampling error."""
+    high, low, high_change, low_change = extremes(samples)
+    return (float(abs(high)), high_change) if abs(high) >= abs(low) else (float(abs(low)), low_change)
+
+
+def peak_summary(response: np.ndarray, response_error: np.ndarray) -> dict[str, np.ndarray]:
+    """Peak and peak-to-peak of each observable of a steady ``response`` (N+1, n_obs) with their
+    errors from the per-observable ``response_error`` (n_obs,): a peak is within the response's
+    error ``e`` of the truth, a peak-to-peak within ``2 e`` (the extremes of two functions each
+    within ``e`` differ by at most ``2 e``); the sampling correction of the extremes is added as a
+    bound on what the refinement leaves. Returns ``{"peak", "peak_error", "peak_to_peak",
+    "peak_to_peak_error"}``, each (n_obs,), in the observables' units."""
+    out = {name: np.empty(response.shape[1]) for name in
+           ("peak", "peak_error", "peak_to_peak", "peak_to_peak_error")}
+    for k in range(response.shape[1]):
+        error = float(response_error[k])
+        out["peak"][k], sampling = peak(response[:, k])
+        out["peak_error"][k] = error + sampling
+        out["peak_to_peak"][k], sampling = peak_to_peak(response[:, k])
+        out["peak_to_peak_error"][k] = 2.0 * error + sampling
+    return out
 
 
 def frozen_modes(system: periodic.PeriodicSystem, n_samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

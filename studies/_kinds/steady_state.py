@@ -10,7 +10,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .._kind import StudyKind, speed_values, steps
-from .._numerics import solve_steady
+from .._numerics import peak_summary, solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
 from .._store import Result, register
 from .._studies import check_n_steps
@@ -27,7 +27,11 @@ class SteadyStateResult(Result):
 
     ``t`` (N+1,) s; ``crank_angle`` (N+1,) rad; ``x`` (N+1, m) independent coordinates (SI unit of each
     coordinate, see ``labels``); ``response`` {spec: (N+1,)} observables; ``response_error``
-    {spec: float} estimated max abs error of each; ``multipliers`` (2m,) complex; ``error_estimate``
+    {spec: float} estimated max abs error of each; ``peak``, ``peak_to_peak`` {spec: float} the
+    largest magnitude and the peak-to-peak of each over the period, ``peak_error``,
+    ``peak_to_peak_error`` {spec: float} their estimated errors (``studies._numerics.peak_summary``),
+    in the observables' units (for joint forces, drive torques and stresses: of the totals, nominal
+    plus elastic change); ``multipliers`` (2m,) complex; ``error_estimate``
     max abs error of ``x``; ``spectral_radius_error`` its estimated error; ``status``, ``message``,
     ``is_stable`` the verdict (``studies._verdicts``: stability with its error bar, error trust, near
     resonance, unresolved modes, linear range); ``instability_kind`` ("fold", "period_doubling",
@@ -61,6 +65,10 @@ class SteadyStateResult(Result):
     spectral_radius_error: float = float("nan")
     instability_kind: str = ""
     linear_range: Mapping[str, float] = field(default_factory=dict)
+    peak: Mapping[str, float] = field(default_factory=dict)
+    peak_error: Mapping[str, float] = field(default_factory=dict)
+    peak_to_peak: Mapping[str, float] = field(default_factory=dict)
+    peak_to_peak_error: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def headline(self) -> str:
@@ -133,6 +141,8 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
     linear = problem.linearize(values, n_steps=n_steps)
     steady = solve_steady(linear)
     state = steady.state
+    peaks = {name: {spec: float(values[k]) for k, spec in enumerate(linear.observables)}
+             for name, values in peak_summary(steady.response, steady.response_error).items()}
     drawing = {}
     if hasattr(problem, "outlines"):
         outlines, magnification = problem.outlines(linear, state.x)
@@ -148,7 +158,8 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
         error_estimate=steady.error_estimate, status=steady.status, message=steady.message,
         n_steps=n_steps, run_time=time.perf_counter() - start, shooting_run_time=steady.run_time,
         is_stable=steady.is_stable, spectral_radius_error=steady.spectral_radius_error,
-        instability_kind=steady.instability_kind, linear_range=steady.linear_range, **drawing)
+        instability_kind=steady.instability_kind, linear_range=steady.linear_range, **peaks,
+        **drawing)
 
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:

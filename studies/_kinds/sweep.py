@@ -15,7 +15,7 @@ import periodic
 
 from .._grid import run_grid
 from .._kind import AXIS_KEYS, StudyKind, axis, integer, steps
-from .._numerics import crossings, frozen_modes, peak_to_peak, solve_steady, unstable_intervals
+from .._numerics import crossings, frozen_modes, peak_summary, solve_steady, unstable_intervals
 from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses
 from .._problem import SPEED
 from .._store import register
@@ -43,7 +43,9 @@ class SweepResult(GridResult):
 
     ``values`` (n,) of ``parameter`` (unit ``parameter_unit``); ``speed`` (n,) crank speed rad/s at
     each point; ``peak_to_peak`` {spec: (n,)} and ``peak_to_peak_error`` {spec: (n,)} (twice the max
-    error estimate); ``spectral_radius`` (n,); ``multipliers`` (n, 2m) complex; ``error_estimate`` (n,)
+    error estimate plus the sampling correction of the extremes); ``peak`` {spec: (n,)} the largest
+    magnitude over the period and ``peak_error`` {spec: (n,)} (``studies._numerics.peak_summary``;
+    for joint forces, drive torques and stresses the totals, nominal plus elastic change); ``spectral_radius`` (n,); ``multipliers`` (n, 2m) complex; ``error_estimate`` (n,)
     max error of the coordinates; ``frozen_min``, ``frozen_max``, ``frozen_mean`` (n, m) rad/s the
     band of each frozen-time natural frequency (ascending order) over the period; ``resonances``
     ((k, mode, value), ...) where ``k * speed`` crosses the mean of frozen frequency ``mode``
@@ -74,8 +76,10 @@ class SweepResult(GridResult):
     spectral_radius_error: np.ndarray = None
     is_stable: np.ndarray = None
     linear_range: Mapping[str, np.ndarray] = field(default_factory=dict)
+    peak: Mapping[str, np.ndarray] = field(default_factory=dict)
+    peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
 
-    _units = {"spectral_radius_error": "1", "is_stable": "1", "linear_range": "1", "values": "@parameter_unit", "speed": "rad/s", "peak_to_peak": "@observables",
+    _units = {"peak": "@observables", "peak_error": "@observables", "spectral_radius_error": "1", "is_stable": "1", "linear_range": "1", "values": "@parameter_unit", "speed": "rad/s", "peak_to_peak": "@observables",
               "peak_to_peak_error": "@observables", "spectral_radius": "1", "multipliers": "1",
               "error_estimate": "SI (see labels)", "frozen_min": "rad/s", "frozen_max": "rad/s",
               "frozen_mean": "rad/s", **GridResult._units}
@@ -141,13 +145,11 @@ def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, froz
     }
     data.update({f"linear_range/{name}": value for name, value in steady.linear_range.items()})
     verdicts = [(steady.status, steady.message)]
+    peaks = peak_summary(response, steady.response_error)
     for k, spec in enumerate(linear.observables):
-        value, sampling = peak_to_peak(response[:, k])
-        data[f"peak_to_peak/{spec}"] = value
-        # The extremes of two functions each within e of the truth differ by at most 2 e; the
-        # sampling correction of the extremes is added as a bound on what the refinement leaves.
-        error = 2.0 * float(steady.response_error[k]) + sampling
-        data[f"peak_to_peak_error/{spec}"] = error
+        for name, values in peaks.items():
+            data[f"{name}/{spec}"] = float(values[k])
+        value, error = peaks["peak_to_peak"][k], peaks["peak_to_peak_error"][k]
         if not error <= INACCURATE * value:
             verdicts.append((STATUS_INACCURATE,
                              f"{spec}: peak-to-peak error estimate {error:.3g} exceeds {INACCURATE:.0%} of "
@@ -177,7 +179,8 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
              "error_estimate": "SI (see labels)", "frozen_min": "rad/s", "frozen_max": "rad/s",
              "frozen_mean": "rad/s"}
     units.update({f"peak_to_peak/{s}": u for s, u in obs_units.items()})
-    units.update({f"peak_to_peak_error/{s}": u for s, u in obs_units.items()})
+    units.update({f"{name}/{s}": u for s, u in obs_units.items()
+                  for name in ("peak_to_peak_error", "peak", "peak_error")})
     header = dict(problem=problem.name, scene=problem.text, parameter=parameter,
                   parameter_unit=problem.units[parameter], labels=names.labels, units=obs_units)
     store = open_store(out, name, grid.shape, "SweepResult", settings, units, header,
@@ -187,9 +190,9 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
                         {"n_steps": n_steps, "frozen_samples": FROZEN_SAMPLES}, executor=executor,
                         store=store, progress=progress, description=f"{name} over {parameter}")
     fields = collect(outcomes, grid.shape)
-    peak = {spec: fields.pop(f"peak_to_peak/{spec}") for spec in obs_units if f"peak_to_peak/{spec}" in fields}
-    peak_error = {spec: fields.pop(f"peak_to_peak_error/{spec}") for spec in obs_units
-                  if f"peak_to_peak_error/{spec}" in fields}
+    per_observable = {name: {spec: fields.pop(f"{name}/{spec}") for spec in obs_units
+                             if f"{name}/{spec}" in fields}
+                      for name in ("peak_to_peak", "peak_to_peak_error", "peak", "peak_error")}
     ranges = {name: fields.pop(f"linear_range/{name}") for name in
               [key.split("/", 1)[1] for key in fields if key.startswith("linear_range/")]}
     resonances, instabilities = (), ()
@@ -200,8 +203,8 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
         # unstable where the radius exceeds 1 beyond its own error bar (periodic.stability_verdict)
         lower = fields["spectral_radius"] - np.nan_to_num(fields.get("spectral_radius_error", 0.0))
         instabilities = tuple(unstable_intervals(grid, lower, tol=periodic.STABILITY_TOL))
-    result = SweepResult(**header, settings=settings, values=grid, peak_to_peak=peak,
-                         peak_to_peak_error=peak_error, resonances=resonances, linear_range=ranges,
+    result = SweepResult(**header, settings=settings, values=grid, **per_observable,
+                         resonances=resonances, linear_range=ranges,
                          instabilities=instabilities, run_time=time.perf_counter() - start, **fields)
     if store is not None:
         result.to_hdf5(store.group)

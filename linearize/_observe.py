@@ -1,0 +1,165 @@
+"""Maps from the independent coordinates ``z`` of a linearised mechanism to its observables.
+
+An observable of the coordinates (``mechanisms`` ``LinkObservable``, ``PointObservable``) changes by
+``g(s0) . x`` with ``x = V z``: its *deviation* from the nominal value (zero for the elastic
+quantities; for a point's position, the point's displacement from its rigid nominal position). The
+force-like observables are reported as *totals*, nominal plus linearised change:
+
+* a joint force or a prescribed drive's torque, ``w . lam`` (``MultiplierObservable``):
+  ``w . lam0 + w . (A_x z + A_v z' + A_a z'')`` with the multiplier maps of ``linearize._core``;
+* a torque drive's torque: the nominal (inverse-dynamics) torque ``- kp h.x - kd h.x'``;
+* the fibre stress ``N / A -+ M c / I``: the bending part is elastic (``M = EI w''``, zero along the
+  rigid nominal motion); ``N`` is ``EA eps`` (the axial coordinates' response, which carries the
+  axial load of the rigid motion: the total) or, for a link without axial coordinates, the nominal
+  axial force of the rigid inverse dynamics (``linearize._geometric``) with no elastic change;
+* a magnitude (``joint.J.force``, ``link.point_error@p``): ``hypot`` of its two components' values
+  along the response (nonlinear in ``z``; each component is linear).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._core import spectral_derivatives
+from ._geometric import axial_forces
+
+__all__ = ["ObservableMap", "observable_maps"]
+
+
+@dataclass(frozen=True)
+class ObservableMap:
+    """An observable on the grid of N+1 samples: ``o = nominal + position z + rate z' +
+    acceleration z''`` (``nominal`` (N+1,) or None for a deviation; ``position``, ``rate``,
+    ``acceleration`` (N+1, m) or None where zero), or, with ``components`` (two maps), the
+    magnitude ``hypot`` of their values. ``unit`` its SI unit; ``total`` True when ``o`` is the
+    total value (nominal plus change), False when it is the deviation from the nominal value."""
+
+    unit: str
+    nominal: np.ndarray | None = None
+    position: np.ndarray | None = None
+    rate: np.ndarray | None = None
+    acceleration: np.ndarray | None = None
+    components: tuple = ()
+
+    @property
+    def total(self) -> bool:
+        return (self.nominal is not None) or any(c.total for c in self.components)
+
+    @property
+    def needs_derivatives(self) -> bool:
+        """Whether ``z'`` or ``z''`` enter."""
+        return (self.rate is not None or self.acceleration is not None
+                or any(c.needs_derivatives for c in self.components))
+
+    def evaluate(self, z: np.ndarray, zdot: np.ndarray | None = None,
+                 zddot: np.ndarray | None = None, *, stride: int = 1) -> np.ndarray:
+        """The observable (N/stride + 1,) along ``z``, ``zdot``, ``zddot`` (N/stride + 1, m)
+        sampled every ``stride`` samples of the grid."""
+        if self.components:
+            a, b = (c.evaluate(z, zdot, zddot, stride=stride) for c in self.components)
+            return np.hypot(a, b)
+        out = np.zeros(z.shape[0])
+        for gains, values in ((self.position, z), (self.rate, zdot), (self.acceleration, zddot)):
+            if gains is not None:
+                out += np.einsum("ki,ki->k", gains[::stride], values)
+        if self.nominal is not None:
+            out += self.nominal[::stride]
+        return out
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The non-None arrays by field name (components' arrays as ``"<k>.<field>"``)."""
+        named = {name: getattr(self, name) for name in ("nominal", "position", "rate",
+                                                        "acceleration")
+                 if getattr(self, name) is not None}
+        for k, component in enumerate(self.components):
+            named.update({f"{k}.{name}": array for name, array in component.arrays().items()})
+        return named
+
+    def with_arrays(self, arrays: dict[str, np.ndarray]) -> "ObservableMap":
+        """The same map with the arrays of ``arrays()`` replaced."""
+        own = {name: arrays[name] for name in ("nominal", "position", "rate", "acceleration")
+               if name in arrays}
+        components = tuple(
+            component.with_arrays({key.split(".", 1)[1]: value for key, value in arrays.items()
+                                   if key.startswith(f"{k}.")})
+            for k, component in enumerate(self.components))
+        return ObservableMap(self.unit, **{**{name: getattr(self, name) for name in
+                                              ("nominal", "position", "rate", "acceleration")},
+                                           **own}, components=components)
+
+
+def evaluate_maps(maps: dict[str, ObservableMap], z: np.ndarray, period: float, *,
+                  zdot: np.ndarray | None = None, zddot: np.ndarray | None = None,
+                  stride: int = 1) -> dict[str, np.ndarray]:
+    """Every map along ``z`` (samples, m); ``zdot``, ``zddot`` default to the spectral derivatives
+    of ``z`` as a periodic history over ``period`` (s) (a steady state)."""
+    if (zdot is None or zddot is None) and any(m.needs_derivatives for m in maps.values()):
+        d1, d2, _ = spectral_derivatives(z, period)
+        zdot = d1 if zdot is None else zdot
+        zddot = d2 if zddot is None else zddot
+    return {spec: m.evaluate(z, zdot, zddot, stride=stride) for spec, m in maps.items()}
+
+
+def needs_multiplier_maps(model, specs) -> bool:
+    """Whether any spec is (or has a component that is) a sum of multipliers: only those need
+    ``linear_coefficients(..., multipliers=True)``."""
+    def needs(obs):
+        return (type(obs).__name__ == "MultiplierObservable"
+                or any(needs(c) for c in getattr(obs, "components", ())))
+    return any(needs(model.observable(spec)) for spec in specs)
+
+
+def observable_maps(model, specs, *, t, s, sdot, sddot, lam, coefficients, drive_torque
+                    ) -> dict[str, ObservableMap]:
+    """The ``ObservableMap`` of each spec of ``model.observable`` along the nominal motion ``s,
+    sdot, sddot`` (N+1, n) at times ``t`` (N+1,), with the model's multipliers ``lam`` (N+1, r),
+    the nominal drive torques ``drive_torque`` (N+1, n_drives) and the ``LinearCoefficients``
+    ``coefficients`` (basis ``V``, ``Vdot``, multiplier maps)."""
+    context = _Context(model, t, s, sdot, sddot, lam, coefficients, drive_torque)
+    return {spec: context.map(model.observable(spec)) for spec in specs}
+
+
+class _Context:
+    def __init__(self, model, t, s, sdot, sddot, lam, coefficients, drive_torque):
+        self.model, self.t, self.s, self.sdot, self.sddot, self.lam = model, t, s, sdot, sddot, lam
+        self.c = coefficients
+        self.drive_torque = drive_torque
+        self.rigid_nominal = not np.any(s[:, np.asarray(model.elastic_index, dtype=np.int64)])
+
+    def map(self, obs) -> ObservableMap:
+        kind = type(obs).__name__
+        if kind == "PairMagnitude":
+            return ObservableMap(obs.unit, components=tuple(self.map(c) for c in obs.components))
+        if kind == "MultiplierObservable":
+            w = obs.weights
+            a_x, a_v, a_a = self.c.multiplier_maps
+            return ObservableMap(obs.unit, nominal=self.lam @ w,
+                                 position=np.einsum("r,kri->ki", w, a_x),
+                                 rate=np.einsum("r,kri->ki", w, a_v),
+                                 acceleration=np.einsum("r,kri->ki", w, a_a))
+        if kind == "TorqueLawObservable":
+            # change -kp h.x - kd h.x', x = V z, x' = V z' + V' z
+            hV = np.einsum("n,kni->ki", obs.gradient, self.c.V)
+            hVdot = np.einsum("n,kni->ki", obs.gradient, self.c.Vdot)
+            return ObservableMap(obs.unit, nominal=self.drive_torque[:, obs.drive_index].copy(),
+                                 position=-obs.kp * hV - obs.kd * hVdot, rate=-obs.kd * hV)
+        position = self._gradient_map(obs)
+        nominal = None
+        if kind == "StressObservable" and obs.needs_axial_force:
+            axial = axial_forces(self.model, self.t, self.s, self.sdot, self.sddot, self.lam,
+                                 {obs.link: np.array([obs.x])})[obs.link]
+            # None: the link is loaded by a joint that is not a point force (no inverse dynamics)
+            nominal = (np.full(len(self.t), np.nan) if axial is None
+                       else axial[:, 0] / obs.area)
+        return ObservableMap(obs.unit, nominal=nominal, position=position)
+
+    def _gradient_map(self, obs) -> np.ndarray:
+        """``g(s0(t)) . V(t)`` (N+1, m). An observable of the elastic coordinates alone has the same
+        gradient at every sample of a rigid nominal motion (its elastic coordinates are zero)."""
+        if self.rigid_nominal and getattr(obs, "depends_on_elastic_only", False):
+            gradients = np.broadcast_to(obs.gradient(self.s[0]), self.s.shape)
+        else:
+            gradients = np.stack([obs.gradient(sk) for sk in self.s])
+        return np.einsum("kn,kni->ki", gradients, self.c.V)
