@@ -450,7 +450,12 @@ def load(path_or_name: str | Path) -> Mechanism:
     if path.suffix == ".toml" or path.exists():
         if not path.is_file():
             raise FileNotFoundError(f"scene file {str(path)!r} does not exist")
-        text, source = path.read_text(encoding="utf-8"), str(path)
+        source = str(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError as error:
+            raise MechanismError(f"{source}: not a TOML text file (not UTF-8: byte {error.start} is "
+                                 f"{error.object[error.start:error.start + 1]!r})") from None
     else:
         names = scenes()
         if str(path_or_name) not in names:

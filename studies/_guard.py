@@ -9,8 +9,9 @@ The cost models are deliberately simple, each a sum of terms with one calibrated
   takes ``FAMILY_FACTOR`` times as long and peaks at ``FAMILY_DOUBLES``; a grid over other
   parameters keeps ``HELD_DOUBLES`` for each further variant cached (up to ``CACHED_FAMILIES``);
 - each study has a fixed overhead of ``STUDY_SECONDS`` (the nominal motion, the drawings);
-- a periodic solve (shooting at N, N/2 and N/4, Floquet multipliers) takes ``SOLVE_SECONDS`` per
-  ``N m^3`` plus ``POINT_SECONDS``; a frozen-time eigenproblem ``EIGEN_SECONDS`` per ``m^3``;
+- a periodic solve (shooting at N, N/2 and N/4, Floquet multipliers) takes ``POINT_SECONDS`` plus,
+  per step, ``STEP_SECONDS + STEP_M2_SECONDS m^2 + SOLVE_SECONDS m^3``; a frozen-time
+  eigenproblem ``EIGEN_SECONDS`` per ``m^3``;
 - a nonlinear run takes ``NONLINEAR_STEP_SECONDS + NONLINEAR_STEP_N2_SECONDS n^2`` per step and
   keeps ``NONLINEAR_DOUBLES`` doubles per step and coordinate.
 
@@ -54,6 +55,8 @@ HELD_DOUBLES = 12.0
 STUDY_SECONDS = 0.1
 CACHED_FAMILIES = 8  # studies._mechanism._CACHE_SIZE
 SOLVE_SECONDS = 4.0e-9
+STEP_SECONDS = 2.0e-6
+STEP_M2_SECONDS = 1.0e-7
 POINT_SECONDS = 5.0e-3
 EIGEN_SECONDS = 5.0e-9
 NONLINEAR_STEP_SECONDS = 2.0e-3
@@ -93,18 +96,24 @@ def memory_limit() -> float:
     return min(MEMORY_LIMIT, MEMORY_FRACTION * ram)
 
 
+def _number(value: float) -> str:
+    return f"{value:.2g}" if value < 100 else f"{value:.0f}"
+
+
 def format_bytes(value: float) -> str:
-    for unit, size in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+    """Bytes in binary units: "2.3 GiB", "120 MiB"."""
+    for unit, size in (("GiB", 2.0**30), ("MiB", 2.0**20), ("KiB", 2.0**10)):
         if value >= size:
-            return f"{value / size:.2g} {unit}"
+            return f"{_number(value / size)} {unit}"
     return f"{value:.0f} B"
 
 
 def format_seconds(value: float) -> str:
+    """Seconds in the largest unit that fits: "3 h", "1.5 days", "40 s"."""
     for unit, size in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
         if value >= size:
-            return f"{value / size:.2g} {unit}"
-    return f"{value:.2g} s"
+            return f"{_number(value / size)} {unit}"
+    return f"{_number(value)} s"
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -154,7 +163,8 @@ def _linearisation(n_steps: int, sizes: _Sizes) -> tuple[float, float]:
 
 def _solve_seconds(n_steps: int, sizes: _Sizes, frozen: int = 0) -> float:
     """Seconds of one periodic solve (and ``frozen`` frozen-time eigenproblems)."""
-    return POINT_SECONDS + SOLVE_SECONDS * n_steps * sizes.m**3 + EIGEN_SECONDS * frozen * sizes.m**3
+    per_step = STEP_SECONDS + STEP_M2_SECONDS * sizes.m**2 + SOLVE_SECONDS * sizes.m**3
+    return POINT_SECONDS + n_steps * per_step + EIGEN_SECONDS * frozen * sizes.m**3
 
 
 def _grid(name: str, problem: Any, axes: Sequence[tuple[str, np.ndarray]], n_steps: int, *,
