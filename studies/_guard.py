@@ -295,10 +295,10 @@ def guard(problem: Any, studies: Mapping[str, Mapping[str, Any]], *, force: bool
     for kind, options in studies.items():
         for suffix, each in KINDS[kind].runs(options).items():
             found = estimate(problem, kind, each, name=kind + suffix, workers=workers)
-            logger.info("%s", found.describe())
-            estimates.append(found)
             if not force and (found.memory > limit_memory or found.time > limit_time):
                 raise ResourceError(f"{found.describe()}; {limits}; {advice}")
+            logger.info("%s", found.describe())
+            estimates.append(found)
     total = sum(found.time for found in estimates)
     if not force and total > limit_time:
         raise ResourceError(f"all studies together: about {format_seconds(total)} estimated "
