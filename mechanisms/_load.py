@@ -79,10 +79,16 @@ class _Table:
                                  f"{value!r}")
         return float(value)
 
-    def integer(self, key: str, default: Any = _REQUIRED) -> int:
+    def integer(self, key: str, default: Any = _REQUIRED, *, minimum: int | None = None,
+                maximum: int | None = None, why: str = "") -> int:
+        """An integer value; with ``maximum`` (and the reason ``why``) an upper bound too."""
         value = self.raw(key, default)
         if not isinstance(value, int) or isinstance(value, bool):
             raise MechanismError(f"{self._at(key)} must be an integer, got {value!r}")
+        if minimum is not None and value < minimum:
+            raise MechanismError(f"{self._at(key)} must be an integer >= {minimum}, got {value!r}")
+        if maximum is not None and value > maximum:
+            raise MechanismError(f"{self._at(key)} must be at most {maximum} ({why}), got {value!r}")
         return value
 
     def string(self, key: str, default: Any = _REQUIRED, choices: tuple[str, ...] = ()) -> str:
@@ -448,7 +454,12 @@ def load(path_or_name: str | Path) -> Mechanism:
     if path.suffix == ".toml" or path.exists():
         if not path.is_file():
             raise FileNotFoundError(f"scene file {str(path)!r} does not exist")
-        text, source = path.read_text(encoding="utf-8"), str(path)
+        source = str(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError as error:
+            raise MechanismError(f"{source}: not a TOML text file (not UTF-8: byte {error.start} is "
+                                 f"{error.object[error.start:error.start + 1]!r})") from None
     else:
         names = scenes()
         if str(path_or_name) not in names:

@@ -77,9 +77,31 @@ def _check_number(owner: str, key: str, value: object, unit: str, *, positive: b
         raise MechanismError(f"{owner}: {key} must be zero or positive ({unit}), got {value!r}")
 
 
-def _check_count(owner: str, key: str, value: object, minimum: int) -> None:
-    if not isinstance(value, int) or isinstance(value, bool) or value < minimum:
-        raise MechanismError(f"{owner}: {key} must be an integer >= {minimum}, got {value!r}")
+# Upper bounds of the size-like values of a scene (docs/scenes.md, "Limits"). Each keeps what one
+# link or drive costs bounded, and far above what any model needs; what a whole study costs (its
+# steps, points and all coordinates together) is estimated and limited by the studies' resource guard.
+#: Hermite elements per link: each adds 3 coordinates, and a linearisation holds (n_steps + 1) n^2
+#: doubles per matrix (128 elements alone: 0.3 GB per matrix at 256 steps).
+MAX_ELEMENTS = 128
+#: Ritz modes per link, bending or axial: beyond 64 half-waves the Euler-Bernoulli beam itself no
+#: longer describes a slender link (the wavelength nears the section height of any practical link).
+MAX_MODES = 64
+#: Whole turns of a drive per period: the studies resolve one period with n_steps steps, and the
+#: loader's Grashof scan samples 4096 crank angles per turn.
+MAX_TURNS = 100
+#: Order k of a drive harmonic, and how many a drive may have: the motion is sampled n_steps times
+#: per period, and the studies' n_steps is at most 65536.
+MAX_HARMONIC_ORDER = 1000
+MAX_HARMONICS = 100
+
+
+def _check_count(owner: str, key: str, value: object, minimum: int, maximum: int | None = None,
+                 why: str = "") -> None:
+    if (not isinstance(value, int) or isinstance(value, bool) or value < minimum
+            or (maximum is not None and value > maximum)):
+        bound = f"an integer >= {minimum}" if maximum is None else \
+            f"an integer from {minimum} to {maximum} ({why})"
+        raise MechanismError(f"{owner}: {key} must be {bound}, got {value!r}")
 
 
 def _check_pair(owner: str, key: str, value: object, unit: str) -> None:
@@ -108,13 +130,17 @@ class Ritz:
     TYPE: ClassVar[str] = "ritz"
     KEYS: ClassVar[tuple[str, ...]] = ("type", "n_bending", "n_axial")
 
+    #: why the mode counts are bounded (``MAX_MODES``)
+    LIMIT: ClassVar[str] = "more modes than an Euler-Bernoulli beam describes"
+
     def __post_init__(self) -> None:
-        _check_count("Ritz", "n_bending", self.n_bending, 1)
-        _check_count("Ritz", "n_axial", self.n_axial, 0)
+        _check_count("Ritz", "n_bending", self.n_bending, 1, MAX_MODES, self.LIMIT)
+        _check_count("Ritz", "n_axial", self.n_axial, 0, MAX_MODES, self.LIMIT)
 
     @classmethod
     def from_table(cls, table) -> "Ritz":
-        return cls(table.integer("n_bending", 2), table.integer("n_axial", 1))
+        return cls(table.integer("n_bending", 2, minimum=1, maximum=MAX_MODES, why=cls.LIMIT),
+                   table.integer("n_axial", 1, minimum=0, maximum=MAX_MODES, why=cls.LIMIT))
 
     def to_table(self) -> dict[str, Any]:
         return {"type": self.TYPE, "n_bending": self.n_bending, "n_axial": self.n_axial}
@@ -148,12 +174,15 @@ class Fem:
     TYPE: ClassVar[str] = "fem"
     KEYS: ClassVar[tuple[str, ...]] = ("type", "n_elements")
 
+    #: why the element count is bounded (``MAX_ELEMENTS``)
+    LIMIT: ClassVar[str] = "each element adds 3 coordinates, and the matrices grow as their square"
+
     def __post_init__(self) -> None:
-        _check_count("Fem", "n_elements", self.n_elements, 1)
+        _check_count("Fem", "n_elements", self.n_elements, 1, MAX_ELEMENTS, self.LIMIT)
 
     @classmethod
     def from_table(cls, table) -> "Fem":
-        return cls(table.integer("n_elements", 1))
+        return cls(table.integer("n_elements", 1, minimum=1, maximum=MAX_ELEMENTS, why=cls.LIMIT))
 
     def to_table(self) -> dict[str, Any]:
         return {"type": self.TYPE, "n_elements": self.n_elements}
@@ -480,11 +509,15 @@ def _check_drive(drive: "PrescribedDrive | TorqueDrive") -> None:
     owner = f"drive at joint {drive.joint!r}"
     _check_number(owner, "rate", drive.rate, "rad/s")
     _check_number(owner, "offset", drive.offset, "rad")
+    if len(drive.harmonics) > MAX_HARMONICS:
+        raise MechanismError(f"{owner}: harmonics has {len(drive.harmonics)} entries; at most "
+                             f"{MAX_HARMONICS} (the motion is sampled n_steps times per period)")
     for i, harmonic in enumerate(drive.harmonics):
         if len(harmonic) != 3:
             raise MechanismError(f"{owner}: harmonics[{i}] must be (k, cos_k, sin_k), got "
                                  f"{harmonic!r}")
-        _check_count(owner, f"harmonics[{i}] order k", harmonic[0], 1)
+        _check_count(owner, f"harmonics[{i}] order k", harmonic[0], 1, MAX_HARMONIC_ORDER,
+                     "the motion is sampled n_steps times per period, at most 65536")
         _check_number(owner, f"harmonics[{i}] cos_k", harmonic[1], "rad")
         _check_number(owner, f"harmonics[{i}] sin_k", harmonic[2], "rad")
 
@@ -761,6 +794,11 @@ def _validate(mech: Mechanism) -> None:
     _check_number(f"mechanism {mech.name!r}", "period", period, "s", positive=True)
     for drive in mech.drives:
         turns = drive.rate * period / (2.0 * math.pi)
+        if not abs(turns) <= MAX_TURNS:  # also inf from an overflowing product
+            raise MechanismError(f"drive at joint {drive.joint!r}: rate {drive.rate} rad/s with period "
+                                 f"{period:.6g} s turns {abs(turns):.3g} times per period; at most "
+                                 f"{MAX_TURNS} (one period is resolved by the studies' n_steps and "
+                                 f"scanned at 4096 crank angles per turn): give a shorter period")
         if abs(turns - round(turns)) > 1e-9 * max(1.0, abs(turns)):
             raise MechanismError(f"drive at joint {drive.joint!r}: rate {drive.rate} rad/s turns "
                                  f"{turns:.6g} times per period {period:.6g} s; the nominal motion "

@@ -19,6 +19,22 @@ from ._problem import SPEED
 #: Keys of an axis table: a parameter and its values (``values = [...]`` or ``start, stop, count``).
 AXIS_KEYS = ("parameter", "start", "stop", "count", "values", "spacing")
 
+# Upper bounds of the size-like keys of the [studies] tables (docs/studies.md, "Limits"), each with
+# the reason given when a value is refused. They stop absurd values when the table is read; what a
+# study costs in all (points x steps x coordinates) is estimated by the resource guard (_guard.py).
+#: Steps per period: 65536 resolve a mode of 10^4 times the crank frequency to 0.01 %.
+MAX_STEPS = 65536
+STEPS_WHY = "65536 steps per period resolve modes up to 10^4 times the crank frequency"
+#: Values on one axis (``count`` or the length of ``values``).
+MAX_AXIS_POINTS = 100_000
+AXIS_WHY = "points of one axis"
+#: Highest harmonic k of the resonance marks and lines k * speed.
+MAX_HARMONIC = 100
+HARMONIC_WHY = "harmonics of the crank speed marked in a figure"
+#: Periods of a nonlinear run.
+MAX_PERIODS = 10_000
+PERIODS_WHY = "periods of one nonlinear run, each n_steps steps"
+
 
 def _no_parameters(options: Mapping[str, Any]) -> tuple[str, ...]:
     return ()
@@ -92,10 +108,23 @@ def number(where: str, key: str, value: Any, *, positive: bool = False) -> float
     return float(value)
 
 
-def integer(where: str, key: str, value: Any, minimum: int, *, even: bool = False) -> int:
+def integer(where: str, key: str, value: Any, minimum: int, *, even: bool = False,
+            maximum: int | None = None, why: str = "") -> int:
+    """An integer of at least ``minimum`` (even if asked); above ``maximum`` refused, saying ``why``
+    there is a limit."""
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum or (even and value % 2):
         kind = "an even integer" if even else "an integer"
         raise StudiesError(f"[{where}] {key}: expected {kind} >= {minimum}, got {value!r}")
+    if maximum is not None and value > maximum:
+        raise StudiesError(f"[{where}] {key}: at most {maximum} ({why}), got {value!r}")
+    return value
+
+
+def fraction(where: str, key: str, value: Any) -> float:
+    """A fraction in [0, 1) (a tolerance relative to a peak-to-peak)."""
+    value = number(where, key, value)
+    if not 0.0 <= value < 1.0:
+        raise StudiesError(f"[{where}] {key}: expected a fraction in [0, 1), got {value!r}")
     return value
 
 
@@ -112,9 +141,12 @@ def steps(where: str, table: Mapping[str, Any], default: int, *, minimum: int = 
 
     value = table.get("n_steps", default)
     try:
-        return check_n_steps(value, minimum=minimum, multiple=multiple, study=f"a {where.split('.')[-1]} study")
+        value = check_n_steps(value, minimum=minimum, multiple=multiple, study=f"a {where.split('.')[-1]} study")
     except StudiesError as error:
         raise StudiesError(f"[{where}] {error}") from None
+    # the default comes from the [studies] table: name that one
+    return integer(where if "n_steps" in table else "studies", "n_steps", value, minimum,
+                   maximum=MAX_STEPS, why=STEPS_WHY)
 
 
 def speed_values(where: str, table: Mapping[str, Any]) -> dict[str, float]:
@@ -144,12 +176,15 @@ def axis(where: str, table: Mapping[str, Any], *, parameter: bool = True) -> tup
         values = table["values"]
         if not isinstance(values, list) or not values:
             raise StudiesError(f"[{where}] values: expected a non-empty list of numbers, got {values!r}")
+        if len(values) > MAX_AXIS_POINTS:
+            raise StudiesError(f"[{where}] values: at most {MAX_AXIS_POINTS} ({AXIS_WHY}), got a list of "
+                               f"{len(values)}")
         return name, np.array([number(where, "values", v) for v in values])
     missing = [k for k in ("start", "stop", "count") if k not in table]
     if missing:
         raise StudiesError(f"[{where}]: missing {', '.join(missing)} (or give values = [...])")
     start, stop = number(where, "start", table["start"]), number(where, "stop", table["stop"])
-    count = integer(where, "count", table["count"], 1)
+    count = integer(where, "count", table["count"], 1, maximum=MAX_AXIS_POINTS, why=AXIS_WHY)
     spacing = table.get("spacing", "linear")
     if spacing == "linear":
         return name, np.linspace(start, stop, count)

@@ -61,6 +61,9 @@ def _parser() -> argparse.ArgumentParser:
                           "cluster at --scheduler)")
     run.add_argument("--scheduler", help="address of the Dask scheduler, e.g. tcp://10.0.0.5:8786")
     run.add_argument("--quiet", action="store_true", help="no progress bars or log messages")
+    run.add_argument("--force", action="store_true",
+                     help="run studies whose estimated memory or time exceeds the limits of the "
+                          "resource guard (docs/studies.md, Limits)")
     run.set_defaults(handler=_run)
     plot = commands.add_parser("plot", help="draw the figures of a result file (PNG and SVG)",
                                description="Draw every study of a result file as PNG and SVG figures.")
@@ -161,26 +164,42 @@ def _scenes(args: argparse.Namespace) -> int:
     return 0
 
 
-def load_scene(scene: str) -> tuple[Any, dict[str, Any]]:
-    """``(problem, [studies] table)`` of a built-in scene name or a .toml path."""
+def load_scene(scene: str, *, force: bool = False, workers: int = 1) -> tuple[Any, dict[str, Any]]:
+    """``(problem, [studies] table)`` of a built-in scene name or a .toml path.
+
+    A scene without a ``[studies]`` table gets the default studies; an empty one is an error that
+    lists the study kinds. Unless ``force``, the resource guard (``studies._guard``) then refuses a
+    study whose estimated memory or time (with ``workers`` processes) is above its limits.
+    """
+    from ._guard import guard
     from ._mechanism import MechanismProblem
     from ._plan import default_table, parameters_needed, plan
     from ._problem import mathieu_problem
 
     if scene == MATHIEU:
         common, declared = plan(_MATHIEU_STUDIES)
-        return mathieu_problem(), declared
-    import mechanisms
+        problem = mathieu_problem()
+    else:
+        import mechanisms
 
-    path = Path(scene)
-    if path.suffix == ".toml" and not path.is_file():
-        raise UsageError(f"scene file {scene!r} does not exist")
-    mechanism = mechanisms.load(scene)
-    # the studies' speed is the motion's fundamental frequency 2 pi / period (the crank speed)
-    table = dict(mechanism.studies) or default_table(2.0 * math.pi / mechanism.period)
-    common, declared = plan(table)
-    problem = MechanismProblem.from_mechanism(mechanism, parameter_paths=parameters_needed(declared),
-                                              observables=common["observables"])
+        path = Path(scene)
+        if path.suffix == ".toml" and not path.is_file():
+            raise UsageError(f"scene file {scene!r} does not exist" if not path.exists()
+                             else f"scene file {scene!r} is not a file")
+        try:
+            mechanism = mechanisms.load(scene)
+        except OSError as error:  # unreadable (permissions, a device): one line, exit 2
+            raise UsageError(f"scene file {scene!r} cannot be read: {error.strerror or error}") from None
+        # "no [studies] table" runs the default set; a [studies] table that declares nothing is a
+        # mistake that plan() reports with the list of kinds
+        declares_studies = "studies" in (mechanism.spec or {})
+        # the studies' speed is the motion's fundamental frequency 2 pi / period (the crank speed)
+        table = (dict(mechanism.studies) if declares_studies
+                 else default_table(2.0 * math.pi / mechanism.period))
+        common, declared = plan(table)
+        problem = MechanismProblem.from_mechanism(mechanism, parameter_paths=parameters_needed(declared),
+                                                  observables=common["observables"])
+    guard(problem, declared, force=force, workers=workers)
     return problem, declared
 
 
@@ -212,7 +231,7 @@ def _run(args: argparse.Namespace) -> int:
 
     if not args.quiet:
         logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stderr)
-    problem, declared = load_scene(args.scene)
+    problem, declared = load_scene(args.scene, force=args.force, workers=args.jobs)
     out = args.out or Path(f"{Path(args.scene).stem}.h5")
     executor, client = _executor(args)
     try:

@@ -14,16 +14,18 @@ import periodic
 
 from .._errors import StudiesError
 from .._grid import run_grid
-from .._kind import StudyKind, axis, integer, steps
+from .._kind import HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, steps
 from .._numerics import STUDY_SCHEME, characteristic_frequencies, frozen_modes, track_modes
 from .._plots import Plot, axes_for, cost_line, drawn, largest, mark_statuses
 from .._problem import SPEED
 from .. import _verdicts as verdicts
 from .._store import register
-from .._studies import GridResult, check_grid, check_n_steps, collect, grid_summary, open_store
+from .._studies import GridResult, check_grid, check_integer, check_n_steps, collect, grid_summary, open_store
 
 #: The fewest steps per period a Campbell diagram accepts (docs/studies.md).
 MIN_STEPS = 32
+#: Default frozen-time samples per period (at most n_steps: they are taken among the steps).
+FROZEN_SAMPLES = 64
 
 
 @register
@@ -131,17 +133,20 @@ def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, f
             status, message)
 
 
-def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, frozen_samples: int = 64,
+def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, frozen_samples: int = FROZEN_SAMPLES,
              max_harmonic: int = 6, executor: Executor | None = None, out: Any = None,
              name: str = "campbell", progress: bool = False) -> CampbellResult:
     """Campbell diagram over crank ``speeds`` (rad/s): frozen-time natural frequency bands over the
     crank angle, Floquet characteristic frequencies, lines ``k * speed`` (k <= ``max_harmonic``),
-    modes tracked across speeds by MAC of their shapes at crank angle 0 and labelled."""
+    modes tracked across speeds by MAC of their shapes at crank angle 0 and labelled. The frozen
+    samples are taken among the steps: ``min(frozen_samples, n_steps)`` of them, the number recorded
+    in ``settings``."""
     start = time.perf_counter()
     grid = check_grid("speeds", speeds)
     if (grid <= 0).any() or (np.diff(grid) <= 0).any():
         raise StudiesError(f"speeds: expected positive, increasing crank speeds (rad/s), got {speeds!r}")
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a Campbell diagram")
+    frozen_samples = min(check_integer("frozen_samples", frozen_samples, 2), n_steps)
     labels = problem.describe({SPEED: float(grid[0])}).labels
     settings = {"speeds": grid, "n_steps": n_steps, "frozen_samples": frozen_samples,
                 "scene": problem.text}
@@ -192,9 +197,18 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
     _, grid = axis(where, table, parameter=False)
-    return {"speeds": grid, "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS),
-            "frozen_samples": integer(where, "frozen_samples", table.get("frozen_samples", 64), 2),
-            "max_harmonic": integer(where, "max_harmonic", table.get("max_harmonic", 6), 1)}
+    if (grid <= 0).any() or (np.diff(grid) <= 0).any():
+        raise StudiesError(f"[{where}]: expected positive, increasing crank speeds (rad/s), got "
+                           f"{np.array2string(grid, threshold=8)}")
+    n_steps = steps(where, table, n_steps, minimum=MIN_STEPS)
+    # frozen samples are taken among the steps: the default is capped at n_steps, a larger value
+    # asked for explicitly is refused (the file records the number used)
+    frozen = (integer(where, "frozen_samples", table["frozen_samples"], 2, maximum=n_steps,
+                      why=f"samples are taken among the n_steps = {n_steps} steps per period")
+              if "frozen_samples" in table else min(FROZEN_SAMPLES, n_steps))
+    return {"speeds": grid, "n_steps": n_steps, "frozen_samples": frozen,
+            "max_harmonic": integer(where, "max_harmonic", table.get("max_harmonic", 6), 1,
+                                    maximum=MAX_HARMONIC, why=HARMONIC_WHY)}
 
 
 def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, progress: bool

@@ -12,7 +12,7 @@ import numpy as np
 import periodic
 
 from .._errors import StudiesError
-from .._kind import StudyKind, axis, integer, speed_values, sub_table
+from .._kind import MAX_STEPS, STEPS_WHY, StudyKind, axis, integer, speed_values, sub_table
 from .._numerics import STUDY_SCHEME, solve_steady
 from .._plots import Plot, axes_for, drawn
 from .._store import Result, register
@@ -68,14 +68,9 @@ class ErrorCostResult(Result):
         return drawn(axes, artists)
 
 
-def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
-               n_steps: Sequence[int] = (32, 64, 128, 256), resolution: tuple[str, Sequence[float]] | None = None,
-               reference_steps: int | None = None) -> ErrorCostResult:
-    """Error of the steady response against run time, over steps per period and (optionally) a
-    resolution parameter such as a number of elements ``("links.coupler.discretisation.n_elements",
-    (1, 2, 4))``. The reference is the finest resolution at ``reference_steps`` (default 4 x the
-    largest ``n_steps``) with Richardson extrapolation (order 4). Runs in-process so the times are
-    comparable."""
+def check_step_counts(n_steps: Sequence[int], reference_steps: int | None) -> tuple[list[int], int]:
+    """``(steps, reference_steps)`` checked: increasing even step counts, each a multiple of the
+    first, and the reference (default 4 x the largest) a multiple of the first too."""
     steps = [check_n_steps(n, minimum=4, multiple=2, study="an error-against-cost study") for n in n_steps]
     if sorted(steps) != steps or len(set(steps)) != len(steps):
         raise StudiesError(f"n_steps: expected increasing step counts, got {n_steps!r}")
@@ -87,6 +82,19 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
                                     study="an error-against-cost study")
     if reference_steps % base:
         raise StudiesError(f"reference_steps: must be a multiple of {base}, got {reference_steps}")
+    return steps, reference_steps
+
+
+def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
+               n_steps: Sequence[int] = (32, 64, 128, 256), resolution: tuple[str, Sequence[float]] | None = None,
+               reference_steps: int | None = None) -> ErrorCostResult:
+    """Error of the steady response against run time, over steps per period and (optionally) a
+    resolution parameter such as a number of elements ``("links.coupler.discretisation.n_elements",
+    (1, 2, 4))``. The reference is the finest resolution at ``reference_steps`` (default 4 x the
+    largest ``n_steps``) with Richardson extrapolation (order 4). Runs in-process so the times are
+    comparable."""
+    steps, reference_steps = check_step_counts(n_steps, reference_steps)
+    base = steps[0]
     if resolution is None:
         name, levels = "", np.array([0.0])
     else:
@@ -130,21 +138,33 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
         run_time=run_time, reference_steps=reference_steps, reference_run_time=reference_time)
 
 
+#: The most step counts an error-cost study compares (each is a run of its own).
+MAX_STEP_COUNTS = 16
+
+
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
     # here n_steps is the list of step counts compared, not the [studies] default
     step_list = table.get("n_steps", [32, 64, 128, 256])
-    if not isinstance(step_list, list) or not step_list:
-        raise StudiesError(f"[{where}] n_steps: expected a list of even step counts, got {step_list!r}")
+    if not isinstance(step_list, list) or not step_list or len(step_list) > MAX_STEP_COUNTS:
+        raise StudiesError(f"[{where}] n_steps: expected a list of at most {MAX_STEP_COUNTS} even step "
+                           f"counts, got {step_list!r}"[:300])
     resolution = None
     if "resolution" in table:
         resolution = axis(f"{where}.resolution",
                           sub_table(where, table, "resolution", "{parameter = ..., values = [...]}"))
     reference = table.get("reference_steps")
-    return {"values": speed_values(where, table),
-            "n_steps": tuple(integer(where, "n_steps", n, 4, even=True) for n in step_list),
-            "resolution": resolution,
-            "reference_steps": None if reference is None else
-            integer(where, "reference_steps", reference, 4, even=True)}
+    options = {"values": speed_values(where, table),
+               "n_steps": tuple(integer(where, "n_steps", n, 4, even=True, maximum=MAX_STEPS, why=STEPS_WHY)
+                                for n in step_list),
+               "resolution": resolution,
+               "reference_steps": None if reference is None else
+               integer(where, "reference_steps", reference, 4, even=True, maximum=4 * MAX_STEPS,
+                       why="4 times the largest n_steps")}
+    try:  # how the counts fit together, checked before anything runs
+        check_step_counts(options["n_steps"], options["reference_steps"])
+    except StudiesError as error:
+        raise StudiesError(f"[{where}] {error}") from None
+    return options
 
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> ErrorCostResult:

@@ -10,7 +10,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from .._errors import StudiesError, is_numerical_failure
-from .._kind import StudyKind, boolean, integer, number, speed_values, steps
+from .._kind import MAX_AXIS_POINTS, MAX_PERIODS, PERIODS_WHY, StudyKind, boolean, fraction, integer, \
+    number, speed_values, steps
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, drawn, headline, label
 from .._problem import SPEED
@@ -235,18 +236,21 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
     if "speed" in table and "speeds" in table:
         raise StudiesError(f"[{where}]: give either speed or speeds, not both")
     speeds = table.get("speeds")
-    if speeds is not None and (not isinstance(speeds, list) or not speeds):
-        raise StudiesError(f"[{where}] speeds: expected a non-empty list of crank speeds (rad/s), got {speeds!r}")
+    if speeds is not None and (not isinstance(speeds, list) or not speeds or len(speeds) > MAX_AXIS_POINTS):
+        raise StudiesError(f"[{where}] speeds: expected a non-empty list of at most {MAX_AXIS_POINTS} crank "
+                           f"speeds (rad/s), got {speeds!r}"[:300])
     return {"values": speed_values(where, table),
             "speeds": None if speeds is None else tuple(number(where, "speeds", v, positive=True) for v in speeds),
             "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS),
-            "tolerance": number(where, "tolerance", table.get("tolerance", TOLERANCE)),
-            "periodic_tol": number(where, "periodic_tol", table.get("periodic_tol", PERIODIC_TOL)),
-            "n_periods": integer(where, "n_periods", table.get("n_periods", 5), 2),
+            "tolerance": fraction(where, "tolerance", table.get("tolerance", TOLERANCE)),
+            "periodic_tol": fraction(where, "periodic_tol", table.get("periodic_tol", PERIODIC_TOL)),
+            "n_periods": integer(where, "n_periods", table.get("n_periods", 5), 2, maximum=MAX_PERIODS,
+                                 why=PERIODS_WHY),
             "from_rest": boolean(where, "from_rest", table.get("from_rest", False)),
             "max_periods_from_rest": integer(where, "max_periods_from_rest",
-                                             table.get("max_periods_from_rest", 200), 2),
-            "steady_tol": number(where, "steady_tol", table.get("steady_tol", 0.01), positive=True)}
+                                             table.get("max_periods_from_rest", 200), 2,
+                                             maximum=MAX_PERIODS, why=PERIODS_WHY),
+            "steady_tol": fraction(where, "steady_tol", table.get("steady_tol", 0.01))}
 
 
 def _runs(options: Mapping[str, Any]) -> dict[str, dict[str, Any]]:

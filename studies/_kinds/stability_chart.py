@@ -151,6 +151,8 @@ _AXIS_TABLE = "{parameter = ..., start = ..., stop = ..., count = ...}"
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
     first, second = (axis(f"{where}.{key}", sub_table(where, table, key, _AXIS_TABLE)) for key in ("x", "y"))
+    if first[0] == second[0]:
+        raise StudiesError(f"[{where}]: x and y must vary different parameters, got {first[0]!r} twice")
     # a chart has its own default (128 steps), not the [studies] n_steps
     return {"first": first, "second": second, "n_steps": steps(where, table, 128, minimum=MIN_STEPS)}
 

@@ -14,7 +14,7 @@ import numpy as np
 import periodic
 
 from .._grid import run_grid
-from .._kind import AXIS_KEYS, StudyKind, axis, integer, steps
+from .._kind import AXIS_KEYS, HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, steps
 from .._numerics import crossings, frozen_modes, peak_summary, solve_steady, unstable_intervals
 from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses
 from .._problem import SPEED
@@ -172,8 +172,11 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
     max_harmonic = check_integer("max_harmonic", max_harmonic, 1)
     names = problem.describe({parameter: float(grid[0])})
     obs_units = dict(zip(names.observables, names.units))
+    # the frozen samples are taken among the steps: at most n_steps of them, and the file records
+    # the number used
+    frozen_samples = min(FROZEN_SAMPLES, n_steps)
     settings = {"parameter": parameter, "values": grid, "n_steps": n_steps, "scene": problem.text,
-                "frozen_samples": FROZEN_SAMPLES}
+                "frozen_samples": frozen_samples}
     units = {"speed": "rad/s", "spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1",
              "linear_range": "1", "multipliers": "1",
              "error_estimate": "SI (see labels)", "frozen_min": "rad/s", "frozen_max": "rad/s",
@@ -187,7 +190,7 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
                        {"values": (grid, problem.units[parameter])})
     points = [((i,), {parameter: float(v)}) for i, v in enumerate(grid)]
     outcomes = run_grid(sweep_point, problem, points,
-                        {"n_steps": n_steps, "frozen_samples": FROZEN_SAMPLES}, executor=executor,
+                        {"n_steps": n_steps, "frozen_samples": frozen_samples}, executor=executor,
                         store=store, progress=progress, description=f"{name} over {parameter}")
     fields = collect(outcomes, grid.shape)
     per_observable = {name: {spec: fields.pop(f"{name}/{spec}") for spec in obs_units
@@ -223,7 +226,8 @@ def _resonances(grid: np.ndarray, speed: np.ndarray, frozen_mean: np.ndarray, ma
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
     parameter, grid = axis(where, table)
     return {"parameter": parameter, "values": grid,
-            "max_harmonic": integer(where, "max_harmonic", table.get("max_harmonic", 4), 1),
+            "max_harmonic": integer(where, "max_harmonic", table.get("max_harmonic", 4), 1,
+                                    maximum=MAX_HARMONIC, why=HARMONIC_WHY),
             "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS)}
 
 

@@ -1,0 +1,307 @@
+"""The resource guard: before any study runs, its memory (bytes) and run time (s) are estimated from
+its sizes, and a study above the limits is refused unless forced (docs/studies.md, "Limits").
+
+The cost models are deliberately simple, each a sum of terms with one calibrated constant:
+
+- a linearisation over ``N`` steps of a mechanism with ``n`` coordinates (``m`` of them independent)
+  builds arrays of ``(N + 1) n^2`` doubles: its peak is ``LINEARISATION_DOUBLES`` of them and it
+  takes ``LINEARISATION_SECONDS`` per ``(N + 1) n^2``; a speed family (grid studies over the speed)
+  takes ``FAMILY_FACTOR`` times as long and peaks at ``FAMILY_DOUBLES``; a grid over other
+  parameters keeps ``HELD_DOUBLES`` for each further variant cached (up to ``CACHED_FAMILIES``);
+- each study has a fixed overhead of ``STUDY_SECONDS`` (the nominal motion, the drawings);
+- a periodic solve (shooting at N, N/2 and N/4, Floquet multipliers) takes ``POINT_SECONDS`` plus,
+  per step, ``STEP_SECONDS + STEP_M2_SECONDS m^2 + SOLVE_SECONDS m^3``; a frozen-time
+  eigenproblem ``EIGEN_SECONDS`` per ``m^3``;
+- a nonlinear run takes ``NONLINEAR_STEP_SECONDS + NONLINEAR_STEP_N2_SECONDS n^2`` per step and
+  keeps ``NONLINEAR_DOUBLES`` doubles per step and coordinate.
+
+The constants were measured on the development machine (2 cores, 2024) with
+``benchmarks/bench_guard.py``, which prints measured over estimated memory and time for a range of
+sizes; rerun it on another machine and adjust the constants if the ratios leave about 0.3-3.
+An estimate is good to a factor of a few: enough to stop a run that would take a day or exhaust the
+memory, not to predict its minute.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from ._errors import StudiesError
+from ._problem import SPEED
+
+__all__ = ["Estimate", "ResourceError", "estimate", "guard", "memory_limit", "TIME_LIMIT"]
+
+logger = logging.getLogger(__name__)
+
+GIB = 2.0**30
+#: The memory limit is the smaller of this and ``MEMORY_FRACTION`` of the machine's RAM (bytes).
+MEMORY_LIMIT = 4.0 * GIB
+MEMORY_FRACTION = 0.5
+#: The longest a single study, or all the studies of a run together, may be estimated to take (s).
+TIME_LIMIT = 2.0 * 3600.0
+
+# --- cost-model constants (benchmarks/bench_guard.py) -------------------------------------------------
+LINEARISATION_DOUBLES = 12.0
+LINEARISATION_SECONDS = 1.5e-6
+FAMILY_FACTOR = 3.0
+FAMILY_DOUBLES = 24.0
+HELD_DOUBLES = 12.0
+STUDY_SECONDS = 0.1
+CACHED_FAMILIES = 8  # studies._mechanism._CACHE_SIZE
+SOLVE_SECONDS = 4.0e-9
+STEP_SECONDS = 2.0e-6
+STEP_M2_SECONDS = 1.0e-7
+POINT_SECONDS = 5.0e-3
+EIGEN_SECONDS = 5.0e-9
+NONLINEAR_STEP_SECONDS = 2.0e-3
+NONLINEAR_STEP_N2_SECONDS = 3.0e-7
+NONLINEAR_DOUBLES = 40.0
+#: Scene keys whose value changes the number of coordinates (the guard sizes a study at their
+#: largest value on its axes).
+SIZE_KEYS = ("n_elements", "n_bending", "n_axial")
+
+
+class ResourceError(StudiesError):
+    """A study whose estimated memory or run time exceeds the guard's limits (exit code 2)."""
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """What a study is estimated to cost: ``memory`` (bytes, the peak), ``time`` (s, wall time with
+    the given workers) and ``sizes``, the sizes they come from in words ("100 speeds x 256 steps x 12
+    coordinates")."""
+
+    study: str
+    memory: float
+    time: float
+    sizes: str
+
+    def describe(self) -> str:
+        return (f"{self.study}: about {format_bytes(self.memory)} and {format_seconds(self.time)} "
+                f"estimated ({self.sizes})")
+
+
+def memory_limit() -> float:
+    """The memory limit in bytes: ``MEMORY_LIMIT`` or ``MEMORY_FRACTION`` of the RAM if smaller."""
+    try:
+        ram = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):  # not POSIX: the fixed limit alone
+        return MEMORY_LIMIT
+    return min(MEMORY_LIMIT, MEMORY_FRACTION * ram)
+
+
+def _number(value: float) -> str:
+    return f"{value:.2g}" if value < 100 else f"{value:.0f}"
+
+
+def format_bytes(value: float) -> str:
+    """Bytes in binary units: "2.3 GiB", "120 MiB"."""
+    for unit, size in (("GiB", 2.0**30), ("MiB", 2.0**20), ("KiB", 2.0**10)):
+        if value >= size:
+            return f"{_number(value / size)} {unit}"
+    return f"{value:.0f} B"
+
+
+def format_seconds(value: float) -> str:
+    """Seconds in the largest unit that fits: "3 h", "1.5 days", "40 s"."""
+    for unit, size in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
+        if value >= size:
+            return f"{_number(value / size)} {unit}"
+    return f"{_number(value)} s"
+
+
+# ---------------------------------------------------------------------------------------------------
+# sizes of a problem
+# ---------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Sizes:
+    """``n`` coordinates of the assembled model (all, with the constraints') and ``m`` independent
+    ones (those the periodic system is written in)."""
+
+    n: int
+    m: int
+
+
+def _sizes(problem: Any, values: Mapping[str, float]) -> _Sizes:
+    """The coordinate counts at ``values`` (a mechanism is built there, which checks the values)."""
+    if hasattr(problem, "mechanism"):
+        import mechanisms
+
+        model = mechanisms.assemble(problem.mechanism(values))
+        return _Sizes(n=model.n_coords, m=model.n_coords - model.n_constraints)
+    m = len(problem.describe(values).labels)
+    return _Sizes(n=m, m=m)
+
+
+def _largest_sizes(problem: Any, axes: Sequence[tuple[str, np.ndarray]]) -> _Sizes:
+    """The coordinate counts at the largest value of each size key on the axes (the scene's
+    otherwise); every axis end is built once first, so that a value the scene cannot take is
+    refused before anything runs."""
+    if hasattr(problem, "mechanism"):
+        for parameter, grid in axes:
+            for value in (float(np.min(grid)), float(np.max(grid))):
+                problem.mechanism({parameter: value})
+    largest = {parameter: float(np.max(grid)) for parameter, grid in axes
+               if parameter.split(".")[-1] in SIZE_KEYS}
+    return _sizes(problem, largest)
+
+
+# ---------------------------------------------------------------------------------------------------
+# cost models
+# ---------------------------------------------------------------------------------------------------
+def _linearisation(n_steps: int, sizes: _Sizes) -> tuple[float, float]:
+    """(peak bytes, seconds) of one linearisation."""
+    samples = (n_steps + 1) * sizes.n**2
+    return 8.0 * LINEARISATION_DOUBLES * samples, LINEARISATION_SECONDS * samples
+
+
+def _solve_seconds(n_steps: int, sizes: _Sizes, frozen: int = 0) -> float:
+    """Seconds of one periodic solve (and ``frozen`` frozen-time eigenproblems)."""
+    per_step = STEP_SECONDS + STEP_M2_SECONDS * sizes.m**2 + SOLVE_SECONDS * sizes.m**3
+    return POINT_SECONDS + n_steps * per_step + EIGEN_SECONDS * frozen * sizes.m**3
+
+
+def _grid(name: str, problem: Any, axes: Sequence[tuple[str, np.ndarray]], n_steps: int, *,
+          frozen: int = 0, point_doubles: Callable[[_Sizes], float] = lambda s: 4.0 * s.m,
+          workers: int = 1, words: Sequence[str]) -> Estimate:
+    """A grid study over ``axes``: one periodic solve per point; one speed family per combination of
+    the other parameters' values when the speed is an axis, else one linearisation per combination."""
+    sizes = _largest_sizes(problem, axes)
+    points = math.prod(len(grid) for _, grid in axes)
+    variants = math.prod(len(np.unique(grid)) for parameter, grid in axes if parameter != SPEED)
+    family = FAMILY_FACTOR if any(parameter == SPEED for parameter, _ in axes) else 1.0
+    build_bytes, build_seconds = _linearisation(n_steps, sizes)
+    held = HELD_DOUBLES * (min(variants, CACHED_FAMILIES) - 1)
+    peak = (FAMILY_DOUBLES if family > 1.0 else LINEARISATION_DOUBLES) + held
+    parallel = max(1, min(workers, points))
+    per_process = 8.0 * peak * (n_steps + 1) * sizes.n**2
+    results = 8.0 * points * point_doubles(sizes)  # the collected arrays, kept in the main process
+    # each worker process builds the linearisations its points need (a speed family once per process)
+    seconds = (STUDY_SECONDS + variants * family * build_seconds / min(parallel, variants)
+               + points * _solve_seconds(n_steps, sizes, frozen) / parallel)
+    memory = per_process * parallel + results
+    return Estimate(name, memory, seconds, " x ".join(list(words) + [f"{n_steps} steps",
+                                                                      f"{sizes.m} coordinates"]))
+
+
+def _axis_words(parameter: str, grid: np.ndarray) -> str:
+    return f"{len(grid)} {'speeds' if parameter == SPEED else 'values of ' + parameter}"
+
+
+def _steady_state(name, problem, options, workers):
+    sizes = _sizes(problem, options["values"])
+    build_bytes, build_seconds = _linearisation(options["n_steps"], sizes)
+    return Estimate(name, build_bytes,
+                    STUDY_SECONDS + build_seconds + _solve_seconds(options["n_steps"], sizes),
+                    f"{options['n_steps']} steps x {sizes.m} coordinates")
+
+
+def _sweep(name, problem, options, workers):
+    axis = (options["parameter"], np.asarray(options["values"]))
+    return _grid(name, problem, [axis], options["n_steps"], workers=workers, frozen=32,
+                 point_doubles=lambda s: 8.0 * s.m + 4.0, words=[_axis_words(*axis)])
+
+
+def _campbell(name, problem, options, workers):
+    axis = (SPEED, np.asarray(options["speeds"]))
+    frozen = options["frozen_samples"]
+    return _grid(name, problem, [axis], options["n_steps"], frozen=frozen, workers=workers,
+                 point_doubles=lambda s: (frozen + s.m + 8.0) * s.m,
+                 words=[_axis_words(*axis), f"{frozen} frozen samples"])
+
+
+def _stability_chart(name, problem, options, workers):
+    axes = [(parameter, np.asarray(grid)) for parameter, grid in (options["first"], options["second"])]
+    return _grid(name, problem, axes, options["n_steps"], workers=workers,
+                 point_doubles=lambda s: 4.0 * s.m + 4.0, words=[_axis_words(*axis) for axis in axes])
+
+
+def _nonlinear_check(name, problem, options, workers):
+    sizes = _sizes(problem, options["values"])
+    n_steps = options["n_steps"]
+    periods = options["n_periods"] + (options["max_periods_from_rest"] if options["from_rest"] else 0)
+    build_bytes, build_seconds = _linearisation(n_steps, sizes)
+    steps = periods * n_steps
+    seconds = (STUDY_SECONDS + build_seconds + _solve_seconds(n_steps, sizes)
+               + steps * (NONLINEAR_STEP_SECONDS + NONLINEAR_STEP_N2_SECONDS * sizes.n**2))
+    memory = max(build_bytes, 8.0 * NONLINEAR_DOUBLES * steps * sizes.n)
+    return Estimate(name, memory, seconds, f"{periods} periods x {n_steps} steps x {sizes.n} coordinates")
+
+
+def _error_cost(name, problem, options, workers):
+    values = dict(options["values"])
+    resolution = options["resolution"]
+    grids = [float(v) for v in resolution[1]] if resolution is not None else [None]
+    step_counts = list(options["n_steps"])
+    reference = options["reference_steps"] or 4 * max(step_counts)
+    memory, seconds = 0.0, STUDY_SECONDS
+    largest = _Sizes(0, 0)
+    for index, value in enumerate(grids):
+        at = values if value is None else dict(values, **{resolution[0]: value})
+        sizes = _sizes(problem, at)
+        largest = max(largest, sizes, key=lambda s: s.m)
+        # the finest resolution (the last) also computes the reference, with Richardson (N and N/2)
+        counts = step_counts + ([reference, reference // 2] if index == len(grids) - 1 else [])
+        for n_steps in counts:
+            build_bytes, build_seconds = _linearisation(n_steps, sizes)
+            memory = max(memory, build_bytes)
+            seconds += build_seconds + _solve_seconds(n_steps, sizes)
+    return Estimate(name, memory, seconds, f"{len(step_counts)} step counts up to {reference} x "
+                                           f"{len(grids)} resolutions x {largest.m} coordinates")
+
+
+#: The cost model of each study kind, by name; a kind without one is sized as a steady state.
+_MODELS: dict[str, Callable[[str, Any, Mapping[str, Any], int], Estimate]] = {
+    "steady_state": _steady_state,
+    "sweep": _sweep,
+    "campbell": _campbell,
+    "stability_chart": _stability_chart,
+    "nonlinear_check": _nonlinear_check,
+    "error_cost": _error_cost,
+}
+
+
+def estimate(problem: Any, kind: str, options: Mapping[str, Any], *, name: str | None = None,
+             workers: int = 1) -> Estimate:
+    """The estimated cost of one study of ``kind`` with checked ``options`` (what ``studies._plan.plan``
+    returns for it) on ``problem``, with ``workers`` processes for a grid study."""
+    model = _MODELS.get(kind)
+    if model is None:
+        n_steps = options.get("n_steps", 256)
+        return _steady_state(name or kind, problem, {"values": options.get("values") or {},
+                                                     "n_steps": n_steps}, workers)
+    return model(name or kind, problem, options, max(1, int(workers)))
+
+
+def guard(problem: Any, studies: Mapping[str, Mapping[str, Any]], *, force: bool = False,
+          workers: int = 1) -> list[Estimate]:
+    """Estimate every declared study (``{kind: options}`` as ``plan`` returns them, each of the runs
+    it declares) and raise :class:`ResourceError` for the first above the memory or time limit, or
+    when all together exceed the time limit; ``force=True`` logs the estimates and raises nothing.
+    Also builds the scene at the ends of every axis, so that a value it cannot take is refused (a
+    ``MechanismError``) before anything is written. Returns the estimates."""
+    from ._kinds import KINDS
+
+    limit_memory, limit_time = memory_limit(), TIME_LIMIT
+    limits = f"limits {format_bytes(limit_memory)}, {format_seconds(limit_time)}"
+    advice = "pass --force (force=True from Python) to run anyway"
+    estimates = []
+    for kind, options in studies.items():
+        for suffix, each in KINDS[kind].runs(options).items():
+            found = estimate(problem, kind, each, name=kind + suffix, workers=workers)
+            if not force and (found.memory > limit_memory or found.time > limit_time):
+                raise ResourceError(f"{found.describe()}; {limits}; {advice}")
+            logger.info("%s", found.describe())
+            estimates.append(found)
+    total = sum(found.time for found in estimates)
+    if not force and total > limit_time:
+        raise ResourceError(f"all studies together: about {format_seconds(total)} estimated "
+                            f"({', '.join(f'{e.study} {format_seconds(e.time)}' for e in estimates)}); "
+                            f"{limits}; {advice}")
+    return estimates
