@@ -9,6 +9,7 @@ figure, its axes and the artists by name, so users can restyle them (python-cont
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -69,9 +70,27 @@ def largest(values: Any) -> float:
     return float(max(a.max() for a in finite)) if finite else float("nan")
 
 
+_SUPERSCRIPT = str.maketrans("-0123456789", "\u207b\u2070\u00b9\u00b2\u00b3\u2074\u2075\u2076\u2077\u2078\u2079")
+
+
+def plain(value: float, digits: int = 2) -> str:
+    """A number as a person writes it: ``digits`` significant digits, no "3e+02": "300", "0.0012",
+    "1.2×10⁻⁵" (a power of ten only below 1e-3 or from 1e6 on); "nan" for a missing number."""
+    value = float(value)
+    if not math.isfinite(value):
+        return str(value)
+    if value == 0.0:
+        return "0"
+    exponent = math.floor(math.log10(abs(float(f"{value:.{digits - 1}e}"))))
+    if -3 <= exponent < 6:
+        return f"{value:.{max(digits - 1 - exponent, 0)}f}"
+    mantissa = f"{value / 10.0**exponent:.{digits - 1}f}"
+    return f"{mantissa}×10{str(exponent).translate(_SUPERSCRIPT)}"
+
+
 def cost_line(error: str, run_time: float) -> str:
     """The line every figure carries: what its error estimate says and the run time that bought it."""
-    return f"{error}; run time {run_time:.3g} s"
+    return f"{error}; run time {plain(run_time)} s"
 
 
 def plot_multipliers(multipliers: np.ndarray, *, ax: Any, title: str = "") -> list:
