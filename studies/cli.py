@@ -250,6 +250,12 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{name:16s} {kind_of(result).summary(result)}")
     for name, message in failures.items():
         print(f"{name:16s} FAILED: {message}")
+    if results:
+        from ._summary import summaries, text_table
+
+        print()
+        print(text_table(summaries(results)))
+        print()
     # a single study whose computation failed (a nonlinear check whose run failed) is written with
     # the status "failed"; grid studies report their failed points in their summary
     failed = sorted(name for name, result in results.items()

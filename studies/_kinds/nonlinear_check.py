@@ -12,10 +12,11 @@ import numpy as np
 from .._errors import StudiesError, is_numerical_failure
 from .._kind import StudyKind, boolean, integer, number, speed_values, steps
 from .._numerics import solve_steady
-from .._plots import Plot, axes_for, drawn, headline, label
+from .._plots import Plot, axes_for, drawn, headline, label, plain
 from .._problem import SPEED
 from .._store import Result, register
 from .._studies import check_integer, check_n_steps
+from .._summary import Headline, Summary
 from .._verdicts import combine
 
 #: The fewest steps per period a nonlinear check accepts (docs/studies.md): the nonlinear run takes
@@ -270,7 +271,22 @@ def _summary(result: NonlinearCheck) -> str:
     return f"{result.verdict.upper()} at speed {speed:.4g} rad/s: {result.message}\n    {numbers}"
 
 
+def _headlines(result: NonlinearCheck) -> Summary:
+    speed = result.parameters.get(SPEED, float("nan"))
+    rows = []
+    for spec, difference in result.difference.items():
+        error = result.linear_error.get(spec, float("nan")) + result.nonlinear_error.get(spec, float("nan"))
+        rows.append(Headline(f"{spec} max |nonlinear - linear|", difference, result.units[spec], error,
+                             f"({plain(100 * result.relative_difference[spec])} % of peak to peak)"))
+    if np.isfinite(result.periods_to_steady):
+        rows.append(Headline("periods to steady state from rest", result.periods_to_steady))
+    run_time = float(np.nansum([result.linear_run_time, result.nonlinear_run_time, result.rest_run_time]))
+    words = f"{result.verdict.replace('_', ' ')} at speed {plain(speed, 3)} rad/s (linear: {headline(result.status)})"
+    return Summary(status=words, run_time=run_time, rows=rows)
+
+
 KIND = StudyKind(name="nonlinear_check", result=NonlinearCheck,
                  keys=("speed", "speeds", "n_periods", "from_rest", "max_periods_from_rest", "steady_tol",
                        "tolerance", "periodic_tol", "n_steps"),
-                 check=_check, run=_run, summary=_summary, runs=_runs, default=lambda nominal_speed: {"n_periods": 3})
+                 check=_check, run=_run, summary=_summary, runs=_runs, default=lambda nominal_speed: {"n_periods": 3},
+                 headlines=_headlines)

@@ -16,12 +16,13 @@ from .._errors import StudiesError
 from .._grid import run_grid
 from .._kind import StudyKind, axis, steps, sub_table
 from .._numerics import STUDY_SCHEME
-from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses
+from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses, plain
 from .._problem import SPEED
 from .. import _verdicts as verdicts
 from .._store import register
 from .._studies import GridResult, check_grid, check_n_steps, check_parameter, collect, grid_summary, \
-    open_store
+    open_store, status_counts
+from .._summary import Headline, Summary, largest_over_grid, ranges
 
 #: The fewest steps per period a stability chart accepts (docs/studies.md).
 MIN_STEPS = 32
@@ -146,6 +147,25 @@ def _summary(result: StabilityChart) -> str:
                                                     f"{b} {result.second[index[1]]:.4g} {ub}")
 
 
+def _headlines(result: StabilityChart) -> Summary:
+    (a, b), (ua, ub) = result.parameters, result.parameter_units
+
+    def point(index: tuple) -> str:
+        return (f"{a} {plain(result.first[index[0]], 3)} {ua}, ".replace(" 1,", ",")
+                + f"{b} {plain(result.second[index[1]], 3)} {ub}".removesuffix(" 1"))
+
+    unstable = (result.status == "unstable") & result.done
+    rows = [Headline("unstable points", f"{int(unstable.sum())} of {int(result.done.sum())}")]
+    if unstable.any():
+        i, j = np.nonzero(unstable)
+        rows.append(Headline(f"unstable {a} range", ranges([(result.first[i].min(), result.first[i].max())], ua)))
+        rows.append(Headline(f"unstable {b} range", ranges([(result.second[j].min(), result.second[j].max())], ub)))
+    if result.spectral_radius is not None:
+        rows.append(largest_over_grid("largest spectral radius", result.spectral_radius,
+                                      result.spectral_radius_error, "1", point))
+    return Summary(status=status_counts(result.status[result.done]), run_time=result.run_time, rows=rows)
+
+
 _AXIS_TABLE = "{parameter = ..., start = ..., stop = ..., count = ...}"
 
 
@@ -163,4 +183,4 @@ def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, p
 
 KIND = StudyKind(name="stability_chart", result=StabilityChart, keys=("x", "y", "n_steps"), check=_check,
                  run=_run, summary=_summary, grid=True, point=chart_point,
-                 varies=lambda options: (options["first"][0], options["second"][0]))
+                 varies=lambda options: (options["first"][0], options["second"][0]), headlines=_headlines)

@@ -15,6 +15,7 @@ from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain, plot_multipliers
 from .._store import Result, register
 from .._studies import check_n_steps
+from .._summary import Headline, Summary, response_rows
 
 #: The fewest steps per period a steady state accepts (docs/studies.md): N/4 = 4 steps is the
 #: coarsest level of the error check.
@@ -188,6 +189,13 @@ def _summary(result: SteadyStateResult) -> str:
             f"{result.spectral_radius_error:.2g}; errors {errors}; {result.run_time:.3g} s")
 
 
+def _headlines(result: SteadyStateResult) -> Summary:
+    rows = response_rows(result.response, result.response_error, result.units)
+    rows.append(Headline("spectral radius", float(result.spectral_radius), "1",
+                         float(result.spectral_radius_error)))
+    return Summary(status=result.headline, run_time=result.run_time, rows=rows)
+
+
 def _figures(result: SteadyStateResult) -> dict[str, Any]:
     figures = {"": result.plot, "_multipliers": result.plot_multipliers}
     if result.outlines:
@@ -196,4 +204,5 @@ def _figures(result: SteadyStateResult) -> dict[str, Any]:
 
 
 KIND = StudyKind(name="steady_state", result=SteadyStateResult, keys=("speed", "n_steps"), check=_check,
-                 run=_run, summary=_summary, default=lambda nominal_speed: {}, figures=_figures)
+                 run=_run, summary=_summary, default=lambda nominal_speed: {}, figures=_figures,
+                 headlines=_headlines)

@@ -16,12 +16,13 @@ import periodic
 from .._grid import run_grid
 from .._kind import AXIS_KEYS, StudyKind, axis, integer, steps
 from .._numerics import crossings, frozen_modes, peak_to_peak, solve_steady, unstable_intervals
-from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses
+from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses, plain
 from .._problem import SPEED
 from .._store import register
 from .._verdicts import combine
 from .._studies import GridResult, check_grid, check_integer, check_n_steps, check_parameter, collect, \
-    grid_summary, open_store
+    grid_summary, open_store, status_counts
+from .._summary import PEAK_UNITS, Headline, Summary, largest_over_grid, listed, ranges
 
 #: Frozen-time eigenproblems per period for the resonance bands of a sweep (the bands of smooth
 #: coefficients converge fast in the number of samples; 32 resolves a band edge to well under 1 %
@@ -239,6 +240,29 @@ def _summary(result: SweepResult) -> str:
                         point=lambda index: f"{result.parameter} {result.values[index]:.4g} {unit}".rstrip())
 
 
+def _headlines(result: SweepResult) -> Summary:
+    unit = result.parameter_unit
+    suffix = f" {unit}" if unit not in ("", "1") else ""
+
+    def point(index: tuple) -> str:
+        return f"{result.parameter} {plain(result.values[index], 3)}{suffix}"
+
+    rows = [largest_over_grid(f"largest {spec} peak to peak", values, result.peak_to_peak_error.get(spec),
+                              result.units[spec], point) for spec, values in result.peak_to_peak.items()]
+    # the peak force or stress over the sweep, where the result holds peaks (see PEAK_UNITS)
+    peaks = getattr(result, "peak", None) or {}
+    peak_errors = getattr(result, "peak_error", None) or {}
+    rows += [largest_over_grid(f"largest {spec} peak", values, peak_errors.get(spec), result.units[spec], point)
+             for spec, values in peaks.items() if result.units.get(spec) in PEAK_UNITS]
+    resonances = [f"{k}:{mode + 1} at {plain(value, 3)}" for k, mode, value in result.resonances]
+    rows.append(Headline(f"resonances, harmonic:mode at {label(result.parameter, unit)}", listed(resonances)))
+    rows.append(Headline(f"unstable {result.parameter} ranges", ranges(result.instabilities, unit)))
+    if result.spectral_radius is not None:
+        rows.append(largest_over_grid("largest spectral radius", result.spectral_radius,
+                                      result.spectral_radius_error, "1", point))
+    return Summary(status=status_counts(result.status[result.done]), run_time=result.run_time, rows=rows)
+
+
 def _default(nominal_speed: float) -> dict[str, Any]:
     """100 speeds from 0.2 to 4 times the scene's."""
     return {"parameter": SPEED, "start": 0.2 * abs(nominal_speed), "stop": 4.0 * abs(nominal_speed),
@@ -247,4 +271,4 @@ def _default(nominal_speed: float) -> dict[str, Any]:
 
 KIND = StudyKind(name="sweep", result=SweepResult, keys=AXIS_KEYS + ("max_harmonic", "n_steps"),
                  check=_check, run=_run, summary=_summary, grid=True, point=sweep_point,
-                 varies=lambda options: (options["parameter"],), default=_default)
+                 varies=lambda options: (options["parameter"],), default=_default, headlines=_headlines)
