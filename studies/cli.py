@@ -268,31 +268,12 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _plot(args: argparse.Namespace) -> int:
-    import matplotlib
+    from ._report import write_figures
 
-    matplotlib.use("Agg")
-    matplotlib.rcParams["svg.fonttype"] = "none"  # keep text as text: editable and searchable
-    import matplotlib.pyplot as plt
-
-    from ._kinds import kind_of
-    from ._store import load
-
-    if not args.file.is_file():
-        raise UsageError(f"result file {str(args.file)!r} does not exist")
-    results = load(args.file)
     outdir = args.outdir or args.file.with_name(args.file.stem + "_figures")
-    outdir.mkdir(parents=True, exist_ok=True)
-    written = []
-    for name, result in results.items():
-        for suffix, draw in kind_of(result).figures(result).items():
-            figure = draw().figure
-            for extension in ("png", "svg"):
-                target = outdir / f"{name}{suffix}.{extension}"
-                figure.savefig(target, dpi=150)
-                written.append(target)
-            plt.close(figure)
-    for target in written:
-        print(target)
+    for paths in write_figures(_load_results(args.file), outdir).values():
+        for target in paths:
+            print(target)
     return 0
 
 
