@@ -143,3 +143,63 @@ def mark_statuses(ax: Any, x: np.ndarray, y: np.ndarray, status: np.ndarray) -> 
         if chosen.any():
             artists += ax.plot(x[chosen], y[chosen], ls="none", ms=7, label=headline(name), **style)
     return artists
+
+
+#: Rows of labels above an axes (``label_positions``) and the height of one row, points.
+LABEL_ROWS = 3
+LABEL_ROW_HEIGHT = 9.0
+
+
+def label_positions(ax: Any, positions: Any, texts: list[str], *, rows: int = LABEL_ROWS,
+                    fontsize: str = "x-small") -> tuple[list, int]:
+    """Label vertical lines at data ``positions`` (x) above ``ax`` without overlap: labels are taken
+    in the given order (most important first) and each goes into the lowest of ``rows`` rows where it
+    clears the labels already there; a label that fits nowhere is left out. Returns the labels drawn
+    and the number of rows used (to raise the title above them)."""
+    figure = ax.figure
+    renderer = figure.canvas.get_renderer()
+    # constrained layout may still narrow the axes: reserve a quarter more room than measured now
+    axes_width = max(ax.get_window_extent(renderer).width, 1.0) * 0.75
+    low, high = ax.get_xlim()
+    transform = ax.get_xscale() == "log" and np.log10 or (lambda v: v)
+    placed: list[list[tuple[float, float]]] = [[] for _ in range(rows)]
+    artists = []
+    for x, text in zip(positions, texts):
+        if not low <= x <= high:
+            continue
+        probe = ax.text(0, 0, text, fontsize=fontsize)
+        half = 0.5 * probe.get_window_extent(renderer).width / axes_width + 0.01
+        probe.remove()
+        centre = (transform(x) - transform(low)) / (transform(high) - transform(low))
+        for row, taken in enumerate(placed):
+            if all(abs(centre - other) > half + other_half for other, other_half in taken):
+                taken.append((centre, half))
+                artists.append(ax.annotate(text, (x, 1.0), xycoords=("data", "axes fraction"),
+                                           xytext=(0, 1.0 + row * LABEL_ROW_HEIGHT), textcoords="offset points",
+                                           fontsize=fontsize, ha="center", va="bottom"))
+                break
+    return artists, sum(1 for taken in placed if taken)
+
+
+def radius_norm(radius: Any):
+    """A colour scale for spectral radii that shows |mu| near 1 whatever the largest value: log10 of
+    the radius, the stable side (below 1) and the unstable side (above 1) each spread over half the
+    colour map, 1 at its centre (a diverging map then shows 1 as its neutral colour). Returns a
+    matplotlib ``FuncNorm``."""
+    from matplotlib.colors import FuncNorm
+
+    values = np.asarray(radius, dtype=float)
+    values = values[np.isfinite(values) & (values > 0)]
+    low = min(float(values.min()) if values.size else 0.5, 0.999)
+    high = max(float(values.max()) if values.size else 2.0, 1.001)
+    below, above = -math.log10(low), math.log10(high)
+
+    def forward(r):
+        logs = np.log10(np.clip(np.asarray(r, dtype=float), low, high))
+        return np.where(logs < 0, logs / below, logs / above)
+
+    def inverse(f):
+        f = np.asarray(f, dtype=float)
+        return 10.0 ** np.where(f < 0, f * below, f * above)
+
+    return FuncNorm((forward, inverse), vmin=low, vmax=high)

@@ -16,7 +16,8 @@ import periodic
 from .._grid import run_grid
 from .._kind import AXIS_KEYS, StudyKind, axis, integer, steps
 from .._numerics import crossings, frozen_modes, peak_to_peak, solve_steady, unstable_intervals
-from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses, plain
+from .._plots import LABEL_ROW_HEIGHT, Plot, axes_for, cost_line, drawn, label, label_positions, largest, \
+    mark_statuses, plain
 from .._problem import SPEED
 from .._store import register
 from .._verdicts import combine
@@ -94,7 +95,9 @@ class SweepResult(GridResult):
             ax.set_ylabel(label(f"{spec} peak to peak", self.units[spec]))
         if self.spectral_radius is not None:
             artists["spectral_radius"] = axes[-1].plot(x, self.spectral_radius, ".-", color="C1")
-            artists["stability_limit"] = [axes[-1].axhline(1.0, color="k", lw=0.8)]
+            artists["stability_limit"] = [axes[-1].axhline(1.0, color="k", lw=1.2)]
+            if largest(self.spectral_radius) > 10.0:  # a linear scale to 1000 would hide |mu| near 1
+                axes[-1].set_yscale("log")
         axes[-1].set_ylabel("spectral radius |mu|max")
         # each point's verdict: unstable, marginal, inaccurate, outside the linear range ... marked
         curves = [self.peak_to_peak[spec] for spec in specs] + [self.spectral_radius]
@@ -104,12 +107,6 @@ class SweepResult(GridResult):
                 artists["status"] += mark_statuses(ax, x, y, self.status)
         if artists["status"]:
             axes[-1].legend(fontsize="x-small", loc="best")
-        relative = [np.asarray(self.peak_to_peak_error.get(spec), dtype=float)
-                    / np.asarray(self.peak_to_peak[spec], dtype=float)
-                    for spec in specs if self.peak_to_peak_error.get(spec) is not None]
-        axes[0].set_title(cost_line(f"{len(x)} points, largest estimated error "
-                                    f"{100 * largest(relative):.2g} % of peak to peak",
-                                    self.run_time), fontsize="small", pad=14)  # above the k:mode labels
         for ax in axes:
             ax.set_xlabel(xlabel)
             for start, end in self.instabilities:
@@ -117,8 +114,18 @@ class SweepResult(GridResult):
         for k, mode, value in self.resonances:
             for ax in axes:
                 artists.setdefault("resonances", []).append(ax.axvline(value, color="0.5", ls=":", lw=0.8))
-            axes[0].annotate(f"{k}:{mode + 1}", (value, 1.0), xycoords=("data", "axes fraction"),
-                             fontsize="x-small", ha="center", va="bottom")
+        # the k:mode labels in staggered rows above the top axes, the lowest harmonics first (the
+        # strongest resonances); labels that would collide are left out
+        strongest = sorted(self.resonances, key=lambda item: (item[0], item[1]))
+        artists["resonance_labels"], rows = label_positions(
+            axes[0], [value for _, _, value in strongest], [f"{k}:{mode + 1}" for k, mode, _ in strongest])
+        relative = [np.asarray(self.peak_to_peak_error.get(spec), dtype=float)
+                    / np.asarray(self.peak_to_peak[spec], dtype=float)
+                    for spec in specs if self.peak_to_peak_error.get(spec) is not None]
+        axes[0].set_title(cost_line(f"{len(x)} points, largest estimated error "
+                                    f"{plain(100 * largest(relative))} % of peak to peak", self.run_time)
+                          + ("\nresonances: harmonic k : mode (k x speed = mode frequency)" if rows else ""),
+                          fontsize="small", pad=4 + rows * LABEL_ROW_HEIGHT)
         return drawn(axes, artists)
 
 
