@@ -82,17 +82,22 @@ class CampbellResult(GridResult):
         ax = axes[0]
         artists: dict[str, list] = {}
         speeds = self.speeds
+        hidden: list[str] = []
         if self.band_min is not None:
+            # Show the range the harmonics reach (where resonances can occur) and at least the lowest
+            # mode; higher modes (e.g. axial) would squash the interesting part: they are left out,
+            # of the legend too, and named in the title.
+            top = 1.15 * max(max(self.harmonics) * speeds[-1], np.nanmax(self.band_max[:, 0]))
             for j, name in enumerate(self.mode_labels):
+                if not np.nanmin(self.band_min[:, j]) < top:
+                    hidden.append(name.split(" (")[0])
+                    continue
                 artists[name] = [ax.fill_between(speeds, self.band_min[:, j], self.band_max[:, j],
                                                  color=f"C{j % 10}", alpha=0.25, lw=0)]
                 artists[name] += ax.plot(speeds, self.band_mean[:, j], color=f"C{j % 10}", label=name)
             artists["characteristic"] = ax.plot(np.repeat(speeds, self.characteristic.shape[1]),
                                                 self.characteristic.reshape(-1), ".", color="k", ms=2,
                                                 label="Floquet characteristic")
-            # Show the range the harmonics reach (where resonances can occur) and at least the lowest
-            # mode; higher modes (e.g. axial) would squash the interesting part.
-            top = 1.15 * max(max(self.harmonics) * speeds[-1], np.nanmax(self.band_max[:, 0]))
             artists["harmonics"] = []
             for k in self.harmonics:
                 artists["harmonics"] += ax.plot(speeds, k * speeds, color="0.6", lw=0.7, ls="--")
@@ -109,8 +114,9 @@ class CampbellResult(GridResult):
         if self.characteristic_error is not None:
             shown = np.asarray(self.characteristic) <= ax.get_ylim()[1]
             error = largest(np.where(shown, self.characteristic_error, np.nan))
-        ax.set_title(f"{self.problem}: Campbell diagram\n" + cost_line(
-            f"characteristic frequencies shown to {error:.2g} rad/s", self.run_time), fontsize="small")
+        above = f" ({', '.join(hidden)} above the range shown)" if hidden else ""
+        ax.set_title(f"{self.problem}: Campbell diagram{above}\n" + cost_line(
+            f"characteristic frequencies shown to {plain(error)} rad/s", self.run_time), fontsize="small")
         return drawn(axes, artists)
 
 

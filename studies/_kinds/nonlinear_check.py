@@ -94,7 +94,7 @@ class NonlinearCheck(Result):
         """Nonlinear run from the linear state (and from rest) against the linear periodic solution,
         the verdict in each title."""
         specs = list(self.linear)
-        axes = axes_for(len(specs), axes)
+        axes = axes_for(len(specs), axes, height=3.2)  # room for a four-line title
         period = self.t_linear[-1]
         # a failed run has no nonlinear samples: the linear solution over one period alone
         t_end = self.t[-1] if self.t is not None and np.size(self.t) else period
@@ -111,13 +111,13 @@ class NonlinearCheck(Result):
                 lines += ax.plot(self.t_rest, self.rest[spec], color="0.6", lw=0.6, label="nonlinear from rest")
             ax.set_xlabel("time (s)")
             ax.set_ylabel(label(spec, self.units[spec]))
-            ax.set_title(f"{spec}: {self.verdict.upper().replace('_', ' ')} (linear: "
-                         f"{headline(self.status)}), max difference {self.difference.get(spec, float('nan')):.2g} "
-                         f"({100 * self.relative_difference.get(spec, float('nan')):.2g} % of peak to peak)\n"
-                         f"estimated errors: linear {self.linear_error.get(spec, float('nan')):.2g}, "
-                         f"nonlinear {self.nonlinear_error.get(spec, float('nan')):.2g}; run time "
-                         f"linear {self.linear_run_time:.3g} s, nonlinear "
-                         f"{self.nonlinear_run_time:.3g} s", fontsize="small")
+            ax.set_title(f"{spec}: {self.verdict.upper().replace('_', ' ')} (linear: {headline(self.status)})\n"
+                         f"max difference {plain(self.difference.get(spec, float('nan')))} "
+                         f"({plain(100 * self.relative_difference.get(spec, float('nan')))} % of peak to peak)\n"
+                         f"estimated errors: linear {plain(self.linear_error.get(spec, float('nan')))}, "
+                         f"nonlinear {plain(self.nonlinear_error.get(spec, float('nan')))}\nrun time linear "
+                         f"{plain(self.linear_run_time)} s, nonlinear {plain(self.nonlinear_run_time)} s",
+                         fontsize="small")
             ax.legend(fontsize="x-small")
             artists[spec] = lines
         return drawn(axes, artists)
