@@ -83,7 +83,8 @@ def plain(value: float, digits: int = 2) -> str:
         return "0"
     exponent = math.floor(math.log10(abs(float(f"{value:.{digits - 1}e}"))))
     if -3 <= exponent < 6:
-        return f"{value:.{max(digits - 1 - exponent, 0)}f}"
+        decimals = digits - 1 - exponent
+        return f"{round(value, decimals):.{max(decimals, 0)}f}"  # 302 to 2 digits: "300"
     mantissa = f"{value / 10.0**exponent:.{digits - 1}f}"
     return f"{mantissa}×10{str(exponent).translate(_SUPERSCRIPT)}"
 

@@ -81,6 +81,8 @@ def _parser() -> argparse.ArgumentParser:
     animate.add_argument("--magnification", type=float,
                          help="deflection magnification (default: the largest deflection drawn as a "
                               "tenth of the longest link)")
+    animate.add_argument("--frames", type=int,
+                         help="at most this many frames over the period (default 72; every k-th step)")
     animate.set_defaults(handler=_animate)
     report = commands.add_parser(
         "report", help="a one-page Markdown and HTML report of a result file, with its figures",
@@ -286,11 +288,14 @@ def _load_results(path: Path) -> dict[str, Any]:
 
 
 def _animate(args: argparse.Namespace) -> int:
-    from ._animate import animate, drawable
+    from ._animate import MAX_FRAMES, animate, drawable
 
     name, result = drawable(_load_results(args.file), args.study)
     out = args.out or args.file.with_name(f"{args.file.stem}_{name}.gif")
-    path, n_frames = animate(result, out, magnification=args.magnification)
+    frames = MAX_FRAMES if args.frames is None else args.frames
+    if frames < 1:
+        raise UsageError(f"--frames: expected a positive number of frames, got {frames}")
+    path, n_frames = animate(result, out, magnification=args.magnification, max_frames=frames)
     print(f"wrote {path} ({n_frames} frames)")
     return 0
 
