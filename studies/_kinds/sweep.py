@@ -92,7 +92,8 @@ class SweepResult(GridResult):
         xlabel = label(self.parameter, self.parameter_unit)
         for ax, spec in zip(axes, specs):
             artists[spec] = ax.semilogy(x, self.peak_to_peak[spec], ".-", color="C0", label="peak to peak")
-            ax.set_ylabel(label(f"{spec}\npeak to peak", self.units[spec]))  # two lines: fits 2.6 in
+            # a long name on two lines: a label longer than the 2.6 in axes is clipped
+            ax.set_ylabel(label(f"{spec}{chr(10) if len(spec) > 12 else ' '}peak to peak", self.units[spec]))
         if self.spectral_radius is not None:
             artists["spectral_radius"] = axes[-1].plot(x, self.spectral_radius, ".-", color="C1")
             artists["stability_limit"] = [axes[-1].axhline(1.0, color="k", lw=1.2)]
