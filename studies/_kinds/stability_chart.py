@@ -73,7 +73,7 @@ class StabilityChart(GridResult):
         if np.nanmin(radius) < level < np.nanmax(radius) and min(radius.shape) > 1:
             artists["stability_limit"] = [ax.contour(self.first, self.second, radius.T, levels=[level],
                                                      colors="k", linewidths=2.0)]
-        colorbar = ax.figure.colorbar(mesh, ax=ax, label="spectral radius |mu|max (log scale each side of 1)")
+        colorbar = ax.figure.colorbar(mesh, ax=ax, label="spectral radius |mu|max")
         ticks = radius_ticks(norm)
         colorbar.set_ticks(ticks, labels=[f"{t:g}" for t in ticks])
         artists["colorbar"] = [colorbar]
@@ -84,7 +84,7 @@ class StabilityChart(GridResult):
             ax.legend(fontsize="x-small", loc="upper left", framealpha=0.6)
         ax.set_xlabel(label(self.parameters[0], self.parameter_units[0]))
         ax.set_ylabel(label(self.parameters[1], self.parameter_units[1]))
-        ax.set_title(f"{self.problem}: stability chart (black: |mu| = 1)\n" + cost_line(
+        ax.set_title(f"{self.problem}: stability chart (black: |mu| = 1; colours on a log scale each side of 1)\n" + cost_line(
             f"spectral radius to {plain(largest(self.spectral_radius_error))}", self.run_time),
             fontsize="small")
         return drawn(axes, artists)
