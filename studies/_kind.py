@@ -14,7 +14,9 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from ._errors import StudiesError
+from ._plots import headline
 from ._problem import SPEED
+from ._summary import Summary
 
 #: Keys of an axis table: a parameter and its values (``values = [...]`` or ``start, stop, count``).
 AXIS_KEYS = ("parameter", "start", "stop", "count", "values", "spacing")
@@ -52,6 +54,14 @@ def _one_figure(result: Any) -> dict[str, Callable]:
     return {"": result.plot}
 
 
+def _no_headlines(result: Any) -> Summary:
+    """A kind that names no headline numbers: its status and run time alone."""
+    status = getattr(result, "status", "")
+    run_time = getattr(result, "run_time", float("nan"))
+    return Summary(status=headline(status) if isinstance(status, str) else "",
+                   run_time=float(run_time) if np.ndim(run_time) == 0 else float(np.nansum(run_time)))
+
+
 @dataclass(frozen=True)
 class StudyKind:
     """One kind of study, as a scene declares it (``[studies.<name>]``) and as the CLI shows it.
@@ -64,6 +74,9 @@ class StudyKind:
     ``run(problem, options, *, out, executor, progress) -> result``: the study from checked options
     (``out`` the open HDF5 file a grid study writes its points into as they finish).
     ``summary(result) -> str``: the one line ``flexvib run`` prints.
+    ``headlines(result) -> studies._summary.Summary``: its rows of the summary table ``flexvib run``
+    prints and ``flexvib report`` writes: headline numbers with units and errors, status in words,
+    run time.
     ``grid``: a resumable grid study (writes itself into ``out``; otherwise the plan writes the result).
     ``point``: the top-level point function of a grid study (picklable, run in workers).
     ``varies(options) -> (path, ...)``: the scene parameters (besides ``speed``) it changes.
@@ -87,6 +100,7 @@ class StudyKind:
     default: Callable[[float], Mapping[str, Any] | None] = _no_default
     figures: Callable[[Any], dict[str, Callable]] = _one_figure
     runs: Callable[[Mapping[str, Any]], dict[str, Mapping[str, Any]]] = _one_run
+    headlines: Callable[[Any], Summary] = _no_headlines
 
 
 # ---------------------------------------------------------------------------------------------------

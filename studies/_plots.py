@@ -9,6 +9,7 @@ figure, its axes and the artists by name, so users can restyle them (python-cont
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -69,9 +70,28 @@ def largest(values: Any) -> float:
     return float(max(a.max() for a in finite)) if finite else float("nan")
 
 
+_SUPERSCRIPT = str.maketrans("-0123456789", "\u207b\u2070\u00b9\u00b2\u00b3\u2074\u2075\u2076\u2077\u2078\u2079")
+
+
+def plain(value: float, digits: int = 2) -> str:
+    """A number as a person writes it: ``digits`` significant digits, no "3e+02": "300", "0.0012",
+    "1.2×10⁻⁵" (a power of ten only below 1e-3 or from 1e6 on); "nan" for a missing number."""
+    value = float(value)
+    if not math.isfinite(value):
+        return str(value)
+    if value == 0.0:
+        return "0"
+    exponent = math.floor(math.log10(abs(float(f"{value:.{digits - 1}e}"))))
+    if -3 <= exponent < 6:
+        decimals = digits - 1 - exponent
+        return f"{round(value, decimals):.{max(decimals, 0)}f}"  # 302 to 2 digits: "300"
+    mantissa = f"{value / 10.0**exponent:.{digits - 1}f}"
+    return f"{mantissa}×10{str(exponent).translate(_SUPERSCRIPT)}"
+
+
 def cost_line(error: str, run_time: float) -> str:
     """The line every figure carries: what its error estimate says and the run time that bought it."""
-    return f"{error}; run time {run_time:.3g} s"
+    return f"{error}; run time {plain(run_time)} s"
 
 
 def plot_multipliers(multipliers: np.ndarray, *, ax: Any, title: str = "") -> list:
@@ -124,3 +144,63 @@ def mark_statuses(ax: Any, x: np.ndarray, y: np.ndarray, status: np.ndarray) -> 
         if chosen.any():
             artists += ax.plot(x[chosen], y[chosen], ls="none", ms=7, label=headline(name), **style)
     return artists
+
+
+#: Rows of labels above an axes (``label_positions``) and the height of one row, points.
+LABEL_ROWS = 3
+LABEL_ROW_HEIGHT = 9.0
+
+
+def label_positions(ax: Any, positions: Any, texts: list[str], *, rows: int = LABEL_ROWS,
+                    fontsize: str = "x-small") -> tuple[list, int]:
+    """Label vertical lines at data ``positions`` (x) above ``ax`` without overlap: labels are taken
+    in the given order (most important first) and each goes into the lowest of ``rows`` rows where it
+    clears the labels already there; a label that fits nowhere is left out. Returns the labels drawn
+    and the number of rows used (to raise the title above them)."""
+    figure = ax.figure
+    renderer = figure.canvas.get_renderer()
+    # constrained layout may still narrow the axes: reserve a quarter more room than measured now
+    axes_width = max(ax.get_window_extent(renderer).width, 1.0) * 0.75
+    low, high = ax.get_xlim()
+    transform = ax.get_xscale() == "log" and np.log10 or (lambda v: v)
+    placed: list[list[tuple[float, float]]] = [[] for _ in range(rows)]
+    artists = []
+    for x, text in zip(positions, texts):
+        if not low <= x <= high:
+            continue
+        probe = ax.text(0, 0, text, fontsize=fontsize)
+        half = 0.5 * probe.get_window_extent(renderer).width / axes_width + 0.01
+        probe.remove()
+        centre = (transform(x) - transform(low)) / (transform(high) - transform(low))
+        for row, taken in enumerate(placed):
+            if all(abs(centre - other) > half + other_half for other, other_half in taken):
+                taken.append((centre, half))
+                artists.append(ax.annotate(text, (x, 1.0), xycoords=("data", "axes fraction"),
+                                           xytext=(0, 1.0 + row * LABEL_ROW_HEIGHT), textcoords="offset points",
+                                           fontsize=fontsize, ha="center", va="bottom"))
+                break
+    return artists, sum(1 for taken in placed if taken)
+
+
+def radius_norm(radius: Any):
+    """A colour scale for spectral radii that shows |mu| near 1 whatever the largest value: log10 of
+    the radius, the stable side (below 1) and the unstable side (above 1) each spread over half the
+    colour map, 1 at its centre (a diverging map then shows 1 as its neutral colour). Returns a
+    matplotlib ``FuncNorm``."""
+    from matplotlib.colors import FuncNorm
+
+    values = np.asarray(radius, dtype=float)
+    values = values[np.isfinite(values) & (values > 0)]
+    low = min(float(values.min()) if values.size else 0.5, 0.999)
+    high = max(float(values.max()) if values.size else 2.0, 1.001)
+    below, above = -math.log10(low), math.log10(high)
+
+    def forward(r):
+        logs = np.log10(np.clip(np.asarray(r, dtype=float), low, high))
+        return np.where(logs < 0, logs / below, logs / above)
+
+    def inverse(f):
+        f = np.asarray(f, dtype=float)
+        return 10.0 ** np.where(f < 0, f * below, f * above)
+
+    return FuncNorm((forward, inverse), vmin=low, vmax=high)

@@ -1,4 +1,4 @@
-"""The ``flexvib`` command: ``scenes``, ``run``, ``plot``, ``info``, ``check``, ``demo`` (see ``flexvib --help``)."""
+"""The ``flexvib`` command: ``scenes``, ``run``, ``plot``, ``animate``, ``report``, ``info``, ``check``, ``demo`` (see ``flexvib --help``)."""
 
 from __future__ import annotations
 
@@ -71,6 +71,31 @@ def _parser() -> argparse.ArgumentParser:
     plot.add_argument("--outdir", type=Path, help="folder for the figures (default: FILE without .h5, "
                                                   "plus _figures)")
     plot.set_defaults(handler=_plot)
+    animate = commands.add_parser(
+        "animate", help="the deformed mechanism of a steady state over one period (GIF or MP4)",
+        description="Animate the deformed mechanism of a steady state over one period: links (plates "
+                    "filled), joints and ground pins, the elastic deflection magnified by the factor "
+                    "stated in the title. GIF with Pillow; MP4 needs ffmpeg.")
+    animate.add_argument("file", type=Path, help="result file written by 'flexvib run'")
+    animate.add_argument("--study", help="the study to animate (default: the first steady state of a "
+                                         "mechanism in the file)")
+    animate.add_argument("--out", type=Path, help="FILE.gif or FILE.mp4 (default: FILE without .h5, "
+                                                  "plus _STUDY.gif)")
+    animate.add_argument("--magnification", type=float,
+                         help="deflection magnification (default: the largest deflection drawn as a "
+                              "tenth of the longest link)")
+    animate.add_argument("--frames", type=int,
+                         help="at most this many frames over the period (default 72; every k-th step)")
+    animate.set_defaults(handler=_animate)
+    report = commands.add_parser(
+        "report", help="a one-page Markdown and HTML report of a result file, with its figures",
+        description="Write report.md and report.html: the summary table of every study (headline "
+                    "numbers with units and errors, status, run time) and its figures (PNG files "
+                    "beside them).")
+    report.add_argument("file", type=Path, help="result file written by 'flexvib run'")
+    report.add_argument("--out", type=Path, help="folder of the report (default: FILE without .h5, plus "
+                                                 "_report)")
+    report.set_defaults(handler=_report_command)
     info = commands.add_parser("info", help="summarise a result file",
                                description="Summarise a result file: versions, studies, settings, "
                                            "error estimates and run times.")
@@ -246,6 +271,12 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{name:16s} {kind_of(result).summary(result)}")
     for name, message in failures.items():
         print(f"{name:16s} FAILED: {message}")
+    if results:
+        from ._summary import summaries, text_table
+
+        print()
+        print(text_table(summaries(results)))
+        print()
     # a single study whose computation failed (a nonlinear check whose run failed) is written with
     # the status "failed"; grid studies report their failed points in their summary
     failed = sorted(name for name, result in results.items()
@@ -258,31 +289,42 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _plot(args: argparse.Namespace) -> int:
-    import matplotlib
+    from ._report import write_figures
 
-    matplotlib.use("Agg")
-    matplotlib.rcParams["svg.fonttype"] = "none"  # keep text as text: editable and searchable
-    import matplotlib.pyplot as plt
+    outdir = args.outdir or args.file.with_name(args.file.stem + "_figures")
+    for paths in write_figures(_load_results(args.file), outdir).values():
+        for target in paths:
+            print(target)
+    return 0
 
-    from ._kinds import kind_of
+
+def _load_results(path: Path) -> dict[str, Any]:
     from ._store import load
 
-    if not args.file.is_file():
-        raise UsageError(f"result file {str(args.file)!r} does not exist")
-    results = load(args.file)
-    outdir = args.outdir or args.file.with_name(args.file.stem + "_figures")
-    outdir.mkdir(parents=True, exist_ok=True)
-    written = []
-    for name, result in results.items():
-        for suffix, draw in kind_of(result).figures(result).items():
-            figure = draw().figure
-            for extension in ("png", "svg"):
-                target = outdir / f"{name}{suffix}.{extension}"
-                figure.savefig(target, dpi=150)
-                written.append(target)
-            plt.close(figure)
-    for target in written:
-        print(target)
+    if not path.is_file():
+        raise UsageError(f"result file {str(path)!r} does not exist")
+    return load(path)
+
+
+def _animate(args: argparse.Namespace) -> int:
+    from ._animate import MAX_FRAMES, animate, drawable
+
+    name, result = drawable(_load_results(args.file), args.study)
+    out = args.out or args.file.with_name(f"{args.file.stem}_{name}.gif")
+    frames = MAX_FRAMES if args.frames is None else args.frames
+    if frames < 1:
+        raise UsageError(f"--frames: expected a positive number of frames, got {frames}")
+    path, n_frames = animate(result, out, magnification=args.magnification, max_frames=frames)
+    print(f"wrote {path} ({n_frames} frames)")
+    return 0
+
+
+def _report_command(args: argparse.Namespace) -> int:
+    from ._report import write_report
+
+    outdir = args.out or args.file.with_name(args.file.stem + "_report")
+    for path in write_report(_load_results(args.file), outdir, source=args.file):
+        print(path)
     return 0
 
 

@@ -15,12 +15,15 @@ import periodic
 from .._errors import StudiesError
 from .._grid import run_grid
 from .._kind import HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, steps
-from .._numerics import STUDY_SCHEME, characteristic_frequencies, frozen_modes, track_modes
-from .._plots import Plot, axes_for, cost_line, drawn, largest, mark_statuses
+from .._numerics import STUDY_SCHEME, characteristic_frequencies, crossings, frozen_modes, track_modes, \
+    unstable_intervals
+from .._plots import Plot, axes_for, cost_line, drawn, largest, mark_statuses, plain
 from .._problem import SPEED
 from .. import _verdicts as verdicts
 from .._store import register
-from .._studies import GridResult, check_grid, check_integer, check_n_steps, collect, grid_summary, open_store
+from .._studies import GridResult, check_grid, check_integer, check_n_steps, collect, grid_summary, open_store, \
+    status_counts
+from .._summary import Headline, Summary, listed, ranges
 
 #: The fewest steps per period a Campbell diagram accepts (docs/studies.md).
 MIN_STEPS = 32
@@ -82,17 +85,22 @@ class CampbellResult(GridResult):
         ax = axes[0]
         artists: dict[str, list] = {}
         speeds = self.speeds
+        hidden: list[str] = []
         if self.band_min is not None:
+            # Show the range the harmonics reach (where resonances can occur) and at least the lowest
+            # mode; higher modes (e.g. axial) would squash the interesting part: they are left out,
+            # of the legend too, and named in the title.
+            top = 1.15 * max(max(self.harmonics) * speeds[-1], np.nanmax(self.band_max[:, 0]))
             for j, name in enumerate(self.mode_labels):
+                if not np.nanmin(self.band_min[:, j]) < top:
+                    hidden.append(name.split(" (")[0])
+                    continue
                 artists[name] = [ax.fill_between(speeds, self.band_min[:, j], self.band_max[:, j],
                                                  color=f"C{j % 10}", alpha=0.25, lw=0)]
                 artists[name] += ax.plot(speeds, self.band_mean[:, j], color=f"C{j % 10}", label=name)
             artists["characteristic"] = ax.plot(np.repeat(speeds, self.characteristic.shape[1]),
                                                 self.characteristic.reshape(-1), ".", color="k", ms=2,
                                                 label="Floquet characteristic")
-            # Show the range the harmonics reach (where resonances can occur) and at least the lowest
-            # mode; higher modes (e.g. axial) would squash the interesting part.
-            top = 1.15 * max(max(self.harmonics) * speeds[-1], np.nanmax(self.band_max[:, 0]))
             artists["harmonics"] = []
             for k in self.harmonics:
                 artists["harmonics"] += ax.plot(speeds, k * speeds, color="0.6", lw=0.7, ls="--")
@@ -109,8 +117,9 @@ class CampbellResult(GridResult):
         if self.characteristic_error is not None:
             shown = np.asarray(self.characteristic) <= ax.get_ylim()[1]
             error = largest(np.where(shown, self.characteristic_error, np.nan))
-        ax.set_title(f"{self.problem}: Campbell diagram\n" + cost_line(
-            f"characteristic frequencies shown to {error:.2g} rad/s", self.run_time), fontsize="small")
+        above = f" ({', '.join(hidden)} above the range shown)" if hidden else ""
+        ax.set_title(f"{self.problem}: Campbell diagram{above}\n" + cost_line(
+            f"characteristic frequencies shown to {plain(error)} rad/s", self.run_time), fontsize="small")
         return drawn(axes, artists)
 
 
@@ -222,6 +231,25 @@ def _summary(result: CampbellResult) -> str:
     return grid_summary(result, point=lambda index: f"speed {result.speeds[index]:.4g} rad/s")
 
 
+def _headlines(result: CampbellResult) -> Summary:
+    rows = []
+    if result.band_mean is not None:
+        speeds = result.speeds
+        for j, name in enumerate(result.mode_labels[:3]):  # the lowest modes: what a design meets first
+            rows.append(Headline(f"{name} frozen frequency band",
+                                 f"{plain(np.nanmin(result.band_min[:, j]), 3)}–"
+                                 f"{plain(np.nanmax(result.band_max[:, j]), 3)} rad/s"))
+        found = sorted((value, k, j) for j in range(result.band_mean.shape[1]) for k in result.harmonics
+                       for _, value in crossings(speeds, k * speeds - result.band_mean[:, j]))
+        rows.append(Headline("resonances, harmonic:mode at crank speed (rad/s)",
+                             listed([f"{k}:{j + 1} at {plain(value, 3)}" for value, k, j in found])))
+    if result.spectral_radius is not None:
+        lower = result.spectral_radius - np.nan_to_num(result.spectral_radius_error)
+        rows.append(Headline("unstable crank speeds",
+                             ranges(unstable_intervals(result.speeds, lower, tol=periodic.STABILITY_TOL), "rad/s")))
+    return Summary(status=status_counts(result.status[result.done]), run_time=result.run_time, rows=rows)
+
+
 def _default(nominal_speed: float) -> dict[str, Any]:
     """40 speeds from 0.2 to 4 times the scene's."""
     return {"start": 0.2 * abs(nominal_speed), "stop": 4.0 * abs(nominal_speed), "count": 40}
@@ -231,4 +259,4 @@ KIND = StudyKind(name="campbell", result=CampbellResult,
                  keys=("start", "stop", "count", "values", "spacing", "frozen_samples", "max_harmonic",
                        "n_steps"),
                  check=_check, run=_run, summary=_summary, grid=True, point=campbell_point,
-                 default=_default)
+                 default=_default, headlines=_headlines)

@@ -14,9 +14,10 @@ import periodic
 from .._errors import StudiesError
 from .._kind import MAX_STEPS, STEPS_WHY, StudyKind, axis, integer, speed_values, sub_table
 from .._numerics import STUDY_SCHEME, solve_steady
-from .._plots import Plot, axes_for, drawn
+from .._plots import Plot, axes_for, drawn, plain
 from .._store import Result, register
 from .._studies import check_grid, check_n_steps, check_parameter
+from .._summary import Headline, Summary
 
 
 @register
@@ -177,10 +178,21 @@ def _summary(result: ErrorCostResult) -> str:
             f"error {best} in {result.run_time[-1, -1]:.3g} s")
 
 
+def _headlines(result: ErrorCostResult) -> Summary:
+    level = (f", {result.resolution_parameter} = {plain(result.resolutions[-1], 3)}"
+             if result.resolution_parameter else "")
+    rows = [Headline(f"{spec} relative error at N = {result.n_steps[-1]}{level}", float(values[-1, -1]), "1",
+                     where=f"(estimated {plain(result.error_estimate[spec][-1, -1])}; "
+                           f"{plain(result.run_time[-1, -1])} s)")
+            for spec, values in result.error.items()]
+    return Summary(status="ok", run_time=float(result.reference_run_time + np.nansum(result.run_time)),
+                   rows=rows)
+
+
 def _varies(options: Mapping[str, Any]) -> tuple[str, ...]:
     return () if options["resolution"] is None else (options["resolution"][0],)
 
 
 KIND = StudyKind(name="error_cost", result=ErrorCostResult, keys=("speed", "n_steps", "reference_steps",
                                                                    "resolution"),
-                 check=_check, run=_run, summary=_summary, varies=_varies)
+                 check=_check, run=_run, summary=_summary, varies=_varies, headlines=_headlines)

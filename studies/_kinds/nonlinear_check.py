@@ -13,10 +13,11 @@ from .._errors import StudiesError, is_numerical_failure
 from .._kind import MAX_AXIS_POINTS, MAX_PERIODS, PERIODS_WHY, StudyKind, boolean, fraction, integer, \
     number, speed_values, steps
 from .._numerics import solve_steady
-from .._plots import Plot, axes_for, drawn, headline, label
+from .._plots import Plot, axes_for, drawn, headline, label, plain
 from .._problem import SPEED
 from .._store import Result, register
 from .._studies import check_integer, check_n_steps
+from .._summary import Headline, Summary
 from .._verdicts import combine
 
 #: The fewest steps per period a nonlinear check accepts (docs/studies.md): the nonlinear run takes
@@ -94,7 +95,7 @@ class NonlinearCheck(Result):
         """Nonlinear run from the linear state (and from rest) against the linear periodic solution,
         the verdict in each title."""
         specs = list(self.linear)
-        axes = axes_for(len(specs), axes)
+        axes = axes_for(len(specs), axes, height=3.2)  # room for a four-line title
         period = self.t_linear[-1]
         # a failed run has no nonlinear samples: the linear solution over one period alone
         t_end = self.t[-1] if self.t is not None and np.size(self.t) else period
@@ -111,13 +112,13 @@ class NonlinearCheck(Result):
                 lines += ax.plot(self.t_rest, self.rest[spec], color="0.6", lw=0.6, label="nonlinear from rest")
             ax.set_xlabel("time (s)")
             ax.set_ylabel(label(spec, self.units[spec]))
-            ax.set_title(f"{spec}: {self.verdict.upper().replace('_', ' ')} (linear: "
-                         f"{headline(self.status)}), max difference {self.difference.get(spec, float('nan')):.2g} "
-                         f"({100 * self.relative_difference.get(spec, float('nan')):.2g} % of peak to peak)\n"
-                         f"estimated errors: linear {self.linear_error.get(spec, float('nan')):.2g}, "
-                         f"nonlinear {self.nonlinear_error.get(spec, float('nan')):.2g}; run time "
-                         f"linear {self.linear_run_time:.3g} s, nonlinear "
-                         f"{self.nonlinear_run_time:.3g} s", fontsize="small")
+            ax.set_title(f"{spec}: {self.verdict.upper().replace('_', ' ')} (linear: {headline(self.status)})\n"
+                         f"max difference {plain(self.difference.get(spec, float('nan')))} "
+                         f"({plain(100 * self.relative_difference.get(spec, float('nan')))} % of peak to peak)\n"
+                         f"estimated errors: linear {plain(self.linear_error.get(spec, float('nan')))}, "
+                         f"nonlinear {plain(self.nonlinear_error.get(spec, float('nan')))}\nrun time linear "
+                         f"{plain(self.linear_run_time)} s, nonlinear {plain(self.nonlinear_run_time)} s",
+                         fontsize="small")
             ax.legend(fontsize="x-small")
             artists[spec] = lines
         return drawn(axes, artists)
@@ -274,7 +275,22 @@ def _summary(result: NonlinearCheck) -> str:
     return f"{result.verdict.upper()} at speed {speed:.4g} rad/s: {result.message}\n    {numbers}"
 
 
+def _headlines(result: NonlinearCheck) -> Summary:
+    speed = result.parameters.get(SPEED, float("nan"))
+    rows = []
+    for spec, difference in result.difference.items():
+        error = result.linear_error.get(spec, float("nan")) + result.nonlinear_error.get(spec, float("nan"))
+        rows.append(Headline(f"{spec} max |nonlinear - linear|", difference, result.units[spec], error,
+                             f"({plain(100 * result.relative_difference[spec])} % of peak to peak)"))
+    if np.isfinite(result.periods_to_steady):
+        rows.append(Headline("periods to steady state from rest", result.periods_to_steady))
+    run_time = float(np.nansum([result.linear_run_time, result.nonlinear_run_time, result.rest_run_time]))
+    words = f"{result.verdict.replace('_', ' ')} at speed {plain(speed, 3)} rad/s (linear: {headline(result.status)})"
+    return Summary(status=words, run_time=run_time, rows=rows)
+
+
 KIND = StudyKind(name="nonlinear_check", result=NonlinearCheck,
                  keys=("speed", "speeds", "n_periods", "from_rest", "max_periods_from_rest", "steady_tol",
                        "tolerance", "periodic_tol", "n_steps"),
-                 check=_check, run=_run, summary=_summary, runs=_runs, default=lambda nominal_speed: {"n_periods": 3})
+                 check=_check, run=_run, summary=_summary, runs=_runs, default=lambda nominal_speed: {"n_periods": 3},
+                 headlines=_headlines)

@@ -16,12 +16,13 @@ from .._errors import StudiesError
 from .._grid import run_grid
 from .._kind import StudyKind, axis, steps, sub_table
 from .._numerics import STUDY_SCHEME
-from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses
+from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses, plain, radius_norm
 from .._problem import SPEED
 from .. import _verdicts as verdicts
 from .._store import register
 from .._studies import GridResult, check_grid, check_n_steps, check_parameter, collect, grid_summary, \
-    open_store
+    open_store, status_counts
+from .._summary import Headline, Summary, largest_over_grid, ranges
 
 #: The fewest steps per period a stability chart accepts (docs/studies.md).
 MIN_STEPS = 32
@@ -59,18 +60,23 @@ class StabilityChart(GridResult):
         return super()._unit(name, key)
 
     def plot(self, *, axes: Any = None) -> Plot:
-        """Spectral radius map (colour) with the boundary |mu| = 1 (black contour)."""
+        """Spectral radius map (colour: blue stable, red unstable, white |mu| = 1, on a log scale each
+        side of 1 so that radii near 1 show beside radii of 1000) with the boundary |mu| = 1 (thick
+        black contour)."""
         axes = axes_for(1, axes, height=4.8)
         ax = axes[0]
         radius = np.asarray(self.spectral_radius, dtype=float)
-        mesh = ax.pcolormesh(self.first, self.second, radius.T, shading="nearest", cmap="viridis",
-                             vmin=np.nanmin(radius), vmax=max(np.nanmax(radius), 1.0 + 1e-3))
+        norm = radius_norm(radius)
+        mesh = ax.pcolormesh(self.first, self.second, radius.T, shading="nearest", cmap="RdBu_r", norm=norm)
         artists = {"spectral_radius": [mesh]}
         level = 1.0 + self.stability_tol
         if np.nanmin(radius) < level < np.nanmax(radius) and min(radius.shape) > 1:
             artists["stability_limit"] = [ax.contour(self.first, self.second, radius.T, levels=[level],
-                                                     colors="k", linewidths=1.0)]
-        artists["colorbar"] = [ax.figure.colorbar(mesh, ax=ax, label="spectral radius |mu|max")]
+                                                     colors="k", linewidths=2.0)]
+        colorbar = ax.figure.colorbar(mesh, ax=ax, label="spectral radius |mu|max")
+        ticks = radius_ticks(norm)
+        colorbar.set_ticks(ticks, labels=[f"{t:g}" for t in ticks])
+        artists["colorbar"] = [colorbar]
         # each cell's verdict: unstable cells crossed, marginal / inaccurate ... marked, with a legend
         first, second = np.meshgrid(self.first, self.second, indexing="ij")
         artists["status"] = mark_statuses(ax, first, second, self.status)
@@ -78,10 +84,24 @@ class StabilityChart(GridResult):
             ax.legend(fontsize="x-small", loc="upper left", framealpha=0.6)
         ax.set_xlabel(label(self.parameters[0], self.parameter_units[0]))
         ax.set_ylabel(label(self.parameters[1], self.parameter_units[1]))
-        ax.set_title(f"{self.problem}: stability chart (black: |mu| = 1)\n" + cost_line(
-            f"spectral radius to {largest(self.spectral_radius_error):.2g}", self.run_time),
+        ax.set_title(f"{self.problem}: stability chart (black: |mu| = 1; colours on a log scale each side of 1)\n" + cost_line(
+            f"spectral radius to {plain(largest(self.spectral_radius_error))}", self.run_time),
             fontsize="small")
         return drawn(axes, artists)
+
+
+#: Colour-bar ticks of the spectral radius, most telling first (1, then round values outwards).
+_RADIUS_TICKS = (1.0, 0.5, 2.0, 10.0, 100.0, 1000.0, 1e4, 0.8, 1.2, 0.9, 1.1, 5.0, 0.95, 1.05, 0.99, 1.01)
+
+
+def radius_ticks(norm: Any, *, spacing: float = 0.08) -> list[float]:
+    """Ticks of the colour bar: the values of ``_RADIUS_TICKS`` in range, each at least ``spacing``
+    (fraction of the bar) from the ones already taken, so their labels do not collide."""
+    taken: list[float] = []
+    for tick in _RADIUS_TICKS:
+        if norm.vmin <= tick <= norm.vmax and all(abs(float(norm(tick)) - float(norm(t))) >= spacing for t in taken):
+            taken.append(tick)
+    return sorted(taken)
 
 
 def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int):
@@ -146,6 +166,25 @@ def _summary(result: StabilityChart) -> str:
                                                     f"{b} {result.second[index[1]]:.4g} {ub}")
 
 
+def _headlines(result: StabilityChart) -> Summary:
+    (a, b), (ua, ub) = result.parameters, result.parameter_units
+
+    def point(index: tuple) -> str:
+        return (f"{a} {plain(result.first[index[0]], 3)} {ua}, ".replace(" 1,", ",")
+                + f"{b} {plain(result.second[index[1]], 3)} {ub}".removesuffix(" 1"))
+
+    unstable = (result.status == "unstable") & result.done
+    rows = [Headline("unstable points", f"{int(unstable.sum())} of {int(result.done.sum())}")]
+    if unstable.any():
+        i, j = np.nonzero(unstable)
+        rows.append(Headline(f"unstable {a} range", ranges([(result.first[i].min(), result.first[i].max())], ua)))
+        rows.append(Headline(f"unstable {b} range", ranges([(result.second[j].min(), result.second[j].max())], ub)))
+    if result.spectral_radius is not None:
+        rows.append(largest_over_grid("largest spectral radius", result.spectral_radius,
+                                      result.spectral_radius_error, "1", point))
+    return Summary(status=status_counts(result.status[result.done]), run_time=result.run_time, rows=rows)
+
+
 _AXIS_TABLE = "{parameter = ..., start = ..., stop = ..., count = ...}"
 
 
@@ -165,4 +204,4 @@ def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, p
 
 KIND = StudyKind(name="stability_chart", result=StabilityChart, keys=("x", "y", "n_steps"), check=_check,
                  run=_run, summary=_summary, grid=True, point=chart_point,
-                 varies=lambda options: (options["first"][0], options["second"][0]))
+                 varies=lambda options: (options["first"][0], options["second"][0]), headlines=_headlines)

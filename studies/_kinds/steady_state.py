@@ -10,10 +10,12 @@ from typing import Any, Mapping
 import numpy as np
 
 from .._kind import StudyKind, speed_values, steps
+from .._drawing import draw_mechanism, mechanism_drawing
 from .._numerics import peak_summary, solve_steady
-from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
+from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain, plot_multipliers
 from .._store import Result, register
 from .._studies import check_n_steps
+from .._summary import Headline, Summary, response_rows
 
 #: The fewest steps per period a steady state accepts (docs/studies.md): N/4 = 4 steps is the
 #: coarsest level of the error check.
@@ -38,7 +40,11 @@ class SteadyStateResult(Result):
     "secondary_hopf" or ""); ``linear_range`` {"<link>.<measure>": value} the linear-range measures
     (empty for problems without links); ``run_time`` s (linearisation, N, N/2, N/4 shooting); for mechanisms
     ``outlines`` {link: (N+1, n_points, 2)} m, points along each link over the period with the
-    deflection magnified ``magnification`` times (empty for other problems).
+    deflection magnified ``magnification`` times (empty for other problems); ``rigid_outlines`` the
+    same points without deflection, ``plates`` {link: (N+1, k, 2)} m the corners of rigid links with
+    named points, ``joints`` {joint: (N+1, 2)} m, ``ground_joints`` the joints on the ground (see
+    ``studies._drawing.mechanism_drawing``); ``drive`` the joint of the turning drive ("" without
+    one: figures use time as abscissa) and ``drive_rate`` its rate, rad/s.
     """
 
     problem: str
@@ -69,6 +75,12 @@ class SteadyStateResult(Result):
     peak_error: Mapping[str, float] = field(default_factory=dict)
     peak_to_peak: Mapping[str, float] = field(default_factory=dict)
     peak_to_peak_error: Mapping[str, float] = field(default_factory=dict)
+    rigid_outlines: Mapping[str, np.ndarray] = field(default_factory=dict)
+    plates: Mapping[str, np.ndarray] = field(default_factory=dict)
+    joints: Mapping[str, np.ndarray] = field(default_factory=dict)
+    ground_joints: tuple = ()
+    drive: str = ""
+    drive_rate: float = float("nan")
 
     @property
     def headline(self) -> str:
@@ -76,26 +88,35 @@ class SteadyStateResult(Result):
         return headline(self.status, self.instability_kind)
 
     _units = {"t": "s", "crank_angle": "rad", "x": "SI (see labels)", "response": "@observables",
-              "multipliers": "1", "outlines": "m"}
+              "multipliers": "1", "outlines": "m",
+              "rigid_outlines": "m", "plates": "m", "joints": "m"}
+
+    def abscissa(self) -> tuple[np.ndarray, str]:
+        """``(values, label)`` the response is drawn against: the turning drive's angle from its
+        start in degrees, or time in s when no drive turns (an oscillating arm, a Mathieu problem)."""
+        if self.drive and np.isfinite(self.drive_rate):
+            return np.degrees(self.drive_rate * (self.t - self.t[0])), f"drive angle at {self.drive} (deg)"
+        return self.t - self.t[0], "time (s)"
 
     def plot(self, *, axes: Any = None) -> Plot:
-        """Each observable over one crank revolution (one axes each) and the multipliers (last axes)."""
+        """Each observable over one period against the drive angle or time (one axes each) and the
+        multipliers (last axes)."""
         specs = list(self.response)
         axes = axes_for(len(specs) + 1, axes)
         artists: dict[str, list] = {}
-        angle = np.degrees(self.crank_angle - self.crank_angle[0])
+        abscissa, xlabel = self.abscissa()
         for ax, spec in zip(axes, specs):
-            artists[spec] = ax.plot(angle, self.response[spec], color="C0")
-            ax.set_xlabel("crank angle (deg)")
+            artists[spec] = ax.plot(abscissa, self.response[spec], color="C0")
+            ax.set_xlabel(xlabel)
             ax.set_ylabel(label(spec, self.units[spec]))
-            ax.set_title(f"{spec}: error estimate {self.response_error[spec]:.2g} {self.units[spec]}",
+            ax.set_title(f"{spec}: error estimate {plain(self.response_error[spec])} {self.units[spec]}",
                          fontsize="small")
         axes[0].figure.suptitle(f"{self.problem}: {self.headline}", fontsize="medium",
                                 color="C3" if self.status != "ok" else "k")
         artists["multipliers"] = plot_multipliers(
             self.multipliers, ax=axes[-1],
-            title=f"spectral radius {self.spectral_radius:.6f} +- {self.spectral_radius_error:.2g}\n" + cost_line(
-                f"max coordinate error {self.error_estimate:.2g} (N against N/2)", self.run_time))
+            title=f"spectral radius {self.spectral_radius:.6f} ± {plain(self.spectral_radius_error)}\n" + cost_line(
+                f"max coordinate error {plain(self.error_estimate)} (N against N/2)", self.run_time))
         return drawn(axes, artists)
 
     def plot_multipliers(self, *, axes: Any = None) -> Plot:
@@ -106,8 +127,8 @@ class SteadyStateResult(Result):
         return drawn(axes, {"multipliers": artists})
 
     def plot_mechanism(self, *, axes: Any = None, n_frames: int = 8) -> Plot:
-        """Link outlines at ``n_frames`` crank angles over the period, later frames darker; the elastic
-        deflection is magnified ``magnification`` times."""
+        """The mechanism at ``n_frames`` instants over the period, later frames darker: links (plates
+        filled), joints and ground pins; the elastic deflection is magnified ``magnification`` times."""
         if not self.outlines:
             from .._errors import StudiesError
 
@@ -116,19 +137,19 @@ class SteadyStateResult(Result):
         ax = axes[0]
         n_samples = next(iter(self.outlines.values())).shape[0] - 1
         frames = np.linspace(0, n_samples, n_frames, endpoint=False).astype(int)
-        artists: dict[str, list] = {name: [] for name in self.outlines}
+        artists: dict[str, list] = {}
         for rank, k in enumerate(frames):
-            # One colour per link, so each link can be followed; later frames more opaque.
+            # one colour per link, so each link can be followed; later frames more opaque
             alpha = 0.2 + 0.8 * rank / max(n_frames - 1, 1)
-            for j, (name, points) in enumerate(self.outlines.items()):
-                artists[name] += ax.plot(points[k, :, 0], points[k, :, 1], color=f"C{j % 10}", alpha=alpha,
-                                         lw=1.5, label=name if rank == n_frames - 1 else None)
-        ax.legend(fontsize="x-small", title="later frames darker", title_fontsize="x-small")
+            for name, drawn_now in draw_mechanism(ax, self, k, alpha=alpha, legend=rank == n_frames - 1).items():
+                artists.setdefault(name, []).extend(drawn_now)
+        ax.legend(fontsize="x-small", title="later frames darker", title_fontsize="x-small",
+                  loc="upper left", bbox_to_anchor=(1.01, 1.0))
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
-        ax.set_title(f"{self.problem}: deformed mechanism over one period (deflection x "
-                     f"{self.magnification:.3g}), {self.headline}", fontsize="small")
+        ax.set_title(f"{self.problem}: deformed mechanism over one period\n(deflection x "
+                     f"{plain(self.magnification)}), {self.headline}", fontsize="small")
         return drawn(axes, artists)
 
 
@@ -146,7 +167,8 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
     drawing = {}
     if hasattr(problem, "outlines"):
         outlines, magnification = problem.outlines(linear, state.x)
-        drawing = {"outlines": outlines, "magnification": magnification}
+        drawing = {"outlines": outlines, "magnification": magnification,
+                   **mechanism_drawing(linear.context)}
     return SteadyStateResult(
         problem=problem.name, parameters=problem.resolve(values), scene=problem.text,
         labels=tuple(linear.labels), units=dict(zip(linear.observables, linear.units)),
@@ -178,6 +200,13 @@ def _summary(result: SteadyStateResult) -> str:
             f"{result.spectral_radius_error:.2g}; errors {errors}; {result.run_time:.3g} s")
 
 
+def _headlines(result: SteadyStateResult) -> Summary:
+    rows = response_rows(result.response, result.response_error, result.units)
+    rows.append(Headline("spectral radius", float(result.spectral_radius), "1",
+                         float(result.spectral_radius_error)))
+    return Summary(status=result.headline, run_time=result.run_time, rows=rows)
+
+
 def _figures(result: SteadyStateResult) -> dict[str, Any]:
     figures = {"": result.plot, "_multipliers": result.plot_multipliers}
     if result.outlines:
@@ -186,4 +215,5 @@ def _figures(result: SteadyStateResult) -> dict[str, Any]:
 
 
 KIND = StudyKind(name="steady_state", result=SteadyStateResult, keys=("speed", "n_steps"), check=_check,
-                 run=_run, summary=_summary, default=lambda nominal_speed: {}, figures=_figures)
+                 run=_run, summary=_summary, default=lambda nominal_speed: {}, figures=_figures,
+                 headlines=_headlines)

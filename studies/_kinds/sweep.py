@@ -16,12 +16,14 @@ import periodic
 from .._grid import run_grid
 from .._kind import AXIS_KEYS, HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, steps
 from .._numerics import crossings, frozen_modes, peak_summary, solve_steady, unstable_intervals
-from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses
+from .._plots import LABEL_ROW_HEIGHT, Plot, axes_for, cost_line, drawn, label, label_positions, largest, \
+    mark_statuses, plain
 from .._problem import SPEED
 from .._store import register
 from .._verdicts import combine
 from .._studies import GridResult, check_grid, check_integer, check_n_steps, check_parameter, collect, \
-    grid_summary, open_store
+    grid_summary, open_store, status_counts
+from .._summary import PEAK_UNITS, Headline, Summary, largest_over_grid, listed, ranges
 
 #: Frozen-time eigenproblems per period for the resonance bands of a sweep (the bands of smooth
 #: coefficients converge fast in the number of samples; 32 resolves a band edge to well under 1 %
@@ -94,10 +96,13 @@ class SweepResult(GridResult):
         xlabel = label(self.parameter, self.parameter_unit)
         for ax, spec in zip(axes, specs):
             artists[spec] = ax.semilogy(x, self.peak_to_peak[spec], ".-", color="C0", label="peak to peak")
-            ax.set_ylabel(label(f"{spec} peak to peak", self.units[spec]))
+            # a long name on two lines: a label longer than the 2.6 in axes is clipped
+            ax.set_ylabel(label(f"{spec}{chr(10) if len(spec) > 12 else ' '}peak to peak", self.units[spec]))
         if self.spectral_radius is not None:
             artists["spectral_radius"] = axes[-1].plot(x, self.spectral_radius, ".-", color="C1")
-            artists["stability_limit"] = [axes[-1].axhline(1.0, color="k", lw=0.8)]
+            artists["stability_limit"] = [axes[-1].axhline(1.0, color="k", lw=1.2)]
+            if largest(self.spectral_radius) > 10.0:  # a linear scale to 1000 would hide |mu| near 1
+                axes[-1].set_yscale("log")
         axes[-1].set_ylabel("spectral radius |mu|max")
         # each point's verdict: unstable, marginal, inaccurate, outside the linear range ... marked
         curves = [self.peak_to_peak[spec] for spec in specs] + [self.spectral_radius]
@@ -107,12 +112,6 @@ class SweepResult(GridResult):
                 artists["status"] += mark_statuses(ax, x, y, self.status)
         if artists["status"]:
             axes[-1].legend(fontsize="x-small", loc="best")
-        relative = [np.asarray(self.peak_to_peak_error.get(spec), dtype=float)
-                    / np.asarray(self.peak_to_peak[spec], dtype=float)
-                    for spec in specs if self.peak_to_peak_error.get(spec) is not None]
-        axes[0].set_title(cost_line(f"{len(x)} points, largest estimated error "
-                                    f"{100 * largest(relative):.2g} % of peak to peak",
-                                    self.run_time), fontsize="small", pad=14)  # above the k:mode labels
         for ax in axes:
             ax.set_xlabel(xlabel)
             for start, end in self.instabilities:
@@ -120,8 +119,18 @@ class SweepResult(GridResult):
         for k, mode, value in self.resonances:
             for ax in axes:
                 artists.setdefault("resonances", []).append(ax.axvline(value, color="0.5", ls=":", lw=0.8))
-            axes[0].annotate(f"{k}:{mode + 1}", (value, 1.0), xycoords=("data", "axes fraction"),
-                             fontsize="x-small", ha="center", va="bottom")
+        # the k:mode labels in staggered rows above the top axes, the lowest harmonics first (the
+        # strongest resonances); labels that would collide are left out
+        strongest = sorted(self.resonances, key=lambda item: (item[0], item[1]))
+        artists["resonance_labels"], rows = label_positions(
+            axes[0], [value for _, _, value in strongest], [f"{k}:{mode + 1}" for k, mode, _ in strongest])
+        relative = [np.asarray(self.peak_to_peak_error.get(spec), dtype=float)
+                    / np.asarray(self.peak_to_peak[spec], dtype=float)
+                    for spec in specs if self.peak_to_peak_error.get(spec) is not None]
+        axes[0].set_title(cost_line(f"{len(x)} points, largest estimated error "
+                                    f"{plain(100 * largest(relative))} % of peak to peak", self.run_time)
+                          + ("\nresonances: harmonic k : mode (k x speed = mode frequency)" if rows else ""),
+                          fontsize="small", pad=4 + rows * LABEL_ROW_HEIGHT)
         return drawn(axes, artists)
 
 
@@ -246,6 +255,29 @@ def _summary(result: SweepResult) -> str:
                         point=lambda index: f"{result.parameter} {result.values[index]:.4g} {unit}".rstrip())
 
 
+def _headlines(result: SweepResult) -> Summary:
+    unit = result.parameter_unit
+    suffix = f" {unit}" if unit not in ("", "1") else ""
+
+    def point(index: tuple) -> str:
+        return f"{result.parameter} {plain(result.values[index], 3)}{suffix}"
+
+    rows = [largest_over_grid(f"largest {spec} peak to peak", values, result.peak_to_peak_error.get(spec),
+                              result.units[spec], point) for spec, values in result.peak_to_peak.items()]
+    # the peak force or stress over the sweep, where the result holds peaks (see PEAK_UNITS)
+    peaks = getattr(result, "peak", None) or {}
+    peak_errors = getattr(result, "peak_error", None) or {}
+    rows += [largest_over_grid(f"largest {spec} peak", values, peak_errors.get(spec), result.units[spec], point)
+             for spec, values in peaks.items() if result.units.get(spec) in PEAK_UNITS]
+    resonances = [f"{k}:{mode + 1} at {plain(value, 3)}" for k, mode, value in result.resonances]
+    rows.append(Headline(f"resonances, harmonic:mode at {label(result.parameter, unit)}", listed(resonances)))
+    rows.append(Headline(f"unstable {result.parameter} ranges", ranges(result.instabilities, unit)))
+    if result.spectral_radius is not None:
+        rows.append(largest_over_grid("largest spectral radius", result.spectral_radius,
+                                      result.spectral_radius_error, "1", point))
+    return Summary(status=status_counts(result.status[result.done]), run_time=result.run_time, rows=rows)
+
+
 def _default(nominal_speed: float) -> dict[str, Any]:
     """100 speeds from 0.2 to 4 times the scene's."""
     return {"parameter": SPEED, "start": 0.2 * abs(nominal_speed), "stop": 4.0 * abs(nominal_speed),
@@ -254,4 +286,4 @@ def _default(nominal_speed: float) -> dict[str, Any]:
 
 KIND = StudyKind(name="sweep", result=SweepResult, keys=AXIS_KEYS + ("max_harmonic", "n_steps"),
                  check=_check, run=_run, summary=_summary, grid=True, point=sweep_point,
-                 varies=lambda options: (options["parameter"],), default=_default)
+                 varies=lambda options: (options["parameter"],), default=_default, headlines=_headlines)
