@@ -904,3 +904,52 @@ def _substeps(stepper, q_n, v_n, a, sddot_n, lam_n, t_n, h, max_halvings):
             return "", level - 1, m
     a[:] = a_n
     return failure, max_halvings, 0
+
+
+# ---------------------------------------------------------------------------------------------------
+# Tangent of the discrete step map (for shooting: the monodromy of a run)
+# ---------------------------------------------------------------------------------------------------
+def _propagate_tangent(model, run: Mapping[str, Any], h: float, rho_inf: float,
+                       start: np.ndarray) -> np.ndarray:
+    """Carry the sensitivity of the integrator's state through the converged steps of ``run``.
+
+    ``start`` (4, n, p): d(q, v, a, sddot) / d(p start parameters) at ``t0``; returns the same at the
+    run's last step. Differentiating (GA1)-(GA3) and the converged step equations (NR) gives, per
+    step, with the Jacobians at the new state (``q, v, sddot, lam`` at ``t_{n+1}``):
+
+        G [d sddot_{n+1}; d lam_{n+1}] = -[K_t d qhat + C_t d vhat;  Phi_s d qhat / beta']
+
+    ``G`` the exact iteration matrix of (NR) (``K_t``, ``C_t`` from ``linear_terms_along``: the
+    same analytic derivatives Newton uses), ``d qhat``, ``d vhat`` the differentiated predictors of
+    ``_start_step``; then ``d q = d qhat + beta' d sddot``, ``d v = d vhat + gamma' d sddot`` and
+    (GA1) for ``d a``. ``lam`` does not enter the next step (only its predictor), so the state is
+    (q, v, a, sddot). The run must have taken every step at ``h`` (no substeps): the caller checks
+    ``run["n_substeps"]``.
+    """
+    from ._batch import linear_terms_along
+
+    alpha_m, alpha_f, beta, gamma = _generalized_alpha_parameters(rho_inf)
+    beta_p = h * h * beta * (1.0 - alpha_f) / (1.0 - alpha_m)
+    gamma_p = h * gamma * (1.0 - alpha_f) / (1.0 - alpha_m)
+    terms = linear_terms_along(model, run["t"][1:], run["s"][1:], run["sdot"][1:],
+                               run["sddot"][1:], run["lam"][1:])
+    n, r = terms.mass.shape[1], terms.jacobian.shape[1]
+    # the exact iteration matrices of (NR) at every converged step, factorised in one batch
+    G = np.zeros((terms.mass.shape[0], n + r, n + r))
+    G[:, :n, :n] = terms.mass + beta_p * terms.stiffness + gamma_p * terms.damping
+    G[:, :n, n:] = np.swapaxes(terms.jacobian, 1, 2)
+    G[:, n:, :n] = terms.jacobian
+    G_inverse = np.linalg.inv(G)
+    dq, dv, da, dsddot = (np.array(start[k], dtype=np.float64) for k in range(4))
+    for step in range(G.shape[0]):
+        da_known = (alpha_f * dsddot - alpha_m * da) / (1.0 - alpha_m)
+        dqhat = dq + h * dv + h * h * ((0.5 - beta) * da + beta * da_known)
+        dvhat = dv + h * ((1.0 - gamma) * da + gamma * da_known)
+        rhs = np.concatenate([terms.stiffness[step] @ dqhat + terms.damping[step] @ dvhat,
+                              terms.jacobian[step] @ dqhat / beta_p])
+        dsddot_new = -(G_inverse[step, :n] @ rhs)
+        dq = dqhat + beta_p * dsddot_new
+        dv = dvhat + gamma_p * dsddot_new
+        da = (alpha_f * dsddot + (1.0 - alpha_f) * dsddot_new - alpha_m * da) / (1.0 - alpha_m)
+        dsddot = dsddot_new
+    return np.stack([dq, dv, da, dsddot])
