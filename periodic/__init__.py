@@ -1,12 +1,23 @@
 """Periodic steady state and Floquet stability of ``M(t) x'' + C(t) x' + K(t) x = f(t)`` with period T.
 
 Newmark shooting on a uniform grid of N steps (numba kernels).  Knows nothing of mechanisms.
+Nonlinear systems: periodic orbits of any period map by Newton shooting (``find_orbit``) and their
+continuation over a parameter with bifurcation detection (``continue_orbits``).
 """
 
+from ._continuation import OrbitBranch as OrbitBranch
+from ._continuation import continue_orbits as continue_orbits
 from ._demo import demo_system as demo_system
+from ._duffing import Duffing as Duffing
+from ._duffing import DuffingPeriodMap as DuffingPeriodMap
+from ._duffing import duffing_period_map as duffing_period_map
 from ._floquet import FloquetResult as FloquetResult
 from ._floquet import NearResonanceWarning as NearResonanceWarning
 from ._floquet import floquet as floquet
+from ._orbit import BIFURCATIONS as BIFURCATIONS
+from ._orbit import PeriodicOrbit as PeriodicOrbit
+from ._orbit import PeriodMap as PeriodMap
+from ._orbit import find_orbit as find_orbit
 from ._scheme import SCHEMES as SCHEMES
 from ._scheme import Newmark as Newmark
 from ._scheme import Scheme as Scheme
@@ -24,21 +35,30 @@ from ._verdict import stability_verdict as stability_verdict
 from ._verdict import worst_status as worst_status
 
 __all__ = [
+    "BIFURCATIONS",
     "SCHEMES",
     "STABILITY_TOL",
     "STATUSES",
+    "Duffing",
+    "DuffingPeriodMap",
     "ErrorCheck",
     "FloquetResult",
     "NearResonanceWarning",
+    "OrbitBranch",
     "Newmark",
     "Scheme",
     "PeriodicError",
+    "PeriodicOrbit",
     "PeriodicSystem",
+    "PeriodMap",
     "ShootingError",
     "Stability",
     "SteadyState",
+    "continue_orbits",
     "demo_system",
+    "duffing_period_map",
     "error_verdict",
+    "find_orbit",
     "floquet",
     "stability_verdict",
     "steady_state",

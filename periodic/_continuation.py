@@ -1,0 +1,480 @@
+"""Continuation of periodic orbits over a parameter, with bifurcation detection.
+
+Unknowns ``y = (x / X, p / P)``, scaled so that both parts are O(1): ``X`` the state's scale (the
+largest rms state met so far, or ``state_scale``), ``P = |stop - start|``.  Each new point solves
+
+    P(x, p) - x = 0,    t . (y - y_pred) = 0
+
+by damped Newton (:func:`periodic._orbit.newton`) from the predictor ``y_pred = y_k + ds t``:
+``natural`` fixes the parameter (``t = e_p`` in the constraint, the predictor along the last secant
+scaled to move ``p`` by the step); ``arclength`` (pseudo-arclength, Keller) takes the constraint's
+normal along the secant ``t`` of the last two points (at the first point the tangent, the null vector
+of ``[Phi - I, dP/dp]``), so the branch is followed through folds, where ``Phi - I`` is singular but
+the bordered matrix is not.  ``dP/dp`` is a forward difference of the map,
+``(P(x, p + dp) - P(x, p)) / dp`` with ``dp = sqrt(eps) max(|p|, P)``, computed once per corrector
+solve at its first iterate (one extra map call; relative error ~1e-8, which slows Newton's
+convergence negligibly).  Step control: a corrector that fails, or whose new secant turns by more than
+``MAX_TURN`` from the last one (it may have jumped to another branch), halves the step; one that
+converges in at most ``EASY_ITERATIONS`` steps grows it by ``GROWTH``.
+
+Bifurcations.  Between two accepted points, a change in the number of multipliers outside the unit
+circle (``|mu| > 1 + stability_tol``) is a bifurcation; its kind is read from the test function that
+changes sign -- ``det(I - Phi)`` (a real multiplier crossing +1: fold or branch point),
+``det(I + Phi)`` (crossing -1: period doubling), else ``prod (|mu|^2 - 1)`` over the complex pairs
+(secondary Hopf / Neimark-Sacker) -- and it is located by Brent's method on that test function along
+the chord between the two points (each evaluation a corrector solve on the hyperplane normal to the
+chord), the orbit there inserted in the branch.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ._orbit import (
+    CountingMap,
+    PeriodicOrbit,
+    check_iterations,
+    check_state,
+    classify,
+    newton,
+    relative_residual,
+    solve_fixed_point,
+)
+from ._system import PeriodicError, check_real, check_tol
+from ._verdict import STABILITY_TOL, worst_status
+
+logger = logging.getLogger(__name__)
+
+METHODS = ("natural", "arclength")
+#: A corrector whose new secant turns by more than this from the last one (radians, in the scaled
+#: variables) is rejected and the step halved: it may have converged onto another branch.
+MAX_TURN = math.radians(30.0)
+#: A corrector that converges in at most this many Newton steps lets the next step grow ...
+EASY_ITERATIONS = 3
+#: ... by this factor (up to max_step); a failed or turning one halves it.
+GROWTH = 1.5
+#: Brent's method locates a bifurcation to this fraction of the chord between two points.
+LOCATE_XTOL = 1e-10
+#: Without ``state_scale`` the state's scale follows the largest rms state met, by factors of this.
+RESCALE = 2.0
+_FORWARD_DIFFERENCE = math.sqrt(np.finfo(float).eps)
+
+
+@dataclass(frozen=True)
+class OrbitBranch:
+    """A branch of periodic orbits over a parameter (m points, state of size n).
+
+    Attributes
+    ----------
+    parameters : ndarray (m,)
+        Parameter values, in the order followed (not monotone past a fold).
+    states : ndarray (m, n)
+        Orbit states at t = 0.
+    multipliers : ndarray (m, n) complex
+        Floquet multipliers of each orbit, decreasing modulus.
+    stable : ndarray (m,) bool
+        ``is_stable`` of each orbit (True also where ``marginal``: see ``statuses``).
+    statuses : tuple of str (m,)
+        Each orbit's status (``"ok"``, ``"unstable"``, ``"marginal"``).
+    orbits : tuple of PeriodicOrbit (m,)
+        The orbits themselves (monodromy, messages, residuals).
+    bifurcations : tuple of (float, str)
+        ``(parameter, kind)`` where a multiplier crosses the unit circle, kind ``"fold"``,
+        ``"period_doubling"`` or ``"secondary_hopf"``; the located orbit is on the branch, at
+        ``bifurcation_indices``.
+    bifurcation_indices : tuple of int
+        Index into the branch of each bifurcation's orbit (-1 where it was only interpolated).
+    status : str
+        ``"failed"`` (the first orbit was not found, the step fell below ``min_step``, or
+        ``max_points`` ran out before ``stop``: ``message`` says why and where), ``"unstable"``
+        (stopped where the orbit loses stability, ``stop_at_instability``), else the worst status of
+        the points (``"ok"``, ``"marginal"``, ``"unstable"``).
+    message : str
+        What happened, in words.
+    method : str
+        ``"natural"`` or ``"arclength"``.
+    map_calls : int
+        Calls of the period map.
+    run_time : float
+        Wall time, s.
+    """
+
+    parameters: np.ndarray
+    states: np.ndarray
+    multipliers: np.ndarray
+    stable: np.ndarray
+    statuses: tuple
+    orbits: tuple
+    bifurcations: tuple
+    bifurcation_indices: tuple
+    status: str
+    message: str
+    method: str
+    map_calls: int
+    run_time: float
+
+
+class _Corrector:
+    """Newton on ``[P(x, p) - x; normal . (y - y_pred)] = 0`` in the scaled unknowns ``y``."""
+
+    def __init__(self, period_map: CountingMap, state_scale: float, parameter_scale: float, floor: float,
+                 tol: float, max_iterations: int, stability_tol: float):
+        self.map, self.X, self.P, self.floor = period_map, state_scale, parameter_scale, floor
+        self.tol, self.max_iterations, self.stability_tol = tol, max_iterations, stability_tol
+
+    def scaled(self, state, parameter) -> np.ndarray:
+        return np.append(state / self.X, parameter / self.P)
+
+    def unscaled(self, y):
+        return y[:-1] * self.X, float(y[-1] * self.P)
+
+    def parameter_derivative(self, state, parameter, end) -> np.ndarray:
+        """``dP/dp`` (n,) by a forward difference (see the module notes)."""
+        increment = _FORWARD_DIFFERENCE * max(abs(parameter), self.P)
+        shifted, _ = self.map(state, parameter + increment)
+        return (shifted - end) / increment
+
+    def tangent(self, state, parameter, monodromy, end, direction: float) -> np.ndarray:
+        """Unit null vector of ``[Phi - I, dP/dp]`` (scaled), its parameter part along ``direction``."""
+        n = state.size
+        bordered = np.empty((n, n + 1))
+        bordered[:, :n] = monodromy - np.eye(n)
+        bordered[:, n] = self.parameter_derivative(state, parameter, end) * self.P / self.X
+        tangent = np.linalg.svd(bordered)[2][-1]
+        if tangent[-1] * direction < 0.0 or (tangent[-1] == 0.0 and direction < 0.0):
+            tangent = -tangent
+        return tangent
+
+    def solve(self, y_pred, normal, *, fixed_parameter: bool):
+        """Newton from ``y_pred`` on the hyperplane ``normal . (y - y_pred) = 0``; returns the
+        :class:`NewtonResult` (``extra``: the monodromy)."""
+        n = y_pred.size - 1
+        column = {}
+
+        def evaluate(y):
+            state, parameter = self.unscaled(y)
+            end, monodromy = self.map(state, parameter)
+            jacobian = np.empty((n + 1, n + 1))
+            jacobian[:n, :n] = monodromy - np.eye(n)
+            if fixed_parameter:  # the last row fixes dp = 0: the column does not matter
+                jacobian[:n, n] = 0.0
+            else:
+                if "dP/dp" not in column:  # once per solve, at its first iterate (see the module notes)
+                    column["dP/dp"] = self.parameter_derivative(state, parameter, end) * self.P / self.X
+                jacobian[:n, n] = column["dP/dp"]
+            jacobian[n] = normal
+            value = np.append((end - state) / self.X, normal @ (y - y_pred))
+            return value, jacobian, monodromy
+
+        def relative(y, value):
+            return relative_residual(y[:-1] * self.X, value[:-1] * self.X, self.floor)
+
+        return newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative)
+
+    def orbit(self, found, start_time) -> PeriodicOrbit:
+        state, parameter = self.unscaled(found.y)
+        return classify(parameter, state, found.extra, residual=found.residual, iterations=found.iterations,
+                        map_calls=self.map.calls, converged=found.converged, reason=found.reason,
+                        stability_tol=self.stability_tol, start_time=start_time)
+
+
+def _test_functions(multipliers: np.ndarray) -> dict:
+    """Test functions whose sign changes where a multiplier crosses the unit circle (see module notes)."""
+    pairs = multipliers[multipliers.imag > 0.0]
+    return {
+        "fold": float(np.prod(1.0 - multipliers).real),
+        "period_doubling": float(np.prod(1.0 + multipliers).real),
+        "secondary_hopf": float(np.prod(np.abs(pairs) ** 2 - 1.0)),
+    }
+
+
+def _outside(orbit: PeriodicOrbit, stability_tol: float) -> int:
+    return int(np.sum(np.abs(orbit.multipliers) > 1.0 + stability_tol))
+
+
+def continue_orbits(period_map, guess, start: float, stop: float, *, step: float | None = None,
+                    method: str = "natural", min_step: float | None = None, max_step: float | None = None,
+                    tol: float = 1e-10, max_iterations: int = 10, max_points: int = 500,
+                    stop_at_instability: bool = True, state_scale: float | None = None,
+                    stability_tol: float = STABILITY_TOL) -> OrbitBranch:
+    """Follow the periodic orbit of ``period_map`` from ``parameter = start`` (near ``guess`` (n,)) to
+    ``stop``.
+
+    ``period_map(state (n,), parameter) -> (end_state (n,), monodromy (n, n))`` as for
+    :func:`periodic.find_orbit`.  ``method``: ``"natural"`` (parameter steps; stops at a fold, where
+    the orbit turns back) or ``"arclength"`` (pseudo-arclength: through folds).  ``step``, ``min_step``
+    and ``max_step`` are in units of the parameter (defaults ``|stop - start|`` / 50, * 1e-6, / 10;
+    for ``arclength`` the length of a step in the scaled variables, which moves the parameter by
+    ``step`` where the state barely changes).  ``tol`` and ``max_iterations``: each corrector's Newton
+    (relative residual ``|P(x) - x| / (|x| + state_scale)``).  ``state_scale`` (units of the state):
+    the scale of the state in the arclength norm and the residual's absolute floor (default: the
+    largest rms state met so far for the former, 0 for the latter).  With ``stop_at_instability`` the
+    branch ends at the first bifurcation where a multiplier leaves the unit circle (the located
+    orbit is its last point), else it goes on and records every crossing.  Nothing is raised on a
+    numerical failure: see ``OrbitBranch.status``.
+    """
+    start_time = time.perf_counter()
+    guess = check_state("guess", guess)
+    start, stop = check_real("start", start), check_real("stop", stop)
+    if start == stop:
+        raise PeriodicError(f"stop: expected a value different from start = {start:g}, got {stop:g}")
+    if method not in METHODS:
+        raise PeriodicError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+    span, direction = abs(stop - start), math.copysign(1.0, stop - start)
+    step = _positive("step", span / 50.0 if step is None else step)
+    max_step = _positive("max_step", max(span / 10.0, step) if max_step is None else max_step)
+    min_step = _positive("min_step", min(span * 1e-6, step) if min_step is None else min_step)
+    if not min_step <= step <= max_step:
+        raise PeriodicError(f"step: expected min_step <= step <= max_step, got {min_step:g}, {step:g}, {max_step:g}")
+    tol = check_tol("tol", tol, 1.0)
+    max_iterations = check_iterations("max_iterations", max_iterations)
+    max_points = check_iterations("max_points", max_points)
+    floor = 0.0 if state_scale is None else check_tol("state_scale", state_scale)
+    counted = CountingMap(period_map, guess.size)
+
+    first = solve_fixed_point(counted, guess, start, tol=tol, max_iterations=max(max_iterations, 20),
+                              state_scale=floor)
+    first_orbit = classify(start, first.y, first.extra if first.extra is not None else first.jacobian,
+                           residual=first.residual, iterations=first.iterations, map_calls=counted.calls,
+                           converged=first.converged, reason=first.reason, stability_tol=stability_tol,
+                           start_time=start_time)
+    if not first.converged:
+        return _branch([], [], [], "failed", f"failed: the first orbit was not found: {first_orbit.message}",
+                       method, counted.calls, start_time, guess.size)
+    rms = float(np.sqrt(np.mean(first.y**2)))
+    scale = state_scale if state_scale else (rms if rms > 0.0 else 1.0)
+    corrector = _Corrector(counted, scale, span, floor, tol, max_iterations, stability_tol)
+    follower = _Follower(corrector, method, direction, stop, stop_at_instability, start_time,
+                         adaptive_scale=not state_scale)
+    return follower.run(first_orbit, step=step, min_step=min_step, max_step=max_step, max_points=max_points)
+
+
+def _positive(name, value) -> float:
+    value = check_real(name, value)
+    if not value > 0.0:
+        raise PeriodicError(f"{name}: expected a step > 0 in units of the parameter, got {value:g}")
+    return value
+
+
+class _Follower:
+    """The continuation loop: predictor, corrector, step control, bifurcations, the end."""
+
+    def __init__(self, corrector: _Corrector, method, direction, stop, stop_at_instability, start_time,
+                 adaptive_scale: bool):
+        self.corrector, self.method, self.direction, self.stop = corrector, method, direction, stop
+        self.adaptive_scale = adaptive_scale
+        self.stop_at_instability, self.start_time = stop_at_instability, start_time
+        self.orbits: list[PeriodicOrbit] = []
+        self.bifurcations: list[tuple[float, str]] = []
+        self.indices: list[int] = []
+
+    def run(self, first: PeriodicOrbit, *, step, min_step, max_step, max_points) -> OrbitBranch:
+        corrector = self.corrector
+        self.orbits.append(first)
+        # the first tangent: null vector of [Phi - I, dP/dp] at the first orbit (P(x) = x there, to tol)
+        tangent = corrector.tangent(first.state, first.parameter, first.monodromy, first.state, self.direction)
+        y = corrector.scaled(first.state, first.parameter)
+        last_reason = ""
+        while True:
+            current = self.orbits[-1]
+            if current.parameter == self.stop:
+                return self._finish("reached")
+            if len(self.orbits) >= max_points:
+                return self._finish("max_points", max_points=max_points)
+            if step < min_step:
+                return self._finish("min_step", min_step=min_step, reason=last_reason)
+            y_pred, normal, fixed = self._predict(y, tangent, step)
+            found = corrector.solve(y_pred, normal, fixed_parameter=fixed)
+            if not found.converged:
+                last_reason = found.reason
+                step *= 0.5
+                continue
+            secant = found.y - y
+            secant /= np.linalg.norm(secant)
+            if secant @ tangent < math.cos(MAX_TURN):
+                last_reason = (f"the branch turned by more than {math.degrees(MAX_TURN):g} degrees in a step "
+                               "(a fold, or a jump to another branch)")
+                step *= 0.5
+                continue
+            new = corrector.orbit(found, self.start_time)
+            passed = (new.parameter - self.stop) * self.direction > 0.0
+            if passed:  # the end point exactly at stop, between the last point and this one
+                new, found = self._at_stop(y, found.y)
+                if new is None:
+                    last_reason = "the orbit at stop was not found"
+                    step *= 0.5
+                    continue
+            if self._crossing(current, new, y, found.y):
+                return self._finish("instability")
+            self.orbits.append(new)
+            y, tangent = found.y, secant
+            if self.adaptive_scale:
+                y, tangent = self._rescale(y, tangent, new.state)
+            if found.iterations <= EASY_ITERATIONS:
+                step = min(step * GROWTH, max_step)
+
+    def _rescale(self, y, tangent, state):
+        """Grow the state's scale ``X`` to the rms of ``state`` once that exceeds ``RESCALE`` X: steps
+        stay a fraction of the branch's size as the response grows (near a resonance by 10-100x)."""
+        rms = float(np.sqrt(np.mean(state**2)))
+        corrector = self.corrector
+        if not rms > RESCALE * corrector.X:
+            return y, tangent
+        ratio = corrector.X / rms
+        corrector.X = rms
+        y, tangent = y.copy(), tangent.copy()
+        y[:-1] *= ratio
+        tangent[:-1] *= ratio
+        return y, tangent / np.linalg.norm(tangent)
+
+    def _predict(self, y, tangent, step):
+        """``(y_pred, normal, fixed_parameter)`` of the next step."""
+        ds = step / self.corrector.P
+        if self.method == "natural":
+            current = self.orbits[-1].parameter
+            remaining = abs(self.stop - current) / self.corrector.P
+            ds_parameter = min(ds, remaining) * self.direction
+            if abs(tangent[-1]) < 1e-12:  # a vertical tangent: natural continuation cannot go on
+                tangent = np.zeros_like(tangent)
+                tangent[-1] = self.direction
+            y_pred = y + tangent * (ds_parameter / tangent[-1])
+            if ds >= remaining:
+                y_pred[-1] = self.stop / self.corrector.P  # exactly at stop
+            normal = np.zeros_like(y)
+            normal[-1] = 1.0
+            return y_pred, normal, True
+        return y + ds * tangent, tangent, False
+
+    def _at_stop(self, y_before, y_after):
+        """The orbit at ``parameter = stop`` between two scaled points (arclength passing ``stop``)."""
+        corrector = self.corrector
+        p_before, p_after = y_before[-1] * corrector.P, y_after[-1] * corrector.P
+        fraction = (self.stop - p_before) / (p_after - p_before)
+        y_pred = y_before + fraction * (y_after - y_before)
+        y_pred[-1] = self.stop / corrector.P
+        normal = np.zeros_like(y_pred)
+        normal[-1] = 1.0
+        found = corrector.solve(y_pred, normal, fixed_parameter=True)
+        if not found.converged:
+            return None, found
+        return corrector.orbit(found, self.start_time), found
+
+    def _crossing(self, before: PeriodicOrbit, after: PeriodicOrbit, y_before, y_after) -> bool:
+        """Record a bifurcation between two accepted points (inserting its orbit); True to stop."""
+        tol = self.corrector.stability_tol
+        change = _outside(after, tol) - _outside(before, tol)
+        if change == 0:
+            return False
+        signs_before, signs_after = _test_functions(before.multipliers), _test_functions(after.multipliers)
+        kind = next((name for name in ("fold", "period_doubling")
+                     if signs_before[name] * signs_after[name] < 0.0), "secondary_hopf")
+        located = self._locate(kind, y_before, y_after, signs_before[kind], signs_after[kind])
+        if located is None:  # interpolate the test function linearly
+            fraction = signs_before[kind] / (signs_before[kind] - signs_after[kind])
+            parameter = before.parameter + fraction * (after.parameter - before.parameter)
+            self.bifurcations.append((parameter, kind))
+            self.indices.append(-1)
+            logger.warning("the %s near parameter %.6g was not located (interpolated)", kind, parameter)
+        else:
+            self.orbits.append(located)
+            self.bifurcations.append((located.parameter, kind))
+            self.indices.append(len(self.orbits) - 1)
+        return change > 0 and self.stop_at_instability
+
+    def _locate(self, kind, y_before, y_after, value_before, value_after):
+        """The orbit where the test function ``kind`` vanishes on the chord (Brent), or None."""
+        corrector = self.corrector
+        chord = y_after - y_before
+        normal = chord / np.linalg.norm(chord)
+        fixed = self.method == "natural"
+        if fixed:
+            normal = np.zeros_like(chord)
+            normal[-1] = 1.0
+        solved = {}
+
+        def test_function(fraction):
+            if fraction <= 0.0:
+                return value_before
+            if fraction >= 1.0:
+                return value_after
+            found = corrector.solve(y_before + fraction * chord, normal, fixed_parameter=fixed)
+            if not found.converged:
+                raise _NotLocated(found.reason)
+            solved[fraction] = found
+            multipliers = np.linalg.eigvals(found.extra).astype(complex)
+            return _test_functions(multipliers)[kind]
+
+        if not (value_before * value_after < 0.0):
+            return None
+        try:
+            fraction = brentq(test_function, 0.0, 1.0, xtol=LOCATE_XTOL)
+        except (_NotLocated, RuntimeError, ValueError):
+            return None
+        found = solved.get(fraction)
+        if found is None:
+            return None
+        return corrector.orbit(found, self.start_time)
+
+    def _finish(self, why, *, max_points=0, min_step=0.0, reason="") -> OrbitBranch:
+        orbits = self.orbits
+        last = orbits[-1]
+        named = "; ".join(f"{kind} at {parameter:.6g}" for parameter, kind in self.bifurcations)
+        bifurcation_words = f"; bifurcations: {named}" if named else ""
+        if why == "reached":
+            status = worst_status(*(orbit.status for orbit in orbits))
+            message = f"{status}: reached stop = {self.stop:.6g} in {len(orbits)} orbits{bifurcation_words}"
+            if status == "unstable":
+                message += "; unstable orbits on the branch (see stable)"
+        elif why == "instability":
+            parameter, kind = self.bifurcations[-1]
+            status = "unstable"
+            message = (f"unstable: the orbit loses stability by {kind.replace('_', ' ')} at parameter "
+                       f"{parameter:.6g} (multiplier {_critical(last):.6g}); stopped there "
+                       f"(stop_at_instability){bifurcation_words}")
+        elif why == "max_points":
+            status = "failed"
+            message = (f"failed: max_points = {max_points} orbits used before reaching stop = {self.stop:.6g} "
+                       f"(last at {last.parameter:.6g}); raise max_points or max_step{bifurcation_words}")
+        else:
+            status = "failed"
+            message = (f"failed: the step fell below min_step = {min_step:.3g} at parameter {last.parameter:.6g} "
+                       f"({reason or 'no reason recorded'}){bifurcation_words}")
+            mu = _critical(last)
+            if self.method == "natural" and abs(mu.imag) < 1e-9 and abs(mu.real - 1.0) < 0.1:
+                message += (f"; the last orbit's critical multiplier {mu.real:.6g} is real and near +1: the branch "
+                            "probably turns at a fold there, method='arclength' follows it through")
+        return _branch(orbits, self.bifurcations, self.indices, status, message, self.method,
+                       self.corrector.map.calls, self.start_time, last.state.size)
+
+
+class _NotLocated(RuntimeError):
+    """A corrector failed while locating a bifurcation."""
+
+
+def _critical(orbit: PeriodicOrbit) -> complex:
+    """The largest multiplier (the first: they are sorted by decreasing modulus)."""
+    return complex(orbit.multipliers[0])
+
+
+def _branch(orbits, bifurcations, indices, status, message, method, map_calls, start_time, n) -> OrbitBranch:
+    return OrbitBranch(
+        parameters=np.array([orbit.parameter for orbit in orbits], dtype=float),
+        states=np.array([orbit.state for orbit in orbits], dtype=float).reshape(len(orbits), n),
+        multipliers=np.array([orbit.multipliers for orbit in orbits], dtype=complex).reshape(len(orbits), n),
+        stable=np.array([orbit.is_stable for orbit in orbits], dtype=bool),
+        statuses=tuple(orbit.status for orbit in orbits),
+        orbits=tuple(orbits),
+        bifurcations=tuple(bifurcations),
+        bifurcation_indices=tuple(indices),
+        status=status,
+        message=message,
+        method=method,
+        map_calls=map_calls,
+        run_time=time.perf_counter() - start_time,
+    )
