@@ -190,6 +190,14 @@ class PeriodMap:
                          sdot=run["sdot"], n_substeps=int(run["n_substeps"]),
                          run_time=time.perf_counter() - started)
 
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) every kernel a period uses: one step with its tangent
+        from the nominal start, so that timings of ``run`` exclude JIT compilation."""
+        s0, sdot0 = self.start_state(np.zeros(self.n_state))
+        run = _integrate(self.model, s0, sdot0, 0.0, self.h, 1, *self._options)
+        if run["status"] == 0:
+            _propagate_tangent(self.model, run, self.h, self.rho_inf, np.zeros((4, s0.size, 1)))
+
     def __call__(self, x: np.ndarray, parameter: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         period = self.run(x)
         return period.end_state, period.monodromy
