@@ -5,7 +5,8 @@ nominal 100 rad/s with 1 % stiffness-proportional damping (``links.coupler.dampi
 N = ``--n-steps`` generalized-alpha steps per period for both routes.
 
 - Shooting: ``periodic.find_orbit`` on ``mechanisms.PeriodMap`` from the linear periodic state
-  (its cost included: linearisation and linear shooting), to a relative residual ``--tol``; JIT
+  (its cost included: linearisation and linear shooting), to a relative residual ``--tol`` (1e-4:
+  the orbit's error is then ~1e-7 of the peak-to-peak, printed, far inside the 0.1 %); JIT
   compilation excluded (warm-up first), no N/2 error estimate (the transient has none either).
 - Transient: ``mechanisms.simulate`` from the rigid nominal motion (elastic coordinates at rest) for
   the fewest whole periods after which the coupler's midspan deflection over the last period is
@@ -55,7 +56,7 @@ def main() -> None:
     parser.add_argument("--n-steps", type=int, default=256)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--accuracy", type=float, default=1e-3)
-    parser.add_argument("--tol", type=float, default=1e-6)
+    parser.add_argument("--tol", type=float, default=1e-4)
     parser.add_argument("--max-periods", type=int, default=200)
     args = parser.parse_args()
     n = args.n_steps

@@ -10,8 +10,8 @@ the same deviation at ``t = T`` and its Jacobian, the monodromy of the discrete 
 
     d x(T) / d x(0) = P_T  Y_N  Y_0,
 
-``Y_0`` (4n, 2m) the sensitivity of the integrator's start (q, v, a = sddot, sddot) to ``x`` (central
-differences of the consistent start, which involves the constraints' second derivatives),
+``Y_0`` (4n, 2m) the sensitivity of the integrator's start (q, v, a = sddot, sddot) to ``x`` (the
+constraints' null space and the differentiated index-1 equations; see ``_start_sensitivity``),
 ``Y_N`` the product of the step tangents from the integrator's own iteration matrices
 (``_simulate._propagate_tangent``) and ``P_T`` the selection of the independent positions and rates.
 
@@ -35,8 +35,8 @@ from ._simulate import (SimulationError, _consistent_accelerations, _integrate, 
 
 __all__ = ["PeriodMap", "PeriodRun"]
 
-#: Relative step of the central differences of the consistent start (``Y_0``): the start is smooth,
-#: its truncation error ~ step^2 and its rounding error ~ 1e-16 / step balance near 1e-5.
+#: Step (relative to the configuration scale) of the central differences of the constraints'
+#: second-order terms in ``Y_0``: truncation ~ step^2 and rounding ~ 1e-16 / step balance near 1e-5.
 _START_STEP = 1.0e-5
 
 
@@ -68,20 +68,23 @@ class PeriodMap:
     indices of the independent coordinates (default: the elastic ones, plus the coordinates the
     constraints leave free at t = 0, picked by QR with column pivoting); pass the linearisation's
     (``linearize.about(...).coefficients.independent``) to shoot in its coordinates. ``rho_inf``,
-    ``tol``: the integrator's (``mechanisms.simulate``).
+    ``tol``, ``max_step_halvings``: the integrator's (``mechanisms.simulate``). ``nominal``: the
+    mechanism's ``NominalMotion`` if already computed (only its samples at t = 0 and T are used).
 
     Calling it, ``period_map(x, parameter=None) -> (end_state, monodromy)``, is the ``PeriodMap``
     of ``periodic.find_orbit`` (the parameter is fixed by the mechanism and ignored).
     """
 
     def __init__(self, system: Any, *, n_steps: int = 256, independent: Any = None,
-                 rho_inf: float = 0.8, tol: float = 1e-10, max_step_halvings: int = 6):
+                 rho_inf: float = 0.8, tol: float = 1e-10, max_step_halvings: int = 6,
+                 nominal: Any = None):
         if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 2:
             raise ArgumentError(f"`n_steps` must be an integer >= 2 (steps per period); got {n_steps!r}.")
         if not 0.0 <= float(rho_inf) < 1.0:
             raise ArgumentError(f"`rho_inf` must lie in [0, 1) (the stiff axial modes need damping); "
                                 f"got {rho_inf!r}.")
-        self.model, self.mechanism, nominal = _resolve_model(system, need_nominal=True)
+        self.model, self.mechanism, computed = _resolve_model(system, need_nominal=nominal is None)
+        nominal = computed if nominal is None else nominal
         if nominal is None:
             raise ArgumentError("`system` must be a mechanisms.Mechanism (or a model assembled from "
                                 "one): the period map shoots about its nominal rigid motion.")
@@ -149,19 +152,53 @@ class PeriodMap:
         return s, sdot
 
     def _start_sensitivity(self, x: np.ndarray) -> np.ndarray:
-        """``Y_0`` (4, n, 2m): d(q, v, a, sddot)/dx of the integrator's start (central differences)."""
-        columns = []
-        for j in range(self.n_state):
-            step = _START_STEP * max(1.0, abs(x[j]))
-            sides = []
-            for sign in (1.0, -1.0):
-                shifted = x.copy()
-                shifted[j] += sign * step
-                s, sdot = self.start_state(shifted)
-                sddot, _ = _consistent_accelerations(self.model, s, sdot, 0.0)
-                sides.append(np.stack([s, sdot, sddot, sddot]))
-            columns.append((sides[0] - sides[1]) / (2.0 * step))
-        return np.stack(columns, axis=-1)
+        """``Y_0`` (4, n, 2m): d(q, v, a, sddot)/dx of the integrator's start.
+
+        Positions: ``dq = V0 dz`` with ``V0`` the null-space basis ``[I; -Phi_d^-1 Phi_i]`` of the
+        constraint Jacobian. Rates: ``dv = V0 dz' - [0; Phi_d^-1 (d/dq (Phi_s v + Phi_t)) V0 dz]``.
+        Accelerations (index-1 equations differentiated, ``K``, ``D`` the linearisation's terms):
+
+            [[M, Phi_s^T], [Phi_s, 0]] [d sddot; d lam] = [-K dq - D dv; d(gamma - Phi_s sddot)].
+
+        The two derivatives of the constraints' second-order terms are central differences along
+        the 2m directions (no Newton solves)."""
+        from ._batch import linear_terms_along
+
+        model, ind, dep, m = self.model, self.independent, self.dependent, self.independent.size
+        s, sdot = self.start_state(x)
+        sddot, lam = _consistent_accelerations(model, s, sdot, 0.0)
+        terms = linear_terms_along(model, np.zeros(1), s[None], sdot[None], sddot[None], lam[None])
+        Phi_s = terms.jacobian[0]
+        n = s.size
+        null = np.zeros((n, m))
+        null[ind, np.arange(m)] = 1.0
+        null[dep] = -np.linalg.solve(Phi_s[:, dep], Phi_s[:, ind])
+
+        def velocity_constraint(q):
+            return np.asarray(model.constraint_jacobian(q, 0.0)) @ sdot + np.asarray(model.constraint_rate(q, 0.0))
+
+        def acceleration_constraint(q, v):
+            return np.asarray(model.constraint_gamma(q, v, 0.0)) - np.asarray(model.constraint_jacobian(q, 0.0)) @ sddot
+
+        dq = np.concatenate([null, np.zeros((n, m))], axis=1)
+        dv = np.concatenate([np.zeros((n, m)), null], axis=1)
+        step = _START_STEP * self.length_scale
+        for j in range(m):
+            change = (velocity_constraint(s + step * null[:, j])
+                      - velocity_constraint(s - step * null[:, j])) / (2.0 * step)
+            dv[dep, j] = -np.linalg.solve(Phi_s[:, dep], change)
+        rhs_constraints = np.empty((Phi_s.shape[0], 2 * m))
+        for j in range(2 * m):
+            size = step / max(1.0, np.abs(dv[:, j]).max() / max(np.abs(dq[:, j]).max(), 1.0))
+            rhs_constraints[:, j] = (acceleration_constraint(s + size * dq[:, j], sdot + size * dv[:, j])
+                                     - acceleration_constraint(s - size * dq[:, j], sdot - size * dv[:, j])
+                                     ) / (2.0 * size)
+        r = Phi_s.shape[0]
+        augmented = np.zeros((n + r, n + r))
+        augmented[:n, :n], augmented[:n, n:], augmented[n:, :n] = terms.mass[0], Phi_s.T, Phi_s
+        rhs = np.concatenate([-(terms.stiffness[0] @ dq + terms.damping[0] @ dv), rhs_constraints])
+        dsddot = np.linalg.solve(augmented, rhs)[:n]
+        return np.stack([dq, dv, dsddot, dsddot])
 
     # --- one period ------------------------------------------------------------------------------------
     def run(self, x: np.ndarray, *, tangent: bool = True, n_periods: int = 1) -> PeriodRun:

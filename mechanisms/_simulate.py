@@ -939,17 +939,41 @@ def _propagate_tangent(model, run: Mapping[str, Any], h: float, rho_inf: float,
     G[:, :n, :n] = terms.mass + beta_p * terms.stiffness + gamma_p * terms.damping
     G[:, :n, n:] = np.swapaxes(terms.jacobian, 1, 2)
     G[:, n:, :n] = terms.jacobian
-    G_inverse = np.linalg.inv(G)
-    dq, dv, da, dsddot = (np.array(start[k], dtype=np.float64) for k in range(4))
-    for step in range(G.shape[0]):
-        da_known = (alpha_f * dsddot - alpha_m * da) / (1.0 - alpha_m)
-        dqhat = dq + h * dv + h * h * ((0.5 - beta) * da + beta * da_known)
-        dvhat = dv + h * ((1.0 - gamma) * da + gamma * da_known)
-        rhs = np.concatenate([terms.stiffness[step] @ dqhat + terms.damping[step] @ dvhat,
-                              terms.jacobian[step] @ dqhat / beta_p])
-        dsddot_new = -(G_inverse[step, :n] @ rhs)
-        dq = dqhat + beta_p * dsddot_new
-        dv = dvhat + gamma_p * dsddot_new
-        da = (alpha_f * dsddot + (1.0 - alpha_f) * dsddot_new - alpha_m * da) / (1.0 - alpha_m)
-        dsddot = dsddot_new
-    return np.stack([dq, dv, da, dsddot])
+    # only the rows of d sddot are needed: G^-1[:n] (N, n, n + r), contiguous for the kernel
+    G_inverse_top = np.ascontiguousarray(np.linalg.inv(G)[:, :n, :])
+    state = np.array(start, dtype=np.float64, order="C")
+    _tangent_steps(G_inverse_top, np.ascontiguousarray(terms.stiffness),
+                   np.ascontiguousarray(terms.damping), np.ascontiguousarray(terms.jacobian), h,
+                   alpha_m, alpha_f, beta, gamma, beta_p, gamma_p, state)
+    return state
+
+
+@numba.njit(cache=True)
+def _tangent_steps(G_inverse_top, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, gamma_p,
+                   state):
+    """The step loop of ``_propagate_tangent``, in place on ``state`` (4, n, p) = d(q, v, a, sddot):
+    per step the differentiated predictors (``_start_step``), the solve with the exact iteration
+    matrix's inverse rows ``G_inverse_top`` (N, n, n + r), then (GA2), (GA3) and (GA1)."""
+    n, p = state.shape[1], state.shape[2]
+    r = Phi_s.shape[1]
+    dq, dv, da, dsddot = state[0], state[1], state[2], state[3]
+    dqhat = np.empty((n, p))
+    dvhat = np.empty((n, p))
+    rhs = np.empty((n + r, p))
+    for step in range(G_inverse_top.shape[0]):
+        for i in range(n):
+            for j in range(p):
+                da_known = (alpha_f * dsddot[i, j] - alpha_m * da[i, j]) / (1.0 - alpha_m)
+                dqhat[i, j] = dq[i, j] + h * dv[i, j] + h * h * ((0.5 - beta) * da[i, j]
+                                                                 + beta * da_known)
+                dvhat[i, j] = dv[i, j] + h * ((1.0 - gamma) * da[i, j] + gamma * da_known)
+        rhs[:n] = np.dot(K[step], dqhat) + np.dot(C[step], dvhat)
+        rhs[n:] = np.dot(Phi_s[step], dqhat) / beta_p
+        dsddot_new = -np.dot(G_inverse_top[step], rhs)
+        for i in range(n):
+            for j in range(p):
+                dq[i, j] = dqhat[i, j] + beta_p * dsddot_new[i, j]
+                dv[i, j] = dvhat[i, j] + gamma_p * dsddot_new[i, j]
+                da[i, j] = (alpha_f * dsddot[i, j] + (1.0 - alpha_f) * dsddot_new[i, j]
+                            - alpha_m * da[i, j]) / (1.0 - alpha_m)
+                dsddot[i, j] = dsddot_new[i, j]

@@ -155,8 +155,9 @@ def _setup(problem: Any, values: Mapping[str, float] | None, n_steps: int) -> _S
     steady = solve_steady(linear)
     lin = linear.context
     independent = lin.coefficients.independent
-    fine = mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps, independent=independent)
-    coarse = mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps // 2, independent=independent)
+    fine = mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps, independent=independent, nominal=lin.nominal)
+    coarse = mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps // 2, independent=independent,
+                                  nominal=lin.nominal)
     # the linear periodic state on the constraints (with the axial shortening of stiffened links)
     guess = fine.state_of(*lin.start_state(steady.state.x[0], steady.state.v[0]))
     return _Setup(linear, steady, fine, coarse, guess, time.perf_counter() - started)
