@@ -46,7 +46,8 @@ class PeriodRun:
 
     ``state`` (2m,) and ``end_state`` (2m,): the deviations ``(z, z')`` at t = 0 and t = T (m or rad,
     per s); ``monodromy`` (2m, 2m) d end_state / d state (None when not asked for); ``t`` (N+1,) s,
-    ``s``, ``sdot`` (N+1, n) the full coordinates and rates over the period; ``n_substeps`` steps the
+    ``s``, ``sdot`` (k N + 1, n) the full coordinates and rates over the k periods run;
+    ``period_states`` (k + 1, 2m) the shooting state at t = 0, T, ..., k T; ``n_substeps`` steps the
     integrator had to subdivide (then the monodromy is that of the uniform grid's steps only, an
     approximation); ``run_time`` s.
     """
@@ -57,6 +58,7 @@ class PeriodRun:
     t: np.ndarray
     s: np.ndarray
     sdot: np.ndarray
+    period_states: np.ndarray
     n_substeps: int
     run_time: float
 
@@ -213,10 +215,14 @@ class PeriodMap:
         if run["status"] != 0:
             raise SimulationError(f"the period map failed: {run['message']}", None)
         # the nominal motion repeats itself up to the crank's whole turns per period
-        winding = int(n_periods) * (self.nominal_end[0] - self.nominal_start[0])
+        winding = self.nominal_end[0] - self.nominal_start[0]
         ind = self.independent
-        end = np.concatenate([run["s"][-1][ind] - (self.nominal_start[0] + winding)[ind],
-                              run["sdot"][-1][ind] - self.nominal_end[1][ind]])
+        ends = np.arange(0, self.n_steps * int(n_periods) + 1, self.n_steps)
+        positions = run["s"][ends][:, ind] - (self.nominal_start[0][ind]
+                                              + np.outer(np.arange(ends.size), winding[ind]))
+        period_states = np.concatenate([positions, run["sdot"][ends][:, ind] - self.nominal_end[1][ind]],
+                                       axis=1)
+        end = period_states[-1]
         monodromy = None
         if tangent:
             if n_periods != 1:
@@ -224,7 +230,7 @@ class PeriodMap:
             final = _propagate_tangent(self.model, run, self.h, self.rho_inf, self._start_sensitivity(x))
             monodromy = np.concatenate([final[0][ind], final[1][ind]])
         return PeriodRun(state=x, end_state=end, monodromy=monodromy, t=run["t"], s=run["s"],
-                         sdot=run["sdot"], n_substeps=int(run["n_substeps"]),
+                         sdot=run["sdot"], period_states=period_states, n_substeps=int(run["n_substeps"]),
                          run_time=time.perf_counter() - started)
 
     def warm_up(self) -> None:

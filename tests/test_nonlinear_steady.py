@@ -111,3 +111,29 @@ def test_bad_arguments_name_themselves(problem):
         studies.nonlinear_steady_state(problem, tol=2.0)
     with pytest.raises(mechanisms.ArgumentError, match="shooting state"):
         mechanisms.PeriodMap(mechanisms.load("four_bar_fem4"), n_steps=8).start_state(np.zeros(3))
+
+
+@pytest.mark.slow
+def test_continuation_over_speed_against_single_orbits(problem):
+    sweep = studies.nonlinear_sweep(problem, start=96.0, stop=100.0, n_steps=128, step=2.0)
+    assert sweep.status == "ok" and sweep.values[0] == 96.0 and sweep.values[-1] == 100.0
+    assert sweep.stable.all() and sweep.after_instability == ""
+    # the branch's end point is the orbit a single shooting finds there (independent start: linear state)
+    single = studies.nonlinear_steady_state(problem, {"speed": 100.0}, n_steps=128)
+    np.testing.assert_allclose(sweep.peak_to_peak[SPEC][-1], single.peak_to_peak(SPEC)[0], rtol=1e-6)
+    np.testing.assert_allclose(sweep.linear_at_branch[SPEC][-1], single.peak_to_peak(SPEC)[1], rtol=1e-9)
+    assert sweep.linear_values[0] == 96.0 and sweep.linear_peak_to_peak[SPEC].size == sweep.linear_values.size
+    plot = sweep.plot()
+    assert SPEC in plot.artists
+
+
+def test_transient_classification_names_the_period():
+    from studies._kinds.nonlinear_sweep import _settles
+
+    k = np.arange(40)[:, None]
+    period_one = np.ones((40, 4)) + 0.5 ** k                          # converges to one state
+    period_two = np.ones((40, 4)) + 0.3 * (-1.0) ** k + 0.5 ** k       # alternates: period 2T
+    drifting = np.ones((40, 4)) + np.sin(0.7 * k)                      # quasi-periodic
+    assert "period T " in _settles(period_one)
+    assert "period 2T" in _settles(period_two)
+    assert "does not settle" in _settles(drifting)
