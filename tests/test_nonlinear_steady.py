@@ -137,3 +137,17 @@ def test_transient_classification_names_the_period():
     assert "period T " in _settles(period_one)
     assert "period 2T" in _settles(period_two)
     assert "does not settle" in _settles(drifting)
+
+
+@pytest.mark.slow
+def test_nonlinear_check_against_the_periodic_state(problem):
+    # N = 128: at 64 the two error estimates (near resonance) already cover the 7.6 % difference
+    near_resonance = studies.nonlinear_check(problem, n_steps=128, periodic_state=True)
+    assert near_resonance.verdict == "differs" and near_resonance.settings["periodic_state"]
+    assert 0.07 < near_resonance.relative_difference[SPEC] < 0.10
+    # the transient route (20 periods from the linear state; the slowest multiplier 0.69 leaves
+    # 0.69^20 ~ 6e-4 of the start) sees the same difference
+    transient = studies.nonlinear_check(problem, n_steps=128, n_periods=20)
+    assert transient.relative_difference[SPEC] == pytest.approx(near_resonance.relative_difference[SPEC], rel=0.02)
+    weak = studies.nonlinear_check(problem, {"links.crank.length": 0.0508 / 8}, n_steps=128, periodic_state=True)
+    assert weak.verdict == "agrees"
