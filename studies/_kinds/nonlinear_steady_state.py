@@ -54,16 +54,16 @@ class NonlinearSteadyState(Result):
     """
 
     problem: str
-    parameters: Mapping[str, float]
     scene: str
-    labels: tuple[str, ...]
+    parameters: Mapping[str, float]
     units: Mapping[str, str]
-    t: np.ndarray
-    crank_angle: np.ndarray
-    x: np.ndarray
     response: Mapping[str, np.ndarray]
     response_error: Mapping[str, float]
     linear_response: Mapping[str, np.ndarray]
+    labels: tuple[str, ...]
+    t: np.ndarray
+    crank_angle: np.ndarray
+    x: np.ndarray
     state: np.ndarray
     multipliers: np.ndarray
     multiplier_errors: np.ndarray
