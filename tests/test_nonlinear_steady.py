@@ -151,3 +151,19 @@ def test_nonlinear_check_against_the_periodic_state(problem):
     assert transient.relative_difference[SPEC] == pytest.approx(near_resonance.relative_difference[SPEC], rel=0.02)
     weak = studies.nonlinear_check(problem, {"links.crank.length": 0.0508 / 8}, n_steps=128, periodic_state=True)
     assert weak.verdict == "agrees"
+
+
+def test_scene_tables_are_checked():
+    from studies._kinds import KINDS
+
+    steady = KINDS["nonlinear_steady_state"].check("studies.nonlinear_steady_state", {"speed": 90.0}, 128)
+    assert steady == {"values": {"speed": 90.0}, "n_steps": 128, "tol": 1e-8, "max_iterations": 12}
+    sweep = KINDS["nonlinear_sweep"]
+    options = sweep.check("studies.nonlinear_sweep", {"parameter": "links.crank.length", "start": 0.05,
+                                                      "stop": 0.04, "method": "arclength"}, 256)
+    assert options["n_steps"] == 128 and options["method"] == "arclength"
+    assert sweep.varies(options) == ("links.crank.length",)
+    with pytest.raises(studies.StudiesError, match="missing stop"):
+        sweep.check("studies.nonlinear_sweep", {"start": 1.0}, 128)
+    with pytest.raises(studies.StudiesError, match="method"):
+        sweep.check("studies.nonlinear_sweep", {"start": 1.0, "stop": 2.0, "method": "secant"}, 128)

@@ -298,4 +298,4 @@ def _summary(result: NonlinearSweep) -> str:
 KIND = StudyKind(name="nonlinear_sweep", result=NonlinearSweep,
                  keys=("parameter", "start", "stop", "step", "method", "n_steps", "tol", "max_points",
                        "stop_at_instability", "transient_periods"),
-                 check=_check, run=_run, summary=_summary)
+                 check=_check, run=_run, summary=_summary, varies=lambda options: (options["parameter"],))
