@@ -167,3 +167,21 @@ def test_scene_tables_are_checked():
         sweep.check("studies.nonlinear_sweep", {"start": 1.0}, 128)
     with pytest.raises(studies.StudiesError, match="method"):
         sweep.check("studies.nonlinear_sweep", {"start": 1.0, "stop": 2.0, "method": "secant"}, 128)
+
+
+@pytest.mark.slow
+def test_period_doubling_of_the_nonlinear_orbit_confirmed_by_a_transient():
+    # four_bar_ritz, the stiffened thesis four-bar: the linear model doubles its period at 183 rad/s
+    # (README); the nonlinear orbit loses stability the same way, a little earlier
+    ritz = studies.MechanismProblem.from_scene("four_bar_ritz")
+    sweep = studies.nonlinear_sweep(ritz, start=170.0, stop=180.0, n_steps=128, step=4.0, transient_periods=60)
+    assert sweep.status == "unstable"
+    (where,), (kind,) = sweep.bifurcation_values, sweep.bifurcation_kinds
+    assert kind == "period_doubling" and 170.0 < where < 180.0
+    assert "period 2T" in sweep.after_instability
+    # independently of the states the words come from: the transient's observable over its last
+    # periods repeats every 2T, not every T
+    spec = next(iter(sweep.transient))
+    values, n = sweep.transient[spec], 128
+    last, one_before, two_before = values[-n:], values[-2 * n:-n], values[-3 * n:-2 * n]
+    assert np.abs(last - two_before).max() < 0.01 * np.abs(last - one_before).max()

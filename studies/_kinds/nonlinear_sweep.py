@@ -254,6 +254,11 @@ def _settles(states: np.ndarray) -> str:
     if two <= SETTLE_TOL:
         return (f"settles on an orbit of period 2T (period doubling confirmed: states 2T apart agree to "
                 f"{two:.2g}, T apart differ by {one:.2g} of their size)")
+    if two <= 0.01 * one:
+        # slow final approach near the bifurcation (the critical multiplier is close to the unit circle)
+        return (f"approaches an orbit of period 2T (period doubling: states 2T apart agree to {two:.2g}, "
+                f"T apart differ by {one:.2g} of their size, still converging after {states.shape[0] - 1} "
+                "periods)")
     return (f"does not settle in {states.shape[0] - 1} periods (states T apart differ by {one:.2g}, 2T apart "
             f"by {two:.2g} of their size)")
 
