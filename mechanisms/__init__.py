@@ -25,3 +25,4 @@ from ._observables import default_observables as default_observables
 from ._protocol import ConstrainedModel as ConstrainedModel, Observable as Observable
 from ._simulate import (SimulationError as SimulationError, SimulationResult as SimulationResult,
                         simulate as simulate)
+from ._orbit import PeriodMap as PeriodMap, PeriodRun as PeriodRun

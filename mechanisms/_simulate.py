@@ -904,3 +904,76 @@ def _substeps(stepper, q_n, v_n, a, sddot_n, lam_n, t_n, h, max_halvings):
             return "", level - 1, m
     a[:] = a_n
     return failure, max_halvings, 0
+
+
+# ---------------------------------------------------------------------------------------------------
+# Tangent of the discrete step map (for shooting: the monodromy of a run)
+# ---------------------------------------------------------------------------------------------------
+def _propagate_tangent(model, run: Mapping[str, Any], h: float, rho_inf: float,
+                       start: np.ndarray) -> np.ndarray:
+    """Carry the sensitivity of the integrator's state through the converged steps of ``run``.
+
+    ``start`` (4, n, p): d(q, v, a, sddot) / d(p start parameters) at ``t0``; returns the same at the
+    run's last step. Differentiating (GA1)-(GA3) and the converged step equations (NR) gives, per
+    step, with the Jacobians at the new state (``q, v, sddot, lam`` at ``t_{n+1}``):
+
+        G [d sddot_{n+1}; d lam_{n+1}] = -[K_t d qhat + C_t d vhat;  Phi_s d qhat / beta']
+
+    ``G`` the exact iteration matrix of (NR) (``K_t``, ``C_t`` from ``linear_terms_along``: the
+    same analytic derivatives Newton uses), ``d qhat``, ``d vhat`` the differentiated predictors of
+    ``_start_step``; then ``d q = d qhat + beta' d sddot``, ``d v = d vhat + gamma' d sddot`` and
+    (GA1) for ``d a``. ``lam`` does not enter the next step (only its predictor), so the state is
+    (q, v, a, sddot). The run must have taken every step at ``h`` (no substeps): the caller checks
+    ``run["n_substeps"]``.
+    """
+    from ._batch import linear_terms_along
+
+    alpha_m, alpha_f, beta, gamma = _generalized_alpha_parameters(rho_inf)
+    beta_p = h * h * beta * (1.0 - alpha_f) / (1.0 - alpha_m)
+    gamma_p = h * gamma * (1.0 - alpha_f) / (1.0 - alpha_m)
+    terms = linear_terms_along(model, run["t"][1:], run["s"][1:], run["sdot"][1:],
+                               run["sddot"][1:], run["lam"][1:])
+    n, r = terms.mass.shape[1], terms.jacobian.shape[1]
+    # the exact iteration matrices of (NR) at every converged step, factorised in one batch
+    G = np.zeros((terms.mass.shape[0], n + r, n + r))
+    G[:, :n, :n] = terms.mass + beta_p * terms.stiffness + gamma_p * terms.damping
+    G[:, :n, n:] = np.swapaxes(terms.jacobian, 1, 2)
+    G[:, n:, :n] = terms.jacobian
+    # only the rows of d sddot are needed: G^-1[:n] (N, n, n + r), contiguous for the kernel
+    G_inverse_top = np.ascontiguousarray(np.linalg.inv(G)[:, :n, :])
+    state = np.array(start, dtype=np.float64, order="C")
+    _tangent_steps(G_inverse_top, np.ascontiguousarray(terms.stiffness),
+                   np.ascontiguousarray(terms.damping), np.ascontiguousarray(terms.jacobian), h,
+                   alpha_m, alpha_f, beta, gamma, beta_p, gamma_p, state)
+    return state
+
+
+@numba.njit(cache=True)
+def _tangent_steps(G_inverse_top, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, gamma_p,
+                   state):
+    """The step loop of ``_propagate_tangent``, in place on ``state`` (4, n, p) = d(q, v, a, sddot):
+    per step the differentiated predictors (``_start_step``), the solve with the exact iteration
+    matrix's inverse rows ``G_inverse_top`` (N, n, n + r), then (GA2), (GA3) and (GA1)."""
+    n, p = state.shape[1], state.shape[2]
+    r = Phi_s.shape[1]
+    dq, dv, da, dsddot = state[0], state[1], state[2], state[3]
+    dqhat = np.empty((n, p))
+    dvhat = np.empty((n, p))
+    rhs = np.empty((n + r, p))
+    for step in range(G_inverse_top.shape[0]):
+        for i in range(n):
+            for j in range(p):
+                da_known = (alpha_f * dsddot[i, j] - alpha_m * da[i, j]) / (1.0 - alpha_m)
+                dqhat[i, j] = dq[i, j] + h * dv[i, j] + h * h * ((0.5 - beta) * da[i, j]
+                                                                 + beta * da_known)
+                dvhat[i, j] = dv[i, j] + h * ((1.0 - gamma) * da[i, j] + gamma * da_known)
+        rhs[:n] = np.dot(K[step], dqhat) + np.dot(C[step], dvhat)
+        rhs[n:] = np.dot(Phi_s[step], dqhat) / beta_p
+        dsddot_new = -np.dot(G_inverse_top[step], rhs)
+        for i in range(n):
+            for j in range(p):
+                dq[i, j] = dqhat[i, j] + beta_p * dsddot_new[i, j]
+                dv[i, j] = dvhat[i, j] + gamma_p * dsddot_new[i, j]
+                da[i, j] = (alpha_f * dsddot[i, j] + (1.0 - alpha_f) * dsddot_new[i, j]
+                            - alpha_m * da[i, j]) / (1.0 - alpha_m)
+                dsddot[i, j] = dsddot_new[i, j]

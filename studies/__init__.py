@@ -15,6 +15,10 @@ from ._kinds.error_cost import ErrorCostResult as ErrorCostResult
 from ._kinds.error_cost import error_cost as error_cost
 from ._kinds.nonlinear_check import NonlinearCheck as NonlinearCheck
 from ._kinds.nonlinear_check import nonlinear_check as nonlinear_check
+from ._kinds.nonlinear_steady_state import NonlinearSteadyState as NonlinearSteadyState
+from ._kinds.nonlinear_steady_state import nonlinear_steady_state as nonlinear_steady_state
+from ._kinds.nonlinear_sweep import NonlinearSweep as NonlinearSweep
+from ._kinds.nonlinear_sweep import nonlinear_sweep as nonlinear_sweep
 from ._kinds.stability_chart import StabilityChart as StabilityChart
 from ._kinds.stability_chart import stability_chart as stability_chart
 from ._kinds.steady_state import SteadyStateResult as SteadyStateResult
@@ -34,7 +38,7 @@ from ._store import open_file as open_file
 
 __all__ = [
     "CampbellResult", "ComputationError", "Description", "ErrorCostResult", "Linear", "MechanismProblem",
-    "NonlinearCheck", "NonlinearRun", "PeriodicCoefficients", "PeriodicProblem", "Plot", "PointOutcome",
+    "NonlinearCheck", "NonlinearSteadyState", "NonlinearSweep", "NonlinearRun", "PeriodicCoefficients", "PeriodicProblem", "Plot", "PointOutcome",
     "StabilityChart", "SteadyStateResult", "StudiesError", "SweepResult", "campbell", "error_cost", "load",
-    "mathieu_problem", "nonlinear_check", "open_file", "run_grid", "stability_chart", "steady_state", "sweep",
+    "mathieu_problem", "nonlinear_check", "nonlinear_steady_state", "nonlinear_sweep", "open_file", "run_grid", "stability_chart", "steady_state", "sweep",
 ]

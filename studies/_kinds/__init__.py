@@ -13,7 +13,8 @@ from __future__ import annotations
 from typing import Any
 
 from .._kind import StudyKind
-from . import campbell, error_cost, nonlinear_check, stability_chart, steady_state, sweep
+from . import (campbell, error_cost, nonlinear_check, nonlinear_steady_state, nonlinear_sweep, stability_chart,
+               steady_state, sweep)
 
 _MODULES = (
     steady_state,
@@ -21,6 +22,8 @@ _MODULES = (
     campbell,
     stability_chart,
     nonlinear_check,
+    nonlinear_steady_state,
+    nonlinear_sweep,
     error_cost,
 )
 

@@ -1,0 +1,261 @@
+"""The period map of the full nonlinear constrained mechanism, for shooting (``periodic.find_orbit``).
+
+The shooting state ``x = (z, z')`` (2m,) is the deviation of the m independent coordinates and their
+rates from the nominal rigid motion at ``t = 0`` (for a prescribed drive: the elastic coordinates;
+the deviation, not the coordinate, so that a crank angle that gains 2 pi per period is periodic).
+The dependent coordinates and rates follow from the position and velocity constraints at ``t = 0``
+(Newton on the dependent block), the accelerations and multipliers from the index-1 equations, and
+``mechanisms.simulate``'s generalized-alpha integrator runs one period of N steps. The map returns
+the same deviation at ``t = T`` and its Jacobian, the monodromy of the discrete step map:
+
+    d x(T) / d x(0) = P_T  Y_N  Y_0,
+
+``Y_0`` (4n, 2m) the sensitivity of the integrator's start (q, v, a = sddot, sddot) to ``x`` (the
+constraints' null space and the differentiated index-1 equations; see ``_start_sensitivity``),
+``Y_N`` the product of the step tangents from the integrator's own iteration matrices
+(``_simulate._propagate_tangent``) and ``P_T`` the selection of the independent positions and rates.
+
+Each period starts afresh from a consistent state (alpha acceleration ``a_0 = sddot_0``), so a fixed
+point is the periodic orbit of the discrete scheme to its O(h^2) error, which the N against N/2
+estimate measures.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ._kinematics import ConvergenceError
+from ._parts import ArgumentError
+from ._simulate import (SimulationError, _consistent_accelerations, _integrate, _propagate_tangent,
+                        _resolve_model)
+
+__all__ = ["PeriodMap", "PeriodRun"]
+
+#: Step (relative to the configuration scale) of the central differences of the constraints'
+#: second-order terms in ``Y_0``: truncation ~ step^2 and rounding ~ 1e-16 / step balance near 1e-5.
+_START_STEP = 1.0e-5
+
+
+@dataclass(frozen=True)
+class PeriodRun:
+    """One period of the nonlinear model from a shooting state.
+
+    ``state`` (2m,) and ``end_state`` (2m,): the deviations ``(z, z')`` at t = 0 and t = T (m or rad,
+    per s); ``monodromy`` (2m, 2m) d end_state / d state (None when not asked for); ``t`` (N+1,) s,
+    ``s``, ``sdot`` (k N + 1, n) the full coordinates and rates over the k periods run;
+    ``period_states`` (k + 1, 2m) the shooting state at t = 0, T, ..., k T; ``n_substeps`` steps the
+    integrator had to subdivide (then the monodromy is that of the uniform grid's steps only, an
+    approximation); ``run_time`` s.
+    """
+
+    state: np.ndarray
+    end_state: np.ndarray
+    monodromy: np.ndarray | None
+    t: np.ndarray
+    s: np.ndarray
+    sdot: np.ndarray
+    period_states: np.ndarray
+    n_substeps: int
+    run_time: float
+
+
+class PeriodMap:
+    """``x(0) -> x(T)`` of the full nonlinear model of a mechanism over one period of N steps.
+
+    ``system``: a ``mechanisms.Mechanism`` (or a model assembled from one). ``independent`` (m,):
+    indices of the independent coordinates (default: the elastic ones, plus the coordinates the
+    constraints leave free at t = 0, picked by QR with column pivoting); pass the linearisation's
+    (``linearize.about(...).coefficients.independent``) to shoot in its coordinates. ``rho_inf``,
+    ``tol``, ``max_step_halvings``: the integrator's (``mechanisms.simulate``). ``nominal``: the
+    mechanism's ``NominalMotion`` if already computed (only its samples at t = 0 and T are used).
+
+    Calling it, ``period_map(x, parameter=None) -> (end_state, monodromy)``, is the ``PeriodMap``
+    of ``periodic.find_orbit`` (the parameter is fixed by the mechanism and ignored).
+    """
+
+    def __init__(self, system: Any, *, n_steps: int = 256, independent: Any = None,
+                 rho_inf: float = 0.8, tol: float = 1e-10, max_step_halvings: int = 6,
+                 nominal: Any = None):
+        if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 2:
+            raise ArgumentError(f"`n_steps` must be an integer >= 2 (steps per period); got {n_steps!r}.")
+        if not 0.0 <= float(rho_inf) < 1.0:
+            raise ArgumentError(f"`rho_inf` must lie in [0, 1) (the stiff axial modes need damping); "
+                                f"got {rho_inf!r}.")
+        self.model, self.mechanism, computed = _resolve_model(system, need_nominal=nominal is None)
+        nominal = computed if nominal is None else nominal
+        if nominal is None:
+            raise ArgumentError("`system` must be a mechanisms.Mechanism (or a model assembled from "
+                                "one): the period map shoots about its nominal rigid motion.")
+        self.n_steps = int(n_steps)
+        self.period = float(nominal.t[-1] - nominal.t[0])
+        self.h = self.period / self.n_steps
+        self.rho_inf = float(rho_inf)
+        self.nominal_start = (np.array(nominal.s[0]), np.array(nominal.sdot[0]))
+        self.nominal_end = (np.array(nominal.s[-1]), np.array(nominal.sdot[-1]))
+        n = int(self.model.n_coords)
+        if independent is None:
+            independent = _free_coordinates(self.model, self.nominal_start[0])
+        self.independent = np.sort(np.asarray(independent, dtype=np.int64))
+        if self.independent.ndim != 1 or np.unique(self.independent).size != self.independent.size or \
+                (self.independent.size and not 0 <= self.independent.min() <= self.independent.max() < n):
+            raise ArgumentError(f"`independent` must be distinct coordinate indices in [0, {n}); got "
+                                f"{independent!r}.")
+        if self.independent.size != n - int(self.model.n_constraints):
+            raise ArgumentError(f"`independent` must name n - r = {n - int(self.model.n_constraints)} "
+                                f"coordinates (the degrees of freedom); got {self.independent.size}.")
+        self.dependent = np.setdiff1d(np.arange(n), self.independent)
+        labels = tuple(getattr(self.model, "coord_labels", ()))
+        self.labels = tuple(labels[i] for i in self.independent) if labels else ()
+        self.length_scale = max(1.0, float(np.abs(self.nominal_start[0]).max()))
+        self._options = (self.rho_inf, float(tol) * self.length_scale, 20, True, int(max_step_halvings),
+                         self.length_scale, False)
+
+    @property
+    def n_state(self) -> int:
+        """2m, the size of the shooting state."""
+        return 2 * self.independent.size
+
+    # --- states ----------------------------------------------------------------------------------------
+    def state_of(self, s: np.ndarray, sdot: np.ndarray, *, at_end: bool = False) -> np.ndarray:
+        """The shooting state ``(z, z')`` (2m,) of full coordinates and rates (n,) at t = 0 (or T)."""
+        s_nom, sdot_nom = self.nominal_end if at_end else self.nominal_start
+        ind = self.independent
+        return np.concatenate([s[ind] - s_nom[ind], sdot[ind] - sdot_nom[ind]])
+
+    def start_state(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Full coordinates and rates (n,) at t = 0 that satisfy the position and velocity
+        constraints, with the independent ones ``x`` (2m,) away from the nominal motion."""
+        x = np.asarray(x, dtype=np.float64)
+        if x.shape != (self.n_state,) or not np.all(np.isfinite(x)):
+            raise ArgumentError(f"the shooting state must be {self.n_state} finite numbers (deviations "
+                                f"of {self.labels or 'the independent coordinates'} and their rates); "
+                                f"got shape {x.shape}.")
+        m, ind, dep, model = self.independent.size, self.independent, self.dependent, self.model
+        s, sdot = self.nominal_start[0].copy(), self.nominal_start[1].copy()
+        s[ind] += x[:m]
+        for _ in range(30):
+            phi = np.asarray(model.constraints(s, 0.0), dtype=np.float64)
+            if np.abs(phi).max(initial=0.0) <= 1e-14 * self.length_scale:
+                break
+            s[dep] -= np.linalg.solve(model.constraint_jacobian(s, 0.0)[:, dep], phi)
+        else:
+            raise ConvergenceError(
+                f"no configuration satisfies the constraints with this shooting state (residual "
+                f"{np.abs(phi).max():.3g} after 30 Newton steps on the dependent coordinates): the "
+                f"deviation of {self.labels} is too large for the linkage")
+        jacobian = np.asarray(model.constraint_jacobian(s, 0.0), dtype=np.float64)
+        sdot[ind] += x[m:]
+        rhs = -np.asarray(model.constraint_rate(s, 0.0)) - jacobian[:, ind] @ sdot[ind]
+        sdot[dep] = np.linalg.solve(jacobian[:, dep], rhs)
+        return s, sdot
+
+    def _start_sensitivity(self, x: np.ndarray) -> np.ndarray:
+        """``Y_0`` (4, n, 2m): d(q, v, a, sddot)/dx of the integrator's start.
+
+        Positions: ``dq = V0 dz`` with ``V0`` the null-space basis ``[I; -Phi_d^-1 Phi_i]`` of the
+        constraint Jacobian. Rates: ``dv = V0 dz' - [0; Phi_d^-1 (d/dq (Phi_s v + Phi_t)) V0 dz]``.
+        Accelerations (index-1 equations differentiated, ``K``, ``D`` the linearisation's terms):
+
+            [[M, Phi_s^T], [Phi_s, 0]] [d sddot; d lam] = [-K dq - D dv; d(gamma - Phi_s sddot)].
+
+        The two derivatives of the constraints' second-order terms are central differences along
+        the 2m directions (no Newton solves)."""
+        from ._batch import linear_terms_along
+
+        model, ind, dep, m = self.model, self.independent, self.dependent, self.independent.size
+        s, sdot = self.start_state(x)
+        sddot, lam = _consistent_accelerations(model, s, sdot, 0.0)
+        terms = linear_terms_along(model, np.zeros(1), s[None], sdot[None], sddot[None], lam[None])
+        Phi_s = terms.jacobian[0]
+        n = s.size
+        null = np.zeros((n, m))
+        null[ind, np.arange(m)] = 1.0
+        null[dep] = -np.linalg.solve(Phi_s[:, dep], Phi_s[:, ind])
+
+        def velocity_constraint(q):
+            return np.asarray(model.constraint_jacobian(q, 0.0)) @ sdot + np.asarray(model.constraint_rate(q, 0.0))
+
+        def acceleration_constraint(q, v):
+            return np.asarray(model.constraint_gamma(q, v, 0.0)) - np.asarray(model.constraint_jacobian(q, 0.0)) @ sddot
+
+        dq = np.concatenate([null, np.zeros((n, m))], axis=1)
+        dv = np.concatenate([np.zeros((n, m)), null], axis=1)
+        step = _START_STEP * self.length_scale
+        for j in range(m):
+            change = (velocity_constraint(s + step * null[:, j])
+                      - velocity_constraint(s - step * null[:, j])) / (2.0 * step)
+            dv[dep, j] = -np.linalg.solve(Phi_s[:, dep], change)
+        rhs_constraints = np.empty((Phi_s.shape[0], 2 * m))
+        for j in range(2 * m):
+            size = step / max(1.0, np.abs(dv[:, j]).max() / max(np.abs(dq[:, j]).max(), 1.0))
+            rhs_constraints[:, j] = (acceleration_constraint(s + size * dq[:, j], sdot + size * dv[:, j])
+                                     - acceleration_constraint(s - size * dq[:, j], sdot - size * dv[:, j])
+                                     ) / (2.0 * size)
+        r = Phi_s.shape[0]
+        augmented = np.zeros((n + r, n + r))
+        augmented[:n, :n], augmented[:n, n:], augmented[n:, :n] = terms.mass[0], Phi_s.T, Phi_s
+        rhs = np.concatenate([-(terms.stiffness[0] @ dq + terms.damping[0] @ dv), rhs_constraints])
+        dsddot = np.linalg.solve(augmented, rhs)[:n]
+        return np.stack([dq, dv, dsddot, dsddot])
+
+    # --- one period ------------------------------------------------------------------------------------
+    def run(self, x: np.ndarray, *, tangent: bool = True, n_periods: int = 1) -> PeriodRun:
+        """Integrate ``n_periods`` periods from the shooting state ``x`` (2m,); the end state and (with
+        ``tangent``, one period only) the monodromy. Raises ``mechanisms.SimulationError`` when the
+        integrator fails."""
+        started = time.perf_counter()
+        x = np.asarray(x, dtype=np.float64)
+        s0, sdot0 = self.start_state(x)
+        run = _integrate(self.model, s0, sdot0, 0.0, self.h, self.n_steps * int(n_periods),
+                         *self._options)
+        if run["status"] != 0:
+            raise SimulationError(f"the period map failed: {run['message']}", None)
+        # the nominal motion repeats itself up to the crank's whole turns per period
+        winding = self.nominal_end[0] - self.nominal_start[0]
+        ind = self.independent
+        ends = np.arange(0, self.n_steps * int(n_periods) + 1, self.n_steps)
+        positions = run["s"][ends][:, ind] - (self.nominal_start[0][ind]
+                                              + np.outer(np.arange(ends.size), winding[ind]))
+        period_states = np.concatenate([positions, run["sdot"][ends][:, ind] - self.nominal_end[1][ind]],
+                                       axis=1)
+        end = period_states[-1]
+        monodromy = None
+        if tangent:
+            if n_periods != 1:
+                raise ArgumentError("`tangent` needs `n_periods` = 1 (the monodromy of one period).")
+            final = _propagate_tangent(self.model, run, self.h, self.rho_inf, self._start_sensitivity(x))
+            monodromy = np.concatenate([final[0][ind], final[1][ind]])
+        return PeriodRun(state=x, end_state=end, monodromy=monodromy, t=run["t"], s=run["s"],
+                         sdot=run["sdot"], period_states=period_states, n_substeps=int(run["n_substeps"]),
+                         run_time=time.perf_counter() - started)
+
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) every kernel a period uses: one step with its tangent
+        from the nominal start, so that timings of ``run`` exclude JIT compilation."""
+        s0, sdot0 = self.start_state(np.zeros(self.n_state))
+        run = _integrate(self.model, s0, sdot0, 0.0, self.h, 1, *self._options)
+        if run["status"] == 0:
+            _propagate_tangent(self.model, run, self.h, self.rho_inf, np.zeros((4, s0.size, 1)))
+
+    def __call__(self, x: np.ndarray, parameter: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        period = self.run(x)
+        return period.end_state, period.monodromy
+
+
+def _free_coordinates(model: Any, s: np.ndarray) -> np.ndarray:
+    """The elastic coordinates, plus as many coordinates as the constraint Jacobian at ``s``, t = 0
+    leaves free, picked by QR with column pivoting (best-conditioned dependent block)."""
+    import scipy.linalg
+
+    jacobian = np.asarray(model.constraint_jacobian(s, 0.0), dtype=np.float64)
+    elastic = np.asarray(model.elastic_index, dtype=np.int64)
+    others = np.setdiff1d(np.arange(jacobian.shape[1]), elastic)
+    n_free = jacobian.shape[1] - jacobian.shape[0] - elastic.size
+    if n_free <= 0:
+        return np.sort(elastic)
+    _, _, pivots = scipy.linalg.qr(jacobian[:, others], pivoting=True, mode="economic")
+    return np.sort(np.concatenate([elastic, others[pivots[jacobian.shape[0]:]][:n_free]]))

@@ -1,0 +1,254 @@
+"""``[studies.nonlinear_steady_state]``: the periodic solution of the full nonlinear constrained
+equations by Newton shooting (``periodic.find_orbit`` on ``mechanisms.PeriodMap``), started from the
+linear periodic state, with the Floquet multipliers of the nonlinear orbit and an N against N/2 error
+estimate."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+import periodic
+
+from .._errors import StudiesError
+from .._kind import StudyKind, integer, number, speed_values, steps
+from .._numerics import solve_steady
+from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
+from .._store import Result, register
+from .._studies import check_integer, check_n_steps
+
+#: The fewest steps per period (docs/studies.md): N/2 = 16 steps must still carry the integrator.
+MIN_STEPS = 32
+#: Default relative residual of the shooting Newton, ``|P(x) - x| / (|x| + scale)``.
+TOL = 1e-8
+#: Default Newton steps of the shooting.
+MAX_ITERATIONS = 12
+#: Richardson factor of the order-2 generalized-alpha integrator: the N-step error is about
+#: ``|o_N - o_{N/2}| / (2^2 - 1)``.
+ERROR_FACTOR = 1.0 / 3.0
+
+
+@register
+@dataclass(frozen=True, eq=False)
+class NonlinearSteadyState(Result):
+    """The periodic orbit of the full nonlinear model over one period, with its stability.
+
+    ``t`` (N+1,) s; ``crank_angle`` (N+1,) rad; ``x`` (N+1, m) the independent coordinates' deviation
+    from the nominal rigid motion (SI unit of each coordinate, see ``labels``); ``response``
+    {spec: (N+1,)} observables (deviation from their nominal values, as the linear steady state
+    reports them); ``response_error`` {spec: float} the estimated max abs error of each (N against
+    N/2 steps); ``linear_response`` {spec: (N+1,)} the linear periodic state on the same grid;
+    ``state`` (2m,) the orbit's shooting state (coordinates and rates at t = 0); ``multipliers`` (2m,)
+    complex, the Floquet multipliers of the nonlinear orbit (from the monodromy of the discrete step
+    map), ``multiplier_errors`` (2m,) the error estimate of their moduli, ``spectral_radius``;
+    ``error_estimate`` max abs error of ``state``; ``iterations`` Newton steps, ``map_calls`` period
+    map evaluations (N/2 included), ``residual`` the final relative residual; ``status``,
+    ``message``, ``is_stable``: ``periodic.find_orbit``'s verdict (``failed`` with the reason when
+    Newton did not converge), ``instability_kind`` the bifurcation kind ("fold", "period_doubling",
+    "secondary_hopf" or ""); ``run_time`` s of the shooting (N and N/2, JIT compilation excluded),
+    ``linear_run_time`` s of the linear start.
+    """
+
+    problem: str
+    scene: str
+    parameters: Mapping[str, float]
+    units: Mapping[str, str]
+    response: Mapping[str, np.ndarray]
+    response_error: Mapping[str, float]
+    linear_response: Mapping[str, np.ndarray]
+    labels: tuple[str, ...]
+    t: np.ndarray
+    crank_angle: np.ndarray
+    x: np.ndarray
+    state: np.ndarray
+    multipliers: np.ndarray
+    multiplier_errors: np.ndarray
+    spectral_radius: float
+    error_estimate: float
+    iterations: int
+    map_calls: int
+    residual: float
+    status: str
+    message: str
+    is_stable: bool
+    instability_kind: str
+    n_steps: int
+    run_time: float
+    linear_run_time: float
+    settings: Mapping[str, Any] = field(default_factory=dict)
+
+    _units = {"t": "s", "crank_angle": "rad", "x": "SI (see labels)", "response": "@observables",
+              "linear_response": "@observables", "state": "SI (see labels, then their rates)",
+              "multipliers": "1", "multiplier_errors": "1"}
+
+    @property
+    def headline(self) -> str:
+        return headline(self.status, self.instability_kind)
+
+    def peak_to_peak(self, spec: str) -> tuple[float, float]:
+        """(nonlinear, linear) peak-to-peak of observable ``spec`` over the period."""
+        return float(np.ptp(self.response[spec])), float(np.ptp(self.linear_response[spec]))
+
+    def plot(self, *, axes: Any = None) -> Plot:
+        """Each observable over one crank revolution, nonlinear and linear (one axes each), and the
+        multipliers of the nonlinear orbit (last axes)."""
+        specs = list(self.response)
+        axes = axes_for(len(specs) + 1, axes)
+        angle = np.degrees(self.crank_angle - self.crank_angle[0])
+        artists: dict[str, list] = {}
+        for ax, spec in zip(axes, specs):
+            nonlinear, linear = self.peak_to_peak(spec)
+            artists[spec] = (ax.plot(angle, self.response[spec], color="C0", label="nonlinear periodic")
+                             + ax.plot(angle, self.linear_response[spec], "--", color="C1",
+                                       label="linear periodic"))
+            ax.set_xlabel("crank angle (deg)")
+            ax.set_ylabel(label(spec, self.units[spec]))
+            ax.set_title(f"{spec}: peak to peak nonlinear / linear = {nonlinear / linear:.4g}; error "
+                         f"estimate {self.response_error[spec]:.2g} {self.units[spec]}", fontsize="small")
+            ax.legend(fontsize="x-small")
+        axes[0].figure.suptitle(f"{self.problem}: nonlinear periodic state, {self.headline}",
+                                fontsize="medium", color="C3" if self.status != "ok" else "k")
+        artists["multipliers"] = plot_multipliers(
+            self.multipliers, ax=axes[-1],
+            title=f"spectral radius {self.spectral_radius:.6f}\n" + cost_line(
+                f"{self.iterations} Newton steps, state error {self.error_estimate:.2g}", self.run_time))
+        return drawn(axes, artists)
+
+
+class _Recording:
+    """A period map that remembers the last state it was called with (the coarse orbit's, once
+    ``periodic.find_orbit``'s estimate has converged on it)."""
+
+    def __init__(self, period_map: Any):
+        self.period_map, self.last = period_map, None
+
+    def __call__(self, state: np.ndarray, parameter: float):
+        self.last = np.array(state, dtype=float)
+        return self.period_map(state, parameter)
+
+
+@dataclass(frozen=True)
+class _Setup:
+    """The linear start of a shooting at one parameter point: the ``studies.Linear``, its steady state,
+    the period maps on N and N/2 steps and the start guess (2m,)."""
+
+    linear: Any
+    steady: Any
+    fine: Any
+    coarse: Any
+    guess: np.ndarray
+    run_time: float
+
+
+def _setup(problem: Any, values: Mapping[str, float] | None, n_steps: int) -> _Setup:
+    import mechanisms
+
+    if not getattr(problem, "supports_nonlinear", False) or not hasattr(problem, "outlines"):
+        raise StudiesError(f"problem {problem.name!r}: a nonlinear steady state needs a mechanism problem "
+                           "(studies.MechanismProblem), expected one with a full nonlinear model")
+    started = time.perf_counter()
+    linear = problem.linearize(values, n_steps=n_steps)
+    steady = solve_steady(linear)
+    lin = linear.context
+    independent = lin.coefficients.independent
+    fine = mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps, independent=independent, nominal=lin.nominal)
+    coarse = mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps // 2, independent=independent,
+                                  nominal=lin.nominal)
+    # the linear periodic state on the constraints (with the axial shortening of stiffened links)
+    guess = fine.state_of(*lin.start_state(steady.state.x[0], steady.state.v[0]))
+    return _Setup(linear, steady, fine, coarse, guess, time.perf_counter() - started)
+
+
+def _observables(linear: Any, period_map: Any, state: np.ndarray) -> tuple[dict, np.ndarray]:
+    """({spec: (N+1,)} deviations of the observables from the nominal ones, z (N+1, m)) over one
+    period of ``period_map`` from ``state``."""
+    lin = linear.context
+    run = period_map.run(state, tangent=False)
+    stride = (lin.nominal.s.shape[0] - 1) // period_map.n_steps
+    nominal_s = lin.nominal.s[::stride]
+    model = period_map.model
+    response = {}
+    for spec in linear.observables:
+        observable = model.observable(spec)
+        response[spec] = np.array([observable.value(s) - observable.value(s_nom)
+                                   for s, s_nom in zip(run.s, nominal_s)])
+    return response, (run.s - nominal_s)[:, period_map.independent]
+
+
+def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_steps: int = 256,
+                           tol: float = TOL, max_iterations: int = MAX_ITERATIONS) -> NonlinearSteadyState:
+    """The periodic solution of the full nonlinear constrained equations at ``values`` by shooting:
+    Newton on the independent coordinates and rates at t = 0 (``mechanisms.PeriodMap``: one period of
+    ``mechanisms.simulate``'s integrator on ``n_steps`` steps, the monodromy from its iteration
+    matrices), started from the linear periodic state (``studies.steady_state``'s). The orbit is found
+    again on ``n_steps / 2`` steps for the error estimates. A Newton that does not converge gives
+    status ``failed`` with the reason, not an exception."""
+    n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a nonlinear steady state")
+    check_integer("max_iterations", max_iterations, 1)
+    if not (isinstance(tol, (int, float)) and 0.0 < tol < 1.0):
+        raise StudiesError(f"tol: expected a relative residual in (0, 1), got {tol!r}")
+    setup = _setup(problem, values, n_steps)
+    linear, fine = setup.linear, setup.fine
+    fine.warm_up()
+    started = time.perf_counter()
+    coarse = _Recording(setup.coarse)
+    parameters = problem.resolve(values)
+    speed = float(parameters.get("speed", 0.0))
+    orbit = periodic.find_orbit(fine, setup.guess, speed, tol=tol, max_iterations=max_iterations,
+                                estimate=coarse, error_factor=ERROR_FACTOR)
+    specs = linear.observables
+    linear_response = {spec: setup.steady.response[:, k] for k, spec in enumerate(specs)}
+    if orbit.converged:
+        response, z = _observables(linear, fine, orbit.state)
+    else:
+        response = {spec: np.full(n_steps + 1, np.nan) for spec in specs}
+        z = np.full((n_steps + 1, fine.independent.size), np.nan)
+    errors = {spec: math.nan for spec in specs}
+    if orbit.converged and coarse.last is not None and np.isfinite(orbit.state_error):
+        coarse_response, _ = _observables(linear, setup.coarse, coarse.last)
+        errors = {spec: ERROR_FACTOR * float(np.abs(response[spec][::2] - coarse_response[spec]).max())
+                  for spec in specs}
+    run_time = time.perf_counter() - started
+    message = orbit.message
+    if orbit.converged:
+        ratios = ", ".join(f"{spec} {np.ptp(response[spec]) / np.ptp(linear_response[spec]):.4g}"
+                           for spec in specs if np.ptp(linear_response[spec]) > 0)
+        message += f"; peak to peak nonlinear / linear: {ratios}"
+    return NonlinearSteadyState(
+        problem=problem.name, parameters=parameters, scene=problem.text, labels=tuple(linear.labels),
+        units=dict(zip(specs, linear.units)), t=np.asarray(linear.system.t, dtype=float),
+        crank_angle=np.asarray(linear.crank_angle, dtype=float), x=z, response=response,
+        response_error=errors, linear_response=linear_response, state=orbit.state,
+        multipliers=orbit.multipliers, multiplier_errors=orbit.multiplier_errors,
+        spectral_radius=orbit.spectral_radius, error_estimate=orbit.state_error,
+        iterations=orbit.iterations, map_calls=orbit.map_calls, residual=orbit.residual,
+        status=orbit.status, message=message, is_stable=orbit.is_stable,
+        instability_kind="" if orbit.bifurcation == "none" else orbit.bifurcation, n_steps=n_steps,
+        run_time=run_time, linear_run_time=setup.run_time,
+        settings={"n_steps": n_steps, "tol": tol, "max_iterations": max_iterations})
+
+
+def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
+    return {"values": speed_values(where, table),
+            "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS),
+            "tol": number(where, "tol", table.get("tol", TOL), positive=True),
+            "max_iterations": integer(where, "max_iterations", table.get("max_iterations", MAX_ITERATIONS), 1)}
+
+
+def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> NonlinearSteadyState:
+    return nonlinear_steady_state(problem, options["values"], n_steps=options["n_steps"], tol=options["tol"],
+                                  max_iterations=options["max_iterations"])
+
+
+def _summary(result: NonlinearSteadyState) -> str:
+    errors = ", ".join(f"{k} +- {v:.2g}" for k, v in result.response_error.items())
+    return (f"{result.headline}: {result.message}; spectral radius {result.spectral_radius:.6f}; errors "
+            f"{errors}; {result.run_time:.3g} s shooting + {result.linear_run_time:.3g} s linear start")
+
+
+KIND = StudyKind(name="nonlinear_steady_state", result=NonlinearSteadyState,
+                 keys=("speed", "n_steps", "tol", "max_iterations"), check=_check, run=_run, summary=_summary)

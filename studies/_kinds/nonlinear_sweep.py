@@ -1,0 +1,306 @@
+"""``[studies.nonlinear_sweep]``: the nonlinear periodic orbit followed over the speed or a scene
+parameter (``periodic.continue_orbits`` on ``mechanisms.PeriodMap``), its stability along the way,
+where it is lost and what a transient from the last stable state then does; the linear and nonlinear
+response curves side by side."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+import periodic
+
+from .._errors import StudiesError
+from .._kind import StudyKind, boolean, integer, number
+from .._numerics import solve_steady
+from .._plots import Plot, axes_for, cost_line, drawn, label
+from .._problem import SPEED
+from .._store import Result, register
+from .._studies import check_integer, check_n_steps, check_parameter
+from .nonlinear_steady_state import MIN_STEPS, TOL, _observables, _setup
+
+#: Periods of the transient run from the last stable orbit past the loss of stability.
+TRANSIENT_PERIODS = 100
+#: A transient has settled on an orbit of period k T when its shooting states k periods apart agree to
+#: this fraction of their size over the last periods.
+SETTLE_TOL = 1e-4
+#: Points of the linear response curve drawn under the branch.
+LINEAR_POINTS = 41
+METHODS = ("natural", "arclength")
+
+
+@register
+@dataclass(frozen=True, eq=False)
+class NonlinearSweep(Result):
+    """The nonlinear periodic orbit over one parameter, with the linear response for comparison.
+
+    ``parameter`` ("speed" or a dotted scene path, unit ``parameter_unit``); ``values`` (k,) the branch's
+    parameter values in the order followed (not monotone past a fold); ``peak_to_peak`` {spec: (k,)} of
+    the nonlinear orbit; ``linear_at_branch`` {spec: (k,)} the linear periodic state's at the same values;
+    ``linear_values`` (n_lin,) and ``linear_peak_to_peak`` {spec: (n_lin,)} the linear curve over the
+    whole range; ``stable`` (k,) bool; ``spectral_radius`` (k,) of the nonlinear orbits; ``statuses``
+    (k,) each orbit's status; ``bifurcation_values`` (b,) and ``bifurcation_kinds`` (b,) where a
+    multiplier crosses the unit circle ("fold", "period_doubling", "secondary_hopf");
+    ``after_instability``: what the transient from the last stable orbit, just past the loss of
+    stability, does ("" when stability is not lost), with ``transient_value`` its parameter value,
+    ``transient_t`` (n_t,) s and ``transient`` {spec: (n_t,)} its observables (deviation from nominal);
+    ``status``, ``message`` the branch's (``periodic.continue_orbits``); ``run_time`` s.
+    """
+
+    problem: str
+    scene: str
+    parameter: str
+    parameter_unit: str
+    units: Mapping[str, str]
+    values: np.ndarray
+    peak_to_peak: Mapping[str, np.ndarray]
+    linear_at_branch: Mapping[str, np.ndarray]
+    linear_values: np.ndarray
+    linear_peak_to_peak: Mapping[str, np.ndarray]
+    stable: np.ndarray
+    spectral_radius: np.ndarray
+    statuses: tuple[str, ...]
+    bifurcation_values: np.ndarray
+    bifurcation_kinds: tuple[str, ...]
+    after_instability: str
+    transient_value: float
+    transient_t: np.ndarray
+    transient: Mapping[str, np.ndarray]
+    status: str
+    message: str
+    run_time: float
+    settings: Mapping[str, Any] = field(default_factory=dict)
+
+    _units = {"values": "@parameter_unit", "peak_to_peak": "@observables", "linear_at_branch": "@observables",
+              "linear_values": "@parameter_unit", "linear_peak_to_peak": "@observables", "stable": "1",
+              "spectral_radius": "1", "bifurcation_values": "@parameter_unit", "transient_t": "s",
+              "transient": "@observables"}
+
+    def plot(self, *, axes: Any = None) -> Plot:
+        """Peak-to-peak of each observable against the parameter: the linear curve (dashed), the
+        nonlinear branch (filled where stable, hollow where not), bifurcations marked."""
+        specs = list(self.peak_to_peak)
+        axes = axes_for(len(specs), axes)
+        artists: dict[str, list] = {}
+        stable = np.asarray(self.stable, dtype=bool)
+        for ax, spec in zip(axes, specs):
+            lines = ax.plot(self.linear_values, self.linear_peak_to_peak[spec], "--", color="C1", label="linear")
+            lines += ax.plot(self.values, self.peak_to_peak[spec], "-", color="C0", lw=0.8)
+            lines += ax.plot(self.values[stable], self.peak_to_peak[spec][stable], "o", color="C0", ms=4,
+                             label="nonlinear, stable")
+            lines += ax.plot(self.values[~stable], self.peak_to_peak[spec][~stable], "o", mfc="none",
+                             color="C3", ms=4, label="nonlinear, unstable")
+            for value, kind in zip(self.bifurcation_values, self.bifurcation_kinds):
+                lines.append(ax.axvline(value, color="C3", lw=0.8, ls=":"))
+                ax.annotate(kind.replace("_", " "), (value, 0.95), xycoords=("data", "axes fraction"),
+                            fontsize="x-small", color="C3", rotation=90, va="top")
+            ax.set_xlabel(label(self.parameter, self.parameter_unit))
+            ax.set_ylabel(label(f"{spec} peak to peak", self.units[spec]))
+            ax.set_title(cost_line(f"{self.status}: {self.after_instability or 'stable throughout'}",
+                                   self.run_time), fontsize="small")
+            ax.legend(fontsize="x-small")
+            artists[spec] = lines
+        axes[0].figure.suptitle(f"{self.problem}: linear and nonlinear response", fontsize="medium")
+        return drawn(axes, artists)
+
+
+class _ParameterMap:
+    """``(y, parameter value) -> (end y, monodromy)`` of the mechanism at that value, the other
+    parameters at ``values``, on the scaled shooting state ``y = x / scale``: the coordinates divided by
+    their largest deviation in the linear start, the rates by theirs, so that positions (m) and rates
+    (m/s, about speed times larger) weigh alike in the continuation's norms. The period maps of the last
+    few values are kept (the corrector calls the map several times at one value)."""
+
+    def __init__(self, problem: Any, parameter: str, values: Mapping[str, float], n_steps: int,
+                 independent: np.ndarray, scale: np.ndarray):
+        self.problem, self.parameter, self.values = problem, parameter, dict(values)
+        self.n_steps, self.independent, self.scale = n_steps, independent, scale
+        self._maps: dict[float, Any] = {}
+
+    def at(self, value: float):
+        import mechanisms
+
+        if value not in self._maps:
+            if len(self._maps) >= 4:
+                self._maps.pop(next(iter(self._maps)))
+            mechanism = self.problem.mechanism(dict(self.values, **{self.parameter: value}))
+            self._maps[value] = mechanisms.PeriodMap(mechanism, n_steps=self.n_steps,
+                                                     independent=self.independent)
+        return self._maps[value]
+
+    def __call__(self, y: np.ndarray, value: float):
+        end, monodromy = self.at(float(value))(y * self.scale)
+        return end / self.scale, monodromy * self.scale[None, :] / self.scale[:, None]
+
+
+def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop: float,
+                    values: Mapping[str, float] | None = None, n_steps: int = 128, step: float | None = None,
+                    method: str = "natural", tol: float = TOL, max_points: int = 100,
+                    stop_at_instability: bool = True, transient_periods: int = TRANSIENT_PERIODS
+                    ) -> NonlinearSweep:
+    """Follow the nonlinear periodic orbit (``studies.nonlinear_steady_state``'s, ``n_steps`` per
+    period) from ``parameter = start`` (started from the linear periodic state there) to ``stop`` with
+    ``periodic.continue_orbits`` (``method`` "natural" or "arclength" through folds, ``step`` in units
+    of the parameter). Where the orbit loses stability (with ``stop_at_instability`` the branch ends
+    there), a transient of ``transient_periods`` periods from the last stable orbit, just past that
+    point, says what the machine does instead. The linear response over the range is computed too."""
+    check_parameter(problem, parameter)
+    n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a nonlinear sweep")
+    check_integer("max_points", max_points, 2)
+    check_integer("transient_periods", transient_periods, 4)
+    if method not in METHODS:
+        raise StudiesError(f"method: expected one of {METHODS}, got {method!r}")
+    for name, value in (("start", start), ("stop", stop)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value)):
+            raise StudiesError(f"{name}: expected a finite value of {parameter!r}, got {value!r}")
+    if start == stop:
+        raise StudiesError(f"stop: expected a value different from start = {start!r}")
+    started = time.perf_counter()
+    fixed = {k: v for k, v in (values or {}).items() if k != parameter}
+    first = _setup(problem, dict(fixed, **{parameter: start}), n_steps)
+    m = first.fine.independent.size
+    guess = first.guess
+    scale = np.concatenate([np.full(m, max(np.abs(guess[:m]).max(), 1e-12)),
+                            np.full(m, max(np.abs(guess[m:]).max(), 1e-12))])
+    period_map = _ParameterMap(problem, parameter, fixed, n_steps, first.fine.independent, scale)
+    branch = periodic.continue_orbits(period_map, guess / scale, float(start), float(stop), step=step,
+                                      method=method, tol=tol, max_points=max_points,
+                                      stop_at_instability=stop_at_instability)
+    specs = first.linear.observables
+    nonlinear = {spec: [] for spec in specs}
+    linear_at = {spec: [] for spec in specs}
+    for value, state in zip(branch.parameters, branch.states):
+        linear = problem.linearize(dict(fixed, **{parameter: float(value)}), n_steps=n_steps)
+        steady = solve_steady(linear)
+        response, _ = _observables(linear, period_map.at(float(value)), state * scale)
+        for k, spec in enumerate(specs):
+            nonlinear[spec].append(np.ptp(response[spec]))
+            linear_at[spec].append(np.ptp(steady.response[:, k]))
+    linear_values = np.linspace(start, stop, LINEAR_POINTS)
+    linear_curve = {spec: [] for spec in specs}
+    for value in linear_values:
+        steady = solve_steady(problem.linearize(dict(fixed, **{parameter: float(value)}), n_steps=n_steps,
+                                                context=False))
+        for k, spec in enumerate(specs):
+            linear_curve[spec].append(np.ptp(steady.response[:, k]))
+    after, transient_value, transient_t, transient = _after_instability(
+        problem, period_map, branch, fixed, parameter, n_steps, transient_periods, specs)
+    message = branch.message + (f"; {after}" if after else "")
+    unit = problem.units.get(parameter, "SI")
+    return NonlinearSweep(
+        problem=problem.name, scene=problem.text, parameter=parameter, parameter_unit=unit,
+        units=dict(zip(specs, first.linear.units)), values=np.asarray(branch.parameters, dtype=float),
+        peak_to_peak={s: np.array(v, dtype=float) for s, v in nonlinear.items()},
+        linear_at_branch={s: np.array(v, dtype=float) for s, v in linear_at.items()},
+        linear_values=linear_values, linear_peak_to_peak={s: np.array(v) for s, v in linear_curve.items()},
+        stable=np.asarray(branch.stable, dtype=bool),
+        spectral_radius=np.array([np.abs(m).max() for m in branch.multipliers], dtype=float),
+        statuses=tuple(branch.statuses), bifurcation_values=np.array([b[0] for b in branch.bifurcations], dtype=float),
+        bifurcation_kinds=tuple(b[1] for b in branch.bifurcations), after_instability=after,
+        transient_value=transient_value, transient_t=transient_t, transient=transient,
+        status=branch.status, message=message, run_time=time.perf_counter() - started,
+        settings={"parameter": parameter, "start": start, "stop": stop, "n_steps": n_steps, "method": method,
+                  "tol": tol, "max_points": max_points, "stop_at_instability": stop_at_instability,
+                  "transient_periods": transient_periods})
+
+
+def _after_instability(problem, period_map, branch, fixed, parameter, n_steps, periods, specs):
+    """(words, parameter value, t, {spec: (n_t,)}) of the transient from the last stable orbit just past
+    the first loss of stability; ("", nan, empty, {}) when stability is not lost."""
+    if not branch.bifurcations:
+        return "", math.nan, np.empty(0), {}
+    where, kind = branch.bifurcations[0]
+    index = branch.bifurcation_indices[0] if branch.bifurcation_indices[0] >= 0 else len(branch.parameters)
+    # the last orbit before the crossing whose verdict is ok (marginal ones count as stable on a branch)
+    ok = [i for i in range(min(index, len(branch.parameters))) if branch.statuses[i] == "ok"]
+    if not ok:
+        return (f"{kind.replace('_', ' ')} at {parameter} = {where:.6g}: no stable orbit before it to start a "
+                "transient from"), math.nan, np.empty(0), {}
+    last = ok[-1]
+    # a quarter of the last step past the located loss of stability
+    beyond = where + 0.25 * (where - branch.parameters[last])
+    words = f"{kind.replace('_', ' ')} at {parameter} = {where:.6g}; a transient from the last stable orbit " \
+            f"({parameter} = {branch.parameters[last]:.6g}) at {parameter} = {beyond:.6g}"
+    try:
+        run = period_map.at(float(beyond)).run(branch.states[last] * period_map.scale, tangent=False,
+                                               n_periods=periods)
+    except RuntimeError as error:
+        return f"{words} fails ({error}): the machine leaves the model's range", float(beyond), np.empty(0), {}
+    linear = problem.linearize(dict(fixed, **{parameter: float(beyond)}), n_steps=n_steps)
+    nominal_s = linear.context.nominal.s[:-1]
+    model = period_map.at(float(beyond)).model
+    transient = {}
+    for spec in specs:
+        observable = model.observable(spec)
+        nominal = np.array([observable.value(s) for s in nominal_s])
+        values = np.array([observable.value(s) for s in run.s])
+        transient[spec] = values - np.resize(nominal, values.size)
+    return f"{words} {_settles(run.period_states)}", float(beyond), run.t, transient
+
+
+def _settles(states: np.ndarray) -> str:
+    """What the shooting states at the period ends (k + 1, 2m) of a transient say: settled on an orbit
+    of period T or 2T (from the last quarter of the run), or not settled."""
+    tail = states[-max(states.shape[0] // 4, 3):]
+    size = max(float(np.abs(tail).max()), np.finfo(float).tiny)
+    one = float(np.abs(tail[-1] - tail[-2]).max()) / size
+    two = float(np.abs(tail[-1] - tail[-3]).max()) / size
+    if one <= SETTLE_TOL:
+        return f"settles on an orbit of period T (change over the last period {one:.2g} of its size)"
+    if two <= SETTLE_TOL:
+        return (f"settles on an orbit of period 2T (period doubling confirmed: states 2T apart agree to "
+                f"{two:.2g}, T apart differ by {one:.2g} of their size)")
+    if two <= 0.01 * one:
+        # slow final approach near the bifurcation (the critical multiplier is close to the unit circle)
+        return (f"approaches an orbit of period 2T (period doubling: states 2T apart agree to {two:.2g}, "
+                f"T apart differ by {one:.2g} of their size, still converging after {states.shape[0] - 1} "
+                "periods)")
+    return (f"does not settle in {states.shape[0] - 1} periods (states T apart differ by {one:.2g}, 2T apart "
+            f"by {two:.2g} of their size)")
+
+
+def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
+    missing = [k for k in ("start", "stop") if k not in table]
+    if missing:
+        raise StudiesError(f"[{where}]: missing {', '.join(missing)} (the parameter range to follow)")
+    method = table.get("method", "natural")
+    if method not in METHODS:
+        raise StudiesError(f"[{where}] method: expected one of {METHODS}, got {method!r}")
+    parameter = table.get("parameter", SPEED)
+    if not isinstance(parameter, str):
+        raise StudiesError(f"[{where}] parameter: expected 'speed' or a dotted scene path, got {parameter!r}")
+    return {"parameter": parameter, "start": number(where, "start", table["start"]),
+            "stop": number(where, "stop", table["stop"]),
+            "step": None if "step" not in table else number(where, "step", table["step"], positive=True),
+            "method": method, "n_steps": integer(where, "n_steps", table.get("n_steps", min(n_steps, 128)), MIN_STEPS),
+            "tol": number(where, "tol", table.get("tol", TOL), positive=True),
+            "max_points": integer(where, "max_points", table.get("max_points", 100), 2),
+            "stop_at_instability": boolean(where, "stop_at_instability", table.get("stop_at_instability", True)),
+            "transient_periods": integer(where, "transient_periods",
+                                         table.get("transient_periods", TRANSIENT_PERIODS), 4)}
+
+
+def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> NonlinearSweep:
+    options = dict(options)
+    return nonlinear_sweep(problem, options.pop("parameter"), **options)
+
+
+def _summary(result: NonlinearSweep) -> str:
+    spec = next(iter(result.peak_to_peak), None)
+    ratio = ""
+    if spec is not None and result.values.size:
+        ratios = result.peak_to_peak[spec] / result.linear_at_branch[spec]
+        ratio = f"; nonlinear / linear peak to peak of {spec} from {ratios.min():.4g} to {ratios.max():.4g}"
+    return (f"{result.status}: {result.values.size} orbits over {result.parameter} "
+            f"{result.settings.get('start')} .. {result.settings.get('stop')}{ratio}; {result.message}; "
+            f"{result.run_time:.3g} s")
+
+
+KIND = StudyKind(name="nonlinear_sweep", result=NonlinearSweep,
+                 keys=("parameter", "start", "stop", "step", "method", "n_steps", "tol", "max_points",
+                       "stop_at_instability", "transient_periods"),
+                 check=_check, run=_run, summary=_summary, varies=lambda options: (options["parameter"],))
