@@ -10,6 +10,7 @@ finishes and a re-run with the same settings computes only the missing points.
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -19,7 +20,7 @@ import numpy as np
 from . import _verdicts as verdicts
 from ._errors import StudiesError
 from ._grid import STATUS_FAILED, GridStore
-from ._store import Result
+from ._store import Result, owner_of
 
 
 def check_n_steps(n_steps: Any, *, minimum: int = 16, multiple: int = 4, study: str = "this study") -> int:
@@ -65,9 +66,12 @@ def open_store(out: Any, name: str, shape: tuple[int, ...], kind: str, settings:
         return None
     store = GridStore.open(out, name, shape, kind=kind, settings=settings, units=units,
                            header=dict(header, settings=settings))
-    for axis, (values, unit) in axes.items():
-        if axis not in store.group:
-            store.group.create_dataset(axis, data=values).attrs["units"] = unit
+    missing = {axis: value for axis, value in axes.items() if axis not in store.group}
+    if missing:
+        owner = owner_of(out)
+        with owner.writing() if owner is not None else contextlib.nullcontext():
+            for axis, (values, unit) in missing.items():
+                store.group.create_dataset(axis, data=values).attrs["units"] = unit
     return store
 
 
