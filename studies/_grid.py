@@ -173,16 +173,18 @@ class GridStore:
             group.file.flush()
 
     def unit(self, key: str) -> str:
-        if key in self.units:
-            return self.units[key]
-        head = key.split("/")[0]
-        if head in self.units:
-            return self.units[head]
+        if self.is_output(key):
+            return self.units[key] if key in self.units else self.units[key.split("/")[0]]
         raise KeyError(f"no unit declared for grid output {key!r}")
+
+    def is_output(self, key: str) -> bool:
+        """Whether ``key`` is a point output: a declared name, or under a declared group name
+        (``linear_range/<link>.<measure>``)."""
+        return key in self.units or key.split("/")[0] in self.units
 
     def read(self, index: tuple[int, ...]) -> PointOutcome:
         group = self.group
-        data = {key: group[key][index] for key in _dataset_names(group) if key in self.units}
+        data = {key: group[key][index] for key in _dataset_names(group) if self.is_output(key)}
         return PointOutcome(data, _text(group["status"][index]), _text(group["message"][index]),
                             float(group["point_run_time"][index]))
 

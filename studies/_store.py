@@ -658,9 +658,9 @@ class ResultFile:
             except Exception:  # a handle whose write failed: the copy is scratch anyway
                 pass
             self._handle = None
-        for scratch in (self.work, self.staging):
-            scratch.unlink(missing_ok=True)
-        if self._lock_fd is not None:
+        if self._lock_fd is not None:  # the scratch files are ours only under the lock
+            for scratch in (self.work, self.staging):
+                scratch.unlink(missing_ok=True)
             self.lock_path.unlink(missing_ok=True)  # while still holding it (see _lock)
             os.close(self._lock_fd)
             self._lock_fd = None
