@@ -428,6 +428,7 @@ class ResultFile:
         self._last_commit = time.monotonic()
         self._interval = commit_interval
         self._broken = False
+        self._dirty = False  # written since the last commit (a run that wrote nothing commits nothing)
         self._signals = contextlib.ExitStack()
         #: attributes a study group gets when it is created (``studies._plan``: what was asked of it)
         self.study_attrs: dict[str, dict[str, Any]] = {}
@@ -594,6 +595,7 @@ class ResultFile:
         not to be committed."""
         self._check_space(self._work_size() + 2 * extra)
         with deferred_interrupts():
+            self._dirty = True
             try:
                 yield
             except BaseException:
@@ -601,9 +603,12 @@ class ResultFile:
                 raise
 
     def commit(self) -> None:
-        """Make the working copy's state the content of ``path``, atomically."""
+        """Make the working copy's state the content of ``path``, atomically (nothing to do when
+        nothing was written since the last commit)."""
         import h5py
 
+        if not self._dirty:
+            return
         if self._broken:
             raise StorageError(f"result file {str(self.path)!r}: a write failed half-way; it holds "
                                f"what was saved before")
@@ -625,6 +630,7 @@ class ResultFile:
                                    f"what was saved before") from None
             finally:
                 self._handle = h5py.File(self.work, "a", locking=False)
+        self._dirty = False
         spent = time.monotonic() - start
         self._last_commit = time.monotonic()
         self._interval = max(self.commit_interval, spent / _COMMIT_SHARE)

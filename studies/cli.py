@@ -386,17 +386,18 @@ def _unreadable(group: Any) -> str:
     from ._store import read_group
 
     names: list[str] = []
+    current = ""
     try:
         group.visit(names.append)
-        for name in names:
-            item = group[name]
+        for current in names:
+            item = group[current]
             if hasattr(item, "shape"):
                 item[()]
+        current = ""
         if group.attrs.get("complete"):
             read_group(group)
     except Exception as error:  # any failure to read is the finding, whatever h5py raises
-        where = f"{names[-1]}: " if names else ""
-        return f"{where}{type(error).__name__}: {error}"
+        return f"{current + ': ' if current else ''}{type(error).__name__}: {error}"
     return ""
 
 
