@@ -28,7 +28,8 @@ import numpy as np
 
 from ._errors import StudiesError
 
-from ._store import differing_paths, digest, encode, owner_of, scene_numbers, write_attrs
+from ._store import (deferred_interrupts, differing_paths, digest, encode, owner_of, scene_numbers,
+                     write_attrs)
 
 logger = logging.getLogger(__name__)
 
@@ -257,7 +258,9 @@ def run_grid(point: Callable, problem: Any, points: Sequence[tuple[tuple[int, ..
             # over several cheap points; at most ~MAX_TASKS tasks keep the workers evenly loaded.
             size = max(1, len(todo) // MAX_TASKS)
             batches = [todo[i:i + size] for i in range(0, len(todo), size)]
-            futures = [executor.submit(evaluate_batch, point, problem, batch, options) for batch in batches]
+            with deferred_interrupts():  # a pool forks its workers here: no interrupt in fork hooks
+                futures = [executor.submit(evaluate_batch, point, problem, batch, options)
+                           for batch in batches]
             try:
                 for future in as_completed(futures):
                     for index, outcome in future.result():

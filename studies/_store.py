@@ -338,18 +338,19 @@ def _deferral() -> Any:
 
 def interrupt_handler(signum: int, frame: Any) -> None:
     """Signal handler for SIGINT and SIGTERM: ``KeyboardInterrupt`` now, or at the end of the write
-    in progress (see :func:`deferred_interrupts`)."""
+    in progress (see :func:`deferred_interrupts`). The request stays pending until a write's end
+    raises it, in case the first ``KeyboardInterrupt`` landed where Python swallows exceptions (a
+    fork hook, a finaliser)."""
     state = _deferral()
-    if state.depth:
-        state.pending = True
-        return
-    raise KeyboardInterrupt(signal.Signals(signum).name)
+    state.pending = True
+    if not state.depth:
+        raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 @contextlib.contextmanager
 def deferred_interrupts() -> Iterator[None]:
     """A block that SIGINT/SIGTERM (through :func:`interrupt_handler`) do not cut in two: an interrupt
-    arriving inside is raised when the block ends."""
+    arriving inside, or before it and lost, is raised when the block ends."""
     state = _deferral()
     state.depth += 1
     try:
@@ -357,7 +358,6 @@ def deferred_interrupts() -> Iterator[None]:
     finally:
         state.depth -= 1
         if not state.depth and state.pending:
-            state.pending = False
             import sys
 
             if sys.exc_info()[0] is None:  # an error already on its way keeps precedence
@@ -370,12 +370,28 @@ def interrupts_handled() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    import sys
+
     previous = {sig: signal.signal(sig, interrupt_handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    hook = sys.unraisablehook
+    sys.unraisablehook = _quiet_about_interrupts(hook)
     try:
         yield
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        sys.unraisablehook = hook
+        _deferral().pending = False  # the interrupt has been delivered: a new run starts clean
+
+
+def _quiet_about_interrupts(hook: Any) -> Any:
+    """``sys.unraisablehook`` that says nothing of a ``KeyboardInterrupt`` Python swallowed (raised
+    in a finaliser or fork hook): it stays pending and is raised at the end of the next write."""
+    def quiet(unraisable: Any) -> None:
+        if not issubclass(unraisable.exc_type, KeyboardInterrupt):
+            hook(unraisable)
+
+    return quiet
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -215,7 +215,10 @@ def test_killing_the_parent_of_a_process_pool_kills_its_workers(launcher, scene,
             workers.update(_descendants(pid))
             time.sleep(0.02)
         workers.update(_descendants(pid))
-        os.kill(pid, signal.SIGKILL)
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:  # the run ended first
+            pass
         outcome = launcher.wait()
         if outcome == "exit 0":
             path.unlink()
