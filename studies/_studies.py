@@ -64,13 +64,13 @@ def open_store(out: Any, name: str, shape: tuple[int, ...], kind: str, settings:
     """The resumable store of a grid study in ``out`` (None without a file), with its axes written."""
     if out is None:
         return None
-    store = GridStore.open(out, name, shape, kind=kind, settings=settings, units=units,
-                           header=dict(header, settings=settings))
-    missing = {axis: value for axis, value in axes.items() if axis not in store.group}
-    if missing:
-        owner = owner_of(out)
-        with owner.writing() if owner is not None else contextlib.nullcontext():
-            for axis, (values, unit) in missing.items():
+    owner = owner_of(out)
+    # one write: a commit (on an interrupt) never sees the group without its axes
+    with owner.writing() if owner is not None else contextlib.nullcontext():
+        store = GridStore.open(out, name, shape, kind=kind, settings=settings, units=units,
+                               header=dict(header, settings=settings))
+        for axis, (values, unit) in axes.items():
+            if axis not in store.group:
                 store.group.create_dataset(axis, data=values).attrs["units"] = unit
     return store
 
