@@ -123,7 +123,8 @@ def _refuse_other_grid_options(file: ResultFile, runs: list) -> None:
     changed = []
     for name, kind, options in runs:
         group = file.handle.get(name)
-        if kind.grid and group is not None and group.attrs.get("request_hash", digest(options)) != digest(options):
+        asked = digest(options)
+        if kind.grid and group is not None and group.attrs.get("request_hash", asked) != asked:
             old = json.loads(group.attrs.get("request", "{}"))
             changed.append(f"{name} ({', '.join(differing_paths(old, json.loads(canonical(options))))})")
     if changed:

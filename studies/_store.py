@@ -494,7 +494,8 @@ class ResultFile:
 
     def _check_path(self) -> None:
         if self.path.is_dir():
-            raise self.refusal("is a folder", f"expected the path of a file, e.g. {str(self.path / 'run.h5')!r}")
+            raise self.refusal("is a folder",
+                               f"expected the path of a file, e.g. {str(self.path / 'run.h5')!r}")
         ancestor = self.path.parent
         while not ancestor.exists() and ancestor != ancestor.parent:
             ancestor = ancestor.parent

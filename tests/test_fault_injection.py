@@ -110,7 +110,8 @@ def _same_where_done(saved, expected, assert_same) -> None:
         return
     done = saved.done
     for name, value in vars(saved).items():
-        if name == "point_run_time" or not isinstance(value, np.ndarray) or value.shape[:done.ndim] != done.shape:
+        per_point = isinstance(value, np.ndarray) and value.shape[:done.ndim] == done.shape
+        if name == "point_run_time" or not per_point:
             continue
         mine, theirs = value[done], getattr(expected, name)[done]
         if mine.dtype.kind in "fcb":

@@ -203,6 +203,7 @@ HOLD = ("import sys; from studies._store import ResultFile\n"
         "    print('locked', flush=True); sys.stdin.read()\n")
 
 
+@pytest.mark.slow
 def test_a_second_live_writer_is_refused_naming_the_other_run(result_file, tmp_path, capsys):
     before = result_file.read_bytes()
     holder = subprocess.Popen([sys.executable, "-c", HOLD, str(result_file)], cwd=ROOT, text=True,
