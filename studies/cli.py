@@ -368,6 +368,8 @@ def _info(args: argparse.Namespace) -> int:
             # every headline attribute the study wrote (a new kind's too); the bulky or internal ones
             # (the scene text, the request it was run for) are left out
             for key, value in attrs.items():
+                if key == "settings" and isinstance(value, dict):  # the scene text is in the file
+                    value = {k: v for k, v in value.items() if k != "scene"}
                 if key not in _INFO_HIDDEN:
                     print(f"  {key}: {value}")
             for key, dataset in item.items():
