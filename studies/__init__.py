@@ -8,6 +8,10 @@ input raises :class:`StudiesError` (a ``ValueError``); a study that cannot be co
 from ._errors import ComputationError as ComputationError
 from ._errors import StudiesError as StudiesError
 from ._grid import PointOutcome as PointOutcome
+from ._guard import Estimate as Estimate
+from ._guard import ResourceError as ResourceError
+from ._guard import estimate as estimate
+from ._guard import guard as guard
 from ._grid import run_grid as run_grid
 from ._kinds.campbell import CampbellResult as CampbellResult
 from ._kinds.campbell import campbell as campbell
@@ -33,11 +37,13 @@ from ._problem import NonlinearRun as NonlinearRun
 from ._problem import PeriodicCoefficients as PeriodicCoefficients
 from ._problem import PeriodicProblem as PeriodicProblem
 from ._problem import mathieu_problem as mathieu_problem
+from ._store import ResultFileError as ResultFileError
+from ._store import StorageError as StorageError
 from ._store import load as load
 from ._store import open_file as open_file
 
 __all__ = [
-    "CampbellResult", "ComputationError", "Description", "ErrorCostResult", "Linear", "MechanismProblem",
+    "CampbellResult", "ComputationError", "Description", "Estimate", "ResourceError", "ResultFileError", "StorageError", "estimate", "guard", "ErrorCostResult", "Linear", "MechanismProblem",
     "NonlinearCheck", "NonlinearSteadyState", "NonlinearSweep", "NonlinearRun", "PeriodicCoefficients", "PeriodicProblem", "Plot", "PointOutcome",
     "StabilityChart", "SteadyStateResult", "StudiesError", "SweepResult", "campbell", "error_cost", "load",
     "mathieu_problem", "nonlinear_check", "nonlinear_steady_state", "nonlinear_sweep", "open_file", "run_grid", "stability_chart", "steady_state", "sweep",

@@ -10,20 +10,26 @@ killed run leaves a readable file and a re-run computes only the missing points.
 
 from __future__ import annotations
 
+import contextlib
+import json
 import logging
+import os
+import signal
 import sys
+import threading
 import time
 import traceback
 import warnings
 from concurrent.futures import Executor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
 from ._errors import StudiesError
 
-from ._store import encode, write_attrs
+from ._store import (deferred_interrupts, differing_paths, digest, encode, owner_of, scene_numbers,
+                     write_attrs)
 
 logger = logging.getLogger(__name__)
 
@@ -72,7 +78,6 @@ def evaluate_batch(point: Callable, problem: Any,
     return [(index, evaluate(point, problem, values, options)) for index, values in batch]
 
 
-@dataclass
 class GridStore:
     """The HDF5 group of one grid study (parent process only).
 
@@ -80,42 +85,65 @@ class GridStore:
     ``point_run_time`` (grid shape, s), and one dataset per output name of shape
     ``grid shape + value shape``, created at the first successful point, pre-filled with NaN, with a
     ``units`` attribute from ``units`` (looked up by the name, then by its first path component).
+    In a ``studies._store.ResultFile`` each point is one write (an interrupt waits for its end) and
+    the file commits every few seconds; in a plain h5py file each point is flushed.
     """
 
-    group: Any
-    shape: tuple[int, ...]
-    units: Mapping[str, str] = field(default_factory=dict)
+    def __init__(self, group: Any, shape: tuple[int, ...], units: Mapping[str, str] | None = None) -> None:
+        self.shape = tuple(shape)
+        self.units = dict(units or {})
+        self._owner = owner_of(group)
+        self._group = None if self._owner is not None else group
+        self._name = group.name
+
+    @property
+    def group(self) -> Any:
+        """The study's h5py group (looked up again after a commit reopened the working copy)."""
+        return self._owner.handle[self._name] if self._owner is not None else self._group
+
+    def _writing(self, extra: int = 0):
+        return self._owner.writing(extra) if self._owner is not None else contextlib.nullcontext()
 
     @classmethod
     def open(cls, parent: Any, name: str, shape: tuple[int, ...], *, kind: str,
              settings: Mapping[str, Any], units: Mapping[str, str],
              header: Mapping[str, Any]) -> "GridStore":
-        """Create the group, or reopen it for a resume when its settings match exactly. ``header``:
-        the result's descriptive fields (problem, scene, labels, ...) written as attributes at once,
-        so that an interrupted file loads."""
-        text = encode(settings)
-        if name in parent:
-            group = parent[name]
-            if group.attrs.get("kind") != kind or group.attrs.get("settings") != text:
+        """Create the group, or reopen it for a resume when its settings match: the same values, the
+        same scene numbers (the scene's name, description and studies may differ) and the same
+        outputs. ``header``: the result's descriptive fields (problem, scene, labels, ...) written as
+        attributes at once, so that an interrupted file loads."""
+        identity = digest(grid_identity(settings, units))
+        group = parent.get(name)
+        if group is not None and "kind" in group.attrs:  # a group made by a plan has no kind yet
+            stored = group.attrs.get("settings_hash")
+            same = (stored == identity if stored is not None
+                    else group.attrs.get("settings") == encode(settings))  # an older file
+            if group.attrs.get("kind") != kind or not same:
                 raise StudiesError(
                     f"{parent.file.filename}: group {name!r} holds a {group.attrs.get('kind')!r} study "
-                    f"with other settings ({group.attrs.get('settings')}); to resume, run with exactly "
-                    f"the same settings, else write to a new file or another study name")
+                    f"with other settings (differing: {', '.join(_differing_settings(group, settings))}); "
+                    f"to resume, run with exactly the same settings, else write to a new file or "
+                    f"another study name")
             return cls(group, shape, units)
         import h5py
 
-        group = parent.create_group(name)
-        group.attrs["kind"] = kind
-        group.attrs["settings"] = text
-        group.attrs["complete"] = False
-        write_attrs(group, header)
-        group.create_dataset("done", shape=shape, dtype=bool, fillvalue=False)
-        strings = h5py.string_dtype()
-        group.create_dataset("status", shape=shape, dtype=strings)
-        group.create_dataset("message", shape=shape, dtype=strings)
-        run_time = group.create_dataset("point_run_time", shape=shape, dtype=float,
-                                        fillvalue=np.nan)
-        run_time.attrs["units"] = "s"
+        owner = owner_of(parent)
+        with owner.writing() if owner is not None else contextlib.nullcontext():
+            group = parent.require_group(name)
+            group.attrs["kind"] = kind
+            group.attrs["settings_hash"] = identity
+            group.attrs["complete"] = False
+            write_attrs(group, header)
+            if owner is not None:  # what the plan asked of this study (studies._plan)
+                write_attrs(group, owner.study_attrs.get(name, {}))
+            group.attrs["settings"] = encode(settings)
+            group.create_dataset("done", shape=shape, dtype=bool, fillvalue=False)
+            strings = h5py.string_dtype()
+            group.create_dataset("status", shape=shape, dtype=strings)
+            group.create_dataset("message", shape=shape, dtype=strings)
+            run_time = group.create_dataset("point_run_time", shape=shape, dtype=float,
+                                            fillvalue=np.nan)
+            run_time.attrs["units"] = "s"
         return cls(group, shape, units)
 
     @property
@@ -123,34 +151,61 @@ class GridStore:
         return np.asarray(self.group["done"][()], dtype=bool)
 
     def write(self, index: tuple[int, ...], outcome: PointOutcome) -> None:
-        for key, value in outcome.data.items():
-            value = np.asarray(value)
-            if key not in self.group:
-                shape = self.shape + value.shape
-                if np.iscomplexobj(value):  # HDF5 has no complex fill value: fill explicitly
-                    dataset = self.group.create_dataset(key, data=np.full(shape, complex(np.nan, np.nan)))
-                else:
-                    dataset = self.group.create_dataset(key, shape=shape, dtype=float, fillvalue=np.nan)
-                dataset.attrs["units"] = self.unit(key)
-            self.group[key][index] = value
-        self.group["status"][index] = outcome.status
-        self.group["message"][index] = outcome.message
-        self.group["point_run_time"][index] = outcome.run_time
-        self.group["done"][index] = True
-        self.group.file.flush()
+        extra = sum(np.asarray(value).nbytes for value in outcome.data.values())
+        with self._writing(extra):
+            group = self.group
+            for key, value in outcome.data.items():
+                value = np.asarray(value)
+                if key not in group:
+                    shape = self.shape + value.shape
+                    if np.iscomplexobj(value):  # HDF5 has no complex fill value: fill explicitly
+                        dataset = group.create_dataset(key, data=np.full(shape, complex(np.nan, np.nan)))
+                    else:
+                        dataset = group.create_dataset(key, shape=shape, dtype=float, fillvalue=np.nan)
+                    dataset.attrs["units"] = self.unit(key)
+                group[key][index] = value
+            group["status"][index] = outcome.status
+            group["message"][index] = outcome.message
+            group["point_run_time"][index] = outcome.run_time
+            group["done"][index] = True
+        if self._owner is not None:
+            self._owner.maybe_commit()
+        else:
+            group.file.flush()
 
     def unit(self, key: str) -> str:
-        if key in self.units:
-            return self.units[key]
-        head = key.split("/")[0]
-        if head in self.units:
-            return self.units[head]
+        if self.is_output(key):
+            return self.units[key] if key in self.units else self.units[key.split("/")[0]]
         raise KeyError(f"no unit declared for grid output {key!r}")
 
+    def is_output(self, key: str) -> bool:
+        """Whether ``key`` is a point output: a declared name, or under a declared group name
+        (``linear_range/<link>.<measure>``)."""
+        return key in self.units or key.split("/")[0] in self.units
+
     def read(self, index: tuple[int, ...]) -> PointOutcome:
-        data = {key: self.group[key][index] for key in _dataset_names(self.group) if key in self.units}
-        return PointOutcome(data, _text(self.group["status"][index]), _text(self.group["message"][index]),
-                            float(self.group["point_run_time"][index]))
+        group = self.group
+        data = {key: group[key][index] for key in _dataset_names(group) if self.is_output(key)}
+        return PointOutcome(data, _text(group["status"][index]), _text(group["message"][index]),
+                            float(group["point_run_time"][index]))
+
+
+def grid_identity(settings: Mapping[str, Any], units: Mapping[str, str]) -> dict[str, Any]:
+    """What makes two runs of a grid study the same: its settings with the scene text replaced by the
+    numbers of the scene (``studies._store.scene_numbers``), and its output names."""
+    plain = dict(settings)
+    if isinstance(plain.get("scene"), str):
+        plain["scene"] = scene_numbers(plain["scene"])
+    return {"settings": plain, "outputs": sorted(units)}
+
+
+def _differing_settings(group: Any, settings: Mapping[str, Any]) -> list[str]:
+    try:
+        old = json.loads(group.attrs.get("settings", "{}"))
+    except (json.JSONDecodeError, TypeError):
+        return ["(unreadable)"]
+    old = grid_identity(old, {})["settings"] if isinstance(old, dict) else old
+    return differing_paths(old, grid_identity(settings, {})["settings"]) or ["outputs"]
 
 
 def _text(value: Any) -> str:
@@ -203,7 +258,9 @@ def run_grid(point: Callable, problem: Any, points: Sequence[tuple[tuple[int, ..
             # over several cheap points; at most ~MAX_TASKS tasks keep the workers evenly loaded.
             size = max(1, len(todo) // MAX_TASKS)
             batches = [todo[i:i + size] for i in range(0, len(todo), size)]
-            futures = [executor.submit(evaluate_batch, point, problem, batch, options) for batch in batches]
+            with deferred_interrupts():  # a pool forks its workers here: no interrupt in fork hooks
+                futures = [executor.submit(evaluate_batch, point, problem, batch, options)
+                           for batch in batches]
             try:
                 for future in as_completed(futures):
                     for index, outcome in future.result():
@@ -221,3 +278,60 @@ def _progress(total: int, initial: int, description: str, enabled: bool):
 
     return tqdm(total=total, initial=initial, desc=description, unit="point",
                 disable=not enabled or not sys.stderr.isatty(), leave=False)
+
+
+# ---------------------------------------------------------------------------------------------------
+# worker processes that die with their parent
+# ---------------------------------------------------------------------------------------------------
+#: prctl option: the signal the kernel sends this process when its parent dies (linux/prctl.h).
+_PR_SET_PDEATHSIG = 1
+#: How often (s) a worker's watchdog checks that its parent is alive (where prctl is missing).
+WATCHDOG_PERIOD = 1.0
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Initializer of a pool's worker processes: the worker dies when the run that started it does
+    (killed or not), and leaves Ctrl-C to its parent (which saves and stops the pool).
+
+    On Linux the kernel kills the worker when its parent ends (``PR_SET_PDEATHSIG``); a watchdog
+    thread checking ``os.getppid()`` covers other systems and a parent gone before the call.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):  # no libc prctl: the watchdog alone
+            pass
+    if os.getppid() != parent_pid:
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True,
+                     name="flexvib-parent-watchdog").start()
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while True:
+        time.sleep(WATCHDOG_PERIOD)
+        if os.getppid() != parent_pid:
+            os._exit(1)
+
+
+def process_pool(workers: int) -> Executor:
+    """A ``ProcessPoolExecutor`` of ``workers`` processes that die with this one."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    return ProcessPoolExecutor(workers, initializer=die_with_parent, initargs=(os.getpid(),))
+
+
+def stop_executor(executor: Executor, *, interrupted: bool) -> None:
+    """Shut ``executor`` down: wait for it after a normal end; after an interrupt, cancel what is
+    queued and end the pool's workers now (their points are recomputed by the next run)."""
+    if not interrupted:
+        executor.shutdown()
+        return
+    executor.shutdown(wait=False, cancel_futures=True)
+    # ProcessPoolExecutor has no public way to end busy workers before Python 3.14
+    # (terminate_workers); without it the interpreter's exit would wait for their batches.
+    for process in list((getattr(executor, "_processes", None) or {}).values()):
+        process.kill()

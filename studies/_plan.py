@@ -8,16 +8,21 @@ and their tables are those of the registry ``studies._kinds.KINDS``.
 
 from __future__ import annotations
 
+import json
 import logging
 from typing import Any, Mapping
+
+import numpy as np
 
 from ._errors import StudiesError, is_numerical_failure
 from ._kind import integer, reject_unknown
 from ._kinds import KINDS
 from ._problem import SPEED
-from ._store import encode, open_file, read_group
+from ._store import (ResultFile, StorageError, canonical, differing_paths, digest, read_group,
+                     scene_numbers, write_attrs)
 
-__all__ = ["StudiesError", "default_table", "parameters_needed", "plan", "run_plan"]
+__all__ = ["RunInterrupted", "StudiesError", "default_table", "parameters_needed", "plan", "run_plan",
+           "scene_identity"]
 
 logger = logging.getLogger(__name__)
 
@@ -67,48 +72,143 @@ def parameters_needed(studies: Mapping[str, Mapping[str, Any]]) -> tuple[str, ..
     return tuple(dict.fromkeys(n for n in names if n != SPEED))
 
 
+def scene_identity(problem: Any) -> dict[str, Any]:
+    """What identifies the scene of a run (its sha256 is the result file's ``scene_hash``): the
+    numbers of the scene (its tables without name, description and studies,
+    ``studies._store.scene_numbers``) and the observables; for a ``PeriodicProblem`` also its name,
+    parameters and observable rows (its text is an equation, not a scene)."""
+    identity: dict[str, Any] = {"scene": scene_numbers(getattr(problem, "text", ""))}
+    if hasattr(problem, "observable_specs"):
+        identity["observables"] = problem.observable_specs
+    if hasattr(problem, "parameter_values"):
+        identity.update(problem=problem.name, parameters=dict(problem.parameter_values),
+                        observables=problem.observable_rows, labels=problem.labels)
+    return identity
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM stopped a run; ``line`` says what was saved (``flexvib`` prints it)."""
+
+    def __init__(self, saved: int, total: int, path: str) -> None:
+        self.saved, self.total, self.path = saved, total, path
+        self.line = (f"interrupted: {saved} of {total} points saved in {path}; run the same command "
+                     f"to resume")
+        super().__init__(self.line)
+
+
 def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, *, executor: Any = None,
-             progress: bool = False) -> tuple[dict[str, Any], dict[str, str]]:
+             progress: bool = False, overwrite: bool = False) -> tuple[dict[str, Any], dict[str, str]]:
     """Run the declared ``studies`` on ``problem`` into the HDF5 file ``path``; returns
     ``(results, failures)``: ``{kind: result}`` and ``{kind: message}`` of studies that failed
     numerically (see ``studies._errors``).
 
-    Grid studies resume an interrupted run; the other studies are skipped when the file already holds
-    a complete result for the same request, and recomputed otherwise.
+    The file is written through ``studies._store.ResultFile`` (any kill leaves it readable). A file
+    of another scene, or holding a grid study asked with other options, is refused before anything
+    is written (``overwrite``: start the file afresh). Grid studies resume an interrupted run; the
+    other studies are skipped when the file already holds a complete result for the same options,
+    and recomputed otherwise. Ctrl-C or SIGTERM: :class:`RunInterrupted` after saving.
     """
+    runs = [(name + suffix, KINDS[name], each) for name, options in studies.items()
+            for suffix, each in KINDS[name].runs(options).items()]
+    try:
+        with ResultFile(path, scene=scene_identity(problem), overwrite=overwrite) as file:
+            _refuse_other_grid_options(file, runs)
+            return _run_studies(problem, runs, file, executor=executor, progress=progress)
+    except KeyboardInterrupt:
+        raise RunInterrupted(*_points_saved(path, runs), str(path)) from None
+
+
+def _refuse_other_grid_options(file: ResultFile, runs: list) -> None:
+    """A grid study the file holds with other options cannot be resumed: say so before writing."""
+    changed = []
+    for name, kind, options in runs:
+        group = file.handle.get(name)
+        asked = digest(options)
+        if kind.grid and group is not None and group.attrs.get("request_hash", asked) != asked:
+            old = json.loads(group.attrs.get("request", "{}"))
+            changed.append(f"{name} ({', '.join(differing_paths(old, json.loads(canonical(options))))})")
+    if changed:
+        raise file.refusal(f"holds {'; '.join(changed)} with other options, which cannot be resumed",
+                           "write to another file with --out, or run with --overwrite to start it afresh")
+
+
+def _run_studies(problem: Any, runs: list, file: ResultFile, *, executor: Any, progress: bool
+                 ) -> tuple[dict[str, Any], dict[str, str]]:
     from tqdm.auto import tqdm
 
     results, failures = {}, {}
-    runs = [(name + suffix, KINDS[name], each) for name, options in studies.items()
-            for suffix, each in KINDS[name].runs(options).items()]
-    with open_file(path) as handle, tqdm(runs, desc="studies", unit="study",
-                                         disable=not progress or len(runs) < 2) as bar:
+    for name, kind, options in runs:  # a grid group made by this run gets these attributes
+        file.study_attrs[name] = {"request": canonical(options), "request_hash": digest(options)}
+    with tqdm(runs, desc="studies", unit="study", disable=not progress or len(runs) < 2) as bar:
         # An overall bar, since a study without grid points (steady state, nonlinear check,
         # error against cost) has no bar of its own; grid studies nest theirs below it.
         for name, kind, options in bar:
             bar.set_postfix_str(name)
-            request = encode({"options": options, "scene": problem.text})
-            group = handle.get(name)
+            asked = file.study_attrs[name]
+            group = file.handle.get(name)
             if group is not None and not kind.grid:
-                if group.attrs.get("request") == request and group.attrs.get("complete"):
-                    logger.info("%s: already complete in %s, skipped", name, path)
+                if group.attrs.get("request_hash") == asked["request_hash"] and group.attrs.get("complete"):
+                    logger.info("%s: already complete in %s, skipped", name, file.path)
                     results[name] = read_group(group)
                     continue
-                del handle[name]
+                with file.writing():
+                    del file.handle[name]
             logger.info("running %s", name)
             try:
-                result = kind.run(problem, options, out=handle, executor=executor, progress=progress)
+                result = kind.run(problem, options, out=file.handle, executor=executor, progress=progress)
             except Exception as error:
-                if not is_numerical_failure(error):
-                    raise  # bad input stops the run (exit code 2), a bug too
+                if isinstance(error, StorageError) or not is_numerical_failure(error):
+                    raise  # bad input stops the run (exit code 2), a full disk or a bug too (1)
                 # a study that cannot be computed is reported and the others go on; grid points
                 # fail one by one inside the grid, a nonlinear run that fails gives its check the
                 # verdict "failed".
                 logger.error("%s failed: %s: %s", name, type(error).__name__, error)
                 failures[name] = f"{type(error).__name__}: {error}"
                 continue
-            if not kind.grid:
-                result.to_hdf5(handle.create_group(name))
-            handle[name].attrs["request"] = request
+            with file.writing(result.nbytes()):
+                if not kind.grid:
+                    result.to_hdf5(file.handle.create_group(name))
+                write_attrs(file.handle[name], asked)
+            file.commit()
             results[name] = result
     return results, failures
+
+
+def _points(kind: Any, options: Mapping[str, Any]) -> int:
+    """Points of one run: 1 for a single study; for a grid, the product of the sizes of the arrays
+    among its options (its axes: a sweep's values, a Campbell diagram's speeds, a chart's two axes)."""
+    if not kind.grid:
+        return 1
+    sizes = [value.size for value in _arrays(options)]
+    return int(np.prod(sizes)) if sizes else 1
+
+
+def _arrays(value: Any) -> list[np.ndarray]:
+    if isinstance(value, np.ndarray):
+        return [value]
+    if isinstance(value, Mapping):
+        value = list(value.values())
+    if isinstance(value, (list, tuple)):
+        return [array for item in value for array in _arrays(item)]
+    return []
+
+
+def _points_saved(path: str, runs: list) -> tuple[int, int]:
+    """``(saved, total)`` points of ``runs`` in the file at ``path`` (as committed)."""
+    import h5py
+
+    total = sum(_points(kind, options) for _, kind, options in runs)
+    saved = 0
+    try:
+        with h5py.File(path, "r", locking=False) as handle:
+            for name, kind, options in runs:
+                group = handle.get(name)
+                if group is None or group.attrs.get("request_hash") != digest(options):
+                    continue
+                if "done" in group:
+                    saved += int(np.count_nonzero(group["done"][()]))
+                elif group.attrs.get("complete"):
+                    saved += 1
+    except (OSError, KeyError):  # no file yet
+        pass
+    return saved, total

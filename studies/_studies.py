@@ -10,6 +10,7 @@ finishes and a re-run with the same settings computes only the missing points.
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -19,7 +20,7 @@ import numpy as np
 from . import _verdicts as verdicts
 from ._errors import StudiesError
 from ._grid import STATUS_FAILED, GridStore
-from ._store import Result
+from ._store import Result, owner_of
 
 
 def check_n_steps(n_steps: Any, *, minimum: int = 16, multiple: int = 4, study: str = "this study") -> int:
@@ -63,11 +64,14 @@ def open_store(out: Any, name: str, shape: tuple[int, ...], kind: str, settings:
     """The resumable store of a grid study in ``out`` (None without a file), with its axes written."""
     if out is None:
         return None
-    store = GridStore.open(out, name, shape, kind=kind, settings=settings, units=units,
-                           header=dict(header, settings=settings))
-    for axis, (values, unit) in axes.items():
-        if axis not in store.group:
-            store.group.create_dataset(axis, data=values).attrs["units"] = unit
+    owner = owner_of(out)
+    # one write: a commit (on an interrupt) never sees the group without its axes
+    with owner.writing() if owner is not None else contextlib.nullcontext():
+        store = GridStore.open(out, name, shape, kind=kind, settings=settings, units=units,
+                               header=dict(header, settings=settings))
+        for axis, (values, unit) in axes.items():
+            if axis not in store.group:
+                store.group.create_dataset(axis, data=values).attrs["units"] = unit
     return store
 
 

@@ -6,6 +6,7 @@ import argparse
 import logging
 import math
 import os
+import signal
 import sys
 from pathlib import Path
 from typing import Any, Sequence
@@ -64,6 +65,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--force", action="store_true",
                      help="run studies whose estimated memory or time exceeds the limits of the "
                           "resource guard (docs/studies.md, Limits)")
+    run.add_argument("--overwrite", action="store_true",
+                     help="start the result file afresh (by default a run resumes it, and refuses a "
+                          "file of another scene)")
     run.set_defaults(handler=_run)
     plot = commands.add_parser("plot", help="draw the figures of a result file (PNG and SVG)",
                                description="Draw every study of a result file as PNG and SVG figures.")
@@ -128,14 +132,36 @@ def main(argv: Sequence[str] | None = None) -> int:
     (command line, scene, studies table), 1 a computation failed (or an internal error, a bug)."""
     parser = _parser()
     args = parser.parse_args(argv)
+    previous = _terminate_like_ctrl_c()
     try:
         return args.handler(args)
+    except KeyboardInterrupt as interrupt:
+        # Ctrl-C or SIGTERM: a run has saved what it finished (studies._plan.RunInterrupted says what)
+        print(getattr(interrupt, "line", "interrupted"), file=sys.stderr)
+        return 130
     except BrokenPipeError:
         # The reader went away (`flexvib info FILE | head`): stop quietly, as command-line tools do.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except Exception as error:
         return _report(error)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _terminate_like_ctrl_c():
+    """SIGTERM (``kill``, ``timeout``) raises ``KeyboardInterrupt`` as Ctrl-C does; returns the
+    previous handler (None off the main thread, where signals cannot be handled)."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt("SIGTERM")
+
+    return signal.signal(signal.SIGTERM, interrupt)
 
 
 def _report(error: Exception) -> int:
@@ -229,6 +255,10 @@ def load_scene(scene: str, *, force: bool = False, workers: int = 1) -> tuple[An
 
 
 def _executor(args: argparse.Namespace):
+    """``(executor, client)`` of the command line: None for in-process, a pool whose workers die
+    with this process, or a Dask cluster's executor and its client."""
+    from ._grid import process_pool
+
     if args.jobs < 1:
         raise UsageError(f"--jobs: expected a positive number of workers, got {args.jobs}")
     if args.executor == "dask":
@@ -239,15 +269,34 @@ def _executor(args: argparse.Namespace):
         except ImportError:
             raise UsageError("--executor dask needs the 'distributed' package: pip install "
                              "'flexvib[dask]'") from None
-        client = distributed.Client(args.scheduler, timeout="10s")
+        _check_reachable(args.scheduler)
+        try:
+            client = distributed.Client(args.scheduler, timeout="10s")
+        except (OSError, ValueError) as error:  # TimeoutError is an OSError; a bad address a ValueError
+            raise UsageError(f"--scheduler {args.scheduler}: cannot connect to the Dask scheduler "
+                             f"({type(error).__name__}: {error})") from None
         return client.get_executor(), client
     if args.scheduler:
         raise UsageError("--scheduler is only used with --executor dask")
     if args.jobs == 1:
         return None, None
-    from concurrent.futures import ProcessPoolExecutor
+    return process_pool(args.jobs), None
 
-    return ProcessPoolExecutor(args.jobs), None
+
+def _check_reachable(address: str, timeout: float = 3.0) -> None:
+    """One line instead of Dask's retries and traceback when nothing listens at a tcp:// address."""
+    import socket
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    if parts.scheme not in ("tcp", "tls") or not parts.hostname:
+        return  # another protocol (inproc, ucx): let distributed judge
+    try:
+        with socket.create_connection((parts.hostname, parts.port or 8786), timeout=timeout):
+            pass
+    except (OSError, ValueError) as error:
+        raise UsageError(f"--scheduler {address}: cannot reach the Dask scheduler "
+                         f"({getattr(error, 'strerror', None) or error}); is it running?") from None
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -259,14 +308,18 @@ def _run(args: argparse.Namespace) -> int:
     problem, declared = load_scene(args.scene, force=args.force, workers=args.jobs)
     out = args.out or Path(f"{Path(args.scene).stem}.h5")
     executor, client = _executor(args)
+    finished = False
     try:
         results, failures = run_plan(problem, declared, str(out), executor=executor,
-                                     progress=not args.quiet)
+                                     progress=not args.quiet, overwrite=args.overwrite)
+        finished = True
     finally:
         if client is not None:
             client.close()
         elif executor is not None:
-            executor.shutdown()
+            from ._grid import stop_executor
+
+            stop_executor(executor, interrupted=not finished)  # busy workers: no waiting
     for name, result in results.items():
         print(f"{name:16s} {kind_of(result).summary(result)}")
     for name, message in failures.items():
@@ -329,10 +382,13 @@ def _report_command(args: argparse.Namespace) -> int:
 
 
 #: Study attributes ``flexvib info`` does not print: shown in its header line, or bulky and internal.
-_INFO_HIDDEN = ("kind", "problem", "complete", "request", "scene", "outlines", "labels", "mode_labels")
+_INFO_HIDDEN = ("kind", "problem", "complete", "request", "request_hash", "settings_hash", "scene",
+                "outlines", "labels", "mode_labels")
 
 
 def _info(args: argparse.Namespace) -> int:
+    """Summarise a result file; every dataset of every study is read, and a study whose data cannot
+    be read is called CORRUPT (exit code 1)."""
     import h5py
 
     from ._store import study_attrs
@@ -341,20 +397,29 @@ def _info(args: argparse.Namespace) -> int:
     if not args.file.is_file():
         raise UsageError(f"result file {str(args.file)!r} does not exist")
     try:
-        handle = h5py.File(args.file, "r")
+        handle = h5py.File(args.file, "r", locking=False)  # a run never holds the file open
     except OSError as error:
         raise UsageError(f"{str(args.file)!r} is not an HDF5 result file ({error})") from None
+    corrupt = []
     with handle:
         print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, created "
               f"{handle.attrs.get('created', '?')}")
         print(f"  versions: {handle.attrs.get('versions', '?')}")
+        if "scene_hash" in handle.attrs:
+            print(f"  scene: sha256 {handle.attrs['scene_hash']}")
         for name, item in handle.items():
             if not hasattr(item, "items"):  # a dataset at the root (e.g. a `flexvib demo` file)
                 print(f"{name}: {item.shape} {item.attrs.get('units', '')}")
                 continue
+            problem = _unreadable(item)
+            if problem:
+                corrupt.append(name)
             attrs = study_attrs(item)
-            print(f"[{name}] {attrs.get('kind')} of {attrs.get('problem', '?')}, "
-                  f"{'complete' if attrs.get('complete') else 'INCOMPLETE'}")
+            state = (f"CORRUPT ({problem})" if problem else
+                     "complete" if attrs.get("complete") else "INCOMPLETE")
+            print(f"[{name}] {attrs.get('kind')} of {attrs.get('problem', '?')}, {state}")
+            if problem:
+                continue
             if "done" in item:
                 done = item["done"][()]
                 print(f"  points done: {int(done.sum())} of {done.size}")
@@ -364,6 +429,8 @@ def _info(args: argparse.Namespace) -> int:
             # every headline attribute the study wrote (a new kind's too); the bulky or internal ones
             # (the scene text, the request it was run for) are left out
             for key, value in attrs.items():
+                if key == "settings" and isinstance(value, dict):  # the scene text is in the file
+                    value = {k: v for k, v in value.items() if k != "scene"}
                 if key not in _INFO_HIDDEN:
                     print(f"  {key}: {value}")
             for key, dataset in item.items():
@@ -371,7 +438,30 @@ def _info(args: argparse.Namespace) -> int:
                     print(f"  {key}: {dataset.shape} {dataset.attrs.get('units', '')}")
                 else:
                     print(f"  {key}/: {', '.join(dataset.keys())}")
-    return 0
+    if corrupt:
+        print(f"flexvib: error: {args.file}: cannot read {', '.join(corrupt)}", file=sys.stderr)
+    return 1 if corrupt else 0
+
+
+def _unreadable(group: Any) -> str:
+    """Why a study group cannot be read back ("" if it can): every dataset is read, and a complete
+    study is loaded as its result."""
+    from ._store import read_group
+
+    names: list[str] = []
+    current = ""
+    try:
+        group.visit(names.append)
+        for current in names:
+            item = group[current]
+            if hasattr(item, "shape"):
+                item[()]
+        current = ""
+        if group.attrs.get("complete"):
+            read_group(group)
+    except Exception as error:  # any failure to read is the finding, whatever h5py raises
+        return f"{current + ': ' if current else ''}{type(error).__name__}: {error}"
+    return ""
 
 
 if __name__ == "__main__":
