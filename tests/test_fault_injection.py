@@ -278,15 +278,18 @@ def test_a_disk_that_fills_mid_run_stops_it_with_exit_1_and_the_saved_results_in
     expected, _ = reference
     disk = tmp_path / "disk"
     disk.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(disk)],
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=4m", "tmpfs", str(disk)],
                              capture_output=True, text=True)
     if mounted.returncode:
         pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.strip()}")
     try:
+        # room for the reserve and the first study's commit (its working copy and the copy renamed
+        # into place, a little more than twice its size), not for the whole run's: the run fills it
+        expected["steady_state"].save(tmp_path / "steady_only.h5")
+        first = (tmp_path / "steady_only.h5").stat().st_size
         free = os.statvfs(disk).f_bavail * os.statvfs(disk).f_frsize
-        # leave room for the start (1 MiB reserve) and a little more: the run fills it
         ballast = disk / "ballast"
-        ballast.write_bytes(b"\0" * (free - (1 << 20) - 160_000))
+        ballast.write_bytes(b"\0" * (free - (1 << 20) - int(2.2 * first)))
         path, log = disk / "run.h5", tmp_path / "log"
         argv = ["run", scene, "--out", path, "--quiet"]
         launcher.start(argv, log)
