@@ -70,7 +70,7 @@ EXPECTED_LABELS = {
     "steady_state": ["time (s)", "x (m)"],  # the Mathieu problem has no crank
     "steady_state_multipliers": ["Re mu", "Im mu"],
     "sweep": ["speed (rad/s)", "x peak to peak (m)", "spectral radius |mu|max"],
-    "campbell": ["crank speed (rad/s)", "frequency (rad/s)"],
+    "campbell": ["speed (rad/s)", "frequency (rad/s)"],
     "stability_chart": ["speed (rad/s)", "epsilon", "spectral radius |mu|max"],
     "nonlinear_check": ["time (s)", "x (m)"],
     "error_cost": ["run time (s)", "relative error (1)"],

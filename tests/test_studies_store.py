@@ -109,7 +109,7 @@ def test_dask_local_cluster_gives_the_same_numbers(results, assert_same):
 AXES = {
     "steady": [("time (s)", "x (m)"), ("Re mu", "Im mu")],  # the Mathieu problem has no crank
     "sweep": [("speed (rad/s)", "x peak to peak (m)"), ("speed (rad/s)", "spectral radius |mu|max")],
-    "campbell": [("crank speed (rad/s)", "frequency (rad/s)")],
+    "campbell": [("speed (rad/s)", "frequency (rad/s)")],
     "chart": [("speed (rad/s)", "epsilon"), ("", "spectral radius |mu|max")],
     "nonlinear": [("time (s)", "x (m)")],
     "error_cost": [("run time (s)", "relative error (1)")],

@@ -109,7 +109,7 @@ class CampbellResult(GridResult):
             # the speeds whose verdict is not ok (unstable, marginal, ...) marked along the axis
             artists["status"] = mark_statuses(ax, speeds, np.full(speeds.shape, 0.02 * top), self.status)
             ax.legend(fontsize="x-small", loc="upper left")
-        ax.set_xlabel("crank speed (rad/s)")
+        ax.set_xlabel("speed (rad/s)")  # 2 pi / period: the crank speed of a four-bar
         ax.set_ylabel("frequency (rad/s)")
         # The error of the characteristic frequencies drawn (an unresolved axial mode far above the
         # plotted range would otherwise set it).
@@ -241,11 +241,11 @@ def _headlines(result: CampbellResult) -> Summary:
                                  f"{plain(np.nanmax(result.band_max[:, j]), 3)} rad/s"))
         found = sorted((value, k, j) for j in range(result.band_mean.shape[1]) for k in result.harmonics
                        for _, value in crossings(speeds, k * speeds - result.band_mean[:, j]))
-        rows.append(Headline("resonances, harmonic:mode at crank speed (rad/s)",
+        rows.append(Headline("resonances, harmonic:mode at speed (rad/s)",
                              listed([f"{k}:{j + 1} at {plain(value, 3)}" for value, k, j in found])))
     if result.spectral_radius is not None:
         lower = result.spectral_radius - np.nan_to_num(result.spectral_radius_error)
-        rows.append(Headline("unstable crank speeds",
+        rows.append(Headline("unstable speeds",
                              ranges(unstable_intervals(result.speeds, lower, tol=periodic.STABILITY_TOL), "rad/s")))
     return Summary(status=status_counts(result.status[result.done]), run_time=result.run_time, rows=rows)
 
