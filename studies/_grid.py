@@ -11,7 +11,6 @@ killed run leaves a readable file and a re-run computes only the missing points.
 from __future__ import annotations
 
 import logging
-import sys
 import time
 import traceback
 import warnings
@@ -217,7 +216,7 @@ def run_grid(point: Callable, problem: Any, points: Sequence[tuple[tuple[int, ..
 
 
 def _progress(total: int, initial: int, description: str, enabled: bool):
-    from tqdm import tqdm
+    from ._console import progress_bar
 
-    return tqdm(total=total, initial=initial, desc=description, unit="point",
-                disable=not enabled or not sys.stderr.isatty(), leave=False)
+    return progress_bar(total=total, initial=initial, desc=description, unit="point", enabled=enabled,
+                        leave=False)

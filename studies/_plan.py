@@ -76,13 +76,13 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
     Grid studies resume an interrupted run; the other studies are skipped when the file already holds
     a complete result for the same request, and recomputed otherwise.
     """
-    from tqdm.auto import tqdm
+    from ._console import progress_bar
 
     results, failures = {}, {}
     runs = [(name + suffix, KINDS[name], each) for name, options in studies.items()
             for suffix, each in KINDS[name].runs(options).items()]
-    with open_file(path) as handle, tqdm(runs, desc="studies", unit="study",
-                                         disable=not progress or len(runs) < 2) as bar:
+    with open_file(path) as handle, progress_bar(runs, desc="studies", unit="study",
+                                                 enabled=progress and len(runs) > 1) as bar:
         # An overall bar, since a study without grid points (steady state, nonlinear check,
         # error against cost) has no bar of its own; grid studies nest theirs below it.
         for name, kind, options in bar:
