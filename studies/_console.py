@@ -132,6 +132,10 @@ def console(*, quiet: bool = False, verbose: bool = False) -> Iterator[None]:
         logger.setLevel(level)
     try:
         with warnings.catch_warnings():
+            # every occurrence reaches the collector, which counts them (Python's default shows
+            # a warning once per place in the code, which would make the counts meaningless)
+            for category in (UserWarning, RuntimeWarning):
+                warnings.simplefilter("always", category)
             warnings.showwarning = _show_warning
             yield
     finally:
