@@ -5,6 +5,10 @@ scene (four_bar_ritz), each run a fresh process.
   fresh install (the issue's target: at most 20 s on the 2-core machine);
 - warm: the cache the cold run just filled.
 
+Wall times are what a user waits; CPU times (user + system, the job's processes together) are
+steadier on a shared machine. The cold start compiles in two processes at once when the machine has
+two cores (studies/_jit.py), so its wall time can be below its CPU time.
+
 With ``--baseline DIR`` (a checkout of the code before, e.g. ``git archive 41ad475 | tar -x -C
 /tmp/base``) the same job of that code runs alternately with this one, round by round, and the
 ratios are printed: the machine is shared and noisy, so compare ratios and medians. Also printed:
@@ -19,6 +23,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import resource
 import statistics
 import subprocess
 import sys
@@ -29,18 +34,22 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent.parent
 
 
-def run_job(source: Path, cache: Path, folder: Path) -> tuple[float, str]:
-    """Wall time (s) and stdout of the main job with the code in ``source`` and numba cache ``cache``."""
+def run_job(source: Path, cache: Path, folder: Path) -> tuple[float, float, str]:
+    """Wall time (s), CPU time (s, user + system of the job and the processes it waited for) and
+    stdout of the main job with the code in ``source`` and numba cache ``cache``."""
     out = folder / "thesis.h5"
     out.unlink(missing_ok=True)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(source))
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     done = subprocess.run([sys.executable, "-m", "studies.cli", "run", "--out", str(out), "--quiet"],
                           cwd=folder, env=env, capture_output=True, text=True)
     elapsed = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode not in (0, 1):
         raise SystemExit(f"the job failed with exit code {done.returncode}:\n{done.stderr}")
-    return elapsed, done.stdout
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return elapsed, cpu, done.stdout
 
 
 def compile_time(folder: Path) -> float:
@@ -59,10 +68,11 @@ def steady_run_time(stdout: str) -> float:
 
 def one_round(source: Path, scratch: Path) -> dict[str, float]:
     cache = Path(tempfile.mkdtemp(prefix="empty-numba-cache-", dir=scratch))
-    cold, cold_out = run_job(source, cache, scratch)
+    cold, cold_cpu, cold_out = run_job(source, cache, scratch)
     cold_compile = compile_time(scratch)
-    warm, warm_out = run_job(source, cache, scratch)
-    return {"cold": cold, "warm": warm, "compile_time": cold_compile,
+    warm, warm_cpu, warm_out = run_job(source, cache, scratch)
+    return {"cold": cold, "warm": warm, "cold cpu": cold_cpu, "warm cpu": warm_cpu,
+            "compile_time": cold_compile,
             "steady_state (cold)": steady_run_time(cold_out), "steady_state (warm)": steady_run_time(warm_out)}
 
 
@@ -87,7 +97,7 @@ def main() -> None:
     for name, values in medians.items():
         print(f"  {name:9s} " + ", ".join(f"{key} {value:.2f}" for key, value in values.items()))
     if args.baseline:
-        for key in ("cold", "warm"):
+        for key in ("cold", "warm", "cold cpu", "warm cpu"):
             ratios = [a[key] / b[key] for a, b in zip(rounds["this"], rounds["baseline"])]
             print(f"  this / baseline, {key}: {statistics.median(ratios):.2f} "
                   f"(rounds: {', '.join(f'{r:.2f}' for r in ratios)})")
