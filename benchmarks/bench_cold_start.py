@@ -5,9 +5,8 @@ scene (four_bar_ritz), each run a fresh process.
   fresh install (the issue's target: at most 20 s on the 2-core machine);
 - warm: the cache the cold run just filled.
 
-Wall times are what a user waits; CPU times (user + system, the job's processes together) are
-steadier on a shared machine. The cold start compiles in two processes at once when the machine has
-two cores (studies/_jit.py), so its wall time can be below its CPU time.
+Wall times are what a user waits; CPU times (user + system of the job) are steadier on a shared
+machine.
 
 With ``--baseline DIR`` (a checkout of the code before, e.g. ``git archive 41ad475 | tar -x -C
 /tmp/base``) the same job of that code runs alternately with this one, round by round, and the
@@ -85,7 +84,7 @@ def main() -> None:
     rounds: dict[str, list[dict[str, float]]] = {name: [] for name in sources}
     with tempfile.TemporaryDirectory(prefix="flexvib-cold-") as scratch:
         for k in range(args.rounds):
-            for name, source in sources.items():  # alternately, so that both see the same load
+            for name, source in sources.items():  # alternately: both see the same load
                 rounds[name].append(one_round(source, Path(scratch)))
                 print(f"round {k + 1} {name}: " + ", ".join(f"{key} {value:.2f} s"
                                                           for key, value in rounds[name][-1].items()),
@@ -96,10 +95,10 @@ def main() -> None:
                for name, runs in rounds.items()}
     for name, values in medians.items():
         print(f"  {name:9s} " + ", ".join(f"{key} {value:.2f}" for key, value in values.items()))
-    if args.baseline:
+    for other in [name for name in sources if name != "this"]:
         for key in ("cold", "warm", "cold cpu", "warm cpu"):
-            ratios = [a[key] / b[key] for a, b in zip(rounds["this"], rounds["baseline"])]
-            print(f"  this / baseline, {key}: {statistics.median(ratios):.2f} "
+            ratios = [a[key] / b[key] for a, b in zip(rounds["this"], rounds[other])]
+            print(f"  this / {other}, {key}: {statistics.median(ratios):.2f} "
                   f"(rounds: {', '.join(f'{r:.2f}' for r in ratios)})")
 
 

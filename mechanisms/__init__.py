@@ -25,5 +25,3 @@ from ._observables import default_observables as default_observables
 from ._protocol import ConstrainedModel as ConstrainedModel, Observable as Observable
 from ._simulate import (SimulationError as SimulationError, SimulationResult as SimulationResult,
                         simulate as simulate)
-from ._warmup import (linear_terms_cached as linear_terms_cached,
-                      warm_up_linear_terms as warm_up_linear_terms)

@@ -22,8 +22,6 @@ from ._verdict import Stability as Stability
 from ._verdict import error_verdict as error_verdict
 from ._verdict import stability_verdict as stability_verdict
 from ._verdict import worst_status as worst_status
-from ._warmup import kernels_cached as kernels_cached
-from ._warmup import warm_up_kernels as warm_up_kernels
 
 __all__ = [
     "SCHEMES",
@@ -41,10 +39,8 @@ __all__ = [
     "SteadyState",
     "demo_system",
     "error_verdict",
-    "kernels_cached",
     "floquet",
     "stability_verdict",
-    "warm_up_kernels",
     "steady_state",
     "worst_status",
 ]

@@ -16,21 +16,15 @@ from __future__ import annotations
 import inspect
 import logging
 import math
-import os
-import subprocess
-import sys
 import threading
 import time
 import warnings
-from pathlib import Path
 from typing import Any, Mapping
 
 __all__ = ["CompileClock", "record_compile_time", "warm_up"]
 
+# under "flexvib" (the command's logger), not muted with the library's packages during the warm-up
 logger = logging.getLogger("flexvib.jit")
-# the announcement goes out while the library's own messages are muted (the tiny warm-up grids
-# would otherwise log and warn about themselves)
-logger.setLevel(logging.INFO)
 
 #: Steps per period of the warm-up runs: the smallest every study kind accepts (the numba types,
 #: not the sizes, decide what is compiled).
@@ -107,12 +101,6 @@ def warm_up(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> CompileCl
     clock = CompileClock().start()
     started = time.perf_counter()
     with _muted():
-        helper = _start_helper(problem)
-        if helper is not None:
-            # this process compiles the nominal motion's kernels meanwhile; the helper's arrive
-            # through the disk cache once it is done
-            _attempt("nominal motion", _nominal_motion, problem)
-            _wait(helper)
         _attempt("steady state", _steady_state, problem)
         for name in studies:
             kind = KINDS[name]
@@ -124,74 +112,6 @@ def warm_up(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> CompileCl
         logger.info("compiled the numerical kernels in %.0f s (cached for the next runs; "
                     "not counted in the studies' run times)", time.perf_counter() - started)
     return clock
-
-
-# ---------------------------------------------------------------------------------------------------
-# A helper process compiles part of the kernels at the same time (numba compiles one function at a
-# time, in one thread): the periodic engine's kernels and the linearisation's ``linear_terms``
-# kernel, while this process compiles those of the nominal motion. Compiled code reaches this
-# process through numba's disk cache, so the helper runs only when that cache is cold and usable.
-# ---------------------------------------------------------------------------------------------------
-#: Seconds to wait for the helper at most (it compiles what this process would otherwise compile).
-HELPER_TIMEOUT = 300.0
-
-
-def _cache_is_cold(problem: Any) -> bool:
-    """Whether numba's disk cache lacks the kernels the helper would compile."""
-    import mechanisms
-    import periodic
-
-    return not periodic.kernels_cached() or (hasattr(problem, "mechanism")
-                                             and not mechanisms.linear_terms_cached())
-
-
-def _start_helper(problem: Any):
-    """The helper process (``python -m studies._jit`` with the scene text on stdin), or None when
-    it would not pay: a warm cache, one CPU."""
-    if (os.cpu_count() or 1) < 2 or not _cache_is_cold(problem):
-        return None
-    root = str(Path(__file__).resolve().parent.parent)  # this very code, wherever it is imported from
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, (root, os.environ.get("PYTHONPATH")))))
-    try:
-        helper = subprocess.Popen([sys.executable, "-m", "studies._jit"], stdin=subprocess.PIPE,
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
-        text = getattr(problem, "text", "") if hasattr(problem, "mechanism") else ""
-        helper.stdin.write(text.encode("utf-8"))
-        helper.stdin.close()
-    except OSError as error:
-        logger.debug("no helper process for the compilation: %s", error)
-        return None
-    return helper
-
-
-def _wait(helper) -> None:
-    try:
-        helper.wait(timeout=HELPER_TIMEOUT)
-    except subprocess.TimeoutExpired:
-        helper.kill()
-        helper.wait()
-    finally:
-        if helper.poll() is None:  # interrupted while waiting: the helper must not outlive the run
-            helper.kill()
-            helper.wait()
-
-
-def _nominal_motion(problem: Any) -> None:
-    import mechanisms
-
-    mechanisms.nominal_motion(problem.mechanism(), n_steps=WARM_UP_STEPS)
-
-
-def _helper_main() -> None:
-    """The helper's work: the periodic kernels, and ``linear_terms`` of the scene on stdin (if any)."""
-    import mechanisms
-    import periodic
-
-    text = sys.stdin.read()
-    warnings.simplefilter("ignore")
-    periodic.warm_up_kernels()
-    if text:
-        mechanisms.warm_up_linear_terms(mechanisms.loads(text))
 
 
 def _attempt(what: str, run, *args) -> None:
@@ -259,6 +179,3 @@ def record_compile_time(path: Any, seconds: float) -> None:
     except OSError as error:  # the results are written; a missing attribute is not worth a failure
         logger.warning("could not record compile_time in %s: %s", path, error)
 
-
-if __name__ == "__main__":
-    _helper_main()

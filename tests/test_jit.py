@@ -128,3 +128,4 @@ def test_the_warm_up_compiles_every_kernel_the_run_calls(tmp_path):
     assert "periodic._newmark.newmark_march" in called and "mechanisms._batch.linear_terms_kernel" in called
     assert len(called["periodic._newmark.newmark_march"]) == 1
     assert not [name for name, sigs in called.items() if any("Literal" in s for s in sigs)]
+
