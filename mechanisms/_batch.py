@@ -105,6 +105,15 @@ def constraint_terms_along(model, t, s, sdot=None, *, values: bool = False) -> C
 # Kernels of the assembled model
 # ---------------------------------------------------------------------------------------------------
 @numba.njit(cache=True)
+def _copy_matrix(source, target):
+    """target[:, :] = source, as a loop: an array assigned to a slice would compile numba's
+    shape-mismatch message (string formatting, seconds of the first run's compilation)."""
+    for i in range(source.shape[0]):
+        for j in range(source.shape[1]):
+            target[i, j] = source[i, j]
+
+
+@numba.njit(cache=True)
 def linear_terms_kernel(S, Sd, Sdd, Lam, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0,
                         c0, ct_int, ct_real, h_lin, M, D, K, R, J):
     """Fill M, D, K (N, n, n), R (N, n), J (N, r, n) of ``LinearTerms`` for the samples
@@ -122,7 +131,7 @@ def linear_terms_kernel(S, Sd, Sdd, Lam, gx, gy, mp_int, mp_real, sp_int, sp_rea
                                  c0, dQ_ds, D[k])
         _kernels.mass_matrix_jacobian(s, sddot, mp_int, mp_real, shp, idx, K[k])
         _kernels.constraint_force_jacobian(s, lam, ct_int, ct_real, shp, idx, K[k])
-        J[k, :, :] = h_lin
+        _copy_matrix(h_lin, J[k])
         _kernels.constraint_jacobian(s, ct_int, ct_real, shp, idx, J[k])
         for a in range(n):
             acc = -Q[a]
@@ -160,12 +169,16 @@ def constraint_terms_kernel(S, Sd, ct_int, ct_real, shp, idx, h_lin, J, gamma, p
     point-constraint part of gamma(S[k], Sd[k]); when phi has rows, phi[k] += h_lin S[k] + the
     point-constraint part of Phi(S[k]). Outputs hold the constant and drive parts on entry."""
     for k in range(S.shape[0]):
-        J[k, :, :] = h_lin
+        _copy_matrix(h_lin, J[k])
         _kernels.constraint_jacobian(S[k], ct_int, ct_real, shp, idx, J[k])
         if Sd.shape[0] == S.shape[0]:
             _kernels.constraint_gamma(S[k], Sd[k], ct_int, ct_real, shp, idx, gamma[k])
         if phi.shape[0] == S.shape[0]:
-            phi[k] += h_lin @ S[k]
+            for i in range(h_lin.shape[0]):  # phi[k] += h_lin @ S[k], without compiling BLAS dot
+                acc = 0.0
+                for j in range(h_lin.shape[1]):
+                    acc += h_lin[i, j] * S[k, j]
+                phi[k, i] += acc
             _kernels.constraints(S[k], ct_int, ct_real, shp, idx, phi[k])
 
 
@@ -178,6 +191,40 @@ def scaled_correction(corrected, predicted, rigid, column_scale):
     for j in range(rigid.shape[0]):
         worst = max(worst, abs(corrected[rigid[j]] - predicted[rigid[j]]) / column_scale[j])
     return worst
+
+
+@numba.njit(cache=True)
+def solve_in_place(a, b):
+    """Overwrite ``b`` (n,) with the solution of ``a x = b``, ``a`` (n, n) overwritten by its LU
+    factors (Gaussian elimination with partial pivoting, as LAPACK's gesv); False when a pivot is
+    exactly zero. Replaces ``np.linalg.solve``, whose numba implementation alone costs seconds of
+    the first run's compilation (tests/test_batch.py holds it to numpy's). False also when the
+    shapes do not match (not square)."""
+    n = a.shape[0]
+    if a.shape[1] != n or b.shape[0] != n:
+        return False
+    for k in range(n):
+        p = k
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > abs(a[p, k]):
+                p = i
+        if a[p, k] == 0.0:
+            return False
+        if p != k:
+            for j in range(n):
+                a[k, j], a[p, j] = a[p, j], a[k, j]
+            b[k], b[p] = b[p], b[k]
+        for i in range(k + 1, n):
+            factor = a[i, k] / a[k, k]
+            for j in range(k + 1, n):
+                a[i, j] -= factor * a[k, j]
+            b[i] -= factor * b[k]
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= a[i, j] * b[j]
+        b[i] = acc / a[i, i]
+    return True
 
 
 @numba.njit(cache=True)
@@ -211,19 +258,18 @@ def continue_positions_kernel(s, start, drive_rows, drive_angles, rigid, phi0, h
             if np.abs(phi).max() < newton_stop:
                 converged = True
                 break
-            jac[:, :] = h_lin
+            _copy_matrix(h_lin, jac)
             _kernels.constraint_jacobian(q, ct_int, ct_real, shp, idx, jac)
             for i in range(r):
                 for j in range(n_rigid):
                     jac_r[i, j] = jac[i, rigid[j]]
-            try:
-                step = np.linalg.solve(jac_r, phi)
-            except Exception:  # singular (a toggle): the careful Python path names it
+            if not solve_in_place(jac_r, phi):  # singular (a toggle): the careful Python path names it
                 return k
             for j in range(n_rigid):
-                q[rigid[j]] -= step[j]
+                q[rigid[j]] -= phi[j]
         if not converged or scaled_correction(q, predicted, rigid,
                                               column_scale) >= max_correction:
             return k
-        s[k] = q
+        for j in range(n):
+            s[k, j] = q[j]
     return n_samples

@@ -302,7 +302,7 @@ def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, 
             out[cols[a]] += m * (lx[a] * vx + ly[a] * vy)
     slope, eps, kappa, coef = _group_scratch(sp_int)
     slope_rate, eps_rate, kappa_rate, coef_rate = _group_scratch(sp_int)
-    i0 = 0
+    i0 = np.int64(0)  # not the literal 0: callees would compile a second, Literal[int] signature
     while i0 < sp_int.shape[0]:
         # -dPi/dq, eq. (5)
         size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
@@ -359,7 +359,7 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
     slope_rate, eps_rate, kappa_rate, coef_rate = _group_scratch(sp_int)
     grad = np.empty(max(_max_local(sp_int[:, 1]) - 3, 1))
     grad_rate = np.empty(grad.shape[0])
-    i0 = 0
+    i0 = np.int64(0)  # not the literal 0: callees would compile a second, Literal[int] signature
     while i0 < sp_int.shape[0]:
         # -d2Pi/dq2, eq. (6); with Kelvin-Voigt damping also -d2D/dq'dq and -d2D/dq'2, eq. (9)
         size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
@@ -493,7 +493,7 @@ def potential_energy(s, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0):
         apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
         energy -= m * (gx * (s[off] + apx) + gy * (s[off + 1] + apy))
     slope, eps, kappa, coef = _group_scratch(sp_int)
-    i0 = 0
+    i0 = np.int64(0)  # not the literal 0: callees would compile a second, Literal[int] signature
     while i0 < sp_int.shape[0]:
         size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
         for g in range(size):
@@ -514,7 +514,7 @@ def damping_power(s, sdot, sp_int, sp_real, shp, idx, c0):
     slope, eps, kappa, coef = _group_scratch(sp_int)
     slope_rate, eps_rate, kappa_rate, coef_rate = _group_scratch(sp_int)
     power = 0.0
-    i0 = 0
+    i0 = np.int64(0)  # not the literal 0: callees would compile a second, Literal[int] signature
     while i0 < sp_int.shape[0]:
         size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
         beta = sp_real[i0, 2]

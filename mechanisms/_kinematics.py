@@ -199,7 +199,7 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
                                f"assembly branch; check for toggle positions or give a larger "
                                f"n_steps")
     run_time = time.perf_counter() - started
-    logger.info("nominal motion: %d steps in %.3f s, residual %.2e, max condition %.3g",
+    logger.debug("nominal motion: %d steps in %.3f s, residual %.2e, max condition %.3g",
                 n_steps, run_time, residual, condition.max())
     return NominalMotion(t=times, s=s, sdot=sdot, sddot=sddot, lam=lam, drive_torque=drive_torque,
                          constraint_residual=residual, velocity_residual=velocity_residual,

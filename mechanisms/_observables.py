@@ -352,9 +352,9 @@ def _point_observable(model, spec, lay, kind, where):
                               f"point_error_{axis}", where) for axis in "xy"))
     link = lay.link
     try:
-        fraction = float(where) if where else 0.5
+        float(where or 0.5)                    # a fraction of the length (checked below) ...
     except ValueError:
-        try:                                   # a named point ("start", "end", a key of points)
+        try:                                   # ... or a named point ("start", "end", a key of points)
             px, py = link.point_position(where)
         except ValueError as error:
             raise ArgumentError(f"observable {spec!r}: {error}") from None

@@ -86,6 +86,15 @@ def _lu_solve(lu, piv, b):
             b[i, j] *= inv
 
 
+@numba.njit(cache=True)
+def _copy(source, target):
+    """target[:, :] = source (2-D), as a loop: an array assigned to a slice would compile numba's
+    shape-mismatch message (string formatting, seconds of the first run's compilation)."""
+    for i in range(source.shape[0]):
+        for j in range(source.shape[1]):
+            target[i, j] = source[i, j]
+
+
 # From this many coordinates on, BLAS (np.dot) beats the plain loops for the products C v and K x
 # (measured: 2x faster at n = 20 and 40, 2x slower at n = 2..5).
 _BLAS_FROM_N_DOF = 8
@@ -133,14 +142,14 @@ def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a
     k_a = beta * h * h
     # (N0): starting acceleration
     _residual_force(C[0], K[0], f[0], forced, x, v, a, work)
-    lu[:, :] = M[0]
+    _copy(M[0], lu)
     if not _lu_factor(lu, piv):
         return 0
     _lu_solve(lu, piv, a)
     if store:
-        x_hist[0] = x
-        v_hist[0] = v
-        a_hist[0] = a
+        _copy(x, x_hist[0])
+        _copy(v, v_hist[0])
+        _copy(a, a_hist[0])
     for k in range(n_samples - 1):
         # (N1): predictors
         for i in range(n):
@@ -161,9 +170,9 @@ def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a
                 x[i, j] = xp[i, j] + k_a * a[i, j]
                 v[i, j] = vp[i, j] + c_a * a[i, j]
         if store:
-            x_hist[k + 1] = x
-            v_hist[k + 1] = v
-            a_hist[k + 1] = a
+            _copy(x, x_hist[k + 1])
+            _copy(v, v_hist[k + 1])
+            _copy(a, a_hist[k + 1])
     return -1
 
 
@@ -175,7 +184,7 @@ def mass_pivot_ratios(M):
     lu = np.empty((n, n))
     piv = np.empty(n, dtype=np.int64)
     for k in range(n_samples):
-        lu[:, :] = M[k]
+        _copy(M[k], lu)
         scale = np.abs(lu).max()
         if scale == 0.0 or not _lu_factor(lu, piv):
             out[k] = 0.0

@@ -263,7 +263,7 @@ def steady_state(
     if resonance[0] == STATUS_NEAR_RESONANCE:
         warnings.warn(resonance[1], NearResonanceWarning, stacklevel=2)
     elif resonance[0] == STATUS_UNRESOLVED:
-        logger.info(resonance[1])
+        logger.debug(resonance[1])
     return SteadyState(
         t=system.t,
         x=x,

@@ -137,7 +137,10 @@ def every_other_sample(system: PeriodicSystem) -> PeriodicSystem:
     """``system`` on N/2 steps, unchecked: the caller has called :func:`check_coarsenable`."""
     coarse = object.__new__(PeriodicSystem)
     # Every other sample of validated arrays is valid: no re-validation needed.
-    arrays = (np.ascontiguousarray(a[::2]) for a in (system.M, system.C, system.K, system.f))
+    arrays = [np.ascontiguousarray(a[::2]) for a in (system.M, system.C, system.K, system.f)]
+    for arr in arrays:
+        # read-only as every system's arrays: the numba kernels then compile for one signature
+        arr.flags.writeable = False
     _set(coarse, system.period, *arrays)
     return coarse
 

@@ -274,10 +274,10 @@ def run_grid(point: Callable, problem: Any, points: Sequence[tuple[tuple[int, ..
 
 
 def _progress(total: int, initial: int, description: str, enabled: bool):
-    from tqdm import tqdm
+    from ._console import progress_bar
 
-    return tqdm(total=total, initial=initial, desc=description, unit="point",
-                disable=not enabled or not sys.stderr.isatty(), leave=False)
+    return progress_bar(total=total, initial=initial, desc=description, unit="point", enabled=enabled,
+                        leave=False)
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -102,7 +102,8 @@ class MechanismProblem:
                 value = _get_path(mechanism.spec, path)
             except KeyError:
                 raise StudiesError(f"scene {self.name!r} has no parameter {path!r} (dotted path of a "
-                                   f"number in the scene file, e.g. 'links.coupler.thickness')") from None
+                                   f"number in the scene file, e.g. 'links.coupler.thickness'"
+                                   f"{_nearest_path(mechanism.spec, path)})") from None
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise StudiesError(f"scene {self.name!r}: parameter {path!r} is {value!r}, not a number")
             nominal[path] = float(value)
@@ -118,9 +119,20 @@ class MechanismProblem:
 
     @classmethod
     def from_mechanism(cls, mechanism: Any, *, parameter_paths=(), observables=None) -> "MechanismProblem":
-        """The problem of a ``mechanisms.Mechanism`` (kept as this process's built scene)."""
+        """The problem of a ``mechanisms.Mechanism`` (kept as this process's built scene), e.g.
+        ``MechanismProblem.from_mechanism(mechanisms.four_bar())``. By default studies may vary the
+        crank ``speed`` only and report ``linearize.default_observables``; ``parameter_paths``: the
+        scene values they may vary besides (a dotted path or a sequence of them, e.g.
+        ``"links.coupler.thickness"``); ``observables``: observable specs."""
         import mechanisms
 
+        if not isinstance(mechanism, mechanisms.Mechanism):
+            raise TypeError(f"from_mechanism() takes a mechanisms.Mechanism, got "
+                            f"{type(mechanism).__name__} (for a scene name or file use from_scene)")
+        if isinstance(parameter_paths, str):  # one path, not its characters
+            parameter_paths = (parameter_paths,)
+        if isinstance(observables, str):
+            observables = (observables,)
         text = mechanism.to_toml()
         if mechanism.spec is None:  # made from parts: variants are built from a scene dict
             mechanism = mechanisms.build(tomllib.loads(text), source=f"scene {mechanism.name!r}")
@@ -155,7 +167,24 @@ class MechanismProblem:
                 for name in self.parameters}
 
     def resolve(self, values: Mapping[str, float] | None) -> dict[str, float]:
+        unknown = [key for key in (values or {}) if key not in self._nominal]
+        if unknown:
+            raise StudiesError(f"problem {self.name!r} has no parameter {unknown[0]!r} (parameters: "
+                               f"{sorted(self._nominal)}); {self.parameter_advice(unknown[0])}")
         return resolve_values(self.name, self._nominal, values)
+
+    def parameter_advice(self, path: str) -> str:
+        """How to make the scene value at ``path`` a parameter studies may vary (the end of the
+        unknown-parameter error)."""
+        try:
+            _get_path(self.mechanism().spec, path)
+        except KeyError:
+            nearest = _nearest_path(self.mechanism().spec, path).removeprefix("; ")
+            return (f"the scene has no value at {path!r}{f' ({nearest})' if nearest else ''}; "
+                    f"parameters are 'speed' and the dotted paths of scene values passed as "
+                    f"parameter_paths")
+        return (f"to vary this scene value, make the problem with it: MechanismProblem.from_mechanism("
+                f"mechanism, parameter_paths=[{path!r}]) (or from_scene(name, parameter_paths=[...]))")
 
     def describe(self, values: Mapping[str, float] | None = None) -> Description:
         """Coordinate labels, observables and units at ``values`` from the assembled model (cached by
@@ -328,6 +357,25 @@ def _of_coordinates(observable: Any) -> bool:
     return (callable(getattr(observable, "value", None))
             and callable(getattr(observable, "gradient", None))
             and not getattr(observable, "needs_axial_force", False))
+
+
+def _scene_paths(spec: Mapping[str, Any], prefix: str = "") -> list[str]:
+    """The dotted paths of the numbers in a scene dict."""
+    paths = []
+    for key, value in spec.items():
+        if isinstance(value, Mapping):
+            paths += _scene_paths(value, f"{prefix}{key}.")
+        elif isinstance(value, (int, float)) and not isinstance(value, bool):
+            paths.append(f"{prefix}{key}")
+    return paths
+
+
+def _nearest_path(spec: Mapping[str, Any], path: str) -> str:
+    """``"; did you mean 'links.coupler.thickness'?"`` for a misspelt ``path``, or ``""``."""
+    import difflib
+
+    close = difflib.get_close_matches(path, _scene_paths(spec), n=1)
+    return f"; did you mean {close[0]!r}?" if close else ""
 
 
 def _speed(mechanism) -> float:

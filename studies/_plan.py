@@ -14,6 +14,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from . import _jit
 from ._errors import StudiesError, is_numerical_failure
 from ._kind import integer, reject_unknown
 from ._kinds import KINDS
@@ -97,7 +98,8 @@ class RunInterrupted(KeyboardInterrupt):
 
 
 def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, *, executor: Any = None,
-             progress: bool = False, overwrite: bool = False) -> tuple[dict[str, Any], dict[str, str]]:
+             progress: bool = False, overwrite: bool = False, warm_up: bool = False
+             ) -> tuple[dict[str, Any], dict[str, str]]:
     """Run the declared ``studies`` on ``problem`` into the HDF5 file ``path``; returns
     ``(results, failures)``: ``{kind: result}`` and ``{kind: message}`` of studies that failed
     numerically (see ``studies._errors``).
@@ -107,13 +109,22 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
     is written (``overwrite``: start the file afresh). Grid studies resume an interrupted run; the
     other studies are skipped when the file already holds a complete result for the same options,
     and recomputed otherwise. Ctrl-C or SIGTERM: :class:`RunInterrupted` after saving.
+
+    ``warm_up``: once the file is accepted, compile the numba kernels the studies need before any
+    study starts its clock (``studies._jit.warm_up``), and record the compile time of the run as the
+    file attribute ``compile_time`` (s; 0 when every kernel came from the disk cache).
     """
     runs = [(name + suffix, KINDS[name], each) for name, options in studies.items()
             for suffix, each in KINDS[name].runs(options).items()]
     try:
         with ResultFile(path, scene=scene_identity(problem), overwrite=overwrite) as file:
             _refuse_other_grid_options(file, runs)
-            return _run_studies(problem, runs, file, executor=executor, progress=progress)
+            clock = _jit.warm_up(problem, studies) if warm_up else None
+            outcome = _run_studies(problem, runs, file, executor=executor, progress=progress)
+            if clock is not None:
+                with file.writing():
+                    file.handle.attrs["compile_time"] = clock.stop()
+            return outcome
     except KeyboardInterrupt:
         raise RunInterrupted(*_points_saved(path, runs), str(path)) from None
 
@@ -134,12 +145,12 @@ def _refuse_other_grid_options(file: ResultFile, runs: list) -> None:
 
 def _run_studies(problem: Any, runs: list, file: ResultFile, *, executor: Any, progress: bool
                  ) -> tuple[dict[str, Any], dict[str, str]]:
-    from tqdm.auto import tqdm
+    from ._console import progress_bar
 
     results, failures = {}, {}
     for name, kind, options in runs:  # a grid group made by this run gets these attributes
         file.study_attrs[name] = {"request": canonical(options), "request_hash": digest(options)}
-    with tqdm(runs, desc="studies", unit="study", disable=not progress or len(runs) < 2) as bar:
+    with progress_bar(runs, desc="studies", unit="study", enabled=progress and len(runs) > 1) as bar:
         # An overall bar, since a study without grid points (steady state, nonlinear check,
         # error against cost) has no bar of its own; grid studies nest theirs below it.
         for name, kind, options in bar:

@@ -53,8 +53,10 @@ def check_parameter(problem: Any, name: str) -> str:
     if name not in problem.parameters:
         close = difflib.get_close_matches(str(name), list(problem.parameters), n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
+        advice = getattr(problem, "parameter_advice", None)  # a mechanism problem says how to add it
         raise StudiesError(f"parameter {name!r} is not a parameter of problem {problem.name!r}{hint} "
-                           f"(parameters: {sorted(problem.parameters)})")
+                           f"(parameters: {sorted(problem.parameters)})"
+                           + (f"; {advice(name)}" if advice is not None else ""))
     return name
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from ._errors import UsageError, input_errors, is_numerical_failure
+from ._overrides import parse_set
 
 __all__ = ["UsageError", "load_scene", "main"]
 
@@ -43,6 +44,8 @@ def _parser() -> argparse.ArgumentParser:
         prog="flexvib",
         description="Steady-state vibration and stability studies of planar mechanisms with elastic "
                     "links. Studies are declared in a scene's [studies] table (docs/studies.md).")
+    parser.add_argument("--version", action=_VersionAction,
+                        help="print the versions of flexvib and of numpy, scipy, numba, h5py; exit")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     scenes = commands.add_parser("scenes", help="list the built-in scenes",
                                  description="List the built-in scenes (names for 'flexvib run').")
@@ -61,7 +64,15 @@ def _parser() -> argparse.ArgumentParser:
                      help="'process' (local pool of --jobs workers) or 'dask' (a Dask distributed "
                           "cluster at --scheduler)")
     run.add_argument("--scheduler", help="address of the Dask scheduler, e.g. tcp://10.0.0.5:8786")
-    run.add_argument("--quiet", action="store_true", help="no progress bars or log messages")
+    run.add_argument("--quiet", action="store_true",
+                     help="print errors only on stderr: no progress bars, log messages or warnings")
+    run.add_argument("--verbose", action="store_true", help="also the debug messages (one per point)")
+    run.add_argument("--set", action="append", dest="sets", type=parse_set, default=[],
+                     metavar="PATH=VALUE",
+                     help="override a scene value (repeatable): PATH is a dotted key path such as "
+                          "links.coupler.thickness or studies.sweep.count, VALUE a TOML value")
+    run.add_argument("--only", action="append", metavar="STUDY",
+                     help="run only this declared study (repeatable), e.g. --only sweep")
     run.add_argument("--force", action="store_true",
                      help="run studies whose estimated memory or time exceeds the limits of the "
                           "resource guard (docs/studies.md, Limits)")
@@ -125,6 +136,23 @@ def _parser() -> argparse.ArgumentParser:
                       help="Richardson-extrapolate N and N/2 steps (order 4)")
     demo.set_defaults(handler=_demo)
     return parser
+
+
+class _VersionAction(argparse.Action):
+    """``flexvib --version``: flexvib's version and those of the packages whose numbers it uses."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        import platform
+
+        from ._store import versions
+
+        found = versions()
+        others = ", ".join(f"{name} {version}" for name, version in found.items() if name != "flexvib")
+        print(f"flexvib {found['flexvib']} (Python {platform.python_version()}; {others})")
+        parser.exit()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -215,30 +243,32 @@ def _scenes(args: argparse.Namespace) -> int:
     return 0
 
 
-def load_scene(scene: str, *, force: bool = False, workers: int = 1) -> tuple[Any, dict[str, Any]]:
-    """``(problem, [studies] table)`` of a built-in scene name or a .toml path.
+def load_scene(scene: str, sets: Sequence[tuple[str, Any]] = (), *, only: Sequence[str] | None = None,
+               force: bool = False, workers: int = 1) -> tuple[Any, dict[str, Any]]:
+    """``(problem, [studies] table)`` of a built-in scene name or a .toml path, with the ``--set``
+    values ``(path, value)`` of ``sets`` applied before the scene is checked, and only the studies
+    named in ``only`` (all when None).
 
     A scene without a ``[studies]`` table gets the default studies; an empty one is an error that
-    lists the study kinds. Unless ``force``, the resource guard (``studies._guard``) then refuses a
+    lists the study kinds. Unless ``force``, the resource guard (``studies.guard``) then refuses a
     study whose estimated memory or time (with ``workers`` processes) is above its limits.
     """
     from ._guard import guard
     from ._mechanism import MechanismProblem
+    from ._overrides import load_mechanism, override_studies, select_studies
     from ._plan import default_table, parameters_needed, plan
     from ._problem import mathieu_problem
 
     if scene == MATHIEU:
-        common, declared = plan(_MATHIEU_STUDIES)
+        common, declared = plan(override_studies(_MATHIEU_STUDIES, sets))
         problem = mathieu_problem()
     else:
-        import mechanisms
-
         path = Path(scene)
         if path.suffix == ".toml" and not path.is_file():
             raise UsageError(f"scene file {scene!r} does not exist" if not path.exists()
                              else f"scene file {scene!r} is not a file")
         try:
-            mechanism = mechanisms.load(scene)
+            mechanism = load_mechanism(scene, sets)
         except OSError as error:  # unreadable (permissions, a device): one line, exit 2
             raise UsageError(f"scene file {scene!r} cannot be read: {error.strerror or error}") from None
         # "no [studies] table" runs the default set; a [studies] table that declares nothing is a
@@ -247,9 +277,10 @@ def load_scene(scene: str, *, force: bool = False, workers: int = 1) -> tuple[An
         # the studies' speed is the motion's fundamental frequency 2 pi / period (the crank speed)
         table = (dict(mechanism.studies) if declares_studies
                  else default_table(2.0 * math.pi / mechanism.period))
-        common, declared = plan(table)
+        common, declared = plan(override_studies(table, sets))
         problem = MechanismProblem.from_mechanism(mechanism, parameter_paths=parameters_needed(declared),
                                                   observables=common["observables"])
+    declared = select_studies(declared, only)
     guard(problem, declared, force=force, workers=workers)
     return problem, declared
 
@@ -300,18 +331,30 @@ def _check_reachable(address: str, timeout: float = 3.0) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from ._console import collected_warnings, console
+
+    with console(quiet=args.quiet, verbose=args.verbose):
+        code = _run_studies(args)
+        if not args.quiet:
+            # each distinct warning once, after the run (not once per point as it happened)
+            for warning in collected_warnings():
+                print(warning, file=sys.stderr)
+    return code
+
+
+def _run_studies(args: argparse.Namespace) -> int:
     from ._kinds import kind_of
     from ._plan import run_plan
 
-    if not args.quiet:
-        logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stderr)
-    problem, declared = load_scene(args.scene, force=args.force, workers=args.jobs)
+    problem, declared = load_scene(args.scene, args.sets, only=args.only, force=args.force,
+                                   workers=args.jobs)
     out = args.out or Path(f"{Path(args.scene).stem}.h5")
     executor, client = _executor(args)
     finished = False
     try:
+        # the kernels the studies need are compiled before any of them starts its clock
         results, failures = run_plan(problem, declared, str(out), executor=executor,
-                                     progress=not args.quiet, overwrite=args.overwrite)
+                                     progress=not args.quiet, overwrite=args.overwrite, warm_up=True)
         finished = True
     finally:
         if client is not None:

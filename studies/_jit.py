@@ -1,0 +1,168 @@
+"""Compile the numba kernels a run needs before any study starts its clock, and say so.
+
+The kernels are compiled on first use and cached on disk (``cache=True``; numba's cache folder, or
+``NUMBA_CACHE_DIR``). Without a warm-up, the first study of a fresh install would report the
+compilation (tens of seconds) as its run time. :func:`warm_up` runs each declared study's code path
+once on a tiny grid (32 steps per period; one point of each grid study, a two-period nonlinear
+check), so that every kernel is compiled, with the argument types of the real run, before the timed
+work: the run times a study reports are then computing times. The compile time is measured apart
+(numba's ``numba:compile`` events, which a load from the disk cache does not raise), announced
+when it starts ("compiling numerical kernels (first run only, ...)"), and recorded in the result
+file as the attribute ``compile_time`` (s).
+"""
+
+from __future__ import annotations
+
+import inspect
+import logging
+import math
+import threading
+import time
+import warnings
+from typing import Any, Mapping
+
+__all__ = ["CompileClock", "warm_up"]
+
+# under "flexvib" (the command's logger), not muted with the library's packages during the warm-up
+logger = logging.getLogger("flexvib.jit")
+
+#: Steps per period of the warm-up runs: the smallest every study kind accepts (the numba types,
+#: not the sizes, decide what is compiled).
+WARM_UP_STEPS = 32
+#: The off-nominal speed of the warm-up grid point, as a multiple of the scene's speed (grid points
+#: off the scene's speed go through the speed family's coefficients, another code path).
+OFF_NOMINAL = 1.05
+#: What the announcement says to expect (the README's main job on a 2-core machine).
+EXPECTED = "about 20 s"
+#: The packages whose log records and warnings the warm-up keeps to itself.
+_MUTED = ("periodic", "mechanisms", "linearize", "studies")
+
+
+class CompileClock:
+    """Wall time spent compiling numba kernels while it runs (``start()`` ... ``stop()``), from
+    numba's ``numba:compile`` events; nested compilations (a kernel's callees) count once, in their
+    caller. ``announce``: log "compiling numerical kernels ..." at the first compilation."""
+
+    def __init__(self, *, announce: bool = True) -> None:
+        self.seconds = 0.0
+        self.count = 0
+        self.announce = announce
+        self._depth = 0
+        self._started = 0.0
+        self._listener = None
+        self._thread = threading.get_ident()
+
+    def start(self) -> "CompileClock":
+        from numba.core import event
+
+        clock = self
+
+        class _Listener(event.Listener):
+            def on_start(self, ev):
+                if threading.get_ident() != clock._thread:
+                    return
+                if clock._depth == 0:
+                    if clock.count == 0 and clock.announce:
+                        logger.info("compiling numerical kernels (first run only, %s)...", EXPECTED)
+                    clock._started = time.perf_counter()
+                    clock.count += 1
+                clock._depth += 1
+
+            def on_end(self, ev):
+                if threading.get_ident() != clock._thread:
+                    return
+                clock._depth -= 1
+                if clock._depth == 0:
+                    clock.seconds += time.perf_counter() - clock._started
+
+        self._listener = _Listener()
+        event.register("numba:compile", self._listener)
+        return self
+
+    def stop(self) -> float:
+        """Stop listening; the compile time in s."""
+        from numba.core import event
+
+        if self._listener is not None:
+            event.unregister("numba:compile", self._listener)
+            self._listener = None
+        return self.seconds
+
+
+def warm_up(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> CompileClock:
+    """Compile the kernels the declared ``studies`` ({kind: options}, as ``plan`` gives them) need on
+    ``problem``, by running each kind's code path on a tiny grid; returns the running
+    :class:`CompileClock` (stop it after the run: compilations the warm-up missed are counted too).
+
+    Nothing the warm-up computes is kept; a warm-up run that fails (a tiny grid may not converge)
+    is logged at DEBUG level and skipped, and its kernels compile when the study needs them."""
+    from ._kinds import KINDS
+
+    clock = CompileClock().start()
+    started = time.perf_counter()
+    with _muted():
+        _attempt("steady state", _steady_state, problem)
+        for name in studies:
+            kind = KINDS[name]
+            if kind.grid and kind.point is not None:
+                _attempt(f"a {name} point", _grid_point, problem, kind.point)
+            elif name == "nonlinear_check" and getattr(problem, "supports_nonlinear", False):
+                _attempt("nonlinear check", _nonlinear_check, problem)
+    if clock.count:
+        logger.info("compiled the numerical kernels in %.0f s (cached for the next runs; "
+                    "not counted in the studies' run times)", time.perf_counter() - started)
+    return clock
+
+
+def _attempt(what: str, run, *args) -> None:
+    try:
+        run(*args)
+    except Exception as error:  # noqa: BLE001 - a warm-up failure only defers the compilation
+        logger.debug("warm-up of %s skipped: %s: %s", what, type(error).__name__, error)
+
+
+def _steady_state(problem: Any) -> None:
+    from ._kinds.steady_state import steady_state
+
+    steady_state(problem, n_steps=WARM_UP_STEPS)
+
+
+def _off_nominal(problem: Any) -> dict[str, float]:
+    from ._problem import SPEED
+
+    speed = problem.parameters.get(SPEED)
+    return {} if speed is None or not math.isfinite(speed) else {SPEED: OFF_NOMINAL * speed}
+
+
+def _grid_point(problem: Any, point) -> None:
+    """One point of a grid study off the scene's speed, with the smallest sizes its function takes
+    (the keyword options every point function has are ``n_steps`` and sample counts)."""
+    sizes = {"n_steps": WARM_UP_STEPS, "frozen_samples": 2}
+    options = {name: sizes[name] for name in inspect.signature(point).parameters if name in sizes}
+    point(problem, _off_nominal(problem), **options)
+
+
+def _nonlinear_check(problem: Any) -> None:
+    from ._kinds.nonlinear_check import nonlinear_check
+
+    nonlinear_check(problem, n_steps=WARM_UP_STEPS, n_periods=2)
+
+
+class _muted:
+    """The library's log records below ERROR and its warnings kept out of the run's console while
+    the warm-up's tiny grids run."""
+
+    def __enter__(self):
+        self._levels = [(logging.getLogger(name), logging.getLogger(name).level) for name in _MUTED]
+        for log, _ in self._levels:
+            log.setLevel(logging.ERROR)
+        self._warnings = warnings.catch_warnings()
+        self._warnings.__enter__()
+        warnings.simplefilter("ignore")
+        return self
+
+    def __exit__(self, *exc):
+        self._warnings.__exit__(*exc)
+        for log, level in self._levels:
+            log.setLevel(level)
+        return False
