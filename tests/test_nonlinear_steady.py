@@ -201,3 +201,20 @@ def test_continuation_through_the_sharp_bend_near_73_rad_s():
     # the end point is the orbit a single shooting from the linear state finds there
     single = studies.nonlinear_steady_state(problem, {"speed": 76.0}, n_steps=64)
     np.testing.assert_allclose(sweep.peak_to_peak[SPEC][-1], single.peak_to_peak(SPEC)[0], rtol=1e-6)
+
+
+def test_split_integrator_steps_make_the_orbit_inaccurate_not_ok(problem, shot, monkeypatch):
+    # the monodromy is exact only for a period run in its N uniform steps (PeriodRun.n_substeps == 0);
+    # an orbit the integrator reached only by splitting steps must not be reported ok
+    import dataclasses
+
+    assert shot.status == "ok"
+    run = mechanisms.PeriodMap.run
+
+    def split_run(self, x, **options):
+        return dataclasses.replace(run(self, x, **options), n_substeps=2)
+
+    monkeypatch.setattr(mechanisms.PeriodMap, "run", split_run)
+    split = studies.nonlinear_steady_state(problem, n_steps=64)
+    assert split.status == "inaccurate" and "substeps" in split.message and "n_steps" in split.message
+    np.testing.assert_array_equal(split.state, shot.state)

@@ -21,7 +21,7 @@ from .._plots import Plot, axes_for, cost_line, drawn, label
 from .._problem import SPEED
 from .._store import Result, register
 from .._studies import check_integer, check_n_steps, check_parameter
-from .nonlinear_steady_state import MIN_STEPS, TOL, _observables, _setup
+from .nonlinear_steady_state import MIN_STEPS, TOL, _observables, _setup, substep_verdict
 
 #: Periods of the transient run from the last stable orbit past the loss of stability.
 TRANSIENT_PERIODS = 100
@@ -173,10 +173,14 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
     specs = first.linear.observables
     nonlinear = {spec: [] for spec in specs}
     linear_at = {spec: [] for spec in specs}
-    for value, state in zip(branch.parameters, branch.states):
+    statuses, split = list(branch.statuses), []
+    for k, (value, state) in enumerate(zip(branch.parameters, branch.states)):
         linear = problem.linearize(dict(fixed, **{parameter: float(value)}), n_steps=n_steps)
         steady = solve_steady(linear)
-        response, _ = _observables(linear, period_map.at(float(value)), state * scale)
+        response, _, n_substeps = _observables(linear, period_map.at(float(value)), state * scale)
+        if n_substeps:
+            statuses[k] = substep_verdict(statuses[k], "", n_substeps, n_steps)[0]
+            split.append(f"{value:.6g}")
         for k, spec in enumerate(specs):
             nonlinear[spec].append(np.ptp(response[spec]))
             linear_at[spec].append(np.ptp(steady.response[:, k]))
@@ -190,6 +194,11 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
     after, transient_value, transient_t, transient = _after_instability(
         problem, period_map, branch, fixed, parameter, n_steps, transient_periods, specs)
     message = branch.message + (f"; {after}" if after else "")
+    status = branch.status
+    if split:
+        # the bifurcations were detected on these monodromies too: they are as approximate
+        status, message = substep_verdict(status, message, len(split), n_steps)
+        message += f" (at {parameter} = {', '.join(split)})"
     unit = problem.units.get(parameter, "SI")
     return NonlinearSweep(
         problem=problem.name, scene=problem.text, parameter=parameter, parameter_unit=unit,
@@ -199,10 +208,10 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
         linear_values=linear_values, linear_peak_to_peak={s: np.array(v) for s, v in linear_curve.items()},
         stable=np.asarray(branch.stable, dtype=bool),
         spectral_radius=np.array([np.abs(m).max() for m in branch.multipliers], dtype=float),
-        statuses=tuple(branch.statuses), bifurcation_values=np.array([b[0] for b in branch.bifurcations], dtype=float),
+        statuses=tuple(statuses), bifurcation_values=np.array([b[0] for b in branch.bifurcations], dtype=float),
         bifurcation_kinds=tuple(b[1] for b in branch.bifurcations), after_instability=after,
         transient_value=transient_value, transient_t=transient_t, transient=transient,
-        status=branch.status, message=message, run_time=time.perf_counter() - started,
+        status=status, message=message, run_time=time.perf_counter() - started,
         settings={"parameter": parameter, "start": start, "stop": stop, "n_steps": n_steps, "method": method,
                   "tol": tol, "max_points": max_points, "stop_at_instability": stop_at_instability,
                   "transient_periods": transient_periods})
