@@ -27,6 +27,9 @@ MIN_STEPS = 32
 TOL = 1e-8
 #: Default Newton steps of the shooting.
 MAX_ITERATIONS = 12
+#: Upper limit of ``max_iterations``: Newton from the linear start converges in a few steps or not at all.
+MAX_NEWTON = 100
+NEWTON_WHY = "Newton steps of one shooting, each a period with its monodromy; it converges in a few or not at all"
 #: Richardson factor of the order-2 generalized-alpha integrator: the N-step error is about
 #: ``|o_N - o_{N/2}| / (2^2 - 1)``.
 ERROR_FACTOR = 1.0 / 3.0
@@ -252,7 +255,8 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
     return {"values": speed_values(where, table),
             "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS),
             "tol": number(where, "tol", table.get("tol", TOL), positive=True),
-            "max_iterations": integer(where, "max_iterations", table.get("max_iterations", MAX_ITERATIONS), 1)}
+            "max_iterations": integer(where, "max_iterations", table.get("max_iterations", MAX_ITERATIONS), 1,
+                                      maximum=MAX_NEWTON, why=NEWTON_WHY)}
 
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> NonlinearSteadyState:

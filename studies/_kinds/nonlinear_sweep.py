@@ -15,7 +15,7 @@ import numpy as np
 import periodic
 
 from .._errors import StudiesError
-from .._kind import StudyKind, boolean, integer, number
+from .._kind import MAX_PERIODS, MAX_STEPS, PERIODS_WHY, STEPS_WHY, StudyKind, boolean, integer, number
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, label
 from .._problem import SPEED
@@ -31,6 +31,9 @@ SETTLE_TOL = 1e-4
 #: Points of the linear response curve drawn under the branch.
 LINEAR_POINTS = 41
 METHODS = ("natural", "arclength")
+#: Orbits of one branch (``max_points``): each costs a few periods with their monodromy.
+MAX_ORBITS = 10_000
+ORBITS_WHY = "orbits of one branch, each a few nonlinear periods with their monodromy"
 
 
 @register
@@ -285,12 +288,16 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
     return {"parameter": parameter, "start": number(where, "start", table["start"]),
             "stop": number(where, "stop", table["stop"]),
             "step": None if "step" not in table else number(where, "step", table["step"], positive=True),
-            "method": method, "n_steps": integer(where, "n_steps", table.get("n_steps", min(n_steps, 128)), MIN_STEPS),
+            "method": method,
+            "n_steps": integer(where, "n_steps", table.get("n_steps", min(n_steps, 128)), MIN_STEPS,
+                               maximum=MAX_STEPS, why=STEPS_WHY),
             "tol": number(where, "tol", table.get("tol", TOL), positive=True),
-            "max_points": integer(where, "max_points", table.get("max_points", 100), 2),
+            "max_points": integer(where, "max_points", table.get("max_points", 100), 2, maximum=MAX_ORBITS,
+                                  why=ORBITS_WHY),
             "stop_at_instability": boolean(where, "stop_at_instability", table.get("stop_at_instability", True)),
             "transient_periods": integer(where, "transient_periods",
-                                         table.get("transient_periods", TRANSIENT_PERIODS), 4)}
+                                         table.get("transient_periods", TRANSIENT_PERIODS), 4,
+                                         maximum=MAX_PERIODS, why=PERIODS_WHY)}
 
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> NonlinearSweep:
