@@ -6,16 +6,19 @@ largest rms state met so far, or ``state_scale``), ``P = |stop - start|``.  Each
     P(x, p) - x = 0,    t . (y - y_pred) = 0
 
 by damped Newton (:func:`periodic._orbit.newton`) from the predictor ``y_pred = y_k + ds t``:
-``natural`` fixes the parameter (``t = e_p`` in the constraint, the predictor along the last secant
-scaled to move ``p`` by the step); ``arclength`` (pseudo-arclength, Keller) takes the constraint's
-normal along the secant ``t`` of the last two points (at the first point the tangent, the null vector
-of ``[Phi - I, dP/dp]``), so the branch is followed through folds, where ``Phi - I`` is singular but
-the bordered matrix is not.  ``dP/dp`` is a forward difference of the map,
-``(P(x, p + dp) - P(x, p)) / dp`` with ``dp = sqrt(eps) max(|p|, P)``, computed once per corrector
-solve at its first iterate (one extra map call; relative error ~1e-8, which slows Newton's
-convergence negligibly).  Step control: a corrector that fails, or whose new secant turns by more than
-``MAX_TURN`` from the last one (it may have jumped to another branch), halves the step; one that
-converges in at most ``EASY_ITERATIONS`` steps grows it by ``GROWTH``.
+``t`` is the unit tangent of the branch at the last point, the null vector of the bordered matrix
+``[Phi - I, dP/dp]`` there (oriented along the step just taken).  ``natural`` fixes the parameter
+(``e_p`` in the constraint, the predictor along ``t`` scaled to move ``p`` by the step);
+``arclength`` (pseudo-arclength, Keller) takes the constraint's normal along ``t``, so the branch is
+followed through folds, where ``Phi - I`` is singular but the bordered matrix is not.  ``dP/dp`` is a
+forward difference of the map, ``(P(x, p + dp) - P(x, p)) / dp`` with ``dp = sqrt(eps) max(|p|, P)``
+(relative error ~1e-8, which slows Newton's convergence negligibly), computed once per corrector
+solve at its first iterate (arclength) and once at each accepted point for its tangent (one extra
+map call each).  Step control: a corrector that fails, or whose new secant turns by more than
+``MAX_TURN`` from the tangent at the last point (it may have jumped to another branch), halves the
+step; one that converges in at most ``EASY_ITERATIONS`` steps grows it by ``GROWTH``.  The reference
+is the local tangent, not the last secant: where the branch bends sharply (near a resonance) a long
+last secant differs from the local direction by more than ``MAX_TURN`` however short the new step.
 
 Bifurcations.  Between two accepted points, a change in the number of multipliers outside the unit
 circle (``|mu| > 1 + stability_tol``) is a bifurcation; its kind is read from the test function that
@@ -54,8 +57,8 @@ from ._verdict import STABILITY_TOL, worst_status
 logger = logging.getLogger(__name__)
 
 METHODS = ("natural", "arclength")
-#: A corrector whose new secant turns by more than this from the last one (radians, in the scaled
-#: variables) is rejected and the step halved: it may have converged onto another branch.
+#: A corrector whose new secant turns by more than this from the tangent at the last point (radians,
+#: in the scaled variables) is rejected and the step halved: it may have converged onto another branch.
 MAX_TURN = math.radians(30.0)
 #: A corrector that converges in at most this many Newton steps lets the next step grow ...
 EASY_ITERATIONS = 3
@@ -318,6 +321,7 @@ class _Follower:
                 continue
             secant = found.y - y
             secant /= np.linalg.norm(secant)
+            # against the tangent at the last point, not the last secant (see the module notes)
             if secant @ tangent < math.cos(MAX_TURN):
                 last_reason = (f"the branch turned by more than {math.degrees(MAX_TURN):g} degrees in a step "
                                "(a fold, or a jump to another branch)")
@@ -335,11 +339,21 @@ class _Follower:
             if self._crossing(current, new, y, found.y):
                 return self._finish("instability")
             self.orbits.append(new)
-            y, tangent = found.y, secant
+            y, tangent = found.y, self._local_tangent(found, parameter, secant)
             if self.adaptive_scale:
                 y, tangent = self._rescale(y, tangent, new.state)
             if found.iterations <= EASY_ITERATIONS:
                 step = min(step * GROWTH, max_step)
+
+    def _local_tangent(self, found, parameter, secant) -> np.ndarray:
+        """The unit tangent (scaled) of the branch at the accepted point ``found`` (at ``parameter``),
+        oriented along ``secant`` (the step just taken): the next predictor's direction and the turn
+        check's reference."""
+        corrector = self.corrector
+        state = corrector.unscaled(found.y)[0]
+        end = state + found.residual_vector[:-1] * corrector.X
+        tangent = corrector.tangent(state, parameter, found.extra, end, 1.0)
+        return tangent if tangent @ secant >= 0.0 else -tangent
 
     def _rescale(self, y, tangent, state):
         """Grow the state's scale ``X`` to the rms of ``state`` once that exceeds ``RESCALE`` X: steps

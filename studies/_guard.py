@@ -13,7 +13,14 @@ The cost models are deliberately simple, each a sum of terms with one calibrated
   per step, ``STEP_SECONDS + STEP_M2_SECONDS m^2 + SOLVE_SECONDS m^3``; a frozen-time
   eigenproblem ``EIGEN_SECONDS`` per ``m^3``;
 - a nonlinear run takes ``NONLINEAR_STEP_SECONDS + NONLINEAR_STEP_N2_SECONDS n^2`` per step and
-  keeps ``NONLINEAR_DOUBLES`` doubles per step and coordinate.
+  keeps ``NONLINEAR_DOUBLES`` doubles per step and coordinate;
+- a nonlinear shooting (``nonlinear_steady_state``) runs ``SHOOTING_PERIODS`` periods of N steps, each
+  ``PERIOD_STEP_SECONDS + NONLINEAR_STEP_N2_SECONDS n^2`` per step
+  (Newton's period maps with their monodromy, each ``TANGENT_FACTOR`` periods, at N and N/2, and
+  the observables' runs) and keeps ``TANGENT_DOUBLES (n + r)^2`` doubles per step for the monodromy's
+  iteration matrices; a nonlinear sweep runs ``SWEEP_POINT_PERIODS`` periods per orbit of its
+  branch (corrector, tangent, observables; ``|stop - start| / step`` orbits, at most ``max_points``)
+  plus two linearisations per orbit and ``LINEAR_POINTS`` for the linear curve, and its transient.
 
 The constants were measured on the development machine (2 cores, 2024) with
 ``benchmarks/bench_guard.py``, which prints measured over estimated memory and time for a range of
@@ -62,6 +69,21 @@ EIGEN_SECONDS = 5.0e-9
 NONLINEAR_STEP_SECONDS = 2.0e-3
 NONLINEAR_STEP_N2_SECONDS = 3.0e-7
 NONLINEAR_DOUBLES = 40.0
+#: Seconds per step of a period map, besides the n^2 term of a nonlinear run: the integrator alone,
+#: without ``mechanisms.simulate``'s error estimate and observables (1.9e-4 s per step measured on
+#: four_bar_fem4, n = 21).
+PERIOD_STEP_SECONDS = 6.0e-5
+#: A period map with its monodromy costs this many plain periods (benchmarks/bench_nonlinear_steady.py:
+#: 0.08 s against 0.05 s on four_bar_fem4 at N = 256).
+TANGENT_FACTOR = 1.6
+#: Periods of one nonlinear shooting: 4 Newton maps at N and 4 at N/2 (half as long) with their
+#: monodromy, two observables' runs (2-3 Newton steps converge from the linear start at 1e-8).
+SHOOTING_PERIODS = 4 * TANGENT_FACTOR * 1.5 + 2.0
+#: Periods per orbit of a nonlinear sweep: about 3 corrector maps and the tangent's (with monodromy),
+#: one observables' run.
+SWEEP_POINT_PERIODS = 4 * TANGENT_FACTOR + 1.0
+#: Doubles per step and (n + r)^2 kept while a monodromy is built (iteration matrices, their inverse).
+TANGENT_DOUBLES = 3.0
 #: Scene keys whose value changes the number of coordinates (the guard sizes a study at their
 #: largest value on its axes).
 SIZE_KEYS = ("n_elements", "n_bending", "n_axial")
@@ -234,6 +256,46 @@ def _nonlinear_check(name, problem, options, workers):
     return Estimate(name, memory, seconds, f"{periods} periods x {n_steps} steps x {sizes.n} coordinates")
 
 
+def _nonlinear_period_seconds(n_steps: int, sizes: _Sizes) -> float:
+    """Seconds of one period of ``mechanisms.PeriodMap`` (no monodromy, no observables)."""
+    return n_steps * (PERIOD_STEP_SECONDS + NONLINEAR_STEP_N2_SECONDS * sizes.n**2)
+
+
+def _tangent_bytes(n_steps: int, sizes: _Sizes) -> float:
+    """Peak bytes of one monodromy: the iteration matrices of size n + r at every step."""
+    return 8.0 * TANGENT_DOUBLES * n_steps * (2 * sizes.n - sizes.m) ** 2
+
+
+def _nonlinear_steady_state(name, problem, options, workers):
+    sizes = _sizes(problem, options["values"])
+    n_steps = options["n_steps"]
+    build_bytes, build_seconds = _linearisation(n_steps, sizes)
+    seconds = (STUDY_SECONDS + build_seconds + _solve_seconds(n_steps, sizes)
+               + SHOOTING_PERIODS * _nonlinear_period_seconds(n_steps, sizes))
+    memory = max(build_bytes, _tangent_bytes(n_steps, sizes))
+    return Estimate(name, memory, seconds, f"{SHOOTING_PERIODS:g} periods x {n_steps} steps x {sizes.n} "
+                                           "coordinates")
+
+
+def _nonlinear_sweep(name, problem, options, workers):
+    from ._kinds.nonlinear_sweep import LINEAR_POINTS
+
+    start, stop, n_steps = options["start"], options["stop"], options["n_steps"]
+    axis = (options["parameter"], np.array([start, stop], dtype=float))
+    sizes = _largest_sizes(problem, [axis])
+    step = options["step"] or abs(stop - start) / 50.0  # periodic.continue_orbits' default
+    orbits = min(options["max_points"], math.ceil(abs(stop - start) / step) + 1)
+    build_bytes, build_seconds = _linearisation(n_steps, sizes)
+    periods = orbits * SWEEP_POINT_PERIODS + options["transient_periods"]
+    seconds = (STUDY_SECONDS + (2 * orbits + LINEAR_POINTS) * (build_seconds + _solve_seconds(n_steps, sizes))
+               + periods * _nonlinear_period_seconds(n_steps, sizes))
+    memory = max(build_bytes, _tangent_bytes(n_steps, sizes),
+                 8.0 * NONLINEAR_DOUBLES * options["transient_periods"] * n_steps * sizes.n)
+    return Estimate(name, memory, seconds, f"{orbits} orbits x {SWEEP_POINT_PERIODS:g} periods + "
+                                           f"{options['transient_periods']} periods x {n_steps} steps x "
+                                           f"{sizes.n} coordinates")
+
+
 def _error_cost(name, problem, options, workers):
     values = dict(options["values"])
     resolution = options["resolution"]
@@ -264,6 +326,8 @@ _MODELS: dict[str, Callable[[str, Any, Mapping[str, Any], int], Estimate]] = {
     "stability_chart": _stability_chart,
     "nonlinear_check": _nonlinear_check,
     "error_cost": _error_cost,
+    "nonlinear_steady_state": _nonlinear_steady_state,
+    "nonlinear_sweep": _nonlinear_sweep,
 }
 
 

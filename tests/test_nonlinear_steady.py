@@ -185,3 +185,36 @@ def test_period_doubling_of_the_nonlinear_orbit_confirmed_by_a_transient():
     values, n = sweep.transient[spec], 128
     last, one_before, two_before = values[-n:], values[-2 * n:-n], values[-3 * n:-2 * n]
     assert np.abs(last - two_before).max() < 0.01 * np.abs(last - one_before).max()
+
+
+@pytest.mark.slow
+def test_continuation_through_the_sharp_bend_near_73_rad_s():
+    # four_bar_fem4's branch bends sharply at 72.5 rad/s: the secant of the step that arrives there
+    # differs from the branch's direction just past it by more than the 30 degree turn limit, and a
+    # turn check against that secant refused every step down to min_step (issue 12); against the
+    # local tangent the branch goes on
+    problem = studies.MechanismProblem.from_scene("four_bar_fem4")
+    sweep = studies.nonlinear_sweep(problem, start=68.0, stop=76.0, n_steps=64, step=2.25)
+    assert sweep.status == "ok", sweep.message
+    assert 72.5 in sweep.values and sweep.values[-1] == 76.0
+    assert np.all(np.diff(sweep.values) > 0.0)
+    # the end point is the orbit a single shooting from the linear state finds there
+    single = studies.nonlinear_steady_state(problem, {"speed": 76.0}, n_steps=64)
+    np.testing.assert_allclose(sweep.peak_to_peak[SPEC][-1], single.peak_to_peak(SPEC)[0], rtol=1e-6)
+
+
+def test_split_integrator_steps_make_the_orbit_inaccurate_not_ok(problem, shot, monkeypatch):
+    # the monodromy is exact only for a period run in its N uniform steps (PeriodRun.n_substeps == 0);
+    # an orbit the integrator reached only by splitting steps must not be reported ok
+    import dataclasses
+
+    assert shot.status == "ok"
+    run = mechanisms.PeriodMap.run
+
+    def split_run(self, x, **options):
+        return dataclasses.replace(run(self, x, **options), n_substeps=2)
+
+    monkeypatch.setattr(mechanisms.PeriodMap, "run", split_run)
+    split = studies.nonlinear_steady_state(problem, n_steps=64)
+    assert split.status == "inaccurate" and "substeps" in split.message and "n_steps" in split.message
+    np.testing.assert_array_equal(split.state, shot.state)

@@ -27,6 +27,9 @@ MIN_STEPS = 32
 TOL = 1e-8
 #: Default Newton steps of the shooting.
 MAX_ITERATIONS = 12
+#: Upper limit of ``max_iterations``: Newton from the linear start converges in a few steps or not at all.
+MAX_NEWTON = 100
+NEWTON_WHY = "Newton steps of one shooting, each a period with its monodromy; it converges in a few or not at all"
 #: Richardson factor of the order-2 generalized-alpha integrator: the N-step error is about
 #: ``|o_N - o_{N/2}| / (2^2 - 1)``.
 ERROR_FACTOR = 1.0 / 3.0
@@ -163,9 +166,9 @@ def _setup(problem: Any, values: Mapping[str, float] | None, n_steps: int) -> _S
     return _Setup(linear, steady, fine, coarse, guess, time.perf_counter() - started)
 
 
-def _observables(linear: Any, period_map: Any, state: np.ndarray) -> tuple[dict, np.ndarray]:
-    """({spec: (N+1,)} deviations of the observables from the nominal ones, z (N+1, m)) over one
-    period of ``period_map`` from ``state``."""
+def _observables(linear: Any, period_map: Any, state: np.ndarray) -> tuple[dict, np.ndarray, int]:
+    """({spec: (N+1,)} deviations of the observables from the nominal ones, z (N+1, m), the steps
+    the integrator split into substeps) over one period of ``period_map`` from ``state``."""
     lin = linear.context
     run = period_map.run(state, tangent=False)
     stride = (lin.nominal.s.shape[0] - 1) // period_map.n_steps
@@ -176,7 +179,22 @@ def _observables(linear: Any, period_map: Any, state: np.ndarray) -> tuple[dict,
         observable = model.observable(spec)
         response[spec] = np.array([observable.value(s) - observable.value(s_nom)
                                    for s, s_nom in zip(run.s, nominal_s)])
-    return response, (run.s - nominal_s)[:, period_map.independent]
+    return response, (run.s - nominal_s)[:, period_map.independent], run.n_substeps
+
+
+def substep_verdict(status: str, message: str, n_substeps: int, n_steps: int) -> tuple[str, str]:
+    """(status, message) of an orbit whose period the integrator ran with ``n_substeps`` split steps.
+
+    The monodromy (``mechanisms.PeriodMap``) is exact only for a period taken in the N uniform steps:
+    a split step enters it as the tangent of the full step it replaced, an approximation of unknown
+    error. The multipliers, and a verdict of stability read from them, are then not trusted: the status
+    becomes at least ``inaccurate`` (a wrong ``ok`` is worse than none)."""
+    if n_substeps <= 0:
+        return status, message
+    return (periodic.worst_status(status, "inaccurate"),
+            f"{message}; inaccurate: the integrator split steps into {n_substeps} substeps on this orbit, "
+            f"so its monodromy (and the multipliers and stability verdict from it) is only approximate; "
+            f"raise n_steps above {n_steps} until no step is split")
 
 
 def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_steps: int = 256,
@@ -202,18 +220,19 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
                                 estimate=coarse, error_factor=ERROR_FACTOR)
     specs = linear.observables
     linear_response = {spec: setup.steady.response[:, k] for k, spec in enumerate(specs)}
+    status, message = orbit.status, orbit.message
     if orbit.converged:
-        response, z = _observables(linear, fine, orbit.state)
+        response, z, n_substeps = _observables(linear, fine, orbit.state)
+        status, message = substep_verdict(status, message, n_substeps, n_steps)
     else:
         response = {spec: np.full(n_steps + 1, np.nan) for spec in specs}
         z = np.full((n_steps + 1, fine.independent.size), np.nan)
     errors = {spec: math.nan for spec in specs}
     if orbit.converged and coarse.last is not None and np.isfinite(orbit.state_error):
-        coarse_response, _ = _observables(linear, setup.coarse, coarse.last)
+        coarse_response, _, _ = _observables(linear, setup.coarse, coarse.last)
         errors = {spec: ERROR_FACTOR * float(np.abs(response[spec][::2] - coarse_response[spec]).max())
                   for spec in specs}
     run_time = time.perf_counter() - started
-    message = orbit.message
     if orbit.converged:
         ratios = ", ".join(f"{spec} {np.ptp(response[spec]) / np.ptp(linear_response[spec]):.4g}"
                            for spec in specs if np.ptp(linear_response[spec]) > 0)
@@ -226,7 +245,7 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
         multipliers=orbit.multipliers, multiplier_errors=orbit.multiplier_errors,
         spectral_radius=orbit.spectral_radius, error_estimate=orbit.state_error,
         iterations=orbit.iterations, map_calls=orbit.map_calls, residual=orbit.residual,
-        status=orbit.status, message=message, is_stable=orbit.is_stable,
+        status=status, message=message, is_stable=orbit.is_stable,
         instability_kind="" if orbit.bifurcation == "none" else orbit.bifurcation, n_steps=n_steps,
         run_time=run_time, linear_run_time=setup.run_time,
         settings={"n_steps": n_steps, "tol": tol, "max_iterations": max_iterations})
@@ -236,7 +255,8 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
     return {"values": speed_values(where, table),
             "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS),
             "tol": number(where, "tol", table.get("tol", TOL), positive=True),
-            "max_iterations": integer(where, "max_iterations", table.get("max_iterations", MAX_ITERATIONS), 1)}
+            "max_iterations": integer(where, "max_iterations", table.get("max_iterations", MAX_ITERATIONS), 1,
+                                      maximum=MAX_NEWTON, why=NEWTON_WHY)}
 
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> NonlinearSteadyState:

@@ -15,13 +15,13 @@ import numpy as np
 import periodic
 
 from .._errors import StudiesError
-from .._kind import StudyKind, boolean, integer, number
+from .._kind import MAX_PERIODS, MAX_STEPS, PERIODS_WHY, STEPS_WHY, StudyKind, boolean, integer, number
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, label
 from .._problem import SPEED
 from .._store import Result, register
 from .._studies import check_integer, check_n_steps, check_parameter
-from .nonlinear_steady_state import MIN_STEPS, TOL, _observables, _setup
+from .nonlinear_steady_state import MIN_STEPS, TOL, _observables, _setup, substep_verdict
 
 #: Periods of the transient run from the last stable orbit past the loss of stability.
 TRANSIENT_PERIODS = 100
@@ -31,6 +31,9 @@ SETTLE_TOL = 1e-4
 #: Points of the linear response curve drawn under the branch.
 LINEAR_POINTS = 41
 METHODS = ("natural", "arclength")
+#: Orbits of one branch (``max_points``): each costs a few periods with their monodromy.
+MAX_ORBITS = 10_000
+ORBITS_WHY = "orbits of one branch, each a few nonlinear periods with their monodromy"
 
 
 @register
@@ -173,10 +176,14 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
     specs = first.linear.observables
     nonlinear = {spec: [] for spec in specs}
     linear_at = {spec: [] for spec in specs}
-    for value, state in zip(branch.parameters, branch.states):
+    statuses, split = list(branch.statuses), []
+    for k, (value, state) in enumerate(zip(branch.parameters, branch.states)):
         linear = problem.linearize(dict(fixed, **{parameter: float(value)}), n_steps=n_steps)
         steady = solve_steady(linear)
-        response, _ = _observables(linear, period_map.at(float(value)), state * scale)
+        response, _, n_substeps = _observables(linear, period_map.at(float(value)), state * scale)
+        if n_substeps:
+            statuses[k] = substep_verdict(statuses[k], "", n_substeps, n_steps)[0]
+            split.append(f"{value:.6g}")
         for k, spec in enumerate(specs):
             nonlinear[spec].append(np.ptp(response[spec]))
             linear_at[spec].append(np.ptp(steady.response[:, k]))
@@ -190,6 +197,11 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
     after, transient_value, transient_t, transient = _after_instability(
         problem, period_map, branch, fixed, parameter, n_steps, transient_periods, specs)
     message = branch.message + (f"; {after}" if after else "")
+    status = branch.status
+    if split:
+        # the bifurcations were detected on these monodromies too: they are as approximate
+        status, message = substep_verdict(status, message, len(split), n_steps)
+        message += f" (at {parameter} = {', '.join(split)})"
     unit = problem.units.get(parameter, "SI")
     return NonlinearSweep(
         problem=problem.name, scene=problem.text, parameter=parameter, parameter_unit=unit,
@@ -199,10 +211,10 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
         linear_values=linear_values, linear_peak_to_peak={s: np.array(v) for s, v in linear_curve.items()},
         stable=np.asarray(branch.stable, dtype=bool),
         spectral_radius=np.array([np.abs(m).max() for m in branch.multipliers], dtype=float),
-        statuses=tuple(branch.statuses), bifurcation_values=np.array([b[0] for b in branch.bifurcations], dtype=float),
+        statuses=tuple(statuses), bifurcation_values=np.array([b[0] for b in branch.bifurcations], dtype=float),
         bifurcation_kinds=tuple(b[1] for b in branch.bifurcations), after_instability=after,
         transient_value=transient_value, transient_t=transient_t, transient=transient,
-        status=branch.status, message=message, run_time=time.perf_counter() - started,
+        status=status, message=message, run_time=time.perf_counter() - started,
         settings={"parameter": parameter, "start": start, "stop": stop, "n_steps": n_steps, "method": method,
                   "tol": tol, "max_points": max_points, "stop_at_instability": stop_at_instability,
                   "transient_periods": transient_periods})
@@ -276,12 +288,16 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
     return {"parameter": parameter, "start": number(where, "start", table["start"]),
             "stop": number(where, "stop", table["stop"]),
             "step": None if "step" not in table else number(where, "step", table["step"], positive=True),
-            "method": method, "n_steps": integer(where, "n_steps", table.get("n_steps", min(n_steps, 128)), MIN_STEPS),
+            "method": method,
+            "n_steps": integer(where, "n_steps", table.get("n_steps", min(n_steps, 128)), MIN_STEPS,
+                               maximum=MAX_STEPS, why=STEPS_WHY),
             "tol": number(where, "tol", table.get("tol", TOL), positive=True),
-            "max_points": integer(where, "max_points", table.get("max_points", 100), 2),
+            "max_points": integer(where, "max_points", table.get("max_points", 100), 2, maximum=MAX_ORBITS,
+                                  why=ORBITS_WHY),
             "stop_at_instability": boolean(where, "stop_at_instability", table.get("stop_at_instability", True)),
             "transient_periods": integer(where, "transient_periods",
-                                         table.get("transient_periods", TRANSIENT_PERIODS), 4)}
+                                         table.get("transient_periods", TRANSIENT_PERIODS), 4,
+                                         maximum=MAX_PERIODS, why=PERIODS_WHY)}
 
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> NonlinearSweep:

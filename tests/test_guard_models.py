@@ -1,0 +1,46 @@
+"""Every study kind has a cost model in the resource guard (studies/_guard.py), and the nonlinear
+kinds' estimates follow their sizes; their table keys have upper limits."""
+
+import pytest
+
+import studies
+from studies import _guard
+from studies._kinds import KINDS
+
+
+def test_every_kind_has_a_cost_model():
+    # a kind without one would be sized as a steady state: far too cheap for a nonlinear or grid study
+    assert set(KINDS) <= set(_guard._MODELS), sorted(set(KINDS) - set(_guard._MODELS))
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return studies.MechanismProblem.from_scene("four_bar_fem4")
+
+
+def test_nonlinear_estimates_grow_with_their_sizes(problem):
+    steady = KINDS["nonlinear_steady_state"]
+    small = _guard.estimate(problem, "nonlinear_steady_state", steady.check("s", {}, 128))
+    large = _guard.estimate(problem, "nonlinear_steady_state", steady.check("s", {"n_steps": 1024}, 128))
+    # a shooting costs more than a linear steady state of the same size, and scales with the steps
+    linear = _guard.estimate(problem, "steady_state", {"values": {}, "n_steps": 128})
+    assert small.time > 2.0 * linear.time and large.time > 6.0 * small.time
+    sweep = KINDS["nonlinear_sweep"]
+    short = _guard.estimate(problem, "nonlinear_sweep", sweep.check("s", {"start": 90.0, "stop": 100.0,
+                                                                          "max_points": 10}, 128))
+    long = _guard.estimate(problem, "nonlinear_sweep", sweep.check("s", {"start": 90.0, "stop": 100.0,
+                                                                         "max_points": 1000, "step": 0.01}, 128))
+    # 1000 orbits against 10 (the transient and the linear curve are the same)
+    assert long.time > 3.0 * short.time and short.time > small.time
+    assert "orbits" in long.sizes
+
+
+@pytest.mark.parametrize("kind, table, key", [
+    ("nonlinear_steady_state", {"max_iterations": 10**6}, "max_iterations"),
+    ("nonlinear_sweep", {"start": 1.0, "stop": 2.0, "max_points": 10**7}, "max_points"),
+    ("nonlinear_sweep", {"start": 1.0, "stop": 2.0, "transient_periods": 10**7}, "transient_periods"),
+    ("nonlinear_sweep", {"start": 1.0, "stop": 2.0, "n_steps": 2**20}, "n_steps"),
+])
+def test_size_keys_have_upper_limits(kind, table, key):
+    with pytest.raises(studies.StudiesError, match=f"{key}: at most"):
+        KINDS[kind].check("studies." + kind, table, 128)
