@@ -96,6 +96,15 @@ def test_result_round_trip_plot_and_summary(shot, tmp_path):
     plot = shot.plot()
     assert SPEC in plot.artists and "multipliers" in plot.artists
     assert "peak to peak nonlinear / linear" in KINDS["nonlinear_steady_state"].summary(shot)
+    # the summary table's rows: the numbers worked out here from the result's fields
+    summary = KINDS["nonlinear_steady_state"].headlines(shot)
+    rows = {row.quantity: row for row in summary.rows}
+    nonlinear, linear = np.ptp(shot.response[SPEC]), np.ptp(shot.linear_response[SPEC])
+    assert rows[f"{SPEC} peak to peak"].value == pytest.approx(nonlinear)
+    assert rows[f"{SPEC} peak to peak"].error == pytest.approx(2 * shot.response_error[SPEC])
+    assert rows[f"{SPEC} peak to peak, nonlinear / linear"].value == pytest.approx(nonlinear / linear)
+    assert rows["spectral radius of the nonlinear orbit"].value == shot.spectral_radius
+    assert summary.status == shot.headline
 
 
 def test_failed_newton_is_a_status_not_an_exception(problem):
@@ -115,6 +124,8 @@ def test_bad_arguments_name_themselves(problem):
 
 @pytest.mark.slow
 def test_continuation_over_speed_against_single_orbits(problem):
+    from studies._kinds import KINDS
+
     sweep = studies.nonlinear_sweep(problem, start=96.0, stop=100.0, n_steps=128, step=2.0)
     assert sweep.status == "ok" and sweep.values[0] == 96.0 and sweep.values[-1] == 100.0
     assert sweep.stable.all() and sweep.after_instability == ""
@@ -125,6 +136,10 @@ def test_continuation_over_speed_against_single_orbits(problem):
     assert sweep.linear_values[0] == 96.0 and sweep.linear_peak_to_peak[SPEC].size == sweep.linear_values.size
     plot = sweep.plot()
     assert SPEC in plot.artists
+    rows = {row.quantity: row for row in KINDS["nonlinear_sweep"].headlines(sweep).rows}
+    largest = rows[f"{SPEC} largest peak to peak (nonlinear orbit)"]
+    assert largest.value == pytest.approx(sweep.peak_to_peak[SPEC].max())
+    assert rows["loss of stability"].value == "none on the branch"
 
 
 def test_transient_classification_names_the_period():

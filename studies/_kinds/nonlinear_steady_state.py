@@ -20,6 +20,7 @@ from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
 from .._store import Result, register
 from .._studies import check_integer, check_n_steps
+from .._summary import Headline, Summary, response_rows
 
 #: The fewest steps per period (docs/studies.md): N/2 = 16 steps must still carry the integrator.
 MIN_STEPS = 32
@@ -108,7 +109,7 @@ class NonlinearSteadyState(Result):
             artists[spec] = (ax.plot(angle, self.response[spec], color="C0", label="nonlinear periodic")
                              + ax.plot(angle, self.linear_response[spec], "--", color="C1",
                                        label="linear periodic"))
-            ax.set_xlabel("crank angle (deg)")
+            ax.set_xlabel("drive angle (deg)")
             ax.set_ylabel(label(spec, self.units[spec]))
             ax.set_title(f"{spec}: peak to peak nonlinear / linear = {nonlinear / linear:.4g}; error "
                          f"estimate {self.response_error[spec]:.2g} {self.units[spec]}", fontsize="small")
@@ -270,5 +271,18 @@ def _summary(result: NonlinearSteadyState) -> str:
             f"{errors}; {result.run_time:.3g} s shooting + {result.linear_run_time:.3g} s linear start")
 
 
+def _headlines(result: NonlinearSteadyState) -> Summary:
+    rows = response_rows(result.response, result.response_error, result.units)
+    for spec in result.response:
+        nonlinear, linear = result.peak_to_peak(spec)
+        rows.append(Headline(f"{spec} peak to peak, nonlinear / linear", nonlinear / linear if linear else math.nan))
+    errors = np.asarray(result.multiplier_errors, dtype=float)
+    rows.append(Headline("spectral radius of the nonlinear orbit", float(result.spectral_radius), "1",
+                         float(np.nanmax(errors)) if errors.size and np.isfinite(errors).any() else math.nan))
+    return Summary(status=result.headline, run_time=float(result.run_time) + float(result.linear_run_time),
+                   rows=rows)
+
+
 KIND = StudyKind(name="nonlinear_steady_state", result=NonlinearSteadyState,
-                 keys=("speed", "n_steps", "tol", "max_iterations"), check=_check, run=_run, summary=_summary)
+                 keys=("speed", "n_steps", "tol", "max_iterations"), check=_check, run=_run, summary=_summary,
+                 headlines=_headlines)

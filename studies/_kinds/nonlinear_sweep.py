@@ -21,6 +21,8 @@ from .._plots import Plot, axes_for, cost_line, drawn, label
 from .._problem import SPEED
 from .._store import Result, register
 from .._studies import check_integer, check_n_steps, check_parameter
+from .._summary import Headline, Summary, largest_over_grid
+from .._plots import headline, plain
 from .nonlinear_steady_state import MIN_STEPS, TOL, _observables, _setup, substep_verdict
 
 #: Periods of the transient run from the last stable orbit past the loss of stability.
@@ -316,7 +318,24 @@ def _summary(result: NonlinearSweep) -> str:
             f"{result.run_time:.3g} s")
 
 
+def _headlines(result: NonlinearSweep) -> Summary:
+    unit = result.parameter_unit
+
+    def where(index: tuple[int, ...]) -> str:
+        return f"{result.parameter} {plain(result.values[index[0]], 3)} {unit}".rstrip()
+
+    rows = [largest_over_grid(f"{spec} largest peak to peak (nonlinear orbit)", values, None,
+                              result.units[spec], where) for spec, values in result.peak_to_peak.items()]
+    losses = [f"{kind.replace('_', ' ')} at {plain(value, 4)} {unit}".rstrip()
+              for value, kind in zip(result.bifurcation_values, result.bifurcation_kinds)]
+    rows.append(Headline("loss of stability", "; ".join(losses) or "none on the branch"))
+    if result.after_instability:
+        rows.append(Headline("after it, a transient", result.after_instability))
+    return Summary(status=headline(result.status), run_time=float(result.run_time), rows=rows)
+
+
 KIND = StudyKind(name="nonlinear_sweep", result=NonlinearSweep,
                  keys=("parameter", "start", "stop", "step", "method", "n_steps", "tol", "max_points",
                        "stop_at_instability", "transient_periods"),
-                 check=_check, run=_run, summary=_summary, varies=lambda options: (options["parameter"],))
+                 check=_check, run=_run, summary=_summary, varies=lambda options: (options["parameter"],),
+                 headlines=_headlines)
