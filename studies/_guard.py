@@ -361,7 +361,7 @@ def guard(problem: Any, studies: Mapping[str, Mapping[str, Any]], *, force: bool
             found = estimate(problem, kind, each, name=kind + suffix, workers=workers)
             if not force and (found.memory > limit_memory or found.time > limit_time):
                 raise ResourceError(f"{found.describe()}; {limits}; {advice}")
-            logger.info("%s", found.describe())
+            logger.debug("%s", found.describe())
             estimates.append(found)
     total = sum(found.time for found in estimates)
     if not force and total > limit_time:

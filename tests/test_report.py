@@ -279,3 +279,27 @@ def test_four_bar_figures_have_clean_text(four_bar_file):
             entries = [t.get_text() for t in plot.axes[0].get_legend().get_texts()]
             drawn_modes = [label for label in results["campbell"].mode_labels if label in plot.artists]
             assert [e for e in entries if e.startswith("mode")] == drawn_modes
+
+
+def test_sweep_headlines_take_the_largest_response_from_ok_points_only(mathieu_file):
+    """At an unstable point the linear periodic solution is not what the machine does: the largest
+    peak to peak is taken over the "ok" points, and the overall largest is named with its status."""
+    import dataclasses
+
+    sweep = studies.load(mathieu_file)["sweep"]
+    values = np.asarray(sweep.peak_to_peak["x"], dtype=float)
+    worst = int(np.nanargmax(values))
+    status = np.array(sweep.status, dtype=object)
+    status[:] = "ok"
+    status[worst] = "unstable"
+    marked = dataclasses.replace(sweep, status=status.astype(str))
+    rows = {row.quantity: row for row in KINDS["sweep"].headlines(marked).rows}
+    second = float(np.nanmax(np.delete(values, worst)))
+    assert rows["largest x peak to peak (ok points)"].value == pytest.approx(second)
+    overall = rows["largest x peak to peak, any point"]
+    assert overall.value == pytest.approx(values[worst]) and "unstable" in overall.where
+    status[worst] = "ok"
+    rows = {row.quantity: row for row in KINDS["sweep"].headlines(
+        dataclasses.replace(sweep, status=status.astype(str))).rows}
+    assert rows["largest x peak to peak (ok points)"].value == pytest.approx(values[worst])
+    assert "largest x peak to peak, any point" not in rows

@@ -236,9 +236,13 @@ def _headlines(result: CampbellResult) -> Summary:
     if result.band_mean is not None:
         speeds = result.speeds
         for j, name in enumerate(result.mode_labels[:3]):  # the lowest modes: what a design meets first
+            low = np.nanmin(result.band_min[:, j])
+            # a negative frozen frequency is sign(lam) sqrt(|lam|): the frozen stiffness is not
+            # positive at some instant (statically unstable frozen system), say so in words
             rows.append(Headline(f"{name} frozen frequency band",
-                                 f"{plain(np.nanmin(result.band_min[:, j]), 3)}–"
-                                 f"{plain(np.nanmax(result.band_max[:, j]), 3)} rad/s"))
+                                 f"{plain(low, 3)}–{plain(np.nanmax(result.band_max[:, j]), 3)} rad/s",
+                                 where="(negative: the frozen system is statically unstable at some "
+                                       "instant)" if low < 0 else ""))
         found = sorted((value, k, j) for j in range(result.band_mean.shape[1]) for k in result.harmonics
                        for _, value in crossings(speeds, k * speeds - result.band_mean[:, j]))
         rows.append(Headline("resonances, harmonic:mode at speed (rad/s)",

@@ -262,13 +262,32 @@ def _headlines(result: SweepResult) -> Summary:
     def point(index: tuple) -> str:
         return f"{result.parameter} {plain(result.values[index], 3)}{suffix}"
 
-    rows = [largest_over_grid(f"largest {spec} peak to peak", values, result.peak_to_peak_error.get(spec),
-                              result.units[spec], point) for spec, values in result.peak_to_peak.items()]
+    # A largest response is a headline only where the point's verdict is "ok": at an unstable point, or
+    # one outside the linear range, the linear periodic solution is not what the machine does. The
+    # largest over all points is shown as well when it sits at such a point, with that point's status.
+    statuses = np.asarray(result.status)
+    trusted = np.asarray(result.done, dtype=bool) & (statuses == "ok")
+
+    def largest(name: str, values: Any, errors: Any, unit_of_values: str) -> list[Headline]:
+        values = np.asarray(values, dtype=float)
+        rows = [largest_over_grid(f"largest {name} (ok points)", np.where(trusted, values, np.nan), errors,
+                                  unit_of_values, point)]
+        if np.isfinite(values).any():
+            index = np.unravel_index(np.nanargmax(values), values.shape)
+            if not trusted[index]:
+                rows.append(Headline(f"largest {name}, any point", float(values[index]), unit_of_values,
+                                     where=f"at {point(index)}: {statuses[index]}, not a trustworthy "
+                                           f"steady state"))
+        return rows
+
+    rows = [row for spec, values in result.peak_to_peak.items()
+            for row in largest(f"{spec} peak to peak", values, result.peak_to_peak_error.get(spec),
+                               result.units[spec])]
     # the peak force or stress over the sweep, where the result holds peaks (see PEAK_UNITS)
     peaks = getattr(result, "peak", None) or {}
     peak_errors = getattr(result, "peak_error", None) or {}
-    rows += [largest_over_grid(f"largest {spec} peak", values, peak_errors.get(spec), result.units[spec], point)
-             for spec, values in peaks.items() if result.units.get(spec) in PEAK_UNITS]
+    rows += [row for spec, values in peaks.items() if result.units.get(spec) in PEAK_UNITS
+             for row in largest(f"{spec} peak", values, peak_errors.get(spec), result.units[spec])]
     resonances = [f"{k}:{mode + 1} at {plain(value, 3)}" for k, mode, value in result.resonances]
     rows.append(Headline(f"resonances, harmonic:mode at {label(result.parameter, unit)}", listed(resonances)))
     rows.append(Headline(f"unstable {result.parameter} ranges", ranges(result.instabilities, unit)))
