@@ -359,9 +359,13 @@ def guard(problem: Any, studies: Mapping[str, Mapping[str, Any]], *, force: bool
     for kind, options in studies.items():
         for suffix, each in KINDS[kind].runs(options).items():
             found = estimate(problem, kind, each, name=kind + suffix, workers=workers)
-            if not force and (found.memory > limit_memory or found.time > limit_time):
+            over = found.memory > limit_memory or found.time > limit_time
+            if over and not force:
                 raise ResourceError(f"{found.describe()}; {limits}; {advice}")
-            logger.debug("%s", found.describe())
+            if over:
+                logger.warning("%s; %s; running anyway (--force)", found.describe(), limits)
+            else:
+                logger.debug("%s", found.describe())
             estimates.append(found)
     total = sum(found.time for found in estimates)
     if not force and total > limit_time:
