@@ -49,12 +49,12 @@ RICHARDSON = 3.0
 @dataclass(frozen=True)
 class Settling:
     """The settling of one sampled quantity: ``time`` (s, from t[0]; NaN when it does not settle),
-    ``steady_peak`` (max |y| over the last period), ``previous_peak`` (over the period before) and
-    ``settled``."""
+    ``steady_peak`` (max |y| over the last period), ``periodicity_defect`` (max |y(t) - y(t - T)|
+    over the last period) and ``settled``."""
 
     time: float
     steady_peak: float
-    previous_peak: float
+    periodicity_defect: float
     settled: bool
 
 
@@ -66,10 +66,9 @@ def settling_time(t: np.ndarray, y: np.ndarray, steps_per_period: int, band: flo
     ``e(t) = max over tau >= t of |y(tau)|`` (the smallest non-increasing function above ``|y|``);
     the settling time is the first sample time with ``e(t) <= (1 + band) P``, i.e. the time after
     which ``|y|`` never again exceeds the band above its steady peak. The quantity has *settled* when
-    the peak over the period before the last, ``P_prev``, is within ``band * P`` of ``P`` (the
-    envelope neither decays nor grows by more than the band over the last period; a growing or still
-    decaying ``y`` has not settled, and its time is NaN). Settled implies a settling time at most
-    ``t_end - 2 T``."""
+    the last period repeats the one before to the band, ``max |y(t) - y(t - T)| <= band * P`` over the
+    last period: a growing, still decaying or irregular ``y`` has not settled, and its time is NaN.
+    Settled implies a settling time at most ``t_end - 2 T`` (plus the band's worth)."""
     t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
     n = int(steps_per_period)
     if y.shape != t.shape or t.ndim != 1 or t.size < 2 * n + 1:
@@ -77,12 +76,12 @@ def settling_time(t: np.ndarray, y: np.ndarray, steps_per_period: int, band: flo
                            f"({2 * n + 1} samples), got shapes {t.shape} and {y.shape}")
     magnitude = np.abs(y)
     peak = float(magnitude[-(n + 1):].max())
-    previous = float(magnitude[-(2 * n + 1):-n].max())
+    defect = float(np.abs(y[-(n + 1):] - y[-(2 * n + 1):-n]).max())
     envelope = np.maximum.accumulate(magnitude[::-1])[::-1]
     first = int(np.argmax(envelope <= (1.0 + band) * peak))   # the last sample always qualifies
-    settled = abs(previous - peak) <= band * peak
+    settled = defect <= band * peak
     return Settling(time=float(t[first] - t[0]) if settled else float("nan"), steady_peak=peak,
-                    previous_peak=previous, settled=bool(settled))
+                    periodicity_defect=defect, settled=bool(settled))
 
 
 # ---------------------------------------------------------------------------------------------------
