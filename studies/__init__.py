@@ -1,5 +1,6 @@
 """Parametric studies of periodic mechanisms: steady state, sweeps, Campbell diagrams, stability
-charts, nonlinear checks, error against run time; HDF5 results and the ``flexvib`` command.
+charts, nonlinear checks, error against run time, the start-up with and without control; HDF5
+results and the ``flexvib`` command.
 
 Every result's ``plot(*, axes=None)`` returns a :class:`Plot` (figure, axes, artists by name). Bad
 input raises :class:`StudiesError` (a ``ValueError``); a study that cannot be computed raises a
@@ -15,6 +16,8 @@ from ._guard import guard as guard
 from ._grid import run_grid as run_grid
 from ._kinds.campbell import CampbellResult as CampbellResult
 from ._kinds.campbell import campbell as campbell
+from ._kinds.control_comparison import ControlComparison as ControlComparison
+from ._kinds.control_comparison import control_comparison as control_comparison
 from ._kinds.error_cost import ErrorCostResult as ErrorCostResult
 from ._kinds.error_cost import error_cost as error_cost
 from ._kinds.nonlinear_check import NonlinearCheck as NonlinearCheck
@@ -43,7 +46,7 @@ from ._store import load as load
 from ._store import open_file as open_file
 
 __all__ = [
-    "CampbellResult", "ComputationError", "Description", "Estimate", "ResourceError", "ResultFileError", "StorageError", "estimate", "guard", "ErrorCostResult", "Linear", "MechanismProblem",
+    "CampbellResult", "ComputationError", "ControlComparison", "control_comparison", "Description", "Estimate", "ResourceError", "ResultFileError", "StorageError", "estimate", "guard", "ErrorCostResult", "Linear", "MechanismProblem",
     "NonlinearCheck", "NonlinearSteadyState", "NonlinearSweep", "NonlinearRun", "PeriodicCoefficients", "PeriodicProblem", "Plot", "PointOutcome",
     "StabilityChart", "SteadyStateResult", "StudiesError", "SweepResult", "campbell", "error_cost", "load",
     "mathieu_problem", "nonlinear_check", "nonlinear_steady_state", "nonlinear_sweep", "open_file", "run_grid", "stability_chart", "steady_state", "sweep",

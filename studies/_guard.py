@@ -296,6 +296,19 @@ def _nonlinear_sweep(name, problem, options, workers):
                                            f"{sizes.n} coordinates")
 
 
+def _control_comparison(name, problem, options, workers):
+    """Two cases (with and without feedback), each a run of ``n_periods`` periods at N steps and its
+    twin at N/2 for the error estimate (together what one ``simulate`` with its error estimate costs),
+    one after the other."""
+    sizes = _sizes(problem, options["values"])
+    steps = options["n_periods"] * options["n_steps"]
+    seconds = STUDY_SECONDS + len(("with", "without")) * steps * (NONLINEAR_STEP_SECONDS
+                                                                  + NONLINEAR_STEP_N2_SECONDS * sizes.n**2)
+    memory = 8.0 * NONLINEAR_DOUBLES * steps * sizes.n
+    return Estimate(name, memory, seconds, f"2 runs x {options['n_periods']} periods x {options['n_steps']} "
+                                           f"steps x {sizes.n} coordinates")
+
+
 def _error_cost(name, problem, options, workers):
     values = dict(options["values"])
     resolution = options["resolution"]
@@ -328,6 +341,7 @@ _MODELS: dict[str, Callable[[str, Any, Mapping[str, Any], int], Estimate]] = {
     "error_cost": _error_cost,
     "nonlinear_steady_state": _nonlinear_steady_state,
     "nonlinear_sweep": _nonlinear_sweep,
+    "control_comparison": _control_comparison,
 }
 
 

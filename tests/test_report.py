@@ -84,8 +84,9 @@ def test_plain_numbers_have_no_e_notation(value, digits, text):
 def test_every_kind_names_its_headlines(mathieu_file):
     results = studies.load(mathieu_file)
     # the Mathieu file holds every kind that runs on a problem without a mechanism; the kinds of the
-    # full nonlinear mechanism are summarised in test_nonlinear_steady.py
-    mechanism_only = {"nonlinear_steady_state", "nonlinear_sweep"}
+    # full nonlinear mechanism are summarised in test_nonlinear_steady.py, the control comparison (a
+    # mechanism with a controller) in test_control_comparison.py
+    mechanism_only = {"nonlinear_steady_state", "nonlinear_sweep", "control_comparison"}
     assert {kind_of(result).name for result in results.values()} == set(KINDS) - mechanism_only
     for name, kind in KINDS.items():
         assert kind.headlines is not _kind._no_headlines, f"{name} has no headlines for the summary"

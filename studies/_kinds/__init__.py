@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import Any
 
 from .._kind import StudyKind
-from . import (campbell, error_cost, nonlinear_check, nonlinear_steady_state, nonlinear_sweep, stability_chart,
+from . import (campbell, control_comparison, error_cost, nonlinear_check, nonlinear_steady_state, nonlinear_sweep, stability_chart,
                steady_state, sweep)
 
 _MODULES = (
@@ -25,6 +25,7 @@ _MODULES = (
     nonlinear_steady_state,
     nonlinear_sweep,
     error_cost,
+    control_comparison,
 )
 
 KINDS: dict[str, StudyKind] = {module.KIND.name: module.KIND for module in _MODULES}

@@ -1,0 +1,510 @@
+"""``[studies.control_comparison]``: the start-up of a machine with and without its controller's
+feedback, run by the full nonlinear model from the same start (issue 11, the thesis's chapter 3).
+
+Both runs start from the rigid nominal state at t = 0 (elastic coordinates and their rates zero: the
+start-up) and run ``n_periods`` periods of ``mechanisms.simulate``; the second run is the same
+machine with every feedback removed (``Mechanism.without_feedback()``: feedforward torque and motor
+kept). Reported per case and quantity: the time history, the steady peak (largest magnitude over the
+last period) with its error estimate, and the settling time (:func:`settling_time`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from .._errors import ComputationError, StudiesError, is_numerical_failure
+from .._kind import MAX_PERIODS, PERIODS_WHY, StudyKind, fraction, integer, speed_values, steps
+from .._plots import Plot, axes_for, drawn, headline, label, plain
+from .._problem import SPEED
+from .._store import Result, register
+from .._studies import check_integer, check_n_steps
+from .._summary import Headline, Summary
+
+logger = logging.getLogger(__name__)
+
+#: The two runs compared, in this order everywhere (keys of the per-case fields).
+CASES = ("with", "without")
+#: Default ``band``: the start-up has settled once the envelope of a quantity stays within 5 % above
+#: its steady peak.
+BAND = 0.05
+#: The fewest steps per period: the error estimate compares the run with one of N/2 steps.
+MIN_STEPS = 32
+#: A steady peak whose error estimate exceeds this fraction of it is ``inaccurate`` (as a sweep
+#: point's peak-to-peak, docs/studies.md).
+INACCURATE_FRACTION = 0.1
+#: Richardson's divisor for the error of a second-order method from runs at h and 2h: 2^2 - 1.
+RICHARDSON = 3.0
+
+
+# ---------------------------------------------------------------------------------------------------
+# the settling time
+# ---------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Settling:
+    """The settling of one sampled quantity: ``time`` (s, from t[0]; NaN when it does not settle),
+    ``steady_peak`` (max |y| over the last period), ``periodicity_defect`` (max |y(t) - y(t - T)|
+    over the last period) and ``settled``."""
+
+    time: float
+    steady_peak: float
+    periodicity_defect: float
+    settled: bool
+
+
+def settling_time(t: np.ndarray, y: np.ndarray, steps_per_period: int, band: float = BAND) -> Settling:
+    """When the start-up vibration of ``y`` (n_t,) sampled at ``t`` (n_t,) s, ``steps_per_period``
+    samples per period, has settled.
+
+    Definitions: the steady peak ``P`` is ``max |y|`` over the last period; the envelope is
+    ``e(t) = max over tau >= t of |y(tau)|`` (the smallest non-increasing function above ``|y|``);
+    the settling time is the first sample time with ``e(t) <= (1 + band) P``, i.e. the time after
+    which ``|y|`` never again exceeds the band above its steady peak. The quantity has *settled* when
+    the last period repeats the one before to the band, ``max |y(t) - y(t - T)| <= band * P`` over the
+    last period: a growing, still decaying or irregular ``y`` has not settled, and its time is NaN.
+    Settled implies a settling time at most ``t_end - 2 T`` (plus the band's worth)."""
+    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    n = int(steps_per_period)
+    if y.shape != t.shape or t.ndim != 1 or t.size < 2 * n + 1:
+        raise StudiesError(f"settling_time: expected t and y of the same length of at least two periods "
+                           f"({2 * n + 1} samples), got shapes {t.shape} and {y.shape}")
+    magnitude = np.abs(y)
+    peak = float(magnitude[-(n + 1):].max())
+    defect = float(np.abs(y[-(n + 1):] - y[-(2 * n + 1):-n]).max())
+    envelope = np.maximum.accumulate(magnitude[::-1])[::-1]
+    first = int(np.argmax(envelope <= (1.0 + band) * peak))   # the last sample always qualifies
+    settled = defect <= band * peak
+    return Settling(time=float(t[first] - t[0]) if settled else float("nan"), steady_peak=peak,
+                    periodicity_defect=defect, settled=bool(settled))
+
+
+# ---------------------------------------------------------------------------------------------------
+# the result
+# ---------------------------------------------------------------------------------------------------
+@register
+@dataclass(frozen=True, eq=False)
+class ControlComparison(Result):
+    """The start-up with and without feedback (``CASES = ("with", "without")``).
+
+    ``t`` (n_t,) s, ``n_t = n_periods * n_steps + 1``; ``with_control`` and ``without_control``
+    {quantity: (n_t,)}: each quantity's time history (NaN after the time a run failed).
+    ``quantities``: their names in report order; by ``roles`` {quantity: role}: ``"elastic"``, the scene's observables of the coordinates (the
+    coupler's midspan deflection by default), deviations from the rigid nominal motion; ``"speed"``,
+    ``drive.<J>.rate`` the controlled drive's relative rate minus its nominal (rad/s, the crank speed
+    fluctuation); ``"output"``, the output's deviation from its nominal (the output link's angle,
+    rad, or a point's displacement, m); ``"torque"``, ``drive.<J>.torque`` the drive's total torque
+    (N m). ``units`` {quantity: unit}.
+
+    Per case (``{"with": {quantity: value}, "without": {...}}``): ``steady_peak`` max |q| over the last
+    period, ``steady_peak_error`` its error estimate (``max |q_N - q_N/2| / 3`` over the last period,
+    a run with half the steps; NaN when that run failed), ``settling_time`` s (:func:`settling_time`,
+    NaN when not settled or failed), ``settling_time_error`` (``|t_s(N) - t_s(N/2)|``), ``settled``
+    (bool); ``run_time`` {case: s} (both of its runs); ``failed`` {case: message or ""}.
+
+    ``status``: ``failed`` (a run failed: the message says which and why; the other is kept),
+    ``inaccurate`` (a steady peak's error estimate above ``INACCURATE_FRACTION`` of it: refine
+    ``n_steps``), else ``ok``; ``message`` also says which quantities do not settle.
+    """
+
+    problem: str
+    scene: str
+    parameters: Mapping[str, float]
+    quantities: tuple[str, ...]
+    units: Mapping[str, str]
+    roles: Mapping[str, str]
+    settings: Mapping[str, Any]
+    t: np.ndarray
+    with_control: Mapping[str, np.ndarray]
+    without_control: Mapping[str, np.ndarray]
+    steady_peak: Mapping[str, Mapping[str, float]]
+    steady_peak_error: Mapping[str, Mapping[str, float]]
+    settling_time: Mapping[str, Mapping[str, float]]
+    settling_time_error: Mapping[str, Mapping[str, float]]
+    settled: Mapping[str, Mapping[str, bool]]
+    run_time: Mapping[str, float]
+    failed: Mapping[str, str] = field(default_factory=dict)
+    status: str = "ok"
+    message: str = ""
+
+    _units = {"t": "s", "with_control": "@observables", "without_control": "@observables"}
+
+    def history(self, case: str) -> Mapping[str, np.ndarray]:
+        """The time histories of ``case`` ("with" or "without")."""
+        if case not in CASES:
+            raise StudiesError(f"case: expected one of {CASES}, got {case!r}")
+        return self.with_control if case == "with" else self.without_control
+
+    def quantity(self, role: str) -> list[str]:
+        """The quantities of ``role`` ("elastic", "speed", "output", "torque"), in order."""
+        return [name for name in self.quantities if self.roles[name] == role]
+
+    def plot(self, *, axes: Any = None) -> Plot:
+        """One axes per quantity, the run with control over the one without, each settling time a
+        dashed line and the steady peaks and settling times in the title."""
+        quantities = list(self.quantities)
+        axes = axes_for(len(quantities), axes, height=2.8)
+        styles = {"with": dict(color="C0", lw=0.9, label="with control"),
+                  "without": dict(color="C3", lw=0.7, alpha=0.8, label="without feedback")}
+        artists: dict[str, list] = {}
+        for ax, name in zip(axes, quantities):
+            lines = []
+            for case in CASES:
+                values = self.history(case).get(name)
+                if values is None:
+                    continue
+                lines += ax.plot(self.t, values, **styles[case])
+                settle = self.settling_time[case].get(name, float("nan"))
+                if math.isfinite(settle):
+                    lines.append(ax.axvline(settle, color=styles[case]["color"], ls="--", lw=0.8))
+            ax.set_xlabel("time (s)")
+            ax.set_ylabel(label(name, self.units[name]))
+            words = [f"{case} {'control' if case == 'with' else 'feedback'}: peak "
+                     f"{plain(self.steady_peak[case].get(name, float('nan')))}, "
+                     f"settles {_settle_words(self, case, name)}" for case in CASES]
+            ax.set_title(f"{name}\n" + "; ".join(words), fontsize="small")
+            ax.legend(fontsize="x-small")
+            artists[name] = lines
+        axes[0].figure.suptitle(f"with and without feedback: {headline(self.status)}", fontsize="small")
+        return drawn(axes, artists)
+
+
+def _settle_words(result: ControlComparison, case: str, name: str) -> str:
+    if result.failed.get(case):
+        return "(run failed)"
+    value = result.settling_time[case].get(name, float("nan"))
+    return f"at {plain(value)} s" if math.isfinite(value) else "not"
+
+
+# ---------------------------------------------------------------------------------------------------
+# the study
+# ---------------------------------------------------------------------------------------------------
+def without_feedback(mechanism: Any) -> Any:
+    """The same machine with every controller's feedback removed (``Mechanism.without_feedback()``
+    where it exists; until then: every ``TorqueDrive``'s PD gains set to zero, the feedforward of the
+    nominal torque kept)."""
+    import mechanisms
+
+    remove = getattr(mechanism, "without_feedback", None)
+    if callable(remove):
+        return remove()
+    drives = tuple(dataclasses.replace(drive, kp=0.0, kd=0.0) if isinstance(drive, mechanisms.TorqueDrive)
+                   else drive for drive in mechanism.drives)
+    return mechanism.replace(drives=drives)
+
+
+def control_comparison(problem: Any, values: Mapping[str, float] | None = None, *, n_periods: int = 20,
+                       n_steps: int = 256, band: float = BAND, output: str | None = None) -> ControlComparison:
+    """Run the machine of ``problem`` (a ``studies.MechanismProblem``) at ``values`` from the start-up
+    (the rigid nominal state at t = 0) for ``n_periods`` periods of ``n_steps`` steps, with its
+    controller and without its feedback, and compare (see :class:`ControlComparison`).
+
+    ``band``: the settling band above the steady peak (:func:`settling_time`); ``output``: the
+    observable spec of the output whose deviation from the nominal motion is reported (default: the
+    angle of the last link pivoted on the ground other than the driven one, e.g. ``"rocker.angle"``,
+    else the displacement of the last link's end, ``"<link>.point_error@1.0"``). A run that fails
+    numerically gives status ``failed`` with the reason, not an exception; the other run is kept."""
+    if not hasattr(problem, "mechanism"):
+        raise StudiesError(f"problem {getattr(problem, 'name', problem)!r}: a control comparison needs a "
+                           f"mechanism (studies.MechanismProblem) whose drive has a controller")
+    n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a control comparison")
+    check_integer("n_periods", n_periods, 3)
+    if isinstance(band, bool) or not isinstance(band, (int, float)) or not 0.0 < band < 1.0:
+        raise StudiesError(f"band: expected a fraction of the steady peak in (0, 1), got {band!r}")
+    params = problem.resolve(values)
+    nominal_values = problem.parameters
+    mechanism = problem.mechanism({k: v for k, v in params.items() if v != nominal_values[k]})
+    without = without_feedback(mechanism)
+    if without == mechanism:
+        raise StudiesError(f"scene {problem.name!r}: its drives have no feedback to remove (a prescribed "
+                           f"drive, or a torque drive with kp = kd = 0): nothing to compare; declare the "
+                           f"drive with type = \"torque\" and kp, kd (docs/scenes.md)")
+    plan = _quantities(problem, mechanism, without, output)
+    results = {case: _case(machine, plan, n_periods, n_steps, band)
+               for case, machine in zip(CASES, (mechanism, without))}
+    t = np.arange(n_periods * n_steps + 1) * (mechanism.period / n_steps)
+    status, message = _verdict(results, plan, n_periods)
+    per_case = {key: {case: results[case][key] for case in CASES}
+                for key in ("steady_peak", "steady_peak_error", "settling_time", "settling_time_error", "settled")}
+    return ControlComparison(
+        problem=problem.name, scene=problem.text, parameters=params, quantities=tuple(plan.units),
+        units=plan.units, roles=plan.roles,
+        settings={"n_steps": n_steps, "n_periods": n_periods, "band": band, "output": plan.output},
+        t=t, with_control=results["with"]["history"], without_control=results["without"]["history"],
+        **per_case, run_time={case: results[case]["run_time"] for case in CASES},
+        failed={case: results[case]["failed"] for case in CASES}, status=status, message=message)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What each run reports: ``units`` and ``roles`` by quantity (in report order), the controlled
+    ``drive_index`` and its joint's links (``driven``, ``reference``: None for the ground), the
+    ``output`` spec and the coordinate observables' specs to evaluate (``direct``)."""
+
+    units: dict[str, str]
+    roles: dict[str, str]
+    drive_index: int
+    driven: str
+    reference: str | None
+    output: str
+    direct: tuple[str, ...]
+
+
+def _quantities(problem: Any, mechanism: Any, without: Any, output: str | None) -> _Plan:
+    import mechanisms
+
+    from .._mechanism import _of_coordinates
+
+    changed = [i for i, (a, b) in enumerate(zip(mechanism.drives, without.drives)) if a != b]
+    drive_index = changed[0] if changed else 0
+    drive = mechanism.drives[drive_index]
+    joint = mechanism.joint(drive.joint)
+    reference = None if joint.link_a == mechanisms.GROUND else joint.link_a
+    output = _default_output(mechanism, joint) if output is None else output
+    model = mechanisms.assemble(mechanism)
+    specs = getattr(problem, "observable_specs", None) or mechanisms.default_observables(mechanism)
+    elastic, skipped = [], []
+    for spec in specs:
+        (elastic if _of_coordinates(model.observable(spec)) else skipped).append(spec)
+    if skipped:
+        logger.info("control comparison: %s not reported (not functions of the coordinates)", ", ".join(skipped))
+    if not isinstance(output, str):
+        raise StudiesError(f"output: expected an observable spec such as 'rocker.angle', got {output!r}")
+    observer = model.observable(output)   # an unknown spec raises naming it
+    components = getattr(observer, "components", None) or ()
+    positions = all(_of_coordinates(part) for part in components) if components else _of_coordinates(observer)
+    if not positions:
+        raise StudiesError(f"output: expected an observable of the positions (an angle or a point error, "
+                           f"e.g. 'rocker.angle', 'coupler.point_error@0.5'), got {output!r}")
+    speed, torque = f"drive.{drive.joint}.rate", f"drive.{drive.joint}.torque"
+    units = {spec: model.observable(spec).unit for spec in elastic}
+    units.update({speed: "rad/s", output: observer.unit, torque: "N m"})
+    roles = {spec: "elastic" for spec in elastic}
+    roles.update({speed: "speed", output: "output", torque: "torque"})
+    direct = tuple(dict.fromkeys(elastic + ([c.spec for c in components] if components else [output])))
+    return _Plan(units=units, roles=roles, drive_index=drive_index, driven=joint.link_b,
+                 reference=reference, output=output, direct=direct)
+
+
+def _default_output(mechanism: Any, drive_joint: Any) -> str:
+    """The angle of the last link pivoted on the ground by a revolute joint other than the driven
+    one (a four-bar's rocker), else the displacement of the last link's end (a slider's pin, an
+    arm's tip)."""
+    import mechanisms
+
+    driven = drive_joint.link_b
+    pivoted = [joint.link_b if joint.link_a == mechanisms.GROUND else joint.link_a
+               for joint in mechanism.joints
+               if isinstance(joint, mechanisms.Revolute) and joint.name != drive_joint.name
+               and mechanisms.GROUND in (joint.link_a, joint.link_b)]
+    names = [link.name for link in mechanism.links if link.name != driven]
+    for name in reversed(names):
+        if name in pivoted:
+            return f"{name}.angle"
+    return f"{(names or [driven])[-1]}.point_error@1.0"
+
+
+def _case(machine: Any, plan: _Plan, n_periods: int, n_steps: int, band: float) -> dict[str, Any]:
+    """One case: the run at ``n_steps`` and its N/2 twin, the quantities, peaks and settling times."""
+    import mechanisms
+
+    start = time.perf_counter()
+    n_t = n_periods * n_steps + 1
+    empty = {name: np.full(n_t, np.nan) for name in plan.units}
+    nan = {name: float("nan") for name in plan.units}
+    found = dict(history=empty, steady_peak=dict(nan), steady_peak_error=dict(nan), settling_time=dict(nan),
+                 settling_time_error=dict(nan), settled={name: False for name in plan.units}, failed="")
+    try:
+        nominal = mechanisms.nominal_motion(machine, n_steps=n_steps)
+        model = mechanisms.assemble(machine, feedforward=mechanisms.feedforward_torques(
+            machine, mechanisms.nominal_motion(machine)))   # the feedforward simulate() applies
+        fine = _run(machine, model, nominal, plan, n_periods, n_steps)
+    except Exception as error:
+        if not is_numerical_failure(error):
+            raise
+        partial = getattr(error, "partial", None)
+        found.update(failed=f"{type(error).__name__}: {error}", run_time=time.perf_counter() - start)
+        if partial is not None:
+            for name, values in partial.items():
+                found["history"][name][:values.size] = values
+        return found
+    fine_settling = {name: settling_time(fine["t"], fine[name], n_steps, band) for name in plan.units}
+    try:
+        coarse = _run(machine, model, nominal, plan, n_periods, n_steps // 2, stride=2)
+        coarse_settling = {name: settling_time(coarse["t"], coarse[name], n_steps // 2, band)
+                           for name in plan.units}
+    except Exception as error:
+        if not is_numerical_failure(error):
+            raise
+        logger.info("control comparison: the N/2 run for the error estimate failed: %s", error)
+        coarse, coarse_settling = None, None
+    for name in plan.units:
+        found["history"][name] = fine[name]
+        found["steady_peak"][name] = fine_settling[name].steady_peak
+        found["settling_time"][name] = fine_settling[name].time
+        found["settled"][name] = fine_settling[name].settled
+        if coarse is not None:
+            last = slice(-(n_steps // 2 + 1), None)
+            found["steady_peak_error"][name] = float(np.abs(fine[name][::2][last] - coarse[name][last]).max()
+                                                     / RICHARDSON)
+            found["settling_time_error"][name] = abs(fine_settling[name].time - coarse_settling[name].time)
+    found["run_time"] = time.perf_counter() - start
+    return found
+
+
+class _RunFailed(ComputationError):
+    """A nonlinear run stopped early; ``partial`` holds the quantities up to its last step."""
+
+    def __init__(self, message: str, partial: Mapping[str, np.ndarray]):
+        super().__init__(message)
+        self.partial = partial
+
+
+def _run(machine: Any, model: Any, nominal: Any, plan: _Plan, n_periods: int, steps_per_period: int, *,
+         stride: int = 1) -> dict[str, np.ndarray]:
+    """``mechanisms.simulate`` from the rigid nominal state at t = 0 with ``steps_per_period``; the
+    quantities of ``plan`` along it (``stride``: the nominal motion's samples per run step)."""
+    import mechanisms
+
+    run = mechanisms.simulate(machine, n_periods=n_periods, steps_per_period=steps_per_period,
+                              s0=nominal.s[0], sdot0=nominal.sdot[0], observables=plan.direct,
+                              estimate_error=False, throw=False)
+    quantities = _along(run, model, nominal.s[::stride], nominal.sdot[::stride], plan)
+    if not run.success:
+        raise _RunFailed(run.message, quantities)
+    quantities["t"] = run.t
+    return quantities
+
+
+def _along(run: Any, model: Any, nominal_s: np.ndarray, nominal_sdot: np.ndarray, plan: _Plan
+           ) -> dict[str, np.ndarray]:
+    """The quantities of ``plan`` along ``run`` (its samples, k T / N from t = 0): deviations from
+    the nominal motion (one period of N + 1 samples, repeated), the drive's total torque."""
+    n = nominal_s.shape[0] - 1
+    phase = np.arange(run.t.size) % n   # the nominal sample of each run sample
+
+    def deviation(spec: str) -> np.ndarray:
+        observer = model.observable(spec)
+        if getattr(observer, "components", None):   # a point's displacement: its magnitude
+            return np.hypot(*(deviation(component.spec) for component in observer.components))
+        nominal = np.array([observer.value(s) for s in nominal_s[:-1]])
+        change = run.observables[spec] - nominal[phase]
+        if observer.unit == "rad":   # a turning link's angle: whole turns are no deviation
+            change = np.angle(np.exp(1j * change))
+        return change
+
+    labels = list(model.coord_labels)
+    rows = [labels.index(f"{plan.driven}.theta")]
+    signs = [1.0]
+    if plan.reference is not None:
+        rows.append(labels.index(f"{plan.reference}.theta"))
+        signs.append(-1.0)
+
+    def relative_rate(sdot: np.ndarray) -> np.ndarray:
+        return sum(sign * sdot[:, row] for sign, row in zip(signs, rows))
+
+    quantities = {}
+    for name, role in plan.roles.items():
+        if role == "speed":
+            quantities[name] = relative_rate(run.sdot) - relative_rate(nominal_sdot[:-1])[phase]
+        elif role == "torque":
+            quantities[name] = np.array([model.drive_torques(s, v, t, lam)[plan.drive_index]
+                                         for s, v, t, lam in zip(run.s, run.sdot, run.t, run.lam)])
+        else:
+            quantities[name] = deviation(name)
+    return quantities
+
+
+def _verdict(results: Mapping[str, Mapping[str, Any]], plan: _Plan, n_periods: int) -> tuple[str, str]:
+    """``(status, message)``: failed runs, inaccurate steady peaks, quantities that do not settle."""
+    failed, inaccurate, unsettled, settled = [], [], [], []
+    for case in CASES:
+        found = results[case]
+        who = "with control" if case == "with" else "without feedback"
+        if found["failed"]:
+            failed.append(f"the run {who} failed: {found['failed']}")
+            continue
+        for name in plan.units:
+            peak, error = found["steady_peak"][name], found["steady_peak_error"][name]
+            if error > INACCURATE_FRACTION * peak:
+                inaccurate.append(f"{who}: {name} steady peak {peak:.3g} has error estimate {error:.3g} "
+                                  f"(over {100 * INACCURATE_FRACTION:g} %)")
+            if found["settled"][name]:
+                if plan.roles[name] == "elastic":
+                    settled.append(f"{who}: {name} settles at {found['settling_time'][name]:.3g} s")
+            else:
+                unsettled.append(f"{who}: {name} does not settle within {n_periods} periods")
+    if failed:
+        status = "failed"
+    elif inaccurate:
+        status = "inaccurate"
+        inaccurate[-1] += "; refine n_steps"
+    else:
+        status = "ok"
+    return status, "; ".join(failed + inaccurate + unsettled + settled)
+
+
+# ---------------------------------------------------------------------------------------------------
+# the [studies.control_comparison] table
+# ---------------------------------------------------------------------------------------------------
+def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
+    output = table.get("output")
+    if output is not None and not isinstance(output, str):
+        raise StudiesError(f"[{where}] output: expected an observable spec such as 'rocker.angle', got {output!r}")
+    band = fraction(where, "band", table.get("band", BAND))
+    if band <= 0.0:
+        raise StudiesError(f"[{where}] band: expected a fraction in (0, 1), got {band!r}")
+    return {"values": speed_values(where, table),
+            "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS),
+            "n_periods": integer(where, "n_periods", table.get("n_periods", 20), 3, maximum=MAX_PERIODS,
+                                 why=PERIODS_WHY),
+            "band": band, "output": output}
+
+
+def _run_kind(problem: Any, options: Mapping[str, Any], **_: Any) -> ControlComparison:
+    return control_comparison(problem, **options)
+
+
+def _case_words(result: ControlComparison, case: str) -> str:
+    if result.failed.get(case):
+        return "failed"
+    parts = []
+    for name in result.quantities:
+        value = result.settling_time[case][name]
+        parts.append(f"{name} peak {plain(result.steady_peak[case][name])}"
+                     + (f" settles {plain(value)} s" if math.isfinite(value) else " not settled"))
+    return ", ".join(parts)
+
+
+def _summary(result: ControlComparison) -> str:
+    speed = result.parameters.get(SPEED, float("nan"))
+    return (f"{headline(result.status).upper()} at speed {speed:.4g} rad/s: {result.message}\n"
+            f"    with control: {_case_words(result, 'with')}\n"
+            f"    without feedback: {_case_words(result, 'without')}")
+
+
+def _headlines(result: ControlComparison) -> Summary:
+    rows = []
+    for name in result.quantities:
+        unit = result.units[name]
+        without = Headline("", result.steady_peak["without"][name], unit).shown()[0]
+        rows.append(Headline(f"{name} steady peak with control", result.steady_peak["with"][name], unit,
+                             result.steady_peak_error["with"][name], f"(without feedback: {without})"))
+    for name in result.quantity("elastic"):
+        without = result.settling_time["without"][name]
+        rows.append(Headline(f"{name} settling time with control", result.settling_time["with"][name], "s",
+                             result.settling_time_error["with"][name],
+                             f"(without feedback: {plain(without, 3) + ' s' if math.isfinite(without) else 'not settled'})"))
+    speed = result.parameters.get(SPEED, float("nan"))
+    return Summary(status=f"{headline(result.status)} at speed {plain(speed, 3)} rad/s",
+                   run_time=float(np.nansum(list(result.run_time.values()))), rows=rows)
+
+
+KIND = StudyKind(name="control_comparison", result=ControlComparison,
+                 keys=("speed", "n_periods", "n_steps", "band", "output"),
+                 check=_check, run=_run_kind, summary=_summary, headlines=_headlines)

@@ -1,0 +1,195 @@
+"""studies.control_comparison: the start-up with and without feedback (issue 11). The settling time
+against the closed-form envelope of a damped oscillation; the comparison on a four-bar whose crank
+is driven by a TorqueDrive with PD feedback, its run without feedback against the same run done
+directly by mechanisms.simulate; HDF5, figure, summary, table and guard."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+import mechanisms
+import studies
+from studies import _guard
+from studies._kinds import KINDS
+from studies._kinds.control_comparison import settling_time
+
+N_STEPS, N_PERIODS = 64, 8
+GAINS = {"kp": 20.0, "kd": 0.5}   # N m/rad, N m s/rad: the coupler's start-up settles in ~2 periods
+
+
+# ---------------------------------------------------------------------------------------------------
+# the settling time against closed forms
+# ---------------------------------------------------------------------------------------------------
+def _damped(peak, amplitude, decay, omega, n_periods=40, steps=200):
+    """y = (peak + amplitude e^(-decay t)) cos(omega t): a damped oscillation about a steady one of
+    amplitude ``peak``, whose envelope is known in closed form: peak + amplitude e^(-decay t)."""
+    period = 2.0 * math.pi / omega
+    t = np.arange(n_periods * steps + 1) * (period / steps)
+    return t, (peak + amplitude * np.exp(-decay * t)) * np.cos(omega * t), steps
+
+
+@pytest.mark.parametrize("band", [0.05, 0.01])
+@pytest.mark.parametrize("decay", [1.0, 3.0])
+def test_settling_time_of_a_damped_oscillation_is_the_closed_form(band, decay):
+    peak, amplitude, omega = 1.0, 4.0, 20.0
+    t, y, steps = _damped(peak, amplitude, decay, omega)
+    found = settling_time(t, y, steps, band)
+    # the steady peak is the envelope's largest value over the last period (at its start: a peak of
+    # |cos| every pi / omega), so the band edge is crossed where the envelope equals (1 + band) P
+    period = 2.0 * math.pi / omega
+    assert found.steady_peak == pytest.approx(peak + amplitude * np.exp(-decay * (t[-1] - period)), rel=1e-9)
+    assert found.settled
+    crossing = math.log(amplitude / ((1.0 + band) * found.steady_peak - peak)) / decay
+    # |y| reaches the envelope at the peaks of |cos(omega t)|, pi / omega apart: the last peak above
+    # the band lies within half a period before the crossing, and the settling time follows it
+    step = t[1] - t[0]
+    assert crossing - math.pi / omega - step <= found.time <= crossing + step
+
+
+def test_a_growing_or_still_decaying_oscillation_has_not_settled():
+    # the transient part decays by 1.6 % of its size per period: the periods still differ by 5 % of P
+    t, y, steps = _damped(1.0, 4.0, 0.05, 20.0, n_periods=10)
+    slow = settling_time(t, y, steps, 0.01)
+    assert not slow.settled and math.isnan(slow.time) and slow.periodicity_defect > 0.01 * slow.steady_peak
+    growing = settling_time(t, t * np.cos(20.0 * t), steps)
+    assert not growing.settled and math.isnan(growing.time)
+    # an irregular signal whose largest swing comes last: within the band from the start, yet not
+    # periodic, so not settled
+    irregular = settling_time(t, np.cos(20.0 * t) + 0.5 * np.cos(20.0 * math.sqrt(2.0) * t), steps)
+    assert not irregular.settled
+    steady = settling_time(t, np.cos(20.0 * t), steps)
+    assert steady.settled and steady.time == 0.0 and steady.steady_peak == pytest.approx(1.0)
+    with pytest.raises(studies.StudiesError, match="at least two periods"):
+        settling_time(t[:steps], y[:steps], steps)
+
+
+# ---------------------------------------------------------------------------------------------------
+# a four-bar with PD feedback on the crank
+# ---------------------------------------------------------------------------------------------------
+def _torque_four_bar(**gains):
+    spec = mechanisms.four_bar(n_elements=1).to_spec()
+    spec["drive"].update(type="torque", **gains)
+    return mechanisms.build(spec, source="test four-bar with a torque drive")
+
+
+@pytest.fixture(scope="module")
+def comparison():
+    problem = studies.MechanismProblem.from_mechanism(_torque_four_bar(**GAINS))
+    return studies.control_comparison(problem, n_periods=N_PERIODS, n_steps=N_STEPS)
+
+
+def test_feedback_reduces_the_crank_speed_fluctuation(comparison):
+    assert comparison.roles == {"coupler.deflection@0.5": "elastic", "drive.O.rate": "speed",
+                                "rocker.angle": "output", "drive.O.torque": "torque"}
+    peaks = comparison.steady_peak
+    # without feedback the light crank (1e-5 kg m^2) follows the time-scheduled feedforward torque
+    # however the coupler's reaction pushes it: tens of rad/s off its nominal 100 rad/s
+    assert peaks["with"]["drive.O.rate"] < 0.05 * peaks["without"]["drive.O.rate"]
+    assert peaks["with"]["rocker.angle"] < 0.2 * peaks["without"]["rocker.angle"]
+    # with feedback the coupler's start-up vibration settles within the run
+    assert comparison.settled["with"]["coupler.deflection@0.5"]
+    settle = comparison.settling_time["with"]["coupler.deflection@0.5"]
+    assert 0.0 < settle < comparison.t[-1] - 2 * mechanisms.four_bar().period
+    assert comparison.failed == {"with": "", "without": ""}
+    assert "does not settle" in comparison.message   # without feedback
+
+
+def test_the_run_without_feedback_is_the_direct_run_with_zero_gains(comparison):
+    """The scene with kp = kd = 0 written in its drive table, run directly by mechanisms.simulate from
+    its default start (the rigid nominal state at t = 0): its crank rate less the nominal, and the rate
+    of the crank tip's direction, against the study's crank speed fluctuation."""
+    direct = mechanisms.simulate(_torque_four_bar(kp=0.0, kd=0.0), n_periods=N_PERIODS,
+                                 steps_per_period=N_STEPS, estimate_error=False,
+                                 observables=["crank.point_error_x@1.0", "crank.point_error_y@1.0"])
+    fluctuation = comparison.without_control["drive.O.rate"]
+    crank = direct.coord_labels.index("crank.theta")
+    np.testing.assert_allclose(direct.t, comparison.t, rtol=1e-12)
+    np.testing.assert_allclose(fluctuation, direct.sdot[:, crank] - 100.0, rtol=0, atol=1e-9 * 100.0)
+    # a second route, from the positions alone: the tip's direction differentiated (second order)
+    tip = np.unwrap(np.arctan2(direct.observables["crank.point_error_y@1.0"],
+                               direct.observables["crank.point_error_x@1.0"]))
+    from_positions = np.gradient(tip, direct.t, edge_order=2) - 100.0
+    scale = np.abs(fluctuation).max()
+    assert scale > 10.0
+    assert np.abs(from_positions - fluctuation).max() < 0.15 * scale
+
+
+def test_result_file_figure_summary_and_headlines(comparison, tmp_path, assert_same):
+    path = tmp_path / "cc.h5"
+    comparison.save(path, "control_comparison")
+    loaded = studies.load(path)["control_comparison"]
+    assert_same(comparison, loaded)
+    drawing = loaded.plot()
+    assert list(drawing.artists) == list(comparison.quantities) and len(drawing.axes) == 4
+    assert "with control" in drawing.axes[0].get_legend_handles_labels()[1]
+    kind = KINDS["control_comparison"]
+    assert "without feedback" in kind.summary(comparison)
+    summary = kind.headlines(comparison)
+    rows = {row.quantity: row for row in summary.rows}
+    row = rows["drive.O.rate steady peak with control"]
+    assert row.value == comparison.steady_peak["with"]["drive.O.rate"] and row.unit == "rad/s"
+    assert "without feedback" in row.where
+    assert rows["coupler.deflection@0.5 settling time with control"].unit == "s"
+    assert math.isfinite(summary.run_time) and summary.run_time > 0
+    import matplotlib.pyplot as plt
+
+    plt.close(drawing.figure)
+
+
+def test_a_failed_run_is_reported_and_the_other_kept(monkeypatch):
+    real = mechanisms.simulate
+
+    def failing_without_feedback(machine, **options):
+        run = real(machine, **options)
+        if machine.drives[0].kp == 0.0:   # the run without feedback stops half way
+            half = run.t.size // 2
+            cut = {name: getattr(run, name)[:half] for name in ("t", "s", "sdot", "sddot", "lam")}
+            return dataclasses.replace(run, **cut, observables={k: v[:half] for k, v in run.observables.items()},
+                                       status=-1, message="injected failure at t = 0.1 s")
+        return run
+
+    monkeypatch.setattr(mechanisms, "simulate", failing_without_feedback)
+    problem = studies.MechanismProblem.from_mechanism(_torque_four_bar(**GAINS))
+    result = studies.control_comparison(problem, n_periods=4, n_steps=32)
+    assert result.status == "failed" and "injected failure" in result.message
+    assert "without feedback failed" in result.message
+    assert np.isfinite(result.with_control["drive.O.rate"]).all()
+    history = result.without_control["drive.O.rate"]
+    assert np.isfinite(history[:10]).all() and np.isnan(history[-1])
+    assert math.isnan(result.steady_peak["without"]["drive.O.rate"])
+
+
+def test_bad_input_is_named():
+    with pytest.raises(studies.StudiesError, match="no feedback to remove"):
+        studies.control_comparison(studies.MechanismProblem.from_scene("four_bar_fem1"), n_steps=32)
+    with pytest.raises(studies.StudiesError, match="needs a mechanism"):
+        studies.control_comparison(studies.mathieu_problem())
+    problem = studies.MechanismProblem.from_mechanism(_torque_four_bar(**GAINS))
+    with pytest.raises(studies.StudiesError, match="band"):
+        studies.control_comparison(problem, band=1.5)
+    with pytest.raises(studies.StudiesError, match="n_periods"):
+        studies.control_comparison(problem, n_periods=2)
+    with pytest.raises(studies.StudiesError, match="n_steps"):
+        studies.control_comparison(problem, n_steps=16)
+    with pytest.raises(studies.StudiesError, match="output"):
+        studies.control_comparison(problem, output="joint.A.force")   # not of the positions
+    kind = KINDS["control_comparison"]
+    with pytest.raises(studies.StudiesError, match="band"):
+        kind.check("studies.control_comparison", {"band": 0.0}, 128)
+    with pytest.raises(studies.StudiesError, match="n_periods: at most"):
+        kind.check("studies.control_comparison", {"n_periods": 10**6}, 128)
+
+
+def test_table_defaults_and_cost_model():
+    kind = KINDS["control_comparison"]
+    options = kind.check("studies.control_comparison", {"speed": 80.0, "output": "coupler.point_error@0.5"}, 128)
+    assert options == {"values": {"speed": 80.0}, "n_steps": 128, "n_periods": 20, "band": 0.05,
+                       "output": "coupler.point_error@0.5"}
+    problem = studies.MechanismProblem.from_mechanism(_torque_four_bar(**GAINS))
+    short = _guard.estimate(problem, "control_comparison", options)
+    long = _guard.estimate(problem, "control_comparison", dict(options, n_periods=200))
+    assert long.time > 5.0 * short.time and "2 runs x 20 periods" in short.sizes
