@@ -305,6 +305,10 @@ class MechanismProblem:
             values = (run.observables[obs.spec] if obs.spec in run.observables
                       else np.array([value(sk) for sk in run.s]))
             values = values - periodic([value(sk) for sk in lin.nominal.s])
+            if getattr(obs, "unit", "") == "rad":
+                # a turning link's angle gains 2 pi per period while the repeated nominal does not:
+                # the deviation of an angle is taken modulo 2 pi, in (-pi, pi]
+                values = np.pi - np.mod(np.pi - values, 2.0 * np.pi)
             if observable_map.nominal is not None:   # the axially rigid link's nominal axial stress
                 values = values + periodic(observable_map.nominal)
             return values
