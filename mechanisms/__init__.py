@@ -17,7 +17,7 @@ from ._parts import ArgumentError as ArgumentError, MechanismError as MechanismE
 from ._parts import DISCRETISATION_TYPES as DISCRETISATION_TYPES, JOINT_TYPES as JOINT_TYPES
 from ._load import build as build, load as load, loads as loads, scenes as scenes
 from ._scenes import (four_bar as four_bar, six_bar as six_bar, slider_crank as slider_crank,
-                      two_link_arm as two_link_arm)
+                      two_link_arm as two_link_arm, parallel_robot as parallel_robot)
 from ._kinematics import (ConvergenceError as ConvergenceError, NominalMotion as NominalMotion,
                           feedforward_torques as feedforward_torques,
                           nominal_motion as nominal_motion)

@@ -11,6 +11,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
 from ._load import build
 from ._parts import Mechanism, MechanismError
 
@@ -248,3 +250,116 @@ def two_link_arm(*, period: float = 1.0, shoulder_amplitude: float = 0.3,
         "point_masses": {"payload": {"link": "forearm", "point": "end", "mass": payload}},
     }
     return build(spec, source="two_link_arm()")
+
+
+def _three_rrr_inverse_kinematics(centre: np.ndarray, *, base: np.ndarray, platform: np.ndarray,
+                                  proximal: float, distal: float) -> np.ndarray:
+    """Base angles (rad, from the x-axis) of a 3-RRR robot whose platform centre is at ``centre``
+    (n, 2) m with its joints at ``centre + platform[i]`` (constant orientation); ``base`` (3, 2) m
+    the base joints, ``platform`` (3, 2) m the platform joints from the centre. Elbows on the right
+    of each line base -> platform joint (clockwise from it). Returns (n, 3), unwrapped in time."""
+    to_joint = centre[:, None, :] + platform[None, :, :] - base[None, :, :]          # (n, 3, 2)
+    reach = np.hypot(to_joint[..., 0], to_joint[..., 1])
+    cos_inner = (proximal**2 + reach**2 - distal**2) / (2.0 * proximal * reach)
+    if np.any(np.abs(cos_inner) >= 1.0):
+        raise MechanismError(f"parallel_robot: legs of {proximal:.6g} m and {distal:.6g} m cannot "
+                             f"reach the platform joints at distances {reach.min():.6g} to "
+                             f"{reach.max():.6g} m from the base joints")
+    return np.unwrap(np.arctan2(to_joint[..., 1], to_joint[..., 0]) - np.arccos(cos_inner), axis=0)
+
+
+def _drive_harmonics(angles: np.ndarray, tolerance: float) -> tuple[float, list[list[float]]]:
+    """Fourier series of one period of ``angles`` (n,) rad sampled at ``t_j = j T / n``: the mean
+    and ``[k, cos_k, sin_k]`` for each ``k`` up to the last one with a coefficient above
+    ``tolerance`` (rad), coefficients rounded to 1e-13 rad so that the scene file's decimals
+    rebuild them exactly."""
+    n = angles.size
+    coefficients = np.fft.rfft(angles) / n
+    cos_k, sin_k = 2.0 * coefficients.real, -2.0 * coefficients.imag
+    significant = np.flatnonzero(np.hypot(cos_k, sin_k)[1:n // 2] > tolerance) + 1
+    if significant.size and significant[-1] >= n // 4:
+        raise MechanismError("parallel_robot: the drive angles' Fourier series does not converge "
+                             "on the sampled period (the path passes too near a singularity)")
+    last = int(significant[-1]) if significant.size else 0
+    return (round(float(coefficients[0].real), 13),
+            [[k, round(float(cos_k[k]), 13), round(float(sin_k[k]), 13)] for k in range(1, last + 1)])
+
+
+def parallel_robot(*, period: float = 0.2, base_radius: float = 0.25,
+                   platform_radius: float = 0.06, proximal: float = 0.15, distal: float = 0.15,
+                   path_radius: float = 0.03, proximal_width: float = 0.03,
+                   proximal_thickness: float = 0.005, payload: float = 0.5, n_elements: int = 2,
+                   damping_ratio: float = 0.02, gravity: tuple[float, float] = (0.0, 0.0),
+                   name: str = "parallel_robot") -> Mechanism:
+    """A 3-RRR planar parallel robot (seed Fig. 1.5) in a horizontal plane: three base joints O1, O2,
+    O3 at the corners of an equilateral triangle of circumradius ``base_radius`` (at 90, 210 and 330
+    deg), each driving an elastic proximal link (clamped to its motor, aluminium
+    ``proximal_width x proximal_thickness``, the thickness in the plane), pinned at the elbow to a
+    rigid distal bar, pinned to a rigid triangular platform (joints at ``platform_radius`` from its
+    centre, same directions as the base corners) carrying a ``payload`` (kg) at its centre.
+
+    The drives' periodic laws (``period`` s) are the closed-form inverse kinematics of the platform
+    centre going round a circle of ``path_radius`` m about the base centre, counter-clockwise,
+    starting on the +x side, with constant orientation, as Fourier series truncated at 1e-12 rad.
+    """
+    corners = np.radians([90.0, 210.0, 330.0])
+    directions = np.column_stack([np.cos(corners), np.sin(corners)])
+    base, platform_joints = base_radius * directions, platform_radius * directions
+    samples = 512
+    phase = 2.0 * math.pi * np.arange(samples) / samples
+    centre = path_radius * np.column_stack([np.cos(phase), np.sin(phase)])
+    angles = _three_rrr_inverse_kinematics(centre, base=base, platform=platform_joints,
+                                           proximal=proximal, distal=distal)
+    legs = range(1, 4)
+    drives = {}
+    for leg in legs:
+        offset, harmonics = _drive_harmonics(angles[:, leg - 1], 1e-12)
+        drives[f"O{leg}"] = {"type": "prescribed", "offset": offset, "harmonics": harmonics}
+    # The assembly at t = 0: elbows from the base angles, distal angles towards the platform joints.
+    elbows = base + proximal * np.column_stack([np.cos(angles[0]), np.sin(angles[0])])
+    ends = centre[0] + platform_joints
+    initial = {f"proximal{leg}": _angle(tuple(base[leg - 1]), tuple(elbows[leg - 1]))
+               for leg in legs}
+    initial.update({f"distal{leg}": _angle(tuple(elbows[leg - 1]), tuple(ends[leg - 1]))
+                    for leg in legs})
+    # Platform frame: origin at its centre (start), x-axis towards its joint A1 (end, at 90 deg).
+    initial["platform"] = round(float(corners[0]), 4)
+    relative = corners - corners[0]
+    points = {f"A{leg}": [round(platform_radius * math.cos(relative[leg - 1]), 15),
+                          round(platform_radius * math.sin(relative[leg - 1]), 15)] for leg in legs}
+    points["centre"] = [0.0, 0.0]
+    # Aluminium triangular plate 10 mm thick: area (3 sqrt(3) / 4) R^2, polar moment m a^2 / 12
+    # about its centroid for the side a = sqrt(3) R.
+    plate_mass = ALUMINIUM["density"] * 0.010 * 3.0 * math.sqrt(3.0) / 4.0 * platform_radius**2
+    plate_inertia = plate_mass * 3.0 * platform_radius**2 / 12.0
+    links: dict[str, Any] = {}
+    for leg in legs:
+        links[f"proximal{leg}"] = _elastic(
+            proximal, width=proximal_width, thickness=proximal_thickness, material=ALUMINIUM,
+            discretisation={"type": "fem", "n_elements": n_elements},
+            damping_ratio=damping_ratio, geometric_stiffening=True, boundary="clamped-free")
+    for leg in legs:
+        links[f"distal{leg}"] = {"type": "rigid", "length": distal, "width": 0.02,
+                                 "thickness": 0.01, "density": ALUMINIUM["density"]}
+    links["platform"] = {"type": "rigid", "length": platform_radius, "mass": plate_mass,
+                         "inertia": plate_inertia, "centroid": [0.0, 0.0], "points": points}
+    joints: dict[str, Any] = {}
+    for leg in legs:
+        joints[f"O{leg}"] = {"type": "revolute", "link_a": "ground",
+                             "point_a": [round(float(c), 15) for c in base[leg - 1]],
+                             "link_b": f"proximal{leg}", "point_b": "start"}
+        joints[f"E{leg}"] = {"type": "revolute", "link_a": f"proximal{leg}", "point_a": "end",
+                             "link_b": f"distal{leg}", "point_b": "start"}
+        joints[f"P{leg}"] = {"type": "revolute", "link_a": f"distal{leg}", "point_a": "end",
+                             "link_b": "platform", "point_b": f"A{leg}"}
+    spec = {
+        "name": name,
+        "period": period,
+        "gravity": list(gravity),
+        "initial_angles": initial,
+        "links": links,
+        "joints": joints,
+        "drives": drives,
+        "point_masses": {"payload": {"link": "platform", "point": "centre", "mass": payload}},
+    }
+    return build(spec, source="parallel_robot()")

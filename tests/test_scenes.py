@@ -20,6 +20,7 @@ BUILDERS = {
     "six_bar": lambda: mechanisms.six_bar(),
     "slider_crank": lambda: mechanisms.slider_crank(),
     "two_link_arm": lambda: mechanisms.two_link_arm(),
+    "parallel_robot": lambda: mechanisms.parallel_robot(),
 }
 
 
