@@ -89,7 +89,7 @@ def _stretch(n_steps):
     return math.tan(math.pi / n_steps) / (math.pi / n_steps)
 
 
-@pytest.mark.parametrize("method", ["local", "global"])
+@pytest.mark.parametrize("method", ["local", pytest.param("global", marks=pytest.mark.slow)])
 def test_two_frequency_minimax_local_and_global(method):
     """Forcing at 1 and 2 rad/s: the worst amplitude over the natural frequency w0 in [0.3, 2.2] has
     local minima at both bounds and its global one where both amplitudes are equal:
@@ -183,7 +183,7 @@ def test_table_is_checked_and_bad_input_named():
     for table, words in [({"bounds": {"a": [1, 2]}}, "missing objective"),
                          ({"objective": "max:x", "bounds": {"a": [1, 2]}}, "objective"),
                          ({"objective": "peak:x", "bounds": {"a": [2, 1]}}, "low < high"),
-                         ({"objective": "peak:x", "bounds": {"a": [1, 2]}, "constraints": {"mass": 1}},
+                         ({"objective": "peak:x", "bounds": {"a": [1, 2]}, "constraints": {"mass_budgets": 1}},
                           "did you mean 'mass_budget'"),
                          ({"objective": "peak:x", "bounds": {"a": [1, 2]}, "method": "newton"}, "method")]:
         with pytest.raises(studies.StudiesError, match=words):

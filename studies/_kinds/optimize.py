@@ -536,12 +536,14 @@ def _global(evaluator: _Evaluator, u0: np.ndarray, tol: float, seed: int) -> tup
     from scipy.optimize import NonlinearConstraint, differential_evolution
 
     n = u0.size
+    evaluator.mark_iterate(u0)
     constraints = ()
     if evaluator.constraints:
         constraints = (NonlinearConstraint(evaluator.constraint_vector, 0.0, np.inf),)
     try:
         found = differential_evolution(evaluator.worst, [(0.0, 1.0)] * n, constraints=constraints, tol=tol,
                                        seed=seed, polish=False, x0=u0, init="sobol",
+                                       callback=lambda xk, convergence=None: evaluator.mark_iterate(xk),
                                        maxiter=max(1, evaluator.max_evaluations // (15 * n)))
         words = f"differential evolution: {found.message}"
         start = found.x
