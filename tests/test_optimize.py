@@ -188,7 +188,7 @@ def test_table_is_checked_and_bad_input_named():
                          ({"objective": "peak:x", "bounds": {"a": [1, 2]}, "method": "newton"}, "method")]:
         with pytest.raises(studies.StudiesError, match=words):
             kind.check("studies.optimize", table, 64)
-    with pytest.raises(studies.StudiesError, match="no parameter"):
+    with pytest.raises(studies.StudiesError, match="not a parameter of problem"):
         studies.optimize(_two_speed_problem(), {"stiffness": (1.0, 2.0)}, objective="rms:x")
     with pytest.raises(studies.StudiesError, match="mass budget needs a mechanism"):
         studies.optimize(_two_speed_problem(), {"natural_frequency": (1.0, 2.0)}, objective="rms:x",
