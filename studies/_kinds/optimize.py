@@ -408,6 +408,7 @@ class _Evaluator:
         n_s = self.speeds.size
         found = _Evaluation(measure=np.empty(n_s), error=np.empty(n_s))
         radius, torque, separation = np.empty(n_s), np.zeros(n_s), np.empty(n_s)
+        speeds_given = not np.isnan(self.speeds).all()
         try:
             for i, speed in enumerate(self.speeds):
                 at = dict(values) if np.isnan(speed) else dict(values, **{SPEED: float(speed)})
@@ -416,7 +417,8 @@ class _Evaluator:
                 k = linear.observables.index(self.objective.spec)
                 found.measure[i], found.error[i] = self.objective.of(steady.response[:, k],
                                                                      steady.response_error[k])
-                found.verdicts.append((steady.status, steady.message))
+                where = f"at {speed:.4g} rad/s: " if speeds_given else ""
+                found.verdicts.append((steady.status, where + steady.message if steady.message else ""))
                 radius[i] = steady.state.spectral_radius
                 for specs in self.torque_specs.values():
                     rows = [linear.observables.index(spec) for spec in specs]
