@@ -1,6 +1,6 @@
 """Parametric studies of periodic mechanisms: steady state, sweeps, Campbell diagrams, stability
-charts, nonlinear checks, error against run time, the start-up with and without control; HDF5
-results and the ``flexvib`` command.
+charts, nonlinear checks, error against run time, the start-up with and without control, optimisation
+of design values and gains; HDF5 results and the ``flexvib`` command.
 
 Every result's ``plot(*, axes=None)`` returns a :class:`Plot` (figure, axes, artists by name). Bad
 input raises :class:`StudiesError` (a ``ValueError``); a study that cannot be computed raises a
@@ -26,6 +26,12 @@ from ._kinds.nonlinear_steady_state import NonlinearSteadyState as NonlinearStea
 from ._kinds.nonlinear_steady_state import nonlinear_steady_state as nonlinear_steady_state
 from ._kinds.nonlinear_sweep import NonlinearSweep as NonlinearSweep
 from ._kinds.nonlinear_sweep import nonlinear_sweep as nonlinear_sweep
+from ._kinds.optimize import FrequencySeparation as FrequencySeparation
+from ._kinds.optimize import MassBudget as MassBudget
+from ._kinds.optimize import OptimizeResult as OptimizeResult
+from ._kinds.optimize import StabilityMargin as StabilityMargin
+from ._kinds.optimize import TorqueLimit as TorqueLimit
+from ._kinds.optimize import optimize as optimize
 from ._kinds.stability_chart import StabilityChart as StabilityChart
 from ._kinds.stability_chart import stability_chart as stability_chart
 from ._kinds.steady_state import SteadyStateResult as SteadyStateResult
@@ -46,7 +52,7 @@ from ._store import load as load
 from ._store import open_file as open_file
 
 __all__ = [
-    "CampbellResult", "ComputationError", "ControlComparison", "control_comparison", "Description", "Estimate", "ResourceError", "ResultFileError", "StorageError", "estimate", "guard", "ErrorCostResult", "Linear", "MechanismProblem",
+    "CampbellResult", "ComputationError", "ControlComparison", "control_comparison", "FrequencySeparation", "MassBudget", "OptimizeResult", "StabilityMargin", "TorqueLimit", "optimize", "Description", "Estimate", "ResourceError", "ResultFileError", "StorageError", "estimate", "guard", "ErrorCostResult", "Linear", "MechanismProblem",
     "NonlinearCheck", "NonlinearSteadyState", "NonlinearSweep", "NonlinearRun", "PeriodicCoefficients", "PeriodicProblem", "Plot", "PointOutcome",
     "StabilityChart", "SteadyStateResult", "StudiesError", "SweepResult", "campbell", "error_cost", "load",
     "mathieu_problem", "nonlinear_check", "nonlinear_steady_state", "nonlinear_sweep", "open_file", "run_grid", "stability_chart", "steady_state", "sweep",

@@ -331,6 +331,31 @@ def _error_cost(name, problem, options, workers):
                                            f"{len(grids)} resolutions x {largest.m} coordinates")
 
 
+def _optimize(name, problem, options, workers):
+    """At most ``max_evaluations`` sweeps over the speeds, each a linearisation and a periodic solve
+    per speed (an upper bound: a speed family makes the linearisations cheaper), the map's sweeps and
+    the nonlinear check at the optimum."""
+    from ._kinds.optimize import default_evaluations
+
+    bounds = options["bounds"]
+    axes = [(path, np.array(pair, dtype=float)) for path, pair in bounds.items()]
+    sizes = _largest_sizes(problem, axes)
+    speeds = 1 if options["speeds"] is None else len(options["speeds"])
+    evaluations = options["max_evaluations"] or default_evaluations(options["method"], len(bounds))
+    sweeps = evaluations + (options["map_points"] ** 2 if len(bounds) >= 2 else 0)
+    build_bytes, build_seconds = _linearisation(options["n_steps"], sizes)
+    frozen = 32 if "frequency_separation" in options["constraints"] else 0
+    seconds = STUDY_SECONDS + sweeps * speeds * (build_seconds + _solve_seconds(options["n_steps"], sizes, frozen))
+    memory = FAMILY_DOUBLES / LINEARISATION_DOUBLES * build_bytes
+    if options["check"]:
+        check = _nonlinear_check(name, problem, {"values": {}, "n_steps": options["n_steps"],
+                                                 "n_periods": options["check_periods"], "from_rest": False,
+                                                 "max_periods_from_rest": 0}, workers)
+        seconds, memory = seconds + check.time, max(memory, check.memory)
+    return Estimate(name, memory, seconds, f"at most {sweeps} evaluations x {speeds} speeds x "
+                                           f"{options['n_steps']} steps x {sizes.m} coordinates")
+
+
 #: The cost model of each study kind, by name; a kind without one is sized as a steady state.
 _MODELS: dict[str, Callable[[str, Any, Mapping[str, Any], int], Estimate]] = {
     "steady_state": _steady_state,
@@ -342,6 +367,7 @@ _MODELS: dict[str, Callable[[str, Any, Mapping[str, Any], int], Estimate]] = {
     "nonlinear_steady_state": _nonlinear_steady_state,
     "nonlinear_sweep": _nonlinear_sweep,
     "control_comparison": _control_comparison,
+    "optimize": _optimize,
 }
 
 

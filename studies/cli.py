@@ -32,6 +32,8 @@ _MATHIEU_STUDIES = {
                         "n_steps": 64},
     "nonlinear_check": {"speed": 0.7, "n_periods": 3},
     "error_cost": {"speed": 0.7, "n_steps": [16, 32, 64, 128]},
+    "optimize": {"objective": "rms:x", "bounds": {"natural_frequency": [1.2, 2.0]}, "speeds": [1.0, 2.0],
+                 "constraints": {"stability_margin": 0.01}, "n_steps": 64},
 }
 
 

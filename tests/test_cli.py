@@ -49,7 +49,7 @@ def test_scenes_lists_mechanisms_and_the_mathieu_demo(capsys):
 def test_run_writes_every_declared_study_and_resumes(mathieu_run, monkeypatch, capsys):
     results = studies.load(mathieu_run)
     assert set(results) == {"steady_state", "sweep", "campbell", "stability_chart", "nonlinear_check",
-                            "error_cost"}
+                            "error_cost", "optimize"}
     assert all(r.done.all() for r in results.values() if hasattr(r, "done"))
     evaluated = []
     monkeypatch.setattr(_grid, "evaluate", lambda *a: evaluated.append(a) or None)
@@ -74,6 +74,7 @@ EXPECTED_LABELS = {
     "stability_chart": ["speed (rad/s)", "epsilon", "spectral radius |mu|max"],
     "nonlinear_check": ["time (s)", "x (m)"],
     "error_cost": ["run time (s)", "relative error (1)"],
+    "optimize": ["evaluation (one steady state per speed)", "rms:x (m)"],
 }
 
 

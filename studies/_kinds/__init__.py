@@ -13,8 +13,8 @@ from __future__ import annotations
 from typing import Any
 
 from .._kind import StudyKind
-from . import (campbell, control_comparison, error_cost, nonlinear_check, nonlinear_steady_state, nonlinear_sweep, stability_chart,
-               steady_state, sweep)
+from . import (campbell, control_comparison, error_cost, nonlinear_check, nonlinear_steady_state, nonlinear_sweep,
+               optimize, stability_chart, steady_state, sweep)
 
 _MODULES = (
     steady_state,
@@ -26,6 +26,7 @@ _MODULES = (
     nonlinear_sweep,
     error_cost,
     control_comparison,
+    optimize,
 )
 
 KINDS: dict[str, StudyKind] = {module.KIND.name: module.KIND for module in _MODULES}
