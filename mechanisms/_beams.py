@@ -32,6 +32,7 @@ bending would stretch the chord and over-stiffen the link (membrane locking).
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from dataclasses import dataclass
@@ -125,16 +126,11 @@ def beam_shapes(link: ElasticLink, *, attachments=None) -> BeamShapes:
         if not (isinstance(disc.n_elements, int) and disc.n_elements >= 1):
             raise MechanismError(f"link {link.name!r}: Fem.n_elements must be an integer >= 1; "
                              f"received {disc.n_elements!r}")
-        labels = tuple(f"{kind}{node}" for node, kind in _fem_kept_dofs(link, disc)[1])
-        xg, wg = np.polynomial.legendre.leggauss(4)
-        h = link.length / disc.n_elements
-        starts = h * np.arange(disc.n_elements)
-        x = (starts[:, None] + 0.5 * h * (xg + 1.0)[None, :]).ravel()
-        weights = np.tile(0.5 * h * wg, disc.n_elements)
-        shapes = BeamShapes(link, labels, (x, weights))
         if disc.modes is None:
-            return shapes
-        return _reduced(shapes, attachments)
+            return _element_model(link)
+        if attachments is None:
+            attachments = ((0.0, True), (link.length, True))
+        return _reduced(link, tuple((float(x), bool(moment)) for x, moment in attachments))
     if isinstance(disc, Ritz):
         if not (isinstance(disc.n_bending, int) and disc.n_bending >= 0
                 and isinstance(disc.n_axial, int) and disc.n_axial >= 0):
@@ -203,13 +199,26 @@ def membrane_projection(shapes: BeamShapes) -> np.ndarray | None:
     return (vt[:rank].T / sigma[:rank]) @ (u[:, :rank].T * root[None, :])
 
 
-def _reduced(element_model: BeamShapes, attachments) -> BeamShapes:
-    """The element model ``element_model`` reduced (``_reduce.reduction_basis``): its eigenmodes
-    plus the static corrections of the loads at ``attachments`` and of the frame's distributed axial
-    inertia load ``mu (a + b x)``."""
-    link = element_model.link
-    if attachments is None:
-        attachments = ((0.0, True), (link.length, True))
+def _element_model(link: ElasticLink) -> BeamShapes:
+    """The Hermite element shapes of a ``Fem`` link (unreduced): labels and 4 Gauss points per
+    element."""
+    disc = link.discretisation
+    labels = tuple(f"{kind}{node}" for node, kind in _fem_kept_dofs(link, disc)[1])
+    xg, wg = np.polynomial.legendre.leggauss(4)
+    h = link.length / disc.n_elements
+    starts = h * np.arange(disc.n_elements)
+    x = (starts[:, None] + 0.5 * h * (xg + 1.0)[None, :]).ravel()
+    weights = np.tile(0.5 * h * wg, disc.n_elements)
+    return BeamShapes(link, labels, (x, weights))
+
+
+@functools.lru_cache(maxsize=32)
+def _reduced(link: ElasticLink, attachments: tuple[tuple[float, bool], ...]) -> BeamShapes:
+    """The element model of ``link`` reduced (``_reduce.reduction_basis``): its eigenmodes plus the
+    static corrections of the loads at ``attachments`` and of the frame's distributed axial inertia
+    load ``mu (a + b x)``. Cached by the link and its attachments (a speed sweep reduces the same
+    link at every point); the basis is read-only."""
+    element_model = _element_model(link)
     modes = link.discretisation.modes
     if modes > element_model.n_elastic:
         raise MechanismError(f"link {link.name!r}: discretisation.modes must be at most the "
@@ -226,6 +235,7 @@ def _reduced(element_model: BeamShapes, attachments) -> BeamShapes:
     loads += [weights @ u, (weights * x) @ u]
     reduction = reduction_basis(mass, stiffness, kinds == "u", modes,
                                 np.array(loads).T, kinds != "r")
+    reduction.basis.setflags(write=False)
     return BeamShapes(link, reduction.labels, element_model.quadrature, reduction.basis)
 
 

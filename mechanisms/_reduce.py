@@ -76,8 +76,10 @@ def reduction_basis(mass: np.ndarray, stiffness: np.ndarray, axial: np.ndarray, 
     for block in blocks:
         if block.size == 0:
             continue
-        values, vectors = eigh(stiffness[np.ix_(block, block)], mass[np.ix_(block, block)])
-        full = np.zeros((len(axial), block.size))
+        count = min(n_modes, block.size)   # only the lowest: the rest cannot be chosen
+        values, vectors = eigh(stiffness[np.ix_(block, block)], mass[np.ix_(block, block)],
+                               subset_by_index=(0, count - 1))
+        full = np.zeros((len(axial), count))
         full[block] = vectors
         modes.append(full)
         omega2.append(values)
