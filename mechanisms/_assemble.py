@@ -57,6 +57,7 @@ from . import _batch, _kernels
 from ._batch import ConstraintTerms, LinearTerms
 from ._beams import BeamShapes, beam_matrices, beam_shapes, membrane_projection
 from ._observables import make_observable
+from ._reduce import equivalent_mass_points, equivalent_strain_points
 from ._parts import (GROUND, ArgumentError, DampingMatrix, ElasticLink, Mechanism, MechanismError, ModalDamping,
                      PrescribedDrive, Rayleigh, Revolute, RigidLink, Slider, TorqueDrive)
 
@@ -513,23 +514,23 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
         idx.extend(active.tolist())
         return len(active), pointer, index_pointer
 
-    def push_group(offset, group, projection, v, rows):
-        """Store a group of strain points (``_kernels`` eq. 4): shape rows on the group's common
-        active coordinates, then the group's block of the projection."""
-        active = np.flatnonzero(np.any(np.abs(np.vstack([v.du[group], v.dw[group], v.ddw[group]]))
-                                       > 0.0, axis=0))
+    def push_group(offset, du, dw, ddw, projection, rows):
+        """Store a group of strain points (``_kernels`` eq. 4) with shape rows ``du, dw, ddw``
+        (G, n_elastic) and projection (G, G): the rows on the group's common active coordinates,
+        then the group's projection."""
+        active = np.flatnonzero(np.any(np.abs(np.vstack([du, dw, ddw])) > 0.0, axis=0))
         index_pointer = len(idx)
         idx.extend(active.tolist())
         pointers = []
-        for g in group:
+        for g in range(len(du)):
             pointers.append(len(shp))
-            for row in (v.du[g], v.dw[g], v.ddw[g]):
+            for row in (du[g], dw[g], ddw[g]):
                 shp.extend(row[active].tolist())
         block_pointer = len(shp)
-        shp.extend(projection[np.ix_(group, group)].ravel().tolist())
+        shp.extend(projection.ravel().tolist())
         for k, pointer in enumerate(pointers):
             rows.append((offset, len(active), pointer, index_pointer,
-                         len(group) if k == 0 else 0, block_pointer))
+                         len(du) if k == 0 else 0, block_pointer))
 
     # mass points (seed eq. 2.12) and strain points (eq. 2.13, projected membrane strain)
     mp_int, mp_real, sp_int, sp_real = [], [], [], []
@@ -546,14 +547,19 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
         v = lay.shapes.evaluate(x)
         mu = link.density * link.area
         rho_i = link.density * link.second_moment if link.rotary_inertia else 0.0
-        for g in range(len(x)):
-            mp_int.append((lay.offset, *push(v.u[g], v.w[g], v.dw[g])))
-            mp_real.append((weights[g] * mu, weights[g] * rho_i, x[g], 0.0))
+        if lay.shapes.reduced:   # dense rows: fewer points with the same sums (``_reduce``)
+            points = equivalent_mass_points(x, weights, mu, rho_i, v.u, v.w, v.dw)
+            for k in range(len(points.mass)):
+                mp_int.append((lay.offset, *push(points.u[k], points.w[k], points.dw[k])))
+                mp_real.append((points.mass[k], points.inertia[k], points.cx[k], 0.0))
+        else:
+            for g in range(len(x)):
+                mp_int.append((lay.offset, *push(v.u[g], v.w[g], v.dw[g])))
+                mp_real.append((weights[g] * mu, weights[g] * rho_i, x[g], 0.0))
         m_ee, k_ee = beam_matrices(lay.shapes)
         if lay.stiffening:
             ea = link.youngs_modulus * link.area
             ei = link.youngs_modulus * link.second_moment
-            projection = v.du @ lay.membrane  # P (n_gauss, n_gauss) at the Gauss points
             beta = link.damping.beta if isinstance(link.damping, Rayleigh) else 0.0
             if isinstance(link.damping, (ModalDamping, DampingMatrix)):
                 logger.warning("link %r: %s is a constant matrix on the elastic coordinates; with "
@@ -561,9 +567,16 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
                                "shortening of a bent link, which strains nothing (use Rayleigh "
                                "beta, which acts on the membrane strain rate)", link.name,
                                type(link.damping).__name__)
-            for group in _projection_groups(projection):
-                push_group(lay.offset, group, projection, v, sp_int)
-                sp_real.extend((weights[g] * ea, weights[g] * ei, beta) for g in group)
+            if lay.shapes.reduced:
+                points = equivalent_strain_points(weights, ea, ei, v.du, v.dw, v.ddw)
+                push_group(lay.offset, points.du, points.dw, points.ddw, points.projection, sp_int)
+                sp_real.extend((a, b, beta) for a, b in zip(points.ea, points.ei))
+            else:
+                projection = v.du @ lay.membrane  # P (n_gauss, n_gauss) at the Gauss points
+                for group in _projection_groups(projection):
+                    push_group(lay.offset, v.du[group], v.dw[group], v.ddw[group],
+                               projection[np.ix_(group, group)], sp_int)
+                    sp_real.extend((weights[g] * ea, weights[g] * ei, beta) for g in group)
         else:
             k0[lay.elastic, lay.elastic] = k_ee
         c0[lay.elastic, lay.elastic] = _damping_matrix(link, m_ee, k_ee,
@@ -684,7 +697,7 @@ def _layout(mechanism):
         if isinstance(link, RigidLink):
             layouts[link.name] = LinkLayout(link, offset, 0, None, False)
             continue
-        shapes = beam_shapes(link)
+        shapes = beam_shapes(link, attachments=_attachments(mechanism, link))
         membrane = membrane_projection(shapes) if link.geometric_stiffening else None
         if link.geometric_stiffening and membrane is None:
             logger.warning("link %r: geometric stiffening needs axial coordinates to carry the "
@@ -694,6 +707,21 @@ def _layout(mechanism):
         layouts[link.name] = LinkLayout(link, offset, shapes.n_elastic, shapes,
                                         membrane is not None, membrane)
     return layouts, labels
+
+
+def _attachments(mechanism, link) -> tuple[tuple[float, bool], ...]:
+    """Where the mechanism loads ``link`` with concentrated loads, ``(x, moment)`` (m, whether a
+    moment acts: a drive at the joint, or a point mass's rotary inertia): what chooses a reduced
+    link's static correction modes (``_beams.beam_shapes``)."""
+    driven = {drive.joint for drive in mechanism.drives}
+    found = []
+    for joint in mechanism.joints:
+        for link_name, point in joint.ends:
+            if link_name == link.name:
+                found.append((link.point_position(point)[0], joint.name in driven))
+    found += [(link.point_position(pm.point)[0], pm.inertia > 0.0)
+              for pm in mechanism.point_masses if pm.link == link.name]
+    return tuple(found)
 
 
 def _projection_groups(projection: np.ndarray) -> list[np.ndarray]:

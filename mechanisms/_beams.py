@@ -13,7 +13,8 @@ their derivatives for the three discretisations (seed eq. 2.1-2.8):
 * ``Fem``: ``n_elements`` equal Hermite elements (eq. 2.5-2.8): linear axial and cubic transverse
   interpolation, three DOF per node ``(u, w, w')``, ordered node by node; removed DOF: ``u0, w0, wN``
   for pinned-pinned, ``u0, w0, w'0`` for clamped-free, and every ``u`` when the link has no axial
-  deformation.
+  deformation. With ``modes`` the element shapes times the reduction basis (``_reduce``): modal
+  coordinates ``m1 ..`` then static corrections ``c1 ..``, on the element model's quadrature.
 
 Integrals along the link use Gauss-Legendre quadrature (``BeamShapes.quadrature``): per element
 4 points for FEM, exact for the degree-6 mass integrands and for geometric stiffening too, whose
@@ -31,6 +32,7 @@ bending would stretch the chord and over-stiffen the link (membrane locking).
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from dataclasses import dataclass
@@ -39,6 +41,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ._parts import ArgumentError, ElasticLink, Fem, MechanismError, Ritz, UserShapes
+from ._reduce import reduction_basis
 
 logger = logging.getLogger(__name__)
 
@@ -64,12 +67,20 @@ class BeamShapes:
     """The discretised displacement field of one elastic link.
 
     ``labels`` name the elastic coordinates (without the link name); ``quadrature`` is
-    ``(x, weights)``, arrays (n_gauss,) in m, for integrals along the link.
+    ``(x, weights)``, arrays (n_gauss,) in m, for integrals along the link. ``basis``
+    (n_element_dofs, n_elastic): a reduced ``Fem`` link's reduction basis (``_reduce``), its shapes
+    the element shapes times it; ``None`` otherwise.
     """
 
     link: ElasticLink
     labels: tuple[str, ...]
     quadrature: tuple[np.ndarray, np.ndarray]
+    basis: np.ndarray | None = None
+
+    @property
+    def reduced(self) -> bool:
+        """The link is a modally reduced element model (``Fem(..., modes=k)``)."""
+        return self.basis is not None
 
     @property
     def n_elastic(self) -> int:
@@ -86,12 +97,22 @@ class BeamShapes:
         x = np.clip(x, 0.0, length)  # only round-off beyond the ends (checked above) is clipped
         disc = self.link.discretisation
         if isinstance(disc, Fem):
-            return _fem_values(self.link, disc, x)
+            values = _fem_values(self.link, disc, x)
+            if self.basis is None:
+                return values
+            return ShapeValues(*(getattr(values, name) @ self.basis
+                                 for name in ("u", "du", "w", "dw", "ddw")))
         return _ritz_values(self.link, x)
 
 
-def beam_shapes(link: ElasticLink) -> BeamShapes:
-    """Shape functions and quadrature of ``link``; raises ``ValueError`` on bad options."""
+def beam_shapes(link: ElasticLink, *, attachments=None) -> BeamShapes:
+    """Shape functions and quadrature of ``link``; raises ``ValueError`` on bad options.
+
+    ``attachments``: for a reduced ``Fem`` link (``modes`` given), the points where the mechanism
+    loads the link, ``(x, moment)`` pairs (abscissa in m, and whether a moment acts there: a drive),
+    which choose its static correction modes (``_reduce``); ``None``: both ends, with moments (what
+    a link pinned at its ends can carry). Other discretisations ignore it.
+    """
     if link.boundary not in _BOUNDARIES:
         raise MechanismError(f"link {link.name!r}: boundary must be one of {_BOUNDARIES}; "
                          f"received {link.boundary!r}")
@@ -105,13 +126,11 @@ def beam_shapes(link: ElasticLink) -> BeamShapes:
         if not (isinstance(disc.n_elements, int) and disc.n_elements >= 1):
             raise MechanismError(f"link {link.name!r}: Fem.n_elements must be an integer >= 1; "
                              f"received {disc.n_elements!r}")
-        labels = tuple(f"{kind}{node}" for node, kind in _fem_kept_dofs(link, disc)[1])
-        xg, wg = np.polynomial.legendre.leggauss(4)
-        h = link.length / disc.n_elements
-        starts = h * np.arange(disc.n_elements)
-        x = (starts[:, None] + 0.5 * h * (xg + 1.0)[None, :]).ravel()
-        weights = np.tile(0.5 * h * wg, disc.n_elements)
-        return BeamShapes(link, labels, (x, weights))
+        if disc.modes is None:
+            return _element_model(link)
+        if attachments is None:
+            attachments = ((0.0, True), (link.length, True))
+        return _reduced(link, tuple((float(x), bool(moment)) for x, moment in attachments))
     if isinstance(disc, Ritz):
         if not (isinstance(disc.n_bending, int) and disc.n_bending >= 0
                 and isinstance(disc.n_axial, int) and disc.n_axial >= 0):
@@ -178,6 +197,46 @@ def membrane_projection(shapes: BeamShapes) -> np.ndarray | None:
                        "values below 1e-10 of the largest); the membrane strain is projected onto "
                        "that span", shapes.link.name, n_axial, rank)
     return (vt[:rank].T / sigma[:rank]) @ (u[:, :rank].T * root[None, :])
+
+
+def _element_model(link: ElasticLink) -> BeamShapes:
+    """The Hermite element shapes of a ``Fem`` link (unreduced): labels and 4 Gauss points per
+    element."""
+    disc = link.discretisation
+    labels = tuple(f"{kind}{node}" for node, kind in _fem_kept_dofs(link, disc)[1])
+    xg, wg = np.polynomial.legendre.leggauss(4)
+    h = link.length / disc.n_elements
+    starts = h * np.arange(disc.n_elements)
+    x = (starts[:, None] + 0.5 * h * (xg + 1.0)[None, :]).ravel()
+    weights = np.tile(0.5 * h * wg, disc.n_elements)
+    return BeamShapes(link, labels, (x, weights))
+
+
+@functools.lru_cache(maxsize=32)
+def _reduced(link: ElasticLink, attachments: tuple[tuple[float, bool], ...]) -> BeamShapes:
+    """The element model of ``link`` reduced (``_reduce.reduction_basis``): its eigenmodes plus the
+    static corrections of the loads at ``attachments`` and of the frame's distributed axial inertia
+    load ``mu (a + b x)``. Cached by the link and its attachments (a speed sweep reduces the same
+    link at every point); the basis is read-only."""
+    element_model = _element_model(link)
+    modes = link.discretisation.modes
+    if modes > element_model.n_elastic:
+        raise MechanismError(f"link {link.name!r}: discretisation.modes must be at most the "
+                             f"{element_model.n_elastic} coordinates of its "
+                             f"{link.discretisation.n_elements}-element model; received {modes}")
+    mass, stiffness = beam_matrices(element_model)
+    kinds = np.array([label[0] for label in element_model.labels])
+    loads = []
+    for x, moment in attachments:
+        v = element_model.evaluate([x])
+        loads += [v.u[0], v.w[0]] + ([v.dw[0]] if moment else [])
+    x, weights = element_model.quadrature
+    u = element_model.evaluate(x).u
+    loads += [weights @ u, (weights * x) @ u]
+    reduction = reduction_basis(mass, stiffness, kinds == "u", modes,
+                                np.array(loads).T, kinds != "r")
+    reduction.basis.setflags(write=False)
+    return BeamShapes(link, reduction.labels, element_model.quadrature, reduction.basis)
 
 
 # ---------------------------------------------------------------------------------------------------

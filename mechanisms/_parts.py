@@ -167,25 +167,40 @@ class UserShapes:
 @dataclass(frozen=True)
 class Fem:
     """Hermite beam finite elements (seed eq. 2.5-2.8): ``n_elements`` equal elements, three DOF per
-    node (axial, transverse, rotation), the link's boundary conditions removed."""
+    node (axial, transverse, rotation), the link's boundary conditions removed.
+
+    ``modes`` (optional): reduce the element model to its ``modes`` lowest modes under the link's
+    boundary conditions plus the static correction modes its joints, drives and point masses and the
+    floating frame's distributed inertia load need (``mechanisms._reduce``); the cost then grows with
+    the modes, not the elements. ``None`` (the default): the full element model.
+    """
 
     n_elements: int = 1
+    modes: int | None = None
 
     TYPE: ClassVar[str] = "fem"
-    KEYS: ClassVar[tuple[str, ...]] = ("type", "n_elements")
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "n_elements", "modes")
 
     #: why the element count is bounded (``MAX_ELEMENTS``)
     LIMIT: ClassVar[str] = "each element adds 3 coordinates, and the matrices grow as their square"
 
     def __post_init__(self) -> None:
         _check_count("Fem", "n_elements", self.n_elements, 1, MAX_ELEMENTS, self.LIMIT)
+        if self.modes is not None:
+            _check_count("Fem", "modes", self.modes, 1, MAX_MODES, Ritz.LIMIT)
 
     @classmethod
     def from_table(cls, table) -> "Fem":
-        return cls(table.integer("n_elements", 1, minimum=1, maximum=MAX_ELEMENTS, why=cls.LIMIT))
+        modes = (table.integer("modes", minimum=1, maximum=MAX_MODES, why=Ritz.LIMIT)
+                 if table.has("modes") else None)
+        return cls(table.integer("n_elements", 1, minimum=1, maximum=MAX_ELEMENTS, why=cls.LIMIT),
+                   modes)
 
     def to_table(self) -> dict[str, Any]:
-        return {"type": self.TYPE, "n_elements": self.n_elements}
+        table = {"type": self.TYPE, "n_elements": self.n_elements}
+        if self.modes is not None:
+            table["modes"] = self.modes
+        return table
 
 
 Discretisation = Union[Ritz, UserShapes, Fem]

@@ -1,0 +1,225 @@
+"""Modal reduction of an elastic link's finite-element model, and the few equivalent points that
+let the kernels evaluate a reduced link at a cost set by its modes, not its elements.
+
+The reduction (``Fem(n_elements, modes=k)``) is a Ritz basis ``T`` (n_full, n) of the element model's
+kept coordinates (``_beams``: the link's boundary conditions already removed), so the reduced link's
+shape functions are ``S(x) T``: everything downstream (mass, stiffness, stiffening, damping,
+observables, linear-range measures) follows from the shapes unchanged. ``T`` holds
+
+* the ``k`` lowest eigenmodes of the element model, ``K phi = omega^2 M phi`` under the link's
+  boundary conditions (the floating frame's: chord frame for pinned-pinned, tangent frame for
+  clamped-free), axial and bending by frequency; labels ``m1 .. mk``;
+* static correction modes ``K^-1 F`` (residual flexibility, the "attachment modes" of MacNeal and
+  Rubin, the counterpart of Craig-Bampton's constraint modes in a frame that already holds the
+  link's supports): ``F`` the load vectors of the concentrated loads the link carries (each joint
+  end on the link: axial and transverse force at its point; each drive at a joint of the link: the
+  moment there; each point mass: its force, and moment with rotary inertia) and of the floating
+  frame's distributed axial inertia load ``mu (a + b x)`` (the rigid motion's acceleration along the
+  link, uniform plus linear in ``x``), whose static response no low mode carries when no axial mode
+  is among the lowest (axial modes of a slender link lie far above its bending modes). They are
+  made mass- and stiffness-orthogonal to the eigenmodes and to each other (Rayleigh-Ritz on the
+  correction space); labels ``c1 ..``.
+
+Every column is normalised to a largest nodal displacement of 1, so a coordinate is a displacement
+amplitude in metres.
+
+Equivalent points. A reduced link's shape rows are dense (every mode is nonzero along the whole
+link), so its 4 n_elements Gauss points would each cost ``n^2`` in the kernels. They are replaced by
+fewer points that give the *same* sums to round-off (``_kernels`` module docstring for the tables):
+
+* mass points: every inertia quantity is a sum over points of ``m`` times a quadratic form in the
+  point's features ``z = (1, cx, Su, Sw)``, so only the Gram matrix ``G = sum m_g z_g z_g^T``
+  matters. Factor ``G = F F^T`` (rank r) and rotate ``F`` by a Householder reflection so that its
+  first row is constant: the columns are r points of equal mass ``m_total / r`` with first feature 1.
+  Rotary inertia likewise, with features ``(1, Sw')`` and the weights ``rho I w_g``.
+* strain points: with the projected membrane strain (``_beams.membrane_projection``,
+  ``sqrt(W) Su' = U S V^T``) the strain energy is ``EA/2 sum_k c_k^2`` with
+  ``c_k = S_k V_k . q + 1/2 q^T H_k q``, ``H_k = sum_g U_gk sqrt(w_g) Sw'_g^T Sw'_g``: one strain
+  point per axial direction k whose projection row reads the eigenpairs of ``H_k`` as slope points;
+  the bending energy ``1/2 q^T K_b q`` is carried by the eigenpairs of ``K_b`` as curvature rows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import eigh
+
+#: Relative size below which an eigenvalue of a Gram matrix is round-off: dropping it changes the
+#: sums by that fraction of their largest.
+_RANK_TOL = 1e-13
+#: A static correction whose part outside the eigenmodes (and the other corrections) has less than
+#: this fraction of its mass norm squared is a dependent direction (round-off: the projection leaves
+#: ~1e-16 of the norm) and is dropped. A small but real part is kept: a point load's static shape
+#: has a kink no smooth mode carries, and even 1e-5 of it moves the frequencies (measured).
+_SPAN_TOL = 1e-20
+
+
+@dataclass(frozen=True)
+class Reduction:
+    """A reduction basis: ``basis`` (n_full, n) over the element model's kept coordinates, ``labels``
+    (n,) ``m1 ..`` eigenmodes then ``c1 ..`` static corrections, ``frequencies`` (n,) rad/s of each
+    column's Rayleigh quotient (the eigenmodes' natural frequencies)."""
+
+    basis: np.ndarray
+    labels: tuple[str, ...]
+    frequencies: np.ndarray
+
+
+def reduction_basis(mass: np.ndarray, stiffness: np.ndarray, axial: np.ndarray, n_modes: int,
+                    loads: np.ndarray, displacement_rows: np.ndarray) -> Reduction:
+    """The reduction basis of an element model with ``mass``, ``stiffness`` (n_full, n_full),
+    ``axial`` (n_full,) bool marking its axial coordinates, keeping ``n_modes`` eigenmodes plus the
+    static corrections of ``loads`` (n_full, k) load vectors; ``displacement_rows`` (n_full,) bool
+    marks the nodal displacements (``u``, ``w``) used to normalise each column."""
+    blocks = [np.flatnonzero(axial), np.flatnonzero(~axial)]
+    modes, omega2 = [], []
+    for block in blocks:
+        if block.size == 0:
+            continue
+        count = min(n_modes, block.size)   # only the lowest: the rest cannot be chosen
+        values, vectors = eigh(stiffness[np.ix_(block, block)], mass[np.ix_(block, block)],
+                               subset_by_index=(0, count - 1))
+        full = np.zeros((len(axial), count))
+        full[block] = vectors
+        modes.append(full)
+        omega2.append(values)
+    modes, omega2 = np.hstack(modes), np.concatenate(omega2)
+    lowest = np.argsort(omega2, kind="stable")[:n_modes]
+    phi = modes[:, lowest]
+    # static corrections, block by block (axial loads give axial shapes, transverse ones bending)
+    static = np.linalg.solve(stiffness, loads)
+    corrections = []
+    for block in blocks:
+        part = np.zeros_like(static)
+        part[block] = static[block]
+        corrections.append(_orthogonal_complement(part, phi, mass, stiffness))
+    psi = np.hstack(corrections)
+    basis = np.hstack([phi, psi])
+    basis = basis / np.max(np.abs(basis[displacement_rows]), axis=0)
+    labels = tuple(f"m{i + 1}" for i in range(phi.shape[1])) + tuple(
+        f"c{i + 1}" for i in range(psi.shape[1]))
+    frequencies = np.sqrt(np.einsum("ij,ij->j", basis, stiffness @ basis)
+                          / np.einsum("ij,ij->j", basis, mass @ basis))
+    return Reduction(basis, labels, frequencies)
+
+
+def _orthogonal_complement(vectors, phi, mass, stiffness):
+    """The part of span(``vectors``) mass-orthogonal to ``phi``, as Rayleigh-Ritz vectors of
+    (stiffness, mass) on it (mass- and stiffness-orthogonal), lowest first; dependent directions
+    (residual mass norm below ``sqrt(_SPAN_TOL)`` of the vector's) are dropped."""
+    vectors = vectors[:, np.linalg.norm(vectors, axis=0) > 0.0]
+    if vectors.shape[1] == 0:
+        return np.zeros((len(mass), 0))
+    vectors = vectors / np.sqrt(np.einsum("ij,ij->j", vectors, mass @ vectors))
+    modal_mass = np.einsum("ij,ij->j", phi, mass @ phi)       # phi^T M phi is diagonal
+    residual = vectors
+    for _ in range(2):   # M-orthogonal projection away from the eigenmodes, twice for round-off
+        residual = residual - phi @ ((phi.T @ mass @ residual) / modal_mass[:, None])
+    values, directions = np.linalg.eigh(residual.T @ mass @ residual)
+    keep = values > _SPAN_TOL
+    if not np.any(keep):
+        return np.zeros((len(mass), 0))
+    span = residual @ (directions[:, keep] / np.sqrt(values[keep]))   # mass-orthonormal
+    span = span - phi @ ((phi.T @ mass @ span) / modal_mass[:, None])
+    _, ritz = eigh(span.T @ stiffness @ span, span.T @ mass @ span)
+    return span @ ritz
+
+
+# ---------------------------------------------------------------------------------------------------
+# Equivalent points
+# ---------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class EquivalentMassPoints:
+    """Points with the link's inertia sums: ``mass``, ``inertia`` (p,) kg and kg m^2, ``cx`` (p,) m,
+    ``u``, ``w``, ``dw`` (p, n) shape rows (1, 1, 1/m per unit coordinate)."""
+
+    mass: np.ndarray
+    inertia: np.ndarray
+    cx: np.ndarray
+    u: np.ndarray
+    w: np.ndarray
+    dw: np.ndarray
+
+
+def equivalent_mass_points(x, weights, mu, rho_i, u, w, dw) -> EquivalentMassPoints:
+    """Equivalent mass points of a link with Gauss points ``x``, ``weights`` (g,) m, mass per length
+    ``mu`` (kg/m), rotary inertia per length ``rho_i`` (kg m), shape rows ``u, w, dw`` (g, n)."""
+    n = u.shape[1]
+    features = np.hstack([np.ones((len(x), 1)), x[:, None], u, w])
+    weight, columns = _equal_weight_factor(features, mu * weights)
+    points = EquivalentMassPoints(weight, np.zeros_like(weight), columns[1],
+                                  columns[2:2 + n].T, columns[2 + n:].T, np.zeros((len(weight), n)))
+    if rho_i == 0.0:
+        return points
+    weight, columns = _equal_weight_factor(np.hstack([np.ones((len(x), 1)), dw]), rho_i * weights)
+    zeros = np.zeros((len(weight), n))
+    return EquivalentMassPoints(np.concatenate([points.mass, np.zeros_like(weight)]),
+                                np.concatenate([points.inertia, weight]),
+                                np.concatenate([points.cx, np.zeros_like(weight)]),
+                                np.vstack([points.u, zeros]), np.vstack([points.w, zeros]),
+                                np.vstack([points.dw, columns[1:].T]))
+
+
+def _equal_weight_factor(features, weights):
+    """``(weight (r,), columns (d, r))`` with ``sum_k weight_k c_k c_k^T = sum_g weights_g z_g
+    z_g^T`` (``features`` z (g, d), first feature 1) and every column's first entry 1."""
+    gram = features.T @ (weights[:, None] * features)
+    values, vectors = np.linalg.eigh(gram)
+    keep = values > _RANK_TOL * values.max()
+    factor = vectors[:, keep] * np.sqrt(values[keep])             # gram = factor factor^T
+    first = factor[0]
+    target = np.full_like(first, np.linalg.norm(first) / np.sqrt(len(first)))
+    reflector = first - target
+    if np.linalg.norm(reflector) > 0.0:                           # Householder: first row -> target
+        factor = factor - 2.0 * np.outer(factor @ reflector, reflector) / (reflector @ reflector)
+    return target**2, factor / target[None, :]
+
+
+@dataclass(frozen=True)
+class EquivalentStrainPoints:
+    """One strain-point group (``_kernels`` eq. 4) with the link's strain energy: rows ``du``,
+    ``dw``, ``ddw`` (G, n), projection ``projection`` (G, G), weights ``ea`` and ``ei`` (G,) (the
+    quadrature weight times the rigidity, N and N m^2)."""
+
+    du: np.ndarray
+    dw: np.ndarray
+    ddw: np.ndarray
+    projection: np.ndarray
+    ea: np.ndarray
+    ei: np.ndarray
+
+
+def equivalent_strain_points(weights, ea, ei, du, dw, ddw) -> EquivalentStrainPoints:
+    """Equivalent strain points of a link with geometric stiffening: Gauss weights (g,) m, rigidities
+    ``ea`` (N), ``ei`` (N m^2), shape rows ``du, dw, ddw`` (g, n) (see the module docstring)."""
+    n = du.shape[1]
+    root = np.sqrt(weights)
+    u_svd, sigma, vt = np.linalg.svd(root[:, None] * du, full_matrices=False)
+    rank = int(np.sum(sigma > 1e-10 * sigma[0]))           # as _beams.membrane_projection
+    strain_rows = sigma[:rank, None] * vt[:rank]           # (r_a, n): c_k = row_k . q + ...
+    slope_rows, slope_blocks = [], []
+    for k in range(rank):
+        h_k = dw.T @ ((u_svd[:, k] * root)[:, None] * dw)   # H_k (n, n)
+        values, vectors = np.linalg.eigh(0.5 * (h_k + h_k.T))
+        keep = np.abs(values) > _RANK_TOL * np.abs(values).max()
+        slope_rows.append(vectors[:, keep].T)
+        slope_blocks.append(values[keep])
+    bending = ddw.T @ (weights[:, None] * ddw)
+    curvature_values, curvature_vectors = np.linalg.eigh(0.5 * (bending + bending.T))
+    keep = curvature_values > _RANK_TOL * curvature_values.max()
+    n_slopes = sum(len(block) for block in slope_blocks)
+    size = max(n_slopes, rank, int(keep.sum()), 1)
+    points = EquivalentStrainPoints(*(np.zeros((size, n)) for _ in range(3)),
+                                    np.zeros((size, size)), np.zeros(size), np.zeros(size))
+    points.du[:rank] = strain_rows
+    points.ea[:rank] = ea
+    start = 0
+    for k, (rows, block) in enumerate(zip(slope_rows, slope_blocks)):
+        points.dw[start:start + len(block)] = rows
+        points.projection[k, start:start + len(block)] = block
+        start += len(block)
+    points.ddw[:keep.sum()] = curvature_vectors[:, keep].T
+    points.ei[:keep.sum()] = ei * curvature_values[keep]
+    return points
