@@ -7,7 +7,8 @@ force-like observables are reported as *totals*, nominal plus linearised change:
 
 * a joint force or a prescribed drive's torque, ``w . lam`` (``MultiplierObservable``):
   ``w . lam0 + w . (A_x z + A_v z' + A_a z'')`` with the multiplier maps of ``linearize._core``;
-* a torque drive's torque: the nominal (inverse-dynamics) torque ``- kp h.x - kd h.x'``;
+* a torque drive's torque: the nominal (inverse-dynamics) torque plus ``dtau/ds x + dtau/ds' x'``
+  (``Model.drive_torque_terms``: PD gains, motor back EMF, controller feedback);
 * the fibre stress ``N / A -+ M c / I``: the bending part is elastic (``M = EI w''``, zero along the
   rigid nominal motion); ``N`` is ``EA eps`` (the axial coordinates' response, which carries the
   axial load of the rigid motion: the total) or, for a link without axial coordinates, the nominal
@@ -140,11 +141,15 @@ class _Context:
                                  rate=np.einsum("r,kri->ki", w, a_v),
                                  acceleration=np.einsum("r,kri->ki", w, a_a))
         if kind == "TorqueLawObservable":
-            # change -kp h.x - kd h.x', x = V z, x' = V z' + V' z
-            hV = np.einsum("n,kni->ki", obs.gradient, self.c.V)
-            hVdot = np.einsum("n,kni->ki", obs.gradient, self.c.Vdot)
+            # change dtau/ds x + dtau/ds' x', x = V z, x' = V z' + V' z (the law's derivatives
+            # along the nominal motion: gains, motor back EMF, controller feedback)
+            _, dtau_ds, dtau_dv = self.model.drive_torque_terms(obs.joint, self.t, self.s,
+                                                                self.sdot)
+            position = (np.einsum("kn,kni->ki", dtau_ds, self.c.V)
+                        + np.einsum("kn,kni->ki", dtau_dv, self.c.Vdot))
             return ObservableMap(obs.unit, nominal=self.drive_torque[:, obs.drive_index].copy(),
-                                 position=-obs.kp * hV - obs.kd * hVdot, rate=-obs.kd * hV)
+                                 position=position,
+                                 rate=np.einsum("kn,kni->ki", dtau_dv, self.c.V))
         position = self._gradient_map(obs)
         nominal = None
         if kind == "StressObservable" and obs.needs_axial_force:
