@@ -103,6 +103,17 @@ def evaluate_maps(maps: dict[str, ObservableMap], z: np.ndarray, period: float, 
     return {spec: m.evaluate(z, zdot, zddot, stride=stride) for spec, m in maps.items()}
 
 
+def torque_law_map(model, joint, t, s, sdot, coefficients, *, saturate=True):
+    """The torque law of the torque drive at ``joint`` along the nominal motion ``t, s, sdot`` and
+    its linear change in ``z``: ``(tau (N+1,), position (N+1, m), rate (N+1, m))`` with
+    ``tau + position . z + rate . z'`` the torque (``saturate=False``: the demanded torque of the
+    unsaturated law), from ``x = V z``, ``x' = V z' + V' z``."""
+    tau, dtau_ds, dtau_dv = model.drive_torque_terms(joint, t, s, sdot, saturate=saturate)
+    position = (np.einsum("kn,kni->ki", dtau_ds, coefficients.V)
+                + np.einsum("kn,kni->ki", dtau_dv, coefficients.Vdot))
+    return tau, position, np.einsum("kn,kni->ki", dtau_dv, coefficients.V)
+
+
 def needs_multiplier_maps(model, specs) -> bool:
     """Whether any spec is (or has a component that is) a sum of multipliers: only those need
     ``linear_coefficients(..., multipliers=True)``."""
@@ -143,13 +154,10 @@ class _Context:
         if kind == "TorqueLawObservable":
             # change dtau/ds x + dtau/ds' x', x = V z, x' = V z' + V' z (the law's derivatives
             # along the nominal motion: gains, motor back EMF, controller feedback)
-            _, dtau_ds, dtau_dv = self.model.drive_torque_terms(obs.joint, self.t, self.s,
-                                                                self.sdot)
-            position = (np.einsum("kn,kni->ki", dtau_ds, self.c.V)
-                        + np.einsum("kn,kni->ki", dtau_dv, self.c.Vdot))
+            _, position, rate = torque_law_map(self.model, obs.joint, self.t, self.s, self.sdot,
+                                               self.c)
             return ObservableMap(obs.unit, nominal=self.drive_torque[:, obs.drive_index].copy(),
-                                 position=position,
-                                 rate=np.einsum("kn,kni->ki", dtau_dv, self.c.V))
+                                 position=position, rate=rate)
         position = self._gradient_map(obs)
         nominal = None
         if kind == "StressObservable" and obs.needs_axial_force:

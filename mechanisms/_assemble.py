@@ -380,6 +380,15 @@ class Model:
         t, (s, sdot) = self._samples(t, {"s": s, "sdot": sdot}, (n, n))
         return self._torque_terms(infos[0], t, s, sdot, saturate=saturate)
 
+    def drive_gradient(self, joint: str) -> np.ndarray:
+        """``h`` (n,): the gradient of the driven relative angle at ``joint`` with respect to ``s``
+        (constant: the angle is linear in ``s``)."""
+        for info in self._drives:
+            if info.drive.joint == joint:
+                return info.gradient.copy()
+        raise ArgumentError(f"joint: expected a driven joint {[i.drive.joint for i in self._drives]}; "
+                            f"received {joint!r}")
+
     def _torque_terms(self, info, t, s, sdot, *, derivatives=True, saturate=True):
         """``(tau, dtau/ds, dtau/ds')`` of torque drive ``info`` along ``t`` (N,), ``s``, ``sdot``
         (N, n) (the derivatives ``None`` without ``derivatives``). The unsaturated law is
