@@ -112,6 +112,7 @@ def _crank_rate_from_rest(mechanism, n_periods, steps_per_period=200):
     return run, run.sdot @ h
 
 
+@pytest.mark.slow
 def test_dc_motor_at_full_voltage_follows_its_closed_form_speed():
     """Commanded beyond the supply voltage (nominal speed above the no-load speed at the crank),
     the motor gives ``G T_s - c theta'``: from rest ``theta' = (w0 / G) (1 - exp(-c t / J))`` with
@@ -213,6 +214,7 @@ def test_stiff_crank_feedback_reproduces_the_prescribed_speed_steady_state(contr
 # ---------------------------------------------------------------------------------------------------
 # Energy balance of a controlled nonlinear run
 # ---------------------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_motor_work_equals_the_change_of_mechanical_energy_plus_dissipation(controlled):
     """Over a nonlinear run of the controlled four-bar (motor with its rotor, PD, feedback of the
     coupler's midspan bending moment and its rate), the work of the drive torque equals the change
