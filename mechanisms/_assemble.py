@@ -140,7 +140,9 @@ class _DriveInfo:
     back_emf: float = 0.0
     command_limit: float = math.inf
     torque_limit: float = math.inf
-    feedback: tuple[_Feedback, ...] = ()
+    position_gain: np.ndarray | None = None   # P (n,): dtau/ds of the linear part of the law
+    rate_gain: np.ndarray | None = None       # D (n,): dtau/ds' of the linear part of the law
+    feedback: tuple[_Feedback, ...] = ()       # the feedbacks of observables nonlinear in s
 
 
 @dataclass(frozen=True)
@@ -303,7 +305,7 @@ class Model:
         for info in self._torque_drives:
             # tau h enters Q: its derivatives are h dtau/ds^T and h dtau/ds'^T
             _, dtau_ds, dtau_dv = self._torque_terms(info, np.array([t], dtype=float), s[None],
-                                                     sdot[None])
+                                                     sdot[None], value=False)
             d_s += np.outer(info.gradient, dtau_ds[0])
             d_v += np.outer(info.gradient, dtau_dv[0])
         return d_s, d_v
@@ -389,48 +391,51 @@ class Model:
         raise ArgumentError(f"joint: expected a driven joint {[i.drive.joint for i in self._drives]}; "
                             f"received {joint!r}")
 
-    def _torque_terms(self, info, t, s, sdot, *, derivatives=True, saturate=True):
+    def _torque_terms(self, info, t, s, sdot, *, value=True, derivatives=True, saturate=True):
         """``(tau, dtau/ds, dtau/ds')`` of torque drive ``info`` along ``t`` (N,), ``s``, ``sdot``
-        (N, n) (the derivatives ``None`` without ``derivatives``). The unsaturated law is
+        (N, n); ``tau`` is ``None`` without ``value`` (when no limit needs it) and the derivatives
+        ``None`` without ``derivatives`` (read-only arrays when they are the same at every sample).
+        The unsaturated law is
 
-            tau = ff(t) + kp (angle(t) - h.s) + kd (rate(t) - h.s') - sum (g o(s) + g_r o'(s, s'))
+            tau = ff(t) + kp angle(t) + kd rate(t) + P.s + D.s' - sum (g o(s) + g_r o'(s, s'))
 
-        (``_DriveInfo``); a motor's command ``u = tau + c h.s'`` is clipped to ``+-command_limit``
-        (the supply voltage), then ``tau`` to ``+-torque_limit``."""
-        h = info.gradient
-        angle, rate, _ = drive_law(info.drive, self.period, t)
-        crank_rate = sdot @ h
-        tau = info.kp * (angle - s @ h) + info.kd * (rate - crank_rate)
-        if info.feedforward is not None:
-            tau = tau + np.array([float(info.feedforward(tk)) for tk in t])
-        d_s = d_v = None
+        with ``P = -kp h - sum g grad o``, ``D = -kd h - sum g_r grad o`` over the observables that
+        are linear in ``s`` (``_DriveInfo.position_gain``, ``rate_gain``) and the sum over the
+        others; a motor's command ``u = tau + c h.s'`` is clipped to ``+-command_limit`` (the
+        supply voltage), then ``tau`` to ``+-torque_limit``."""
+        limited = saturate and (math.isfinite(info.command_limit) or math.isfinite(info.torque_limit))
+        value = value or limited
+        tau = d_s = d_v = None
+        if value:
+            angle, rate, _ = drive_law(info.drive, self.period, t)
+            tau = info.kp * angle + info.kd * rate + s @ info.position_gain + sdot @ info.rate_gain
+            if info.feedforward is not None:
+                tau = tau + np.array([float(info.feedforward(tk)) for tk in t])
         if derivatives:
-            d_s = np.tile(-info.kp * h, (len(t), 1))
-            d_v = np.tile(-info.kd * h, (len(t), 1))
-        for fb in info.feedback:
-            if fb.gradient is not None:
-                # linear in s: o = g.s (zero on the rigid nominal motion), o' = g.s'
-                tau = tau - fb.gain * (s @ fb.gradient) - fb.rate_gain * (sdot @ fb.gradient)
-                if derivatives:
-                    d_s -= fb.gain * fb.gradient
-                    d_v -= fb.rate_gain * fb.gradient
-                continue
+            shape = (len(t), self.n_coords)
+            d_s = np.broadcast_to(info.position_gain, shape)
+            d_v = np.broadcast_to(info.rate_gain, shape)
+            if info.feedback or limited:
+                d_s, d_v = d_s.copy(), d_v.copy()
+        for fb in info.feedback:                      # observables nonlinear in s
             for k in range(len(t)):
                 g = fb.observable.gradient(s[k])
-                tau[k] -= fb.gain * fb.observable.value(s[k]) + fb.rate_gain * (g @ sdot[k])
+                if value:
+                    tau[k] -= fb.gain * fb.observable.value(s[k]) + fb.rate_gain * (g @ sdot[k])
                 if derivatives:
                     d_s[k] -= fb.gain * g + fb.rate_gain * _hessian_times(fb.observable, s[k],
                                                                           sdot[k])
                     d_v[k] -= fb.rate_gain * g
-        if not saturate:
+        if not limited:
             return tau, d_s, d_v
         if math.isfinite(info.command_limit):
-            command = tau + info.back_emf * crank_rate
+            back_emf = info.back_emf * (sdot @ info.gradient)
+            command = tau + back_emf
             clipped = np.abs(command) > info.command_limit
-            tau = np.clip(command, -info.command_limit, info.command_limit) - info.back_emf * crank_rate
+            tau = np.clip(command, -info.command_limit, info.command_limit) - back_emf
             if derivatives and clipped.any():
                 d_s[clipped] = 0.0
-                d_v[clipped] = -info.back_emf * h
+                d_v[clipped] = -info.back_emf * info.gradient
         if math.isfinite(info.torque_limit):
             clipped = np.abs(tau) > info.torque_limit
             tau = np.clip(tau, -info.torque_limit, info.torque_limit)
@@ -541,20 +546,29 @@ class Model:
             if info.row >= 0:
                 infos.append(info)
                 continue
-            kp, kd, feedback = drive.kp, drive.kd, []
+            motor = drive.motor
+            back_emf = motor.back_emf_damping if motor is not None else 0.0
+            kp, kd, nonlinear = drive.kp, drive.kd + back_emf, []
+            feedbacks = []
             for controller in self.mechanism.controllers:
                 if controller.joint != drive.joint:
                     continue
                 if isinstance(controller, PDController):
                     kp, kd = kp + controller.kp, kd + controller.kd
                 elif isinstance(controller, ObservableFeedback):
-                    feedback.append(self._feedback(controller))
-            motor = drive.motor
-            back_emf = motor.back_emf_damping if motor is not None else 0.0
+                    feedbacks.append(self._feedback(controller))
+            position_gain, rate_gain = -kp * info.gradient, -kd * info.gradient
+            for fb in feedbacks:
+                if fb.gradient is None:
+                    nonlinear.append(fb)
+                else:   # o = g.s (zero on the rigid nominal motion), o' = g.s'
+                    position_gain = position_gain - fb.gain * fb.gradient
+                    rate_gain = rate_gain - fb.rate_gain * fb.gradient
             infos.append(dataclasses.replace(
-                info, kp=float(kp), kd=float(kd + back_emf), back_emf=float(back_emf),
+                info, kp=float(kp), kd=float(kd), back_emf=float(back_emf),
                 command_limit=motor.peak_command if motor is not None else math.inf,
-                torque_limit=float(drive.torque_limit), feedback=tuple(feedback)))
+                torque_limit=float(drive.torque_limit), position_gain=position_gain,
+                rate_gain=rate_gain, feedback=tuple(nonlinear)))
         self._drives = tuple(infos)
         self._torque_drives = tuple(d for d in infos if d.row < 0)
 
