@@ -10,6 +10,7 @@ from ._about import (LinearizedMechanism as LinearizedMechanism, SpeedFamily as 
 from ._geometric import geometric_stiffness as geometric_stiffness
 from ._observe import ObservableMap as ObservableMap
 from ._range import (LINEAR_RANGE_LIMITS as LINEAR_RANGE_LIMITS, LinearRange as LinearRange,
+                     DriveRange as DriveRange,
                      LinkRange as LinkRange)
 from ._reduction import (REDUCTION_TOL as REDUCTION_TOL, ReductionError as ReductionError,
                          reduction_error as reduction_error)

@@ -20,7 +20,7 @@ from ._core import (WARN_CONDITION, LinearCoefficients, LinearizationError, choo
                     interpolate_periodic, linear_coefficients, spectral_tail)
 from ._geometric import axial_forces, geometric_stiffness
 from ._observe import ObservableMap, evaluate_maps, needs_multiplier_maps, observable_maps
-from ._range import LinearRange, link_probes, linear_range, sample_abscissae
+from ._range import LinearRange, drive_probes, link_probes, linear_range, sample_abscissae
 
 logger = logging.getLogger(__name__)
 
@@ -271,7 +271,8 @@ def _range_probes(model, nominal, coeffs) -> tuple:
     """The ``LinearizedMechanism.range_probes`` of a linearisation about ``nominal``."""
     axial = _nominal_axial_forces(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot,
                                   _multipliers_of(model, nominal), stride=coeffs.stride)
-    return link_probes(model, coeffs.independent, axial)
+    return link_probes(model, coeffs.independent, axial) + drive_probes(
+        model, nominal.t, nominal.s, nominal.sdot, coeffs, nominal.period)
 
 
 def _nominal_axial_forces(model, t, s, sdot, sddot, lam, *, stride=1):
@@ -435,7 +436,7 @@ class SpeedFamily:
         return maps
 
     def _range_probes(self, rate: float) -> tuple:
-        return tuple(probe if probe.axial is None else dataclasses.replace(
+        return tuple(probe if getattr(probe, "axial", None) is None else dataclasses.replace(
             probe, axial=self.axial0[probe.link.name] + rate**2 * self.axial2[probe.link.name])
             for probe in self.base.range_probes)
 

@@ -7,7 +7,8 @@ force-like observables are reported as *totals*, nominal plus linearised change:
 
 * a joint force or a prescribed drive's torque, ``w . lam`` (``MultiplierObservable``):
   ``w . lam0 + w . (A_x z + A_v z' + A_a z'')`` with the multiplier maps of ``linearize._core``;
-* a torque drive's torque: the nominal (inverse-dynamics) torque ``- kp h.x - kd h.x'``;
+* a torque drive's torque: the nominal (inverse-dynamics) torque plus ``dtau/ds x + dtau/ds' x'``
+  (``Model.drive_torque_terms``: PD gains, motor back EMF, controller feedback);
 * the fibre stress ``N / A -+ M c / I``: the bending part is elastic (``M = EI w''``, zero along the
   rigid nominal motion); ``N`` is ``EA eps`` (the axial coordinates' response, which carries the
   axial load of the rigid motion: the total) or, for a link without axial coordinates, the nominal
@@ -102,6 +103,17 @@ def evaluate_maps(maps: dict[str, ObservableMap], z: np.ndarray, period: float, 
     return {spec: m.evaluate(z, zdot, zddot, stride=stride) for spec, m in maps.items()}
 
 
+def torque_law_map(model, joint, t, s, sdot, coefficients, *, saturate=True):
+    """The torque law of the torque drive at ``joint`` along the nominal motion ``t, s, sdot`` and
+    its linear change in ``z``: ``(tau (N+1,), position (N+1, m), rate (N+1, m))`` with
+    ``tau + position . z + rate . z'`` the torque (``saturate=False``: the demanded torque of the
+    unsaturated law), from ``x = V z``, ``x' = V z' + V' z``."""
+    tau, dtau_ds, dtau_dv = model.drive_torque_terms(joint, t, s, sdot, saturate=saturate)
+    position = (np.einsum("kn,kni->ki", dtau_ds, coefficients.V)
+                + np.einsum("kn,kni->ki", dtau_dv, coefficients.Vdot))
+    return tau, position, np.einsum("kn,kni->ki", dtau_dv, coefficients.V)
+
+
 def needs_multiplier_maps(model, specs) -> bool:
     """Whether any spec is (or has a component that is) a sum of multipliers: only those need
     ``linear_coefficients(..., multipliers=True)``."""
@@ -140,11 +152,12 @@ class _Context:
                                  rate=np.einsum("r,kri->ki", w, a_v),
                                  acceleration=np.einsum("r,kri->ki", w, a_a))
         if kind == "TorqueLawObservable":
-            # change -kp h.x - kd h.x', x = V z, x' = V z' + V' z
-            hV = np.einsum("n,kni->ki", obs.gradient, self.c.V)
-            hVdot = np.einsum("n,kni->ki", obs.gradient, self.c.Vdot)
+            # change dtau/ds x + dtau/ds' x', x = V z, x' = V z' + V' z (the law's derivatives
+            # along the nominal motion: gains, motor back EMF, controller feedback)
+            _, position, rate = torque_law_map(self.model, obs.joint, self.t, self.s, self.sdot,
+                                               self.c)
             return ObservableMap(obs.unit, nominal=self.drive_torque[:, obs.drive_index].copy(),
-                                 position=-obs.kp * hV - obs.kd * hVdot, rate=-obs.kd * hV)
+                                 position=position, rate=rate)
         position = self._gradient_map(obs)
         nominal = None
         if kind == "StressObservable" and obs.needs_axial_force:

@@ -7,6 +7,11 @@ in the link's frame over its length and over its section height, the peak slope 
 peak compressive axial force of the nominal motion over the link's Euler load, and the peak bending
 stress ``E h |w''| / 2`` (``M c / I`` with ``M = E I w''``, ``c = h / 2``) over the yield strength.
 The thresholds are ``LINEAR_RANGE_LIMITS`` (docs/methods.md gives their reasons).
+
+Per torque drive with a torque limit or a motor: the peak torque the unsaturated law demands
+along the solution against ``torque_limit``, and the motor's peak command (torque plus back EMF,
+``tau + c theta'``) against the supply voltage's ``G stall_torque``: beyond either the drive
+saturates, which the linearisation (of the unsaturated law) does not see.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ import numpy as np
 
 import mechanisms
 
-__all__ = ["LINEAR_RANGE_LIMITS", "LinkRange", "LinearRange"]
+__all__ = ["LINEAR_RANGE_LIMITS", "LinkRange", "LinearRange", "DriveRange"]
 
 # The thresholds beyond which a solution is ``outside_linear_range`` (docs/methods.md, linearize).
 LINEAR_RANGE_LIMITS = MappingProxyType({
@@ -84,14 +89,40 @@ class LinkRange:
 
 
 @dataclass(frozen=True)
+class DriveRange:
+    """The saturation measures of one torque drive over one period (N m): the peak demanded
+    torque (unsaturated law) against ``torque_limit`` and the motor's peak command ``|tau + c
+    theta'|`` against ``command_limit = G stall_torque`` (``inf`` where there is no such limit)."""
+
+    joint: str
+    peak_demanded_torque: float
+    torque_limit: float
+    peak_command: float
+    command_limit: float
+
+    def exceeded(self) -> list[str]:
+        found = []
+        if self.peak_demanded_torque > self.torque_limit:
+            found.append(f"drive {self.joint!r}: peak demanded torque {self.peak_demanded_torque:.4g} "
+                         f"N m > torque_limit {self.torque_limit:.4g} N m (the drive saturates)")
+        if self.peak_command > self.command_limit:
+            found.append(f"drive {self.joint!r}: peak motor command {self.peak_command:.4g} N m > "
+                         f"G stall_torque {self.command_limit:.4g} N m (the supply voltage "
+                         f"saturates)")
+        return found
+
+
+@dataclass(frozen=True)
 class LinearRange:
-    """``links``: one ``LinkRange`` per elastic link; ``status``: ``"ok"`` or
-    ``"outside_linear_range"``; ``message``: each measure above its threshold (link, measure,
-    value, threshold), or that all are within."""
+    """``links``: one ``LinkRange`` per elastic link; ``drives``: one ``DriveRange`` per torque
+    drive with a torque limit or a motor; ``status``: ``"ok"`` or ``"outside_linear_range"``;
+    ``message``: each measure above its threshold (link or drive, measure, value, threshold), or
+    that all are within."""
 
     links: tuple[LinkRange, ...]
     status: str
     message: str
+    drives: tuple[DriveRange, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -129,6 +160,63 @@ class _LinkProbe:
                          peak_stress_over_yield=float(stress), stiffened=self.stiffened)
 
 
+@dataclass(frozen=True)
+class _DriveProbe:
+    """What the saturation measures of one torque drive need: the unsaturated torque along the
+    nominal motion ``tau`` (N+1,) and its gains on ``z``, ``z'`` (N+1, m); the crank rate
+    ``rate`` (N+1,) and its gains ``rate_position``, ``rate_rate`` (N+1, m); the motor's back-EMF
+    damping ``back_emf`` (N m s/rad) and the limits (N m); ``period`` (s) for ``z'``."""
+
+    joint: str
+    tau: np.ndarray
+    position: np.ndarray
+    rate_gain: np.ndarray
+    rate: np.ndarray
+    rate_position: np.ndarray
+    rate_rate: np.ndarray
+    back_emf: float
+    torque_limit: float
+    command_limit: float
+    period: float
+
+    def measures(self, z: np.ndarray) -> DriveRange:
+        from ._core import spectral_derivatives
+
+        zdot = spectral_derivatives(z, self.period)[0]
+        tau = self.tau + np.einsum("ki,ki->k", self.position, z) + np.einsum(
+            "ki,ki->k", self.rate_gain, zdot)
+        rate = self.rate + np.einsum("ki,ki->k", self.rate_position, z) + np.einsum(
+            "ki,ki->k", self.rate_rate, zdot)
+        return DriveRange(self.joint, float(np.abs(tau).max()), self.torque_limit,
+                          float(np.abs(tau + self.back_emf * rate).max()), self.command_limit)
+
+
+def drive_probes(model, t, s, sdot, coefficients, period) -> tuple[_DriveProbe, ...]:
+    """One ``_DriveProbe`` per torque drive of ``model`` (with feedforward) that has a torque
+    limit or a motor, along the nominal motion ``t, s, sdot``."""
+    from ._observe import torque_law_map
+
+    probes = []
+    for drive in model.mechanism.drives:
+        if not isinstance(drive, mechanisms.TorqueDrive):
+            continue
+        motor = drive.motor
+        if motor is None and not math.isfinite(drive.torque_limit):
+            continue
+        tau, position, rate_gain = torque_law_map(model, drive.joint, t, s, sdot, coefficients,
+                                                  saturate=False)
+        h = model.drive_gradient(drive.joint)
+        probes.append(_DriveProbe(
+            joint=drive.joint, tau=tau, position=position, rate_gain=rate_gain, rate=sdot @ h,
+            rate_position=np.einsum("n,kni->ki", h, coefficients.Vdot),
+            rate_rate=np.einsum("n,kni->ki", h, coefficients.V),
+            back_emf=motor.back_emf_damping if motor is not None else 0.0,
+            torque_limit=float(drive.torque_limit),
+            command_limit=motor.peak_command if motor is not None else math.inf,
+            period=float(period)))
+    return tuple(probes)
+
+
 def sample_abscissae(link) -> np.ndarray:
     """Abscissae (m) where the measures look: ``4 n + 1`` evenly spaced for ``n`` Hermite elements
     (the nodes among them), 33 otherwise, each interior one also just to its left (the curvature of
@@ -163,13 +251,14 @@ def linear_range(probes, z: np.ndarray) -> LinearRange:
         raise mechanisms.ArgumentError(
             f"z: expected a finite history of the independent coordinates; received "
             f"{int((~np.isfinite(z)).sum())} non-finite entries of {z.size}")
-    links = tuple(probe.measures(z) for probe in probes)
-    exceeded = [text for link in links for text in link.exceeded()]
+    links = tuple(probe.measures(z) for probe in probes if isinstance(probe, _LinkProbe))
+    drives = tuple(probe.measures(z) for probe in probes if isinstance(probe, _DriveProbe))
+    exceeded = [text for part in links + drives for text in part.exceeded()]
     # a measure that could not be computed is said, never passed over as within its limit
     unknown = [f"link {link.link!r}: compression not computed (a joint is not a point force)"
                for link in links if np.isnan(link.peak_compression_over_euler)]
     if exceeded:
         return LinearRange(links, "outside_linear_range",
-                           "outside the linear range: " + "; ".join(exceeded + unknown))
+                           "outside the linear range: " + "; ".join(exceeded + unknown), drives)
     return LinearRange(links, "ok", "; ".join(["every computed measure within the linear range"] + unknown)
-                       if unknown else "every elastic link within the linear range")
+                       if unknown else "every elastic link within the linear range", drives)

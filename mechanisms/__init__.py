@@ -1,6 +1,8 @@
 """Planar mechanisms with elastic links in redundant generalized coordinates."""
 
 from ._parts import (GROUND as GROUND, DampingMatrix as DampingMatrix, ElasticLink as ElasticLink,
+                     CONTROLLER_TYPES as CONTROLLER_TYPES, DCMotor as DCMotor,
+                     ObservableFeedback as ObservableFeedback, PDController as PDController,
                      Fem as Fem, Mechanism as Mechanism, ModalDamping as ModalDamping,
                      PointMass as PointMass, PrescribedDrive as PrescribedDrive,
                      Rayleigh as Rayleigh, Revolute as Revolute, RigidLink as RigidLink, Ritz as Ritz,

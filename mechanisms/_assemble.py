@@ -43,11 +43,12 @@ torque drive adds ``tau h`` to ``Q`` with ``h`` the gradient of that relative an
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Callable, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 from scipy.linalg import eigh
@@ -59,7 +60,8 @@ from ._beams import BeamShapes, beam_matrices, beam_shapes, membrane_projection
 from ._observables import make_observable
 from ._reduce import equivalent_mass_points, equivalent_strain_points
 from ._parts import (GROUND, ArgumentError, DampingMatrix, ElasticLink, Mechanism, MechanismError, ModalDamping,
-                     PrescribedDrive, Rayleigh, Revolute, RigidLink, Slider, TorqueDrive)
+                     ObservableFeedback, PDController, PrescribedDrive, Rayleigh, Revolute, RigidLink,
+                     Slider, TorqueDrive)
 
 logger = logging.getLogger(__name__)
 
@@ -111,11 +113,37 @@ class _Tables:
 
 
 @dataclass(frozen=True)
+class _Feedback:
+    """An ``ObservableFeedback`` at a torque drive: the observable (``make_observable``), its gains,
+    and its constant gradient (n,) when it is linear in ``s`` (else ``None``: evaluated per
+    sample)."""
+
+    observable: Any
+    gain: float
+    rate_gain: float
+    gradient: np.ndarray | None
+
+
+@dataclass(frozen=True)
 class _DriveInfo:
+    """A drive in the model. A torque drive's law (``Model.drive_torque_terms``): ``kp``, ``kd``
+    the total gains on the driven angle's deviation (the drive's own, its PD controllers' and, in
+    ``kd``, the motor's back-EMF damping ``back_emf``), ``feedback`` its observable feedbacks,
+    ``command_limit`` the motor's largest command ``G stall_torque`` (inf without a motor),
+    ``torque_limit`` (N m, inf without one)."""
+
     drive: PrescribedDrive | TorqueDrive
     gradient: np.ndarray        # h (n,): d(relative material angle)/ds
     row: int                    # constraint row of a prescribed drive, -1 for a torque drive
     feedforward: Callable | None
+    kp: float = 0.0
+    kd: float = 0.0
+    back_emf: float = 0.0
+    command_limit: float = math.inf
+    torque_limit: float = math.inf
+    position_gain: np.ndarray | None = None   # P (n,): dtau/ds of the linear part of the law
+    rate_gain: np.ndarray | None = None       # D (n,): dtau/ds' of the linear part of the law
+    feedback: tuple[_Feedback, ...] = ()       # the feedbacks of observables nonlinear in s
 
 
 @dataclass(frozen=True)
@@ -221,7 +249,9 @@ class Model:
         _kernels.forces(s, sdot, self._gx, self._gy, tb.mp_int, tb.mp_real, tb.sp_int,
                         tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, out)
         for info in self._torque_drives:
-            out += self._torque(info, s, sdot, t) * info.gradient
+            tau, _, _ = self._torque_terms(info, np.array([t], dtype=float), s[None], sdot[None],
+                                           derivatives=False)
+            out += tau[0] * info.gradient
         return out
 
     def constraints(self, s, t):
@@ -274,9 +304,11 @@ class Model:
         _kernels.force_jacobians(s, sdot, self._gx, self._gy, tb.mp_int, tb.mp_real, tb.sp_int,
                                  tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, d_s, d_v)
         for info in self._torque_drives:
-            hh = np.outer(info.gradient, info.gradient)
-            d_s -= info.drive.kp * hh
-            d_v -= info.drive.kd * hh
+            # tau h enters Q: its derivatives are h dtau/ds^T and h dtau/ds'^T
+            _, dtau_ds, dtau_dv = self._torque_terms(info, np.array([t], dtype=float), s[None],
+                                                     sdot[None], value=False)
+            d_s += np.outer(info.gradient, dtau_ds[0])
+            d_v += np.outer(info.gradient, dtau_dv[0])
         return d_s, d_v
 
     def constraint_force_jacobian(self, s, lam, t):
@@ -326,8 +358,9 @@ class Model:
             raise ArgumentError("lam is required: the torque of a prescribed drive is its multiplier")
         if lam is not None:
             lam = self._vector(lam, self.n_constraints, "lam")
-        return np.array([-lam[info.row] if info.row >= 0 else self._torque(info, s, sdot, t)
-                         for info in self._drives])
+        return np.array([-lam[info.row] if info.row >= 0 else self._torque_terms(
+            info, np.array([t], dtype=float), s[None], sdot[None], derivatives=False)[0][0]
+            for info in self._drives])
 
     def drive_power(self, s, sdot, t, lam=None) -> float:
         """Power the drives put in, ``sum tau_i * (relative angle rate)_i`` (W)."""
@@ -335,13 +368,82 @@ class Model:
         sdot = self._vector(sdot, self.n_coords, "sdot")
         return float(sum(tau * (info.gradient @ sdot) for tau, info in zip(torques, self._drives)))
 
-    def _torque(self, info, s, sdot, t):
-        drive = info.drive
-        angle, rate, _ = drive_law(drive, self.period, t)
-        tau = drive.kp * (angle - info.gradient @ s) + drive.kd * (rate - info.gradient @ sdot)
-        if info.feedforward is not None:
-            tau += float(info.feedforward(t))
-        return tau
+    def drive_torque_terms(self, joint: str, t, s, sdot, *, saturate: bool = True
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The torque (N m) of the torque drive at ``joint`` along the samples ``t`` (N,), ``s``,
+        ``sdot`` (N, n), with its derivatives: ``(tau (N,), dtau/ds (N, n), dtau/ds' (N, n))``.
+        ``saturate=False`` gives the demanded torque of the unsaturated law (docs/scenes.md,
+        torque drives and controllers)."""
+        infos = [info for info in self._torque_drives if info.drive.joint == joint]
+        if not infos:
+            raise ArgumentError(f"joint: expected a joint with a torque drive "
+                                f"{[i.drive.joint for i in self._torque_drives]}; received "
+                                f"{joint!r}")
+        n = self.n_coords
+        t, (s, sdot) = self._samples(t, {"s": s, "sdot": sdot}, (n, n))
+        return self._torque_terms(infos[0], t, s, sdot, saturate=saturate)
+
+    def drive_gradient(self, joint: str) -> np.ndarray:
+        """``h`` (n,): the gradient of the driven relative angle at ``joint`` with respect to ``s``
+        (constant: the angle is linear in ``s``)."""
+        for info in self._drives:
+            if info.drive.joint == joint:
+                return info.gradient.copy()
+        raise ArgumentError(f"joint: expected a driven joint {[i.drive.joint for i in self._drives]}; "
+                            f"received {joint!r}")
+
+    def _torque_terms(self, info, t, s, sdot, *, value=True, derivatives=True, saturate=True):
+        """``(tau, dtau/ds, dtau/ds')`` of torque drive ``info`` along ``t`` (N,), ``s``, ``sdot``
+        (N, n); ``tau`` is ``None`` without ``value`` (when no limit needs it) and the derivatives
+        ``None`` without ``derivatives`` (read-only arrays when they are the same at every sample).
+        The unsaturated law is
+
+            tau = ff(t) + kp angle(t) + kd rate(t) + P.s + D.s' - sum (g o(s) + g_r o'(s, s'))
+
+        with ``P = -kp h - sum g grad o``, ``D = -kd h - sum g_r grad o`` over the observables that
+        are linear in ``s`` (``_DriveInfo.position_gain``, ``rate_gain``) and the sum over the
+        others; a motor's command ``u = tau + c h.s'`` is clipped to ``+-command_limit`` (the
+        supply voltage), then ``tau`` to ``+-torque_limit``."""
+        limited = saturate and (math.isfinite(info.command_limit) or math.isfinite(info.torque_limit))
+        value = value or limited
+        tau = d_s = d_v = None
+        if value:
+            angle, rate, _ = drive_law(info.drive, self.period, t)
+            tau = info.kp * angle + info.kd * rate + s @ info.position_gain + sdot @ info.rate_gain
+            if info.feedforward is not None:
+                tau = tau + np.array([float(info.feedforward(tk)) for tk in t])
+        if derivatives:
+            shape = (len(t), self.n_coords)
+            d_s = np.broadcast_to(info.position_gain, shape)
+            d_v = np.broadcast_to(info.rate_gain, shape)
+            if info.feedback or limited:
+                d_s, d_v = d_s.copy(), d_v.copy()
+        for fb in info.feedback:                      # observables nonlinear in s
+            for k in range(len(t)):
+                g = fb.observable.gradient(s[k])
+                if value:
+                    tau[k] -= fb.gain * fb.observable.value(s[k]) + fb.rate_gain * (g @ sdot[k])
+                if derivatives:
+                    d_s[k] -= fb.gain * g + fb.rate_gain * _hessian_times(fb.observable, s[k],
+                                                                          sdot[k])
+                    d_v[k] -= fb.rate_gain * g
+        if not limited:
+            return tau, d_s, d_v
+        if math.isfinite(info.command_limit):
+            back_emf = info.back_emf * (sdot @ info.gradient)
+            command = tau + back_emf
+            clipped = np.abs(command) > info.command_limit
+            tau = np.clip(command, -info.command_limit, info.command_limit) - back_emf
+            if derivatives and clipped.any():
+                d_s[clipped] = 0.0
+                d_v[clipped] = -info.back_emf * info.gradient
+        if math.isfinite(info.torque_limit):
+            clipped = np.abs(tau) > info.torque_limit
+            tau = np.clip(tau, -info.torque_limit, info.torque_limit)
+            if derivatives and clipped.any():
+                d_s[clipped] = 0.0
+                d_v[clipped] = 0.0
+        return tau, d_s, d_v
 
     # --- along a sampled motion: one numba call per quantity ----------------------------------
     def _samples(self, t, arrays, widths):
@@ -375,11 +477,11 @@ class Model:
                                    tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, tb.ct_int,
                                    tb.ct_real, tb.h_lin, M, D, K, R, J)
         for info in self._torque_drives:
-            # tau h enters Q; its derivatives are -kp h h^T (positions) and -kd h h^T (rates).
-            hh = np.outer(info.gradient, info.gradient)
-            R -= self._torques_along(info, t, s, sdot)[:, None] * info.gradient
-            K += info.drive.kp * hh
-            D += info.drive.kd * hh
+            # tau h enters Q: K = -dQ/ds gets -h dtau/ds^T, D = -dQ/ds' gets -h dtau/ds'^T
+            tau, dtau_ds, dtau_dv = self._torque_terms(info, t, s, sdot)
+            R -= tau[:, None] * info.gradient
+            K -= np.einsum("i,kj->kij", info.gradient, dtau_ds)
+            D -= np.einsum("i,kj->kij", info.gradient, dtau_dv)
         return LinearTerms(mass=M, damping=D, stiffness=K, residual=R, jacobian=J)
 
     def inertia_residual_along(self, t, s, sdot, sddot) -> np.ndarray:
@@ -392,7 +494,8 @@ class Model:
         _batch.inertia_residual_kernel(s, sdot, sddot, self._gx, self._gy, tb.mp_int, tb.mp_real,
                                        tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, out)
         for info in self._torque_drives:
-            out -= self._torques_along(info, t, s, sdot)[:, None] * info.gradient
+            tau, _, _ = self._torque_terms(info, t, s, sdot, derivatives=False)
+            out -= tau[:, None] * info.gradient
         return out
 
     def constraint_terms_along(self, t, s, sdot=None, *, values: bool = False) -> ConstraintTerms:
@@ -435,9 +538,60 @@ class Model:
             tb.ct_real, tb.shp, tb.idx, newton_stop, max_correction,
             np.ascontiguousarray(column_scale, dtype=np.float64), 8)
 
-    def _torques_along(self, info, t, s, sdot):
-        """The torque (N m) of torque drive ``info`` at each sample (N,)."""
-        return np.array([self._torque(info, s[k], sdot[k], t[k]) for k in range(len(t))])
+    def _attach_controllers(self) -> None:
+        """Fold the mechanism's controllers and motors into the torque drives' laws (they need
+        the assembled model for the observables' gradients)."""
+        infos = []
+        for info in self._drives:
+            drive = info.drive
+            if info.row >= 0:
+                infos.append(info)
+                continue
+            motor = drive.motor
+            back_emf = motor.back_emf_damping if motor is not None else 0.0
+            kp, kd, nonlinear = drive.kp, drive.kd + back_emf, []
+            feedbacks = []
+            for controller in self.mechanism.controllers:
+                if controller.joint != drive.joint:
+                    continue
+                if isinstance(controller, PDController):
+                    kp, kd = kp + controller.kp, kd + controller.kd
+                elif isinstance(controller, ObservableFeedback):
+                    feedbacks.append(self._feedback(controller))
+            position_gain, rate_gain = -kp * info.gradient, -kd * info.gradient
+            for fb in feedbacks:
+                if fb.gradient is None:
+                    nonlinear.append(fb)
+                else:   # o = g.s (zero on the rigid nominal motion), o' = g.s'
+                    position_gain = position_gain - fb.gain * fb.gradient
+                    rate_gain = rate_gain - fb.rate_gain * fb.gradient
+            infos.append(dataclasses.replace(
+                info, kp=float(kp), kd=float(kd), back_emf=float(back_emf),
+                command_limit=motor.peak_command if motor is not None else math.inf,
+                torque_limit=float(drive.torque_limit), position_gain=position_gain,
+                rate_gain=rate_gain, feedback=tuple(nonlinear)))
+        self._drives = tuple(infos)
+        self._torque_drives = tuple(d for d in infos if d.row < 0)
+
+    def _feedback(self, controller: ObservableFeedback) -> _Feedback:
+        owner = f"controller {controller.name!r}: observable {controller.observable!r}"
+        try:
+            observable = make_observable(self, controller.observable)
+        except ArgumentError as error:
+            raise MechanismError(f"{owner}: {error}") from None
+        if not getattr(observable, "depends_on_elastic_only", False) or getattr(
+                observable, "kind", "") == "angle":
+            raise MechanismError(f"{owner}: expected a quantity of the elastic coordinates alone "
+                                 f"(deflection, transverse, strain, moment of a link), zero on "
+                                 f"the rigid motion; received one that is not (a link angle: use "
+                                 f"a PD controller)")
+        # linear in s when the gradient is the same at rest and at a random deformed state
+        rest = observable.gradient(np.zeros(self.n_coords))
+        probe = np.random.default_rng(0).normal(scale=1e-3, size=self.n_coords)
+        linear = np.allclose(observable.gradient(probe), rest, rtol=1e-12,
+                             atol=1e-12 * max(np.abs(rest).max(), 1e-300))
+        return _Feedback(observable, float(controller.gain), float(controller.rate_gain),
+                         rest if linear else None)
 
     # --- joints and observables ----------------------------------------------------------------
     def joint_rows(self, name: str) -> JointRows:
@@ -653,6 +807,15 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
             *_, dw = _point_local(lay, point)
             gradient[lay.offset + 2] += sign
             gradient[lay.elastic] += sign * dw
+        if drive.inertia > 0.0:
+            # rotor and flywheel: a rotary inertia turning with link_b (the driven side) about
+            # the joint, a mass point of no mass (exact when link_a is the ground)
+            side, point = ((joint.link_b, joint.point_b) if joint.link_b != GROUND
+                           else (joint.link_a, joint.point_a))
+            lay = layouts[side]
+            cx, cy, su, sw, dw = _point_local(lay, point)
+            mp_int.append((lay.offset, *push(su, sw, dw)))
+            mp_real.append((0.0, float(drive.inertia), cx, cy))
         if isinstance(drive, PrescribedDrive):
             row = len(constraint_labels)
             constraint_labels.append(f"drive:{drive.joint}")
@@ -682,8 +845,10 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
         k0 if has_matrices else np.zeros((0, 0)),
         c0 if has_matrices else np.zeros((0, 0)))
     # A Mechanism always has its period (given, or 2 pi / |rate| of the first drive).
-    return Model(mechanism, layouts, coord_labels, constraint_labels, tables, tuple(drives),
-                 float(mechanism.period), joint_rows)
+    model = Model(mechanism, layouts, coord_labels, constraint_labels, tables, tuple(drives),
+                  float(mechanism.period), joint_rows)
+    model._attach_controllers()
+    return model
 
 
 def _layout(mechanism):
@@ -765,6 +930,17 @@ def _damping_matrix(link: ElasticLink, m_ee: np.ndarray, k_ee: np.ndarray, *,
         raise MechanismError(f"link {link.name!r}: damping.matrix must be a ({n_e}, {n_e}) matrix "
                              f"(one row per elastic coordinate); received shape {matrix.shape}")
     return matrix
+
+
+def _hessian_times(observable, s: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """``H(s) direction`` (n,) of a nonlinear observable: the central difference of its analytic
+    gradient along ``direction`` (error O(eps^2) relative, eps ~ 1e-5 of the state's scale)."""
+    norm = float(np.abs(direction).max())
+    if norm == 0.0:
+        return np.zeros_like(s)
+    eps = 1e-5 * max(1.0, float(np.abs(s).max())) / norm
+    return (observable.gradient(s + eps * direction) - observable.gradient(s - eps * direction)) / (
+        2.0 * eps)
 
 
 def _point_local(lay: LinkLayout, point):

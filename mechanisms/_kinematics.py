@@ -214,8 +214,9 @@ def _model_of(obj: Any) -> tuple[Any, Mechanism | None]:
             # The nominal motion of a torque drive follows its nominal law; its inverse-dynamics
             # torque is what the drive's multiplier gives when that law is prescribed.
             obj = obj.replace(drives=tuple(
-                PrescribedDrive(d.joint, d.rate, d.offset, d.harmonics)
-                if isinstance(d, TorqueDrive) else d for d in obj.drives), period=obj.period)
+                PrescribedDrive(d.joint, d.rate, d.offset, d.harmonics, inertia=d.inertia)
+                if isinstance(d, TorqueDrive) else d for d in obj.drives), period=obj.period,
+                controllers=())
         return assemble(obj), obj
     for name in ("n_coords", "n_constraints", "rigid_index", "constraints",
                  "constraint_jacobian", "constraint_rate", "constraint_gamma", "mass_matrix",

@@ -17,12 +17,13 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Mapping
 
-from ._parts import (DISCRETISATION_TYPES, JOINT_TYPES, DampingMatrix, ElasticLink,
+from ._parts import (CONTROLLER_TYPES, DISCRETISATION_TYPES, JOINT_TYPES, DampingMatrix, DCMotor,
+                     ElasticLink,
                      Mechanism, MechanismError, ModalDamping, PointMass, PrescribedDrive, Rayleigh,
                      RigidLink, TorqueDrive, UserShapes, _is_number)
 
 _TOP_KEYS = ("name", "description", "period", "gravity", "initial_angles", "links", "joints",
-             "drive", "drives", "point_masses", "studies")
+             "drive", "drives", "point_masses", "controllers", "studies")
 _RIGID_KEYS = ("type", "length", "mass", "inertia", "centroid", "points", "width", "thickness",
                "density")
 _ELASTIC_KEYS = ("type", "length", "density", "youngs_modulus", "width", "thickness", "area",
@@ -33,7 +34,9 @@ _DISCRETISATION_KEYS = tuple(dict.fromkeys(key for cls in DISCRETISATION_TYPES.v
 _DAMPING_KEYS = {"rayleigh": ("type", "alpha", "beta", "ratio"), "modal": ("type", "ratios"),
                  "matrix": ("type", "matrix"), "none": ("type",)}
 _PRESCRIBED_KEYS = ("type", "joint", "rate", "offset", "harmonics")
-_TORQUE_KEYS = _PRESCRIBED_KEYS + ("kp", "kd")
+_TORQUE_KEYS = _PRESCRIBED_KEYS + ("kp", "kd", "motor", "flywheel", "torque_limit")
+_MOTOR_KEYS = ("stall_torque", "no_load_speed", "resistance", "torque_constant", "supply_voltage",
+               "rotor_inertia", "gear_ratio")
 _POINT_MASS_KEYS = ("link", "point", "mass", "inertia")
 
 _REQUIRED = object()
@@ -247,9 +250,43 @@ def _drive(data: object, path: str, joint: str | None) -> PrescribedDrive | Torq
                   rate=t.number("rate", "rad/s", 0.0), offset=t.number("offset", "rad", 0.0),
                   harmonics=tuple(tuple(h) for h in harmonics))
     if kind == "torque":
+        limit = t.number("torque_limit", "N m", positive=True) if t.has("torque_limit") else math.inf
         return TorqueDrive(**common, kp=t.number("kp", "N m/rad", 0.0, nonnegative=True),
-                           kd=t.number("kd", "N m s/rad", 0.0, nonnegative=True))
+                           kd=t.number("kd", "N m s/rad", 0.0, nonnegative=True),
+                           motor=_motor(t.table("motor"), f"{path}.motor") if t.has("motor") else None,
+                           flywheel=t.number("flywheel", "kg m^2", 0.0, nonnegative=True),
+                           torque_limit=limit)
     return PrescribedDrive(**common)
+
+
+def _motor(data: object, path: str) -> DCMotor:
+    """A ``[drive.motor]`` table: the characteristic by ``stall_torque`` and ``no_load_speed`` or by
+    the armature constants ``resistance``, ``torque_constant``, ``supply_voltage``."""
+    t = _Table(data, path, _MOTOR_KEYS)
+    extra = dict(rotor_inertia=t.number("rotor_inertia", "kg m^2", 0.0, nonnegative=True),
+                 gear_ratio=t.number("gear_ratio", "1", 1.0, positive=True))
+    characteristic = [k for k in ("stall_torque", "no_load_speed") if t.has(k)]
+    armature = [k for k in ("resistance", "torque_constant", "supply_voltage") if t.has(k)]
+    if characteristic and armature:
+        raise MechanismError(f"{path}: give either stall_torque and no_load_speed or the armature "
+                             f"constants resistance, torque_constant and supply_voltage, not both")
+    if armature:
+        return DCMotor.from_armature(resistance=t.number("resistance", "ohm", positive=True),
+                                     torque_constant=t.number("torque_constant", "N m/A",
+                                                              positive=True),
+                                     supply_voltage=t.number("supply_voltage", "V", positive=True),
+                                     **extra)
+    return DCMotor(t.number("stall_torque", "N m", positive=True),
+                   t.number("no_load_speed", "rad/s", positive=True), **extra)
+
+
+def _controller(name: str, data: object, path: str):
+    """A controller from its ``[controllers.<name>]`` table: its ``type`` picks the class, which
+    reads its own keys."""
+    every_key = tuple(dict.fromkeys(key for cls in CONTROLLER_TYPES.values() for key in cls.KEYS))
+    kind = _Table(data, path, every_key).string("type", _REQUIRED, tuple(CONTROLLER_TYPES))
+    cls = CONTROLLER_TYPES[kind]
+    return cls.from_table(name, _Table(data, path, cls.KEYS))
 
 
 def _named_tables(t: _Table, key: str) -> dict[str, Any]:
@@ -296,6 +333,8 @@ def _build(spec: Mapping[str, Any]) -> Mechanism:
         point_masses.append(PointMass(t.string("link"), t.point("point"),
                                       t.number("mass", "kg", positive=True),
                                       t.number("inertia", "kg m^2", 0.0, nonnegative=True)))
+    controllers = [_controller(name, data, f"controllers.{name}")
+                   for name, data in _named_tables(top, "controllers").items()]
     angles = top.table("initial_angles")
     initial_angles = {name: _Table({"a": value}, "initial_angles", ("a",)).number("a", "rad")
                       for name, value in angles.items()}
@@ -305,7 +344,7 @@ def _build(spec: Mapping[str, Any]) -> Mechanism:
                      drives=tuple(drives), point_masses=tuple(point_masses),
                      gravity=top.pair("gravity", "m/s^2", (0.0, 0.0)),
                      initial_angles=initial_angles, period=period,
-                     spec=copy.deepcopy(dict(spec)), studies=copy.deepcopy(dict(top.table("studies"))))
+                     controllers=tuple(controllers), spec=copy.deepcopy(dict(spec)), studies=copy.deepcopy(dict(top.table("studies"))))
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -332,8 +371,15 @@ def to_spec(mech: Mechanism) -> dict[str, Any]:
                  "rate": drive.rate, "offset": drive.offset,
                  "harmonics": [list(h) for h in drive.harmonics]}
         if isinstance(drive, TorqueDrive):
-            entry.update(kp=drive.kp, kd=drive.kd)
+            entry.update(kp=drive.kp, kd=drive.kd, flywheel=drive.flywheel)
+            if math.isfinite(drive.torque_limit):
+                entry["torque_limit"] = drive.torque_limit
+            if drive.motor is not None:
+                entry["motor"] = {key: getattr(drive.motor, key) for key in
+                                  ("stall_torque", "no_load_speed", "rotor_inertia", "gear_ratio")}
         spec["drives"][drive.joint] = entry
+    if mech.controllers:
+        spec["controllers"] = {c.name: c.to_table() for c in mech.controllers}
     if mech.point_masses:
         spec["point_masses"] = {f"mass{i}": {"link": pm.link, "point": pm.point, "mass": pm.mass,
                                              "inertia": pm.inertia}
@@ -373,6 +419,19 @@ def _link_spec(link: RigidLink | ElasticLink) -> dict[str, Any]:
     elif isinstance(link.damping, DampingMatrix):
         entry["damping"] = {"type": "matrix", "matrix": [list(r) for r in link.damping.matrix]}
     return entry
+
+
+def without_feedback_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
+    """A copy of ``spec`` without feedback (``Mechanism.without_feedback``): every torque drive's
+    ``kp`` and ``kd`` set to 0, the ``[controllers]`` tables removed."""
+    result = copy.deepcopy(dict(spec))
+    result.pop("controllers", None)
+    tables = [result["drive"]] if isinstance(result.get("drive"), dict) else list(
+        (result.get("drives") or {}).values())
+    for table in tables:
+        if isinstance(table, dict) and table.get("type") == "torque":
+            table["kp"] = table["kd"] = 0.0
+    return result
 
 
 def set_path(spec: Mapping[str, Any], path: str, value: Any) -> dict[str, Any]:

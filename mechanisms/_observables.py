@@ -201,16 +201,16 @@ class MultiplierObservable:
 
 @dataclass(frozen=True)
 class TorqueLawObservable:
-    """The torque (N m) a torque drive applies: ``feedforward(t) + kp (angle(t) - h.s) +
-    kd (rate(t) - h.s')``; its change with ``x = s - s0`` is ``-kp h.x - kd h.x'``."""
+    """The torque (N m) a torque drive applies: its feedforward, PD, motor and controller law
+    (``Model.drive_torque_terms(joint, ...)``, which also gives its derivatives in ``s`` and
+    ``s'``: the change with ``x = s - s0``)."""
 
     spec: str
     unit: str
     kind: str
     drive_index: int       # position in mechanism.drives (and in NominalMotion.drive_torque)
     gradient: np.ndarray   # h (n,)
-    kp: float
-    kd: float
+    joint: str
 
     def value(self, s) -> float:
         raise _not_of_coordinates(self.spec, "the drive's torque law: Model.drive_torques(s, "
@@ -425,4 +425,4 @@ def _drive_observable(model, spec, joint_name, kind):
         weights[info.row] = -1.0          # Model.drive_torques: the torque is -lam of the row
         return MultiplierObservable(spec, "N m", kind, weights)
     return TorqueLawObservable(spec, "N m", kind, model._drives.index(info), info.gradient,
-                               float(info.drive.kp), float(info.drive.kd))
+                               joint_name)

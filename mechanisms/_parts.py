@@ -553,17 +553,74 @@ class PrescribedDrive:
 
         angle(t) = offset + rate t + sum_k (cos_k cos(k w t) + sin_k sin(k w t)),  w = 2 pi / period
 
-    with ``harmonics`` a tuple of ``(k, cos_k, sin_k)``. One constraint equation (rheonomic)."""
+    with ``harmonics`` a tuple of ``(k, cos_k, sin_k)``. One constraint equation (rheonomic).
+    ``inertia`` (kg m^2) turns with ``link_b`` about the joint: the rotor and flywheel a torque
+    drive carries into its nominal motion (``TorqueDrive.inertia``); not a scene key."""
 
     joint: str
     rate: float = 0.0
     offset: float = 0.0
     harmonics: tuple[tuple[int, float, float], ...] = ()
+    inertia: float = 0.0
 
     def __post_init__(self) -> None:
         _check_drive(self)
+        _check_number(f"drive at joint {self.joint!r}", "inertia", self.inertia, "kg m^2",
+                      nonnegative=True)
 
     angle = _drive_angle
+
+
+@dataclass(frozen=True)
+class DCMotor:
+    """A DC motor with a linear speed-torque characteristic behind a gear of ratio ``gear_ratio``
+    (motor speed / crank speed). At full supply voltage the motor gives ``stall_torque`` (N m) at
+    rest and none at ``no_load_speed`` (rad/s, motor shaft); at the command ``v`` in [-1, 1] (the
+    voltage over the supply voltage) its torque is ``stall_torque (v - omega_m / no_load_speed)``.
+    At the crank (angle rate ``theta'``, ``omega_m = G theta'``):
+
+        tau = G stall_torque v - c theta',     c = G^2 stall_torque / no_load_speed (back EMF),
+
+    and the rotor adds ``G^2 rotor_inertia`` (kg m^2) on the crank. From armature constants
+    (``from_armature``): ``stall_torque = k_t V / R``, ``no_load_speed = V / k_t`` (SI: the
+    back-EMF constant equals the torque constant ``k_t``)."""
+
+    stall_torque: float
+    no_load_speed: float
+    rotor_inertia: float = 0.0
+    gear_ratio: float = 1.0
+
+    def __post_init__(self) -> None:
+        _check_number("motor", "stall_torque", self.stall_torque, "N m", positive=True)
+        _check_number("motor", "no_load_speed", self.no_load_speed, "rad/s", positive=True)
+        _check_number("motor", "rotor_inertia", self.rotor_inertia, "kg m^2", nonnegative=True)
+        _check_number("motor", "gear_ratio", self.gear_ratio, "1", positive=True)
+
+    @classmethod
+    def from_armature(cls, *, resistance: float, torque_constant: float, supply_voltage: float,
+                      rotor_inertia: float = 0.0, gear_ratio: float = 1.0) -> "DCMotor":
+        """The motor of armature resistance (ohm), torque constant (N m/A = V s/rad) and supply
+        voltage (V)."""
+        _check_number("motor", "resistance", resistance, "ohm", positive=True)
+        _check_number("motor", "torque_constant", torque_constant, "N m/A", positive=True)
+        _check_number("motor", "supply_voltage", supply_voltage, "V", positive=True)
+        return cls(torque_constant * supply_voltage / resistance, supply_voltage / torque_constant,
+                   rotor_inertia, gear_ratio)
+
+    @property
+    def back_emf_damping(self) -> float:
+        """``c = G^2 stall_torque / no_load_speed`` (N m s/rad at the crank)."""
+        return self.gear_ratio ** 2 * self.stall_torque / self.no_load_speed
+
+    @property
+    def peak_command(self) -> float:
+        """The largest command at the crank, ``G stall_torque`` (N m): full supply voltage."""
+        return self.gear_ratio * self.stall_torque
+
+    @property
+    def reflected_inertia(self) -> float:
+        """The rotor's inertia seen at the crank, ``G^2 rotor_inertia`` (kg m^2)."""
+        return self.gear_ratio ** 2 * self.rotor_inertia
 
 
 @dataclass(frozen=True)
@@ -572,7 +629,15 @@ class TorqueDrive:
     follows ``PrescribedDrive(joint, rate, offset, harmonics)``; the applied torque is the nominal
     inverse-dynamics torque plus a PD correction on the deviation from it:
 
-        tau = tau_nominal(t) + kp (angle_nominal - angle) + kd (rate_nominal - rate).
+        tau = tau_nominal(t) + kp (angle_nominal - angle) + kd (rate_nominal - rate)
+
+    plus what the mechanism's controllers acting at this joint add. ``motor`` (a ``DCMotor`` or
+    ``None``: an ideal torque source) adds its back-EMF damping ``c (rate_nominal - rate)`` (its
+    feedforward voltage covers the back EMF of the nominal speed) and its rotor inertia;
+    ``flywheel`` (kg m^2) is an inertia on ``link_b`` about the joint. The torque saturates at
+    ``+-torque_limit`` (N m) and, with a motor, where the command reaches the supply voltage
+    (``|tau + c rate| <= G stall_torque``), in nonlinear runs; the linearisation uses the
+    unsaturated law and its linear range reports the peak demanded torque against the limits.
     """
 
     joint: str
@@ -581,17 +646,107 @@ class TorqueDrive:
     harmonics: tuple[tuple[int, float, float], ...] = ()
     kp: float = 0.0
     kd: float = 0.0
+    motor: DCMotor | None = None
+    flywheel: float = 0.0
+    torque_limit: float = math.inf
 
     def __post_init__(self) -> None:
         _check_drive(self)
-        _check_number(f"drive at joint {self.joint!r}", "kp", self.kp, "N m/rad", nonnegative=True)
-        _check_number(f"drive at joint {self.joint!r}", "kd", self.kd, "N m s/rad",
-                      nonnegative=True)
+        owner = f"drive at joint {self.joint!r}"
+        _check_number(owner, "kp", self.kp, "N m/rad", nonnegative=True)
+        _check_number(owner, "kd", self.kd, "N m s/rad", nonnegative=True)
+        _check_number(owner, "flywheel", self.flywheel, "kg m^2", nonnegative=True)
+        if not (self.torque_limit == math.inf or (_is_number(self.torque_limit)
+                                                 and self.torque_limit > 0)):
+            raise MechanismError(f"{owner}: torque_limit must be a positive number (N m), got "
+                                 f"{self.torque_limit!r}")
+        if self.motor is not None and not isinstance(self.motor, DCMotor):
+            raise MechanismError(f"{owner}: motor must be a DCMotor or None, got {self.motor!r}")
+
+    @property
+    def inertia(self) -> float:
+        """Inertia (kg m^2) turning with ``link_b`` about the joint: the motor's rotor through its
+        gear and the flywheel."""
+        return self.flywheel + (self.motor.reflected_inertia if self.motor is not None else 0.0)
 
     angle = _drive_angle
 
 
 Drive = Union[PrescribedDrive, TorqueDrive]
+
+
+# ---------------------------------------------------------------------------------------------------
+# Controllers: what they add to the torque of the TorqueDrive at their joint
+# ---------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PDController:
+    """PD on the driven angle of the torque drive at ``joint`` (the thesis's case): adds
+    ``kp (angle_nominal - angle) + kd (rate_nominal - rate)`` (N m) to its torque."""
+
+    TYPE: ClassVar[str] = "pd"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "joint", "kp", "kd")
+
+    name: str
+    joint: str
+    kp: float = 0.0
+    kd: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_name("controller", self.name)
+        owner = f"controller {self.name!r}"
+        _check_number(owner, "kp", self.kp, "N m/rad", nonnegative=True)
+        _check_number(owner, "kd", self.kd, "N m s/rad", nonnegative=True)
+
+    @classmethod
+    def from_table(cls, name: str, table) -> "PDController":
+        return cls(name, table.string("joint"), table.number("kp", "N m/rad", 0.0, nonnegative=True),
+                   table.number("kd", "N m s/rad", 0.0, nonnegative=True))
+
+    def to_table(self) -> dict[str, Any]:
+        return {"type": self.TYPE, "joint": self.joint, "kp": self.kp, "kd": self.kd}
+
+
+@dataclass(frozen=True)
+class ObservableFeedback:
+    """Feedback of a measured elastic quantity to the torque drive at ``joint``: adds
+    ``-(gain o + rate_gain o')`` (N m) to its torque, ``o`` the observable ``observable`` (e.g.
+    ``"coupler.strain@0.5"``, the strain a gauge at midspan reads; its unit sets those of the
+    gains) and ``o'`` its time derivative. The observable must be a linear function of the elastic
+    coordinates alone (deflection, slope, curvature, strain of a link), so that it is zero on the
+    rigid nominal motion and the feedback vanishes there."""
+
+    TYPE: ClassVar[str] = "feedback"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "joint", "observable", "gain", "rate_gain")
+
+    name: str
+    joint: str
+    observable: str
+    gain: float = 0.0
+    rate_gain: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_name("controller", self.name)
+        owner = f"controller {self.name!r}"
+        if not isinstance(self.observable, str) or not self.observable:
+            raise MechanismError(f"{owner}: observable must be an observable spec such as "
+                                 f"'coupler.strain@0.5', got {self.observable!r}")
+        _check_number(owner, "gain", self.gain, "N m per unit of the observable")
+        _check_number(owner, "rate_gain", self.rate_gain, "N m s per unit of the observable")
+
+    @classmethod
+    def from_table(cls, name: str, table) -> "ObservableFeedback":
+        return cls(name, table.string("joint"), table.string("observable"),
+                   table.number("gain", "N m per unit of the observable", 0.0),
+                   table.number("rate_gain", "N m s per unit of the observable", 0.0))
+
+    def to_table(self) -> dict[str, Any]:
+        return {"type": self.TYPE, "joint": self.joint, "observable": self.observable,
+                "gain": self.gain, "rate_gain": self.rate_gain}
+
+
+Controller = Union[PDController, ObservableFeedback]
+#: The controller classes by their scene-file ``type``.
+CONTROLLER_TYPES: dict[str, type] = {cls.TYPE: cls for cls in (PDController, ObservableFeedback)}
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -620,12 +775,13 @@ class Mechanism:
     gravity: tuple[float, float] = (0.0, 0.0)
     initial_angles: Mapping[str, float] = field(default_factory=dict)
     period: float | None = None
+    controllers: tuple[Controller, ...] = ()
     spec: Mapping[str, Any] | None = field(default=None, compare=False, repr=False)
     studies: Mapping[str, Any] = field(default_factory=dict, compare=False, repr=False)
     period_is_default: bool = field(default=False, init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
-        for key in ("links", "joints", "drives", "point_masses"):
+        for key in ("links", "joints", "drives", "point_masses", "controllers"):
             object.__setattr__(self, key, tuple(getattr(self, key)))
         object.__setattr__(self, "gravity", tuple(self.gravity))
         _validate(self)
@@ -674,6 +830,19 @@ class Mechanism:
         for path, value in changes.items():
             spec = set_path(spec, path, value)
         return build(spec, source=f"{self.name} with {dict(changes)}")
+
+    def without_feedback(self) -> "Mechanism":
+        """The same machine with every feedback removed: the torque drives' ``kp``, ``kd`` set to 0
+        and the controllers dropped; the feedforward torque and the motors (characteristic, rotor
+        inertia, gear), flywheels and torque limits kept."""
+        if self.spec is not None:
+            from ._load import build, without_feedback_spec
+
+            return build(without_feedback_spec(self.spec),
+                         source=f"{self.name} without feedback")
+        drives = tuple(dataclasses.replace(d, kp=0.0, kd=0.0) if isinstance(d, TorqueDrive) else d
+                       for d in self.drives)
+        return self.replace(drives=drives, controllers=())
 
     def to_spec(self) -> dict[str, Any]:
         """The scene description as nested dicts (what ``mechanisms.build`` takes)."""
@@ -767,6 +936,14 @@ def _validate(mech: Mechanism) -> None:
     if not mech.drives:
         raise MechanismError(f"mechanism {mech.name!r} has no drive; add a PrescribedDrive or "
                              f"TorqueDrive at the crank joint")
+
+    torque_joints = [d.joint for d in mech.drives if isinstance(d, TorqueDrive)]
+    _by_name(mech.controllers, tuple(CONTROLLER_TYPES.values()), "controller")
+    for controller in mech.controllers:
+        if controller.joint not in torque_joints:
+            raise MechanismError(f"controller {controller.name!r} names joint {controller.joint!r}, "
+                                 f"which has no torque drive (torque drives act at "
+                                 f"{torque_joints}); a controller adds to a torque drive's torque")
 
     for pm in mech.point_masses:
         owner = f"point mass on {pm.link!r}"

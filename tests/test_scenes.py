@@ -21,6 +21,13 @@ BUILDERS = {
     "slider_crank": lambda: mechanisms.slider_crank(),
     "two_link_arm": lambda: mechanisms.two_link_arm(),
     "parallel_robot": lambda: mechanisms.parallel_robot(),
+    "four_bar_controlled": lambda: mechanisms.four_bar(discretisation="ritz").replace(
+        name="four_bar_controlled",
+        drives=(mechanisms.TorqueDrive("O", rate=100.0, torque_limit=5.0,
+                                       motor=mechanisms.DCMotor(1.0, 1000.0, 1e-5, 4.0)),),
+        controllers=(mechanisms.PDController("crank_pd", "O", kp=20.0, kd=0.2),
+                     mechanisms.ObservableFeedback("strain", "O", "coupler.strain@0.5",
+                                                   gain=3e4, rate_gain=100.0))),
 }
 
 
@@ -317,6 +324,8 @@ def test_docs_name_every_key_and_their_example_runs():
                + _load._TORQUE_KEYS + _load._POINT_MASS_KEYS)
     keys.update(key for cls in mechanisms.DISCRETISATION_TYPES.values() for key in cls.KEYS)
     keys.update(k for ks in _load._DAMPING_KEYS.values() for k in ks)
+    keys.update(_load._MOTOR_KEYS)
+    keys.update(key for cls in mechanisms.CONTROLLER_TYPES.values() for key in cls.KEYS)
     assert [key for key in sorted(keys) if f"`{key}`" not in text] == []
     example = re.search(r"```toml\n(.*?)```", text, re.S).group(1)
     motion = mechanisms.nominal_motion(mechanisms.loads(example), n_steps=16)
