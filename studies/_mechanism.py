@@ -2,9 +2,10 @@
 for the nonlinear route, link outlines for drawings.
 
 Parameters are named by their dotted path in the scene file (``"links.coupler.thickness"``) or
-``"speed"`` for the crank speed (the first drive's ``rate``). A sweep over the speed alone reuses one
-``linearize.speed_family`` per process (the coefficients are polynomials in the speed); anything
-else is linearised afresh at each point.
+``"speed"`` for the motion's fundamental frequency ``2 pi / period`` (the crank speed of a crank
+turning once per period). When every drive is prescribed, the points that differ only in speed
+share one ``linearize.speed_family`` per process (the coefficients are polynomials in the speed);
+torque drives, and any other change, are linearised afresh at each point.
 """
 
 from __future__ import annotations
