@@ -1,5 +1,5 @@
 """``linearize.about``: a mechanism linearised about its nominal rigid motion, as a periodic system,
-and ``linearize.speed_family``: the same with its coefficients as polynomials in the crank speed."""
+and ``linearize.speed_family``: the same with its coefficients as polynomials in the speed."""
 
 from __future__ import annotations
 
@@ -376,27 +376,33 @@ def _model_with_feedforward(mechanism, nominal):
 
 
 # ---------------------------------------------------------------------------------------------------
-# Polynomial dependence on the crank speed
+# Polynomial dependence on the speed (2 pi / period)
 # ---------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class SpeedFamily:
-    """The linearised coefficients of a constant-speed mechanism as polynomials in its speed.
+    """The linearised coefficients of a mechanism with prescribed drives as polynomials in its speed.
 
-    With the crank angle ``phi = offset + Omega t`` as the independent variable the nominal
-    configuration does not depend on ``Omega``, its rates scale with ``Omega`` and its accelerations
-    and inertia multipliers with ``Omega^2``; so, exactly,
+    The speed ``Omega`` is the motion's fundamental angular frequency ``2 pi / period`` (rad/s),
+    signed like the first drive's rate (positive if it has none): for a crank turning once per
+    period at constant rate, its rate. Every prescribed drive's angle is a function of the phase
+    ``Omega t`` alone (its rate is a whole number of turns per period, its harmonics multiples of
+    ``2 pi / period``), so with the phase as the independent variable the nominal configuration does
+    not depend on ``Omega``, its rates scale with ``Omega`` and its accelerations and inertia
+    multipliers with ``Omega^2``; so, exactly,
 
         M = M0,  C = C0 + Omega C1,  K = K0 + Omega K1 + Omega^2 K2,  f = f0 + Omega^2 f2
 
-    on the crank-angle grid ``phi_k = offset + 2 pi k / N`` (``f0`` is the gravity load, ``C0`` the
-    material damping, ``K1`` couples damping with the moving basis). Each array has the grid as its
-    first axis. ``at_speed(Omega)`` returns the ``LinearizedMechanism`` at any speed of the same sign
-    as the base mechanism's, for the cost of a few array operations. The nominal axial force of
+    on the phase grid ``Omega t_k = 2 pi k / N`` (``f0`` is the gravity load, ``C0`` the material
+    damping, ``K1`` couples damping with the moving basis). Each array has the grid as its first
+    axis. ``at_speed(Omega)`` returns the ``LinearizedMechanism`` at any speed of the same sign as
+    the base mechanism's (every drive's rate scaled by ``Omega / rate``, the period by its inverse),
+    for the cost of a few array operations. The nominal axial force of
     each elastic link is likewise ``N0 + Omega^2 N2`` (``axial0``, ``axial2``: link name ->
     (N+1, n_x) at the linear-range abscissae): ``linear_range(Omega, z)`` uses it. The maps of
     the observables that depend on the speed (forces, torques, the nominal axial stress: their
     arrays are polynomials of degree two at most in ``Omega``) are kept at ``Omega = 0`` and
     ``2 rate`` (``speed_maps``) besides the base's; ``observable_maps_at(Omega)`` interpolates.
+    ``rate``: the base mechanism's speed (rad/s).
     """
 
     mechanism: Any
@@ -418,7 +424,7 @@ class SpeedFamily:
     speed_maps: tuple = dataclasses.field(default=(), repr=False, compare=False)
 
     def observable_maps_at(self, rate: float) -> dict[str, ObservableMap]:
-        """The observable maps at crank speed ``rate`` (rad/s): the base's for the observables of
+        """The observable maps at speed ``rate`` (rad/s): the base's for the observables of
         the configuration; for the others the quadratic through their arrays at speeds 0,
         ``self.rate`` and ``2 self.rate`` (exact: each is a polynomial of degree <= 2)."""
         self._check_rate(rate)
@@ -449,21 +455,22 @@ class SpeedFamily:
     def _check_rate(self, rate) -> None:
         if not (isinstance(rate, (int, float, np.floating)) and math.isfinite(rate)
                 and rate * self.rate > 0):
-            raise LinearizationError(f"rate must be a finite crank speed (rad/s) of the same sign as the "
-                             f"scene's ({self.rate:g}); received {rate!r}")
+            raise LinearizationError(f"rate must be a finite speed (rad/s, the motion's 2 pi / period) "
+                                     f"of the same sign as the scene's ({self.rate:g}); received "
+                                     f"{rate!r}")
 
     def system_at(self, rate: float) -> periodic.PeriodicSystem:
-        """Only the periodic system at crank speed ``rate`` (rad/s): what a grid point of a sweep
+        """Only the periodic system at speed ``rate`` (rad/s): what a grid point of a sweep
         or chart needs, without the nominal motion and mechanism of ``at_speed``."""
         self._check_rate(rate)
         w = rate
-        return periodic.PeriodicSystem(abs(self.base.nominal.period * self.rate / w), self.M,
+        return periodic.PeriodicSystem(self.base.nominal.period * self.rate / w, self.M,
                                        self.C0 + w * self.C1,
                                        self.K0 + w * self.K1 + w**2 * self.K2,
                                        self.f0 + w**2 * self.f2)
 
     def at_speed(self, rate: float) -> LinearizedMechanism:
-        """The linearised mechanism at crank speed ``rate`` (rad/s, same sign as the base)."""
+        """The linearised mechanism at speed ``rate`` (rad/s, same sign as the base)."""
         started = time.perf_counter()
         system = self.system_at(rate)
         scale = rate / self.rate
@@ -476,11 +483,7 @@ class SpeedFamily:
         coeffs = dataclasses.replace(
             base.coefficients, t=nominal.t, C=system.C, K=system.K, f=system.f,
             Vdot=base.coefficients.Vdot * scale, Vddot=base.coefficients.Vddot * scale**2)
-        if self.mechanism.spec is not None:
-            mechanism = self.mechanism.with_parameter("drive.rate", rate)
-        else:
-            mechanism = self.mechanism.replace(
-                drives=(dataclasses.replace(self.mechanism.drives[0], rate=rate),))
+        mechanism = _at_speed(self.mechanism, self.rate, rate)
         return dataclasses.replace(base, mechanism=mechanism, nominal=nominal, system=system,
                                    coefficients=coeffs,
                                    observable_maps=self.observable_maps_at(rate),
@@ -489,31 +492,34 @@ class SpeedFamily:
 
 
 def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFamily:
-    """Linearise once, with the coefficients' exact dependence on the crank speed (see
-    ``SpeedFamily``). Needs one prescribed drive at constant rate (no harmonics)."""
+    """Linearise once, with the coefficients' exact dependence on the speed (see ``SpeedFamily``).
+    Needs every drive prescribed (a torque drive's feedforward and PD law are not polynomial in
+    the speed: linearise it at each speed with ``about``)."""
     started = time.perf_counter()
     drives = mechanism.drives
-    if (len(drives) != 1 or not isinstance(drives[0], mechanisms.PrescribedDrive)
-            or drives[0].harmonics or drives[0].rate == 0):
+    if not drives or not all(isinstance(d, mechanisms.PrescribedDrive) for d in drives):
         raise LinearizationError(
-            "speed_family needs exactly one PrescribedDrive with a nonzero constant rate and no "
-            f"harmonics; received drives {drives!r}. Use linearize.about() at each speed instead.")
+            "speed_family needs every drive to be a PrescribedDrive (the motion a function of the "
+            f"phase 2 pi t / period); received drives {drives!r}. Use linearize.about() at each "
+            "speed instead.")
     base = about(mechanism, n_steps=n_steps, observables=observables)
     nominal = base.nominal
     model = nominal.model
-    rate = drives[0].rate
-    # Crank-angle derivatives of the nominal configuration: s' = sdot / rate, s'' = sddot / rate^2.
+    # 2 pi / period signed like the first drive (exactly its rate when it sets the period)
+    rate = (drives[0].rate if mechanism.period_is_default
+            else math.copysign(2.0 * math.pi / mechanism.period, drives[0].rate or 1.0))
+    # Phase derivatives of the nominal configuration: s' = sdot / rate, s'' = sddot / rate^2.
     ds, dds = nominal.sdot / rate, nominal.sddot / rate**2
     lam_static = _static_multipliers(model, nominal)
     lam2 = (nominal.lam - lam_static) / rate**2
     independent = base.coefficients.independent
 
     def at(w):
-        # t only enters the model through rheonomic constraints whose Jacobian does not depend on
-        # it (a constant-rate drive), so the crank-angle grid is what matters.
+        # t only enters the model through the prescribed drives' rheonomic constraints, whose
+        # Jacobian does not depend on it, so the phase grid is what matters.
         return _coefficients(model, nominal.t, nominal.s, w * ds, w**2 * dds,
                              lam_static + w**2 * lam2,
-                             period=abs(2 * math.pi / w) if w else math.inf,
+                             period=nominal.period * rate / w if w else math.inf,
                              independent=independent, label=lambda k: f"sample {k}",
                              stride=base.coefficients.stride,
                              multipliers=bool(base.coefficients.multiplier_maps))
@@ -532,7 +538,7 @@ def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFam
     scale_C = max(np.abs(c1.C).max(), 1e-300)
     if np.abs(C2).max() * rate**2 > 1e-8 * scale_C or np.abs(f1).max() * abs(rate) > 1e-8 * max(
             np.abs(c1.f).max(), 1e-300):
-        raise LinearizationError("the coefficients are not polynomial in the crank speed as "
+        raise LinearizationError("the coefficients are not polynomial in the speed as "
                                  "expected (speed-dependent forces?); use linearize.about() per "
                                  "speed")
     # The axial force is linear in s'^2, s'' and lam: its part at rest plus rate^2 times the rest.
@@ -554,6 +560,24 @@ def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFam
                        K0=c0.K, K1=K1, K2=K2, f0=c0.f, f2=f2, lam0=lam_static, lam2=lam2,
                        run_time=time.perf_counter() - started, axial0=axial0, axial2=axial2,
                        speed_maps=speed_maps)
+
+
+def _at_speed(mechanism, base_speed: float, speed: float):
+    """``mechanism`` (at speed ``base_speed``) at ``speed`` (same sign, rad/s): every drive's rate
+    scaled by ``speed / base_speed``, an explicit period by the inverse (a default period,
+    ``2 pi / |rate|``, follows the rate)."""
+    period = None if mechanism.period_is_default else mechanism.period * base_speed / speed
+    # d.rate / base_speed is a whole number (exactly 1 for a crank that sets the period)
+    rates = {d.joint: d.rate / base_speed * speed for d in mechanism.drives}
+    if mechanism.spec is None:
+        return mechanism.replace(period=period, drives=tuple(
+            dataclasses.replace(d, rate=rates[d.joint]) for d in mechanism.drives))
+    # a scene has one [drive] table or [drives.<joint>] tables
+    rate_path = "drive.rate" if "drive" in mechanism.spec else "drives.{}.rate"
+    changes = {rate_path.format(joint): rate for joint, rate in rates.items() if rate}
+    if period is not None:
+        changes["period"] = period
+    return mechanism.with_parameters(changes)
 
 
 def _static_multipliers(model, nominal) -> np.ndarray:

@@ -2,9 +2,10 @@
 for the nonlinear route, link outlines for drawings.
 
 Parameters are named by their dotted path in the scene file (``"links.coupler.thickness"``) or
-``"speed"`` for the crank speed (the first drive's ``rate``). A sweep over the speed alone reuses one
-``linearize.speed_family`` per process (the coefficients are polynomials in the speed); anything
-else is linearised afresh at each point.
+``"speed"`` for the motion's fundamental frequency ``2 pi / period`` (the crank speed of a crank
+turning once per period). When every drive is prescribed, the points that differ only in speed
+share one ``linearize.speed_family`` per process (the coefficients are polynomials in the speed);
+torque drives, and any other change, are linearised afresh at each point.
 """
 
 from __future__ import annotations
@@ -217,26 +218,30 @@ class MechanismProblem:
         params = self.resolve(values)
         others = {k: v for k, v in params.items() if k != SPEED and v != self._nominal[k]}
         mechanism = self.mechanism(others)
-        drive = mechanism.drives[0]
         speed = params[SPEED]
-        constant_rate = (type(drive).__name__ == "PrescribedDrive" and not drive.harmonics
-                         and len(mechanism.drives) == 1)
+        # Prescribed drives make the motion a function of the phase 2 pi t / period: a speed
+        # family covers every speed (torque drives are linearised at each speed).
+        prescribed = bool(mechanism.drives) and all(
+            type(d).__name__ == "PrescribedDrive" for d in mechanism.drives)
         family_key = (self.text, tuple(sorted(others.items())), n_steps, self.observable_specs)
-        at_scene_speed = math.isclose(speed, drive.rate, rel_tol=1e-12)
-        if constant_rate and at_scene_speed and family_key not in _families:
+        at_scene_speed = math.isclose(speed, _speed(mechanism), rel_tol=1e-12)
+        if prescribed and at_scene_speed and family_key not in _families:
             # One speed, the scene's own, and no family built yet: one linearisation, not the
             # three a speed family costs.
             lin = linearize.about(mechanism, n_steps=n_steps, observables=self.observable_specs)
             return _linear(lin, lin.system, lin, linear_range=lin.linear_range)
-        if constant_rate and speed * drive.rate > 0:
+        if prescribed:
             family = _cached(_families, family_key,
                              lambda: linearize.speed_family(mechanism, n_steps=n_steps,
                                                             observables=self.observable_specs))
+            # the family's speed carries the sign of the first drive's rate (a crank turning
+            # clockwise has a negative one); the studies' speed is 2 pi / period
+            speed = math.copysign(speed, family.rate)
             if at_scene_speed:
                 return _linear(family.base, family.base.system, family.base,
                                linear_range=family.base.linear_range)
             if not context:
-                # On the crank-angle grid the configuration (hence the gains of the observables of
+                # On the phase grid the configuration (hence the gains of the observables of
                 # the configuration) is the base's; the coefficients and the maps of forces,
                 # torques and stresses change with the speed.
                 return _linear(family.base, family.system_at(speed), None,
