@@ -150,91 +150,34 @@ def _effective_matrix(M, C, K, k, c_a, k_a, out):
             out[i, j] = M[k, i, j] + c_a * C[k, i, j] + k_a * K[k, i, j]
 
 
-@numba.njit(cache=True)
-def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist):
-    """March ``x, v`` (n, m) from ``t_0`` to ``t_N`` in place; ``a`` (n, m) receives the final acceleration.
-
-    M, C, K (N+1, n, n), f (N+1, n), forced (m,).  When ``x_hist`` has N+1 rows the states at all
-    samples are written to ``x_hist, v_hist, a_hist`` (N+1, n, m); pass zero-row arrays to skip.
-    Returns -1 on success, else the sample index whose matrix (M_0 in N0, the effective matrix of
-    N2 otherwise) has an exactly zero pivot.  The small-n path (hand-written LU); see
-    :func:`newmark_march_lapack` for large n and :func:`march_kernel` for the choice.
-    """
-    n_samples = M.shape[0]
-    n, m = x.shape
-    store = x_hist.shape[0] == n_samples
-    lu = np.empty((n, n))
-    piv = np.empty(n, dtype=np.int64)
-    xp = np.empty((n, m))
-    vp = np.empty((n, m))
-    work = np.empty((n, m))
-    c_a = gamma * h
-    k_a = beta * h * h
-    # (N0): starting acceleration
-    _residual_force(C[0], K[0], f[0], forced, x, v, a, work)
-    _copy(M[0], lu)
-    if not _lu_factor(lu, piv):
-        return 0
-    _lu_solve(lu, piv, a)
-    if store:
-        _copy(x, x_hist[0])
-        _copy(v, v_hist[0])
-        _copy(a, a_hist[0])
-    for k in range(n_samples - 1):
-        _predict(x, v, a, h, beta, gamma, xp, vp)  # (N1)
-        # (N2): effective matrix and right-hand side at t_{k+1}
-        _effective_matrix(M, C, K, k + 1, c_a, k_a, lu)
-        if not _lu_factor(lu, piv):
-            return k + 1
-        _residual_force(C[k + 1], K[k + 1], f[k + 1], forced, xp, vp, a, work)
-        _lu_solve(lu, piv, a)
-        _correct(xp, vp, a, c_a, k_a, x, v)  # (N3)
-        if store:
-            _copy(x, x_hist[k + 1])
-            _copy(v, v_hist[k + 1])
-            _copy(a, a_hist[k + 1])
-    return -1
-
-
 # ---------------------------------------------------------------------------------------------------
-# Large n: LAPACK's blocked LU and matrix solves, BLAS-3 residual forces
+# Large n: LAPACK's blocked LU, and the solves of all columns as one matrix product
 # ---------------------------------------------------------------------------------------------------
-# scipy's LAPACK (the library numba's np.dot calls for BLAS) is reached through symbols registered
-# with LLVM, not ctypes pointers, which numba refuses to cache: the cached machine code names the
-# symbol, and importing this module binds it to scipy's function in every process.
-_LAPACK_SYMBOLS = {name: f"flexvib_periodic_{name}" for name in ("dgetrf", "dgetrs")}
+# scipy's LAPACK (the OpenBLAS whose dgemm numba's np.dot calls) is reached through symbols
+# registered with LLVM, not ctypes pointers, which numba refuses to cache: the cached machine code
+# names the symbol, and importing this module binds it to scipy's function in every process.
+_LAPACK_SYMBOLS = {name: f"flexvib_periodic_{name}" for name in ("dgetrf", "dgetrs", "dgetri")}
 for _name, _symbol in _LAPACK_SYMBOLS.items():
     llvm_binding.add_symbol(_symbol, get_cython_function_address("scipy.linalg.cython_lapack", _name))
 _INT_P, _DOUBLE_P = numba.types.CPointer(numba.int32), numba.types.CPointer(numba.float64)
-# Fortran signatures, every argument by reference: dgetrf(m, n, a, lda, ipiv, info) and
-# dgetrs(trans, n, nrhs, a, lda, ipiv, b, ldb, info).
+# Fortran signatures, every argument by reference: dgetrf(m, n, a, lda, ipiv, info),
+# dgetrs(trans, n, nrhs, a, lda, ipiv, b, ldb, info) and dgetri(n, a, lda, ipiv, work, lwork, info).
 _dgetrf = numba.types.ExternalFunction(_LAPACK_SYMBOLS["dgetrf"], numba.void(
     _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P, _INT_P))
 _dgetrs = numba.types.ExternalFunction(_LAPACK_SYMBOLS["dgetrs"], numba.void(
     numba.types.CPointer(numba.int8), _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P))
-# The kernel stores a C-order matrix S, which LAPACK (column-major) reads as S^T: it factors S^T and
-# solves S X = B with the transposed factors.
+_dgetri = numba.types.ExternalFunction(_LAPACK_SYMBOLS["dgetri"], numba.void(
+    _INT_P, _DOUBLE_P, _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P))
+# LAPACK (column-major) reads the kernel's C-order matrix S as S^T: it factors S^T, and solves
+# S X = B with the transposed factors.
 _TRANSPOSED = np.array([ord("T")], dtype=np.int8)
+# Work of dgetri per row of the matrix (its block size; n is the least it accepts).
+_GETRI_WORK_PER_ROW = 64
 
-
-@numba.njit(cache=True)
-def _getrf(lu, pivots, sizes):
-    """LU with partial pivoting (LAPACK dgetrf) of the (n, n) C-order ``lu`` in place (LAPACK factors
-    its transpose); ``pivots`` (n,) int32; ``sizes`` (3,) int32 holds n, the number of right-hand
-    sides and LAPACK's ``info``.  Returns False when a pivot is exactly zero (``info > 0``)."""
-    sizes[0] = lu.shape[0]
-    _dgetrf(sizes.ctypes, sizes.ctypes, lu.ctypes, sizes.ctypes, pivots.ctypes, sizes[2:].ctypes)
-    return sizes[2] == 0
-
-
-@numba.njit(cache=True)
-def _getrs(lu, pivots, sizes, b_t):
-    """Overwrite ``b_t`` (m, n), the transpose of the right-hand sides B (n, m) in C order, which
-    LAPACK reads as B, with the transpose of ``S^-1 B``, from :func:`_getrf`'s factors of S."""
-    sizes[0] = lu.shape[0]
-    sizes[1] = b_t.shape[0]
-    _dgetrs(_TRANSPOSED.ctypes, sizes.ctypes, sizes[1:].ctypes, lu.ctypes, sizes.ctypes, pivots.ctypes,
-            b_t.ctypes, sizes.ctypes, sizes[2:].ctypes)
+#: The kernel's linear solvers (its argument ``solver``, see :func:`choose_solver`):
+#: the hand-written LU and its column loops; LAPACK's dgetrf and dgetrs (the columns transposed to
+#: LAPACK's order and back, O(n m)); LAPACK's dgetrf and dgetri, and all columns in one dgemm.
+SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE = 0, 1, 2
 
 
 @numba.njit(cache=True)
@@ -246,76 +189,104 @@ def _transpose(source, target):
 
 
 @numba.njit(cache=True)
-def _residual_force_transposed(Ck, Kk, fk, forced, x_t, v_t, out_t, work_t):
-    """The transpose of ``forced * f_k - C_k v - K_k x``: ``out_t`` (m, n) from ``x_t, v_t`` (m, n),
-    two matrix products (BLAS dgemm) for the 2 n^2 m multiply-adds."""
-    np.dot(v_t, Ck.T, out_t)
-    np.dot(x_t, Kk.T, work_t)
-    m, n = x_t.shape
-    for j in range(m):
-        for i in range(n):
-            out_t[j, i] = forced[j] * fk[i] - out_t[j, i] - work_t[j, i]
+def _factor(lu, pivots, lapack_pivots, sizes, getri_work, solver):
+    """Factor the (n, n) C-order ``lu`` in place for :func:`_solve` (``sizes`` (3,) int32: room for
+    the integers LAPACK takes by reference).  Returns False when a pivot is exactly zero."""
+    if solver == SOLVE_LOOPS:
+        return _lu_factor(lu, pivots)
+    sizes[0] = lu.shape[0]
+    _dgetrf(sizes.ctypes, sizes.ctypes, lu.ctypes, sizes.ctypes, lapack_pivots.ctypes, sizes[2:].ctypes)
+    if sizes[2] != 0:
+        return False  # info > 0: u_kk exactly zero
+    if solver == SOLVE_INVERSE:
+        # lu holds the factors of S^T in LAPACK's order: dgetri leaves inv(S^T), i.e. inv(S) in C order
+        sizes[1] = getri_work.shape[0]
+        _dgetri(sizes.ctypes, lu.ctypes, sizes.ctypes, lapack_pivots.ctypes, getri_work.ctypes,
+                sizes[1:].ctypes, sizes[2:].ctypes)
+    return True
 
 
 @numba.njit(cache=True)
-def newmark_march_lapack(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist):
-    """:func:`newmark_march` (same arguments, results and return value) with BLAS-3 work per step.
+def _solve(lu, pivots, lapack_pivots, sizes, b, work, work_t, solver):
+    """Overwrite ``b`` (n, m) with ``S^-1 b`` from :func:`_factor`'s output; ``work`` (n, m) and
+    ``work_t`` (m, n) are scratch."""
+    if solver == SOLVE_LOOPS:
+        _lu_solve(lu, pivots, b)
+    elif solver == SOLVE_INVERSE:
+        _copy(b, work)
+        np.dot(lu, work, b)
+    else:
+        _transpose(b, work_t)  # C-order (m, n) is LAPACK's (n, m)
+        sizes[0] = lu.shape[0]
+        sizes[1] = b.shape[1]
+        _dgetrs(_TRANSPOSED.ctypes, sizes.ctypes, sizes[1:].ctypes, lu.ctypes, sizes.ctypes,
+                lapack_pivots.ctypes, work_t.ctypes, sizes.ctypes, sizes[2:].ctypes)
+        _transpose(work_t, b)
 
-    One LAPACK dgetrf of the effective matrix, one dgetrs for all m columns, two dgemm for the
-    residual forces: about ``2/3 n^3 + 6 n^2 m`` flops per step in blocked, vectorised library code.
-    The columns are held transposed (m, n) in C order, which is LAPACK's column-major (n, m), so
-    that no call copies.  Results equal :func:`newmark_march`'s to rounding (other operation order).
+
+@numba.njit(cache=True)
+def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist, solver):
+    """March ``x, v`` (n, m) from ``t_0`` to ``t_N`` in place; ``a`` (n, m) receives the final acceleration.
+
+    M, C, K (N+1, n, n), f (N+1, n), forced (m,).  When ``x_hist`` has N+1 rows the states at all
+    samples are written to ``x_hist, v_hist, a_hist`` (N+1, n, m); pass zero-row arrays to skip.
+    ``solver`` is one of ``SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE`` (:func:`choose_solver`); all
+    give the same results to rounding.  Returns -1 on success, else the sample index whose matrix
+    (M_0 in N0, the effective matrix of N2 otherwise) has an exactly zero pivot.
     """
     n_samples = M.shape[0]
     n, m = x.shape
     store = x_hist.shape[0] == n_samples
     lu = np.empty((n, n))
-    pivots = np.empty(n, dtype=np.int32)
+    pivots = np.empty(n, dtype=np.int64)
+    lapack_pivots = np.empty(n, dtype=np.int32)
     sizes = np.zeros(3, dtype=np.int32)
-    x_t, v_t, a_t = np.empty((m, n)), np.empty((m, n)), np.empty((m, n))
-    xp_t, vp_t, work_t = np.empty((m, n)), np.empty((m, n)), np.empty((m, n))
-    _transpose(x, x_t)
-    _transpose(v, v_t)
+    getri_work = np.empty(_GETRI_WORK_PER_ROW * n if solver == SOLVE_INVERSE else 0)
+    xp = np.empty((n, m))
+    vp = np.empty((n, m))
+    work = np.empty((n, m))
+    work_t = np.empty((m, n) if solver == SOLVE_LAPACK else (0, 0))
     c_a = gamma * h
     k_a = beta * h * h
     # (N0): starting acceleration
-    _residual_force_transposed(C[0], K[0], f[0], forced, x_t, v_t, a_t, work_t)
+    _residual_force(C[0], K[0], f[0], forced, x, v, a, work)
     _copy(M[0], lu)
-    if not _getrf(lu, pivots, sizes):
+    if not _factor(lu, pivots, lapack_pivots, sizes, getri_work, solver):
         return 0
-    _getrs(lu, pivots, sizes, a_t)
+    _solve(lu, pivots, lapack_pivots, sizes, a, work, work_t, solver)
     if store:
-        _transpose(x_t, x_hist[0])
-        _transpose(v_t, v_hist[0])
-        _transpose(a_t, a_hist[0])
+        _copy(x, x_hist[0])
+        _copy(v, v_hist[0])
+        _copy(a, a_hist[0])
     for k in range(n_samples - 1):
-        _predict(x_t, v_t, a_t, h, beta, gamma, xp_t, vp_t)  # (N1)
-        _effective_matrix(M, C, K, k + 1, c_a, k_a, lu)  # (N2)
-        if not _getrf(lu, pivots, sizes):
+        _predict(x, v, a, h, beta, gamma, xp, vp)  # (N1)
+        # (N2): effective matrix and right-hand side at t_{k+1}
+        _effective_matrix(M, C, K, k + 1, c_a, k_a, lu)
+        if not _factor(lu, pivots, lapack_pivots, sizes, getri_work, solver):
             return k + 1
-        _residual_force_transposed(C[k + 1], K[k + 1], f[k + 1], forced, xp_t, vp_t, a_t, work_t)
-        _getrs(lu, pivots, sizes, a_t)
-        _correct(xp_t, vp_t, a_t, c_a, k_a, x_t, v_t)  # (N3)
+        _residual_force(C[k + 1], K[k + 1], f[k + 1], forced, xp, vp, a, work)
+        _solve(lu, pivots, lapack_pivots, sizes, a, work, work_t, solver)
+        _correct(xp, vp, a, c_a, k_a, x, v)  # (N3)
         if store:
-            _transpose(x_t, x_hist[k + 1])
-            _transpose(v_t, v_hist[k + 1])
-            _transpose(a_t, a_hist[k + 1])
-    _transpose(x_t, x)
-    _transpose(v_t, v)
-    _transpose(a_t, a)
+            _copy(x, x_hist[k + 1])
+            _copy(v, v_hist[k + 1])
+            _copy(a, a_hist[k + 1])
     return -1
 
 
-#: From this many coordinates on, :func:`march_kernel` picks :func:`newmark_march_lapack` (measured
-#: crossover, see the module notes and ``benchmarks/bench_shooting_scale.py``).
+#: From this many coordinates on, :func:`choose_solver` leaves the hand-written LU for LAPACK
+#: (measured crossover, see the module notes and ``benchmarks/bench_shooting_scale.py``).
 LAPACK_FROM_N_DOF = 40
 
 
-def march_kernel(n_dof: int):
-    """The Newmark kernel for ``n_dof`` coordinates: the hand-written small-n one below
-    :data:`LAPACK_FROM_N_DOF`, the BLAS-3 one from there on (read at each call, so tests can force
-    either path)."""
-    return newmark_march_lapack if n_dof >= LAPACK_FROM_N_DOF else newmark_march
+def choose_solver(n_dof: int, n_columns: int) -> int:
+    """The kernel's ``solver`` for ``n_dof`` coordinates and ``n_columns`` right-hand sides: the
+    hand-written LU below :data:`LAPACK_FROM_N_DOF`; from there on LAPACK, with the inverse and one
+    matrix product when the columns are many (the monodromy's 2n+1), else dgetrs (the forced run's
+    single column).  Reads :data:`LAPACK_FROM_N_DOF` at each call, so tests can force either path."""
+    if n_dof < LAPACK_FROM_N_DOF:
+        return SOLVE_LOOPS
+    return SOLVE_INVERSE if 2 * n_columns > n_dof else SOLVE_LAPACK
 
 
 @numba.njit(cache=True)

@@ -1,0 +1,161 @@
+"""Cost of the Newmark shooting as the number of coordinates n grows: the two kernels side by side,
+and their flop rate against a plain LU of the same size.
+
+Per step the shooting factorises the effective matrix S = M + gamma h C + beta h^2 K (n, n) once and
+solves it for m right-hand sides (m = 2n + 1 for the monodromy and the particular solution, m = 1
+for the final forced run), whose residual forces f - C v~ - K x~ cost two (n, n) x (n, m) products:
+
+    flops per step = 2/3 n^3 (LU) + 2 n^2 m (solves) + 4 n^2 m (products)    [~12.7 n^3 at m = 2n + 1]
+
+The reference is what this machine does for the same LU and solves as plain library calls,
+``scipy.linalg.lu_factor(S)`` + ``lu_solve(.., B)`` with B (n, 2n + 1): 2/3 n^3 + 2 n^2 m flops.
+Printed per n: median time per step of the hand-written kernel (``newmark_march``) and of the
+BLAS-3 kernel (``newmark_march_lapack``), their ratio (> 1: LAPACK faster; this gives the crossover
+``periodic._newmark.LAPACK_FROM_N_DOF``), the GFLOP/s of each, of the LU reference, and the ratio of
+the shooting's rate (the kernel ``periodic.steady_state`` picks) to the LU's.  ``--steady`` also
+times ``periodic.steady_state`` (N/2 and N/4 runs included) at a few n.
+
+Timings are medians of interleaved repeats (the machine is shared and noisy): ratios, not absolute
+times, are the result.  Scipy's OpenBLAS does all the library work (numba's np.dot calls it too),
+with its default thread count.
+
+Run: .venv/bin/python benchmarks/bench_shooting_scale.py [--quick] [--steady]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+import scipy.linalg
+
+import periodic
+from periodic import _newmark
+
+SIZES = (2, 4, 8, 12, 16, 24, 32, 40, 48, 64, 96, 128, 160, 200)
+
+
+def random_system(n, n_steps, seed=0):
+    """A random, well-conditioned, stable n-DOF system with periodic stiffness (coefficients only)."""
+    rng = np.random.default_rng(seed)
+    A, B = rng.normal(size=(n, n)), rng.normal(size=(n, n))
+    mass, stiffness = A @ A.T + n * np.eye(n), 50.0 * (B @ B.T + n * np.eye(n))
+    damping, force = 1e-3 * stiffness + 0.1 * mass, rng.normal(size=n)
+    return periodic.PeriodicSystem.from_functions(
+        1.0, lambda t: mass, lambda t: damping, lambda t: stiffness * (1.0 + 0.1 * np.cos(2 * np.pi * t)),
+        lambda t: force * np.cos(2 * np.pi * t), n_steps=n_steps)
+
+
+def shooting_flops(n, m):
+    return 2.0 / 3.0 * n**3 + 6.0 * n * n * m
+
+
+def lu_flops(n, m):
+    return 2.0 / 3.0 * n**3 + 2.0 * n * n * m
+
+
+def march_call(kernel, system, m):
+    """A call of ``kernel`` on the unit states (plus the forced column when m is odd), from scratch."""
+    n = system.n_dof
+    scheme = periodic.SCHEMES["trapezoidal"]
+    forced = np.zeros(m)
+    forced[-1] = 1.0
+    empty = np.empty((0, n, m))
+
+    def call():
+        x, v = np.zeros((n, m)), np.zeros((n, m))
+        x[:, : min(n, m)] = np.eye(n, min(n, m))
+        status = kernel(system.M, system.C, system.K, system.f, system.step, scheme.beta, scheme.gamma,
+                        forced, x, v, np.empty((n, m)), empty, empty, empty)
+        assert status == -1
+    return call
+
+
+def lu_call(system, m):
+    """scipy's LU of one effective matrix and its solve with m right-hand sides."""
+    h = system.step
+    S = system.M[1] + 0.5 * h * system.C[1] + 0.25 * h * h * system.K[1]
+    B = np.random.default_rng(1).normal(size=(system.n_dof, m))
+    return lambda: scipy.linalg.lu_solve(scipy.linalg.lu_factor(S), B)
+
+
+def interleaved_medians(calls, repeats, inner):
+    """Median seconds per call of each of ``calls``, run in turn ``repeats`` times (``inner`` calls each)."""
+    times = [[] for _ in calls]
+    for _ in range(repeats):
+        for call, store in zip(calls, times):
+            start = time.perf_counter()
+            for _ in range(inner):
+                call()
+            store.append((time.perf_counter() - start) / inner)
+    return [statistics.median(store) for store in times]
+
+
+def scale(quick, m_of_n, label):
+    print(f"\n## {label}")
+    print("| n | m | loops [us/step] | LAPACK [us/step] | loops / LAPACK | loops GFLOP/s | LAPACK GFLOP/s "
+          "| LU+solve GFLOP/s | shooting / LU |")
+    print("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    for n in SIZES:
+        m = m_of_n(n)
+        n_steps = 64 if n <= 48 else 16
+        system = random_system(n, n_steps)
+        calls = [march_call(_newmark.newmark_march, system, m), march_call(_newmark.newmark_march_lapack, system, m)]
+        reference = lu_call(system, 2 * n + 1) if m > 1 else lu_call(system, 1)
+        for call in calls + [reference]:
+            call()  # JIT and BLAS warm-up
+        budget = 0.2 if quick else 0.6  # s per kernel and repeat count below
+        one = max(interleaved_medians(calls, 1, 1))
+        inner = max(1, int(0.02 / one))
+        repeats = max(3, min(15, int(budget / (one * inner))))
+        loops, lapack = (t / n_steps for t in interleaved_medians(calls, repeats, inner))
+        lu_time = interleaved_medians([reference], repeats, max(1, int(inner * n_steps)))[0]
+        flops = shooting_flops(n, m)
+        chosen = lapack if _newmark.march_kernel(n) is _newmark.newmark_march_lapack else loops
+        lu_rate = lu_flops(n, m) / lu_time
+        print(f"| {n} | {m} | {loops * 1e6:.1f} | {lapack * 1e6:.1f} | {loops / lapack:.2f} | "
+              f"{flops / loops * 1e-9:.2f} | {flops / lapack * 1e-9:.2f} | {lu_rate * 1e-9:.2f} | "
+              f"{flops / chosen / lu_rate:.2f} |", flush=True)
+
+
+def steady(quick):
+    """steady_state (the N/2 and N/4 runs included) with each kernel forced, side by side."""
+    print("\n## periodic.steady_state, N = 64 (N/2 and N/4 runs included)")
+    print("| n | loops [s] | LAPACK [s] | loops / LAPACK | LAPACK: s / n^3 [ns] |")
+    print("| ---: | ---: | ---: | ---: | ---: |")
+    saved = _newmark.LAPACK_FROM_N_DOF
+    for n in (12, 24, 48, 96, 192):
+        system = random_system(n, 64)
+
+        def forced_path(threshold):
+            def call():
+                _newmark.LAPACK_FROM_N_DOF = threshold
+                try:
+                    periodic.steady_state(system)
+                finally:
+                    _newmark.LAPACK_FROM_N_DOF = saved
+            return call
+
+        calls = [forced_path(10**9), forced_path(0)]
+        for call in calls:
+            call()
+        loops, lapack = interleaved_medians(calls, 3 if quick or n > 100 else 7, 1)
+        print(f"| {n} | {loops:.4f} | {lapack:.4f} | {loops / lapack:.2f} | {lapack / n**3 * 1e9:.1f} |", flush=True)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer repeats")
+    parser.add_argument("--steady", action="store_true", help="also time steady_state with each kernel")
+    args = parser.parse_args()
+    print(f"crossover in use: periodic._newmark.LAPACK_FROM_N_DOF = {_newmark.LAPACK_FROM_N_DOF}")
+    scale(args.quick, lambda n: 2 * n + 1, "monodromy march: m = 2n + 1 columns")
+    scale(args.quick, lambda n: 1, "forced run: m = 1 column (the reference solves 1 right-hand side)")
+    if args.steady:
+        steady(args.quick)
+
+
+if __name__ == "__main__":
+    main()
