@@ -25,8 +25,14 @@ Run: .venv/bin/python benchmarks/bench_shooting_scale.py [--quick] [--steady]
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import time
+
+# One BLAS thread (before numpy loads OpenBLAS): the rates are those of one core, as in a parallel
+# grid of processes, and the timings below count this process's CPU time, which a shared machine
+# disturbs far less than wall time (another process taking the core does not count).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
 import scipy.linalg
@@ -34,7 +40,7 @@ import scipy.linalg
 import periodic
 from periodic import _newmark
 
-SIZES = (2, 4, 8, 12, 16, 24, 32, 40, 48, 64, 96, 128, 160, 200)
+SIZES = (2, 4, 8, 12, 16, 20, 24, 32, 40, 48, 64, 96, 128, 160, 200)
 
 
 def random_system(n, n_steps, seed=0):
@@ -56,8 +62,8 @@ def lu_flops(n, m):
     return 2.0 / 3.0 * n**3 + 2.0 * n * n * m
 
 
-def march_call(kernel, system, m):
-    """A call of ``kernel`` on the unit states (plus the forced column when m is odd), from scratch."""
+def march_call(solver, system, m):
+    """A kernel call with ``solver`` on the unit states (plus the forced column when m is odd), from scratch."""
     n = system.n_dof
     scheme = periodic.SCHEMES["trapezoidal"]
     forced = np.zeros(m)
@@ -67,8 +73,8 @@ def march_call(kernel, system, m):
     def call():
         x, v = np.zeros((n, m)), np.zeros((n, m))
         x[:, : min(n, m)] = np.eye(n, min(n, m))
-        status = kernel(system.M, system.C, system.K, system.f, system.step, scheme.beta, scheme.gamma,
-                        forced, x, v, np.empty((n, m)), empty, empty, empty)
+        status = _newmark.newmark_march(system.M, system.C, system.K, system.f, system.step, scheme.beta,
+                                        scheme.gamma, forced, x, v, np.empty((n, m)), empty, empty, empty, solver)
         assert status == -1
     return call
 
@@ -86,44 +92,47 @@ def interleaved_medians(calls, repeats, inner):
     times = [[] for _ in calls]
     for _ in range(repeats):
         for call, store in zip(calls, times):
-            start = time.perf_counter()
+            start = time.process_time()
             for _ in range(inner):
                 call()
-            store.append((time.perf_counter() - start) / inner)
+            store.append((time.process_time() - start) / inner)
     return [statistics.median(store) for store in times]
+
+
+SOLVERS = {"loops": _newmark.SOLVE_LOOPS, "dgetrs": _newmark.SOLVE_LAPACK, "dgetri+dgemm": _newmark.SOLVE_INVERSE}
 
 
 def scale(quick, m_of_n, label):
     print(f"\n## {label}")
-    print("| n | m | loops [us/step] | LAPACK [us/step] | loops / LAPACK | loops GFLOP/s | LAPACK GFLOP/s "
-          "| LU+solve GFLOP/s | shooting / LU |")
-    print("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    print("| n | m | " + " | ".join(f"{name} [us/step]" for name in SOLVERS) + " | chosen | loops / chosen "
+          "| shooting GFLOP/s | LU+solve GFLOP/s | shooting / LU |")
+    print("| ---: | ---: | " + "---: | " * len(SOLVERS) + "--- | ---: | ---: | ---: | ---: |")
     for n in SIZES:
         m = m_of_n(n)
         n_steps = 64 if n <= 48 else 16
         system = random_system(n, n_steps)
-        calls = [march_call(_newmark.newmark_march, system, m), march_call(_newmark.newmark_march_lapack, system, m)]
-        reference = lu_call(system, 2 * n + 1) if m > 1 else lu_call(system, 1)
+        calls = [march_call(solver, system, m) for solver in SOLVERS.values()]
+        reference = lu_call(system, m)
         for call in calls + [reference]:
             call()  # JIT and BLAS warm-up
         budget = 0.2 if quick else 0.6  # s per kernel and repeat count below
         one = max(interleaved_medians(calls, 1, 1))
         inner = max(1, int(0.02 / one))
         repeats = max(3, min(15, int(budget / (one * inner))))
-        loops, lapack = (t / n_steps for t in interleaved_medians(calls, repeats, inner))
+        per_step = [t / n_steps for t in interleaved_medians(calls, repeats, inner)]
         lu_time = interleaved_medians([reference], repeats, max(1, int(inner * n_steps)))[0]
-        flops = shooting_flops(n, m)
-        chosen = lapack if _newmark.march_kernel(n) is _newmark.newmark_march_lapack else loops
-        lu_rate = lu_flops(n, m) / lu_time
-        print(f"| {n} | {m} | {loops * 1e6:.1f} | {lapack * 1e6:.1f} | {loops / lapack:.2f} | "
-              f"{flops / loops * 1e-9:.2f} | {flops / lapack * 1e-9:.2f} | {lu_rate * 1e-9:.2f} | "
-              f"{flops / chosen / lu_rate:.2f} |", flush=True)
+        chosen = list(SOLVERS.values()).index(_newmark.choose_solver(n, m))
+        # the rate counts the algorithm's flops (LU, solves, products), not dgetri's extra 4/3 n^3
+        rate, lu_rate = shooting_flops(n, m) / per_step[chosen], lu_flops(n, m) / lu_time
+        print(f"| {n} | {m} | " + " | ".join(f"{t * 1e6:.1f}" for t in per_step) + f" | {list(SOLVERS)[chosen]} | "
+              f"{per_step[0] / per_step[chosen]:.2f} | {rate * 1e-9:.2f} | {lu_rate * 1e-9:.2f} | "
+              f"{rate / lu_rate:.2f} |", flush=True)
 
 
 def steady(quick):
     """steady_state (the N/2 and N/4 runs included) with each kernel forced, side by side."""
     print("\n## periodic.steady_state, N = 64 (N/2 and N/4 runs included)")
-    print("| n | loops [s] | LAPACK [s] | loops / LAPACK | LAPACK: s / n^3 [ns] |")
+    print("| n | loops [s] | chosen [s] | loops / chosen | chosen: s / n^3 [ns] |")
     print("| ---: | ---: | ---: | ---: | ---: |")
     saved = _newmark.LAPACK_FROM_N_DOF
     for n in (12, 24, 48, 96, 192):
@@ -138,11 +147,11 @@ def steady(quick):
                     _newmark.LAPACK_FROM_N_DOF = saved
             return call
 
-        calls = [forced_path(10**9), forced_path(0)]
+        calls = [forced_path(10**9), forced_path(saved)]
         for call in calls:
             call()
-        loops, lapack = interleaved_medians(calls, 3 if quick or n > 100 else 7, 1)
-        print(f"| {n} | {loops:.4f} | {lapack:.4f} | {loops / lapack:.2f} | {lapack / n**3 * 1e9:.1f} |", flush=True)
+        loops, chosen = interleaved_medians(calls, 3 if quick or n > 100 else 7, 1)
+        print(f"| {n} | {loops:.4f} | {chosen:.4f} | {loops / chosen:.2f} | {chosen / n**3 * 1e9:.1f} |", flush=True)
 
 
 def main():

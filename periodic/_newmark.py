@@ -1,4 +1,4 @@
-"""Numba kernels: Newmark's scheme on many columns at once, with a small LU with partial pivoting.
+"""Numba kernel: Newmark's scheme on many columns at once; a small LU with partial pivoting or LAPACK.
 
 Newmark's scheme for ``M(t) x'' + C(t) x' + K(t) x = f(t)`` on ``t_k = k h`` (Newmark 1959;
 Hughes, The Finite Element Method, eq. 9.1.5-9.1.7), written in predictor-corrector form:
@@ -11,12 +11,26 @@ Hughes, The Finite Element Method, eq. 9.1.5-9.1.7), written in predictor-correc
 beta = 1/4, gamma = 1/2 (average acceleration) is the trapezoidal rule on the first-order form.
 Every column ``j`` of the state matrices is an independent solution; column ``j`` sees the force
 ``forced[j] * f`` (1 for the particular solution, 0 for the homogeneous unit states).  The effective
-matrix of (N2) is factorised once per step and applied to all columns.  The small LU below beats
-np.linalg.solve inside njit (which copies to Fortran order and calls LAPACK) for n = 2..40 with
-2n+1 right-hand sides: measured 6x at n = 2, 4x at n = 10, 1.5x at n = 40.  It also beats LAPACK's
-dgetrf / dgetrs called directly from the kernel without copies (as ``mechanisms._simulate`` does
-for its larger Newton matrix): this kernel was 2-12x slower with them at n = 2, N = 64 and 1.8-3x
-at n = 12, N = 256 (per-call overhead of OpenBLAS; equal from n ~ 40), steady_state 11 % and 8 %.
+matrix of (N2) is factorised once per step and applied to all columns.
+
+Cost per step, m columns (m = 2n+1 for the monodromy, 1 for the forced run): 2/3 n^3 (LU) +
+2 n^2 m (solves) + 4 n^2 m (the products C v~ and K x~), about 12.7 n^3 flops at m = 2n+1.  Three
+linear solvers do the LU and the solves (argument ``solver``, picked by :func:`choose_solver`):
+
+- ``SOLVE_LOOPS``, the hand-written LU below, for n < ``LAPACK_FROM_N_DOF`` = 20.  It beats
+  np.linalg.solve inside njit (which copies to Fortran order) 6x at n = 2 and 4x at n = 10, and
+  LAPACK called from the kernel 2x at n = 2-12 (per-call overhead of OpenBLAS).
+- ``SOLVE_INVERSE`` for n >= 20 and many columns: LAPACK dgetrf, dgetri (4/3 n^3 more flops) and
+  all columns in one dgemm.  dgetrs with the 2n+1 columns at once runs at only 4-17 GFLOP/s here
+  (OpenBLAS's triangular solves, measured n = 16..200), not faster than the hand-written column
+  loops below n ~ 100, whereas dgemm runs at 35-48: the inverse pays for itself from n ~ 16.
+  Measured per step on one core (benchmarks/bench_shooting_scale.py, CPU time): 1.15x faster than
+  the loops at n = 20, 1.3x at 40, 1.6x at 200, where the step runs at 32 GFLOP/s (the algorithm's
+  flops above, not dgetri's extra), 1.8x scipy's lu_factor + lu_solve of the same size.  The
+  inverse's rounding error is of the same order as the LU solve's (cond(S) eps); the effective
+  matrix S = M + gamma h C + beta h^2 K is dominated by M at resolving steps.
+- ``SOLVE_LAPACK``, dgetrf and dgetrs, for n >= 20 and few columns (the forced run): 1.2x faster
+  than the loops at n = 20, 4.3x at n = 200.
 """
 
 from __future__ import annotations
@@ -276,7 +290,7 @@ def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a
 
 #: From this many coordinates on, :func:`choose_solver` leaves the hand-written LU for LAPACK
 #: (measured crossover, see the module notes and ``benchmarks/bench_shooting_scale.py``).
-LAPACK_FROM_N_DOF = 40
+LAPACK_FROM_N_DOF = 20
 
 
 def choose_solver(n_dof: int, n_columns: int) -> int:

@@ -16,24 +16,9 @@ from periodic import __main__ as demo_command
 from periodic._newmark import (SOLVE_INVERSE, SOLVE_LAPACK, SOLVE_LOOPS, _lu_factor, _lu_solve, mass_pivot_ratios,
                                newmark_march)
 from studies._demo import write_demo
+from tests._newmark_twin import newmark_numpy
 
 SOLVERS = [SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE]  # the kernel's linear-algebra paths
-
-
-def newmark_numpy(M, C, K, f, h, beta, gamma, forced, x0, v0):
-    """Newmark's scheme written directly from its textbook form, one np.linalg.solve per step."""
-    x, v = x0.copy(), v0.copy()
-    a = np.linalg.solve(M[0], np.outer(f[0], forced) - C[0] @ v - K[0] @ x)
-    xs, vs, as_ = [x], [v], [a]
-    for k in range(1, M.shape[0]):
-        x_pred = x + h * v + h * h * (0.5 - beta) * a
-        v_pred = v + h * (1.0 - gamma) * a
-        effective = M[k] + gamma * h * C[k] + beta * h * h * K[k]
-        a = np.linalg.solve(effective, np.outer(f[k], forced) - C[k] @ v_pred - K[k] @ x_pred)
-        x = x_pred + beta * h * h * a
-        v = v_pred + gamma * h * a
-        xs.append(x), vs.append(v), as_.append(a)
-    return np.array(xs), np.array(vs), np.array(as_)
 
 
 @pytest.mark.parametrize("solver", SOLVERS)
