@@ -15,6 +15,7 @@ import scipy.special
 
 import periodic
 from periodic import NearResonanceWarning, PeriodicSystem
+from tests._paths import PATHS, each_kernel_path, kernel_path  # noqa: F401 (a fixture)
 
 TWO_PI = 2.0 * np.pi
 
@@ -58,12 +59,13 @@ OMEGA2 = 1.1
 GRID = np.array([40, 80, 160, 320])
 
 
-@pytest.fixture(scope="module")
-def constant_runs():
+@pytest.fixture(scope="module", params=PATHS)  # the kernel's hand-written LU and its LAPACK path
+def constant_runs(request):
     runs = []
     for n_steps in GRID:
         system = constant_system(M2, C2, K2, F2, OMEGA2, int(n_steps))
-        runs.append((system, periodic.steady_state(system), periodic.steady_state(system, extrapolate=True)))
+        with kernel_path(request.param):
+            runs.append((system, periodic.steady_state(system), periodic.steady_state(system, extrapolate=True)))
     return runs
 
 
@@ -112,7 +114,7 @@ def meissner_monodromy():
     return flow(K_HIGH, np.pi / 2) @ flow(K_LOW, np.pi) @ flow(K_HIGH, np.pi / 2)
 
 
-def test_meissner_closed_form_orders():
+def test_meissner_closed_form_orders(each_kernel_path):
     exact = meissner_monodromy()
     exact_mu = np.linalg.eigvals(exact)
     grid = np.array([80, 160, 320, 640])
@@ -193,14 +195,15 @@ def manufactured_functions():
     return (mass, damping, stiffness, force), exact
 
 
-@pytest.fixture(scope="module")
-def manufactured_runs():
+@pytest.fixture(scope="module", params=PATHS)
+def manufactured_runs(request):
     functions, exact = manufactured_functions()
     runs = []
     for n_steps in GRID:
         system = PeriodicSystem.from_functions(TWO_PI, *functions, n_steps=int(n_steps))
         truth = np.array([exact(t) for t in system.t])  # (N+1, 3 (x, v, a), n)
-        runs.append((system, truth, periodic.steady_state(system), periodic.steady_state(system, extrapolate=True)))
+        with kernel_path(request.param):
+            runs.append((system, truth, periodic.steady_state(system), periodic.steady_state(system, extrapolate=True)))
     return runs
 
 
@@ -234,7 +237,7 @@ def test_steady_state_is_periodic_and_multipliers_agree_with_floquet(manufacture
 # --- invariants -------------------------------------------------------------------------------------
 
 
-def test_liouville_formula():
+def test_liouville_formula(each_kernel_path):
     functions, _ = manufactured_functions()
     mass, damping = functions[0], functions[1]
     exact, _ = scipy.integrate.quad(lambda t: -np.trace(np.linalg.solve(mass(t), damping(t))), 0.0, TWO_PI, epsabs=1e-13)
@@ -249,7 +252,7 @@ def test_liouville_formula():
 
 
 @pytest.mark.parametrize("pulse", [0.3, 2.5])  # stable and unstable
-def test_conservative_system_has_reciprocal_multiplier_pairs(pulse):
+def test_conservative_system_has_reciprocal_multiplier_pairs(pulse, each_kernel_path):
     """Constant M, symmetric K(t), no damping: Hamiltonian, multipliers come in pairs (mu, 1/mu).
 
     The trapezoidal step is a Cayley transform of a Hamiltonian matrix, so the discrete monodromy is
@@ -271,7 +274,7 @@ def test_conservative_system_has_reciprocal_multiplier_pairs(pulse):
         np.testing.assert_allclose(np.abs(mu), 1.0, atol=1e-12)
 
 
-def test_undamped_system_on_the_unit_circle_works():
+def test_undamped_system_on_the_unit_circle_works(each_kernel_path):
     """Undamped constant coefficients forced off resonance: |mu| = 1 to rounding, solution exact to O(h^2)."""
     K = np.array([[5.0, -1.5], [-1.5, 3.0]])
     system = constant_system(M2, np.zeros((2, 2)), K, F2, OMEGA2, 400)
@@ -319,7 +322,7 @@ STIFF_F = np.array([1.0, 1e9j])
 
 
 @pytest.mark.parametrize("n_steps", [52, 100])  # multiples of 4: the error check runs N/4 too
-def test_unresolved_stiff_mode_is_not_called_a_resonance(n_steps):
+def test_unresolved_stiff_mode_is_not_called_a_resonance(n_steps, each_kernel_path):
     """Trapezoidal R -> -1 for the stiff DOF, so over even N its multipliers approach +1 (|1 - mu| =
     1 - exp(-4 N^2 / (5e5 T)) < 1e-2 at N = 52, 100); this must be labelled an unresolved stiff mode, with an accurate solution."""
     system = constant_system(STIFF_M, STIFF_C, STIFF_K, STIFF_F, 1.0, n_steps)
@@ -336,7 +339,7 @@ def test_unresolved_stiff_mode_is_not_called_a_resonance(n_steps):
     assert true_error == pytest.approx(result.error_estimate, rel=0.2)
 
 
-def test_exactly_singular_shooting_matrix_raises():
+def test_exactly_singular_shooting_matrix_raises(each_kernel_path):
     """A free mass (K = C = 0) has Phi = [[1, T], [0, 1]] exactly: no unique periodic solution."""
     zeros = np.zeros((9, 1, 1))
     system = PeriodicSystem(1.0, np.ones((9, 1, 1)), zeros, zeros, np.ones((9, 1)))
@@ -346,7 +349,7 @@ def test_exactly_singular_shooting_matrix_raises():
     assert isinstance(caught.value, RuntimeError) and not isinstance(caught.value, ValueError)
 
 
-def test_singular_step_matrix_raises():
+def test_singular_step_matrix_raises(each_kernel_path):
     """M + gamma h C + beta h^2 K = 1 + (1/64) (-256) / 4 = 0 at every step (h = 1/8): valid input, failed step."""
     ones = np.ones((9, 1, 1))
     system = PeriodicSystem(1.0, ones, 0.0 * ones, -256.0 * ones)
@@ -372,7 +375,7 @@ def test_other_beta_with_gamma_half_is_symmetric_order_2_and_4(beta):
 
 
 @pytest.mark.parametrize("name", sorted(periodic.SCHEMES))
-def test_every_registered_scheme_has_its_declared_order_and_an_honest_estimate(name):
+def test_every_registered_scheme_has_its_declared_order_and_an_honest_estimate(name, each_kernel_path):
     """Observed order of x on the manufactured solution = ``scheme.order``; ``error_estimate`` (which uses
     ``scheme.error_factor``) within 20 % of the true error at the finest N; a symmetric scheme gains
     two orders by Richardson extrapolation.  E.g. "damped" (gamma = 0.6, beta = (gamma + 1/2)^2 / 4)
@@ -396,12 +399,13 @@ def test_every_registered_scheme_has_its_declared_order_and_an_honest_estimate(n
         assert observed_order(GRID, errors_extrapolated) == pytest.approx(scheme.order + 2, abs=0.3)
 
 
-def test_coarse_solution_comes_back_for_observable_error_estimates(manufactured_runs):
+def test_coarse_solution_comes_back_for_observable_error_estimates(manufactured_runs, request):
     """``x_coarse`` is the N/2-step solution; ``error_factor * |o(x[::2]) - o(x_coarse)|`` estimates the
     error of an observable ``o`` linear in x (here a fixed combination of the coordinates)."""
     weights = np.array([1.0, -2.0, 0.5])
     for system, truth, plain, extrapolated in manufactured_runs[1:]:
-        coarse = periodic.steady_state(system.coarsened(), estimate_error=False)
+        with kernel_path(request.node.callspec.params["manufactured_runs"]):  # the path of the runs
+            coarse = periodic.steady_state(system.coarsened(), estimate_error=False)
         np.testing.assert_array_equal(plain.x_coarse, coarse.x)
         np.testing.assert_array_equal(extrapolated.x_coarse, coarse.x)
         assert plain.error_factor == 1.0 / 3.0 and extrapolated.error_factor == 0.25
