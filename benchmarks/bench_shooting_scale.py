@@ -1,5 +1,5 @@
-"""Cost of the Newmark shooting as the number of coordinates n grows: the two kernels side by side,
-and their flop rate against a plain LU of the same size.
+"""Cost of the Newmark shooting as the number of coordinates n grows: the kernel's three linear
+solvers side by side, and the shooting's flop rate against a plain LU of the same size.
 
 Per step the shooting factorises the effective matrix S = M + gamma h C + beta h^2 K (n, n) once and
 solves it for m right-hand sides (m = 2n + 1 for the monodromy and the particular solution, m = 1
@@ -8,18 +8,20 @@ for the final forced run), whose residual forces f - C v~ - K x~ cost two (n, n)
     flops per step = 2/3 n^3 (LU) + 2 n^2 m (solves) + 4 n^2 m (products)    [~12.7 n^3 at m = 2n + 1]
 
 The reference is what this machine does for the same LU and solves as plain library calls,
-``scipy.linalg.lu_factor(S)`` + ``lu_solve(.., B)`` with B (n, 2n + 1): 2/3 n^3 + 2 n^2 m flops.
-Printed per n: median time per step of the hand-written kernel (``newmark_march``) and of the
-BLAS-3 kernel (``newmark_march_lapack``), their ratio (> 1: LAPACK faster; this gives the crossover
-``periodic._newmark.LAPACK_FROM_N_DOF``), the GFLOP/s of each, of the LU reference, and the ratio of
-the shooting's rate (the kernel ``periodic.steady_state`` picks) to the LU's.  ``--steady`` also
-times ``periodic.steady_state`` (N/2 and N/4 runs included) at a few n.
+``scipy.linalg.lu_factor(S)`` + ``lu_solve(.., B)`` with B (n, m): 2/3 n^3 + 2 n^2 m flops.
+Printed per n: the median time per step of ``periodic._newmark.newmark_march`` with each solver
+(the hand-written LU and column loops; LAPACK dgetrf + dgetrs; dgetrf + dgetri and one dgemm), the
+one ``choose_solver`` picks and its speed-up over the loops (the loops were the only path before
+issue 14; the crossover ``LAPACK_FROM_N_DOF`` comes from these columns), the shooting's GFLOP/s
+(the flops above, not dgetri's extra 4/3 n^3), the LU reference's, and their ratio.  ``--steady``
+also times ``periodic.steady_state`` (N/2 and N/4 runs included) at a few n on the loops and on the
+chosen path, and ``--mechanism`` on the thesis four-bar with 4..64 coupler elements (n = 12..192).
 
-Timings are medians of interleaved repeats (the machine is shared and noisy): ratios, not absolute
-times, are the result.  Scipy's OpenBLAS does all the library work (numba's np.dot calls it too),
-with its default thread count.
+Timings are CPU times of this process, medians of interleaved repeats, with one BLAS thread (see
+below): the machine is shared and noisy, so ratios, not absolute times, are the result.  Scipy's
+OpenBLAS does all the library work (numba's np.dot calls it too).
 
-Run: .venv/bin/python benchmarks/bench_shooting_scale.py [--quick] [--steady]
+Run: .venv/bin/python benchmarks/bench_shooting_scale.py [--quick] [--steady] [--mechanism]
 """
 
 from __future__ import annotations
@@ -129,41 +131,70 @@ def scale(quick, m_of_n, label):
               f"{rate / lu_rate:.2f} |", flush=True)
 
 
+def with_path(threshold, call):
+    """``call`` with ``periodic._newmark.LAPACK_FROM_N_DOF`` set to ``threshold`` (10**9: the hand-written
+    LU at every n, as before issue 14; the default: the measured crossover)."""
+    def run():
+        saved = _newmark.LAPACK_FROM_N_DOF
+        _newmark.LAPACK_FROM_N_DOF = threshold
+        try:
+            return call()
+        finally:
+            _newmark.LAPACK_FROM_N_DOF = saved
+    return run
+
+
 def steady(quick):
-    """steady_state (the N/2 and N/4 runs included) with each kernel forced, side by side."""
-    print("\n## periodic.steady_state, N = 64 (N/2 and N/4 runs included)")
+    """steady_state (the N/2 and N/4 runs included) on the loops and on the chosen path, side by side."""
+    print("\n## periodic.steady_state, random systems, N = 64 (N/2 and N/4 runs included), CPU time")
     print("| n | loops [s] | chosen [s] | loops / chosen | chosen: s / n^3 [ns] |")
     print("| ---: | ---: | ---: | ---: | ---: |")
-    saved = _newmark.LAPACK_FROM_N_DOF
     for n in (12, 24, 48, 96, 192):
         system = random_system(n, 64)
-
-        def forced_path(threshold):
-            def call():
-                _newmark.LAPACK_FROM_N_DOF = threshold
-                try:
-                    periodic.steady_state(system)
-                finally:
-                    _newmark.LAPACK_FROM_N_DOF = saved
-            return call
-
-        calls = [forced_path(10**9), forced_path(saved)]
+        calls = [with_path(threshold, lambda: periodic.steady_state(system))
+                 for threshold in (10**9, _newmark.LAPACK_FROM_N_DOF)]
         for call in calls:
             call()
         loops, chosen = interleaved_medians(calls, 3 if quick or n > 100 else 7, 1)
         print(f"| {n} | {loops:.4f} | {chosen:.4f} | {loops / chosen:.2f} | {chosen / n**3 * 1e9:.1f} |", flush=True)
 
 
+def mechanism(quick):
+    """The thesis four-bar (four_bar_fem4) with a finer coupler mesh: linearize.about once, then
+    steady_state on each path; the linearisation's time is printed for scale (it is not the shooting's)."""
+    import linearize
+    import mechanisms
+
+    print("\n## four_bar_fem4 at its scene speed, coupler of n_elements Hermite elements, N = 256, CPU time")
+    print("| elements | n | linearize.about [s] | steady_state, loops [s] | chosen [s] | loops / chosen |")
+    print("| ---: | ---: | ---: | ---: | ---: | ---: |")
+    for n_elements in (4, 8, 16, 32) if quick else (4, 8, 16, 32, 64):
+        model = mechanisms.load("four_bar_fem4").with_parameter("links.coupler.discretisation.n_elements", n_elements)
+        start = time.process_time()
+        system = linearize.about(model, n_steps=256).system
+        about = time.process_time() - start
+        calls = [with_path(threshold, lambda: periodic.steady_state(system))
+                 for threshold in (10**9, _newmark.LAPACK_FROM_N_DOF)]
+        for call in calls:
+            call()
+        loops, chosen = interleaved_medians(calls, 3, 1)
+        print(f"| {n_elements} | {system.n_dof} | {about:.2f} | {loops:.3f} | {chosen:.3f} | {loops / chosen:.2f} |",
+              flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repeats")
-    parser.add_argument("--steady", action="store_true", help="also time steady_state with each kernel")
+    parser.add_argument("--steady", action="store_true", help="also time steady_state on random systems, both paths")
+    parser.add_argument("--mechanism", action="store_true", help="also the four-bar with a finer coupler mesh")
     args = parser.parse_args()
     print(f"crossover in use: periodic._newmark.LAPACK_FROM_N_DOF = {_newmark.LAPACK_FROM_N_DOF}")
     scale(args.quick, lambda n: 2 * n + 1, "monodromy march: m = 2n + 1 columns")
     scale(args.quick, lambda n: 1, "forced run: m = 1 column (the reference solves 1 right-hand side)")
     if args.steady:
         steady(args.quick)
+    if args.mechanism:
+        mechanism(args.quick)
 
 
 if __name__ == "__main__":
