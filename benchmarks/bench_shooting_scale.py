@@ -75,8 +75,8 @@ def march_call(solver, system, m):
     def call():
         x, v = np.zeros((n, m)), np.zeros((n, m))
         x[:, : min(n, m)] = np.eye(n, min(n, m))
-        status = _newmark.newmark_march(system.M, system.C, system.K, system.f, system.step, scheme.beta,
-                                        scheme.gamma, forced, x, v, np.empty((n, m)), empty, empty, empty, solver)
+        status = _newmark.march(system.M, system.C, system.K, system.f, system.step, scheme.beta, scheme.gamma,
+                                forced, x, v, np.empty((n, m)), empty, empty, empty, solver)
         assert status == -1
     return call
 

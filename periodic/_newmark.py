@@ -15,13 +15,13 @@ matrix of (N2) is factorised once per step and applied to all columns.
 
 Cost per step, m columns (m = 2n+1 for the monodromy, 1 for the forced run): 2/3 n^3 (LU) +
 2 n^2 m (solves) + 4 n^2 m (the products C v~ and K x~), about 12.7 n^3 flops at m = 2n+1.  Three
-linear solvers do the LU and the solves (argument ``solver``, picked by :func:`choose_solver`):
+linear solvers do the LU and the solves (:func:`march` takes the one :func:`choose_solver` picks):
 
-- ``SOLVE_LOOPS``, the hand-written LU below, for n < ``LAPACK_FROM_N_DOF`` = 20.  It beats
+- ``SOLVE_LOOPS``, the hand-written LU below (:func:`newmark_march`), for n < ``LAPACK_FROM_N_DOF`` = 20.  It beats
   np.linalg.solve inside njit (which copies to Fortran order) 6x at n = 2 and 4x at n = 10, and
   LAPACK called from the kernel 2x at n = 2-12 (per-call overhead of OpenBLAS).
-- ``SOLVE_INVERSE`` for n >= 20 and many columns: LAPACK dgetrf, dgetri (4/3 n^3 more flops) and
-  all columns in one dgemm.  dgetrs with the 2n+1 columns at once runs at only 4-17 GFLOP/s here
+- ``SOLVE_INVERSE`` for n >= 20 and many columns (:func:`newmark_march_lapack`): LAPACK dgetrf,
+  dgetri (4/3 n^3 more flops) and all columns in one dgemm.  dgetrs with the 2n+1 columns at once runs at only 4-17 GFLOP/s here
   (OpenBLAS's triangular solves, measured n = 16..200), not faster than the hand-written column
   loops below n ~ 100, whereas dgemm runs at 35-48: the inverse pays for itself from n ~ 16.
   Measured per step on one core (benchmarks/bench_shooting_scale.py, CPU time): 1.15x faster than
@@ -138,30 +138,59 @@ def _residual_force(Ck, Kk, fk, forced, x, v, out, work):
 
 
 @numba.njit(cache=True)
-def _predict(x, v, a, h, beta, gamma, xp, vp):
-    """(N1): the predictors ``xp, vp`` of all columns (elementwise: any common layout)."""
-    for i in range(x.shape[0]):
-        for j in range(x.shape[1]):
-            xp[i, j] = x[i, j] + h * v[i, j] + h * h * (0.5 - beta) * a[i, j]
-            vp[i, j] = v[i, j] + h * (1.0 - gamma) * a[i, j]
+def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist):
+    """March ``x, v`` (n, m) from ``t_0`` to ``t_N`` in place; ``a`` (n, m) receives the final acceleration.
 
-
-@numba.njit(cache=True)
-def _correct(xp, vp, a, c_a, k_a, x, v):
-    """(N3): ``x = xp + beta h^2 a``, ``v = vp + gamma h a`` (``k_a = beta h^2``, ``c_a = gamma h``)."""
-    for i in range(x.shape[0]):
-        for j in range(x.shape[1]):
-            x[i, j] = xp[i, j] + k_a * a[i, j]
-            v[i, j] = vp[i, j] + c_a * a[i, j]
-
-
-@numba.njit(cache=True)
-def _effective_matrix(M, C, K, k, c_a, k_a, out):
-    """(N2): ``out = M_k + gamma h C_k + beta h^2 K_k`` (n, n)."""
-    n = out.shape[0]
-    for i in range(n):
-        for j in range(n):
-            out[i, j] = M[k, i, j] + c_a * C[k, i, j] + k_a * K[k, i, j]
+    M, C, K (N+1, n, n), f (N+1, n), forced (m,).  When ``x_hist`` has N+1 rows the states at all
+    samples are written to ``x_hist, v_hist, a_hist`` (N+1, n, m); pass zero-row arrays to skip.
+    Returns -1 on success, else the sample index whose matrix (M_0 in N0, the effective matrix of
+    N2 otherwise) has an exactly zero pivot.  The hand-written LU and column loops (small n);
+    :func:`newmark_march_lapack` is the large-n twin, :func:`march` picks one.
+    """
+    n_samples = M.shape[0]
+    n, m = x.shape
+    store = x_hist.shape[0] == n_samples
+    lu = np.empty((n, n))
+    piv = np.empty(n, dtype=np.int64)
+    xp = np.empty((n, m))
+    vp = np.empty((n, m))
+    work = np.empty((n, m))
+    c_a = gamma * h
+    k_a = beta * h * h
+    # (N0): starting acceleration
+    _residual_force(C[0], K[0], f[0], forced, x, v, a, work)
+    _copy(M[0], lu)
+    if not _lu_factor(lu, piv):
+        return 0
+    _lu_solve(lu, piv, a)
+    if store:
+        _copy(x, x_hist[0])
+        _copy(v, v_hist[0])
+        _copy(a, a_hist[0])
+    for k in range(n_samples - 1):
+        # (N1): predictors
+        for i in range(n):
+            for j in range(m):
+                xp[i, j] = x[i, j] + h * v[i, j] + h * h * (0.5 - beta) * a[i, j]
+                vp[i, j] = v[i, j] + h * (1.0 - gamma) * a[i, j]
+        # (N2): effective matrix and right-hand side at t_{k+1}
+        for i in range(n):
+            for j in range(n):
+                lu[i, j] = M[k + 1, i, j] + c_a * C[k + 1, i, j] + k_a * K[k + 1, i, j]
+        if not _lu_factor(lu, piv):
+            return k + 1
+        _residual_force(C[k + 1], K[k + 1], f[k + 1], forced, xp, vp, a, work)
+        _lu_solve(lu, piv, a)
+        # (N3): correctors
+        for i in range(n):
+            for j in range(m):
+                x[i, j] = xp[i, j] + k_a * a[i, j]
+                v[i, j] = vp[i, j] + c_a * a[i, j]
+        if store:
+            _copy(x, x_hist[k + 1])
+            _copy(v, v_hist[k + 1])
+            _copy(a, a_hist[k + 1])
+    return -1
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -188,9 +217,10 @@ _TRANSPOSED = np.array([ord("T")], dtype=np.int8)
 # Work of dgetri per row of the matrix (its block size; n is the least it accepts).
 _GETRI_WORK_PER_ROW = 64
 
-#: The kernel's linear solvers (its argument ``solver``, see :func:`choose_solver`):
-#: the hand-written LU and its column loops; LAPACK's dgetrf and dgetrs (the columns transposed to
-#: LAPACK's order and back, O(n m)); LAPACK's dgetrf and dgetri, and all columns in one dgemm.
+#: The linear solvers of :func:`march` (see :func:`choose_solver`): the hand-written LU and its
+#: column loops (:func:`newmark_march`); LAPACK's dgetrf and dgetrs (the columns transposed to
+#: LAPACK's order and back, O(n m)); LAPACK's dgetrf and dgetri, and all columns in one dgemm
+#: (both :func:`newmark_march_lapack`).
 SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE = 0, 1, 2
 
 
@@ -203,88 +233,82 @@ def _transpose(source, target):
 
 
 @numba.njit(cache=True)
-def _factor(lu, pivots, lapack_pivots, sizes, getri_work, solver):
-    """Factor the (n, n) C-order ``lu`` in place for :func:`_solve` (``sizes`` (3,) int32: room for
-    the integers LAPACK takes by reference).  Returns False when a pivot is exactly zero."""
-    if solver == SOLVE_LOOPS:
-        return _lu_factor(lu, pivots)
+def _lapack_factor(lu, pivots, sizes, getri_work, invert):
+    """dgetrf of the (n, n) C-order ``lu`` in place (LAPACK factors its transpose), and with ``invert``
+    dgetri, which leaves inv(S^T) in LAPACK's order, i.e. inv(S) in C order.  ``pivots`` (n,) and
+    ``sizes`` (3,) int32 (room for the integers LAPACK takes by reference: n, a count, info).
+    Returns False when a pivot is exactly zero (``info > 0``)."""
     sizes[0] = lu.shape[0]
-    _dgetrf(sizes.ctypes, sizes.ctypes, lu.ctypes, sizes.ctypes, lapack_pivots.ctypes, sizes[2:].ctypes)
+    _dgetrf(sizes.ctypes, sizes.ctypes, lu.ctypes, sizes.ctypes, pivots.ctypes, sizes[2:].ctypes)
     if sizes[2] != 0:
-        return False  # info > 0: u_kk exactly zero
-    if solver == SOLVE_INVERSE:
-        # lu holds the factors of S^T in LAPACK's order: dgetri leaves inv(S^T), i.e. inv(S) in C order
+        return False
+    if invert:
         sizes[1] = getri_work.shape[0]
-        _dgetri(sizes.ctypes, lu.ctypes, sizes.ctypes, lapack_pivots.ctypes, getri_work.ctypes,
-                sizes[1:].ctypes, sizes[2:].ctypes)
+        _dgetri(sizes.ctypes, lu.ctypes, sizes.ctypes, pivots.ctypes, getri_work.ctypes, sizes[1:].ctypes,
+                sizes[2:].ctypes)
     return True
 
 
 @numba.njit(cache=True)
-def _solve(lu, pivots, lapack_pivots, sizes, b, work, work_t, solver):
-    """Overwrite ``b`` (n, m) with ``S^-1 b`` from :func:`_factor`'s output; ``work`` (n, m) and
-    ``work_t`` (m, n) are scratch."""
-    if solver == SOLVE_LOOPS:
-        _lu_solve(lu, pivots, b)
-    elif solver == SOLVE_INVERSE:
+def _lapack_solve(lu, pivots, sizes, b, work, work_t, invert):
+    """Overwrite ``b`` (n, m) with ``S^-1 b`` from :func:`_lapack_factor`: one dgemm with the inverse, or
+    dgetrs on the columns transposed to LAPACK's order (C-order (m, n) is LAPACK's (n, m)) and back.
+    ``work`` (n, m) and ``work_t`` (m, n) are scratch."""
+    if invert:
         _copy(b, work)
         np.dot(lu, work, b)
-    else:
-        _transpose(b, work_t)  # C-order (m, n) is LAPACK's (n, m)
-        sizes[0] = lu.shape[0]
-        sizes[1] = b.shape[1]
-        _dgetrs(_TRANSPOSED.ctypes, sizes.ctypes, sizes[1:].ctypes, lu.ctypes, sizes.ctypes,
-                lapack_pivots.ctypes, work_t.ctypes, sizes.ctypes, sizes[2:].ctypes)
-        _transpose(work_t, b)
+        return
+    _transpose(b, work_t)
+    sizes[0] = lu.shape[0]
+    sizes[1] = b.shape[1]
+    _dgetrs(_TRANSPOSED.ctypes, sizes.ctypes, sizes[1:].ctypes, lu.ctypes, sizes.ctypes, pivots.ctypes,
+            work_t.ctypes, sizes.ctypes, sizes[2:].ctypes)
+    _transpose(work_t, b)
 
 
 @numba.njit(cache=True)
-def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist, solver):
-    """March ``x, v`` (n, m) from ``t_0`` to ``t_N`` in place; ``a`` (n, m) receives the final acceleration.
-
-    M, C, K (N+1, n, n), f (N+1, n), forced (m,).  When ``x_hist`` has N+1 rows the states at all
-    samples are written to ``x_hist, v_hist, a_hist`` (N+1, n, m); pass zero-row arrays to skip.
-    ``solver`` is one of ``SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE`` (:func:`choose_solver`); all
-    give the same results to rounding.  Returns -1 on success, else the sample index whose matrix
-    (M_0 in N0, the effective matrix of N2 otherwise) has an exactly zero pivot.
-    """
+def newmark_march_lapack(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist, invert):
+    """:func:`newmark_march` (same arguments, results to rounding, and return value) with LAPACK:
+    dgetrf per step, then with ``invert`` dgetri and one dgemm for all columns (many columns), else
+    dgetrs (one column).  A kernel of its own, so that runs at small n compile none of it."""
     n_samples = M.shape[0]
     n, m = x.shape
     store = x_hist.shape[0] == n_samples
     lu = np.empty((n, n))
-    pivots = np.empty(n, dtype=np.int64)
-    lapack_pivots = np.empty(n, dtype=np.int32)
+    pivots = np.empty(n, dtype=np.int32)
     sizes = np.zeros(3, dtype=np.int32)
-    getri_work = np.empty(_GETRI_WORK_PER_ROW * n if solver == SOLVE_INVERSE else 0)
-    xp = np.empty((n, m))
-    vp = np.empty((n, m))
-    work = np.empty((n, m))
-    work_t = np.empty((m, n) if solver == SOLVE_LAPACK else (0, 0))
-    c_a = gamma * h
-    k_a = beta * h * h
-    # (N0): starting acceleration
+    getri_work = np.empty(_GETRI_WORK_PER_ROW * n)
+    predicted = np.empty((2, n, m))  # x~ and v~ of (N1)
+    work, work_t = np.empty((n, m)), np.empty((m, n))
+    c_a, k_a = gamma * h, beta * h * h
+    # (N0), then per step (N1) predictors, (N2) effective matrix and solve, (N3) correctors
     _residual_force(C[0], K[0], f[0], forced, x, v, a, work)
     _copy(M[0], lu)
-    if not _factor(lu, pivots, lapack_pivots, sizes, getri_work, solver):
+    if not _lapack_factor(lu, pivots, sizes, getri_work, invert):
         return 0
-    _solve(lu, pivots, lapack_pivots, sizes, a, work, work_t, solver)
-    if store:
-        _copy(x, x_hist[0])
-        _copy(v, v_hist[0])
-        _copy(a, a_hist[0])
-    for k in range(n_samples - 1):
-        _predict(x, v, a, h, beta, gamma, xp, vp)  # (N1)
-        # (N2): effective matrix and right-hand side at t_{k+1}
-        _effective_matrix(M, C, K, k + 1, c_a, k_a, lu)
-        if not _factor(lu, pivots, lapack_pivots, sizes, getri_work, solver):
-            return k + 1
-        _residual_force(C[k + 1], K[k + 1], f[k + 1], forced, xp, vp, a, work)
-        _solve(lu, pivots, lapack_pivots, sizes, a, work, work_t, solver)
-        _correct(xp, vp, a, c_a, k_a, x, v)  # (N3)
+    _lapack_solve(lu, pivots, sizes, a, work, work_t, invert)
+    for k in range(n_samples):
         if store:
-            _copy(x, x_hist[k + 1])
-            _copy(v, v_hist[k + 1])
-            _copy(a, a_hist[k + 1])
+            _copy(x, x_hist[k])
+            _copy(v, v_hist[k])
+            _copy(a, a_hist[k])
+        if k == n_samples - 1:
+            break
+        for i in range(n):
+            for j in range(m):
+                predicted[0, i, j] = x[i, j] + h * v[i, j] + h * h * (0.5 - beta) * a[i, j]
+                predicted[1, i, j] = v[i, j] + h * (1.0 - gamma) * a[i, j]
+        for i in range(n):
+            for j in range(n):
+                lu[i, j] = M[k + 1, i, j] + c_a * C[k + 1, i, j] + k_a * K[k + 1, i, j]
+        if not _lapack_factor(lu, pivots, sizes, getri_work, invert):
+            return k + 1
+        _residual_force(C[k + 1], K[k + 1], f[k + 1], forced, predicted[0], predicted[1], a, work)
+        _lapack_solve(lu, pivots, sizes, a, work, work_t, invert)
+        for i in range(n):
+            for j in range(m):
+                x[i, j] = predicted[0, i, j] + k_a * a[i, j]
+                v[i, j] = predicted[1, i, j] + c_a * a[i, j]
     return -1
 
 
@@ -294,13 +318,24 @@ LAPACK_FROM_N_DOF = 20
 
 
 def choose_solver(n_dof: int, n_columns: int) -> int:
-    """The kernel's ``solver`` for ``n_dof`` coordinates and ``n_columns`` right-hand sides: the
+    """The linear solver for ``n_dof`` coordinates and ``n_columns`` right-hand sides: the
     hand-written LU below :data:`LAPACK_FROM_N_DOF`; from there on LAPACK, with the inverse and one
     matrix product when the columns are many (the monodromy's 2n+1), else dgetrs (the forced run's
     single column).  Reads :data:`LAPACK_FROM_N_DOF` at each call, so tests can force either path."""
     if n_dof < LAPACK_FROM_N_DOF:
         return SOLVE_LOOPS
     return SOLVE_INVERSE if 2 * n_columns > n_dof else SOLVE_LAPACK
+
+
+def march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist, solver=None):
+    """:func:`newmark_march` or :func:`newmark_march_lapack` by ``solver`` (one of ``SOLVE_LOOPS,
+    SOLVE_LAPACK, SOLVE_INVERSE``; default :func:`choose_solver`'s pick), same arguments and return."""
+    if solver is None:
+        solver = choose_solver(x.shape[0], x.shape[1])
+    if solver == SOLVE_LOOPS:
+        return newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist)
+    return newmark_march_lapack(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist,
+                                solver == SOLVE_INVERSE)
 
 
 @numba.njit(cache=True)

@@ -95,8 +95,8 @@ def test_every_solver_is_as_accurate_as_a_backward_stable_solve_on_stiff_systems
     empty = np.empty((0, n, 2 * n + 1))
     for solver in (_newmark.SOLVE_LOOPS, _newmark.SOLVE_LAPACK, _newmark.SOLVE_INVERSE):
         x, v = x0.copy(), v0.copy()
-        status = _newmark.newmark_march(system.M, system.C, system.K, system.f, h, beta, gamma, forced, x, v,
-                                        np.empty_like(x), empty, empty, empty, solver)
+        status = _newmark.march(system.M, system.C, system.K, system.f, h, beta, gamma, forced, x, v,
+                                np.empty_like(x), empty, empty, empty, solver)
         assert status == -1
         error = np.abs(np.vstack((x, v)) - reference).max() / np.abs(reference).max()
         assert error <= bound, solver

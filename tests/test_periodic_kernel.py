@@ -13,12 +13,11 @@ import pytest
 import periodic
 from periodic import _demo as demo
 from periodic import __main__ as demo_command
-from periodic._newmark import (SOLVE_INVERSE, SOLVE_LAPACK, SOLVE_LOOPS, _lu_factor, _lu_solve, mass_pivot_ratios,
-                               newmark_march)
+from periodic._newmark import SOLVE_INVERSE, SOLVE_LAPACK, SOLVE_LOOPS, _lu_factor, _lu_solve, march, mass_pivot_ratios
 from studies._demo import write_demo
 from tests._newmark_twin import newmark_numpy
 
-SOLVERS = [SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE]  # the kernel's linear-algebra paths
+SOLVERS = [SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE]  # the kernels' linear-algebra paths
 
 
 @pytest.mark.parametrize("solver", SOLVERS)
@@ -37,7 +36,7 @@ def test_kernel_matches_numpy_twin(beta, gamma, n, solver):
     expected = newmark_numpy(M, C, K, f, h, beta, gamma, forced, x0, v0)
     x, v, a = x0.copy(), v0.copy(), np.empty((n, m))
     hist = [np.empty((n_steps + 1, n, m)) for _ in range(3)]
-    status = newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, *hist, solver)
+    status = march(M, C, K, f, h, beta, gamma, forced, x, v, a, *hist, solver)
     assert status == -1
     # Same operations in a different order: differences are rounding, ~ n_steps * eps * growth.
     for got, want in zip(hist, expected):
@@ -56,8 +55,8 @@ def test_kernel_reports_the_singular_sample(solver):
     M[4] = 0.0  # effective matrix M + 0 + 0 singular at sample 4
     x, v, a = np.eye(2), np.zeros((2, 2)), np.empty((2, 2))
     empty = np.empty((0, 2, 2))
-    status = newmark_march(M, C, K, np.zeros((n_steps + 1, 2)), 0.1, 0.25, 0.5, np.zeros(2), x, v, a, empty, empty, empty,
-                           solver)
+    status = march(M, C, K, np.zeros((n_steps + 1, 2)), 0.1, 0.25, 0.5, np.zeros(2), x, v, a, empty, empty, empty,
+                   solver)
     assert status == 4
 
 
