@@ -1,4 +1,4 @@
-"""Numba kernel: Newmark's scheme on many columns at once; a small LU with partial pivoting or LAPACK.
+"""Numba kernels: Newmark's scheme on many columns at once, with a small hand-written LU or LAPACK.
 
 Newmark's scheme for ``M(t) x'' + C(t) x' + K(t) x = f(t)`` on ``t_k = k h`` (Newmark 1959;
 Hughes, The Finite Element Method, eq. 9.1.5-9.1.7), written in predictor-corrector form:
@@ -15,22 +15,26 @@ matrix of (N2) is factorised once per step and applied to all columns.
 
 Cost per step, m columns (m = 2n+1 for the monodromy, 1 for the forced run): 2/3 n^3 (LU) +
 2 n^2 m (solves) + 4 n^2 m (the products C v~ and K x~), about 12.7 n^3 flops at m = 2n+1.  Three
-linear solvers do the LU and the solves (:func:`march` takes the one :func:`choose_solver` picks):
+linear solvers do the LU and the solves; :func:`march` runs the one :func:`choose_solver` picks:
 
-- ``SOLVE_LOOPS``, the hand-written LU below (:func:`newmark_march`), for n < ``LAPACK_FROM_N_DOF`` = 20.  It beats
-  np.linalg.solve inside njit (which copies to Fortran order) 6x at n = 2 and 4x at n = 10, and
-  LAPACK called from the kernel 2x at n = 2-12 (per-call overhead of OpenBLAS).
-- ``SOLVE_INVERSE`` for n >= 20 and many columns (:func:`newmark_march_lapack`): LAPACK dgetrf,
-  dgetri (4/3 n^3 more flops) and all columns in one dgemm.  dgetrs with the 2n+1 columns at once runs at only 4-17 GFLOP/s here
-  (OpenBLAS's triangular solves, measured n = 16..200), not faster than the hand-written column
-  loops below n ~ 100, whereas dgemm runs at 35-48: the inverse pays for itself from n ~ 16.
-  Measured per step on one core (benchmarks/bench_shooting_scale.py, CPU time): 1.15x faster than
-  the loops at n = 20, 1.3x at 40, 1.6x at 200, where the step runs at 32 GFLOP/s (the algorithm's
-  flops above, not dgetri's extra), 1.8x scipy's lu_factor + lu_solve of the same size.  The
-  inverse's rounding error is of the same order as the LU solve's (cond(S) eps); the effective
-  matrix S = M + gamma h C + beta h^2 K is dominated by M at resolving steps.
-- ``SOLVE_LAPACK``, dgetrf and dgetrs, for n >= 20 and few columns (the forced run): 1.2x faster
-  than the loops at n = 20, 4.3x at n = 200.
+- ``SOLVE_LOOPS`` (:func:`newmark_march`), the hand-written LU below, for n < ``LAPACK_FROM_N_DOF``
+  = 20.  It beats np.linalg.solve inside njit (which copies to Fortran order) 6x at n = 2 and 4x at
+  n = 10, and LAPACK called from the kernel 2x at n = 2-12 (OpenBLAS's per-call overhead).
+- ``SOLVE_INVERSE`` (:func:`newmark_march_lapack`) for n >= 20 and many columns: LAPACK dgetrf,
+  dgetri (4/3 n^3 more flops) and all columns in one dgemm.  dgetrs on the 2n+1 columns at once
+  runs at only 4-17 GFLOP/s here (OpenBLAS's triangular solves, n = 16..200): no faster than the
+  column loops up to n = 64, whereas dgemm runs at 35-48 GFLOP/s, so the inverse pays for itself
+  from n ~ 16.  Per step on one core (benchmarks/bench_shooting_scale.py, CPU time): 1.15x faster
+  than the loops at n = 20, 1.3x at 40, 1.6x at 200, where the step runs at 32 GFLOP/s (counting
+  the flops above, not dgetri's extra), 1.8x the rate of scipy's lu_factor + lu_solve of the same
+  size.  The inverse's rounding error is of the order of the LU solve's, cond(S) eps (tested
+  against a backward-stable solve on stiff systems); S = M + gamma h C + beta h^2 K is dominated by
+  M when the step resolves the modes.
+- ``SOLVE_LAPACK`` (:func:`newmark_march_lapack`), dgetrf and dgetrs, for n >= 20 and few columns
+  (the forced run): 1.2x faster than the loops at n = 20, 4.3x at n = 200.
+
+The LAPACK path is a kernel of its own so that runs at small n compile none of it (the cold start of
+a small model is unchanged; the LAPACK kernel compiles in about 2.6 s on first use).
 """
 
 from __future__ import annotations

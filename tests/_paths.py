@@ -8,8 +8,6 @@ from __future__ import annotations
 import contextlib
 import sys
 
-import pytest
-
 from periodic import _newmark
 
 #: The paths, for ``pytest.mark.parametrize`` and fixture ``params``.
@@ -26,9 +24,3 @@ def kernel_path(path: str):
     finally:
         _newmark.LAPACK_FROM_N_DOF = saved
 
-
-@pytest.fixture(params=PATHS)
-def each_kernel_path(request):
-    """Runs the test once on each path (import it into the test module, and name it as an argument)."""
-    with kernel_path(request.param):
-        yield request.param

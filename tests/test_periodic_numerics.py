@@ -15,9 +15,16 @@ import scipy.special
 
 import periodic
 from periodic import NearResonanceWarning, PeriodicSystem
-from tests._paths import PATHS, each_kernel_path, kernel_path  # noqa: F401 (a fixture)
+from tests._paths import PATHS, kernel_path
 
 TWO_PI = 2.0 * np.pi
+
+
+@pytest.fixture(params=PATHS)
+def each_kernel_path(request):
+    """The test runs once on each path of the Newmark kernels (tests/_paths.py)."""
+    with kernel_path(request.param):
+        yield request.param
 
 
 def observed_order(n_steps, errors):
@@ -114,7 +121,8 @@ def meissner_monodromy():
     return flow(K_HIGH, np.pi / 2) @ flow(K_LOW, np.pi) @ flow(K_HIGH, np.pi / 2)
 
 
-def test_meissner_closed_form_orders(each_kernel_path):
+@pytest.mark.usefixtures("each_kernel_path")
+def test_meissner_closed_form_orders():
     exact = meissner_monodromy()
     exact_mu = np.linalg.eigvals(exact)
     grid = np.array([80, 160, 320, 640])
@@ -237,7 +245,8 @@ def test_steady_state_is_periodic_and_multipliers_agree_with_floquet(manufacture
 # --- invariants -------------------------------------------------------------------------------------
 
 
-def test_liouville_formula(each_kernel_path):
+@pytest.mark.usefixtures("each_kernel_path")
+def test_liouville_formula():
     functions, _ = manufactured_functions()
     mass, damping = functions[0], functions[1]
     exact, _ = scipy.integrate.quad(lambda t: -np.trace(np.linalg.solve(mass(t), damping(t))), 0.0, TWO_PI, epsabs=1e-13)
@@ -252,7 +261,8 @@ def test_liouville_formula(each_kernel_path):
 
 
 @pytest.mark.parametrize("pulse", [0.3, 2.5])  # stable and unstable
-def test_conservative_system_has_reciprocal_multiplier_pairs(pulse, each_kernel_path):
+@pytest.mark.usefixtures("each_kernel_path")
+def test_conservative_system_has_reciprocal_multiplier_pairs(pulse):
     """Constant M, symmetric K(t), no damping: Hamiltonian, multipliers come in pairs (mu, 1/mu).
 
     The trapezoidal step is a Cayley transform of a Hamiltonian matrix, so the discrete monodromy is
@@ -274,7 +284,8 @@ def test_conservative_system_has_reciprocal_multiplier_pairs(pulse, each_kernel_
         np.testing.assert_allclose(np.abs(mu), 1.0, atol=1e-12)
 
 
-def test_undamped_system_on_the_unit_circle_works(each_kernel_path):
+@pytest.mark.usefixtures("each_kernel_path")
+def test_undamped_system_on_the_unit_circle_works():
     """Undamped constant coefficients forced off resonance: |mu| = 1 to rounding, solution exact to O(h^2)."""
     K = np.array([[5.0, -1.5], [-1.5, 3.0]])
     system = constant_system(M2, np.zeros((2, 2)), K, F2, OMEGA2, 400)
@@ -322,7 +333,8 @@ STIFF_F = np.array([1.0, 1e9j])
 
 
 @pytest.mark.parametrize("n_steps", [52, 100])  # multiples of 4: the error check runs N/4 too
-def test_unresolved_stiff_mode_is_not_called_a_resonance(n_steps, each_kernel_path):
+@pytest.mark.usefixtures("each_kernel_path")
+def test_unresolved_stiff_mode_is_not_called_a_resonance(n_steps):
     """Trapezoidal R -> -1 for the stiff DOF, so over even N its multipliers approach +1 (|1 - mu| =
     1 - exp(-4 N^2 / (5e5 T)) < 1e-2 at N = 52, 100); this must be labelled an unresolved stiff mode, with an accurate solution."""
     system = constant_system(STIFF_M, STIFF_C, STIFF_K, STIFF_F, 1.0, n_steps)
@@ -339,7 +351,8 @@ def test_unresolved_stiff_mode_is_not_called_a_resonance(n_steps, each_kernel_pa
     assert true_error == pytest.approx(result.error_estimate, rel=0.2)
 
 
-def test_exactly_singular_shooting_matrix_raises(each_kernel_path):
+@pytest.mark.usefixtures("each_kernel_path")
+def test_exactly_singular_shooting_matrix_raises():
     """A free mass (K = C = 0) has Phi = [[1, T], [0, 1]] exactly: no unique periodic solution."""
     zeros = np.zeros((9, 1, 1))
     system = PeriodicSystem(1.0, np.ones((9, 1, 1)), zeros, zeros, np.ones((9, 1)))
@@ -349,7 +362,8 @@ def test_exactly_singular_shooting_matrix_raises(each_kernel_path):
     assert isinstance(caught.value, RuntimeError) and not isinstance(caught.value, ValueError)
 
 
-def test_singular_step_matrix_raises(each_kernel_path):
+@pytest.mark.usefixtures("each_kernel_path")
+def test_singular_step_matrix_raises():
     """M + gamma h C + beta h^2 K = 1 + (1/64) (-256) / 4 = 0 at every step (h = 1/8): valid input, failed step."""
     ones = np.ones((9, 1, 1))
     system = PeriodicSystem(1.0, ones, 0.0 * ones, -256.0 * ones)
@@ -375,7 +389,8 @@ def test_other_beta_with_gamma_half_is_symmetric_order_2_and_4(beta):
 
 
 @pytest.mark.parametrize("name", sorted(periodic.SCHEMES))
-def test_every_registered_scheme_has_its_declared_order_and_an_honest_estimate(name, each_kernel_path):
+@pytest.mark.usefixtures("each_kernel_path")
+def test_every_registered_scheme_has_its_declared_order_and_an_honest_estimate(name):
     """Observed order of x on the manufactured solution = ``scheme.order``; ``error_estimate`` (which uses
     ``scheme.error_factor``) within 20 % of the true error at the finest N; a symmetric scheme gains
     two orders by Richardson extrapolation.  E.g. "damped" (gamma = 0.6, beta = (gamma + 1/2)^2 / 4)
