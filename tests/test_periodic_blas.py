@@ -102,14 +102,18 @@ def test_every_solver_is_as_accurate_as_a_backward_stable_solve_on_stiff_systems
         assert error <= bound, solver
 
 
-def test_solver_choice_by_size_and_columns():
-    """Hand-written LU below the crossover; above it the inverse for the monodromy's many columns and
-    dgetrs for the forced run's one; a path can be forced."""
+def test_solver_choice_by_size_density_and_columns():
+    """Hand-written LU below the crossover and for sparse matrices; above it the inverse for the
+    monodromy's many columns and dgetrs for the forced run's one; a path can be forced."""
     small, large = _newmark.LAPACK_FROM_N_DOF - 1, _newmark.LAPACK_FROM_N_DOF
     assert _newmark.choose_solver(small, 2 * small + 1) == _newmark.SOLVE_LOOPS
     assert _newmark.choose_solver(small, 1) == _newmark.SOLVE_LOOPS
     assert _newmark.choose_solver(large, 2 * large + 1) == _newmark.SOLVE_INVERSE
     assert _newmark.choose_solver(large, 1) == _newmark.SOLVE_LAPACK
+    assert _newmark.choose_solver(10 * large, 1, density=0.1) == _newmark.SOLVE_LOOPS
+    banded = np.zeros((3, 30, 30))
+    banded[:, np.arange(30), np.arange(30)] = 1.0
+    assert _newmark.nonzero_fraction(banded, 0.0 * banded, banded) == pytest.approx(1.0 / 30.0)
     with kernel_path("lapack"):
         assert _newmark.choose_solver(2, 5) == _newmark.SOLVE_INVERSE
     with kernel_path("loops"):
