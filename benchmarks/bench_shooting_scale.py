@@ -131,55 +131,60 @@ def scale(quick, m_of_n, label):
               f"{rate / lu_rate:.2f} |", flush=True)
 
 
-def with_path(threshold, call):
-    """``call`` with ``periodic._newmark.LAPACK_FROM_N_DOF`` set to ``threshold`` (10**9: the hand-written
-    LU at every n, as before issue 14; the default: the measured crossover)."""
+PATHS = {"loops": (10**9, 2.0), "LAPACK": (0, 0.0)}  # (LAPACK_FROM_N_DOF, LAPACK_FROM_DENSITY) forcing a path
+
+
+def with_path(thresholds, call):
+    """``call`` with ``periodic._newmark``'s crossover constants set to ``thresholds`` (one of
+    :data:`PATHS`, or None: the defaults, i.e. the path ``periodic`` chooses)."""
     def run():
-        saved = _newmark.LAPACK_FROM_N_DOF
-        _newmark.LAPACK_FROM_N_DOF = threshold
+        saved = _newmark.LAPACK_FROM_N_DOF, _newmark.LAPACK_FROM_DENSITY
+        if thresholds is not None:
+            _newmark.LAPACK_FROM_N_DOF, _newmark.LAPACK_FROM_DENSITY = thresholds
         try:
             return call()
         finally:
-            _newmark.LAPACK_FROM_N_DOF = saved
+            _newmark.LAPACK_FROM_N_DOF, _newmark.LAPACK_FROM_DENSITY = saved
     return run
 
 
+def side_by_side(system, repeats):
+    """Median CPU seconds of steady_state(system) on the loops, on LAPACK and on the chosen path."""
+    calls = [with_path(thresholds, lambda: periodic.steady_state(system)) for thresholds in (*PATHS.values(), None)]
+    for call in calls:
+        call()
+    return interleaved_medians(calls, repeats, 1)
+
+
 def steady(quick):
-    """steady_state (the N/2 and N/4 runs included) on the loops and on the chosen path, side by side."""
-    print("\n## periodic.steady_state, random systems, N = 64 (N/2 and N/4 runs included), CPU time")
-    print("| n | loops [s] | chosen [s] | loops / chosen | chosen: s / n^3 [ns] |")
-    print("| ---: | ---: | ---: | ---: | ---: |")
+    """steady_state (the N/2 and N/4 runs included) on random dense systems, each path."""
+    print("\n## periodic.steady_state, random dense systems, N = 64 (N/2 and N/4 runs included), CPU time")
+    print("| n | loops [s] | LAPACK [s] | chosen [s] | loops / chosen | chosen: s / n^3 [ns] |")
+    print("| ---: | ---: | ---: | ---: | ---: | ---: |")
     for n in (12, 24, 48, 96, 192):
-        system = random_system(n, 64)
-        calls = [with_path(threshold, lambda: periodic.steady_state(system))
-                 for threshold in (10**9, _newmark.LAPACK_FROM_N_DOF)]
-        for call in calls:
-            call()
-        loops, chosen = interleaved_medians(calls, 3 if quick or n > 100 else 7, 1)
-        print(f"| {n} | {loops:.4f} | {chosen:.4f} | {loops / chosen:.2f} | {chosen / n**3 * 1e9:.1f} |", flush=True)
+        loops, lapack, chosen = side_by_side(random_system(n, 64), 3 if quick or n > 100 else 7)
+        print(f"| {n} | {loops:.4f} | {lapack:.4f} | {chosen:.4f} | {loops / chosen:.2f} | "
+              f"{chosen / n**3 * 1e9:.1f} |", flush=True)
 
 
 def mechanism(quick):
-    """The thesis four-bar (four_bar_fem4) with a finer coupler mesh: linearize.about once, then
-    steady_state on each path; the linearisation's time is printed for scale (it is not the shooting's)."""
+    """The thesis four-bar (four_bar_fem4) with a finer coupler mesh (sparse matrices): linearize.about
+    once, then steady_state on each path; the linearisation's time is printed for scale."""
     import linearize
     import mechanisms
 
     print("\n## four_bar_fem4 at its scene speed, coupler of n_elements Hermite elements, N = 256, CPU time")
-    print("| elements | n | linearize.about [s] | steady_state, loops [s] | chosen [s] | loops / chosen |")
-    print("| ---: | ---: | ---: | ---: | ---: | ---: |")
+    print("| elements | n | nonzero fraction | linearize.about [s] | loops [s] | LAPACK [s] | chosen [s] | loops / LAPACK |")
+    print("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for n_elements in (4, 8, 16, 32) if quick else (4, 8, 16, 32, 64):
         model = mechanisms.load("four_bar_fem4").with_parameter("links.coupler.discretisation.n_elements", n_elements)
         start = time.process_time()
         system = linearize.about(model, n_steps=256).system
         about = time.process_time() - start
-        calls = [with_path(threshold, lambda: periodic.steady_state(system))
-                 for threshold in (10**9, _newmark.LAPACK_FROM_N_DOF)]
-        for call in calls:
-            call()
-        loops, chosen = interleaved_medians(calls, 3, 1)
-        print(f"| {n_elements} | {system.n_dof} | {about:.2f} | {loops:.3f} | {chosen:.3f} | {loops / chosen:.2f} |",
-              flush=True)
+        loops, lapack, chosen = side_by_side(system, 3)
+        density = _newmark.nonzero_fraction(system.M, system.C, system.K)
+        print(f"| {n_elements} | {system.n_dof} | {density:.2f} | {about:.2f} | {loops:.3f} | {lapack:.3f} | "
+              f"{chosen:.3f} | {loops / lapack:.2f} |", flush=True)
 
 
 def main():
@@ -188,7 +193,8 @@ def main():
     parser.add_argument("--steady", action="store_true", help="also time steady_state on random systems, both paths")
     parser.add_argument("--mechanism", action="store_true", help="also the four-bar with a finer coupler mesh")
     args = parser.parse_args()
-    print(f"crossover in use: periodic._newmark.LAPACK_FROM_N_DOF = {_newmark.LAPACK_FROM_N_DOF}")
+    print(f"crossover in use: periodic._newmark.LAPACK_FROM_N_DOF = {_newmark.LAPACK_FROM_N_DOF}, "
+          f"LAPACK_FROM_DENSITY = {_newmark.LAPACK_FROM_DENSITY}")
     scale(args.quick, lambda n: 2 * n + 1, "monodromy march: m = 2n + 1 columns")
     scale(args.quick, lambda n: 1, "forced run: m = 1 column (the reference solves 1 right-hand side)")
     if args.steady:
