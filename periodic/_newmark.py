@@ -20,20 +20,21 @@ linear solvers do the LU and the solves; :func:`march` runs the one :func:`choos
 - ``SOLVE_LOOPS`` (:func:`newmark_march`), the hand-written LU below, for n < ``LAPACK_FROM_N_DOF``
   = 20, and for sparse matrices (fewer than ``LAPACK_FROM_DENSITY`` = 50 % nonzero entries, as a
   finite-element link's: its loops skip zeros; 1.2x faster than LAPACK on the four-bar with 16-64
-  coupler elements, n = 48-192).  It beats np.linalg.solve inside njit (which copies to Fortran order) 6x at n = 2 and 4x at
-  n = 10, and LAPACK called from the kernel 2x at n = 2-12 (OpenBLAS's per-call overhead).
+  coupler elements, n = 48-192).  It beats np.linalg.solve inside njit (which copies to Fortran
+  order) 6x at n = 2 and 4x at n = 10, and LAPACK called from the kernel 2x at n = 2-12 (OpenBLAS's
+  per-call overhead).
 - ``SOLVE_INVERSE`` (:func:`newmark_march_lapack`) for n >= 20 and many columns: LAPACK dgetrf,
   dgetri (4/3 n^3 more flops) and all columns in one dgemm.  dgetrs on the 2n+1 columns at once
   runs at only 4-17 GFLOP/s here (OpenBLAS's triangular solves, n = 16..200): no faster than the
   column loops up to n = 64, whereas dgemm runs at 35-48 GFLOP/s, so the inverse pays for itself
-  from n ~ 16.  Per step on one core (benchmarks/bench_shooting_scale.py, CPU time): 1.15x faster
-  than the loops at n = 20, 1.3x at 40, 1.6x at 200, where the step runs at 32 GFLOP/s (counting
-  the flops above, not dgetri's extra), 1.8x the rate of scipy's lu_factor + lu_solve of the same
-  size.  The inverse's rounding error is of the order of the LU solve's, cond(S) eps (tested
-  against a backward-stable solve on stiff systems); S = M + gamma h C + beta h^2 K is dominated by
-  M when the step resolves the modes.
+  from n ~ 20.  Per step on one core (benchmarks/bench_shooting_scale.py, CPU time): 1.02x the
+  loops' speed at n = 20, 1.15x at 24, 1.24x at 40, 1.6x at 200, where the step runs at 34 GFLOP/s
+  (counting the flops above, not dgetri's extra), 1.7x the rate of scipy's lu_factor + lu_solve
+  of the same size.  The inverse's rounding error is of the order of the LU solve's, cond(S) eps
+  (tested against a backward-stable solve on stiff systems); S = M + gamma h C + beta h^2 K is
+  dominated by M when the step resolves the modes.
 - ``SOLVE_LAPACK`` (:func:`newmark_march_lapack`), dgetrf and dgetrs, for n >= 20 and few columns
-  (the forced run): 1.2x faster than the loops at n = 20, 4.3x at n = 200.
+  (the forced run): 1.2x faster than the loops at n = 20, 4.4x at n = 200.
 
 The LAPACK path is a kernel of its own so that runs at small n compile none of it (the cold start of
 a small model is unchanged; the LAPACK kernel compiles in about 2.6 s on first use).
