@@ -1,4 +1,4 @@
-"""Numba kernels: Newmark's scheme on many columns at once, with a small LU with partial pivoting.
+"""Numba kernels: Newmark's scheme on many columns at once, with a small hand-written LU or LAPACK.
 
 Newmark's scheme for ``M(t) x'' + C(t) x' + K(t) x = f(t)`` on ``t_k = k h`` (Newmark 1959;
 Hughes, The Finite Element Method, eq. 9.1.5-9.1.7), written in predictor-corrector form:
@@ -11,18 +11,41 @@ Hughes, The Finite Element Method, eq. 9.1.5-9.1.7), written in predictor-correc
 beta = 1/4, gamma = 1/2 (average acceleration) is the trapezoidal rule on the first-order form.
 Every column ``j`` of the state matrices is an independent solution; column ``j`` sees the force
 ``forced[j] * f`` (1 for the particular solution, 0 for the homogeneous unit states).  The effective
-matrix of (N2) is factorised once per step and applied to all columns.  The small LU below beats
-np.linalg.solve inside njit (which copies to Fortran order and calls LAPACK) for n = 2..40 with
-2n+1 right-hand sides: measured 6x at n = 2, 4x at n = 10, 1.5x at n = 40.  It also beats LAPACK's
-dgetrf / dgetrs called directly from the kernel without copies (as ``mechanisms._simulate`` does
-for its larger Newton matrix): this kernel was 2-12x slower with them at n = 2, N = 64 and 1.8-3x
-at n = 12, N = 256 (per-call overhead of OpenBLAS; equal from n ~ 40), steady_state 11 % and 8 %.
+matrix of (N2) is factorised once per step and applied to all columns.
+
+Cost per step, m columns (m = 2n+1 for the monodromy, 1 for the forced run): 2/3 n^3 (LU) +
+2 n^2 m (solves) + 4 n^2 m (the products C v~ and K x~), about 12.7 n^3 flops at m = 2n+1.  Three
+linear solvers do the LU and the solves; :func:`march` runs the one :func:`choose_solver` picks:
+
+- ``SOLVE_LOOPS`` (:func:`newmark_march`), the hand-written LU below, for n < ``LAPACK_FROM_N_DOF``
+  = 20, and for sparse matrices (fewer than ``LAPACK_FROM_DENSITY`` = 50 % nonzero entries, as a
+  finite-element link's: its loops skip zeros; 1.2x faster than LAPACK on the four-bar with 16-64
+  coupler elements, n = 48-192).  It beats np.linalg.solve inside njit (which copies to Fortran
+  order) 6x at n = 2 and 4x at n = 10, and LAPACK called from the kernel 2x at n = 2-12 (OpenBLAS's
+  per-call overhead).
+- ``SOLVE_INVERSE`` (:func:`newmark_march_lapack`) for n >= 20 and many columns: LAPACK dgetrf,
+  dgetri (4/3 n^3 more flops) and all columns in one dgemm.  dgetrs on the 2n+1 columns at once
+  runs at only 4-17 GFLOP/s here (OpenBLAS's triangular solves, n = 16..200): no faster than the
+  column loops up to n = 64, whereas dgemm runs at 35-48 GFLOP/s, so the inverse pays for itself
+  from n ~ 20.  Per step on one core (benchmarks/bench_shooting_scale.py, CPU time): 1.02x the
+  loops' speed at n = 20, 1.15x at 24, 1.24x at 40, 1.6x at 200, where the step runs at 34 GFLOP/s
+  (counting the flops above, not dgetri's extra), 1.7x the rate of scipy's lu_factor + lu_solve
+  of the same size.  The inverse's rounding error is of the order of the LU solve's, cond(S) eps
+  (tested against a backward-stable solve on stiff systems); S = M + gamma h C + beta h^2 K is
+  dominated by M when the step resolves the modes.
+- ``SOLVE_LAPACK`` (:func:`newmark_march_lapack`), dgetrf and dgetrs, for n >= 20 and few columns
+  (the forced run): 1.2x faster than the loops at n = 20, 4.4x at n = 200.
+
+The LAPACK path is a kernel of its own so that runs at small n compile none of it (the cold start of
+a small model is unchanged; the LAPACK kernel compiles in about 2.6 s on first use).
 """
 
 from __future__ import annotations
 
 import numba
 import numpy as np
+from llvmlite import binding as llvm_binding
+from numba.extending import get_cython_function_address
 
 
 @numba.njit(cache=True)
@@ -128,7 +151,8 @@ def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a
     M, C, K (N+1, n, n), f (N+1, n), forced (m,).  When ``x_hist`` has N+1 rows the states at all
     samples are written to ``x_hist, v_hist, a_hist`` (N+1, n, m); pass zero-row arrays to skip.
     Returns -1 on success, else the sample index whose matrix (M_0 in N0, the effective matrix of
-    N2 otherwise) has an exactly zero pivot.
+    N2 otherwise) has an exactly zero pivot.  The hand-written LU and column loops (small n);
+    :func:`newmark_march_lapack` is the large-n twin, :func:`march` picks one.
     """
     n_samples = M.shape[0]
     n, m = x.shape
@@ -174,6 +198,165 @@ def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a
             _copy(v, v_hist[k + 1])
             _copy(a, a_hist[k + 1])
     return -1
+
+
+# ---------------------------------------------------------------------------------------------------
+# Large n: LAPACK's blocked LU, and the solves of all columns as one matrix product
+# ---------------------------------------------------------------------------------------------------
+# scipy's LAPACK (the OpenBLAS whose dgemm numba's np.dot calls) is reached through symbols
+# registered with LLVM, not ctypes pointers, which numba refuses to cache: the cached machine code
+# names the symbol, and importing this module binds it to scipy's function in every process.
+_LAPACK_SYMBOLS = {name: f"flexvib_periodic_{name}" for name in ("dgetrf", "dgetrs", "dgetri")}
+for _name, _symbol in _LAPACK_SYMBOLS.items():
+    llvm_binding.add_symbol(_symbol, get_cython_function_address("scipy.linalg.cython_lapack", _name))
+_INT_P, _DOUBLE_P = numba.types.CPointer(numba.int32), numba.types.CPointer(numba.float64)
+# Fortran signatures, every argument by reference: dgetrf(m, n, a, lda, ipiv, info),
+# dgetrs(trans, n, nrhs, a, lda, ipiv, b, ldb, info) and dgetri(n, a, lda, ipiv, work, lwork, info).
+_dgetrf = numba.types.ExternalFunction(_LAPACK_SYMBOLS["dgetrf"], numba.void(
+    _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P, _INT_P))
+_dgetrs = numba.types.ExternalFunction(_LAPACK_SYMBOLS["dgetrs"], numba.void(
+    numba.types.CPointer(numba.int8), _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P))
+_dgetri = numba.types.ExternalFunction(_LAPACK_SYMBOLS["dgetri"], numba.void(
+    _INT_P, _DOUBLE_P, _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P))
+# LAPACK (column-major) reads the kernel's C-order matrix S as S^T: it factors S^T, and solves
+# S X = B with the transposed factors.
+_TRANSPOSED = np.array([ord("T")], dtype=np.int8)
+# Work of dgetri per row of the matrix (its block size; n is the least it accepts).
+_GETRI_WORK_PER_ROW = 64
+
+#: The linear solvers of :func:`march` (see :func:`choose_solver`): the hand-written LU and its
+#: column loops (:func:`newmark_march`); LAPACK's dgetrf and dgetrs (the columns transposed to
+#: LAPACK's order and back, O(n m)); LAPACK's dgetrf and dgetri, and all columns in one dgemm
+#: (both :func:`newmark_march_lapack`).
+SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE = 0, 1, 2
+
+
+@numba.njit(cache=True)
+def _transpose(source, target):
+    """``target[:, :] = source.T`` (2-D) as a loop (see :func:`_copy`)."""
+    for i in range(source.shape[0]):
+        for j in range(source.shape[1]):
+            target[j, i] = source[i, j]
+
+
+@numba.njit(cache=True)
+def _lapack_factor(lu, pivots, sizes, getri_work, invert):
+    """dgetrf of the (n, n) C-order ``lu`` in place (LAPACK factors its transpose), and with ``invert``
+    dgetri, which leaves inv(S^T) in LAPACK's order, i.e. inv(S) in C order.  ``pivots`` (n,) and
+    ``sizes`` (3,) int32 (room for the integers LAPACK takes by reference: n, a count, info).
+    Returns False when a pivot is exactly zero (``info > 0``)."""
+    sizes[0] = lu.shape[0]
+    _dgetrf(sizes.ctypes, sizes.ctypes, lu.ctypes, sizes.ctypes, pivots.ctypes, sizes[2:].ctypes)
+    if sizes[2] != 0:
+        return False
+    if invert:
+        sizes[1] = getri_work.shape[0]
+        _dgetri(sizes.ctypes, lu.ctypes, sizes.ctypes, pivots.ctypes, getri_work.ctypes, sizes[1:].ctypes,
+                sizes[2:].ctypes)
+    return True
+
+
+@numba.njit(cache=True)
+def _lapack_solve(lu, pivots, sizes, b, work, work_t, invert):
+    """Overwrite ``b`` (n, m) with ``S^-1 b`` from :func:`_lapack_factor`: one dgemm with the inverse, or
+    dgetrs on the columns transposed to LAPACK's order (C-order (m, n) is LAPACK's (n, m)) and back.
+    ``work`` (n, m) and ``work_t`` (m, n) are scratch."""
+    if invert:
+        _copy(b, work)
+        np.dot(lu, work, b)
+        return
+    _transpose(b, work_t)
+    sizes[0] = lu.shape[0]
+    sizes[1] = b.shape[1]
+    _dgetrs(_TRANSPOSED.ctypes, sizes.ctypes, sizes[1:].ctypes, lu.ctypes, sizes.ctypes, pivots.ctypes,
+            work_t.ctypes, sizes.ctypes, sizes[2:].ctypes)
+    _transpose(work_t, b)
+
+
+@numba.njit(cache=True)
+def newmark_march_lapack(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist, invert):
+    """:func:`newmark_march` (same arguments, results to rounding, and return value) with LAPACK:
+    dgetrf per step, then with ``invert`` dgetri and one dgemm for all columns (many columns), else
+    dgetrs (one column).  A kernel of its own, so that runs at small n compile none of it."""
+    n_samples = M.shape[0]
+    n, m = x.shape
+    store = x_hist.shape[0] == n_samples
+    lu = np.empty((n, n))
+    pivots = np.empty(n, dtype=np.int32)
+    sizes = np.zeros(3, dtype=np.int32)
+    getri_work = np.empty(_GETRI_WORK_PER_ROW * n)
+    predicted = np.empty((2, n, m))  # x~ and v~ of (N1)
+    work, work_t = np.empty((n, m)), np.empty((m, n))
+    c_a, k_a = gamma * h, beta * h * h
+    # (N0), then per step (N1) predictors, (N2) effective matrix and solve, (N3) correctors
+    _residual_force(C[0], K[0], f[0], forced, x, v, a, work)
+    _copy(M[0], lu)
+    if not _lapack_factor(lu, pivots, sizes, getri_work, invert):
+        return 0
+    _lapack_solve(lu, pivots, sizes, a, work, work_t, invert)
+    for k in range(n_samples):
+        if store:
+            _copy(x, x_hist[k])
+            _copy(v, v_hist[k])
+            _copy(a, a_hist[k])
+        if k == n_samples - 1:
+            break
+        for i in range(n):
+            for j in range(m):
+                predicted[0, i, j] = x[i, j] + h * v[i, j] + h * h * (0.5 - beta) * a[i, j]
+                predicted[1, i, j] = v[i, j] + h * (1.0 - gamma) * a[i, j]
+        for i in range(n):
+            for j in range(n):
+                lu[i, j] = M[k + 1, i, j] + c_a * C[k + 1, i, j] + k_a * K[k + 1, i, j]
+        if not _lapack_factor(lu, pivots, sizes, getri_work, invert):
+            return k + 1
+        _residual_force(C[k + 1], K[k + 1], f[k + 1], forced, predicted[0], predicted[1], a, work)
+        _lapack_solve(lu, pivots, sizes, a, work, work_t, invert)
+        for i in range(n):
+            for j in range(m):
+                x[i, j] = predicted[0, i, j] + k_a * a[i, j]
+                v[i, j] = predicted[1, i, j] + c_a * a[i, j]
+    return -1
+
+
+#: From this many coordinates on, :func:`choose_solver` leaves the hand-written LU for LAPACK
+#: (measured crossover, see the module notes and ``benchmarks/bench_shooting_scale.py``).
+LAPACK_FROM_N_DOF = 20
+#: ... and only for matrices with at least this fraction of nonzero entries: the hand-written LU and
+#: solves skip zeros, so on the sparse matrices of a finite-element link (6-22 % nonzero in the
+#: four-bar with 16-64 coupler elements) they beat LAPACK 1.2x, which pays for every zero.
+LAPACK_FROM_DENSITY = 0.5
+
+
+def choose_solver(n_dof: int, n_columns: int, density: float = 1.0) -> int:
+    """The linear solver for ``n_dof`` coordinates, ``n_columns`` right-hand sides and matrices with
+    ``density`` (fraction of nonzero entries): the hand-written LU below :data:`LAPACK_FROM_N_DOF`
+    or :data:`LAPACK_FROM_DENSITY`; else LAPACK, with the inverse and one matrix product when the
+    columns are many (the monodromy's 2n+1), dgetrs otherwise (the forced run's single column).
+    Reads both constants at each call, so tests can force either path."""
+    if n_dof < LAPACK_FROM_N_DOF or density < LAPACK_FROM_DENSITY:
+        return SOLVE_LOOPS
+    return SOLVE_INVERSE if 2 * n_columns > n_dof else SOLVE_LAPACK
+
+
+def nonzero_fraction(M, C, K) -> float:
+    """The fraction of entries of ``M + C + K`` at sample 0 that may be nonzero (the union of their
+    patterns): a cheap measure of the sparsity the hand-written LU exploits."""
+    pattern = (M[0] != 0.0) | (C[0] != 0.0) | (K[0] != 0.0)
+    return float(np.count_nonzero(pattern)) / pattern.size
+
+
+def march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist, solver=None):
+    """:func:`newmark_march` or :func:`newmark_march_lapack` by ``solver`` (one of ``SOLVE_LOOPS,
+    SOLVE_LAPACK, SOLVE_INVERSE``; default :func:`choose_solver`'s pick), same arguments and return."""
+    if solver is None:
+        n, m = x.shape
+        density = nonzero_fraction(M, C, K) if n >= LAPACK_FROM_N_DOF else 1.0  # O(n^2): only when it matters
+        solver = choose_solver(n, m, density)
+    if solver == SOLVE_LOOPS:
+        return newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist)
+    return newmark_march_lapack(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist,
+                                solver == SOLVE_INVERSE)
 
 
 @numba.njit(cache=True)

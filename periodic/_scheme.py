@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Protocol, runtime_checkable
 
-from ._newmark import newmark_march
+from ._newmark import march
 from ._system import PeriodicError, check_real
 
 
@@ -84,8 +84,9 @@ class Newmark:
         ``x_hist, v_hist, a_hist`` (N+1, n, m) receive every sample, or have length 0. Returns the
         kernel's status: -1, or the sample whose matrix was singular (see ``raise_on_singular``). The shooting and ``floquet``
         call only this, so a scheme of another family is a class with its own ``march``."""
-        return newmark_march(system.M, system.C, system.K, system.f, system.step, self.beta, self.gamma,
-                             forced, x, v, a, x_hist, v_hist, a_hist)
+        # the kernel by size: hand-written LU for small n, LAPACK for large (periodic._newmark.choose_solver)
+        return march(system.M, system.C, system.K, system.f, system.step, self.beta, self.gamma,
+                     forced, x, v, a, x_hist, v_hist, a_hist)
 
 
 #: Named schemes, all unconditionally stable (the shooting integrates every mode of the system, stiff

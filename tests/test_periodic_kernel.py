@@ -13,29 +13,17 @@ import pytest
 import periodic
 from periodic import _demo as demo
 from periodic import __main__ as demo_command
-from periodic._newmark import _lu_factor, _lu_solve, mass_pivot_ratios, newmark_march
+from periodic._newmark import SOLVE_INVERSE, SOLVE_LAPACK, SOLVE_LOOPS, _lu_factor, _lu_solve, march, mass_pivot_ratios
 from studies._demo import write_demo
+from tests._newmark_twin import newmark_numpy
+
+SOLVERS = [SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE]  # the kernels' linear-algebra paths
 
 
-def newmark_numpy(M, C, K, f, h, beta, gamma, forced, x0, v0):
-    """Newmark's scheme written directly from its textbook form, one np.linalg.solve per step."""
-    x, v = x0.copy(), v0.copy()
-    a = np.linalg.solve(M[0], np.outer(f[0], forced) - C[0] @ v - K[0] @ x)
-    xs, vs, as_ = [x], [v], [a]
-    for k in range(1, M.shape[0]):
-        x_pred = x + h * v + h * h * (0.5 - beta) * a
-        v_pred = v + h * (1.0 - gamma) * a
-        effective = M[k] + gamma * h * C[k] + beta * h * h * K[k]
-        a = np.linalg.solve(effective, np.outer(f[k], forced) - C[k] @ v_pred - K[k] @ x_pred)
-        x = x_pred + beta * h * h * a
-        v = v_pred + gamma * h * a
-        xs.append(x), vs.append(v), as_.append(a)
-    return np.array(xs), np.array(vs), np.array(as_)
-
-
+@pytest.mark.parametrize("solver", SOLVERS)
 @pytest.mark.parametrize("n", [4, 10])  # plain loops and the BLAS path of the kernel
 @pytest.mark.parametrize("beta, gamma", [(0.25, 0.5), (0.3025, 0.6), (0.0, 0.5)])
-def test_kernel_matches_numpy_twin(beta, gamma, n):
+def test_kernel_matches_numpy_twin(beta, gamma, n, solver):
     rng = np.random.default_rng(7)
     n_steps, m = 30, 2 * n + 1
     M = rng.normal(size=(n_steps + 1, n, n)) * 0.2 + 2.0 * np.eye(n)  # random, non-symmetric, invertible
@@ -48,7 +36,7 @@ def test_kernel_matches_numpy_twin(beta, gamma, n):
     expected = newmark_numpy(M, C, K, f, h, beta, gamma, forced, x0, v0)
     x, v, a = x0.copy(), v0.copy(), np.empty((n, m))
     hist = [np.empty((n_steps + 1, n, m)) for _ in range(3)]
-    status = newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, *hist)
+    status = march(M, C, K, f, h, beta, gamma, forced, x, v, a, *hist, solver)
     assert status == -1
     # Same operations in a different order: differences are rounding, ~ n_steps * eps * growth.
     for got, want in zip(hist, expected):
@@ -58,7 +46,8 @@ def test_kernel_matches_numpy_twin(beta, gamma, n):
     np.testing.assert_array_equal(a, hist[2][-1])
 
 
-def test_kernel_reports_the_singular_sample():
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_kernel_reports_the_singular_sample(solver):
     n_steps = 6
     M = np.tile(np.eye(2), (n_steps + 1, 1, 1))
     C = np.zeros_like(M)
@@ -66,7 +55,8 @@ def test_kernel_reports_the_singular_sample():
     M[4] = 0.0  # effective matrix M + 0 + 0 singular at sample 4
     x, v, a = np.eye(2), np.zeros((2, 2)), np.empty((2, 2))
     empty = np.empty((0, 2, 2))
-    status = newmark_march(M, C, K, np.zeros((n_steps + 1, 2)), 0.1, 0.25, 0.5, np.zeros(2), x, v, a, empty, empty, empty)
+    status = march(M, C, K, np.zeros((n_steps + 1, 2)), 0.1, 0.25, 0.5, np.zeros(2), x, v, a, empty, empty, empty,
+                   solver)
     assert status == 4
 
 

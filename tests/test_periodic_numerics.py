@@ -15,8 +15,16 @@ import scipy.special
 
 import periodic
 from periodic import NearResonanceWarning, PeriodicSystem
+from tests._paths import PATHS, kernel_path
 
 TWO_PI = 2.0 * np.pi
+
+
+@pytest.fixture(params=PATHS)
+def each_kernel_path(request):
+    """The test runs once on each path of the Newmark kernels (tests/_paths.py)."""
+    with kernel_path(request.param):
+        yield request.param
 
 
 def observed_order(n_steps, errors):
@@ -58,12 +66,13 @@ OMEGA2 = 1.1
 GRID = np.array([40, 80, 160, 320])
 
 
-@pytest.fixture(scope="module")
-def constant_runs():
+@pytest.fixture(scope="module", params=PATHS)  # the kernel's hand-written LU and its LAPACK path
+def constant_runs(request):
     runs = []
     for n_steps in GRID:
         system = constant_system(M2, C2, K2, F2, OMEGA2, int(n_steps))
-        runs.append((system, periodic.steady_state(system), periodic.steady_state(system, extrapolate=True)))
+        with kernel_path(request.param):
+            runs.append((system, periodic.steady_state(system), periodic.steady_state(system, extrapolate=True)))
     return runs
 
 
@@ -112,6 +121,7 @@ def meissner_monodromy():
     return flow(K_HIGH, np.pi / 2) @ flow(K_LOW, np.pi) @ flow(K_HIGH, np.pi / 2)
 
 
+@pytest.mark.usefixtures("each_kernel_path")
 def test_meissner_closed_form_orders():
     exact = meissner_monodromy()
     exact_mu = np.linalg.eigvals(exact)
@@ -193,14 +203,15 @@ def manufactured_functions():
     return (mass, damping, stiffness, force), exact
 
 
-@pytest.fixture(scope="module")
-def manufactured_runs():
+@pytest.fixture(scope="module", params=PATHS)
+def manufactured_runs(request):
     functions, exact = manufactured_functions()
     runs = []
     for n_steps in GRID:
         system = PeriodicSystem.from_functions(TWO_PI, *functions, n_steps=int(n_steps))
         truth = np.array([exact(t) for t in system.t])  # (N+1, 3 (x, v, a), n)
-        runs.append((system, truth, periodic.steady_state(system), periodic.steady_state(system, extrapolate=True)))
+        with kernel_path(request.param):
+            runs.append((system, truth, periodic.steady_state(system), periodic.steady_state(system, extrapolate=True)))
     return runs
 
 
@@ -234,6 +245,7 @@ def test_steady_state_is_periodic_and_multipliers_agree_with_floquet(manufacture
 # --- invariants -------------------------------------------------------------------------------------
 
 
+@pytest.mark.usefixtures("each_kernel_path")
 def test_liouville_formula():
     functions, _ = manufactured_functions()
     mass, damping = functions[0], functions[1]
@@ -249,6 +261,7 @@ def test_liouville_formula():
 
 
 @pytest.mark.parametrize("pulse", [0.3, 2.5])  # stable and unstable
+@pytest.mark.usefixtures("each_kernel_path")
 def test_conservative_system_has_reciprocal_multiplier_pairs(pulse):
     """Constant M, symmetric K(t), no damping: Hamiltonian, multipliers come in pairs (mu, 1/mu).
 
@@ -271,6 +284,7 @@ def test_conservative_system_has_reciprocal_multiplier_pairs(pulse):
         np.testing.assert_allclose(np.abs(mu), 1.0, atol=1e-12)
 
 
+@pytest.mark.usefixtures("each_kernel_path")
 def test_undamped_system_on_the_unit_circle_works():
     """Undamped constant coefficients forced off resonance: |mu| = 1 to rounding, solution exact to O(h^2)."""
     K = np.array([[5.0, -1.5], [-1.5, 3.0]])
@@ -319,6 +333,7 @@ STIFF_F = np.array([1.0, 1e9j])
 
 
 @pytest.mark.parametrize("n_steps", [52, 100])  # multiples of 4: the error check runs N/4 too
+@pytest.mark.usefixtures("each_kernel_path")
 def test_unresolved_stiff_mode_is_not_called_a_resonance(n_steps):
     """Trapezoidal R -> -1 for the stiff DOF, so over even N its multipliers approach +1 (|1 - mu| =
     1 - exp(-4 N^2 / (5e5 T)) < 1e-2 at N = 52, 100); this must be labelled an unresolved stiff mode, with an accurate solution."""
@@ -336,6 +351,7 @@ def test_unresolved_stiff_mode_is_not_called_a_resonance(n_steps):
     assert true_error == pytest.approx(result.error_estimate, rel=0.2)
 
 
+@pytest.mark.usefixtures("each_kernel_path")
 def test_exactly_singular_shooting_matrix_raises():
     """A free mass (K = C = 0) has Phi = [[1, T], [0, 1]] exactly: no unique periodic solution."""
     zeros = np.zeros((9, 1, 1))
@@ -346,6 +362,7 @@ def test_exactly_singular_shooting_matrix_raises():
     assert isinstance(caught.value, RuntimeError) and not isinstance(caught.value, ValueError)
 
 
+@pytest.mark.usefixtures("each_kernel_path")
 def test_singular_step_matrix_raises():
     """M + gamma h C + beta h^2 K = 1 + (1/64) (-256) / 4 = 0 at every step (h = 1/8): valid input, failed step."""
     ones = np.ones((9, 1, 1))
@@ -372,6 +389,7 @@ def test_other_beta_with_gamma_half_is_symmetric_order_2_and_4(beta):
 
 
 @pytest.mark.parametrize("name", sorted(periodic.SCHEMES))
+@pytest.mark.usefixtures("each_kernel_path")
 def test_every_registered_scheme_has_its_declared_order_and_an_honest_estimate(name):
     """Observed order of x on the manufactured solution = ``scheme.order``; ``error_estimate`` (which uses
     ``scheme.error_factor``) within 20 % of the true error at the finest N; a symmetric scheme gains
@@ -396,12 +414,13 @@ def test_every_registered_scheme_has_its_declared_order_and_an_honest_estimate(n
         assert observed_order(GRID, errors_extrapolated) == pytest.approx(scheme.order + 2, abs=0.3)
 
 
-def test_coarse_solution_comes_back_for_observable_error_estimates(manufactured_runs):
+def test_coarse_solution_comes_back_for_observable_error_estimates(manufactured_runs, request):
     """``x_coarse`` is the N/2-step solution; ``error_factor * |o(x[::2]) - o(x_coarse)|`` estimates the
     error of an observable ``o`` linear in x (here a fixed combination of the coordinates)."""
     weights = np.array([1.0, -2.0, 0.5])
     for system, truth, plain, extrapolated in manufactured_runs[1:]:
-        coarse = periodic.steady_state(system.coarsened(), estimate_error=False)
+        with kernel_path(request.node.callspec.params["manufactured_runs"]):  # the path of the runs
+            coarse = periodic.steady_state(system.coarsened(), estimate_error=False)
         np.testing.assert_array_equal(plain.x_coarse, coarse.x)
         np.testing.assert_array_equal(extrapolated.x_coarse, coarse.x)
         assert plain.error_factor == 1.0 / 3.0 and extrapolated.error_factor == 0.25
