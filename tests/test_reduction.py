@@ -186,3 +186,54 @@ def test_reduction_error_estimates_the_difference_from_the_full_model():
     assert linearize.reduction_error(FOUR_BAR, n_steps=64).error == 0.0
     with pytest.raises(linearize.LinearizationError, match="reference must be one of"):
         linearize.reduction_error(coarse, reference="larger")
+
+
+# --- the reduction's error in the studies' verdict -----------------------------------------------
+@pytest.fixture(scope="module")
+def reduced_steady_states():
+    """The steady-state study of the four-bar with a 16-element coupler at 1 and at 6 modes."""
+    import studies
+
+    return {modes: studies.steady_state(studies.MechanismProblem.from_mechanism(_coupler(16, modes)),
+                                        n_steps=256)
+            for modes in (1, 6)}
+
+
+def test_steady_state_study_reports_the_reduction_error_in_its_verdict(reduced_steady_states,
+                                                                       tmp_path):
+    """One mode leaves the deflection about 0.7 % off (against 3 modes): ``inaccurate``, naming the
+    reduction and the fix; six modes stay ``ok``. The estimate is the one ``reduction_error``
+    computes on its own (which solves the reduced steady state again), and it is stored."""
+    coarse, fine = reduced_steady_states[1], reduced_steady_states[6]
+    assert coarse.status == "inaccurate"
+    assert "modal reduction error" in coarse.message and "raise modes" in coarse.message
+    assert fine.status == "ok", fine.message
+    own = linearize.reduction_error(_coupler(16, 1), n_steps=256)
+    assert coarse.reduction_error == pytest.approx(own.error, rel=1e-9)
+    assert coarse.reduction_error > linearize.REDUCTION_TOL > fine.reduction_error > 0.0
+    assert 0.0 < coarse.reduction_run_time < coarse.run_time
+    coarse.save(tmp_path / "reduced.h5")
+    import studies
+
+    stored = next(iter(studies.load(tmp_path / "reduced.h5").values()))
+    assert stored.reduction_error == coarse.reduction_error
+
+
+def test_steady_state_study_without_a_reduced_link_has_reduction_error_zero():
+    import studies
+
+    result = studies.steady_state(studies.MechanismProblem.from_mechanism(_coupler(4)), n_steps=64)
+    assert result.reduction_error == 0.0 and "modal reduction" not in result.message
+
+
+def test_reduction_error_takes_the_callers_response_and_checks_it():
+    mechanism = _coupler(16, 2)
+    linear = linearize.about(mechanism, n_steps=64)
+    response = linear.observe(periodic.steady_state(linear.system, estimate_error=False).x)
+    given = linearize.reduction_error(mechanism, n_steps=64, response=response)
+    assert given.error == pytest.approx(linearize.reduction_error(mechanism, n_steps=64).error,
+                                        rel=1e-12)
+    with pytest.raises(linearize.LinearizationError, match="missing"):
+        linearize.reduction_error(mechanism, n_steps=64, response={})
+    with pytest.raises(linearize.LinearizationError, match="must have shape"):
+        linearize.reduction_error(mechanism, n_steps=64, response={SPEC: response[SPEC][:10]})
