@@ -25,7 +25,7 @@ import periodic
 from ._about import about
 from ._core import LinearizationError
 
-__all__ = ["ReductionError", "reduction_error", "REDUCTION_TOL"]
+__all__ = ["ReductionError", "reduction_error", "REDUCTION_TOL", "reduced_links", "reference_mechanism"]
 
 #: Default tolerance of the reduction error: 0.1 % of each observable's peak-to-peak.
 REDUCTION_TOL = 1e-3
