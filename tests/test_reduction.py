@@ -237,3 +237,40 @@ def test_reduction_error_takes_the_callers_response_and_checks_it():
         linearize.reduction_error(mechanism, n_steps=64, response={})
     with pytest.raises(linearize.LinearizationError, match="must have shape"):
         linearize.reduction_error(mechanism, n_steps=64, response={SPEC: response[SPEC][:10]})
+
+
+# --- computing the reduction: sparse assembly and shift-invert Lanczos ---------------------------
+@pytest.mark.parametrize("changes", [{}, {"rotary_inertia": True}, {"axial": False},
+                                     {"boundary": "clamped-free"}])
+def test_sparse_element_matrices_equal_the_quadrature_of_the_element_shapes(changes):
+    """``element_matrices`` (one element integrated, scattered) against ``beam_matrices`` of the
+    unreduced element model (every Gauss point of the link, dense)."""
+    link = dataclasses.replace(LINK, discretisation=mc.Fem(12), **changes)
+    mass, stiffness = mc.beam_matrices(mc.beam_shapes(link))
+    sparse_mass, sparse_stiffness = _beams.element_matrices(link)
+    for dense, assembled in ((mass, sparse_mass), (stiffness, sparse_stiffness)):
+        assert np.abs(assembled.toarray() - dense).max() <= 1e-13 * np.abs(dense).max()
+
+
+def test_lanczos_modes_equal_dense_lapack():
+    """The shift-invert Lanczos eigenpairs and the static solves of the 64-element coupler's bending
+    block against dense LAPACK (``scipy.linalg.eigh``, ``numpy.linalg.solve``). LAPACK's lowest
+    eigenvalue carries an error of about 2e-8 on this pencil (stiffness condition number 1e9);
+    the Rayleigh quotients of its eigenvectors (error squared) are the sharper reference."""
+    from mechanisms import _reduce
+
+    link = dataclasses.replace(LINK, discretisation=mc.Fem(64))
+    mass, stiffness = _beams.element_matrices(link)
+    bending = np.flatnonzero([not label.startswith("u") for label in mc.beam_shapes(link).labels])
+    k_block, m_block = stiffness[bending][:, bending], mass[bending][:, bending]
+    assert k_block.shape[0] > _reduce._DENSE_BELOW            # the sparse path
+    values, vectors, solve = _reduce._lowest_modes(k_block, m_block, 6)
+    exact_values, exact_vectors = eigh(k_block.toarray(), m_block.toarray(), subset_by_index=(0, 5))
+    assert np.allclose(values, exact_values, rtol=1e-7, atol=0.0)
+    quotients = (np.einsum("ij,ij->j", exact_vectors, k_block @ exact_vectors)
+                 / np.einsum("ij,ij->j", exact_vectors, m_block @ exact_vectors))
+    assert np.allclose(values, quotients, rtol=1e-9, atol=0.0)   # measured 1.6e-10; LAPACK 1.7e-8
+    overlap = np.abs(exact_vectors.T @ (m_block @ vectors))   # mass-normalised both: |cos| = 1
+    assert np.allclose(np.diag(overlap), 1.0, atol=1e-8)
+    loads = np.random.default_rng(2).normal(size=(len(bending), 3))
+    assert np.allclose(solve(loads), np.linalg.solve(k_block.toarray(), loads), rtol=1e-9, atol=0.0)
