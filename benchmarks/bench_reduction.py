@@ -6,8 +6,11 @@ new mechanism object per run (as every point of a sweep):
 
   1. coupler of 4 Hermite elements (12 elastic coordinates): the baseline;
   2. coupler of 64 elements reduced to 6 modes (9 coordinates: 6 modes + 3 static corrections),
-     its reduction cached (a speed sweep: the link does not change); target <= 2x the baseline;
-  3. the same with the reduction recomputed every run (a sweep of the coupler's geometry);
+     its reduction cached (a speed sweep: the link does not change);
+  3. the same with the reduction recomputed every run: a steady state from scratch (or a sweep of
+     the coupler's geometry); the issue's target, <= 2x the baseline. Computing the reduction is
+     a sparse assembly and one sparse factorisation per block (shift-invert Lanczos, static
+     corrections), about 10 ms;
   4. the full 64-element coupler (192 coordinates), once: the reference of the accuracies.
 
 Each repeat times 1-3 side by side (the machine's load, 2 noisy cores, hits them alike); ratios
@@ -83,8 +86,8 @@ def main(argv=None):
           f"{fresh_ratio:.2f}x")
     print(f"  64 elements, full (192 coordinates), once   {t_full * 1e3:8.1f} ms   "
           f"{t_full / t_fem4:.0f}x   (the reference)")
-    print(f"target: reduced <= 2x the 4-element model: {'met' if cached_ratio <= 2.0 else 'MISSED'}"
-          f" (cached), {'met' if fresh_ratio <= 2.0 else 'missed'} (reduction each run)")
+    print(f"target: reduced from scratch <= 2x the 4-element model: "
+          f"{'met' if fresh_ratio <= 2.0 else 'MISSED'} ({fresh_ratio:.2f}x; cached {cached_ratio:.2f}x)")
 
 
 if __name__ == "__main__":

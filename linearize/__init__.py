@@ -13,4 +13,5 @@ from ._range import (LINEAR_RANGE_LIMITS as LINEAR_RANGE_LIMITS, LinearRange as 
                      DriveRange as DriveRange,
                      LinkRange as LinkRange)
 from ._reduction import (REDUCTION_TOL as REDUCTION_TOL, ReductionError as ReductionError,
-                         reduction_error as reduction_error)
+                         reduced_links as reduced_links, reduction_error as reduction_error,
+                         reference_mechanism as reference_mechanism)

@@ -25,7 +25,7 @@ import periodic
 from ._about import about
 from ._core import LinearizationError
 
-__all__ = ["ReductionError", "reduction_error", "REDUCTION_TOL"]
+__all__ = ["ReductionError", "reduction_error", "REDUCTION_TOL", "reduced_links", "reference_mechanism"]
 
 #: Default tolerance of the reduction error: 0.1 % of each observable's peak-to-peak.
 REDUCTION_TOL = 1e-3
@@ -86,11 +86,15 @@ def reference_mechanism(mechanism, reference: str = "next"):
 
 
 def reduction_error(mechanism, *, n_steps: int = 256, observables=None, reference: str = "next",
-                    tolerance: float = REDUCTION_TOL) -> ReductionError:
+                    tolerance: float = REDUCTION_TOL,
+                    response: Mapping[str, np.ndarray] | None = None) -> ReductionError:
     """The reduction error of the steady state of ``mechanism`` (``about(mechanism, n_steps=...,
     observables=...)``, ``periodic.steady_state``) against ``reference`` (``"next"``: modes + 2 on
     every reduced link; ``"full"``: the element models unreduced). A mechanism without reduced links
-    has error 0. ``tolerance`` (relative to each observable's peak-to-peak) decides the status."""
+    has error 0 at once. ``tolerance`` (relative to each observable's peak-to-peak) decides the
+    status. ``response`` {spec: (n_steps + 1,)}: the mechanism's own steady response when the caller
+    already has it (a study's steady state, same steps and scheme), so only the reference is solved;
+    it must hold every observable the reference reports."""
     if not (isinstance(tolerance, (int, float)) and np.isfinite(tolerance) and tolerance > 0):
         raise LinearizationError(f"tolerance must be a positive number (relative to the "
                                  f"peak-to-peak); received {tolerance!r}")
@@ -99,8 +103,9 @@ def reduction_error(mechanism, *, n_steps: int = 256, observables=None, referenc
         return ReductionError(reference, {}, {}, {}, 0.0, float(tolerance), "ok",
                               "no reduced link", time.perf_counter() - started)
     other, modes = reference_mechanism(mechanism, reference)
-    reduced = _steady_response(mechanism, n_steps, observables)
     exact = _steady_response(other, n_steps, observables)
+    reduced = (_steady_response(mechanism, n_steps, observables) if response is None
+               else _checked_response(response, exact))
     difference = {spec: float(np.abs(reduced[spec] - exact[spec]).max()) for spec in exact}
     relative = {spec: difference[spec] / max(float(np.ptp(exact[spec])), np.finfo(float).tiny)
                 for spec in exact}
@@ -117,6 +122,20 @@ def reduction_error(mechanism, *, n_steps: int = 256, observables=None, referenc
         message = f"modal reduction error {error:.3g} <= {tolerance:g} ({against})"
     return ReductionError(reference, modes, difference, relative, float(error), float(tolerance),
                           status, message, time.perf_counter() - started)
+
+
+def _checked_response(response, exact) -> dict[str, np.ndarray]:
+    """The caller's ``response`` as arrays, checked against the reference's specs and samples."""
+    missing = [spec for spec in exact if spec not in response]
+    if missing:
+        raise LinearizationError(f"response must hold every observable of the steady state "
+                                 f"({sorted(exact)}); missing {missing}")
+    found = {spec: np.asarray(response[spec], dtype=float) for spec in exact}
+    for spec, values in found.items():
+        if values.shape != exact[spec].shape:
+            raise LinearizationError(f"response[{spec!r}] must have shape {exact[spec].shape} (the "
+                                     f"n_steps + 1 samples); received shape {values.shape}")
+    return found
 
 
 def _steady_response(mechanism, n_steps, observables) -> dict[str, np.ndarray]:

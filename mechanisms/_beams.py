@@ -38,6 +38,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
 from scipy.optimize import brentq
 
 from ._parts import ArgumentError, ElasticLink, Fem, MechanismError, Ritz, UserShapes
@@ -97,11 +98,7 @@ class BeamShapes:
         x = np.clip(x, 0.0, length)  # only round-off beyond the ends (checked above) is clipped
         disc = self.link.discretisation
         if isinstance(disc, Fem):
-            values = _fem_values(self.link, disc, x)
-            if self.basis is None:
-                return values
-            return ShapeValues(*(getattr(values, name) @ self.basis
-                                 for name in ("u", "du", "w", "dw", "ddw")))
+            return _fem_values(self.link, disc, x, self.basis)
         return _ritz_values(self.link, x)
 
 
@@ -224,7 +221,7 @@ def _reduced(link: ElasticLink, attachments: tuple[tuple[float, bool], ...]) -> 
         raise MechanismError(f"link {link.name!r}: discretisation.modes must be at most the "
                              f"{element_model.n_elastic} coordinates of its "
                              f"{link.discretisation.n_elements}-element model; received {modes}")
-    mass, stiffness = beam_matrices(element_model)
+    mass, stiffness = element_matrices(link)
     kinds = np.array([label[0] for label in element_model.labels])
     loads = []
     for x, moment in attachments:
@@ -376,32 +373,86 @@ def _fem_kept_dofs(link: ElasticLink, disc: Fem):
     return np.array(kept, dtype=np.int64), names
 
 
-def _fem_values(link: ElasticLink, disc: Fem, x: np.ndarray) -> ShapeValues:
-    n_el = disc.n_elements
-    h = link.length / n_el
+def _hermite_local(h: float, n_el: int, x: np.ndarray):
+    """Each abscissa's element (of ``n_el`` elements of length ``h``, m) and its local shape
+    values: ``dofs`` (m, 6) indices of the element's DOF ``(u_i, w_i, w'_i, u_j, w_j, w'_j)`` in the
+    full node-wise vector, and ``u, du, w, dw, ddw`` (m, 6) the six local shape functions and their
+    derivatives there (seed eq. 2.6 and 2.8)."""
     element = np.minimum((x / h).astype(np.int64), n_el - 1)
     xi = x / h - element
-    m = len(x)
-    full = 3 * (n_el + 1)
-    u, du, w, dw, ddw = (np.zeros((m, full)) for _ in range(5))
-    rows = np.arange(m)
-    first = 3 * element  # DOF of the element's first node
-    # seed eq. 2.8: linear axial interpolation
-    u[rows, first], u[rows, first + 3] = 1.0 - xi, xi
-    du[rows, first], du[rows, first + 3] = -1.0 / h, 1.0 / h
-    # seed eq. 2.6: cubic Hermite transverse interpolation (w_i, w'_i, w_{i+1}, w'_{i+1})
+    zero, one = np.zeros_like(xi), np.ones_like(xi)
     xi2, xi3 = xi * xi, xi * xi * xi
-    w[rows, first + 1] = 1.0 - 3.0 * xi2 + 2.0 * xi3
-    w[rows, first + 2] = h * (xi - 2.0 * xi2 + xi3)
-    w[rows, first + 4] = 3.0 * xi2 - 2.0 * xi3
-    w[rows, first + 5] = h * (xi3 - xi2)
-    dw[rows, first + 1] = (6.0 * xi2 - 6.0 * xi) / h
-    dw[rows, first + 2] = 1.0 - 4.0 * xi + 3.0 * xi2
-    dw[rows, first + 4] = (6.0 * xi - 6.0 * xi2) / h
-    dw[rows, first + 5] = 3.0 * xi2 - 2.0 * xi
-    ddw[rows, first + 1] = (12.0 * xi - 6.0) / h**2
-    ddw[rows, first + 2] = (6.0 * xi - 4.0) / h
-    ddw[rows, first + 4] = (6.0 - 12.0 * xi) / h**2
-    ddw[rows, first + 5] = (6.0 * xi - 2.0) / h
+    # seed eq. 2.8: linear axial interpolation
+    u = np.stack([1.0 - xi, zero, zero, xi, zero, zero], axis=1)
+    du = np.stack([-one / h, zero, zero, one / h, zero, zero], axis=1)
+    # seed eq. 2.6: cubic Hermite transverse interpolation (w_i, w'_i, w_{i+1}, w'_{i+1})
+    w = np.stack([zero, 1.0 - 3.0 * xi2 + 2.0 * xi3, h * (xi - 2.0 * xi2 + xi3),
+                  zero, 3.0 * xi2 - 2.0 * xi3, h * (xi3 - xi2)], axis=1)
+    dw = np.stack([zero, (6.0 * xi2 - 6.0 * xi) / h, 1.0 - 4.0 * xi + 3.0 * xi2,
+                   zero, (6.0 * xi - 6.0 * xi2) / h, 3.0 * xi2 - 2.0 * xi], axis=1)
+    ddw = np.stack([zero, (12.0 * xi - 6.0) / h**2, (6.0 * xi - 4.0) / h,
+                    zero, (6.0 - 12.0 * xi) / h**2, (6.0 * xi - 2.0) / h], axis=1)
+    dofs = 3 * element[:, None] + np.arange(6)[None, :]
+    return dofs, (u, du, w, dw, ddw)
+
+
+def _kept_rows(link: ElasticLink, disc: Fem, basis: np.ndarray | None) -> np.ndarray:
+    """The map from the full node-wise DOF vector to the link's coordinates, as rows (n_full + 1,
+    n): row ``d`` the coordinates DOF ``d`` contributes to (a unit row for a kept DOF, the reduction
+    basis's row when reduced, zeros for a removed DOF); the last row is unused padding."""
     kept, _ = _fem_kept_dofs(link, disc)
-    return ShapeValues(u[:, kept], du[:, kept], w[:, kept], dw[:, kept], ddw[:, kept])
+    columns = len(kept) if basis is None else basis.shape[1]
+    rows = np.zeros((3 * (disc.n_elements + 1), columns))
+    rows[kept] = np.eye(len(kept)) if basis is None else basis
+    return rows
+
+
+def _fem_values(link: ElasticLink, disc: Fem, x: np.ndarray, basis=None) -> ShapeValues:
+    """Element shapes at ``x`` (m,), each (m, n_kept), or times ``basis`` (n_kept, n) when reduced.
+    Each point touches its element's six DOF only: the rows are gathered, not a dense product."""
+    dofs, local = _hermite_local(link.length / disc.n_elements, disc.n_elements, x)
+    if basis is None:
+        kept, _ = _fem_kept_dofs(link, disc)
+        column = np.full(3 * (disc.n_elements + 1), len(kept))   # removed DOF: a padding column
+        column[kept] = np.arange(len(kept))
+        rows = np.arange(len(x))[:, None]
+        values = []
+        for part in local:
+            out = np.zeros((len(x), len(kept) + 1))
+            out[rows, column[dofs]] = part     # an element's six DOF are distinct: no sums
+            values.append(out[:, :-1])
+        return ShapeValues(*values)
+    gathered = _kept_rows(link, disc, basis)[dofs]              # (m, 6, n)
+    return ShapeValues(*(np.einsum("ml,mln->mn", part, gathered) for part in local))
+
+
+def element_matrices(link: ElasticLink):
+    """The unreduced ``Fem`` link's mass and stiffness matrices (``beam_matrices`` of its element
+    model: the same integrals, the same Gauss rule) as sparse CSC matrices (n_kept, n_kept), kg and
+    N/m, assembled element by element without a dense matrix or a Python loop over elements:
+    every element is the same, so its 6 x 6 matrices are integrated once and scattered."""
+    disc = link.discretisation
+    h = link.length / disc.n_elements
+    xg, wg = np.polynomial.legendre.leggauss(4)
+    x = 0.5 * h * (xg + 1.0)
+    weights = 0.5 * h * wg
+    _, (u, du, w, dw, ddw) = _hermite_local(h, 1, x)
+
+    def gram(a):
+        return a.T @ (weights[:, None] * a)
+
+    mass = link.density * link.area * (gram(u) + gram(w))
+    if link.rotary_inertia:
+        mass = mass + link.density * link.second_moment * gram(dw)
+    stiffness = link.youngs_modulus * (link.area * gram(du) + link.second_moment * gram(ddw))
+    dofs = 3 * np.arange(disc.n_elements)[:, None] + np.arange(6)[None, :]   # (n_el, 6)
+    rows = np.repeat(dofs, 6, axis=1).ravel()
+    cols = np.tile(dofs, (1, 6)).ravel()
+    full = 3 * (disc.n_elements + 1)
+    kept, _ = _fem_kept_dofs(link, disc)
+    matrices = []
+    for element in (mass, stiffness):
+        data = np.tile(element.ravel(), disc.n_elements)
+        assembled = sparse.csr_matrix((data, (rows, cols)), shape=(full, full))  # sums duplicates
+        matrices.append(sparse.csc_matrix(assembled[kept][:, kept]))
+    return tuple(matrices)

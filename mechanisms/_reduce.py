@@ -44,7 +44,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import eigh
+from scipy import sparse
+from scipy.linalg import cho_factor, cho_solve, eigh
+from scipy.sparse.linalg import LinearOperator, eigsh, splu
 
 #: Relative size below which an eigenvalue of a Gram matrix is round-off: dropping it changes the
 #: sums by that fraction of their largest.
@@ -54,6 +56,9 @@ _RANK_TOL = 1e-13
 #: ~1e-16 of the norm) and is dropped. A small but real part is kept: a point load's static shape
 #: has a kink no smooth mode carries, and even 1e-5 of it moves the frequencies (measured).
 _SPAN_TOL = 1e-20
+#: Blocks of at most this many coordinates are solved with dense LAPACK (ARPACK's Krylov space needs
+#: room, and a small dense solve costs less than setting up the sparse one).
+_DENSE_BELOW = 48
 
 
 @dataclass(frozen=True)
@@ -67,42 +72,73 @@ class Reduction:
     frequencies: np.ndarray
 
 
-def reduction_basis(mass: np.ndarray, stiffness: np.ndarray, axial: np.ndarray, n_modes: int,
-                    loads: np.ndarray, displacement_rows: np.ndarray) -> Reduction:
-    """The reduction basis of an element model with ``mass``, ``stiffness`` (n_full, n_full),
-    ``axial`` (n_full,) bool marking its axial coordinates, keeping ``n_modes`` eigenmodes plus the
-    static corrections of ``loads`` (n_full, k) load vectors; ``displacement_rows`` (n_full,) bool
-    marks the nodal displacements (``u``, ``w``) used to normalise each column."""
-    blocks = [np.flatnonzero(axial), np.flatnonzero(~axial)]
-    modes, omega2 = [], []
-    for block in blocks:
-        if block.size == 0:
-            continue
+def reduction_basis(mass, stiffness, axial: np.ndarray, n_modes: int, loads: np.ndarray,
+                    displacement_rows: np.ndarray) -> Reduction:
+    """The reduction basis of an element model with ``mass``, ``stiffness`` (n_full, n_full), sparse
+    or dense, ``axial`` (n_full,) bool marking its axial coordinates, keeping ``n_modes`` eigenmodes
+    plus the static corrections of ``loads`` (n_full, k) load vectors; ``displacement_rows``
+    (n_full,) bool marks the nodal displacements (``u``, ``w``) used to normalise each column.
+
+    Axial and transverse coordinates are uncoupled in ``mass`` and ``stiffness`` (the frame is held
+    fixed), so each block is solved on its own: one sparse factorisation of its stiffness serves
+    both its lowest eigenpairs (shift-invert Lanczos about 0) and its static corrections."""
+    mass, stiffness = sparse.csc_matrix(mass), sparse.csc_matrix(stiffness)
+    n_full = len(axial)
+    modes, omega2, static = [], [], np.zeros_like(loads, dtype=float)
+    for block in _blocks(axial):
         count = min(n_modes, block.size)   # only the lowest: the rest cannot be chosen
-        values, vectors = eigh(stiffness[np.ix_(block, block)], mass[np.ix_(block, block)],
-                               subset_by_index=(0, count - 1))
-        full = np.zeros((len(axial), count))
+        values, vectors, solve = _lowest_modes(stiffness[block][:, block], mass[block][:, block],
+                                               count)
+        full = np.zeros((n_full, count))
         full[block] = vectors
         modes.append(full)
         omega2.append(values)
+        static[block] = solve(loads[block])
     modes, omega2 = np.hstack(modes), np.concatenate(omega2)
     lowest = np.argsort(omega2, kind="stable")[:n_modes]
     phi = modes[:, lowest]
     # static corrections, block by block (axial loads give axial shapes, transverse ones bending)
-    static = np.linalg.solve(stiffness, loads)
     corrections = []
-    for block in blocks:
+    for block in _blocks(axial):
         part = np.zeros_like(static)
         part[block] = static[block]
         corrections.append(_orthogonal_complement(part, phi, mass, stiffness))
     psi = np.hstack(corrections)
     basis = np.hstack([phi, psi])
-    basis = basis / np.max(np.abs(basis[displacement_rows]), axis=0)
+    # each column's largest nodal displacement becomes +1 (the sign too: the eigensolver's is arbitrary)
+    displacements = basis[displacement_rows]
+    peak = np.argmax(np.abs(displacements), axis=0)
+    basis = basis / displacements[peak, np.arange(basis.shape[1])]
     labels = tuple(f"m{i + 1}" for i in range(phi.shape[1])) + tuple(
         f"c{i + 1}" for i in range(psi.shape[1]))
     frequencies = np.sqrt(np.einsum("ij,ij->j", basis, stiffness @ basis)
                           / np.einsum("ij,ij->j", basis, mass @ basis))
     return Reduction(basis, labels, frequencies)
+
+
+def _blocks(axial):
+    """The axial and the transverse coordinates' indices, the empty ones left out."""
+    return [block for block in (np.flatnonzero(axial), np.flatnonzero(~axial)) if block.size]
+
+
+def _lowest_modes(stiffness, mass, count):
+    """The ``count`` lowest eigenpairs of ``stiffness phi = omega^2 mass phi`` (sparse (b, b),
+    stiffness positive definite: the link's supports are removed), mass-normalised, and a solver
+    ``K^-1 (b, k)`` from the same factorisation. Lanczos (ARPACK) in shift-invert mode about 0
+    converges to the lowest modes in a few dozen solves with the sparse factor; it needs a block
+    well above ``count`` (its Krylov space), so small blocks are solved dense."""
+    if stiffness.shape[0] <= max(_DENSE_BELOW, 3 * count):
+        dense_k, dense_m = stiffness.toarray(), mass.toarray()
+        values, vectors = eigh(dense_k, dense_m, subset_by_index=(0, count - 1))
+        factor = cho_factor(dense_k)
+        return values, vectors, lambda rhs: cho_solve(factor, rhs)
+    factor = splu(stiffness)
+    inverse = LinearOperator(stiffness.shape, matvec=factor.solve, dtype=float)
+    start = np.random.default_rng(0).standard_normal(stiffness.shape[0])   # reproducible
+    values, vectors = eigsh(stiffness, k=count, M=mass, sigma=0.0, OPinv=inverse, v0=start,
+                            tol=0.0)
+    order = np.argsort(values)
+    return values[order], vectors[:, order], factor.solve
 
 
 def _orthogonal_complement(vectors, phi, mass, stiffness):
@@ -111,19 +147,20 @@ def _orthogonal_complement(vectors, phi, mass, stiffness):
     (residual mass norm below ``sqrt(_SPAN_TOL)`` of the vector's) are dropped."""
     vectors = vectors[:, np.linalg.norm(vectors, axis=0) > 0.0]
     if vectors.shape[1] == 0:
-        return np.zeros((len(mass), 0))
+        return np.zeros((mass.shape[0], 0))
     vectors = vectors / np.sqrt(np.einsum("ij,ij->j", vectors, mass @ vectors))
-    modal_mass = np.einsum("ij,ij->j", phi, mass @ phi)       # phi^T M phi is diagonal
+    mass_phi = mass @ phi
+    modal_mass = np.einsum("ij,ij->j", phi, mass_phi)       # phi^T M phi is diagonal
     residual = vectors
     for _ in range(2):   # M-orthogonal projection away from the eigenmodes, twice for round-off
-        residual = residual - phi @ ((phi.T @ mass @ residual) / modal_mass[:, None])
-    values, directions = np.linalg.eigh(residual.T @ mass @ residual)
+        residual = residual - phi @ ((mass_phi.T @ residual) / modal_mass[:, None])
+    values, directions = np.linalg.eigh(residual.T @ (mass @ residual))
     keep = values > _SPAN_TOL
     if not np.any(keep):
-        return np.zeros((len(mass), 0))
+        return np.zeros((mass.shape[0], 0))
     span = residual @ (directions[:, keep] / np.sqrt(values[keep]))   # mass-orthonormal
-    span = span - phi @ ((phi.T @ mass @ span) / modal_mass[:, None])
-    _, ritz = eigh(span.T @ stiffness @ span, span.T @ mass @ span)
+    span = span - phi @ ((mass_phi.T @ span) / modal_mass[:, None])
+    _, ritz = eigh(span.T @ (stiffness @ span), span.T @ (mass @ span))
     return span @ ritz
 
 

@@ -85,8 +85,9 @@ SWEEP_POINT_PERIODS = 4 * TANGENT_FACTOR + 1.0
 #: Doubles per step and (n + r)^2 kept while a monodromy is built (iteration matrices, their inverse).
 TANGENT_DOUBLES = 3.0
 #: Scene keys whose value changes the number of coordinates (the guard sizes a study at their
-#: largest value on its axes).
-SIZE_KEYS = ("n_elements", "n_bending", "n_axial")
+#: largest value on its axes). The counts are the assembled model's: a reduced link
+#: (``Fem(n_elements, modes=k)``) counts its modes and static corrections, not its elements.
+SIZE_KEYS = ("n_elements", "n_bending", "n_axial", "modes")
 
 
 class ResourceError(StudiesError):
@@ -218,10 +219,34 @@ def _axis_words(parameter: str, grid: np.ndarray) -> str:
 
 def _steady_state(name, problem, options, workers):
     sizes = _sizes(problem, options["values"])
-    build_bytes, build_seconds = _linearisation(options["n_steps"], sizes)
-    return Estimate(name, build_bytes,
-                    STUDY_SECONDS + build_seconds + _solve_seconds(options["n_steps"], sizes),
-                    f"{options['n_steps']} steps x {sizes.m} coordinates")
+    n_steps = options["n_steps"]
+    build_bytes, build_seconds = _linearisation(n_steps, sizes)
+    seconds = STUDY_SECONDS + build_seconds + _solve_seconds(n_steps, sizes)
+    words = f"{n_steps} steps x {sizes.m} coordinates"
+    reference = _reduction_reference_sizes(problem, options["values"])
+    if reference is not None:   # the reduction's error: a linearisation and a solve at modes + 2
+        reference_bytes, reference_seconds = _linearisation(n_steps, reference)
+        build_bytes = max(build_bytes, reference_bytes)
+        seconds += reference_seconds + _solve_seconds(n_steps, reference)
+        words += f" + the reduction check at {reference.m}"
+    return Estimate(name, build_bytes, seconds, words)
+
+
+def _reduction_reference_sizes(problem: Any, values: Mapping[str, float]) -> _Sizes | None:
+    """The coordinate counts of the reference the steady state checks a modal reduction against
+    (``linearize.reduction_error``: every reduced link at ``modes + 2``); None without a reduced
+    link (or a mechanism)."""
+    if not hasattr(problem, "mechanism"):
+        return None
+    import linearize
+    import mechanisms
+
+    mechanism = problem.mechanism(values)
+    if not linearize.reduced_links(mechanism):
+        return None
+    reference, _ = linearize.reference_mechanism(mechanism)
+    model = mechanisms.assemble(reference)
+    return _Sizes(n=model.n_coords, m=model.n_coords - model.n_constraints)
 
 
 def _sweep(name, problem, options, workers):

@@ -26,7 +26,7 @@ _UNITS = {"rate": "rad/s", "length": "m", "width": "m", "thickness": "m", "area"
           "second_moment": "m^4", "density": "kg/m^3", "youngs_modulus": "Pa", "mass": "kg",
           "inertia": "kg m^2", "ratio": "1", "alpha": "1/s", "beta": "s", "n_elements": "1",
           "n_bending": "1", "n_axial": "1", "kp": "N m/rad", "kd": "N m s/rad", "period": "s"}
-_INTEGER_KEYS = ("n_elements", "n_bending", "n_axial")
+_INTEGER_KEYS = ("n_elements", "n_bending", "n_axial", "modes")
 _CACHE_SIZE = 8
 _mechanisms: OrderedDict = OrderedDict()
 _families: OrderedDict = OrderedDict()

@@ -76,6 +76,31 @@ def test_a_study_is_sized_at_the_largest_number_of_elements_on_its_axes(four_bar
     assert "12 coordinates" in nominal.sizes
 
 
+MODES = "links.coupler.discretisation.modes"
+
+
+def test_a_reduced_link_is_sized_by_its_modes_and_corrections_not_its_elements():
+    """A 64-element coupler reduced to 6 modes counts the 9 coordinates it assembles to (6 modes, 3
+    static corrections), not its element model's 192; the steady state adds the reduction check
+    (modes + 2); a grid over ``modes`` is sized at its largest mode count."""
+    reduced = mechanisms.load("four_bar_fem4").with_parameters({ELEMENTS: 64, MODES: 6})
+    problem = MechanismProblem.from_mechanism(reduced, parameter_paths=(MODES,))
+    model = mechanisms.assemble(reduced)
+    assert model.n_coords - model.n_constraints == 9
+    steady = estimate(problem, "steady_state", _checked("steady_state", {}))
+    assert steady.sizes == "256 steps x 9 coordinates + the reduction check at 11"
+    full = estimate(MechanismProblem.from_mechanism(
+        mechanisms.load("four_bar_fem4").with_parameters({ELEMENTS: 64})),
+        "steady_state", _checked("steady_state", {}))
+    assert "192 coordinates" in full.sizes and full.time > 10 * steady.time
+    chart = estimate(problem, "stability_chart", _checked("stability_chart", {
+        "x": {"parameter": "speed", "values": [50.0, 100.0]},
+        "y": {"parameter": MODES, "values": [2, 20]}}))
+    largest = mechanisms.assemble(problem.mechanism({MODES: 20.0}))
+    assert f"{largest.n_coords - largest.n_constraints} coordinates" in chart.sizes
+    assert largest.n_coords - largest.n_constraints == 23
+
+
 def test_units_of_the_messages():
     assert format_bytes(2.3 * 2**30) == "2.3 GiB" and format_bytes(512) == "512 B"
     assert format_seconds(3 * 3600.0) == "3 h" and format_seconds(40.0) == "40 s"

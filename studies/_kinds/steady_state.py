@@ -16,6 +16,7 @@ from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain, p
 from .._store import Result, register
 from .._studies import check_n_steps
 from .._summary import Headline, Summary, response_rows
+from .._verdicts import combine
 
 #: The fewest steps per period a steady state accepts (docs/studies.md): N/4 = 4 steps is the
 #: coarsest level of the error check.
@@ -44,7 +45,10 @@ class SteadyStateResult(Result):
     same points without deflection, ``plates`` {link: (N+1, k, 2)} m the corners of rigid links with
     named points, ``joints`` {joint: (N+1, 2)} m, ``ground_joints`` the joints on the ground (see
     ``studies._drawing.mechanism_drawing``); ``drive`` the joint of the turning drive ("" without
-    one: figures use time as abscissa) and ``drive_rate`` its rate, rad/s.
+    one: figures use time as abscissa) and ``drive_rate`` its rate, rad/s; ``reduction_error``
+    (relative, 1) the modal reduction's error (``linearize.reduction_error`` against the next larger
+    mode set: the largest difference of an observable over its peak-to-peak; 0 without a reduced
+    link), its verdict among the others, and ``reduction_run_time`` s its cost (in ``run_time``).
     """
 
     problem: str
@@ -81,6 +85,8 @@ class SteadyStateResult(Result):
     ground_joints: tuple = ()
     drive: str = ""
     drive_rate: float = float("nan")
+    reduction_error: float = 0.0
+    reduction_run_time: float = 0.0
 
     @property
     def headline(self) -> str:
@@ -162,6 +168,9 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
     linear = problem.linearize(values, n_steps=n_steps)
     steady = solve_steady(linear)
     state = steady.state
+    reduction = _reduction_error(linear, state.x, n_steps)
+    status, message = combine([(steady.status, steady.message),
+                               (reduction.status, reduction.message)])
     peaks = {name: {spec: float(values[k]) for k, spec in enumerate(linear.observables)}
              for name, values in peak_summary(steady.response, steady.response_error).items()}
     drawing = {}
@@ -177,11 +186,25 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
         response_error={spec: float(steady.response_error[k])
                         for k, spec in enumerate(linear.observables)},
         multipliers=state.multipliers, spectral_radius=state.spectral_radius,
-        error_estimate=steady.error_estimate, status=steady.status, message=steady.message,
+        error_estimate=steady.error_estimate, status=status, message=message,
         n_steps=n_steps, run_time=time.perf_counter() - start, shooting_run_time=steady.run_time,
         is_stable=steady.is_stable, spectral_radius_error=steady.spectral_radius_error,
         instability_kind=steady.instability_kind, linear_range=steady.linear_range, **peaks,
-        **drawing)
+        reduction_error=reduction.error, reduction_run_time=reduction.run_time, **drawing)
+
+
+def _reduction_error(linear: Any, x: np.ndarray, n_steps: int) -> Any:
+    """``linearize.reduction_error`` of a mechanism problem's steady state ``x`` (N+1, m) against the
+    next larger mode set (only that reference is solved: the response is this one's); error 0 at
+    once for a mechanism without reduced links and for problems without a mechanism."""
+    import linearize
+
+    lin = linear.context
+    if getattr(lin, "mechanism", None) is None:   # not a mechanism: nothing is reduced
+        return linearize.ReductionError("next", {}, {}, {}, 0.0, linearize.REDUCTION_TOL, "ok",
+                                        "no reduced link", 0.0)
+    return linearize.reduction_error(lin.mechanism, n_steps=n_steps, observables=lin.observables,
+                                     response=lin.observe(x))
 
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
