@@ -154,10 +154,13 @@ class _Context:
         if kind == "TorqueLawObservable":
             # change dtau/ds x + dtau/ds' x', x = V z, x' = V z' + V' z (the law's derivatives
             # along the nominal motion: gains, motor back EMF, controller feedback)
-            _, position, rate = torque_law_map(self.model, obs.joint, self.t, self.s, self.sdot,
-                                               self.c)
-            return ObservableMap(obs.unit, nominal=self.drive_torque[:, obs.drive_index].copy(),
-                                 position=position, rate=rate)
+            law, position, rate = torque_law_map(self.model, obs.joint, self.t, self.s, self.sdot,
+                                                 self.c)
+            # on the nominal motion the feedback vanishes: the torque is the feedforward, the
+            # inverse-dynamics torque, or the law's own value (zero) when it is switched off
+            feedforward = self.model.mechanism.drives[obs.drive_index].feedforward
+            nominal = self.drive_torque[:, obs.drive_index].copy() if feedforward else law
+            return ObservableMap(obs.unit, nominal=nominal, position=position, rate=rate)
         position = self._gradient_map(obs)
         nominal = None
         if kind == "StressObservable" and obs.needs_axial_force:

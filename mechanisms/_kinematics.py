@@ -454,17 +454,18 @@ def _initial_guess(mech: Mechanism, labels: list[str], n: int, period: float) ->
 
 def feedforward_torques(mechanism: Mechanism, nominal: NominalMotion
                         ) -> dict[str, Callable[[float], float]]:
-    """The nominal inverse-dynamics torque (N m) of each ``TorqueDrive`` of ``mechanism``, by joint
-    name, as a function of time: a periodic cubic spline through ``nominal.drive_torque`` (the
-    mechanism's ``nominal_motion``). ``assemble(mechanism, feedforward=...)`` with it gives the model
-    whose nominal motion solves the full equations: the one drive law of ``simulate`` and
+    """The nominal inverse-dynamics torque (N m) of each ``TorqueDrive`` of ``mechanism`` that has
+    its feedforward on (``TorqueDrive.feedforward``), by joint name, as a function of time: a
+    periodic cubic spline through ``nominal.drive_torque`` (the mechanism's ``nominal_motion``).
+    ``assemble(mechanism, feedforward=...)`` with it gives the model whose nominal motion solves the
+    full equations when every feedforward is on: the one drive law of ``simulate`` and
     ``linearize``."""
     from scipy.interpolate import CubicSpline
 
     feedforward = {}
     for i, drive in enumerate(mechanism.drives):
-        if not isinstance(drive, TorqueDrive):
-            continue
+        if not isinstance(drive, TorqueDrive) or not drive.feedforward:
+            continue   # a drive left out of the mapping applies no feedforward (assemble)
         torque = np.array(nominal.drive_torque[:, i], dtype=float)
         torque[-1] = torque[0]   # equal up to the nominal motion's closure error (round-off)
         spline = CubicSpline(nominal.t, torque, bc_type="periodic")

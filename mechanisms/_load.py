@@ -34,7 +34,7 @@ _DISCRETISATION_KEYS = tuple(dict.fromkeys(key for cls in DISCRETISATION_TYPES.v
 _DAMPING_KEYS = {"rayleigh": ("type", "alpha", "beta", "ratio"), "modal": ("type", "ratios"),
                  "matrix": ("type", "matrix"), "none": ("type",)}
 _PRESCRIBED_KEYS = ("type", "joint", "rate", "offset", "harmonics")
-_TORQUE_KEYS = _PRESCRIBED_KEYS + ("kp", "kd", "motor", "flywheel", "torque_limit")
+_TORQUE_KEYS = _PRESCRIBED_KEYS + ("kp", "kd", "motor", "flywheel", "torque_limit", "feedforward")
 _MOTOR_KEYS = ("stall_torque", "no_load_speed", "resistance", "torque_constant", "supply_voltage",
                "rotor_inertia", "gear_ratio")
 _POINT_MASS_KEYS = ("link", "point", "mass", "inertia")
@@ -255,7 +255,7 @@ def _drive(data: object, path: str, joint: str | None) -> PrescribedDrive | Torq
                            kd=t.number("kd", "N m s/rad", 0.0, nonnegative=True),
                            motor=_motor(t.table("motor"), f"{path}.motor") if t.has("motor") else None,
                            flywheel=t.number("flywheel", "kg m^2", 0.0, nonnegative=True),
-                           torque_limit=limit)
+                           torque_limit=limit, feedforward=t.boolean("feedforward", True))
     return PrescribedDrive(**common)
 
 
@@ -371,7 +371,8 @@ def to_spec(mech: Mechanism) -> dict[str, Any]:
                  "rate": drive.rate, "offset": drive.offset,
                  "harmonics": [list(h) for h in drive.harmonics]}
         if isinstance(drive, TorqueDrive):
-            entry.update(kp=drive.kp, kd=drive.kd, flywheel=drive.flywheel)
+            entry.update(kp=drive.kp, kd=drive.kd, flywheel=drive.flywheel,
+                         feedforward=drive.feedforward)
             if math.isfinite(drive.torque_limit):
                 entry["torque_limit"] = drive.torque_limit
             if drive.motor is not None:

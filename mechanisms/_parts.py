@@ -627,11 +627,14 @@ class DCMotor:
 class TorqueDrive:
     """A torque on ``link_b`` of revolute joint ``joint`` (reaction on ``link_a``). The nominal motion
     follows ``PrescribedDrive(joint, rate, offset, harmonics)``; the applied torque is the nominal
-    inverse-dynamics torque plus a PD correction on the deviation from it:
+    inverse-dynamics torque (the feedforward; ``feedforward=False`` switches it off) plus a PD
+    correction on the deviation from it:
 
         tau = tau_nominal(t) + kp (angle_nominal - angle) + kd (rate_nominal - rate)
 
-    plus what the mechanism's controllers acting at this joint add. ``motor`` (a ``DCMotor`` or
+    plus what the mechanism's controllers acting at this joint add. Without the feedforward the
+    nominal motion is only the reference of the feedback (and the motion the linearisation is
+    about): the machine follows it only as closely as the feedback forces it to. ``motor`` (a ``DCMotor`` or
     ``None``: an ideal torque source) adds its back-EMF damping ``c (rate_nominal - rate)`` (its
     feedforward voltage covers the back EMF of the nominal speed) and its rotor inertia;
     ``flywheel`` (kg m^2) is an inertia on ``link_b`` about the joint. The torque saturates at
@@ -649,10 +652,14 @@ class TorqueDrive:
     motor: DCMotor | None = None
     flywheel: float = 0.0
     torque_limit: float = math.inf
+    feedforward: bool = True
 
     def __post_init__(self) -> None:
         _check_drive(self)
         owner = f"drive at joint {self.joint!r}"
+        if not isinstance(self.feedforward, bool):
+            raise MechanismError(f"{owner}: feedforward must be true or false, got "
+                                 f"{self.feedforward!r}")
         _check_number(owner, "kp", self.kp, "N m/rad", nonnegative=True)
         _check_number(owner, "kd", self.kd, "N m s/rad", nonnegative=True)
         _check_number(owner, "flywheel", self.flywheel, "kg m^2", nonnegative=True)

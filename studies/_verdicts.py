@@ -39,13 +39,26 @@ RANGE_MEASURES = ("peak_deflection_over_length", "peak_deflection_over_height", 
                   "peak_compression_over_euler", "peak_stress_over_yield")
 
 
+#: The saturation measures reported per torque drive with a limit or a motor, as fractions of the
+#: limit (``linearize.DriveRange``: peak demanded torque / ``torque_limit``, peak motor command /
+#: ``G stall_torque``; 0 for the one a drive lacks, none for a drive with neither): above 1 the
+#: drive saturates.
+DRIVE_MEASURES = {"peak_torque_over_limit": ("peak_demanded_torque", "torque_limit"),
+                  "peak_command_over_limit": ("peak_command", "command_limit")}
+
+
 def linear_range(linear: Any, z: np.ndarray) -> tuple[dict[str, float], str, str]:
     """The linear-range measures of the solution ``z`` (N+1, m) of ``linear`` (a study ``Linear``):
-    ``({"<link>.<measure>": value}, status, message)``; empty and ``ok`` for a problem without them."""
+    ``({"<link>.<measure>": value, "drive.<joint>.<measure>": value}, status, message)``, all
+    dimensionless (``RANGE_MEASURES``, ``DRIVE_MEASURES``); empty and ``ok`` for a problem without
+    them."""
     measure = getattr(linear, "linear_range", None)
     if measure is None:
         return {}, "ok", ""
     found = measure(z)
     values = {f"{link.link}.{name}": float(getattr(link, name)) for link in found.links
               for name in RANGE_MEASURES}
+    for drive in getattr(found, "drives", ()):
+        for name, (peak, limit) in DRIVE_MEASURES.items():
+            values[f"drive.{drive.joint}.{name}"] = float(getattr(drive, peak) / getattr(drive, limit))
     return values, found.status, found.message

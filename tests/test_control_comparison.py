@@ -193,3 +193,36 @@ def test_table_defaults_and_cost_model():
     short = _guard.estimate(problem, "control_comparison", options)
     long = _guard.estimate(problem, "control_comparison", dict(options, n_periods=200))
     assert long.time > 5.0 * short.time and "2 runs x 20 periods" in short.sizes
+
+
+# ---------------------------------------------------------------------------------------------------
+# the shipped controlled machine: motor, PD on the crank and coupler-strain feedback
+# ---------------------------------------------------------------------------------------------------
+@pytest.mark.slow
+def test_four_bar_controlled_with_and_without_its_controllers():
+    """Without feedback the motor's back-EMF damping keeps the crank near its nominal speed (it no
+    longer runs away); the controllers cut the speed fluctuation, the output error and the coupler's
+    vibration; and the controlled run's steady coupler deflection is the closed-loop linear steady
+    state's (an independent route)."""
+    import linearize
+    import periodic
+
+    problem = studies.MechanismProblem.from_scene("four_bar_controlled")
+    result = studies.control_comparison(problem, n_periods=8, n_steps=256)
+    assert result.status == "ok", result.message
+    assert result.failed == {"with": "", "without": ""}
+    assert result.roles["drive.O.rate"] == "speed" and result.roles["rocker.angle"] == "output"
+    peaks = result.steady_peak
+    nominal_speed = 100.0   # rad/s
+    assert result.settled["without"]["drive.O.rate"]
+    assert peaks["without"]["drive.O.rate"] < 0.1 * nominal_speed
+    assert peaks["with"]["drive.O.rate"] < 0.5 * peaks["without"]["drive.O.rate"]
+    assert peaks["with"]["rocker.angle"] < 0.5 * peaks["without"]["rocker.angle"]
+    assert peaks["with"]["coupler.deflection@0.5"] < 0.95 * peaks["without"]["coupler.deflection@0.5"]
+    for case in ("with", "without"):   # the error estimates back the comparison
+        for name, peak in peaks[case].items():
+            assert result.steady_peak_error[case][name] < 0.1 * peak
+    lin = linearize.about(problem.mechanism(), n_steps=256, observables=["coupler.deflection@0.5"])
+    steady = periodic.steady_state(lin.system)
+    linear = lin.observable_maps["coupler.deflection@0.5"].evaluate(steady.x, steady.v, steady.a)
+    assert peaks["with"]["coupler.deflection@0.5"] == pytest.approx(np.abs(linear).max(), rel=0.05)

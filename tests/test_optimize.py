@@ -1,8 +1,8 @@
 """``studies.optimize`` against optima known independently: Den Hartog's tuned vibration absorber (and
 its exact H-infinity optimum, Nishihara & Asami 2002), a two-frequency minimax with a closed form
 where only the global method escapes a local minimum at a bound, a frequency-separation constraint
-active at a known value, a mass budget active at a known thickness; controller gains whose
-predicted reduction of the steady vibration a nonlinear run confirms."""
+active at a known value, a mass budget active at a known thickness; coupler-strain feedback gains
+whose predicted reduction of the coupler's steady vibration a nonlinear run confirms."""
 
 from __future__ import annotations
 
@@ -138,24 +138,25 @@ def test_mass_budget_is_active_at_the_thickness_it_allows():
 
 @pytest.mark.slow
 def test_optimised_gains_reduce_the_vibration_as_the_nonlinear_run_confirms():
-    """PD gains of the torque drive of the stiffened thesis four-bar (coupler twice as thick, with
-    geometric stiffening): the crank-angle error's peak to peak at the worst speed, linear prediction
-    of the reduction against nonlinear runs at the start and at the optimum, within 10 %."""
-    spec = "crank.angle"
-    mechanism = mechanisms.load("four_bar_thesis").with_parameters({
-        "links.coupler.geometric_stiffening": True, "links.coupler.thickness": 3.2e-3, "drive.type": "torque",
-        "drive.kp": 1.0, "drive.kd": 0.03})
-    problem = studies.MechanismProblem.from_mechanism(mechanism)
-    found = studies.optimize(problem, {"drive.kp": (1.0, 30.0), "drive.kd": (0.03, 1.0)},
-                             objective=f"peak_to_peak:{spec}", speeds=[80.0, 100.0, 120.0], n_steps=128,
+    """The coupler-strain feedback gains of ``four_bar_controlled`` (motor, PD on the crank, strain
+    gauge at the coupler's midspan): the coupler deflection's peak to peak at the worst speed, the
+    linear prediction of the reduction against nonlinear runs at the start and at the optimum,
+    within 10 %. The crank torque cannot cancel the rigid-body inertia loads that bend the coupler,
+    so the reduction is a few per cent: the reductions themselves must agree too."""
+    spec = "coupler.deflection@0.5"
+    mechanism = mechanisms.load("four_bar_controlled")
+    problem = studies.MechanismProblem.from_mechanism(mechanism, observables=[spec])
+    found = studies.optimize(problem, {"controllers.strain.gain": (0.0, 2.0e5),
+                                       "controllers.strain.rate_gain": (-100.0, 100.0)},
+                             objective=f"peak_to_peak:{spec}", speeds=[80.0, 95.0, 110.0], n_steps=128,
                              constraints=[studies.StabilityMargin(0.05)])
     assert found.constraint_values["stability"] <= 0.95
-    assert found.objective_value < 0.2 * found.objective_start
-    start = studies.nonlinear_check(studies.MechanismProblem.from_mechanism(mechanism, observables=[spec]),
-                                    {"speed": found.check_speed}, n_steps=128, periodic_state=True)
+    assert found.objective_value < 0.99 * found.objective_start
+    start = studies.nonlinear_check(problem, {"speed": found.check_speed}, n_steps=128, periodic_state=True)
     linear_ratio = found.check_linear_objective / np.ptp(start.linear[spec])
     nonlinear_ratio = found.check_objective / np.ptp(start.nonlinear[spec])
     assert nonlinear_ratio == pytest.approx(linear_ratio, rel=0.10)
+    assert 0.0 < 1.0 - nonlinear_ratio == pytest.approx(1.0 - linear_ratio, rel=0.5)
 
 
 def test_result_round_trips_through_hdf5_and_plots(tmp_path, absorber_optimum):

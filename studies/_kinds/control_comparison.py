@@ -10,7 +10,6 @@ last period) with its error estimate, and the settling time (:func:`settling_tim
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import time
@@ -184,20 +183,6 @@ def _settle_words(result: ControlComparison, case: str, name: str) -> str:
 # ---------------------------------------------------------------------------------------------------
 # the study
 # ---------------------------------------------------------------------------------------------------
-def without_feedback(mechanism: Any) -> Any:
-    """The same machine with every controller's feedback removed (``Mechanism.without_feedback()``
-    where it exists; until then: every ``TorqueDrive``'s PD gains set to zero, the feedforward of the
-    nominal torque kept)."""
-    import mechanisms
-
-    remove = getattr(mechanism, "without_feedback", None)
-    if callable(remove):
-        return remove()
-    drives = tuple(dataclasses.replace(drive, kp=0.0, kd=0.0) if isinstance(drive, mechanisms.TorqueDrive)
-                   else drive for drive in mechanism.drives)
-    return mechanism.replace(drives=drives)
-
-
 def control_comparison(problem: Any, values: Mapping[str, float] | None = None, *, n_periods: int = 20,
                        n_steps: int = 256, band: float = BAND, output: str | None = None) -> ControlComparison:
     """Run the machine of ``problem`` (a ``studies.MechanismProblem``) at ``values`` from the start-up
@@ -219,11 +204,12 @@ def control_comparison(problem: Any, values: Mapping[str, float] | None = None, 
     params = problem.resolve(values)
     nominal_values = problem.parameters
     mechanism = problem.mechanism({k: v for k, v in params.items() if v != nominal_values[k]})
-    without = without_feedback(mechanism)
+    without = mechanism.without_feedback()
     if without == mechanism:
         raise StudiesError(f"scene {problem.name!r}: its drives have no feedback to remove (a prescribed "
-                           f"drive, or a torque drive with kp = kd = 0): nothing to compare; declare the "
-                           f"drive with type = \"torque\" and kp, kd (docs/scenes.md)")
+                           f"drive, or a torque drive with kp = kd = 0 and no [controllers]): nothing to "
+                           f"compare; declare the drive with type = \"torque\" and a [controllers.<name>] "
+                           f"table or kp, kd (docs/scenes.md)")
     plan = _quantities(problem, mechanism, without, output)
     results = {case: _case(machine, plan, n_periods, n_steps, band)
                for case, machine in zip(CASES, (mechanism, without))}
@@ -260,7 +246,10 @@ def _quantities(problem: Any, mechanism: Any, without: Any, output: str | None) 
 
     from .._mechanism import _of_coordinates
 
-    changed = [i for i, (a, b) in enumerate(zip(mechanism.drives, without.drives)) if a != b]
+    # the controlled drive: the first whose own gains or whose joint's controllers are removed
+    controlled = {controller.joint for controller in mechanism.controllers}
+    changed = [i for i, (a, b) in enumerate(zip(mechanism.drives, without.drives))
+               if a != b or a.joint in controlled]
     drive_index = changed[0] if changed else 0
     drive = mechanism.drives[drive_index]
     joint = mechanism.joint(drive.joint)
