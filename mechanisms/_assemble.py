@@ -360,19 +360,26 @@ class Model:
             s = self._vector(s, self.n_coords, "s")
         return float(_kernels.damping_power(s, sdot, tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.c0))
 
-    def drive_torques(self, s, sdot, t, lam=None) -> np.ndarray:
+    def drive_torques(self, s, sdot, t, lam=None, lag_states=None) -> np.ndarray:
         """Torque (N m) each drive applies to its ``link_b`` (reaction on ``link_a``), in the order of
         ``mechanism.drives``: ``-lam[row]`` for a prescribed drive (needs ``lam``), the torque law for
-        a torque drive."""
+        a torque drive, plus the states ``lag_states`` (n_lags,) of its lagged controllers when given
+        (``SimulationResult.lag_states[k]``: they are not functions of ``s, sdot, t``)."""
         s = self._vector(s, self.n_coords, "s")
         sdot = self._vector(sdot, self.n_coords, "sdot")
         if self._prescribed and lam is None:
             raise ArgumentError("lam is required: the torque of a prescribed drive is its multiplier")
         if lam is not None:
             lam = self._vector(lam, self.n_constraints, "lam")
-        return np.array([-lam[info.row] if info.row >= 0 else self._torque_terms(
+        torques = np.array([-lam[info.row] if info.row >= 0 else self._torque_terms(
             info, np.array([t], dtype=float), s[None], sdot[None], derivatives=False)[0][0]
             for info in self._drives])
+        if lag_states is not None:
+            lag_states = self._vector(lag_states, len(self._lags), "lag_states")
+            joints = [info.drive.joint for info in self._drives]
+            for lag, y in zip(self._lags, lag_states):
+                torques[joints.index(lag.law.drive.joint)] += y
+        return torques
 
     def drive_power(self, s, sdot, t, lam=None) -> float:
         """Power the drives put in, ``sum tau_i * (relative angle rate)_i`` (W)."""

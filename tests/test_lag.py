@@ -1,11 +1,15 @@
 """First-order coordinates (sensor and actuator lags, ``tau y' + y = u``) in ``periodic``, against
 closed forms: the steady response of a harmonically driven lag, the characteristic roots of a
 mass-spring with a lagged feedback (multipliers ``exp(s T)``), Routh-Hurwitz's stability limit, and
-the observed order 2."""
+the observed order 2.  Lagged controllers of a mechanism: the limit tau -> 0 (the unlagged closed
+loop), the linear lag state against the filtered controller law, the nonlinear run's lag state
+against the exact lag of its own input, and the nonlinear run against the linear steady state."""
 
 import numpy as np
 import pytest
 
+import linearize
+import mechanisms
 import periodic
 from periodic import PeriodicError, PeriodicSystem
 from tests._paths import PATHS, kernel_path
@@ -166,3 +170,131 @@ def test_first_order_coordinates_need_the_trapezoidal_member_and_an_invertible_d
     # a mass matrix singular with no zero row and column is refused as before
     with pytest.raises(PeriodicError, match="mass: the mass matrix is singular"):
         PeriodicSystem(1.0, constant(np.ones((2, 2)), n_steps), np.zeros_like(M), constant(np.eye(2), n_steps))
+
+
+# ---------------------------------------------------------------------------------------------------
+# Lagged controllers of a mechanism (four_bar_controlled's coupler strain feedback)
+# ---------------------------------------------------------------------------------------------------
+STRAIN, DEFLECTION, TORQUE = "coupler.strain@0.5", "coupler.deflection@0.5", "drive.O.torque"
+LAG_STEPS = 128
+
+
+@pytest.fixture(scope="module")
+def controlled():
+    return mechanisms.load("four_bar_controlled")
+
+
+def lagged(mechanism, tau):
+    return mechanism.with_parameter("controllers.strain.lag", tau)
+
+
+def linear_steady(mechanism):
+    linear = linearize.about(mechanism, n_steps=LAG_STEPS, observables=[STRAIN, DEFLECTION, TORQUE])
+    steady = periodic.steady_state(linear.system)
+    return linear, steady, linear.observe(steady.x)
+
+
+def test_lag_key_is_a_scene_parameter_written_only_when_set(controlled):
+    mechanism = lagged(controlled, 2e-3)
+    strain = {c.name: c for c in mechanism.controllers}["strain"]
+    assert strain.lag == 2e-3 and strain.to_table()["lag"] == 2e-3
+    assert "lag" not in {c.name: c for c in controlled.controllers}["crank_pd"].to_table()
+    with pytest.raises(mechanisms.MechanismError, match="lag must be zero or positive"):
+        controlled.with_parameter("controllers.crank_pd.lag", -1.0)
+    model = mechanisms.assemble(mechanism)
+    assert model.lag_names == ("strain",) and model.lag_joints == ("O",)
+    assert model.lag_time_constants.tolist() == [2e-3]
+
+
+def test_lag_state_is_an_extra_first_order_coordinate_and_tends_to_the_unlagged_loop(controlled):
+    _, reference, observed = linear_steady(controlled)
+    gaps = []
+    for tau in (1e-3, 1e-4):  # resolved by the step (h = 0.49 ms): h / tau = 0.5 and 5
+        linear, steady, lag_observed = linear_steady(lagged(controlled, tau))
+        assert linear.labels[-1] == "lag.strain"
+        m = len(linear.labels)
+        assert linear.system.first_order.tolist() == [m - 1] and linear.system.n_state == 2 * m - 1
+        assert steady.status == "ok", steady.message
+        gaps.append(max(np.abs(lag_observed[spec] - observed[spec]).max() / np.abs(observed[spec]).max()
+                        for spec in (DEFLECTION, TORQUE)))
+        # the multipliers of the mechanism's modes tend to the unlagged ones; the lag adds exp(-T/tau)
+        assert matched_error(steady.multipliers, reference.multipliers) < 2.0 * tau / linear.system.period * 0.1
+    # first order in tau: a tenth of the lag, a tenth of the difference
+    assert gaps[0] < 0.03 and 8.0 < gaps[0] / gaps[1] < 12.0
+
+
+def test_linear_lag_state_is_the_filtered_strain_feedback(controlled):
+    """Independent of the assembly: the lag state of the steady state is the controller's law
+    ``u = -(gain o + rate_gain o')`` of the observed strain filtered by ``1 / (tau s + 1)``, harmonic by
+    harmonic."""
+    tau = 5e-3
+    mechanism = lagged(controlled, tau)
+    linear, steady, observed = linear_steady(mechanism)
+    strain = {c.name: c for c in mechanism.controllers}["strain"]
+    omega = 2.0 * np.pi / linear.system.period * np.arange(LAG_STEPS // 2 + 1)
+    o = np.fft.rfft(observed[STRAIN][:-1])
+    y = np.fft.irfft(-(strain.gain + strain.rate_gain * 1j * omega) * o / (1.0 + 1j * omega * tau), LAG_STEPS)
+    lag_state = steady.x[:-1, -1]
+    assert np.abs(lag_state - y).max() < 1e-3 * np.abs(y).max()
+
+
+def test_lag_refusals_outside_the_linear_steady_state_and_the_run(controlled):
+    with pytest.raises(mechanisms.ArgumentError, match=r"controllers \['strain'\] have a lag"):
+        mechanisms.PeriodMap(lagged(controlled, 1e-3), n_steps=16)
+    with pytest.raises(periodic.PeriodicError, match="2 beta = gamma"):
+        periodic.steady_state(linearize.about(lagged(controlled, 1e-3), n_steps=16).system, scheme="damped",
+                              estimate_error=False)
+
+
+def exact_lag_of_piecewise_linear(t, u, tau):
+    """``y`` (N+1,) of ``tau y' + y = u``, ``y(t_0) = 0``, for ``u`` linear between the samples ``t``:
+    per interval of length h, ``y_1 = e y_0 + u_1 - e u_0 - s tau (1 - e)``, ``e = exp(-h/tau)``, ``s``
+    the slope of ``u`` (the particular solution ``u - s tau`` plus the decaying homogeneous one)."""
+    y = np.zeros_like(u)
+    for k in range(len(t) - 1):
+        h = t[k + 1] - t[k]
+        decay = np.exp(-h / tau)
+        slope = (u[k + 1] - u[k]) / h
+        y[k + 1] = decay * y[k] + u[k + 1] - decay * u[k] - slope * tau * (1.0 - decay)
+    return y
+
+
+def test_exact_lag_of_piecewise_linear_is_exact_for_a_ramp():
+    t = np.linspace(0.0, 1.0, 11)
+    tau = 0.1
+    # tau y' + y = t, y(0) = 0: y = t - tau (1 - exp(-t / tau))
+    np.testing.assert_allclose(exact_lag_of_piecewise_linear(t, t, tau), t - tau * (1.0 - np.exp(-t / tau)),
+                               atol=1e-14)
+
+
+@pytest.mark.slow
+def test_lagged_closed_loop_nonlinear_run_agrees_with_the_linear_steady_state(controlled):
+    """As the unlagged closed loop does: the last period of a run from the nominal motion against the
+    linear steady state, the lag state of the run against the linear one."""
+    differences = {}
+    for tau in (0.0, 5e-3):
+        mechanism = lagged(controlled, tau) if tau else controlled
+        linear, steady, observed = linear_steady(mechanism)
+        run = mechanisms.simulate(mechanism, n_periods=6, steps_per_period=LAG_STEPS,
+                                  observables=[DEFLECTION], estimate_error=False)
+        last = slice(-LAG_STEPS - 1, None)
+        scale = np.abs(observed[DEFLECTION]).max()
+        differences[tau] = np.abs(run.observables[DEFLECTION][last] - observed[DEFLECTION]).max() / scale
+        if tau:
+            assert run.lag_names == ("strain",) and run.lag_states.shape == (run.t.size, 1)
+            # the run's lag state solves tau y' + y = u for the run's own controller input u (the
+            # exact solution for u linear between samples; the step's trapezoidal rule is O((h/tau)^2))
+            model = mechanisms.assemble(mechanism)
+            u = model.lag_inputs_along(run.t, run.s, run.sdot)[0][:, 0]
+            exact = exact_lag_of_piecewise_linear(run.t, u, tau)
+            rate = (run.t[1] - run.t[0]) / tau
+            assert np.abs(run.lag_states[:, 0] - exact).max() < rate**2 * np.abs(exact).max()
+            # the torque the drive applies includes the lag state
+            k = run.t.size - 1
+            without = model.drive_torques(run.s[k], run.sdot[k], run.t[k])
+            with_lag = model.drive_torques(run.s[k], run.sdot[k], run.t[k], lag_states=run.lag_states[k])
+            assert with_lag[0] - without[0] == pytest.approx(run.lag_states[k, 0])
+        else:
+            assert run.lag_states.shape == (run.t.size, 0)
+    assert differences[0.0] < 0.1
+    assert differences[5e-3] < 1.5 * differences[0.0]
