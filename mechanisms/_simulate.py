@@ -499,7 +499,7 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
              rho_inf: float = 0.8, observables: Sequence[str] | None = None, tol: float = 1e-10,
              max_iterations: int = 20, jacobian_reuse: bool = True, max_step_halvings: int = 6,
              perturbed_start: bool = False, estimate_error: bool = True,
-             throw: bool = True) -> SimulationResult:
+             throw: bool = True, lag0: Sequence[float] | None = None) -> SimulationResult:
     """Integrate the full nonlinear constrained equations of motion on a uniform time grid.
 
     Parameters
@@ -553,6 +553,8 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
         for timing-critical loops).
     throw : raise ``SimulationError`` on failure; with ``False`` return the partial result with
         ``status = -1`` and a message naming the time.
+    lag0 : the initial states (n_lags,) of the model's lagged controllers (N m; default 0, the lags
+        at rest): e.g. the last entries of a linear steady state's ``z`` at t = 0.
 
     Returns
     -------
@@ -586,14 +588,16 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
 
     options = (rho, tol * length_scale, int(max_iterations), jacobian_reuse,
                int(max_step_halvings), length_scale, bool(perturbed_start))
-    run = _integrate(model, q0, v0, t0, h, n_steps, *options)
+    n_lags = len(getattr(model, "lag_names", ()))
+    lag0 = None if lag0 is None else _as_vector(lag0, n_lags, "lag0")
+    run = _integrate(model, q0, v0, t0, h, n_steps, *options, lag0=lag0)
     obs = {spec: np.array([ev.value(q) for q in run["s"]]) for spec, ev in evaluators.items()}
     obs_error: dict[str, float] = {}
     if estimate_error and run["status"] == 0 and n_steps < 2:
         run["message"] += " No error estimate: a single step has no coarser grid to compare with."
     elif estimate_error and run["status"] == 0:
         # the coarse grid t0 + 2 k h, k <= n_steps // 2, is every other point of the fine one
-        coarse = _integrate(model, q0, v0, t0, 2.0 * h, n_steps // 2, *options)
+        coarse = _integrate(model, q0, v0, t0, 2.0 * h, n_steps // 2, *options, lag0=lag0)
         if coarse["status"] != 0:
             run["message"] += (" Error estimate unavailable: the 2 dt run failed "
                                f"({coarse['message']})")
@@ -835,8 +839,11 @@ class _Lags:
         u, du_ds, du_dv = self.model.lag_inputs_along(np.array([t], dtype=float), q[None], v[None])
         return u[0], du_ds[0], du_dv[0]
 
-    def start(self, q, v, t):
-        """The input at the initial state (once, before the first step)."""
+    def start(self, q, v, t, y0=None):
+        """The states ``y0`` (default 0) and the input at the initial state (once, before the first step)."""
+        if y0 is not None:
+            self.y = np.array(y0, dtype=float)
+            self.history = [self.y.copy()]
         self.u = self._input(q, v, t)[0]
 
     def begin(self, h):
@@ -868,7 +875,7 @@ class _Lags:
 
 
 def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jacobian_reuse,
-               max_halvings, length_scale, perturbed_start):
+               max_halvings, length_scale, perturbed_start, lag0=None):
     """The generalized-alpha loop on the uniform grid ``t0 + k h``; a step whose Newton solve fails
     is retried as 2, 4, ..., ``2**max_halvings`` equal substeps. Returns a dict of the arrays and
     counts (see ``simulate``)."""
@@ -876,7 +883,7 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
     r = int(model.n_constraints)
     stepper = _Stepper(model, rho, abs_tol, max_iterations, jacobian_reuse, length_scale)
     if stepper.lags is not None:
-        stepper.lags.start(q0, v0, t0)
+        stepper.lags.start(q0, v0, t0, lag0)
 
     t_grid = t0 + h * np.arange(n_steps + 1)
     S = np.empty((n_steps + 1, n))

@@ -241,6 +241,8 @@ def test_linear_lag_state_is_the_filtered_strain_feedback(controlled):
 def test_lag_refusals_outside_the_linear_steady_state_and_the_run(controlled):
     with pytest.raises(mechanisms.ArgumentError, match=r"controllers \['strain'\] have a lag"):
         mechanisms.PeriodMap(lagged(controlled, 1e-3), n_steps=16)
+    with pytest.raises(mechanisms.ArgumentError, match=r"`lag0` must have shape \(1,\)"):
+        mechanisms.simulate(lagged(controlled, 1e-3), n_periods=1, steps_per_period=16, lag0=[0.0, 1.0])
     with pytest.raises(periodic.PeriodicError, match="2 beta = gamma"):
         periodic.steady_state(linearize.about(lagged(controlled, 1e-3), n_steps=16).system, scheme="damped",
                               estimate_error=False)
@@ -294,6 +296,9 @@ def test_lagged_closed_loop_nonlinear_run_agrees_with_the_linear_steady_state(co
             without = model.drive_torques(run.s[k], run.sdot[k], run.t[k])
             with_lag = model.drive_torques(run.s[k], run.sdot[k], run.t[k], lag_states=run.lag_states[k])
             assert with_lag[0] - without[0] == pytest.approx(run.lag_states[k, 0])
+            started = mechanisms.simulate(mechanism, n_periods=0.25, steps_per_period=LAG_STEPS,
+                                          lag0=[0.125], estimate_error=False)
+            assert started.lag_states[0, 0] == 0.125
         else:
             assert run.lag_states.shape == (run.t.size, 0)
     assert differences[0.0] < 0.1
