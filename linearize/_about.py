@@ -247,7 +247,8 @@ def _finish(mechanism, model, nominal, coeffs, specs, angle, started):
     for array in (coeffs.M, coeffs.C, coeffs.K, coeffs.f):
         array[-1] = array[0]
     system = periodic.PeriodicSystem(nominal.period, coeffs.M, coeffs.C, coeffs.K, coeffs.f)
-    labels = tuple(model.coord_labels[i] for i in coeffs.independent)
+    labels = tuple(model.coord_labels[i] for i in coeffs.independent) + tuple(
+        f"lag.{name}" for name in getattr(model, "lag_names", ()))  # linearize._lag
     return LinearizedMechanism(
         mechanism=mechanism, nominal=nominal, system=system, labels=labels,
         crank_angle=angle, observables=tuple(specs),

@@ -44,6 +44,8 @@ import numpy as np
 
 import mechanisms
 
+from ._lag import lag_count, with_lag_states
+
 __all__ = ["LinearizationError", "LinearCoefficients", "linear_coefficients",
            "spectral_derivatives", "choose_independent"]
 
@@ -68,7 +70,9 @@ class LinearCoefficients:
 
     ``M, C, K`` (N+1, m, m) and ``f`` (N+1, m) for ``M z'' + C z' + K z = f``; ``V``, ``Vdot``,
     ``Vddot`` (N+1, n, m) map ``z`` to the full coordinate deviation ``x = V z``;
-    ``independent`` (m,) are the indices of ``z`` in ``s``; ``dependent_condition`` (N+1,) the
+    ``independent`` (m - L,) are the indices of ``z`` in ``s`` (the last L entries of ``z`` are
+    the states of the model's L lagged controllers, ``linearize._lag``: first-order coordinates,
+    zero columns of ``V``); ``dependent_condition`` (N+1,) the
     condition number of the dependent block of the constraint Jacobian; ``spectral_error`` an
     estimate of the relative error of ``Vdot``, ``Vddot`` (size of the highest harmonics kept);
     ``rigid_residual`` the largest rigid-row residual of the nominal motion (should be round-off);
@@ -201,6 +205,15 @@ def linear_coefficients(model, t: np.ndarray, s0: np.ndarray, sdot0: np.ndarray,
     terms = mechanisms.linear_terms_along(model, t, s0, sdot0, sddot0, lam0)
     mass, damping, stiffness, residual, jacobian = (
         terms.mass, terms.damping, terms.stiffness, terms.residual, terms.jacobian)
+    if extra_stiffness is not None:
+        stiffness = stiffness + extra_stiffness
+    n_lags = lag_count(model)
+    if n_lags:
+        # lagged controllers: their states are extra (first-order, independent) coordinates
+        mass, damping, stiffness, residual, jacobian = with_lag_states(
+            model, t, s0, sdot0, mass, damping, stiffness, residual, jacobian)
+        independent = np.concatenate((independent, n + np.arange(n_lags)))
+        m = independent.size
     Phi_d = jacobian[:, :, dependent]
     singular_values = np.linalg.svd(Phi_d, compute_uv=False)
     with np.errstate(divide="ignore"):
@@ -213,12 +226,10 @@ def linear_coefficients(model, t: np.ndarray, s0: np.ndarray, sdot0: np.ndarray,
             f"{condition[k]:.3g} of the dependent block): a toggle (dead-centre) position, "
             f"where {_worst_constraints(Phi_d[k], model)} lose their rank. Change the link lengths "
             f"or the crank range so the mechanism does not pass through it.")
-    V = np.zeros((n_samples, n, m))
+    V = np.zeros((n_samples, n + n_lags, m))
     V[:, independent, np.arange(m)] = 1.0
     V[:, dependent, :] = -np.linalg.solve(Phi_d, jacobian[:, :, independent])
     rigid_rows = np.asarray(model.rigid_index, dtype=np.int64)
-    if extra_stiffness is not None:
-        stiffness = stiffness + extra_stiffness
 
     Vdot, Vddot, tail = spectral_derivatives(V, period)
     # Projection on V^T (module docstring).
@@ -236,8 +247,10 @@ def linear_coefficients(model, t: np.ndarray, s0: np.ndarray, sdot0: np.ndarray,
                                  (mass @ V)[:, dependent]], axis=2)
         maps = -np.linalg.solve(np.swapaxes(Phi_d, 1, 2), blocks)
         multiplier_maps = (maps[:, :, :m], maps[:, :, m:2 * m], maps[:, :, 2 * m:])
+    # the maps to the mechanism's coordinates: x = V z has no component along the lag states
+    V, Vdot, Vddot = V[:, :n], Vdot[:, :n], Vddot[:, :n]
     return LinearCoefficients(t=t, M=M_z, C=C_z, K=K_z, f=f_z, V=V, Vdot=Vdot, Vddot=Vddot,
-                              independent=independent, dependent_condition=condition,
+                              independent=independent[:m - n_lags], dependent_condition=condition,
                               spectral_error=tail, rigid_residual=rigid_residual,
                               multiplier_maps=multiplier_maps)
 

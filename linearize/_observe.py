@@ -111,6 +111,12 @@ def torque_law_map(model, joint, t, s, sdot, coefficients, *, saturate=True):
     tau, dtau_ds, dtau_dv = model.drive_torque_terms(joint, t, s, sdot, saturate=saturate)
     position = (np.einsum("kn,kni->ki", dtau_ds, coefficients.V)
                 + np.einsum("kn,kni->ki", dtau_dv, coefficients.Vdot))
+    # the lagged controllers at this joint add their states, the last entries of z (linearize._lag)
+    lag_joints = getattr(model, "lag_joints", ())
+    first_lag = position.shape[1] - len(lag_joints)
+    for i, lag_at in enumerate(lag_joints):
+        if lag_at == joint:
+            position[:, first_lag + i] += 1.0
     return tau, position, np.einsum("kn,kni->ki", dtau_dv, coefficients.V)
 
 

@@ -147,6 +147,17 @@ class _DriveInfo:
 
 
 @dataclass(frozen=True)
+class _Lag:
+    """A controller with a first-order lag ``tau y' + y = u``: ``law`` its unlagged law ``u`` as a
+    drive law (``Model._torque_terms``; no feedforward, limits or back EMF), ``law.gradient`` the
+    ``h`` of its drive."""
+
+    name: str
+    tau: float
+    law: _DriveInfo
+
+
+@dataclass(frozen=True)
 class JointRows:
     """Where a joint lives in the constraints: ``model.joint_rows(name)``.
 
@@ -218,6 +229,7 @@ class Model:
         self._drives: tuple[_DriveInfo, ...] = drives
         self._torque_drives = tuple(d for d in drives if d.row < 0)
         self._prescribed = tuple(d for d in drives if d.row >= 0)
+        self._lags: tuple[_Lag, ...] = ()  # the lagged controllers (``_attach_controllers``)
         self.drive_rows = np.array([d.row for d in self._prescribed], dtype=np.int64)
         self._joint_rows: dict[str, JointRows] = joint_rows
 
@@ -348,19 +360,26 @@ class Model:
             s = self._vector(s, self.n_coords, "s")
         return float(_kernels.damping_power(s, sdot, tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.c0))
 
-    def drive_torques(self, s, sdot, t, lam=None) -> np.ndarray:
+    def drive_torques(self, s, sdot, t, lam=None, lag_states=None) -> np.ndarray:
         """Torque (N m) each drive applies to its ``link_b`` (reaction on ``link_a``), in the order of
         ``mechanism.drives``: ``-lam[row]`` for a prescribed drive (needs ``lam``), the torque law for
-        a torque drive."""
+        a torque drive, plus the states ``lag_states`` (n_lags,) of its lagged controllers when given
+        (``SimulationResult.lag_states[k]``: they are not functions of ``s, sdot, t``)."""
         s = self._vector(s, self.n_coords, "s")
         sdot = self._vector(sdot, self.n_coords, "sdot")
         if self._prescribed and lam is None:
             raise ArgumentError("lam is required: the torque of a prescribed drive is its multiplier")
         if lam is not None:
             lam = self._vector(lam, self.n_constraints, "lam")
-        return np.array([-lam[info.row] if info.row >= 0 else self._torque_terms(
+        torques = np.array([-lam[info.row] if info.row >= 0 else self._torque_terms(
             info, np.array([t], dtype=float), s[None], sdot[None], derivatives=False)[0][0]
             for info in self._drives])
+        if lag_states is not None:
+            lag_states = self._vector(lag_states, len(self._lags), "lag_states")
+            joints = [info.drive.joint for info in self._drives]
+            for lag, y in zip(self._lags, lag_states):
+                torques[joints.index(lag.law.drive.joint)] += y
+        return torques
 
     def drive_power(self, s, sdot, t, lam=None) -> float:
         """Power the drives put in, ``sum tau_i * (relative angle rate)_i`` (W)."""
@@ -541,7 +560,7 @@ class Model:
     def _attach_controllers(self) -> None:
         """Fold the mechanism's controllers and motors into the torque drives' laws (they need
         the assembled model for the observables' gradients)."""
-        infos = []
+        infos, lags = [], []
         for info in self._drives:
             drive = info.drive
             if info.row >= 0:
@@ -549,29 +568,73 @@ class Model:
                 continue
             motor = drive.motor
             back_emf = motor.back_emf_damping if motor is not None else 0.0
-            kp, kd, nonlinear = drive.kp, drive.kd + back_emf, []
-            feedbacks = []
-            for controller in self.mechanism.controllers:
-                if controller.joint != drive.joint:
-                    continue
-                if isinstance(controller, PDController):
-                    kp, kd = kp + controller.kp, kd + controller.kd
-                elif isinstance(controller, ObservableFeedback):
-                    feedbacks.append(self._feedback(controller))
-            position_gain, rate_gain = -kp * info.gradient, -kd * info.gradient
-            for fb in feedbacks:
-                if fb.gradient is None:
-                    nonlinear.append(fb)
-                else:   # o = g.s (zero on the rigid nominal motion), o' = g.s'
-                    position_gain = position_gain - fb.gain * fb.gradient
-                    rate_gain = rate_gain - fb.rate_gain * fb.gradient
+            here = [c for c in self.mechanism.controllers if c.joint == drive.joint]
+            # a lagged controller's law is a lag's input (``_Lag``); the drive adds the lag's state
+            law = self._controller_law(info, [c for c in here if not c.lag], drive.kp,
+                                       drive.kd + back_emf)
             infos.append(dataclasses.replace(
-                info, kp=float(kp), kd=float(kd), back_emf=float(back_emf),
+                law, back_emf=float(back_emf),
                 command_limit=motor.peak_command if motor is not None else math.inf,
-                torque_limit=float(drive.torque_limit), position_gain=position_gain,
-                rate_gain=rate_gain, feedback=tuple(nonlinear)))
+                torque_limit=float(drive.torque_limit)))
+            lags.extend(_Lag(c.name, float(c.lag), self._controller_law(info, [c], 0.0, 0.0,
+                                                                        feedforward=None))
+                        for c in here if c.lag)
         self._drives = tuple(infos)
         self._torque_drives = tuple(d for d in infos if d.row < 0)
+        self._lags = tuple(lags)
+
+    def _controller_law(self, info, controllers, kp, kd, **replace) -> _DriveInfo:
+        """``info`` with the unsaturated law (``_torque_terms``) of the gains ``kp``, ``kd`` on the
+        driven angle plus those of ``controllers``."""
+        nonlinear, feedbacks = [], []
+        for controller in controllers:
+            if isinstance(controller, PDController):
+                kp, kd = kp + controller.kp, kd + controller.kd
+            elif isinstance(controller, ObservableFeedback):
+                feedbacks.append(self._feedback(controller))
+        position_gain, rate_gain = -kp * info.gradient, -kd * info.gradient
+        for fb in feedbacks:
+            if fb.gradient is None:
+                nonlinear.append(fb)
+            else:   # o = g.s (zero on the rigid nominal motion), o' = g.s'
+                position_gain = position_gain - fb.gain * fb.gradient
+                rate_gain = rate_gain - fb.rate_gain * fb.gradient
+        return dataclasses.replace(info, kp=float(kp), kd=float(kd), position_gain=position_gain,
+                                   rate_gain=rate_gain, feedback=tuple(nonlinear), **replace)
+
+    # --- lags of controllers: first-order states ``lag y' + y = u`` --------------------------------
+    @property
+    def lag_names(self) -> tuple[str, ...]:
+        """The controllers with a ``lag``, in scene order: each has one state ``y`` (N m), the torque
+        it adds to its drive, with ``lag y' + y = u(t, s, s')`` its unlagged law."""
+        return tuple(lag.name for lag in self._lags)
+
+    @property
+    def lag_joints(self) -> tuple[str, ...]:
+        """The joint of each lag's torque drive."""
+        return tuple(lag.law.drive.joint for lag in self._lags)
+
+    @property
+    def lag_time_constants(self) -> np.ndarray:
+        """(n_lags,) s."""
+        return np.array([lag.tau for lag in self._lags], dtype=float)
+
+    @property
+    def lag_gradients(self) -> np.ndarray:
+        """(n_lags, n): ``h`` of each lag's drive (its torque ``y`` enters Q as ``y h``)."""
+        return np.array([lag.law.gradient for lag in self._lags], dtype=float).reshape(
+            len(self._lags), self.n_coords)
+
+    def lag_inputs_along(self, t, s, sdot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The lags' inputs, each controller's unlagged law, along ``t`` (N,), ``s``, ``sdot`` (N, n):
+        ``(u (N, n_lags) N m, du/ds (N, n_lags, n), du/ds' (N, n_lags, n))``."""
+        n = self.n_coords
+        t, (s, sdot) = self._samples(t, {"s": s, "sdot": sdot}, (n, n))
+        u = np.zeros((len(t), len(self._lags)))
+        du_ds, du_dv = np.zeros(u.shape + (n,)), np.zeros(u.shape + (n,))
+        for i, lag in enumerate(self._lags):
+            u[:, i], du_ds[:, i], du_dv[:, i] = self._torque_terms(lag.law, t, s, sdot, saturate=False)
+        return u, du_ds, du_dv
 
     def _feedback(self, controller: ObservableFeedback) -> _Feedback:
         owner = f"controller {controller.name!r}: observable {controller.observable!r}"

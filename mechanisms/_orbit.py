@@ -87,6 +87,11 @@ class PeriodMap:
                                 f"got {rho_inf!r}.")
         self.model, self.mechanism, computed = _resolve_model(system, need_nominal=nominal is None)
         nominal = computed if nominal is None else nominal
+        lags = tuple(getattr(self.model, "lag_names", ()))
+        if lags:
+            raise ArgumentError(f"`system`: the controllers {list(lags)} have a lag, whose states the "
+                                "period map does not carry (its state is the mechanism's); use the "
+                                "linear steady state, or set their `lag` to 0.")
         if nominal is None:
             raise ArgumentError("`system` must be a mechanisms.Mechanism (or a model assembled from "
                                 "one): the period map shoots about its nominal rigid motion.")

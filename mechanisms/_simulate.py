@@ -110,6 +110,8 @@ class SimulationResult:
     status : 0 success, -1 failure (the arrays then end at the last accepted step).
     message : what happened, naming the time of a failure.
     run_time : wall-clock seconds of the whole call (including an error-estimate run).
+    lag_states, lag_names : (N+1, L) the states ``y`` (N m) of the lagged controllers (the torques
+        they add to their drives, ``tau y' + y = u``), integrated with the mechanism; L = 0 without.
     """
 
     t: np.ndarray
@@ -135,6 +137,8 @@ class SimulationResult:
     rho_inf: float
     dt: float
     coord_labels: tuple[str, ...] = field(default=())
+    lag_states: np.ndarray | None = None
+    lag_names: tuple[str, ...] = field(default=())
 
     @property
     def success(self) -> bool:
@@ -495,7 +499,7 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
              rho_inf: float = 0.8, observables: Sequence[str] | None = None, tol: float = 1e-10,
              max_iterations: int = 20, jacobian_reuse: bool = True, max_step_halvings: int = 6,
              perturbed_start: bool = False, estimate_error: bool = True,
-             throw: bool = True) -> SimulationResult:
+             throw: bool = True, lag0: Sequence[float] | None = None) -> SimulationResult:
     """Integrate the full nonlinear constrained equations of motion on a uniform time grid.
 
     Parameters
@@ -549,6 +553,8 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
         for timing-critical loops).
     throw : raise ``SimulationError`` on failure; with ``False`` return the partial result with
         ``status = -1`` and a message naming the time.
+    lag0 : the initial states (n_lags,) of the model's lagged controllers (N m; default 0, the lags
+        at rest): e.g. the last entries of a linear steady state's ``z`` at t = 0.
 
     Returns
     -------
@@ -582,14 +588,16 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
 
     options = (rho, tol * length_scale, int(max_iterations), jacobian_reuse,
                int(max_step_halvings), length_scale, bool(perturbed_start))
-    run = _integrate(model, q0, v0, t0, h, n_steps, *options)
+    n_lags = len(getattr(model, "lag_names", ()))
+    lag0 = None if lag0 is None else _as_vector(lag0, n_lags, "lag0")
+    run = _integrate(model, q0, v0, t0, h, n_steps, *options, lag0=lag0)
     obs = {spec: np.array([ev.value(q) for q in run["s"]]) for spec, ev in evaluators.items()}
     obs_error: dict[str, float] = {}
     if estimate_error and run["status"] == 0 and n_steps < 2:
         run["message"] += " No error estimate: a single step has no coarser grid to compare with."
     elif estimate_error and run["status"] == 0:
         # the coarse grid t0 + 2 k h, k <= n_steps // 2, is every other point of the fine one
-        coarse = _integrate(model, q0, v0, t0, 2.0 * h, n_steps // 2, *options)
+        coarse = _integrate(model, q0, v0, t0, 2.0 * h, n_steps // 2, *options, lag0=lag0)
         if coarse["status"] != 0:
             run["message"] += (" Error estimate unavailable: the 2 dt run failed "
                                f"({coarse['message']})")
@@ -614,7 +622,8 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
         n_substeps=run["n_substeps"], min_pivot_ratio=run["min_pivot_ratio"],
         status=run["status"], message=run["message"],
         run_time=time.perf_counter() - start_clock, method=method, rho_inf=rho, dt=h,
-        coord_labels=tuple(getattr(model, "coord_labels", ())))
+        coord_labels=tuple(getattr(model, "coord_labels", ())), lag_states=run["lag_states"],
+        lag_names=tuple(getattr(model, "lag_names", ())))
     if result.min_pivot_ratio < 1e-13:
         logger.warning("the iteration matrix was ill-conditioned (pivot ratio %.2g): check the "
                        "constraint rows for near-redundancy or reduce extreme stiffness contrasts",
@@ -652,6 +661,9 @@ class _Stepper:
         self.residual = np.nan     # max |Phi| at the last converged solve
         self.counts = {"n_newton": 0, "n_jacobian": 0, "n_factorizations": 0}
         self.min_pivot_ratio = np.inf
+        # lagged controllers' states, integrated with the step (None without lags)
+        self.lags = _Lags(model) if len(getattr(model, "lag_names", ())) else None
+        self.t = np.nan            # the time of the last step solved
 
     def drop_tangent(self):
         self.tangent_h = None
@@ -670,6 +682,9 @@ class _Stepper:
         gamma_p = h * gamma * (1.0 - alpha_f) / (1.0 - alpha_m)
         if self.tangent_h != h:
             self.tangent_h = None
+        self.t = t
+        if self.lags is not None:
+            self.lags.begin(h)
         full_newton = full_newton or not self.jacobian_reuse
         failure = ""
         for attempt in range(2):
@@ -713,10 +728,14 @@ class _Stepper:
                             "below round-off?)")
             M = np.ascontiguousarray(model.mass_matrix(q), dtype=np.float64)
             Q = np.ascontiguousarray(model.forces(q, v, t), dtype=np.float64)
+            if self.lags is not None:
+                Q = Q + self.lags.force(q, v, t)
             Phi_s = np.ascontiguousarray(model.constraint_jacobian(q, t), dtype=np.float64)
             exact = self.tangent_h is None    # the matrix will be the Jacobian at this iterate
             if exact:
                 dQ_ds, dQ_dv = model.force_jacobians(q, v, t)
+                if self.lags is not None:
+                    dQ_ds, dQ_dv = self.lags.add_force_jacobians(q, v, t, dQ_ds, dQ_dv)
                 _tangent_terms(
                     np.ascontiguousarray(model.mass_matrix_jacobian(q, sddot), dtype=np.float64),
                     np.ascontiguousarray(dQ_ds, dtype=np.float64),
@@ -790,18 +809,81 @@ class _Stepper:
                 self.tangent_h = None
 
     def advance_alpha_acceleration(self, a, sddot_old):
-        """(GA1) for the step just solved: ``a`` becomes ``a_{n+1}``."""
+        """(GA1) for the step just solved: ``a`` becomes ``a_{n+1}``; the lag states move on with it."""
         _advance_alpha_acceleration(a, sddot_old, self.sddot, self.alpha_m, self.alpha_f)
+        if self.lags is not None:
+            self.lags.commit(self.q, self.v, self.t)
+
+
+class _Lags:
+    """The states ``y`` (N m) of a model's lagged controllers, ``tau y' + y = u(t, s, s')``
+    (``Model.lag_inputs_along``), integrated with each step by the trapezoidal rule (order 2, A-stable,
+    as the generalized-alpha step):
+
+        y_{n+1} = ((1 - r) y_n + r (u_n + u_{n+1})) / (1 + r),     r = h / (2 tau),
+
+    implicit in the step's unknowns through ``u_{n+1}``: Newton's forces get ``h_i y_{n+1}`` and its
+    Jacobians ``h_i r / (1 + r) du/ds`` (and ``du/ds'``), so the step solves the mechanism and its
+    lags together.  ``y`` starts at 0 (the lag at rest; ``u`` is 0 on the nominal motion)."""
+
+    def __init__(self, model):
+        self.model = model
+        self.tau = np.asarray(model.lag_time_constants, dtype=float)
+        self.gradients = np.asarray(model.lag_gradients, dtype=float)   # (L, n)
+        self.y = np.zeros(self.tau.size)
+        self.u = None              # the input at the committed state (None before the first step)
+        self.ratio = np.zeros(self.tau.size)
+        self.history = [self.y.copy()]
+
+    def _input(self, q, v, t):
+        u, du_ds, du_dv = self.model.lag_inputs_along(np.array([t], dtype=float), q[None], v[None])
+        return u[0], du_ds[0], du_dv[0]
+
+    def start(self, q, v, t, y0=None):
+        """The states ``y0`` (default 0) and the input at the initial state (once, before the first step)."""
+        if y0 is not None:
+            self.y = np.array(y0, dtype=float)
+            self.history = [self.y.copy()]
+        self.u = self._input(q, v, t)[0]
+
+    def begin(self, h):
+        self.ratio = 0.5 * h / self.tau
+
+    def _next(self, u_new):
+        r = self.ratio
+        return ((1.0 - r) * self.y + r * (self.u + u_new)) / (1.0 + r)
+
+    def force(self, q, v, t):
+        """``sum_i h_i y_{n+1, i}`` (n,) at the iterate ``q, v`` of the step to ``t``."""
+        return self._next(self._input(q, v, t)[0]) @ self.gradients
+
+    def add_force_jacobians(self, q, v, t, dQ_ds, dQ_dv):
+        _, du_ds, du_dv = self._input(q, v, t)
+        weights = self.gradients.T * (self.ratio / (1.0 + self.ratio))    # (n, L)
+        return dQ_ds + weights @ du_ds, dQ_dv + weights @ du_dv
+
+    def commit(self, q, v, t):
+        """The step to ``t`` converged at ``q, v``: move the states on."""
+        u_new = self._input(q, v, t)[0]
+        self.y, self.u = self._next(u_new), u_new
+
+    def snapshot(self):
+        return self.y.copy(), self.u.copy()
+
+    def restore(self, saved):
+        self.y, self.u = saved[0].copy(), saved[1].copy()
 
 
 def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jacobian_reuse,
-               max_halvings, length_scale, perturbed_start):
+               max_halvings, length_scale, perturbed_start, lag0=None):
     """The generalized-alpha loop on the uniform grid ``t0 + k h``; a step whose Newton solve fails
     is retried as 2, 4, ..., ``2**max_halvings`` equal substeps. Returns a dict of the arrays and
     counts (see ``simulate``)."""
     n = q0.shape[0]
     r = int(model.n_constraints)
     stepper = _Stepper(model, rho, abs_tol, max_iterations, jacobian_reuse, length_scale)
+    if stepper.lags is not None:
+        stepper.lags.start(q0, v0, t0, lag0)
 
     t_grid = t0 + h * np.arange(n_steps + 1)
     S = np.empty((n_steps + 1, n))
@@ -844,6 +926,8 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
             break
         S[step], V[step], A[step], L[step] = stepper.q, stepper.v, stepper.sddot, stepper.lam
         residual[step] = stepper.residual
+        if stepper.lags is not None:
+            stepper.lags.history.append(stepper.lags.y.copy())
         done = step
     if status == 0:
         message = (f"generalized-alpha reached t = {t_grid[-1]:.9g} s in {n_steps} steps of "
@@ -854,7 +938,9 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
     return {"t": t_grid[:end], "s": S[:end], "sdot": V[:end], "sddot": A[:end], "lam": L[:end],
             "residual": residual[:end], "n_steps": done, "n_rejected": n_rejected,
             "n_substeps": n_substeps, "status": status, "message": message,
-            "min_pivot_ratio": float(stepper.min_pivot_ratio), **stepper.counts}
+            "min_pivot_ratio": float(stepper.min_pivot_ratio), **stepper.counts,
+            "lag_states": (np.zeros((end, 0)) if stepper.lags is None
+                           else np.array(stepper.lags.history[:end]))}
 
 
 def _perturbed_alpha_acceleration(model, q0, v0, sddot0, t0, delta):
@@ -886,11 +972,14 @@ def _substeps(stepper, q_n, v_n, a, sddot_n, lam_n, t_n, h, max_halvings):
     Returns (failure or "", failed attempts after the full step's, substeps taken)."""
     q, v, a_n = np.empty_like(q_n), np.empty_like(v_n), a.copy()
     sddot, lam = np.empty_like(sddot_n), np.empty_like(lam_n)
+    lags_n = stepper.lags.snapshot() if stepper.lags is not None else None
     failure = ""
     for level in range(1, max_halvings + 1):
         m = 2 ** level
         hs = h / m
         q[:], v[:], a[:], sddot[:], lam[:] = q_n, v_n, a_n, sddot_n, lam_n
+        if lags_n is not None:
+            stepper.lags.restore(lags_n)
         for j in range(1, m + 1):
             failure = stepper.solve(q, v, a, sddot, lam, sddot, lam, False, t_n + j * hs, hs,
                                     full_newton=True)

@@ -25,7 +25,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._scheme import DEFAULT_SCHEME, Newmark, as_scheme
-from ._system import PeriodicSystem, ShootingError, check_quarterable, check_system, check_tol, every_other_sample
+from ._system import (
+    PeriodicSystem,
+    ShootingError,
+    check_quarterable,
+    check_system,
+    check_tol,
+    every_other_sample,
+    start_rates,
+    state_trace,
+)
 from ._verdict import RESOLVED_STEP_RATE, STABILITY_TOL, stability_verdict
 
 #: Default of ``resonance_tol``: a resolved multiplier within this distance of +1 amplifies the
@@ -43,9 +52,10 @@ class FloquetResult:
 
     Attributes
     ----------
-    monodromy : ndarray (2n, 2n)
-        ``Phi``, maps the state ``[x; v]`` at t = 0 to t = T (Newmark, N steps).
-    multipliers : ndarray (2n,) complex
+    monodromy : ndarray (s, s)
+        ``Phi``, maps the state ``[x; v]`` at t = 0 to t = T (Newmark, N steps); s = 2n, or
+        ``system.n_state`` with first-order coordinates, whose rates are not states (``[x; v[massive]]``).
+    multipliers : ndarray (s,) complex
         Eigenvalues of ``Phi``, sorted by decreasing modulus.
     spectral_radius : float
         ``max |multipliers|`` (all modes, unresolved ones included).
@@ -81,8 +91,9 @@ class FloquetResult:
     liouville_log_det : float
         ``log|det Phi|`` of the computed monodromy.
     liouville_log_det_exact : float
-        ``-int_0^T tr(M^-1 C) dt`` (trapezoidal quadrature on the samples): Liouville's formula for the
-        exact monodromy.  The two agree to O(h^2) when all modes are resolved; an unresolved damped
+        ``-int_0^T tr(M^-1 C) dt`` (trapezoidal quadrature on the samples; with first-order
+        coordinates the trace of their first-order form, ``periodic._system.state_trace``): Liouville's
+        formula for the exact monodromy.  The two agree to O(h^2) when all modes are resolved; an unresolved damped
         mode makes them differ (its numerical multiplier is not exp(lam T)).
     n_steps : int
     scheme : Newmark
@@ -132,7 +143,7 @@ def floquet(
     if estimate_error:
         check_quarterable(system.n_steps, "use such an n_steps or estimate_error=False")
     phi, _ = monodromy(system, scheme, particular=False)
-    multipliers, step_rates = analyse_multipliers(phi, system.step)
+    multipliers, step_rates = analyse_multipliers(phi, system)
     errors = coarse = quarter = None
     if estimate_error:
         coarse_system = every_other_sample(system)
@@ -145,8 +156,8 @@ def floquet(
         n_steps=system.n_steps)
     with np.errstate(divide="ignore"):
         exponents = np.log(multipliers.astype(complex)) / system.period
-    trace = np.trace(np.linalg.solve(system.M, system.C), axis1=1, axis2=2)
-    exact = -float(np.sum(trace[1:] + trace[:-1]) * 0.5 * system.step)
+    trace = state_trace(system)
+    exact = float(np.sum(trace[1:] + trace[:-1]) * 0.5 * system.step)
     radius = float(np.abs(multipliers[0]))
     return FloquetResult(
         monodromy=phi,
@@ -173,13 +184,15 @@ def floquet(
 
 
 def monodromy(system: PeriodicSystem, scheme: Newmark, *, particular: bool):
-    """``Phi`` (2n, 2n) and, if ``particular``, the end state ``b`` (2n,) of the forced solution from rest."""
-    n = system.n_dof
-    m = 2 * n + 1 if particular else 2 * n
+    """``Phi`` (s, s) of the state ``z = [x; v[massive]]`` (s = ``system.n_state``, 2n without
+    first-order coordinates) and, if ``particular``, the end state ``b`` (s,) of the forced solution
+    from rest.  The rates of first-order coordinates are not states: the kernel sets them consistently."""
+    n, n_state, massive = system.n_dof, system.n_state, system.massive
+    m = n_state + 1 if particular else n_state
     x = np.zeros((n, m))
     v = np.zeros((n, m))
     x[:, :n] = np.eye(n)
-    v[:, n : 2 * n] = np.eye(n)
+    v[massive, n + np.arange(massive.size)] = 1.0
     forced = np.zeros(m)
     if particular:
         forced[-1] = 1.0
@@ -187,8 +200,8 @@ def monodromy(system: PeriodicSystem, scheme: Newmark, *, particular: bool):
     empty = np.empty((0, n, m))
     status = scheme.march(system, forced, x, v, a, empty, empty, empty)
     raise_on_singular(system, status)
-    phi = np.vstack((x[:, : 2 * n], v[:, : 2 * n]))
-    end = np.concatenate((x[:, -1], v[:, -1])) if particular else None
+    phi = np.vstack((x[:, :n_state], v[massive, :n_state]))
+    end = np.concatenate((x[:, -1], v[massive, -1])) if particular else None
     return phi, end
 
 
@@ -225,14 +238,19 @@ def raise_on_singular(system: PeriodicSystem, status: int) -> None:
     )
 
 
-def analyse_multipliers(phi: np.ndarray, step: float):
-    """Multipliers sorted by decreasing modulus, and the step rate ``h |v| / |x|`` of each eigenvector."""
-    n = phi.shape[0] // 2
+def analyse_multipliers(phi: np.ndarray, system: PeriodicSystem):
+    """Multipliers sorted by decreasing modulus, and the step rate ``h |v| / |x|`` of each eigenvector
+    (``v`` with the rates of first-order coordinates, from their row equations at t = 0)."""
+    n = system.n_dof
     values, vectors = np.linalg.eig(phi)
     order = np.argsort(-np.abs(values), kind="stable")
     values, vectors = values[order], vectors[:, order]
     norm_x = np.linalg.norm(vectors[:n], axis=0)
-    norm_v = np.linalg.norm(vectors[n:], axis=0)
+    velocities = vectors[n:]
+    if system.n_first_order:
+        velocities = np.vstack((velocities, start_rates(system) @ vectors))
+    norm_v = np.linalg.norm(velocities, axis=0)
+    step = system.step
     with np.errstate(divide="ignore"):
         rates = np.where(norm_x > 0.0, step * norm_v / np.where(norm_x > 0.0, norm_x, 1.0), np.inf)
     if np.all(values.imag == 0.0):

@@ -9,6 +9,16 @@ Hughes, The Finite Element Method, eq. 9.1.5-9.1.7), written in predictor-correc
     (N0)  M_0 a_0 = f_0 - C_0 v_0 - K_0 x_0                                    (start)
 
 beta = 1/4, gamma = 1/2 (average acceleration) is the trapezoidal rule on the first-order form.
+
+First-order coordinates (``first_order[i] = 1``: row i and column i of M zero, e.g. a sensor or actuator
+lag ``tau y' + y = u``) are integrated by the same steps.  (N2) enforces every row at t_{k+1}, so
+their rates v_i obey the row equation at every sample, and (N1, N3) give
+``x_{k+1} - (beta/gamma) h v_{k+1} = x_k + (1 - beta/gamma) h v_k + h^2 (1/2 - beta/gamma) a_k``:
+for ``2 beta = gamma`` (the trapezoidal member) that is the trapezoidal rule
+``x_{k+1} = x_k + h/2 (v_k + v_{k+1})`` whatever a_i is, so a_i is a free auxiliary (set to 0) and
+not a state.  The start (N0) then solves for the rates of first-order coordinates instead of their
+accelerations: ``B_0 [a; v_1] = f_0 - C_0 v - K_0 x`` with ``B_0`` = M_0 whose first-order columns are
+C_0's (v_1 = 0 on the right), the consistent initial values of the row equations.
 Every column ``j`` of the state matrices is an independent solution; column ``j`` sees the force
 ``forced[j] * f`` (1 for the particular solution, 0 for the homogeneous unit states).  The effective
 matrix of (N2) is factorised once per step and applied to all columns.
@@ -118,6 +128,33 @@ def _copy(source, target):
             target[i, j] = source[i, j]
 
 
+@numba.njit(cache=True)
+def _start_system(M0, C0, first_order, v, out):
+    """``out`` = the matrix of (N0): M_0 with the columns of first-order coordinates taken from C_0; their
+    rows of ``v`` (n, m) set to 0, since those rates are unknowns of (N0), not data."""
+    n = M0.shape[0]
+    for j in range(n):
+        if first_order[j]:
+            for i in range(n):
+                out[i, j] = C0[i, j]
+            for col in range(v.shape[1]):
+                v[j, col] = 0.0
+        else:
+            for i in range(n):
+                out[i, j] = M0[i, j]
+
+
+@numba.njit(cache=True)
+def _split_start(first_order, v, a):
+    """After (N0): the rows of first-order coordinates in ``a`` (n, m) are their rates: move them to
+    ``v`` and set the (free, see the module notes) auxiliary accelerations to 0."""
+    for i in range(v.shape[0]):
+        if first_order[i]:
+            for col in range(v.shape[1]):
+                v[i, col] = a[i, col]
+                a[i, col] = 0.0
+
+
 # From this many coordinates on, BLAS (np.dot) beats the plain loops for the products C v and K x
 # (measured: 2x faster at n = 20 and 40, 2x slower at n = 2..5).
 _BLAS_FROM_N_DOF = 8
@@ -145,10 +182,11 @@ def _residual_force(Ck, Kk, fk, forced, x, v, out, work):
 
 
 @numba.njit(cache=True)
-def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist):
+def newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist):
     """March ``x, v`` (n, m) from ``t_0`` to ``t_N`` in place; ``a`` (n, m) receives the final acceleration.
 
-    M, C, K (N+1, n, n), f (N+1, n), forced (m,).  When ``x_hist`` has N+1 rows the states at all
+    M, C, K (N+1, n, n), f (N+1, n), first_order (n,) int8 (1 for a first-order coordinate, see the
+    module notes; its rows of ``v`` are replaced by consistent rates at the start), forced (m,).  When ``x_hist`` has N+1 rows the states at all
     samples are written to ``x_hist, v_hist, a_hist`` (N+1, n, m); pass zero-row arrays to skip.
     Returns -1 on success, else the sample index whose matrix (M_0 in N0, the effective matrix of
     N2 otherwise) has an exactly zero pivot.  The hand-written LU and column loops (small n);
@@ -164,12 +202,13 @@ def newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a
     work = np.empty((n, m))
     c_a = gamma * h
     k_a = beta * h * h
-    # (N0): starting acceleration
+    # (N0): starting acceleration (and the rates of first-order coordinates)
+    _start_system(M[0], C[0], first_order, v, lu)
     _residual_force(C[0], K[0], f[0], forced, x, v, a, work)
-    _copy(M[0], lu)
     if not _lu_factor(lu, piv):
         return 0
     _lu_solve(lu, piv, a)
+    _split_start(first_order, v, a)
     if store:
         _copy(x, x_hist[0])
         _copy(v, v_hist[0])
@@ -274,7 +313,8 @@ def _lapack_solve(lu, pivots, sizes, b, work, work_t, invert):
 
 
 @numba.njit(cache=True)
-def newmark_march_lapack(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist, invert):
+def newmark_march_lapack(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist,
+                         invert):
     """:func:`newmark_march` (same arguments, results to rounding, and return value) with LAPACK:
     dgetrf per step, then with ``invert`` dgetri and one dgemm for all columns (many columns), else
     dgetrs (one column).  A kernel of its own, so that runs at small n compile none of it."""
@@ -289,11 +329,12 @@ def newmark_march_lapack(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_
     work, work_t = np.empty((n, m)), np.empty((m, n))
     c_a, k_a = gamma * h, beta * h * h
     # (N0), then per step (N1) predictors, (N2) effective matrix and solve, (N3) correctors
+    _start_system(M[0], C[0], first_order, v, lu)
     _residual_force(C[0], K[0], f[0], forced, x, v, a, work)
-    _copy(M[0], lu)
     if not _lapack_factor(lu, pivots, sizes, getri_work, invert):
         return 0
     _lapack_solve(lu, pivots, sizes, a, work, work_t, invert)
+    _split_start(first_order, v, a)
     for k in range(n_samples):
         if store:
             _copy(x, x_hist[k])
@@ -346,16 +387,19 @@ def nonzero_fraction(M, C, K) -> float:
     return float(np.count_nonzero(pattern)) / pattern.size
 
 
-def march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist, solver=None):
+def march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist, solver=None, first_order=None):
     """:func:`newmark_march` or :func:`newmark_march_lapack` by ``solver`` (one of ``SOLVE_LOOPS,
-    SOLVE_LAPACK, SOLVE_INVERSE``; default :func:`choose_solver`'s pick), same arguments and return."""
+    SOLVE_LAPACK, SOLVE_INVERSE``; default :func:`choose_solver`'s pick), same arguments and return;
+    ``first_order`` (n,) int8 flags first-order coordinates (default: none)."""
+    if first_order is None:
+        first_order = np.zeros(M.shape[1], dtype=np.int8)
     if solver is None:
         n, m = x.shape
         density = nonzero_fraction(M, C, K) if n >= LAPACK_FROM_N_DOF else 1.0  # O(n^2): only when it matters
         solver = choose_solver(n, m, density)
     if solver == SOLVE_LOOPS:
-        return newmark_march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist)
-    return newmark_march_lapack(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist,
+        return newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist)
+    return newmark_march_lapack(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist,
                                 solver == SOLVE_INVERSE)
 
 

@@ -84,9 +84,14 @@ class Newmark:
         ``x_hist, v_hist, a_hist`` (N+1, n, m) receive every sample, or have length 0. Returns the
         kernel's status: -1, or the sample whose matrix was singular (see ``raise_on_singular``). The shooting and ``floquet``
         call only this, so a scheme of another family is a class with its own ``march``."""
+        if system.n_first_order and 2.0 * self.beta != self.gamma:
+            raise PeriodicError(
+                f"scheme: first-order coordinates {system.first_order.tolist()} need a Newmark scheme with "
+                f"2 beta = gamma (the trapezoidal rule on them, e.g. 'trapezoidal'), got beta={self.beta}, "
+                f"gamma={self.gamma}")
         # the kernel by size: hand-written LU for small n, LAPACK for large (periodic._newmark.choose_solver)
         return march(system.M, system.C, system.K, system.f, system.step, self.beta, self.gamma,
-                     forced, x, v, a, x_hist, v_hist, a_hist)
+                     forced, x, v, a, x_hist, v_hist, a_hist, first_order=system.first_order_mask)
 
 
 #: Named schemes, all unconditionally stable (the shooting integrates every mode of the system, stiff

@@ -67,9 +67,10 @@ class SteadyState:
         Sample times, s.
     x, v, a : ndarray (N+1, n)
         Displacement, velocity, acceleration of the periodic solution (units of x, x/s, x/s^2).
-    monodromy : ndarray (2n, 2n)
-        ``Phi`` of the state ``[x; v]`` (Richardson-extrapolated when ``extrapolated``).
-    multipliers : ndarray (2n,) complex
+    monodromy : ndarray (s, s)
+        ``Phi`` of the state ``[x; v]`` (Richardson-extrapolated when ``extrapolated``); s = 2n, or
+        ``system.n_state`` with first-order coordinates (state ``[x; v[massive]]``).
+    multipliers : ndarray (s,) complex
         Floquet multipliers (eigenvalues of ``monodromy``), decreasing modulus.
     step_rates : ndarray (2n,)
         ``|lam h|`` estimate of each multiplier's mode; > 1 means unresolved (see ``periodic._floquet``).
@@ -218,7 +219,7 @@ def steady_state(
     error_estimate = error_factor = error_ratio = float("nan")
     x_coarse = x_quarter = multiplier_errors = radius_errors = check = None
     coarse_multipliers = quarter_multipliers = None
-    multipliers, step_rates = analyse_multipliers(phi, system.step)
+    multipliers, step_rates = analyse_multipliers(phi, system)
     if estimate_error or extrapolate:
         coarse_system = every_other_sample(system)
         coarse = _shoot(coarse_system, scheme, conditioning=False)  # its conditioning is not reported
@@ -244,7 +245,7 @@ def steady_state(
             # x[::2] - x_coarse is now (1 + factor) times the N-step difference.
             error_factor = factor / (1.0 + factor)
             fine_multipliers = multipliers
-            multipliers, step_rates = analyse_multipliers(phi, system.step)
+            multipliers, step_rates = analyse_multipliers(phi, system)
             # The Richardson correction estimates the error of the N-step values: a conservative
             # bound for the extrapolated ones, as for error_estimate.
             multiplier_errors = estimate_multiplier_errors(multipliers, fine_multipliers, 1.0)
@@ -301,7 +302,7 @@ def _shoot(system: PeriodicSystem, scheme: Newmark, *, conditioning: bool = True
     (condition number and inverse norm NaN), for the N/2 and N/4 runs, whose conditioning is not reported."""
     n = system.n_dof
     phi, end = monodromy(system, scheme, particular=True)
-    system_matrix = np.eye(2 * n) - phi
+    system_matrix = np.eye(system.n_state) - phi
     try:
         z0 = np.linalg.solve(system_matrix, end)
     except np.linalg.LinAlgError:
@@ -316,7 +317,8 @@ def _shoot(system: PeriodicSystem, scheme: Newmark, *, conditioning: bool = True
         condition_number = float(singular_values[0] / singular_values[-1])
         inverse_norm = float(1.0 / singular_values[-1])
     x = np.ascontiguousarray(z0[:n, None])
-    v = np.ascontiguousarray(z0[n:, None])
+    v = np.zeros((n, 1))
+    v[system.massive, 0] = z0[n:]  # the rates of first-order coordinates are set by the kernel's start
     a = np.empty((n, 1))
     n_samples = system.n_steps + 1
     xs, vs, as_ = np.empty((n_samples, n, 1)), np.empty((n_samples, n, 1)), np.empty((n_samples, n, 1))

@@ -46,6 +46,13 @@ class PeriodicSystem:
     f : ndarray, shape (N+1, n)
         Force samples (zeros when the system is unforced).
 
+    First-order coordinates: a coordinate whose row and column of M are zero at every sample (a
+    massless coordinate such as a sensor or actuator lag, ``tau y' + y = u``) is integrated as a
+    first-order equation (its row of C, with an invertible block ``C[first_order][:, first_order]``,
+    gives its rate): the state is then ``z = [x; v[massive]]`` of size ``n_state = 2 n - n_first_order``
+    (``first_order`` and ``massive`` index the coordinates), with no spurious multiplier.  Their rates
+    are not states; the scheme must satisfy ``2 beta = gamma`` (the trapezoidal rule on them).
+
     The arrays are private read-only float64 copies.  Construct with ``PeriodicSystem(period, M, C,
     K, f=None)`` or :meth:`from_functions`.
     """
@@ -101,6 +108,26 @@ class PeriodicSystem:
     def n_dof(self) -> int:
         """Number of coordinates ``n``."""
         return self.M.shape[1]
+
+    @property
+    def first_order(self) -> np.ndarray:
+        """Indices of the first-order coordinates (rows and columns of M zero), shape (n_first_order,)."""
+        return np.flatnonzero(self.first_order_mask)
+
+    @property
+    def massive(self) -> np.ndarray:
+        """Indices of the second-order coordinates, shape (n - n_first_order,)."""
+        return np.flatnonzero(self.first_order_mask == 0)
+
+    @property
+    def n_first_order(self) -> int:
+        """Number of first-order coordinates."""
+        return int(np.count_nonzero(self.first_order_mask))
+
+    @property
+    def n_state(self) -> int:
+        """Size of the state ``[x; v[massive]]`` and of the monodromy: ``2 n - n_first_order``."""
+        return 2 * self.n_dof - self.n_first_order
 
     @property
     def step(self) -> float:
@@ -161,20 +188,69 @@ def _validate_and_set(system: PeriodicSystem, period: float, M, C, K, f) -> None
         force = _as_samples("force", f, ndim=2, shape=(n_samples, n_dof))
     for name, samples in (("mass", mass), ("damping", damping), ("stiffness", stiffness), ("force", force)):
         _check_periodic(name, samples)
-    ratios = mass_pivot_ratios(mass)
-    singular = np.flatnonzero(ratios <= _SINGULAR_PIVOT_RATIO)
-    if singular.size:
-        k = int(singular[0])
-        t_k = k * period / (n_samples - 1)
-        raise PeriodicError(
-            f"mass: the mass matrix is singular at sample {k} (t = {t_k:.6g} s; smallest/largest "
-            f"LU pivot {ratios[k]:.3g}); {singular.size} of {n_samples} samples are singular. "
-            "The Newmark start needs M(0) invertible and the problem must be an ODE in x: "
-            "eliminate massless coordinates (static condensation) or give them mass."
-        )
+    first = first_order_mask(mass).astype(bool)
+    massive = ~first
+    if massive.any():
+        _refuse_singular("mass", mass[:, massive][:, :, massive], period, (
+            "The Newmark start needs M(0) invertible and the problem must be an ODE in x: eliminate massless "
+            "coordinates (static condensation) or give them mass; a coordinate whose row and column of M are "
+            "both zero at every sample is treated as first-order (e.g. a lag, tau y' + y = u)"))
+    if first.any():
+        _refuse_singular("damping", damping[:, first][:, :, first], period, (
+            f"coordinates {np.flatnonzero(first).tolist()} have no mass (their rows and columns of M are zero) "
+            "and are integrated as first-order equations, which needs their block of C invertible: give "
+            "them mass, or damping that sets their rates (e.g. tau for a lag tau y' + y = u)"))
     for arr in (mass, damping, stiffness, force):
         arr.flags.writeable = False
     _set(system, period, mass, damping, stiffness, force)
+
+
+def _refuse_singular(name: str, blocks: np.ndarray, period: float, fix: str) -> None:
+    """PeriodicError naming the first sample of ``blocks`` (N+1, k, k) whose LU pivots span more than
+    ``_SINGULAR_PIVOT_RATIO``; ``fix`` ends the message."""
+    n_samples = blocks.shape[0]
+    ratios = mass_pivot_ratios(np.ascontiguousarray(blocks))
+    singular = np.flatnonzero(ratios <= _SINGULAR_PIVOT_RATIO)
+    if not singular.size:
+        return
+    k = int(singular[0])
+    t_k = k * period / (n_samples - 1)
+    what = "mass matrix" if name == "mass" else "block of the first-order coordinates"
+    raise PeriodicError(
+        f"{name}: the {what} is singular at sample {k} (t = {t_k:.6g} s; smallest/largest "
+        f"LU pivot {ratios[k]:.3g}); {singular.size} of {n_samples} samples are singular. {fix}."
+    )
+
+
+def first_order_mask(M: np.ndarray) -> np.ndarray:
+    """(n,) int8: 1 for a coordinate whose row and column of M (N+1, n, n) are zero at every sample."""
+    nonzero = M != 0.0
+    return (~(nonzero.any(axis=(0, 2)) | nonzero.any(axis=(0, 1)))).astype(np.int8)
+
+
+def state_trace(system: PeriodicSystem) -> np.ndarray:
+    """``tr A(t_k)`` (N+1,) of the first-order form ``z' = A z + ...`` of the state ``z = [x; v[massive]]``:
+    ``-tr(M_mm^-1 (C_mm - C_m1 C_11^-1 C_1m)) - tr(C_11^-1 K_11)`` (m massive, 1 first-order
+    coordinates; ``-tr(M^-1 C)`` without first-order ones), the integrand of Liouville's formula."""
+    if not system.n_first_order:
+        return -np.trace(np.linalg.solve(system.M, system.C), axis1=1, axis2=2)
+    m, one = system.massive, system.first_order
+    C, K = system.C, system.K
+    c11_inv_c1m = np.linalg.solve(C[:, one][:, :, one], C[:, one][:, :, m])
+    effective_damping = C[:, m][:, :, m] - C[:, m][:, :, one] @ c11_inv_c1m
+    massive_part = 0.0
+    if m.size:
+        massive_part = np.trace(np.linalg.solve(system.M[:, m][:, :, m], effective_damping), axis1=1, axis2=2)
+    lag_part = np.trace(np.linalg.solve(C[:, one][:, :, one], K[:, one][:, :, one]), axis1=1, axis2=2)
+    return -massive_part - lag_part
+
+
+def start_rates(system: PeriodicSystem) -> np.ndarray:
+    """(n_first_order, n_state): the rates of the first-order coordinates at t = 0 from a homogeneous state
+    ``z = [x; v[massive]]``: ``-C_11^-1 [K_1: , C_1m]`` (their rows of ``M x'' + C x' + K x = 0``)."""
+    one, m = system.first_order, system.massive
+    rows = np.hstack((system.K[0][one], system.C[0][one][:, m]))
+    return -np.linalg.solve(system.C[0][one][:, one], rows)
 
 
 def _set(obj, period, mass, damping, stiffness, force):
@@ -183,6 +259,10 @@ def _set(obj, period, mass, damping, stiffness, force):
     object.__setattr__(obj, "C", damping)
     object.__setattr__(obj, "K", stiffness)
     object.__setattr__(obj, "f", force)
+    # not a field: follows from M (every other sample keeps it); the kernels' int8 flags
+    mask = first_order_mask(mass)
+    mask.flags.writeable = False
+    object.__setattr__(obj, "first_order_mask", mask)
 
 
 def _check_period(period) -> float:
