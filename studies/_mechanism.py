@@ -276,8 +276,12 @@ class MechanismProblem:
         # the observables that are functions of s the integrator evaluates (with its error
         # estimates); forces, torques and magnitudes come from its multipliers and rates below
         direct = [spec for spec, obs in observers.items() if _of_coordinates(obs)]
+        # the lagged controllers' states are the last linear coordinates (linearize labels them
+        # lag.<name>): the run starts them at the linear state, not at rest
+        n_lags = len(getattr(model, "lag_names", ()))
+        lag0 = np.asarray(x0, dtype=float)[-n_lags:] if n_lags else None
         run = mechanisms.simulate(lin.mechanism, n_periods=n_periods, steps_per_period=steps_per_period,
-                                  s0=s0, sdot0=sdot0, observables=direct, estimate_error=True)
+                                  s0=s0, sdot0=sdot0, observables=direct, estimate_error=True, lag0=lag0)
         if not run.success:
             raise ComputationError(f"nonlinear run of {self.name!r} failed: {run.message}")
         if steps_per_period != n:
@@ -299,8 +303,9 @@ class MechanismProblem:
                 return run.lam @ obs.weights
             if kind == "TorqueLawObservable":
                 # the run's model applies the nominal torque as feedforward (the map's nominal)
-                feedback = np.array([model.drive_torques(sk, vk, tk, lk)[obs.drive_index]
-                                     for sk, vk, tk, lk in zip(run.s, run.sdot, run.t, run.lam)])
+                lags = run.lag_states if run.lag_states is not None else [None] * run.t.size
+                feedback = np.array([model.drive_torques(sk, vk, tk, lk, lag_states=yk)[obs.drive_index]
+                                     for sk, vk, tk, lk, yk in zip(run.s, run.sdot, run.t, run.lam, lags)])
                 return periodic(observable_map.nominal) + feedback
             if getattr(obs, "needs_axial_force", False):   # its elastic part; nominal below
                 def value(sk):
