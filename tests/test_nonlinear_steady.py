@@ -7,7 +7,7 @@ import pytest
 
 import mechanisms
 import studies
-from studies._kinds.nonlinear_steady_state import _setup
+from studies._kinds.nonlinear_steady_state import shooting_setup
 
 SPEC = "coupler.deflection@0.5"
 
@@ -25,7 +25,7 @@ def shot(problem):
 
 @pytest.mark.slow
 def test_monodromy_matches_finite_differences_of_the_period_map(problem):
-    setup = _setup(problem, None, 64)
+    setup = shooting_setup(problem, None, 64)
     period_map = mechanisms.PeriodMap(setup.linear.context.mechanism, n_steps=64,
                                       independent=setup.fine.independent, tol=1e-12)
     x0 = setup.guess
@@ -52,7 +52,7 @@ def test_monodromy_matches_finite_differences_of_the_period_map(problem):
 @pytest.mark.slow
 def test_periodic_state_equals_the_end_of_a_long_transient(problem, shot):
     assert shot.status == "ok" and shot.is_stable
-    setup = _setup(problem, None, 64)
+    setup = shooting_setup(problem, None, 64)
     # 40 periods from the linear state: the slowest multiplier 0.70 leaves 0.7^40 ~ 1e-6 of the start
     transient = setup.fine.run(setup.guess, n_periods=40, tangent=False)
     observable = setup.fine.model.observable(SPEC)

@@ -23,7 +23,7 @@ from .._store import Result, register
 from .._studies import check_integer, check_n_steps, check_parameter
 from .._summary import Headline, Summary, largest_over_grid
 from .._plots import headline, plain
-from .nonlinear_steady_state import MIN_STEPS, TOL, _observables, _setup, substep_verdict
+from .nonlinear_steady_state import MIN_STEPS, TOL, orbit_observables, shooting_setup, substep_verdict
 
 #: Periods of the transient run from the last stable orbit past the loss of stability.
 TRANSIENT_PERIODS = 100
@@ -166,7 +166,7 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
         raise StudiesError(f"stop: expected a value different from start = {start!r}")
     started = time.perf_counter()
     fixed = {k: v for k, v in (values or {}).items() if k != parameter}
-    first = _setup(problem, dict(fixed, **{parameter: start}), n_steps)
+    first = shooting_setup(problem, dict(fixed, **{parameter: start}), n_steps)
     m = first.fine.independent.size
     guess = first.guess
     scale = np.concatenate([np.full(m, max(np.abs(guess[:m]).max(), 1e-12)),
@@ -182,7 +182,7 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
     for k, (value, state) in enumerate(zip(branch.parameters, branch.states)):
         linear = problem.linearize(dict(fixed, **{parameter: float(value)}), n_steps=n_steps)
         steady = solve_steady(linear)
-        response, _, n_substeps = _observables(linear, period_map.at(float(value)), state * scale)
+        response, _, n_substeps = orbit_observables(linear, period_map.at(float(value)), state * scale)
         if n_substeps:
             statuses[k] = substep_verdict(statuses[k], "", n_substeps, n_steps)[0]
             split.append(f"{value:.6g}")
