@@ -289,3 +289,27 @@ def test_untrusted_error_estimate_makes_the_orbit_inaccurate(problem, shot, trus
     true_error = np.abs(shot.response[SPEC] - trusted.response[SPEC][::4]).max()
     assert true_error > shot.response_error[SPEC]
     assert trusted.status == "ok" and trusted.response_error[SPEC] < 0.2 * shot.response_error[SPEC]
+
+
+@pytest.mark.slow
+def test_nonlinear_check_carries_the_orbits_verdict_and_no_agreement_without_its_error(problem, monkeypatch):
+    # issue: with periodic_state only a failed orbit was set aside: an inaccurate one still gave
+    # agrees / differs under the linear state's ok, and a NaN error estimate counted as zero
+    import dataclasses
+
+    from studies._kinds import nonlinear_steady_state as module
+
+    shoot = module.nonlinear_steady_state
+
+    def untrusted(*args, **options):
+        orbit = shoot(*args, **options)
+        return dataclasses.replace(orbit, status="inaccurate", message="inaccurate: the orbit's own reason",
+                                   response_error={spec: float("nan") for spec in orbit.response_error})
+
+    values = {"links.crank.length": 0.0508 / 8}
+    trusted = studies.nonlinear_check(problem, values, n_steps=256, periodic_state=True)
+    assert trusted.status == "ok" and trusted.verdict == "agrees"
+    monkeypatch.setattr(module, "nonlinear_steady_state", untrusted)
+    check = studies.nonlinear_check(problem, values, n_steps=256, periodic_state=True)
+    assert check.status == "inaccurate" and "the orbit's own reason" in check.message
+    assert check.verdict != "agrees" and "unknown" in check.message

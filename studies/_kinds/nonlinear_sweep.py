@@ -365,8 +365,9 @@ def _headlines(result: NonlinearSweep) -> Summary:
     def where(index: tuple[int, ...]) -> str:
         return f"{result.parameter} {plain(result.values[index[0]], 3)} {unit}".rstrip()
 
-    rows = [largest_over_grid(f"{spec} largest peak to peak (nonlinear orbit)", values, None,
-                              result.units[spec], where) for spec, values in result.peak_to_peak.items()]
+    rows = [largest_over_grid(f"{spec} largest peak to peak (nonlinear orbit)", values,
+                              result.peak_to_peak_error.get(spec), result.units[spec], where)
+            for spec, values in result.peak_to_peak.items()]
     losses = [f"{kind.replace('_', ' ')} at {plain(value, 4)} {unit}".rstrip()
               for value, kind in zip(result.bifurcation_values, result.bifurcation_kinds)]
     rows.append(Headline("loss of stability", "; ".join(losses) or "none on the branch"))
