@@ -2,6 +2,8 @@
 against independent references: finite differences of the period map, a long transient, and the linear
 periodic state in the limit of small loading."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -217,6 +219,23 @@ def test_scene_tables_are_checked():
         sweep.check("studies.nonlinear_sweep", {"start": 1.0}, 128)
     with pytest.raises(studies.StudiesError, match="method"):
         sweep.check("studies.nonlinear_sweep", {"start": 1.0, "stop": 2.0, "method": "secant"}, 128)
+    # was ZeroDivisionError (exit 1) in the guard's cost model: an empty range is bad input, exit 2
+    with pytest.raises(studies.StudiesError, match="stop: expected a value different from start"):
+        sweep.check("studies.nonlinear_sweep", {"start": 90.0, "stop": 90.0}, 128)
+
+
+def test_an_empty_sweep_range_from_the_command_line_is_exit_2(tmp_path, capsys):
+    from studies.cli import main
+
+    scene = tmp_path / "sweep.toml"
+    scene.write_text((Path(mechanisms.__file__).parent / "scenes" / "four_bar_fem4.toml").read_text()
+                     + "\n[studies.nonlinear_sweep]\nstart = 90.0\nstop = 100.0\n")
+    out = tmp_path / "sweep.h5"
+    assert main(["run", str(scene), "--only", "nonlinear_sweep", "--set", "studies.nonlinear_sweep.stop=90",
+                 "--quiet", "--out", str(out)]) == 2
+    assert not out.exists()
+    err = capsys.readouterr().err
+    assert "stop: expected a value different from start" in err and len(err.splitlines()) == 1
 
 
 @pytest.mark.slow
