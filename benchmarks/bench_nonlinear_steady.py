@@ -29,7 +29,7 @@ import numpy as np
 import mechanisms
 import periodic
 import studies
-from studies._kinds.nonlinear_steady_state import _setup
+from studies._kinds.nonlinear_steady_state import shooting_setup
 
 SPEC = "coupler.deflection@0.5"
 DAMPING = "links.coupler.damping.ratio"
@@ -38,7 +38,7 @@ DAMPING = "links.coupler.damping.ratio"
 def shoot(problem, values, n_steps, tol):
     """(seconds, orbit, setup): linear start + Newton shooting."""
     started = time.perf_counter()
-    setup = _setup(problem, values, n_steps)
+    setup = shooting_setup(problem, values, n_steps)
     orbit = periodic.find_orbit(setup.fine, setup.guess, values["speed"], tol=tol)
     return time.perf_counter() - started, orbit, setup
 

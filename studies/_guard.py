@@ -80,8 +80,9 @@ TANGENT_FACTOR = 1.6
 #: monodromy, two observables' runs (2-3 Newton steps converge from the linear start at 1e-8).
 SHOOTING_PERIODS = 4 * TANGENT_FACTOR * 1.5 + 2.0
 #: Periods per orbit of a nonlinear sweep: about 3 corrector maps and the tangent's (with monodromy),
-#: one observables' run.
-SWEEP_POINT_PERIODS = 4 * TANGENT_FACTOR + 1.0
+#: the error estimate's 3 Newton maps on N/2 steps (half as long, with monodromy), the observables'
+#: runs on N and N/2 steps.
+SWEEP_POINT_PERIODS = 4 * TANGENT_FACTOR + 3 * 0.5 * TANGENT_FACTOR + 1.5
 #: Doubles per step and (n + r)^2 kept while a monodromy is built (iteration matrices, their inverse).
 TANGENT_DOUBLES = 3.0
 #: Scene keys whose value changes the number of coordinates (the guard sizes a study at their
@@ -309,7 +310,8 @@ def _nonlinear_sweep(name, problem, options, workers):
     axis = (options["parameter"], np.array([start, stop], dtype=float))
     sizes = _largest_sizes(problem, [axis])
     step = options["step"] or abs(stop - start) / 50.0  # periodic.continue_orbits' default
-    orbits = min(options["max_points"], math.ceil(abs(stop - start) / step) + 1)
+    # an empty range (refused by the table check) has the one orbit at start, not a division by zero
+    orbits = min(options["max_points"], math.ceil(abs(stop - start) / step) + 1 if step > 0.0 else 1)
     build_bytes, build_seconds = _linearisation(n_steps, sizes)
     periods = orbits * SWEEP_POINT_PERIODS + options["transient_periods"]
     seconds = (STUDY_SECONDS + (2 * orbits + LINEAR_POINTS) * (build_seconds + _solve_seconds(n_steps, sizes))

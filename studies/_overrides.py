@@ -10,6 +10,7 @@ path must exist: a misspelt table is refused, naming the path and the keys that 
 
 from __future__ import annotations
 
+import argparse
 import tomllib
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -24,19 +25,20 @@ STUDIES = "studies"
 
 
 def parse_set(text: str) -> tuple[str, Any]:
-    """``"PATH=VALUE"`` -> ``(PATH, value)``; the argparse type of ``--set`` (a ValueError there is
-    reported by argparse as a bad argument, exit code 2)."""
+    """``"PATH=VALUE"`` -> ``(PATH, value)``; the argparse type of ``--set``: a malformed one raises
+    ``argparse.ArgumentTypeError``, whose message argparse prints after "argument --set:" (exit
+    code 2; a ValueError would print only "invalid parse_set value")."""
     path, sep, raw = text.partition("=")
     path = path.strip()
     if not sep or not path or any(not part.strip() for part in path.split(".")):
-        raise ValueError(f"expected PATH=VALUE with PATH dotted scene keys such as "
-                         f"links.coupler.thickness=2e-3, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected PATH=VALUE such as links.coupler.thickness=2e-3 (PATH "
+                                         f"dotted scene keys), got {text!r}")
     raw = raw.strip()
     try:
         value = tomllib.loads(f"value = {raw}")["value"]
     except tomllib.TOMLDecodeError:
         if not raw or any(c in raw for c in " \t[]{}\"',="):
-            raise ValueError(f"{path}: expected a TOML value (a number, true or false, a quoted "
+            raise argparse.ArgumentTypeError(f"{path}: expected a TOML value (a number, true or false, a quoted "
                              f"string, an array [...]), got {raw!r}") from None
         value = raw  # a bare word: a string (`--set studies.sweep.parameter=speed`)
     return path, value

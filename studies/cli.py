@@ -409,6 +409,9 @@ def _animate(args: argparse.Namespace) -> int:
 
     name, result = drawable(_load_results(args.file), args.study)
     out = args.out or args.file.with_name(f"{args.file.stem}_{name}.gif")
+    if out.is_dir():
+        raise UsageError(f"--out {str(out)!r}: is a folder, expected the path of a .gif or .mp4 file")
+    _output_folder(out.parent, "--out", out)
     frames = MAX_FRAMES if args.frames is None else args.frames
     if frames < 1:
         raise UsageError(f"--frames: expected a positive number of frames, got {frames}")
@@ -417,10 +420,28 @@ def _animate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _output_folder(folder: Path, option: str, target: Path | None = None) -> Path:
+    """``folder``, created with its parents if missing (as ``run --out a/b.h5`` creates ``a``), where
+    the command will write ``target`` (default: into ``folder`` itself); a path that is a file, cannot
+    be created or cannot be written raises a one-line ``UsageError`` naming it (exit code 2)."""
+    named = f"{option} {str(target or folder)!r}"
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"{named}: {str(folder)!r} is a file, expected a folder; choose another {option}")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise UsageError(f"{named}: cannot create the folder {str(folder)!r} "
+                         f"({error.strerror or error}); choose another {option}") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise UsageError(f"{named}: no permission to write in the folder {str(folder)!r}; "
+                         f"choose another {option}")
+    return folder
+
+
 def _report_command(args: argparse.Namespace) -> int:
     from ._report import write_report
 
-    outdir = args.out or args.file.with_name(args.file.stem + "_report")
+    outdir = _output_folder(args.out or args.file.with_name(args.file.stem + "_report"), "--out")
     for path in write_report(_load_results(args.file), outdir, source=args.file):
         print(path)
     return 0

@@ -33,6 +33,9 @@ def test_nonlinear_estimates_grow_with_their_sizes(problem):
     # 1000 orbits against 10 (the transient and the linear curve are the same)
     assert long.time > 3.0 * short.time and short.time > small.time
     assert "orbits" in long.sizes
+    # an empty range (refused by the table check) costs one orbit, not a ZeroDivisionError
+    empty = dict(sweep.check("s", {"start": 90.0, "stop": 100.0}, 128), stop=90.0)
+    assert _guard.estimate(problem, "nonlinear_sweep", empty).sizes.startswith("1 orbits")
 
 
 @pytest.mark.parametrize("kind, table, key", [

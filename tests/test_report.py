@@ -146,6 +146,17 @@ def test_report_writes_markdown_html_and_the_figures(mathieu_file, tmp_path, cap
     assert capsys.readouterr().out.splitlines()[0].endswith("report.md")
 
 
+def test_report_output_folder_that_cannot_be_written_is_bad_input(mathieu_file, tmp_path, capsys):
+    # was FileExistsError / FileNotFoundError, exit 1 "internal error"
+    existing = tmp_path / "a_file"
+    existing.write_text("")
+    for out in (existing, "/proc/nope", existing / "below"):
+        assert main(["report", str(mathieu_file), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("flexvib: error: --out") and str(out) in err and len(err.splitlines()) == 1
+    assert existing.read_text() == ""
+
+
 # ---------------------------------------------------------------------------------------------------
 # the drawing of a mechanism and its animation
 # ---------------------------------------------------------------------------------------------------
@@ -216,6 +227,15 @@ def test_animate_command(mechanism_steady, tmp_path, capsys, monkeypatch):
     assert "no study 'sweep'" in capsys.readouterr().err
     assert main(["animate", str(path), "--out", str(tmp_path / "a.png")]) == 2
     assert ".gif or .mp4" in capsys.readouterr().err
+    # missing folders are created, as `run --out a/b.h5` does; a path that cannot hold the file is
+    # bad input naming it (was FileNotFoundError, exit 1 "internal error")
+    nested = tmp_path / "new" / "folder" / "arm.gif"
+    assert main(["animate", str(path), "--out", str(nested), "--frames", "2"]) == 0 and nested.is_file()
+    capsys.readouterr()
+    for out in (path / "x.gif", "/proc/nope/x.gif", tmp_path):
+        assert main(["animate", str(path), "--out", str(out), "--frames", "2"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("flexvib: error: --out") and str(out) in err and len(err.splitlines()) == 1
 
 
 def test_animate_refuses_a_file_without_a_mechanism(mathieu_file, capsys):

@@ -239,11 +239,12 @@ def _against_periodic_state(problem, values, n_steps, common, lin, scale, linear
     defect = {spec: 0.0 for spec in specs}   # a periodic orbit, to its Newton residual
     nonlinear_error = {spec: float(orbit.response_error[spec]) for spec in specs}
     verdict, words = _verdict(specs, scale, difference, defect, linear_error, nonlinear_error, tolerance,
-                              periodic_tol)
+                              periodic_tol, unknown_error="refine n_steps")
     if not orbit.is_stable:
         verdict, words = "not_periodic", (f"the nonlinear periodic orbit is not stable ({orbit.headline}): the "
                                           f"machine does not settle on it; {words}")
-    status, message = combine([(steady.status, steady.message)])
+    # an orbit whose numbers are not trusted (inaccurate) makes the comparison untrusted too
+    status, message = combine([(steady.status, steady.message), (orbit.status, orbit.message)])
     return NonlinearCheck(
         **dict(common, settings=dict(common["settings"], periodic_state=True)), t=orbit.t,
         nonlinear=dict(orbit.response), nonlinear_error=nonlinear_error, difference=difference,
@@ -252,13 +253,22 @@ def _against_periodic_state(problem, values, n_steps, common, lin, scale, linear
         message=f"{words}; against the nonlinear periodic state ({orbit.message}); {linear_words}", **extra)
 
 
-def _verdict(specs, scale, difference, defect, linear_error, nonlinear_error, tolerance, periodic_tol):
-    """The worst verdict over the observables and its words."""
+def _verdict(specs, scale, difference, defect, linear_error, nonlinear_error, tolerance, periodic_tol, *,
+             unknown_error: str = ""):
+    """The worst verdict over the observables and its words. With ``unknown_error`` (advice), a NaN
+    nonlinear error estimate is unknown, not zero: an observable that would agree only with a zero
+    error is not said to agree (``differs``, with the advice)."""
     def known(value):  # an error estimate the integrator does not give counts as zero
         return value if np.isfinite(value) else 0.0
 
     found = []
     for spec in specs:
+        if unknown_error and not np.isfinite(nonlinear_error[spec]) and difference[spec] <= (
+                known(linear_error[spec]) + tolerance * scale[spec]):
+            found.append(("differs", f"{spec}: agreement not shown: the nonlinear error estimate is unknown "
+                          f"(NaN), the difference is {100 * difference[spec] / scale[spec]:.3g} % of the "
+                          f"linear peak to peak; {unknown_error}"))
+            continue
         settle = 2.0 * known(nonlinear_error[spec]) + periodic_tol * scale[spec]
         allowed = known(linear_error[spec]) + known(nonlinear_error[spec]) + tolerance * scale[spec]
         if not defect[spec] <= settle:

@@ -31,9 +31,14 @@ MAX_ITERATIONS = 12
 #: Upper limit of ``max_iterations``: Newton from the linear start converges in a few steps or not at all.
 MAX_NEWTON = 100
 NEWTON_WHY = "Newton steps of one shooting, each a period with its monodromy; it converges in a few or not at all"
-#: Richardson factor of the order-2 generalized-alpha integrator: the N-step error is about
-#: ``|o_N - o_{N/2}| / (2^2 - 1)``.
-ERROR_FACTOR = 1.0 / 3.0
+#: Order of the generalized-alpha integrator of ``mechanisms.PeriodMap``.
+ORDER = 2
+#: Richardson factor of the order-2 integrator: the N-step error is about ``|o_N - o_{N/2}| / (2^2 - 1)``.
+ERROR_FACTOR = 1.0 / (2**ORDER - 1)
+#: An observable whose estimated error exceeds this fraction of its peak-to-peak is ``inaccurate``:
+#: the rule and value of the linear steady state's (``MAX_RELATIVE_ERROR`` in periodic/_verdict.py,
+#: docs/methods.md), applied to each observable since the nonlinear study reports them.
+MAX_RELATIVE_ERROR = 0.1
 
 
 @register
@@ -136,9 +141,11 @@ class _Recording:
 
 
 @dataclass(frozen=True)
-class _Setup:
-    """The linear start of a shooting at one parameter point: the ``studies.Linear``, its steady state,
-    the period maps on N and N/2 steps and the start guess (2m,)."""
+class ShootingSetup:
+    """The linear start of a shooting at one parameter point (package-internal, shared by the
+    nonlinear studies): ``linear`` the ``studies.Linear``, ``steady`` its steady state, ``fine`` and
+    ``coarse`` the ``mechanisms.PeriodMap`` on N and N/2 steps, ``guess`` (2m,) the linear periodic
+    state as a shooting state (coordinates, then rates, SI), ``run_time`` s of the linear start."""
 
     linear: Any
     steady: Any
@@ -147,29 +154,44 @@ class _Setup:
     guess: np.ndarray
     run_time: float
 
+    def period_map(self, n_steps: int) -> Any:
+        """The period map of the same mechanism on ``n_steps`` steps (a divisor of N), about the same
+        nominal motion and on the same independent coordinates."""
+        import mechanisms
 
-def _setup(problem: Any, values: Mapping[str, float] | None, n_steps: int) -> _Setup:
-    import mechanisms
+        lin = self.linear.context
+        return mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps, independent=self.fine.independent,
+                                    nominal=lin.nominal)
 
+
+def shooting_setup(problem: Any, values: Mapping[str, float] | None, n_steps: int) -> ShootingSetup:
+    """The linear start of a nonlinear shooting of ``problem`` at ``values`` on ``n_steps`` steps (a
+    multiple of 4): the linear periodic state and the period maps on N and N/2 steps. Raises
+    ``StudiesError`` for a problem without a full nonlinear model."""
     if not getattr(problem, "supports_nonlinear", False) or not hasattr(problem, "outlines"):
         raise StudiesError(f"problem {problem.name!r}: a nonlinear steady state needs a mechanism problem "
                            "(studies.MechanismProblem), expected one with a full nonlinear model")
+    import mechanisms
+
     started = time.perf_counter()
     linear = problem.linearize(values, n_steps=n_steps)
     steady = solve_steady(linear)
     lin = linear.context
-    independent = lin.coefficients.independent
-    fine = mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps, independent=independent, nominal=lin.nominal)
-    coarse = mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps // 2, independent=independent,
+    fine = mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps, independent=lin.coefficients.independent,
+                                nominal=lin.nominal)
+    coarse = mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps // 2, independent=fine.independent,
                                   nominal=lin.nominal)
     # the linear periodic state on the constraints (with the axial shortening of stiffened links)
     guess = fine.state_of(*lin.start_state(steady.state.x[0], steady.state.v[0]))
-    return _Setup(linear, steady, fine, coarse, guess, time.perf_counter() - started)
+    return ShootingSetup(linear, steady, fine, coarse, guess, time.perf_counter() - started)
 
 
-def _observables(linear: Any, period_map: Any, state: np.ndarray) -> tuple[dict, np.ndarray, int]:
-    """({spec: (N+1,)} deviations of the observables from the nominal ones, z (N+1, m), the steps
-    the integrator split into substeps) over one period of ``period_map`` from ``state``."""
+def orbit_observables(linear: Any, period_map: Any, state: np.ndarray) -> tuple[dict, np.ndarray, int]:
+    """Over one period of ``period_map`` (a ``mechanisms.PeriodMap`` whose steps divide the N steps of
+    ``linear``, a ``studies.Linear``) from the shooting state ``state`` (2m,): ({spec: (n+1,)} the
+    deviations of the observables from their nominal values (units of each spec), z (n+1, m) the
+    independent coordinates' deviations (SI), the number of steps the integrator split into substeps),
+    n the map's steps. Package-internal, shared by the nonlinear studies."""
     lin = linear.context
     run = period_map.run(state, tangent=False)
     stride = (lin.nominal.s.shape[0] - 1) // period_map.n_steps
@@ -190,12 +212,67 @@ def substep_verdict(status: str, message: str, n_substeps: int, n_steps: int) ->
     a split step enters it as the tangent of the full step it replaced, an approximation of unknown
     error. The multipliers, and a verdict of stability read from them, are then not trusted: the status
     becomes at least ``inaccurate`` (a wrong ``ok`` is worse than none)."""
-    if n_substeps <= 0:
+    reason = substep_reason(n_substeps, n_steps)
+    if not reason:
         return status, message
-    return (periodic.worst_status(status, "inaccurate"),
-            f"{message}; inaccurate: the integrator split steps into {n_substeps} substeps on this orbit, "
-            f"so its monodromy (and the multipliers and stability verdict from it) is only approximate; "
-            f"raise n_steps above {n_steps} until no step is split")
+    return periodic.worst_status(status, "inaccurate"), f"{message}; inaccurate: {reason}"
+
+
+def substep_reason(n_substeps: int, n_steps: int, run: str = "") -> str:
+    """Why an orbit whose period (``run``: which one, e.g. "the N/2 run's") the integrator ran with
+    ``n_substeps`` split steps is not trusted ("" when no step was split)."""
+    if n_substeps <= 0:
+        return ""
+    return (f"the integrator split steps into {n_substeps} substeps on {run or 'this'} orbit, so its "
+            f"monodromy (and the multipliers and stability verdict from it) is only approximate; raise "
+            f"n_steps above {n_steps} until no step is split")
+
+
+def untrusted_verdict(status: str, message: str, reasons: list[str]) -> tuple[str, str]:
+    """(status, message) of an orbit with the verdict ``status``, ``message`` (``periodic.find_orbit``'s)
+    and the ``reasons`` its numbers are not trusted: the status becomes at least ``inaccurate``, and the
+    message leads with the status and the reasons, then gives the stability verdict as a best estimate
+    only (``is_stable`` stays that best estimate)."""
+    if not reasons or status == "failed":
+        return status, message
+    status = periodic.worst_status(status, "inaccurate")
+    return status, (f"{status}: {'; '.join(reasons)}; the stability verdict is therefore a best estimate "
+                    f"only, not trusted: {message}")
+
+
+def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z: np.ndarray,
+                     coarse_state: np.ndarray, speed: float, *, tol: float, max_iterations: int
+                     ) -> tuple[dict[str, float], list[str]]:
+    """({spec: estimated max abs error of the N-step response} from the N/2 orbit ``coarse_state``,
+    the reasons the estimate is not trusted): the N/2 run must not split steps, the orbit found again
+    on N/4 steps must give a ratio of successive differences of z in the asymptotic range
+    (``periodic.error_verdict``, as the linear steady state's check), and each observable's error must
+    stay within ``MAX_RELATIVE_ERROR`` of its peak-to-peak."""
+    linear, n_steps = setup.linear, setup.fine.n_steps
+    coarse_response, z_coarse, coarse_substeps = orbit_observables(linear, setup.coarse, coarse_state)
+    errors = {spec: ERROR_FACTOR * float(np.abs(response[spec][::2] - coarse_response[spec]).max())
+              for spec in response}
+    reasons = [substep_reason(coarse_substeps, n_steps, "the N/2 run's")]
+    quarter_map = setup.period_map(n_steps // 4)
+    quarter = periodic.find_orbit(quarter_map, coarse_state, speed, tol=tol, max_iterations=max_iterations)
+    if quarter.converged:
+        _, z_quarter, quarter_substeps = orbit_observables(linear, quarter_map, quarter.state)
+        check = periodic.error_verdict(float(np.abs(z[::2] - z_coarse).max()),
+                                       float(np.abs(z_coarse[::2] - z_quarter).max()), ORDER,
+                                       scale=float(np.abs(z).max()), n_steps=n_steps, quantity="z")
+        if check.status != "ok":
+            reasons.append(check.message)
+        reasons.append(substep_reason(quarter_substeps, n_steps, "the N/4 run's"))
+    else:
+        reasons.append(f"refine n_steps: the orbit on N/4 = {n_steps // 4} steps was not found "
+                       f"({quarter.message}), so the N/2 error estimate could not be checked")
+    for spec, error in errors.items():
+        size = float(np.ptp(response[spec]))
+        if error > MAX_RELATIVE_ERROR * size:
+            reasons.append(f"refine n_steps: the estimated error of {spec}, {error:.3g}, is "
+                           f"{error / size if size else math.inf:.3g} of its peak-to-peak "
+                           f"(> {MAX_RELATIVE_ERROR:g})")
+    return errors, [reason for reason in reasons if reason]
 
 
 def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_steps: int = 256,
@@ -210,7 +287,7 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
     check_integer("max_iterations", max_iterations, 1)
     if not (isinstance(tol, (int, float)) and 0.0 < tol < 1.0):
         raise StudiesError(f"tol: expected a relative residual in (0, 1), got {tol!r}")
-    setup = _setup(problem, values, n_steps)
+    setup = shooting_setup(problem, values, n_steps)
     linear, fine = setup.linear, setup.fine
     fine.warm_up()
     started = time.perf_counter()
@@ -221,18 +298,19 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
                                 estimate=coarse, error_factor=ERROR_FACTOR)
     specs = linear.observables
     linear_response = {spec: setup.steady.response[:, k] for k, spec in enumerate(specs)}
-    status, message = orbit.status, orbit.message
+    errors = {spec: math.nan for spec in specs}
+    reasons: list[str] = []
     if orbit.converged:
-        response, z, n_substeps = _observables(linear, fine, orbit.state)
-        status, message = substep_verdict(status, message, n_substeps, n_steps)
+        response, z, n_substeps = orbit_observables(linear, fine, orbit.state)
+        reasons.append(substep_reason(n_substeps, n_steps))
+        if coarse.last is not None and np.isfinite(orbit.state_error):
+            errors, trust = _error_estimates(setup, response, z, coarse.last, speed, tol=tol,
+                                             max_iterations=max_iterations)
+            reasons += trust
     else:
         response = {spec: np.full(n_steps + 1, np.nan) for spec in specs}
         z = np.full((n_steps + 1, fine.independent.size), np.nan)
-    errors = {spec: math.nan for spec in specs}
-    if orbit.converged and coarse.last is not None and np.isfinite(orbit.state_error):
-        coarse_response, _, _ = _observables(linear, setup.coarse, coarse.last)
-        errors = {spec: ERROR_FACTOR * float(np.abs(response[spec][::2] - coarse_response[spec]).max())
-                  for spec in specs}
+    status, message = untrusted_verdict(orbit.status, orbit.message, [r for r in reasons if r])
     run_time = time.perf_counter() - started
     if orbit.converged:
         ratios = ", ".join(f"{spec} {np.ptp(response[spec]) / np.ptp(linear_response[spec]):.4g}"

@@ -23,7 +23,7 @@ from .._store import Result, register
 from .._studies import check_integer, check_n_steps, check_parameter
 from .._summary import Headline, Summary, largest_over_grid
 from .._plots import headline, plain
-from .nonlinear_steady_state import MIN_STEPS, TOL, _observables, _setup, substep_verdict
+from .nonlinear_steady_state import ERROR_FACTOR, MIN_STEPS, TOL, orbit_observables, shooting_setup, substep_verdict
 
 #: Periods of the transient run from the last stable orbit past the loss of stability.
 TRANSIENT_PERIODS = 100
@@ -45,10 +45,12 @@ class NonlinearSweep(Result):
 
     ``parameter`` ("speed" or a dotted scene path, unit ``parameter_unit``); ``values`` (k,) the branch's
     parameter values in the order followed (not monotone past a fold); ``peak_to_peak`` {spec: (k,)} of
-    the nonlinear orbit; ``linear_at_branch`` {spec: (k,)} the linear periodic state's at the same values;
+    the nonlinear orbit and ``peak_to_peak_error`` {spec: (k,)} its estimated error (units of each spec;
+``|ptp_N - ptp_{N/2}| / 3`` from the orbit found again on N/2 steps, NaN where it was not found);
+``linear_at_branch`` {spec: (k,)} the linear periodic state's at the same values;
     ``linear_values`` (n_lin,) and ``linear_peak_to_peak`` {spec: (n_lin,)} the linear curve over the
     whole range; ``stable`` (k,) bool; ``spectral_radius`` (k,) of the nonlinear orbits; ``statuses``
-    (k,) each orbit's status; ``bifurcation_values`` (b,) and ``bifurcation_kinds`` (b,) where a
+    (k,) each orbit's status (its stability decided with the error bars of the N/2 orbit's multipliers); ``bifurcation_values`` (b,) and ``bifurcation_kinds`` (b,) where a
     multiplier crosses the unit circle ("fold", "period_doubling", "secondary_hopf");
     ``after_instability``: what the transient from the last stable orbit, just past the loss of
     stability, does ("" when stability is not lost), with ``transient_value`` its parameter value,
@@ -63,6 +65,7 @@ class NonlinearSweep(Result):
     units: Mapping[str, str]
     values: np.ndarray
     peak_to_peak: Mapping[str, np.ndarray]
+    peak_to_peak_error: Mapping[str, np.ndarray]
     linear_at_branch: Mapping[str, np.ndarray]
     linear_values: np.ndarray
     linear_peak_to_peak: Mapping[str, np.ndarray]
@@ -80,7 +83,8 @@ class NonlinearSweep(Result):
     run_time: float
     settings: Mapping[str, Any] = field(default_factory=dict)
 
-    _units = {"values": "@parameter_unit", "peak_to_peak": "@observables", "linear_at_branch": "@observables",
+    _units = {"values": "@parameter_unit", "peak_to_peak": "@observables",
+              "peak_to_peak_error": "@observables", "linear_at_branch": "@observables",
               "linear_values": "@parameter_unit", "linear_peak_to_peak": "@observables", "stable": "1",
               "spectral_radius": "1", "bifurcation_values": "@parameter_unit", "transient_t": "s",
               "transient": "@observables"}
@@ -142,6 +146,19 @@ class _ParameterMap:
         return end / self.scale, monodromy * self.scale[None, :] / self.scale[:, None]
 
 
+class _CoarseOrbits:
+    """The period map on N/2 steps given to ``periodic.continue_orbits`` as ``estimate``; it keeps, for
+    each parameter value, the last (scaled) state it was called with: the N/2 orbit there, once the
+    estimate's Newton has converged on it."""
+
+    def __init__(self, period_map: _ParameterMap):
+        self.period_map, self.states = period_map, {}
+
+    def __call__(self, y: np.ndarray, value: float):
+        self.states[float(value)] = np.array(y, dtype=float)
+        return self.period_map(y, value)
+
+
 def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop: float,
                     values: Mapping[str, float] | None = None, n_steps: int = 128, step: float | None = None,
                     method: str = "natural", tol: float = TOL, max_points: int = 100,
@@ -166,29 +183,38 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
         raise StudiesError(f"stop: expected a value different from start = {start!r}")
     started = time.perf_counter()
     fixed = {k: v for k, v in (values or {}).items() if k != parameter}
-    first = _setup(problem, dict(fixed, **{parameter: start}), n_steps)
+    first = shooting_setup(problem, dict(fixed, **{parameter: start}), n_steps)
     m = first.fine.independent.size
     guess = first.guess
     scale = np.concatenate([np.full(m, max(np.abs(guess[:m]).max(), 1e-12)),
                             np.full(m, max(np.abs(guess[m:]).max(), 1e-12))])
     period_map = _ParameterMap(problem, parameter, fixed, n_steps, first.fine.independent, scale)
+    # the N/2 map: each orbit's multipliers get error bars, so ok / unstable and the bifurcations rest
+    # on them and not on a bare stability_tol (as nonlinear_steady_state's verdict)
+    coarse = _CoarseOrbits(_ParameterMap(problem, parameter, fixed, n_steps // 2, first.fine.independent,
+                                         scale))
     branch = periodic.continue_orbits(period_map, guess / scale, float(start), float(stop), step=step,
                                       method=method, tol=tol, max_points=max_points,
-                                      stop_at_instability=stop_at_instability)
+                                      stop_at_instability=stop_at_instability, estimate=coarse,
+                                      error_factor=ERROR_FACTOR)
     specs = first.linear.observables
     nonlinear = {spec: [] for spec in specs}
+    nonlinear_error = {spec: [] for spec in specs}
     linear_at = {spec: [] for spec in specs}
     statuses, split = list(branch.statuses), []
     for k, (value, state) in enumerate(zip(branch.parameters, branch.states)):
         linear = problem.linearize(dict(fixed, **{parameter: float(value)}), n_steps=n_steps)
         steady = solve_steady(linear)
-        response, _, n_substeps = _observables(linear, period_map.at(float(value)), state * scale)
-        if n_substeps:
-            statuses[k] = substep_verdict(statuses[k], "", n_substeps, n_steps)[0]
+        response, _, n_substeps = orbit_observables(linear, period_map.at(float(value)), state * scale)
+        coarse_response, coarse_substeps = _coarse_response(linear, coarse, branch.orbits[k], float(value))
+        if n_substeps or coarse_substeps:
+            statuses[k] = substep_verdict(statuses[k], "", n_substeps + coarse_substeps, n_steps)[0]
             split.append(f"{value:.6g}")
-        for k, spec in enumerate(specs):
+        for j, spec in enumerate(specs):
             nonlinear[spec].append(np.ptp(response[spec]))
-            linear_at[spec].append(np.ptp(steady.response[:, k]))
+            nonlinear_error[spec].append(ERROR_FACTOR * abs(np.ptp(response[spec]) - np.ptp(coarse_response[spec]))
+                                         if coarse_response else math.nan)
+            linear_at[spec].append(np.ptp(steady.response[:, j]))
     linear_values = np.linspace(start, stop, LINEAR_POINTS)
     linear_curve = {spec: [] for spec in specs}
     for value in linear_values:
@@ -209,6 +235,7 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
         problem=problem.name, scene=problem.text, parameter=parameter, parameter_unit=unit,
         units=dict(zip(specs, first.linear.units)), values=np.asarray(branch.parameters, dtype=float),
         peak_to_peak={s: np.array(v, dtype=float) for s, v in nonlinear.items()},
+        peak_to_peak_error={s: np.array(v, dtype=float) for s, v in nonlinear_error.items()},
         linear_at_branch={s: np.array(v, dtype=float) for s, v in linear_at.items()},
         linear_values=linear_values, linear_peak_to_peak={s: np.array(v) for s, v in linear_curve.items()},
         stable=np.asarray(branch.stable, dtype=bool),
@@ -220,6 +247,17 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
         settings={"parameter": parameter, "start": start, "stop": stop, "n_steps": n_steps, "method": method,
                   "tol": tol, "max_points": max_points, "stop_at_instability": stop_at_instability,
                   "transient_periods": transient_periods})
+
+
+def _coarse_response(linear: Any, coarse: _CoarseOrbits, orbit: Any, value: float) -> tuple[dict, int]:
+    """({spec: (N/2+1,)} observables of the N/2 orbit at ``value``, the steps its run split), ({}, 0)
+    where the estimate found no N/2 orbit there (``orbit.state_error`` NaN)."""
+    state = coarse.states.get(value)
+    if state is None or not np.isfinite(orbit.state_error):
+        return {}, 0
+    map_ = coarse.period_map
+    response, _, n_substeps = orbit_observables(linear, map_.at(value), state * map_.scale)
+    return response, n_substeps
 
 
 def _after_instability(problem, period_map, branch, fixed, parameter, n_steps, periods, specs):
@@ -287,8 +325,11 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
     parameter = table.get("parameter", SPEED)
     if not isinstance(parameter, str):
         raise StudiesError(f"[{where}] parameter: expected 'speed' or a dotted scene path, got {parameter!r}")
-    return {"parameter": parameter, "start": number(where, "start", table["start"]),
-            "stop": number(where, "stop", table["stop"]),
+    start, stop = number(where, "start", table["start"]), number(where, "stop", table["stop"])
+    if start == stop:
+        raise StudiesError(f"[{where}] stop: expected a value different from start = {start!r} (the "
+                           f"range to follow), got {stop!r}")
+    return {"parameter": parameter, "start": start, "stop": stop,
             "step": None if "step" not in table else number(where, "step", table["step"], positive=True),
             "method": method,
             "n_steps": integer(where, "n_steps", table.get("n_steps", min(n_steps, 128)), MIN_STEPS,
@@ -324,8 +365,9 @@ def _headlines(result: NonlinearSweep) -> Summary:
     def where(index: tuple[int, ...]) -> str:
         return f"{result.parameter} {plain(result.values[index[0]], 3)} {unit}".rstrip()
 
-    rows = [largest_over_grid(f"{spec} largest peak to peak (nonlinear orbit)", values, None,
-                              result.units[spec], where) for spec, values in result.peak_to_peak.items()]
+    rows = [largest_over_grid(f"{spec} largest peak to peak (nonlinear orbit)", values,
+                              result.peak_to_peak_error.get(spec), result.units[spec], where)
+            for spec, values in result.peak_to_peak.items()]
     losses = [f"{kind.replace('_', ' ')} at {plain(value, 4)} {unit}".rstrip()
               for value, kind in zip(result.bifurcation_values, result.bifurcation_kinds)]
     rows.append(Headline("loss of stability", "; ".join(losses) or "none on the branch"))
