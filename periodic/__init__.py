@@ -26,6 +26,7 @@ from ._shooting import steady_state as steady_state
 from ._system import PeriodicError as PeriodicError
 from ._system import PeriodicSystem as PeriodicSystem
 from ._system import ShootingError as ShootingError
+from ._verdict import MAX_RELATIVE_ERROR as MAX_RELATIVE_ERROR
 from ._verdict import STABILITY_TOL as STABILITY_TOL
 from ._verdict import STATUSES as STATUSES
 from ._verdict import ErrorCheck as ErrorCheck
@@ -37,7 +38,7 @@ from ._verdict import worst_status as worst_status
 __all__ = [
     "BIFURCATIONS",
     "SCHEMES",
-    "STABILITY_TOL",
+    "MAX_RELATIVE_ERROR", "STABILITY_TOL",
     "STATUSES",
     "Duffing",
     "DuffingPeriodMap",

@@ -76,9 +76,10 @@ PERIOD_STEP_SECONDS = 6.0e-5
 #: A period map with its monodromy costs this many plain periods (benchmarks/bench_nonlinear_steady.py:
 #: 0.08 s against 0.05 s on four_bar_fem4 at N = 256).
 TANGENT_FACTOR = 1.6
-#: Periods of one nonlinear shooting: 4 Newton maps at N and 4 at N/2 (half as long) with their
-#: monodromy, two observables' runs (2-3 Newton steps converge from the linear start at 1e-8).
-SHOOTING_PERIODS = 4 * TANGENT_FACTOR * 1.5 + 2.0
+#: Periods of one nonlinear shooting: 4 Newton maps at N, 4 at N/2 and 3 at N/4 (half and a quarter
+#: as long) with their monodromy, the observables' runs (2-3 Newton steps converge from the linear
+#: start at 1e-8; the N/4 orbit checks that the N/2 error estimate can be trusted).
+SHOOTING_PERIODS = (4 * 1.5 + 3 * 0.25) * TANGENT_FACTOR + 2.25
 #: Periods per orbit of a nonlinear sweep: about 3 corrector maps and the tangent's (with monodromy),
 #: the error estimate's 3 Newton maps on N/2 steps (half as long, with monodromy), the observables'
 #: runs on N and N/2 steps.

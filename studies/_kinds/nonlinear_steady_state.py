@@ -36,9 +36,9 @@ ORDER = 2
 #: Richardson factor of the order-2 integrator: the N-step error is about ``|o_N - o_{N/2}| / (2^2 - 1)``.
 ERROR_FACTOR = 1.0 / (2**ORDER - 1)
 #: An observable whose estimated error exceeds this fraction of its peak-to-peak is ``inaccurate``:
-#: the rule and value of the linear steady state's (``MAX_RELATIVE_ERROR`` in periodic/_verdict.py,
-#: docs/methods.md), applied to each observable since the nonlinear study reports them.
-MAX_RELATIVE_ERROR = 0.1
+#: the rule and value of the linear steady state's (docs/methods.md), applied to each observable
+#: since the nonlinear study reports them.
+MAX_RELATIVE_ERROR = periodic.MAX_RELATIVE_ERROR
 
 
 @register
