@@ -194,3 +194,31 @@ def test_table_is_checked_and_bad_input_named():
     with pytest.raises(studies.StudiesError, match="mass budget needs a mechanism"):
         studies.optimize(_two_speed_problem(), {"natural_frequency": (1.0, 2.0)}, objective="rms:x",
                          constraints=[studies.MassBudget(1.0)])
+
+
+def test_each_torque_limit_sees_its_own_drives():
+    """Two torque limits on the two drives of two_link_arm (prescribed motions: their torques are the
+    multipliers), the payload mass the parameter and the elbow torque's RMS the objective: the
+    optimum is the lightest payload, where the shoulder's peak torque (0.86 N m) is under its limit
+    of 1 N m and the elbow's (0.28 N m) under its 0.5 N m, which the shoulder's torque would break.
+    Each limit reports its own drive's peak, as the steady state at the optimum computes it."""
+    torques = ["drive.shoulder.torque", "drive.elbow.torque"]
+    problem = studies.MechanismProblem.from_scene("two_link_arm", parameter_paths=["point_masses.payload.mass"],
+                                                  observables=torques)
+    found = studies.optimize(problem, {"point_masses.payload.mass": (0.05, 0.4)},
+                             objective="rms:drive.elbow.torque", n_steps=32, check=False,
+                             start={"point_masses.payload.mass": 0.4},
+                             constraints=[studies.TorqueLimit(1.0, joints=("shoulder",)),
+                                          studies.TorqueLimit(0.5, joints=("elbow",))])
+    assert found.x[0] == pytest.approx(0.05, abs=1e-9), found.message
+    steady = studies.steady_state(problem, found.values, n_steps=32)
+    assert found.constraint_limits == {"torque@shoulder": 1.0, "torque@elbow": 0.5}
+    assert found.constraint_values["torque@shoulder"] == pytest.approx(steady.peak["drive.shoulder.torque"], rel=1e-6)
+    assert found.constraint_values["torque@elbow"] == pytest.approx(steady.peak["drive.elbow.torque"], rel=1e-6)
+    assert steady.peak["drive.elbow.torque"] < 0.5 < steady.peak["drive.shoulder.torque"] < 1.0
+    assert found.history_feasible[int(np.argmin(found.history_x[:, 0]))]
+    rows = {row.quantity for row in KINDS["optimize"].headlines(found).rows}
+    assert {"largest peak drive torque at shoulder", "largest peak drive torque at elbow"} <= rows
+    with pytest.raises(studies.StudiesError, match="one per set of joints"):
+        studies.optimize(problem, {"point_masses.payload.mass": (0.05, 0.4)}, objective="rms:drive.elbow.torque",
+                         constraints=[studies.TorqueLimit(1.0), studies.TorqueLimit(2.0)])
