@@ -102,9 +102,10 @@ def test_two_frequency_minimax_local_and_global(method):
     if method == "local":  # downhill from 0.35 to the bound
         assert found.x[0] == pytest.approx(0.3, abs=1e-9)
         assert found.status == "ok", found.message
-    else:
+    else:  # differential evolution spends its budget (300), then the polish converges: nothing inaccurate
         assert found.x[0] == pytest.approx(expected, rel=1e-5), found.message
-        assert found.status in ("ok", "inaccurate"), found.message
+        assert found.status == "ok", found.message
+        assert found.optimizer_message.endswith("polished: SLSQP converged: Optimization terminated successfully")
     assert found.n_evaluations == found.history_objective.size and found.path[0] == 0
 
 
@@ -153,6 +154,14 @@ def test_optimised_gains_reduce_the_vibration_as_the_nonlinear_run_confirms():
     assert found.constraint_values["stability"] <= 0.95
     assert found.objective_value < 0.99 * found.objective_start
     start = studies.nonlinear_check(problem, {"speed": found.check_speed}, n_steps=128, periodic_state=True)
+    # SLSQP converges; the status is the nonlinear check's: at this speed the coupler's 14 mm peak to
+    # peak is beyond the linear model's tolerance (the nonlinear periodic state's is 4 % larger, over
+    # the 2.7 % the error estimates allow), with the scene's gains as with the optimum's
+    assert found.optimizer_message.startswith("SLSQP converged"), found.optimizer_message
+    assert found.status == "outside_linear_range" and found.check_verdict == "differs", found.message
+    assert found.message.startswith("the nonlinear check at the optimum differs: coupler.deflection@0.5: "
+                                    "nonlinear and linear differ by")
+    assert start.verdict == "differs", start.message
     linear_ratio = found.check_linear_objective / np.ptp(start.linear[spec])
     nonlinear_ratio = found.check_objective / np.ptp(start.nonlinear[spec])
     assert nonlinear_ratio == pytest.approx(linear_ratio, rel=0.10)
