@@ -432,7 +432,8 @@ def _run(machine: Any, model: Any, nominal: Any, plan: _Plan, n_periods: int, st
     quantities["t"] = run.t
     # what the drive's unsaturated law asks for, and the motor's command u = tau + c theta'
     quantities["demanded_torque"] = model.drive_torque_terms(plan.joint, run.t, run.s, run.sdot, saturate=False)[0]
-    quantities["command"] = quantities["demanded_torque"] + plan.back_emf * (run.sdot @ model.drive_gradient(plan.joint))
+    joint_rate = run.sdot @ model.drive_gradient(plan.joint)
+    quantities["command"] = quantities["demanded_torque"] + plan.back_emf * joint_rate
     return quantities
 
 
