@@ -245,8 +245,8 @@ def test_an_output_that_is_not_a_position_exits_2_naming_the_key(tmp_path, capsy
     from studies.cli import main
 
     scene = tmp_path / "bad.toml"
-    scene.write_text(mechanisms.load("four_bar_controlled").to_toml()
-                     + "\n[studies.control_comparison]\noutput = 'coupler.strain@0.5'\n")
+    scene.write_text(mechanisms.load("four_bar_controlled").replace(
+        studies={"control_comparison": {"output": "coupler.strain@0.5"}}).to_toml())
     assert main(["run", str(scene), "--out", str(tmp_path / "bad.h5"), "--quiet"]) == 2
     error = capsys.readouterr().err
     assert "output: expected the observable spec of a position" in error and "'coupler.strain@0.5'" in error
