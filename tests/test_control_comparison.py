@@ -177,6 +177,11 @@ def test_bad_input_is_named():
         studies.control_comparison(problem, n_steps=16)
     with pytest.raises(studies.StudiesError, match="output"):
         studies.control_comparison(problem, output="joint.A.force")   # not of the positions
+    for not_a_position in ("coupler.strain@0.5", "coupler.deflection@0.5", "drive.O.rate"):
+        with pytest.raises(studies.StudiesError, match="output: expected the observable spec of a position"):
+            studies.control_comparison(problem, output=not_a_position)
+        with pytest.raises(studies.StudiesError, match=r"\[studies.control_comparison\] output"):
+            KINDS["control_comparison"].check("studies.control_comparison", {"output": not_a_position}, 128)
     kind = KINDS["control_comparison"]
     with pytest.raises(studies.StudiesError, match="band"):
         kind.check("studies.control_comparison", {"band": 0.0}, 128)
@@ -226,3 +231,128 @@ def test_four_bar_controlled_with_and_without_its_controllers():
     steady = periodic.steady_state(lin.system)
     linear = lin.observable_maps["coupler.deflection@0.5"].evaluate(steady.x, steady.v, steady.a)
     assert peaks["with"]["coupler.deflection@0.5"] == pytest.approx(np.abs(linear).max(), rel=0.05)
+    # below its limits in the steady state (the start-up clips at 5 N m), the drive's demanded torque
+    # and motor command are the closed-loop linear steady state's drive range
+    drive_range = lin.linear_range(steady.x).drives[0]
+    saturation = result.saturation["with"]
+    assert saturation["clipped_fraction"] == 0.0 and 0.0 < saturation["clipped_until"] < mechanisms.four_bar().period
+    assert saturation["peak_demanded_torque"] == pytest.approx(drive_range.peak_demanded_torque, rel=0.05)
+    assert saturation["peak_command"] == pytest.approx(drive_range.peak_command, rel=0.05)
+    assert "with control: the drive at O saturates during the start-up" in result.message
+
+
+def test_an_output_that_is_not_a_position_exits_2_naming_the_key(tmp_path, capsys):
+    from studies.cli import main
+
+    scene = tmp_path / "bad.toml"
+    scene.write_text(mechanisms.load("four_bar_controlled").replace(
+        studies={"control_comparison": {"output": "coupler.strain@0.5"}}).to_toml())
+    assert main(["run", str(scene), "--out", str(tmp_path / "bad.h5"), "--quiet"]) == 2
+    error = capsys.readouterr().err
+    assert "output: expected the observable spec of a position" in error and "'coupler.strain@0.5'" in error
+
+
+# ---------------------------------------------------------------------------------------------------
+# the verdict: saturation, quantities that do not settle or grow, unknown error estimates
+# ---------------------------------------------------------------------------------------------------
+def test_growth_over_the_last_periods_is_told_from_a_decaying_start_up():
+    omega = 20.0
+    period = 2.0 * math.pi / omega
+    growth = math.log(1.2) / period   # 20 % per period: over the 5 % band
+    t, _, steps = _damped(1.0, 0.0, 0.0, omega, n_periods=6)
+    assert settling_time(t, np.exp(growth * t) * np.cos(omega * t), steps).growing
+    assert settling_time(t, t * np.cos(omega * t), steps).growing   # t_end / (t_end - T) = 1.2 > 1.05
+    slow = math.log(1.03) / period    # 3 % per period: within the band, not told from a beat
+    assert not settling_time(t, np.exp(slow * t) * np.cos(omega * t), steps).growing
+    decaying = settling_time(t, (1.0 + 4.0 * np.exp(-1.0 * t)) * np.cos(omega * t), steps)
+    assert not decaying.growing and not decaying.settled
+    # a start-up that builds up over the first period only, then settles: one rise is not growth
+    build_up = np.minimum(t / period, 1.0) * np.cos(omega * t)
+    assert not settling_time(t, build_up, steps).growing
+    short = settling_time(t[:2 * steps + 1], np.exp(growth * t[:2 * steps + 1]), steps)
+    assert not short.growing   # two periods cannot tell
+
+
+def _fake_runs(monkeypatch, change):
+    """``mechanisms.simulate`` whose runs of the machine with feedback (kp > 0) pass through
+    ``change(run, steps_per_period)``."""
+    real = mechanisms.simulate
+
+    def simulate(machine, **options):
+        run = real(machine, **options)
+        return change(run, options["steps_per_period"]) if machine.drives[0].kp > 0.0 else run
+
+    monkeypatch.setattr(mechanisms, "simulate", simulate)
+
+
+def test_a_growing_quantity_with_control_is_unstable(monkeypatch):
+    period = mechanisms.four_bar().period
+
+    def growing(run, steps_per_period):   # the coupler's deflection grows by half per period
+        spec = "coupler.deflection@0.5"
+        grown = run.observables[spec] * np.exp(math.log(1.5) * run.t / period)
+        return dataclasses.replace(run, observables={**run.observables, spec: grown})
+
+    _fake_runs(monkeypatch, growing)
+    problem = studies.MechanismProblem.from_mechanism(_torque_four_bar(**GAINS))
+    result = studies.control_comparison(problem, n_periods=4, n_steps=64)
+    assert result.status == "unstable", result.message
+    assert "with control: coupler.deflection@0.5 grows period after period" in result.message
+    assert result.message.startswith("with control: coupler.deflection@0.5 grows")   # the cause first
+
+
+def test_a_failed_error_estimate_is_inaccurate_not_ok(monkeypatch):
+    def coarse_fails(run, steps_per_period):
+        if steps_per_period == 32:   # the N/2 run of the case with control
+            return dataclasses.replace(run, status=-1, message="injected failure of the N/2 run")
+        return run
+
+    _fake_runs(monkeypatch, coarse_fails)
+    problem = studies.MechanismProblem.from_mechanism(_torque_four_bar(**GAINS))
+    result = studies.control_comparison(problem, n_periods=4, n_steps=64)
+    assert all(math.isnan(value) for value in result.steady_peak_error["with"].values())
+    assert result.status == "inaccurate"
+    assert ("with control: the run with n_steps / 2 for the error estimates failed (_RunFailed: injected "
+            "failure of the N/2 run): no error estimate; refine n_steps") in result.message
+
+
+@pytest.mark.slow
+def test_four_bar_controlled_unsettled_after_four_periods_is_inaccurate():
+    """n_periods = 4: the start-up with control has not settled (the issue-11 review's case); its
+    'steady peaks' are not steady, so the study is not ok and says to raise n_periods."""
+    result = studies.control_comparison(studies.MechanismProblem.from_scene("four_bar_controlled"),
+                                        n_periods=4, n_steps=128)
+    assert not all(result.settled["with"].values())
+    assert result.status == "inaccurate", result.message
+    assert "with control: coupler.deflection@0.5 does not settle within 4 periods" in result.message
+    assert "raise n_periods" in result.message
+
+
+@pytest.mark.slow
+def test_a_drive_saturated_in_the_steady_state_is_outside_the_linear_range():
+    """torque_limit = 1.8 N m on four_bar_controlled (the issue-11 review's case): both runs clip the
+    torque at the limit over part of every period; the study says so, as the closed-loop linear
+    steady state's drive range does (an independent route: its unsaturated peak demanded torque is
+    above the limit too)."""
+    import linearize
+    import periodic
+
+    mechanism = mechanisms.load("four_bar_controlled").with_parameter("drive.torque_limit", 1.8)
+    problem = studies.MechanismProblem.from_mechanism(mechanism)
+    result = studies.control_comparison(problem, n_periods=6, n_steps=128)
+    assert result.status == "outside_linear_range", result.message
+    assert result.torque_limit == 1.8 and result.command_limit == pytest.approx(4.0)
+    for case in ("with", "without"):
+        saturation = result.saturation[case]
+        assert result.steady_peak[case]["drive.O.torque"] == pytest.approx(1.8, rel=1e-12)   # clipped
+        assert 0.0 < saturation["clipped_fraction"] < 1.0
+        assert saturation["peak_demanded_torque"] > 1.8
+        assert result.t[-1] - mechanism.period <= saturation["clipped_until"] <= result.t[-1]   # every period
+    assert "with control: the drive at O saturates in the steady state" in result.message
+    assert "peak demanded torque" in result.message and "> torque_limit 1.8 N m" in result.message
+    lin = linearize.about(mechanism, n_steps=128)
+    drive_range = lin.linear_range(periodic.steady_state(lin.system).x).drives[0]
+    assert drive_range.peak_demanded_torque > 1.8
+    # the nonlinear run's demanded torque is that of the clipped motion: near the linear one
+    assert result.saturation["with"]["peak_demanded_torque"] == pytest.approx(drive_range.peak_demanded_torque,
+                                                                               rel=0.15)

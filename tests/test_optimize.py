@@ -102,9 +102,10 @@ def test_two_frequency_minimax_local_and_global(method):
     if method == "local":  # downhill from 0.35 to the bound
         assert found.x[0] == pytest.approx(0.3, abs=1e-9)
         assert found.status == "ok", found.message
-    else:
+    else:  # differential evolution spends its budget (300), then the polish converges: nothing inaccurate
         assert found.x[0] == pytest.approx(expected, rel=1e-5), found.message
-        assert found.status in ("ok", "inaccurate"), found.message
+        assert found.status == "ok", found.message
+        assert found.optimizer_message.endswith("polished: SLSQP converged: Optimization terminated successfully")
     assert found.n_evaluations == found.history_objective.size and found.path[0] == 0
 
 
@@ -153,6 +154,14 @@ def test_optimised_gains_reduce_the_vibration_as_the_nonlinear_run_confirms():
     assert found.constraint_values["stability"] <= 0.95
     assert found.objective_value < 0.99 * found.objective_start
     start = studies.nonlinear_check(problem, {"speed": found.check_speed}, n_steps=128, periodic_state=True)
+    # SLSQP converges; the status is the nonlinear check's: at this speed the coupler's 14 mm peak to
+    # peak is beyond the linear model's tolerance (the nonlinear periodic state's is 4 % larger, over
+    # the 2.7 % the error estimates allow), with the scene's gains as with the optimum's
+    assert found.optimizer_message.startswith("SLSQP converged"), found.optimizer_message
+    assert found.status == "outside_linear_range" and found.check_verdict == "differs", found.message
+    assert found.message.startswith("the nonlinear check at the optimum differs: coupler.deflection@0.5: "
+                                    "nonlinear and linear differ by")
+    assert start.verdict == "differs", start.message
     linear_ratio = found.check_linear_objective / np.ptp(start.linear[spec])
     nonlinear_ratio = found.check_objective / np.ptp(start.nonlinear[spec])
     assert nonlinear_ratio == pytest.approx(linear_ratio, rel=0.10)
@@ -194,3 +203,31 @@ def test_table_is_checked_and_bad_input_named():
     with pytest.raises(studies.StudiesError, match="mass budget needs a mechanism"):
         studies.optimize(_two_speed_problem(), {"natural_frequency": (1.0, 2.0)}, objective="rms:x",
                          constraints=[studies.MassBudget(1.0)])
+
+
+def test_each_torque_limit_sees_its_own_drives():
+    """Two torque limits on the two drives of two_link_arm (prescribed motions: their torques are the
+    multipliers), the payload mass the parameter and the elbow torque's RMS the objective: the
+    optimum is the lightest payload, where the shoulder's peak torque (0.86 N m) is under its limit
+    of 1 N m and the elbow's (0.28 N m) under its 0.5 N m, which the shoulder's torque would break.
+    Each limit reports its own drive's peak, as the steady state at the optimum computes it."""
+    torques = ["drive.shoulder.torque", "drive.elbow.torque"]
+    problem = studies.MechanismProblem.from_scene("two_link_arm", parameter_paths=["point_masses.payload.mass"],
+                                                  observables=torques)
+    found = studies.optimize(problem, {"point_masses.payload.mass": (0.05, 0.4)},
+                             objective="rms:drive.elbow.torque", n_steps=32, check=False,
+                             start={"point_masses.payload.mass": 0.4},
+                             constraints=[studies.TorqueLimit(1.0, joints=("shoulder",)),
+                                          studies.TorqueLimit(0.5, joints=("elbow",))])
+    assert found.x[0] == pytest.approx(0.05, abs=1e-9), found.message
+    steady = studies.steady_state(problem, found.values, n_steps=32)
+    assert found.constraint_limits == {"torque@shoulder": 1.0, "torque@elbow": 0.5}
+    assert found.constraint_values["torque@shoulder"] == pytest.approx(steady.peak["drive.shoulder.torque"], rel=1e-6)
+    assert found.constraint_values["torque@elbow"] == pytest.approx(steady.peak["drive.elbow.torque"], rel=1e-6)
+    assert steady.peak["drive.elbow.torque"] < 0.5 < steady.peak["drive.shoulder.torque"] < 1.0
+    assert found.history_feasible[int(np.argmin(found.history_x[:, 0]))]
+    rows = {row.quantity for row in KINDS["optimize"].headlines(found).rows}
+    assert {"largest peak drive torque at shoulder", "largest peak drive torque at elbow"} <= rows
+    with pytest.raises(studies.StudiesError, match="one per set of joints"):
+        studies.optimize(problem, {"point_masses.payload.mass": (0.05, 0.4)}, objective="rms:drive.elbow.torque",
+                         constraints=[studies.TorqueLimit(1.0), studies.TorqueLimit(2.0)])

@@ -25,6 +25,7 @@ from .._problem import SPEED
 from .._store import Result, register
 from .._studies import check_integer, check_n_steps
 from .._summary import Headline, Summary
+from .._verdicts import combine
 
 logger = logging.getLogger(__name__)
 
@@ -40,6 +41,10 @@ MIN_STEPS = 32
 INACCURATE_FRACTION = 0.1
 #: Richardson's divisor for the error of a second-order method from runs at h and 2h: 2^2 - 1.
 RICHARDSON = 3.0
+#: The observables an ``output`` may be: positions (an angle, a point's displacement or coordinate).
+OUTPUT_KINDS = ("angle", "point_error", "point_error_x", "point_error_y")
+#: The saturation record of each case (``ControlComparison.saturation``).
+SATURATION_KEYS = ("peak_demanded_torque", "peak_command", "clipped_fraction", "clipped_until")
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -49,12 +54,13 @@ RICHARDSON = 3.0
 class Settling:
     """The settling of one sampled quantity: ``time`` (s, from t[0]; NaN when it does not settle),
     ``steady_peak`` (max |y| over the last period), ``periodicity_defect`` (max |y(t) - y(t - T)|
-    over the last period) and ``settled``."""
+    over the last period), ``settled`` and ``growing`` (the envelope grows: see :func:`settling_time`)."""
 
     time: float
     steady_peak: float
     periodicity_defect: float
     settled: bool
+    growing: bool = False
 
 
 def settling_time(t: np.ndarray, y: np.ndarray, steps_per_period: int, band: float = BAND) -> Settling:
@@ -67,7 +73,9 @@ def settling_time(t: np.ndarray, y: np.ndarray, steps_per_period: int, band: flo
     which ``|y|`` never again exceeds the band above its steady peak. The quantity has *settled* when
     the last period repeats the one before to the band, ``max |y(t) - y(t - T)| <= band * P`` over the
     last period: a growing, still decaying or irregular ``y`` has not settled, and its time is NaN.
-    Settled implies a settling time at most ``t_end - 2 T`` (plus the band's worth)."""
+    Settled implies a settling time at most ``t_end - 2 T`` (plus the band's worth). ``y`` is
+    *growing* when each of the last two periods' peaks exceeds the one before by more than the band
+    (needs three periods; one rise alone may be the beat of a decaying start-up)."""
     t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
     n = int(steps_per_period)
     if y.shape != t.shape or t.ndim != 1 or t.size < 2 * n + 1:
@@ -79,8 +87,12 @@ def settling_time(t: np.ndarray, y: np.ndarray, steps_per_period: int, band: flo
     envelope = np.maximum.accumulate(magnitude[::-1])[::-1]
     first = int(np.argmax(envelope <= (1.0 + band) * peak))   # the last sample always qualifies
     settled = defect <= band * peak
+    growing = False
+    if t.size >= 3 * n + 1:
+        before, earlier = (float(magnitude[-(k + 1) * n - 1:-k * n].max()) for k in (1, 2))
+        growing = peak > (1.0 + band) * before and before > (1.0 + band) * earlier
     return Settling(time=float(t[first] - t[0]) if settled else float("nan"), steady_peak=peak,
-                    periodicity_defect=defect, settled=bool(settled))
+                    periodicity_defect=defect, settled=bool(settled), growing=bool(growing))
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -106,9 +118,20 @@ class ControlComparison(Result):
     NaN when not settled or failed), ``settling_time_error`` (``|t_s(N) - t_s(N/2)|``), ``settled``
     (bool); ``run_time`` {case: s} (both of its runs); ``failed`` {case: message or ""}.
 
-    ``status``: ``failed`` (a run failed: the message says which and why; the other is kept),
-    ``inaccurate`` (a steady peak's error estimate above ``INACCURATE_FRACTION`` of it: refine
-    ``n_steps``), else ``ok``; ``message`` also says which quantities do not settle.
+    The controlled drive's saturation, ``saturation`` {case: {key: value}} (``SATURATION_KEYS``; NaN
+    when the run failed): ``peak_demanded_torque`` N m, the largest |torque| the unsaturated law asks
+    for over the last period; ``peak_command`` N m, the largest motor command |tau + c theta'| over
+    it; ``clipped_fraction``, the fraction of the last period's samples where the drive saturates;
+    ``clipped_until`` s, the time of the last saturated sample (NaN: never). ``torque_limit`` and
+    ``command_limit`` (``G stall_torque``) N m, inf where the drive has none.
+
+    ``status``, the worst of: ``failed`` (a run failed: the message says which and why; the other
+    is kept); ``unstable`` (a quantity with control grows period after period); ``outside_linear_range``
+    (the drive saturates in the steady state of either run: the last period is clipped at a limit);
+    ``inaccurate`` (a steady peak's error estimate above ``INACCURATE_FRACTION`` of it or unknown:
+    refine ``n_steps``; or a quantity with control not settled: raise ``n_periods``); else ``ok``.
+    ``message`` also says which quantities do not settle without feedback, the elastic settling
+    times and a saturation during the start-up only.
     """
 
     problem: str
@@ -128,6 +151,9 @@ class ControlComparison(Result):
     settled: Mapping[str, Mapping[str, bool]]
     run_time: Mapping[str, float]
     failed: Mapping[str, str] = field(default_factory=dict)
+    saturation: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    torque_limit: float = math.inf
+    command_limit: float = math.inf
     status: str = "ok"
     message: str = ""
 
@@ -216,21 +242,25 @@ def control_comparison(problem: Any, values: Mapping[str, float] | None = None, 
     t = np.arange(n_periods * n_steps + 1) * (mechanism.period / n_steps)
     status, message = _verdict(results, plan, n_periods)
     per_case = {key: {case: results[case][key] for case in CASES}
-                for key in ("steady_peak", "steady_peak_error", "settling_time", "settling_time_error", "settled")}
+                for key in ("steady_peak", "steady_peak_error", "settling_time", "settling_time_error", "settled",
+                            "saturation")}
     return ControlComparison(
         problem=problem.name, scene=problem.text, parameters=params, quantities=tuple(plan.units),
         units=plan.units, roles=plan.roles,
         settings={"n_steps": n_steps, "n_periods": n_periods, "band": band, "output": plan.output},
         t=t, with_control=results["with"]["history"], without_control=results["without"]["history"],
         **per_case, run_time={case: results[case]["run_time"] for case in CASES},
-        failed={case: results[case]["failed"] for case in CASES}, status=status, message=message)
+        failed={case: results[case]["failed"] for case in CASES}, torque_limit=plan.torque_limit,
+        command_limit=plan.command_limit, status=status, message=message)
 
 
 @dataclass(frozen=True)
 class _Plan:
     """What each run reports: ``units`` and ``roles`` by quantity (in report order), the controlled
     ``drive_index`` and its joint's links (``driven``, ``reference``: None for the ground), the
-    ``output`` spec and the coordinate observables' specs to evaluate (``direct``)."""
+    ``output`` spec and the coordinate observables' specs to evaluate (``direct``); the drive's
+    ``joint``, ``torque_limit`` and ``command_limit`` (N m, inf where none) and the motor's
+    back-EMF damping ``back_emf`` (N m s/rad at the joint, 0 without a motor)."""
 
     units: dict[str, str]
     roles: dict[str, str]
@@ -239,6 +269,10 @@ class _Plan:
     reference: str | None
     output: str
     direct: tuple[str, ...]
+    joint: str
+    torque_limit: float
+    command_limit: float
+    back_emf: float
 
 
 def _quantities(problem: Any, mechanism: Any, without: Any, output: str | None) -> _Plan:
@@ -262,22 +296,31 @@ def _quantities(problem: Any, mechanism: Any, without: Any, output: str | None) 
         (elastic if _of_coordinates(model.observable(spec)) else skipped).append(spec)
     if skipped:
         logger.info("control comparison: %s not reported (not functions of the coordinates)", ", ".join(skipped))
-    if not isinstance(output, str):
-        raise StudiesError(f"output: expected an observable spec such as 'rocker.angle', got {output!r}")
-    observer = model.observable(output)   # an unknown spec raises naming it
+    _check_output("output", output)
+    observer = model.observable(output)   # an unknown link or fraction raises naming the spec
     components = getattr(observer, "components", None) or ()
-    positions = all(_of_coordinates(part) for part in components) if components else _of_coordinates(observer)
-    if not positions:
-        raise StudiesError(f"output: expected an observable of the positions (an angle or a point error, "
-                           f"e.g. 'rocker.angle', 'coupler.point_error@0.5'), got {output!r}")
     speed, torque = f"drive.{drive.joint}.rate", f"drive.{drive.joint}.torque"
     units = {spec: model.observable(spec).unit for spec in elastic}
     units.update({speed: "rad/s", output: observer.unit, torque: "N m"})
     roles = {spec: "elastic" for spec in elastic}
     roles.update({speed: "speed", output: "output", torque: "torque"})
     direct = tuple(dict.fromkeys(elastic + ([c.spec for c in components] if components else [output])))
+    motor = getattr(drive, "motor", None)
     return _Plan(units=units, roles=roles, drive_index=drive_index, driven=joint.link_b,
-                 reference=reference, output=output, direct=direct)
+                 reference=reference, output=output, direct=direct, joint=drive.joint,
+                 torque_limit=float(getattr(drive, "torque_limit", math.inf)),
+                 command_limit=motor.peak_command if motor is not None else math.inf,
+                 back_emf=motor.back_emf_damping if motor is not None else 0.0)
+
+
+def _check_output(where: str, output: Any) -> None:
+    """An ``output`` must be the spec of a position: ``<link>.angle`` or a point's displacement
+    (``OUTPUT_KINDS``); its deviation from the nominal motion is the output error."""
+    kind = output.partition("@")[0].rpartition(".")[2] if isinstance(output, str) else None
+    if kind not in OUTPUT_KINDS or output.startswith(("drive.", "joint.")):
+        raise StudiesError(f"{where}: expected the observable spec of a position, '<link>.angle' or "
+                           f"'<link>.point_error@p' (also point_error_x, point_error_y), e.g. 'rocker.angle', "
+                           f"got {output!r}")
 
 
 def _default_output(mechanism: Any, drive_joint: Any) -> str:
@@ -307,7 +350,9 @@ def _case(machine: Any, plan: _Plan, n_periods: int, n_steps: int, band: float) 
     empty = {name: np.full(n_t, np.nan) for name in plan.units}
     nan = {name: float("nan") for name in plan.units}
     found = dict(history=empty, steady_peak=dict(nan), steady_peak_error=dict(nan), settling_time=dict(nan),
-                 settling_time_error=dict(nan), settled={name: False for name in plan.units}, failed="")
+                 settling_time_error=dict(nan), settled={name: False for name in plan.units},
+                 growing={name: False for name in plan.units}, failed="", coarse_failed="",
+                 saturation={key: float("nan") for key in SATURATION_KEYS})
     try:
         nominal = mechanisms.nominal_motion(machine, n_steps=n_steps)
         model = mechanisms.assemble(machine, feedforward=mechanisms.feedforward_torques(
@@ -332,11 +377,14 @@ def _case(machine: Any, plan: _Plan, n_periods: int, n_steps: int, band: float) 
             raise
         logger.info("control comparison: the N/2 run for the error estimate failed: %s", error)
         coarse, coarse_settling = None, None
+        found["coarse_failed"] = f"{type(error).__name__}: {error}"
+    found["saturation"] = _saturation(fine, plan, n_steps)
     for name in plan.units:
         found["history"][name] = fine[name]
         found["steady_peak"][name] = fine_settling[name].steady_peak
         found["settling_time"][name] = fine_settling[name].time
         found["settled"][name] = fine_settling[name].settled
+        found["growing"][name] = fine_settling[name].growing
         if coarse is not None:
             last = slice(-(n_steps // 2 + 1), None)
             found["steady_peak_error"][name] = float(np.abs(fine[name][::2][last] - coarse[name][last]).max()
@@ -344,6 +392,21 @@ def _case(machine: Any, plan: _Plan, n_periods: int, n_steps: int, band: float) 
             found["settling_time_error"][name] = abs(fine_settling[name].time - coarse_settling[name].time)
     found["run_time"] = time.perf_counter() - start
     return found
+
+
+def _saturation(run: Mapping[str, np.ndarray], plan: _Plan, n_steps: int) -> dict[str, float]:
+    """The drive's saturation along ``run`` (``_run``'s quantities, ``n_steps`` samples per period):
+    ``SATURATION_KEYS``, the peaks over the last period. A sample is saturated where the unsaturated
+    law's command exceeds the motor's limit or its torque the torque limit (the order in which
+    ``Model.drive_torque_terms`` clips them)."""
+    demanded, command = run["demanded_torque"], run["command"]
+    clipped = (np.abs(command) > plan.command_limit) | (np.abs(demanded) > plan.torque_limit)
+    last = slice(-(n_steps + 1), None)
+    times = run["t"][clipped]
+    return {"peak_demanded_torque": float(np.abs(demanded[last]).max()),
+            "peak_command": float(np.abs(command[last]).max()),
+            "clipped_fraction": float(clipped[last].mean()),
+            "clipped_until": float(times[-1] - run["t"][0]) if times.size else float("nan")}
 
 
 class _RunFailed(ComputationError):
@@ -367,6 +430,10 @@ def _run(machine: Any, model: Any, nominal: Any, plan: _Plan, n_periods: int, st
     if not run.success:
         raise _RunFailed(run.message, quantities)
     quantities["t"] = run.t
+    # what the drive's unsaturated law asks for, and the motor's command u = tau + c theta'
+    quantities["demanded_torque"] = model.drive_torque_terms(plan.joint, run.t, run.s, run.sdot, saturate=False)[0]
+    joint_rate = run.sdot @ model.drive_gradient(plan.joint)
+    quantities["command"] = quantities["demanded_torque"] + plan.back_emf * joint_rate
     return quantities
 
 
@@ -410,32 +477,63 @@ def _along(run: Any, model: Any, nominal_s: np.ndarray, nominal_sdot: np.ndarray
 
 
 def _verdict(results: Mapping[str, Mapping[str, Any]], plan: _Plan, n_periods: int) -> tuple[str, str]:
-    """``(status, message)``: failed runs, inaccurate steady peaks, quantities that do not settle."""
-    failed, inaccurate, unsettled, settled = [], [], [], []
+    """``(status, message)``: the worst of the cases' verdicts (:class:`ControlComparison`), their
+    messages most severe first, then what only informs (quantities without feedback that do not
+    settle, elastic settling times, saturation during the start-up)."""
+    verdicts: list[tuple[str, str]] = []
+    notes: list[str] = []
     for case in CASES:
         found = results[case]
         who = "with control" if case == "with" else "without feedback"
         if found["failed"]:
-            failed.append(f"the run {who} failed: {found['failed']}")
+            verdicts.append(("failed", f"the run {who} failed: {found['failed']}"))
             continue
+        if found["coarse_failed"]:
+            verdicts.append(("inaccurate", f"{who}: the run with n_steps / 2 for the error estimates failed "
+                                           f"({found['coarse_failed']}): no error estimate; refine n_steps"))
         for name in plan.units:
             peak, error = found["steady_peak"][name], found["steady_peak_error"][name]
-            if error > INACCURATE_FRACTION * peak:
-                inaccurate.append(f"{who}: {name} steady peak {peak:.3g} has error estimate {error:.3g} "
-                                  f"(over {100 * INACCURATE_FRACTION:g} %)")
+            if not found["coarse_failed"] and not error <= INACCURATE_FRACTION * peak:   # NaN too
+                verdicts.append(("inaccurate", f"{who}: {name} steady peak {peak:.3g} has error estimate "
+                                               f"{error:.3g} (over {100 * INACCURATE_FRACTION:g} %); refine n_steps"))
             if found["settled"][name]:
                 if plan.roles[name] == "elastic":
-                    settled.append(f"{who}: {name} settles at {found['settling_time'][name]:.3g} s")
+                    notes.append(f"{who}: {name} settles at {found['settling_time'][name]:.3g} s")
+            elif found["growing"][name]:
+                words = f"{who}: {name} grows period after period (peak {peak:.3g} in the last)"
+                if case == "with":
+                    verdicts.append(("unstable", words + ": the controlled machine is unstable; lower the "
+                                                         "feedback gains"))
+                else:
+                    notes.append(words)
+            elif case == "with":
+                verdicts.append(("inaccurate", f"{who}: {name} does not settle within {n_periods} periods, its "
+                                               f"steady peak is not steady yet; raise n_periods"))
             else:
-                unsettled.append(f"{who}: {name} does not settle within {n_periods} periods")
-    if failed:
-        status = "failed"
-    elif inaccurate:
-        status = "inaccurate"
-        inaccurate[-1] += "; refine n_steps"
-    else:
-        status = "ok"
-    return status, "; ".join(failed + inaccurate + unsettled + settled)
+                notes.append(f"{who}: {name} does not settle within {n_periods} periods")
+        saturated = _saturation_words(found["saturation"], plan)
+        if found["saturation"]["clipped_fraction"] > 0.0:
+            verdicts.append(("outside_linear_range",
+                             f"{who}: the drive at {plan.joint} saturates in the steady state "
+                             f"({100 * found['saturation']['clipped_fraction']:.3g} % of the last period's steps"
+                             f"{saturated}): the clipped torque is not the law the controller was designed with"))
+        elif math.isfinite(found["saturation"]["clipped_until"]):
+            notes.append(f"{who}: the drive at {plan.joint} saturates during the start-up (until "
+                         f"{found['saturation']['clipped_until']:.3g} s)")
+    status, message = combine(verdicts)
+    return status, "; ".join([message] * bool(message) + notes)
+
+
+def _saturation_words(saturation: Mapping[str, float], plan: _Plan) -> str:
+    """``": peak demanded torque ... > torque_limit ..."`` for each limit the last period exceeds."""
+    words = []
+    if saturation["peak_demanded_torque"] > plan.torque_limit:
+        words.append(f"peak demanded torque {saturation['peak_demanded_torque']:.4g} N m > torque_limit "
+                     f"{plan.torque_limit:.4g} N m")
+    if saturation["peak_command"] > plan.command_limit:
+        words.append(f"peak motor command {saturation['peak_command']:.4g} N m > G stall_torque "
+                     f"{plan.command_limit:.4g} N m")
+    return ": " + ", ".join(words) if words else ""
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -443,8 +541,8 @@ def _verdict(results: Mapping[str, Mapping[str, Any]], plan: _Plan, n_periods: i
 # ---------------------------------------------------------------------------------------------------
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
     output = table.get("output")
-    if output is not None and not isinstance(output, str):
-        raise StudiesError(f"[{where}] output: expected an observable spec such as 'rocker.angle', got {output!r}")
+    if output is not None:
+        _check_output(f"[{where}] output", output)
     band = fraction(where, "band", table.get("band", BAND))
     if band <= 0.0:
         raise StudiesError(f"[{where}] band: expected a fraction in (0, 1), got {band!r}")

@@ -73,11 +73,15 @@ class StabilityMargin:
 @dataclass(frozen=True)
 class TorqueLimit:
     """Peak total drive torque (N m) at most ``limit`` at every speed, for the drives at ``joints``
-    (None: every drive of the mechanism)."""
+    (None: every drive of the mechanism). Several limits on different sets of drives may be given;
+    each is named ``"torque"`` (every drive) or ``"torque@<joint>+<joint>..."``."""
 
     limit: float
     joints: tuple[str, ...] | None = None
-    name = "torque"
+
+    @property
+    def name(self) -> str:
+        return "torque" if self.joints is None else "torque@" + "+".join(self.joints)
 
 
 @dataclass(frozen=True)
@@ -135,7 +139,8 @@ def _check_constraints(constraints: Any) -> tuple:
                                f"{', '.join(CONSTRAINT_KEYS)}), got {item!r}")
     names = [item.name for item in constraints]
     if len(set(names)) != len(names):
-        raise StudiesError(f"constraints: at most one of each kind, got {list(constraints)!r}")
+        raise StudiesError(f"constraints: at most one of each kind (torque limits: one per set of joints), "
+                           f"got {list(constraints)!r}")
     return constraints
 
 
@@ -407,7 +412,8 @@ class _Evaluator:
     def _sweep(self, values: dict[str, float]) -> _Evaluation:
         n_s = self.speeds.size
         found = _Evaluation(measure=np.empty(n_s), error=np.empty(n_s))
-        radius, torque, separation = np.empty(n_s), np.zeros(n_s), np.empty(n_s)
+        radius, separation = np.empty(n_s), np.empty(n_s)
+        torque = {name: np.zeros(n_s) for name in self.torque_specs}   # each torque limit's own drives
         speeds_given = not np.isnan(self.speeds).all()
         try:
             for i, speed in enumerate(self.speeds):
@@ -420,9 +426,9 @@ class _Evaluator:
                 where = f"at {speed:.4g} rad/s: " if speeds_given else ""
                 found.verdicts.append((steady.status, where + steady.message if steady.message else ""))
                 radius[i] = steady.state.spectral_radius
-                for specs in self.torque_specs.values():
+                for name, specs in self.torque_specs.items():
                     rows = [linear.observables.index(spec) for spec in specs]
-                    torque[i] = max(peak_summary(steady.response[:, rows], steady.response_error[rows])["peak"])
+                    torque[name][i] = max(peak_summary(steady.response[:, rows], steady.response_error[rows])["peak"])
                 for constraint in self.constraints:
                     if isinstance(constraint, FrequencySeparation):
                         separation[i] = _separation(linear.system, 2.0 * math.pi / linear.system.period,
@@ -432,8 +438,8 @@ class _Evaluator:
                     found.scaled[constraint.name] = constraint.limit() - radius
                     found.reported[constraint.name] = float(radius.max())
                 elif isinstance(constraint, TorqueLimit):
-                    found.scaled[constraint.name] = 1.0 - torque / constraint.limit
-                    found.reported[constraint.name] = float(torque.max())
+                    found.scaled[constraint.name] = 1.0 - torque[constraint.name] / constraint.limit
+                    found.reported[constraint.name] = float(torque[constraint.name].max())
                 elif isinstance(constraint, MassBudget):
                     mass = _links_mass(self.problem, values)
                     found.scaled[constraint.name] = np.array([1.0 - mass / constraint.budget])
@@ -880,8 +886,9 @@ def _headlines(result: OptimizeResult) -> Summary:
     words = {"stability": "largest spectral radius", "torque": "largest peak drive torque",
              "mass": "links' mass", "frequency": "least distance of a frozen band from k x speed / (k x speed)"}
     for name, value in result.constraint_values.items():
-        rows.append(Headline(words[name], float(value), units[name],
-                             where=f"(limit {plain(result.constraint_limits[name], 3)})"))
+        kind, _, joints = name.partition("@")   # a torque limit on some drives: "torque@O+A"
+        rows.append(Headline(words[kind] + (f" at {joints.replace('+', ', ')}" if joints else ""), float(value),
+                             units[kind], where=f"(limit {plain(result.constraint_limits[name], 3)})"))
     if result.check_verdict:
         rows.append(Headline(f"{result.objective}, nonlinear run at the optimum", result.check_objective,
                              result.objective_unit, where=f"({result.check_verdict.replace('_', ' ')})"))
