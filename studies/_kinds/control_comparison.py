@@ -469,8 +469,10 @@ def _along(run: Any, model: Any, nominal_s: np.ndarray, nominal_sdot: np.ndarray
         if role == "speed":
             quantities[name] = relative_rate(run.sdot) - relative_rate(nominal_sdot[:-1])[phase]
         elif role == "torque":
-            quantities[name] = np.array([model.drive_torques(s, v, t, lam)[plan.drive_index]
-                                         for s, v, t, lam in zip(run.s, run.sdot, run.t, run.lam)])
+            # a lagged controller's torque is a state of the run, not a function of (s, s', t)
+            lags = run.lag_states if run.lag_states is not None else [None] * run.t.size
+            quantities[name] = np.array([model.drive_torques(s, v, t, lam, lag_states=y)[plan.drive_index]
+                                         for s, v, t, lam, y in zip(run.s, run.sdot, run.t, run.lam, lags)])
         else:
             quantities[name] = deviation(name)
     return quantities
