@@ -108,6 +108,35 @@ def plot_multipliers(multipliers: np.ndarray, *, ax: Any, title: str = "") -> li
     return [circle, points]
 
 
+#: A log axis spans at least this many decades (a narrower one is widened about its middle): below
+#: about a decade matplotlib labels its minor ticks, whose labels then overlap.
+MIN_LOG_DECADES = 1.2
+
+
+def tidy_log_axes(ax: Any) -> None:
+    """Readable log axes of ``ax``: at least ``MIN_LOG_DECADES`` decades, major ticks at 1, 2 and 5
+    times a power of ten (powers of ten alone past 3 decades), labelled; minor ticks unlabelled. Call
+    after the data are drawn (the limits come from them)."""
+    from matplotlib import ticker
+
+    for axis, get_limits, set_limits in ((ax.xaxis, ax.get_xlim, ax.set_xlim),
+                                         (ax.yaxis, ax.get_ylim, ax.set_ylim)):
+        if axis.get_scale() != "log":
+            continue
+        low, high = sorted(get_limits())
+        if not (np.isfinite(low) and np.isfinite(high) and low > 0):
+            continue
+        span = np.log10(high / low)
+        if span < MIN_LOG_DECADES:
+            pad = 10.0 ** ((MIN_LOG_DECADES - span) / 2)
+            low, high = low / pad, high * pad
+            set_limits(low, high)
+            span = MIN_LOG_DECADES
+        axis.set_major_locator(ticker.LogLocator(subs=(1.0, 2.0, 5.0) if span < 3 else (1.0,), numticks=12))
+        axis.set_major_formatter(ticker.LogFormatterSciNotation(labelOnlyBase=False))
+        axis.set_minor_formatter(ticker.NullFormatter())
+
+
 def drawn(axes: list, artists: Mapping[str, list]) -> Plot:
     """The :class:`Plot` of artists drawn into ``axes``."""
     return Plot(figure=axes[0].figure, axes=list(axes), artists=dict(artists))

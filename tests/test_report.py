@@ -324,3 +324,22 @@ def test_sweep_headlines_take_the_largest_response_from_ok_points_only(mathieu_f
         dataclasses.replace(sweep, status=status.astype(str))).rows}
     assert rows["largest x peak to peak (ok points)"].value == pytest.approx(values[worst])
     assert "largest x peak to peak, any point" not in rows
+
+
+@pytest.mark.parametrize("size", [(3.0, 2.5), (6.4, 4.8)])
+def test_log_axes_have_readable_labels_at_any_range(size):
+    """Data over a few percent of a decade, about a decade, or many decades (an error-against-cost
+    figure's run times can be nearly equal): after ``tidy_log_axes`` no tick labels overlap and the
+    data stay inside the limits."""
+    import matplotlib.pyplot as plt
+
+    from studies._plots import tidy_log_axes
+
+    for low, high in [(2.1e-3, 2.5e-3), (1.2e-3, 3e-3), (3e-3, 2.2e-2), (1e-4, 1e-1), (1e-9, 1e3)]:
+        figure, ax = plt.subplots(layout="constrained", figsize=size)
+        ax.loglog([low, high], [high, low], "o-")
+        tidy_log_axes(ax)
+        assert text_problems(figure) == [], (low, high)
+        for lower, upper in (ax.get_xlim(), ax.get_ylim()):
+            assert lower <= low and upper >= high and np.log10(upper / lower) >= 1.2 - 1e-9
+        plt.close(figure)

@@ -14,7 +14,7 @@ import periodic
 from .._errors import StudiesError
 from .._kind import MAX_STEPS, STEPS_WHY, StudyKind, axis, integer, speed_values, sub_table
 from .._numerics import STUDY_SCHEME, solve_steady
-from .._plots import Plot, axes_for, drawn, plain
+from .._plots import Plot, axes_for, drawn, plain, tidy_log_axes
 from .._store import Result, register
 from .._studies import check_grid, check_n_steps, check_parameter
 from .._summary import Headline, Summary
@@ -65,6 +65,7 @@ class ErrorCostResult(Result):
                     ax.annotate(f"N={n}", (x, y), fontsize="x-small")
         ax.set_xlabel("run time (s)")
         ax.set_ylabel("relative error (1)")
+        tidy_log_axes(ax)
         ax.legend(fontsize="x-small")
         return drawn(axes, artists)
 
