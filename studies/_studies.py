@@ -154,8 +154,7 @@ class GridResult(Result):
         """A line for the figures' titles when the reduction check is not ``ok`` ("" otherwise)."""
         if self.reduction_status == "ok":
             return ""
-        return (f"\nmodal reduction {self.reduction_status}: error {plain(100 * self.reduction_error)} % "
-                f"of peak to peak at the scene's values, carried by every point")
+        return f"\nmodal reduction {self.reduction_status}: {plain(100 * self.reduction_error)} % in every point"
 
 
 def reduction_check(problem: Any, *, n_steps: int) -> dict[str, Any]:
