@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import contextlib
 import difflib
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
@@ -20,7 +21,9 @@ import numpy as np
 from . import _verdicts as verdicts
 from ._errors import StudiesError
 from ._grid import STATUS_FAILED, GridStore
-from ._store import Result, owner_of
+from ._plots import plain
+from ._store import Result, _write_array, owner_of
+from ._summary import Headline
 
 
 def check_n_steps(n_steps: Any, *, minimum: int = 16, multiple: int = 4, study: str = "this study") -> int:
@@ -105,7 +108,15 @@ def collect(outcomes: Mapping[tuple[int, ...], Any], shape: tuple[int, ...]) -> 
 class GridResult(Result):
     """Fields shared by the grid studies: ``problem`` name, ``scene`` text, ``settings``; per grid
     point ``done`` (bool; False where an interrupted run did not get), ``status`` ("ok", a periodic
-    status, "inaccurate" or "failed"), ``message`` (str) and ``point_run_time`` (s)."""
+    status, "inaccurate" or "failed"), ``message`` (str) and ``point_run_time`` (s).
+
+    Study-level, for a mechanism with a modally reduced link (``reduction_check``, once per study at
+    the scene's own values): ``reduction_error`` (relative, 1: the largest difference of an
+    observable from the next larger mode set over its peak-to-peak; 0 without a reduced link),
+    ``reduction_status`` ("ok", "inaccurate", or "failed" when the check could not be solved),
+    ``reduction_message`` ("" without a reduced link) and ``reduction_run_time`` s (in
+    ``run_time``). ``overall_status`` combines the points' worst status with the reduction's.
+    """
 
     problem: str
     scene: str
@@ -114,8 +125,83 @@ class GridResult(Result):
     status: np.ndarray
     message: np.ndarray
     point_run_time: np.ndarray
+    # keyword-only, so that the kinds' own fields without defaults may follow
+    reduction_error: float = field(default=0.0, kw_only=True)
+    reduction_status: str = field(default="ok", kw_only=True)
+    reduction_message: str = field(default="", kw_only=True)
+    reduction_run_time: float = field(default=0.0, kw_only=True)
 
-    _units = {"done": "1", "status": "1", "message": "1", "point_run_time": "s"}
+    _units = {"done": "1", "status": "1", "message": "1", "point_run_time": "s",
+              "reduction_error": "1", "reduction_run_time": "s"}
+    #: Scalars written as 0-d datasets, so that they carry their ``units`` like the arrays.
+    _scalars_with_units = ("reduction_error", "reduction_run_time")
+
+    def _write(self, group: Any) -> None:
+        super()._write(group)
+        for name in self._scalars_with_units:
+            if name in group.attrs:
+                del group.attrs[name]
+            _write_array(group, name, np.asarray(float(getattr(self, name))), self._unit(name))
+
+    @property
+    def overall_status(self) -> str:
+        """The study's status: the worst of its points' (done ones) and its reduction check's."""
+        points = [str(status) for status in np.asarray(self.status)[np.asarray(self.done, dtype=bool)]]
+        return verdicts.combine([(status, "") for status in points]
+                                + [(self.reduction_status, self.reduction_message)])[0]
+
+    def reduction_note(self) -> str:
+        """A line for the figures' titles when the reduction check is not ``ok`` ("" otherwise)."""
+        if self.reduction_status == "ok":
+            return ""
+        return f"\nmodal reduction {self.reduction_status}: {plain(100 * self.reduction_error)} % in every point"
+
+
+def reduction_check(problem: Any, *, n_steps: int) -> dict[str, Any]:
+    """The ``GridResult`` reduction fields of ``problem``: ``linearize.reduction_error`` of its
+    mechanism at the scene's own values (every parameter, speed included, at its nominal) against
+    the next larger mode set, with ``n_steps`` steps. Empty (the defaults: error 0, ``ok``) at once
+    for a problem without a mechanism or without a reduced link. One check per study, not per point:
+    the reduction is the scene's, and its error at the scene's values is the one every point's
+    numbers carry (a grid over ``modes`` itself changes it point by point: docs/studies.md)."""
+    if not hasattr(problem, "mechanism"):
+        return {}
+    import linearize
+
+    mechanism = problem.mechanism()
+    if not linearize.reduced_links(mechanism):
+        return {}
+    started = time.perf_counter()
+    try:
+        found = linearize.reduction_error(mechanism, n_steps=n_steps,
+                                          observables=getattr(problem, "observable_specs", None))
+    except RuntimeError as error:   # a numerical failure of either steady state: say so, keep the grid
+        return {"reduction_error": float("nan"), "reduction_status": "failed",
+                "reduction_message": f"modal reduction check at the scene's values failed ({error}); "
+                                     f"the points' reduction error is unknown",
+                "reduction_run_time": time.perf_counter() - started}
+    message = f"at the scene's values, {found.message}"
+    if found.status != "ok":
+        message += "; every point's numbers carry this reduction error"
+    return {"reduction_error": float(found.error), "reduction_status": found.status,
+            "reduction_message": message, "reduction_run_time": found.run_time}
+
+
+def grid_status(result: GridResult) -> str:
+    """The status column of a grid study: the count of each point status, and the reduction check's
+    verdict when it is not ``ok``."""
+    counts = status_counts(result.status[result.done])
+    return counts if result.reduction_status == "ok" else f"{counts}; modal reduction {result.reduction_status}"
+
+
+def reduction_headlines(result: GridResult) -> list[Headline]:
+    """The reduction check's row of the summary table (none without a reduced link)."""
+    if not result.reduction_message:
+        return []
+    return [Headline("modal reduction error (relative, at the scene's values)",
+                     float(result.reduction_error), "1",
+                     where="" if result.reduction_status == "ok" else f"({result.reduction_status}: "
+                                                                      f"carried by every point)")]
 
 
 def grid_summary(result: GridResult, extra: str = "", *, point: Any = None) -> str:
@@ -125,7 +211,8 @@ def grid_summary(result: GridResult, extra: str = "", *, point: Any = None) -> s
     line = f"{done}/{result.done.size} points: {status_counts(result.status[result.done])}{extra}; " \
            f"{result.run_time:.3g} s"
     worst = worst_cases(result.status, result.message, point or (lambda index: f"point {index}"))
-    return line + (f"\n    worst: {worst}" if worst else "")
+    line += f"\n    worst: {worst}" if worst else ""
+    return line + (f"\n    {result.reduction_status}: {result.reduction_message}" if result.reduction_message else "")
 
 
 def status_counts(status: np.ndarray) -> str:

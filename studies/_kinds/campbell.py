@@ -21,8 +21,8 @@ from .._plots import Plot, axes_for, cost_line, drawn, largest, mark_statuses, p
 from .._problem import SPEED
 from .. import _verdicts as verdicts
 from .._store import register
-from .._studies import GridResult, check_grid, check_integer, check_n_steps, collect, grid_summary, open_store, \
-    status_counts
+from .._studies import GridResult, check_grid, check_integer, check_n_steps, collect, grid_status, grid_summary, \
+    open_store, reduction_check, reduction_headlines
 from .._summary import Headline, Summary, listed, ranges
 
 #: The fewest steps per period a Campbell diagram accepts (docs/studies.md).
@@ -47,7 +47,8 @@ class CampbellResult(GridResult):
     ``characteristic_error`` (n, 2m) rad/s their estimated error (N against N/2), ``mode_labels`` (m,),
     ``harmonics`` the k of the lines ``k * speed``; ``spectral_radius``, ``spectral_radius_error``,
     ``is_stable`` (n,) the stability verdict at each speed (``status``, ``message``: unstable, marginal,
-    unresolved_stiff_mode ...).
+    unresolved_stiff_mode ...); ``reduction_*`` the modal reduction's check at the scene's values
+    (``GridResult``).
     """
 
     labels: tuple[str, ...]
@@ -119,7 +120,8 @@ class CampbellResult(GridResult):
             error = largest(np.where(shown, self.characteristic_error, np.nan))
         above = f" ({', '.join(hidden)} above the range shown)" if hidden else ""
         ax.set_title(f"{self.problem}: Campbell diagram{above}\n" + cost_line(
-            f"characteristic frequencies shown to {plain(error)} rad/s", self.run_time), fontsize="small")
+            f"characteristic frequencies shown to {plain(error)} rad/s", self.run_time) + self.reduction_note(),
+            fontsize="small")
         return drawn(axes, artists)
 
 
@@ -171,7 +173,7 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
     fields = collect(outcomes, grid.shape)
     if "is_stable" in fields:
         fields["is_stable"] = fields["is_stable"] == 1.0
-    extra: dict[str, Any] = {}
+    extra: dict[str, Any] = reduction_check(problem, n_steps=n_steps)
     if "frozen" in fields:
         fields["crank_angle"] = fields["crank_angle"][np.flatnonzero(fields["done"])[0]]
         order, confidence = track_modes(fields["shapes"])
@@ -193,7 +195,7 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
         mode_labels = tuple(f"mode {j + 1} ({labels[int(np.argmax(np.abs(first[:, j])))]})"
                             if np.isfinite(first[:, j]).all() else f"mode {j + 1}"
                             for j in range(first.shape[1]))
-        extra = dict(order=order, tracking_mac=confidence, band_min=band_min, band_max=band_max,
+        extra.update(order=order, tracking_mac=confidence, band_min=band_min, band_max=band_max,
                      band_mean=band_mean, characteristic=characteristic,
                      characteristic_error=characteristic_error, mode_labels=mode_labels,
                      harmonics=tuple(range(1, max_harmonic + 1)))
@@ -251,7 +253,7 @@ def _headlines(result: CampbellResult) -> Summary:
         lower = result.spectral_radius - np.nan_to_num(result.spectral_radius_error)
         rows.append(Headline("unstable speeds",
                              ranges(unstable_intervals(result.speeds, lower, tol=periodic.STABILITY_TOL), "rad/s")))
-    return Summary(status=status_counts(result.status[result.done]), run_time=result.run_time, rows=rows)
+    return Summary(status=grid_status(result), run_time=result.run_time, rows=rows + reduction_headlines(result))
 
 
 def _default(nominal_speed: float) -> dict[str, Any]:

@@ -20,8 +20,8 @@ from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_stat
 from .._problem import SPEED
 from .. import _verdicts as verdicts
 from .._store import register
-from .._studies import GridResult, check_grid, check_n_steps, check_parameter, collect, grid_summary, \
-    open_store, status_counts
+from .._studies import GridResult, check_grid, check_n_steps, check_parameter, collect, grid_status, \
+    grid_summary, open_store, reduction_check, reduction_headlines
 from .._summary import Headline, Summary, largest_over_grid, ranges
 
 #: The fewest steps per period a stability chart accepts (docs/studies.md).
@@ -37,7 +37,8 @@ class StabilityChart(GridResult):
     ``parameter_units``); ``spectral_radius`` (n1, n2) and ``spectral_radius_error`` (n1, n2) its
     estimated error (N against N/2 steps); ``is_stable`` (n1, n2) bool, ``status`` and ``message``
     each cell's verdict (unstable only beyond the radius's error bar, marginal within it);
-    ``stability_tol`` the tolerance of ``|mu| = 1``; ``run_time`` s.
+    ``stability_tol`` the tolerance of ``|mu| = 1``; ``run_time`` s; ``reduction_*`` the modal
+    reduction's check at the scene's values (``GridResult``).
     """
 
     parameters: tuple[str, str]
@@ -85,8 +86,8 @@ class StabilityChart(GridResult):
         ax.set_xlabel(label(self.parameters[0], self.parameter_units[0]))
         ax.set_ylabel(label(self.parameters[1], self.parameter_units[1]))
         ax.set_title(f"{self.problem}: stability chart (black: |mu| = 1; colours on a log scale each side of 1)\n" + cost_line(
-            f"spectral radius to {plain(largest(self.spectral_radius_error))}", self.run_time),
-            fontsize="small")
+            f"spectral radius to {plain(largest(self.spectral_radius_error))}", self.run_time)
+            + self.reduction_note(), fontsize="small")
         return drawn(axes, artists)
 
 
@@ -153,8 +154,9 @@ def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tu
     fields = collect(outcomes, shape)
     if "is_stable" in fields:
         fields["is_stable"] = fields["is_stable"] == 1.0
+    reduction = reduction_check(problem, n_steps=int(n_steps))
     result = StabilityChart(**header, settings=settings, first=axes[0], second=axes[1],
-                            run_time=time.perf_counter() - start, **fields)
+                            run_time=time.perf_counter() - start, **fields, **reduction)
     if store is not None:
         result.to_hdf5(store.group)
     return result
@@ -182,7 +184,7 @@ def _headlines(result: StabilityChart) -> Summary:
     if result.spectral_radius is not None:
         rows.append(largest_over_grid("largest spectral radius", result.spectral_radius,
                                       result.spectral_radius_error, "1", point))
-    return Summary(status=status_counts(result.status[result.done]), run_time=result.run_time, rows=rows)
+    return Summary(status=grid_status(result), run_time=result.run_time, rows=rows + reduction_headlines(result))
 
 
 _AXIS_TABLE = "{parameter = ..., start = ..., stop = ..., count = ...}"

@@ -22,7 +22,7 @@ from .._problem import SPEED
 from .._store import register
 from .._verdicts import combine
 from .._studies import GridResult, check_grid, check_integer, check_n_steps, check_parameter, collect, \
-    grid_summary, open_store, status_counts
+    grid_status, grid_summary, open_store, reduction_check, reduction_headlines
 from .._summary import PEAK_UNITS, Headline, Summary, largest_over_grid, listed, ranges
 
 #: Frozen-time eigenproblems per period for the resonance bands of a sweep (the bands of smooth
@@ -55,7 +55,8 @@ class SweepResult(GridResult):
     (parametric instability: unstable beyond the radius's error bar); ``spectral_radius_error`` (n,);
     ``is_stable`` (n,) bool; ``status``, ``message`` (n,) each point's verdict; ``linear_range``
     {"<link>.<measure>": (n,)} the linear-range measures (mechanisms); ``run_time`` s wall time of
-    the whole sweep.
+    the whole sweep; ``reduction_*`` the modal reduction's check at the scene's values
+    (``GridResult``).
     """
 
     parameter: str
@@ -129,6 +130,7 @@ class SweepResult(GridResult):
                     for spec in specs if self.peak_to_peak_error.get(spec) is not None]
         axes[0].set_title(cost_line(f"{len(x)} points, largest estimated error "
                                     f"{plain(100 * largest(relative))} % of peak to peak", self.run_time)
+                          + self.reduction_note()
                           + ("\nresonances: harmonic k : mode (k x speed = mode frequency)" if rows else ""),
                           fontsize="small", pad=4 + rows * LABEL_ROW_HEIGHT)
         return drawn(axes, artists)
@@ -207,6 +209,7 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
                       for name in ("peak_to_peak", "peak_to_peak_error", "peak", "peak_error")}
     ranges = {name: fields.pop(f"linear_range/{name}") for name in
               [key.split("/", 1)[1] for key in fields if key.startswith("linear_range/")]}
+    reduction = reduction_check(problem, n_steps=n_steps)
     resonances, instabilities = (), ()
     if "is_stable" in fields:
         fields["is_stable"] = fields["is_stable"] == 1.0
@@ -217,7 +220,8 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
         instabilities = tuple(unstable_intervals(grid, lower, tol=periodic.STABILITY_TOL))
     result = SweepResult(**header, settings=settings, values=grid, **per_observable,
                          resonances=resonances, linear_range=ranges,
-                         instabilities=instabilities, run_time=time.perf_counter() - start, **fields)
+                         instabilities=instabilities, run_time=time.perf_counter() - start, **fields,
+                         **reduction)
     if store is not None:
         result.to_hdf5(store.group)
     return result
@@ -294,7 +298,7 @@ def _headlines(result: SweepResult) -> Summary:
     if result.spectral_radius is not None:
         rows.append(largest_over_grid("largest spectral radius", result.spectral_radius,
                                       result.spectral_radius_error, "1", point))
-    return Summary(status=status_counts(result.status[result.done]), run_time=result.run_time, rows=rows)
+    return Summary(status=grid_status(result), run_time=result.run_time, rows=rows + reduction_headlines(result))
 
 
 def _default(nominal_speed: float) -> dict[str, Any]:
