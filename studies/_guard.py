@@ -224,14 +224,25 @@ def _steady_state(name, problem, options, workers):
     n_steps = options["n_steps"]
     build_bytes, build_seconds = _linearisation(n_steps, sizes)
     seconds = STUDY_SECONDS + build_seconds + _solve_seconds(n_steps, sizes)
-    words = f"{n_steps} steps x {sizes.m} coordinates"
-    reference = _reduction_reference_sizes(problem, options["values"])
-    if reference is not None:   # the reduction's error: a linearisation and a solve at modes + 2
-        reference_bytes, reference_seconds = _linearisation(n_steps, reference)
-        build_bytes = max(build_bytes, reference_bytes)
-        seconds += reference_seconds + _solve_seconds(n_steps, reference)
-        words += f" + the reduction check at {reference.m}"
-    return Estimate(name, build_bytes, seconds, words)
+    found = Estimate(name, build_bytes, seconds, f"{n_steps} steps x {sizes.m} coordinates")
+    return _with_reduction_check(found, problem, options["values"], n_steps, extra_solve=False)
+
+
+def _with_reduction_check(found: Estimate, problem: Any, values: Mapping[str, float], n_steps: int, *,
+                          extra_solve: bool = True) -> Estimate:
+    """``found`` plus the modal reduction's check where a link is reduced: a linearisation and a solve
+    at modes + 2 (and, for a grid study, which checks once at the scene's values, the reduced solve it
+    compares with: ``extra_solve``)."""
+    reference = _reduction_reference_sizes(problem, values)
+    if reference is None:
+        return found
+    reference_bytes, reference_seconds = _linearisation(n_steps, reference)
+    seconds = reference_seconds + _solve_seconds(n_steps, reference)
+    if extra_solve:
+        sizes = _sizes(problem, values)
+        seconds += _linearisation(n_steps, sizes)[1] + _solve_seconds(n_steps, sizes)
+    return Estimate(found.study, max(found.memory, reference_bytes), found.time + seconds,
+                    f"{found.sizes} + the reduction check at {reference.m}")
 
 
 def _reduction_reference_sizes(problem: Any, values: Mapping[str, float]) -> _Sizes | None:
@@ -253,22 +264,25 @@ def _reduction_reference_sizes(problem: Any, values: Mapping[str, float]) -> _Si
 
 def _sweep(name, problem, options, workers):
     axis = (options["parameter"], np.asarray(options["values"]))
-    return _grid(name, problem, [axis], options["n_steps"], workers=workers, frozen=32,
-                 point_doubles=lambda s: 8.0 * s.m + 4.0, words=[_axis_words(*axis)])
+    found = _grid(name, problem, [axis], options["n_steps"], workers=workers, frozen=32,
+                  point_doubles=lambda s: 8.0 * s.m + 4.0, words=[_axis_words(*axis)])
+    return _with_reduction_check(found, problem, {}, options["n_steps"])
 
 
 def _campbell(name, problem, options, workers):
     axis = (SPEED, np.asarray(options["speeds"]))
     frozen = options["frozen_samples"]
-    return _grid(name, problem, [axis], options["n_steps"], frozen=frozen, workers=workers,
-                 point_doubles=lambda s: (frozen + s.m + 8.0) * s.m,
-                 words=[_axis_words(*axis), f"{frozen} frozen samples"])
+    found = _grid(name, problem, [axis], options["n_steps"], frozen=frozen, workers=workers,
+                  point_doubles=lambda s: (frozen + s.m + 8.0) * s.m,
+                  words=[_axis_words(*axis), f"{frozen} frozen samples"])
+    return _with_reduction_check(found, problem, {}, options["n_steps"])
 
 
 def _stability_chart(name, problem, options, workers):
     axes = [(parameter, np.asarray(grid)) for parameter, grid in (options["first"], options["second"])]
-    return _grid(name, problem, axes, options["n_steps"], workers=workers,
-                 point_doubles=lambda s: 4.0 * s.m + 4.0, words=[_axis_words(*axis) for axis in axes])
+    found = _grid(name, problem, axes, options["n_steps"], workers=workers,
+                  point_doubles=lambda s: 4.0 * s.m + 4.0, words=[_axis_words(*axis) for axis in axes])
+    return _with_reduction_check(found, problem, {}, options["n_steps"])
 
 
 def _nonlinear_check(name, problem, options, workers):

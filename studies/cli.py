@@ -471,6 +471,8 @@ def _info(args: argparse.Namespace) -> int:
         print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, created "
               f"{handle.attrs.get('created', '?')}")
         print(f"  versions: {handle.attrs.get('versions', '?')}")
+        if "compile_time" in handle.attrs:   # numba compilation of the last run, outside its run times
+            print(f"  compile_time: {float(handle.attrs['compile_time']):.3g} s")
         if "scene_hash" in handle.attrs:
             print(f"  scene: sha256 {handle.attrs['scene_hash']}")
         for name, item in handle.items():

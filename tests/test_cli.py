@@ -95,6 +95,10 @@ def test_info_summarises(mathieu_run, capsys):
     out = capsys.readouterr().out
     assert "[sweep] SweepResult of mathieu, complete" in out and "points done: 57 of 57" in out
     assert "numpy" in out and "error_estimate" in out
+    import h5py
+
+    with h5py.File(mathieu_run, "r") as handle:   # the run's compile time, recorded apart
+        assert f"compile_time: {float(handle.attrs['compile_time']):.3g} s" in out
     # each grid study's verdicts are tallied, as the run's summary does
     sweep = studies.load(mathieu_run)["sweep"]
     names, counts = np.unique(sweep.status, return_counts=True)

@@ -184,3 +184,12 @@ def test_a_failed_reduction_check_is_reported_and_keeps_the_grid(monkeypatch):
     assert result.reduction_status == "failed" and result.overall_status == "failed"
     assert "no periodic solution (test)" in result.reduction_message
     assert np.isnan(result.reduction_error) and result.done.all()
+
+
+def test_the_guard_counts_a_grid_studys_reduction_check():
+    """A sweep on a reduced link is estimated with its reduction check (a linearisation and a solve at
+    modes + 2, and one reduced solve at the scene's values); without a reduced link, nothing is added."""
+    options = {"parameter": "speed", "values": [25.0, 50.0], "n_steps": 64}
+    reduced = studies.estimate(_problem(_coupler(16, modes=2)), "sweep", options)
+    full = studies.estimate(_problem(_coupler(16)), "sweep", options)
+    assert "reduction check at" in reduced.sizes and "reduction check" not in full.sizes
