@@ -95,6 +95,11 @@ class GridStore:
         self._owner = owner_of(group)
         self._group = None if self._owner is not None else group
         self._name = group.name
+        # h5py dataset objects by name, valid while the file handle they came from is open: a
+        # lookup by name costs about as much as the write itself, and a grid writes each dataset
+        # once per point (a commit reopens the working copy, which empties this cache)
+        self._datasets: dict[str, Any] = {}
+        self._datasets_of: Any = None
 
     @property
     def group(self) -> Any:
@@ -153,25 +158,37 @@ class GridStore:
     def write(self, index: tuple[int, ...], outcome: PointOutcome) -> None:
         extra = sum(np.asarray(value).nbytes for value in outcome.data.values())
         with self._writing(extra):
-            group = self.group
             for key, value in outcome.data.items():
-                value = np.asarray(value)
-                if key not in group:
-                    shape = self.shape + value.shape
-                    if np.iscomplexobj(value):  # HDF5 has no complex fill value: fill explicitly
-                        dataset = group.create_dataset(key, data=np.full(shape, complex(np.nan, np.nan)))
-                    else:
-                        dataset = group.create_dataset(key, shape=shape, dtype=float, fillvalue=np.nan)
-                    dataset.attrs["units"] = self.unit(key)
-                group[key][index] = value
-            group["status"][index] = outcome.status
-            group["message"][index] = outcome.message
-            group["point_run_time"][index] = outcome.run_time
-            group["done"][index] = True
+                self._dataset(key, np.asarray(value))[index] = value
+            self._dataset("status")[index] = outcome.status
+            self._dataset("message")[index] = outcome.message
+            self._dataset("point_run_time")[index] = outcome.run_time
+            self._dataset("done")[index] = True
         if self._owner is not None:
             self._owner.maybe_commit()
         else:
-            group.file.flush()
+            self._group.file.flush()
+
+    def _dataset(self, key: str, value: np.ndarray | None = None) -> Any:
+        """The dataset ``key`` of the group, created for an output at its first ``value`` (grid shape
+        + value shape, NaN-filled, with its unit)."""
+        handle = self._owner.handle if self._owner is not None else self._group
+        if self._datasets_of is not handle:
+            self._datasets, self._datasets_of = {}, handle
+        dataset = self._datasets.get(key)
+        if dataset is None:
+            group = self.group
+            if key in group:
+                dataset = group[key]
+            else:
+                shape = self.shape + value.shape
+                if np.iscomplexobj(value):  # HDF5 has no complex fill value: fill explicitly
+                    dataset = group.create_dataset(key, data=np.full(shape, complex(np.nan, np.nan)))
+                else:
+                    dataset = group.create_dataset(key, shape=shape, dtype=float, fillvalue=np.nan)
+                dataset.attrs["units"] = self.unit(key)
+            self._datasets[key] = dataset
+        return dataset
 
     def unit(self, key: str) -> str:
         if self.is_output(key):
