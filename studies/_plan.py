@@ -120,10 +120,13 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
         with ResultFile(path, scene=scene_identity(problem), overwrite=overwrite) as file:
             _refuse_other_grid_options(file, runs)
             clock = _jit.warm_up(problem, studies) if warm_up else None
-            outcome = _run_studies(problem, runs, file, executor=executor, progress=progress)
-            if clock is not None:
+            try:
+                outcome = _run_studies(problem, runs, file, executor=executor, progress=progress)
+            finally:
+                compile_time = clock.stop() if clock is not None else None  # no listener left behind
+            if compile_time is not None:
                 with file.writing():
-                    file.handle.attrs["compile_time"] = clock.stop()
+                    file.handle.attrs["compile_time"] = compile_time
             return outcome
     except KeyboardInterrupt:
         raise RunInterrupted(*_points_saved(path, runs), str(path)) from None
