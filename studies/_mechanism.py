@@ -275,7 +275,7 @@ class MechanismProblem:
         observers = {spec: model.observable(spec) for spec in linear.observables}
         # the observables that are functions of s the integrator evaluates (with its error
         # estimates); forces, torques and magnitudes come from its multipliers and rates below
-        direct = [spec for spec, obs in observers.items() if _of_coordinates(obs)]
+        direct = [spec for spec, obs in observers.items() if of_coordinates(obs)]
         # the lagged controllers' states are the last linear coordinates (linearize labels them
         # lag.<name>): the run starts them at the linear state, not at rest
         n_lags = len(getattr(model, "lag_names", ()))
@@ -314,11 +314,8 @@ class MechanismProblem:
                 value = obs.value
             values = (run.observables[obs.spec] if obs.spec in run.observables
                       else np.array([value(sk) for sk in run.s]))
-            values = values - periodic([value(sk) for sk in lin.nominal.s])
-            if getattr(obs, "unit", "") == "rad":
-                # a turning link's angle gains 2 pi per period while the repeated nominal does not:
-                # the deviation of an angle is taken modulo 2 pi, in (-pi, pi]
-                values = np.pi - np.mod(np.pi - values, 2.0 * np.pi)
+            values = deviation_from_nominal(values, periodic([value(sk) for sk in lin.nominal.s]),
+                                            getattr(obs, "unit", ""))
             if observable_map.nominal is not None:   # the axially rigid link's nominal axial stress
                 values = values + periodic(observable_map.nominal)
             return values
@@ -365,7 +362,15 @@ class MechanismProblem:
         return outlines, float(magnification)
 
 
-def _of_coordinates(observable: Any) -> bool:
+def deviation_from_nominal(values: np.ndarray, nominal: np.ndarray, unit: str) -> np.ndarray:
+    """``values - nominal`` of an observable along a nonlinear run, as the linear route reports it;
+    an angle (``unit`` "rad") modulo 2 pi, in (-pi, pi]: a turning link's angle gains 2 pi per
+    period while the nominal repeated over the run does not."""
+    change = np.asarray(values, dtype=float) - nominal
+    return np.pi - np.mod(np.pi - change, 2.0 * np.pi) if unit == "rad" else change
+
+
+def of_coordinates(observable: Any) -> bool:
     """Whether ``observable`` is a function of the coordinates alone (``mechanisms.simulate``
     evaluates it): not a force, torque, magnitude or the stress of an axially rigid link."""
     return (callable(getattr(observable, "value", None))

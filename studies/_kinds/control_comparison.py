@@ -26,6 +26,7 @@ from .._store import Result, register
 from .._studies import check_integer, check_n_steps
 from .._summary import Headline, Summary
 from .._verdicts import combine
+from .._mechanism import deviation_from_nominal
 
 logger = logging.getLogger(__name__)
 
@@ -278,7 +279,7 @@ class _Plan:
 def _quantities(problem: Any, mechanism: Any, without: Any, output: str | None) -> _Plan:
     import mechanisms
 
-    from .._mechanism import _of_coordinates
+    from .._mechanism import of_coordinates
 
     # the controlled drive: the first whose own gains or whose joint's controllers are removed
     controlled = {controller.joint for controller in mechanism.controllers}
@@ -293,7 +294,7 @@ def _quantities(problem: Any, mechanism: Any, without: Any, output: str | None) 
     specs = getattr(problem, "observable_specs", None) or mechanisms.default_observables(mechanism)
     elastic, skipped = [], []
     for spec in specs:
-        (elastic if _of_coordinates(model.observable(spec)) else skipped).append(spec)
+        (elastic if of_coordinates(model.observable(spec)) else skipped).append(spec)
     if skipped:
         logger.info("control comparison: %s not reported (not functions of the coordinates)", ", ".join(skipped))
     _check_output("output", output)
@@ -449,10 +450,7 @@ def _along(run: Any, model: Any, nominal_s: np.ndarray, nominal_sdot: np.ndarray
         if getattr(observer, "components", None):   # a point's displacement: its magnitude
             return np.hypot(*(deviation(component.spec) for component in observer.components))
         nominal = np.array([observer.value(s) for s in nominal_s[:-1]])
-        change = run.observables[spec] - nominal[phase]
-        if observer.unit == "rad":   # a turning link's angle: whole turns are no deviation
-            change = np.angle(np.exp(1j * change))
-        return change
+        return deviation_from_nominal(run.observables[spec], nominal[phase], observer.unit)
 
     labels = list(model.coord_labels)
     rows = [labels.index(f"{plan.driven}.theta")]
