@@ -40,6 +40,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from ._errors import StudiesError
+from ._mechanism import COUNT_KEYS
 from ._problem import SPEED
 
 __all__ = ["Estimate", "ResourceError", "estimate", "guard", "memory_limit", "TIME_LIMIT"]
@@ -86,10 +87,6 @@ SHOOTING_PERIODS = (4 * 1.5 + 3 * 0.25) * TANGENT_FACTOR + 2.25
 SWEEP_POINT_PERIODS = 4 * TANGENT_FACTOR + 3 * 0.5 * TANGENT_FACTOR + 1.5
 #: Doubles per step and (n + r)^2 kept while a monodromy is built (iteration matrices, their inverse).
 TANGENT_DOUBLES = 3.0
-#: Scene keys whose value changes the number of coordinates (the guard sizes a study at their
-#: largest value on its axes). The counts are the assembled model's: a reduced link
-#: (``Fem(n_elements, modes=k)``) counts its modes and static corrections, not its elements.
-SIZE_KEYS = ("n_elements", "n_bending", "n_axial", "modes")
 
 
 class ResourceError(StudiesError):
@@ -173,7 +170,7 @@ def _largest_sizes(problem: Any, axes: Sequence[tuple[str, np.ndarray]]) -> _Siz
             for value in (float(np.min(grid)), float(np.max(grid))):
                 problem.mechanism({parameter: value})
     largest = {parameter: float(np.max(grid)) for parameter, grid in axes
-               if parameter.split(".")[-1] in SIZE_KEYS}
+               if parameter.split(".")[-1] in COUNT_KEYS}
     return _sizes(problem, largest)
 
 

@@ -26,7 +26,10 @@ _UNITS = {"rate": "rad/s", "length": "m", "width": "m", "thickness": "m", "area"
           "second_moment": "m^4", "density": "kg/m^3", "youngs_modulus": "Pa", "mass": "kg",
           "inertia": "kg m^2", "ratio": "1", "alpha": "1/s", "beta": "s", "n_elements": "1",
           "n_bending": "1", "n_axial": "1", "kp": "N m/rad", "kd": "N m s/rad", "period": "s"}
-_INTEGER_KEYS = ("n_elements", "n_bending", "n_axial", "modes")
+#: Scene keys that are counts (whole numbers that change the number of coordinates): a study
+#: parameter on them is rounded, the guard sizes a study at their largest value, an optimisation
+#: refuses them as continuous bounds.
+COUNT_KEYS = ("n_elements", "n_bending", "n_axial", "modes")
 _CACHE_SIZE = 8
 _mechanisms: OrderedDict = OrderedDict()
 _families: OrderedDict = OrderedDict()
@@ -151,7 +154,7 @@ class MechanismProblem:
             if key == SPEED:
                 changes.update(_speed_changes(base, value))
             else:
-                changes[key] = int(round(value)) if key.split(".")[-1] in _INTEGER_KEYS else value
+                changes[key] = int(round(value)) if key.split(".")[-1] in COUNT_KEYS else value
         if not changes:
             return base
         return _cached(_mechanisms, (self.text, tuple(sorted(changes.items()))),

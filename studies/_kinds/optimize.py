@@ -28,6 +28,7 @@ from .._numerics import frozen_modes, peak_summary, solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
 from .._problem import SPEED
 from .._store import Result, register
+from .._mechanism import COUNT_KEYS
 from .._studies import check_integer, check_n_steps, check_parameter
 from .._summary import Headline, Summary
 from .._verdicts import combine
@@ -49,7 +50,6 @@ EVALUATIONS_WHY = "evaluations, each a steady state at every speed"
 #: Frozen-time samples per period of the frequency-separation constraint.
 FROZEN_SAMPLES = 32
 #: Scene keys that change the number of coordinates: not continuous design parameters.
-_SIZE_KEYS = ("n_elements", "n_bending", "n_axial")
 #: Keys of the ``constraints`` table.
 CONSTRAINT_KEYS = ("stability_margin", "torque_limit", "mass_budget", "frequency_separation", "max_harmonic")
 TABLE_KEYS = ("objective", "bounds", "speeds", "start", "constraints", "method", "n_steps", "tol",
@@ -590,7 +590,7 @@ def _check_bounds(problem: Any, bounds: Any) -> tuple[tuple[str, ...], np.ndarra
     for name, pair in bounds.items():
         if not isinstance(name, str):
             raise StudiesError(f"bounds: expected parameter paths (str) as keys, got {name!r}")
-        if name.split(".")[-1] in _SIZE_KEYS:
+        if name.split(".")[-1] in COUNT_KEYS:
             raise StudiesError(f"bounds: {name!r} is a count (it changes the number of coordinates), not a "
                                f"continuous design parameter; optimise continuous values only")
         try:
