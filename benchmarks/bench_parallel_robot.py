@@ -24,8 +24,6 @@ from __future__ import annotations
 import argparse
 import logging
 import math
-import statistics
-import time
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
@@ -34,6 +32,7 @@ import linearize
 import mechanisms
 import periodic
 import studies
+from bench_linearize import median_time  # this folder is the script's path: the same timer
 
 N_STEPS = 32
 TARGET_CELLS, TARGET_SECONDS = 100 * 100, 120.0
@@ -41,15 +40,6 @@ CHARTS = {  # scene: (second parameter, its range)
     "parallel_robot": ("point_masses.payload.mass", (0.1, 2.0)),
     "four_bar_fem4": ("links.coupler.thickness", (1.2e-3, 2.4e-3)),
 }
-
-
-def median_time(func, repeats):
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        func()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
 
 
 def chart_time(scene, n_speeds, n_values, pool, repeats):
