@@ -18,6 +18,9 @@ constraints' null space and the differentiated index-1 equations; see ``_start_s
 Each period starts afresh from a consistent state (alpha acceleration ``a_0 = sddot_0``), so a fixed
 point is the periodic orbit of the discrete scheme to its O(h^2) error, which the N against N/2
 estimate measures.
+
+A period asked for again from the same state (the observables of the orbit a shooting has just found
+at its last map call) is not run again.
 """
 
 from __future__ import annotations
@@ -118,6 +121,7 @@ class PeriodMap:
         self.length_scale = max(1.0, float(np.abs(self.nominal_start[0]).max()))
         self._options = (self.rho_inf, float(tol) * self.length_scale, 20, True, int(max_step_halvings),
                          self.length_scale, False)
+        self._last: tuple[np.ndarray, dict] | None = None    # the last period: its state, the arrays
 
     @property
     def n_state(self) -> int:
@@ -207,35 +211,50 @@ class PeriodMap:
         dsddot = np.linalg.solve(augmented, rhs)[:n]
         return np.stack([dq, dv, dsddot, dsddot])
 
-    # --- one period ------------------------------------------------------------------------------------
+    # --- one period ---------------------------------------------------------------------------------
     def run(self, x: np.ndarray, *, tangent: bool = True, n_periods: int = 1) -> PeriodRun:
         """Integrate ``n_periods`` periods from the shooting state ``x`` (2m,); the end state and (with
         ``tangent``, one period only) the monodromy. Raises ``mechanisms.SimulationError`` when the
         integrator fails."""
         started = time.perf_counter()
-        x = np.asarray(x, dtype=np.float64)
+        if tangent and n_periods != 1:
+            raise ArgumentError("`tangent` needs `n_periods` = 1 (the monodromy of one period).")
+        x = np.array(x, dtype=np.float64)
+        raw = self._integrate(x, int(n_periods))
+        monodromy = self._monodromy_of(x, raw) if tangent else None
+        return self._period_run(x, raw, monodromy, started)
+
+    def _integrate(self, x: np.ndarray, n_periods: int) -> dict:
+        """The integrator's arrays over ``n_periods`` from ``x``: the last period again when ``x`` is
+        its state (a shooting's last map call is at the orbit whose observables are asked next)."""
+        if n_periods == 1 and self._last is not None and np.array_equal(self._last[0], x):
+            return self._last[1]
         s0, sdot0 = self.start_state(x)
-        run = _integrate(self.model, s0, sdot0, 0.0, self.h, self.n_steps * int(n_periods),
-                         *self._options)
-        if run["status"] != 0:
-            raise SimulationError(f"the period map failed: {run['message']}", None)
+        raw = _integrate(self.model, s0, sdot0, 0.0, self.h, self.n_steps * n_periods, *self._options)
+        if raw["status"] != 0:
+            raise SimulationError(f"the period map failed: {raw['message']}", None)
+        if n_periods == 1:
+            self._last = (x, raw)
+        return raw
+
+    def _monodromy_of(self, x: np.ndarray, raw: dict) -> np.ndarray:
+        """The monodromy (2m, 2m) of the period ``raw`` run from ``x``."""
+        final = _propagate_tangent(self.model, raw, self.h, self.rho_inf, self._start_sensitivity(x))
+        ind = self.independent
+        return np.concatenate([final[0][ind], final[1][ind]])
+
+    def _period_run(self, x: np.ndarray, raw: dict, monodromy: np.ndarray | None, started: float
+                    ) -> PeriodRun:
         # the nominal motion repeats itself up to the crank's whole turns per period
         winding = self.nominal_end[0] - self.nominal_start[0]
         ind = self.independent
-        ends = np.arange(0, self.n_steps * int(n_periods) + 1, self.n_steps)
-        positions = run["s"][ends][:, ind] - (self.nominal_start[0][ind]
+        ends = np.arange(0, raw["s"].shape[0], self.n_steps)
+        positions = raw["s"][ends][:, ind] - (self.nominal_start[0][ind]
                                               + np.outer(np.arange(ends.size), winding[ind]))
-        period_states = np.concatenate([positions, run["sdot"][ends][:, ind] - self.nominal_end[1][ind]],
+        period_states = np.concatenate([positions, raw["sdot"][ends][:, ind] - self.nominal_end[1][ind]],
                                        axis=1)
-        end = period_states[-1]
-        monodromy = None
-        if tangent:
-            if n_periods != 1:
-                raise ArgumentError("`tangent` needs `n_periods` = 1 (the monodromy of one period).")
-            final = _propagate_tangent(self.model, run, self.h, self.rho_inf, self._start_sensitivity(x))
-            monodromy = np.concatenate([final[0][ind], final[1][ind]])
-        return PeriodRun(state=x, end_state=end, monodromy=monodromy, t=run["t"], s=run["s"],
-                         sdot=run["sdot"], period_states=period_states, n_substeps=int(run["n_substeps"]),
+        return PeriodRun(state=x, end_state=period_states[-1], monodromy=monodromy, t=raw["t"], s=raw["s"],
+                         sdot=raw["sdot"], period_states=period_states, n_substeps=int(raw["n_substeps"]),
                          run_time=time.perf_counter() - started)
 
     def warm_up(self) -> None:

@@ -57,6 +57,19 @@ def test_monodromy_matches_finite_differences_of_the_period_map(problem):
     np.testing.assert_allclose(leading, leading_fd, rtol=1e-4)
 
 
+def test_a_period_asked_for_again_from_the_same_state_is_not_run_again(problem):
+    setup = shooting_setup(problem, None, 32)
+    period_map = setup.fine
+    first = period_map.run(setup.guess)
+    again = period_map.run(setup.guess.copy())          # the same state: the same arrays, no new run
+    assert again.s is first.s
+    np.testing.assert_array_equal(again.monodromy, first.monodromy)
+    moved = setup.guess.copy()
+    moved[0] += 1e-9
+    other = period_map.run(moved, tangent=False)
+    assert other.s is not first.s and not np.array_equal(other.end_state, first.end_state)
+
+
 @pytest.mark.slow
 def test_periodic_state_equals_the_end_of_a_long_transient(problem, shot):
     # N = 64 is outside the error estimate's asymptotic range (see test_untrusted_error_estimate_...):

@@ -19,7 +19,7 @@ import sympy as sp
 from scipy.integrate import solve_ivp
 
 import mechanisms
-from mechanisms._simulate import _lu_factor, _lu_solve, SimulationError
+from mechanisms._simulate import _lu_factor, _lu_solve, _lu_solve_rows, SimulationError
 
 G = 9.81
 
@@ -301,6 +301,10 @@ def test_lu_kernels_match_numpy_solve_and_the_pivots_of_A(n):
         x = B[:, j].copy()
         _lu_solve(LU, piv, x)
         np.testing.assert_allclose(x, np.linalg.solve(A, B[:, j]), rtol=0, atol=1e-12)
+    # the tangent's many right-hand sides at once, as the rows of a (k, n) array, by loops
+    rows = B.T.copy(order="C")
+    _lu_solve_rows(LU, piv, rows)
+    np.testing.assert_allclose(rows.T, np.linalg.solve(A, B), rtol=0, atol=1e-12)
 
 
 def test_lu_factor_reports_an_exactly_zero_pivot():
