@@ -14,6 +14,7 @@ Medians of alternating runs, and their ratio (2026-11-30, 2 cores, load about 1.
 from __future__ import annotations
 
 import argparse
+import importlib
 import logging
 import os
 from concurrent.futures import ProcessPoolExecutor
@@ -40,8 +41,9 @@ def blas_threads(pool) -> list[int]:
 
 
 def _worker_threads() -> list[int]:
-    import scipy.linalg  # noqa: F401  (scipy's own OpenBLAS, the one the LAPACK path calls)
     import threadpoolctl
+
+    importlib.import_module("scipy.linalg")  # scipy's own OpenBLAS, the one the LAPACK path calls
 
     return [entry["num_threads"] for entry in threadpoolctl.threadpool_info()
             if entry["user_api"] == "blas"]

@@ -31,11 +31,10 @@ memory, not to predict its minute.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -454,7 +453,7 @@ class _Saved:
     the same options) and, for a grid study partly saved, its ``done`` mask (bool, grid shape)."""
 
     complete: frozenset[str] = frozenset()
-    done: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    done: Mapping[str, np.ndarray] = field(default_factory=dict)
 
 
 def _saved(path: str | os.PathLike | None, problem: Any, runs: Sequence[tuple[str, Any, Any]]) -> _Saved:

@@ -3,6 +3,7 @@ processes are the parallelism); the in-process path keeps the caller's threads."
 
 from __future__ import annotations
 
+import importlib
 import subprocess
 import sys
 
@@ -16,7 +17,7 @@ PINNED_APIS = ("blas", "openmp")
 
 def _thread_pools() -> list[dict]:
     """The thread pools of this process, once scipy's own BLAS is loaded too (a grid point loads it)."""
-    import scipy.linalg  # noqa: F401  (loads scipy's OpenBLAS beside numpy's)
+    importlib.import_module("scipy.linalg")  # loads scipy's own OpenBLAS beside numpy's
 
     return threadpoolctl.threadpool_info()
 
