@@ -34,7 +34,7 @@ from __future__ import annotations
 import logging
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -191,25 +191,48 @@ def _solve_seconds(n_steps: int, sizes: _Sizes, frozen: int = 0) -> float:
 
 def _grid(name: str, problem: Any, axes: Sequence[tuple[str, np.ndarray]], n_steps: int, *,
           frozen: int = 0, point_doubles: Callable[[_Sizes], float] = lambda s: 4.0 * s.m,
-          workers: int = 1, words: Sequence[str]) -> Estimate:
+          workers: int = 1, words: Sequence[str], done: np.ndarray | None = None) -> Estimate:
     """A grid study over ``axes``: one periodic solve per point; one speed family per combination of
-    the other parameters' values when the speed is an axis, else one linearisation per combination."""
+    the other parameters' values when the speed is an axis, else one linearisation per combination.
+    ``done``: the points already saved (bool, grid shape), neither solved nor linearised again."""
     sizes = _largest_sizes(problem, axes)
-    points = math.prod(len(grid) for _, grid in axes)
-    variants = math.prod(len(np.unique(grid)) for parameter, grid in axes if parameter != SPEED)
+    total = math.prod(len(grid) for _, grid in axes)
+    shape = tuple(len(grid) for _, grid in axes)
+    if done is None or np.shape(done) != shape:  # no mask is allocated for a grid not yet started
+        points = total
+        variants = math.prod(len(np.unique(grid)) for parameter, grid in axes if parameter != SPEED)
+        left = []
+    else:
+        todo = ~np.asarray(done, dtype=bool)
+        points = int(np.count_nonzero(todo))
+        variants = _variants(axes, todo)
+        left = [f"{points} of {total} points left"]
     family = FAMILY_FACTOR if any(parameter == SPEED for parameter, _ in axes) else 1.0
     build_bytes, build_seconds = _linearisation(n_steps, sizes)
-    held = HELD_DOUBLES * (min(variants, CACHED_FAMILIES) - 1)
+    held = HELD_DOUBLES * (min(max(variants, 1), CACHED_FAMILIES) - 1)
     peak = (FAMILY_DOUBLES if family > 1.0 else LINEARISATION_DOUBLES) + held
     parallel = max(1, min(workers, points))
     per_process = 8.0 * peak * (n_steps + 1) * sizes.n**2
-    results = 8.0 * points * point_doubles(sizes)  # the collected arrays, kept in the main process
+    # the collected arrays of every point (the saved ones are read back), kept in the main process
+    results = 8.0 * total * point_doubles(sizes)
     # each worker process builds the linearisations its points need (a speed family once per process)
-    seconds = (STUDY_SECONDS + variants * family * build_seconds / min(parallel, variants)
+    seconds = (STUDY_SECONDS + variants * family * build_seconds / max(1, min(parallel, variants))
                + points * _solve_seconds(n_steps, sizes, frozen) / parallel)
     memory = per_process * parallel + results
     return Estimate(name, memory, seconds, " x ".join(list(words) + [f"{n_steps} steps",
-                                                                      f"{sizes.m} coordinates"]))
+                                                                      f"{sizes.m} coordinates"])
+                    + "".join(f" ({note})" for note in left))
+
+
+def _variants(axes: Sequence[tuple[str, np.ndarray]], todo: np.ndarray) -> int:
+    """Distinct combinations of the values of the axes other than the speed among the points
+    ``todo`` (bool, grid shape): each needs a linearisation (a speed family) of its own."""
+    where = np.nonzero(todo)
+    columns = [np.asarray(grid, dtype=float)[where[axis]] for axis, (parameter, grid) in enumerate(axes)
+               if parameter != SPEED]
+    if not columns:
+        return min(1, where[0].size)
+    return len(np.unique(np.stack(columns, axis=1), axis=0))
 
 
 def _axis_words(parameter: str, grid: np.ndarray) -> str:
@@ -259,25 +282,25 @@ def _reduction_reference_sizes(problem: Any, values: Mapping[str, float]) -> _Si
     return _Sizes(n=model.n_coords, m=model.n_coords - model.n_constraints)
 
 
-def _sweep(name, problem, options, workers):
+def _sweep(name, problem, options, workers, done=None):
     axis = (options["parameter"], np.asarray(options["values"]))
-    found = _grid(name, problem, [axis], options["n_steps"], workers=workers, frozen=32,
+    found = _grid(name, problem, [axis], options["n_steps"], workers=workers, frozen=32, done=done,
                   point_doubles=lambda s: 8.0 * s.m + 4.0, words=[_axis_words(*axis)])
     return _with_reduction_check(found, problem, {}, options["n_steps"])
 
 
-def _campbell(name, problem, options, workers):
+def _campbell(name, problem, options, workers, done=None):
     axis = (SPEED, np.asarray(options["speeds"]))
     frozen = options["frozen_samples"]
-    found = _grid(name, problem, [axis], options["n_steps"], frozen=frozen, workers=workers,
+    found = _grid(name, problem, [axis], options["n_steps"], frozen=frozen, workers=workers, done=done,
                   point_doubles=lambda s: (frozen + s.m + 8.0) * s.m,
                   words=[_axis_words(*axis), f"{frozen} frozen samples"])
     return _with_reduction_check(found, problem, {}, options["n_steps"])
 
 
-def _stability_chart(name, problem, options, workers):
+def _stability_chart(name, problem, options, workers, done=None):
     axes = [(parameter, np.asarray(grid)) for parameter, grid in (options["first"], options["second"])]
-    found = _grid(name, problem, axes, options["n_steps"], workers=workers,
+    found = _grid(name, problem, axes, options["n_steps"], workers=workers, done=done,
                   point_doubles=lambda s: 4.0 * s.m + 4.0, words=[_axis_words(*axis) for axis in axes])
     return _with_reduction_check(found, problem, {}, options["n_steps"])
 
@@ -411,41 +434,93 @@ _MODELS: dict[str, Callable[[str, Any, Mapping[str, Any], int], Estimate]] = {
 
 
 def estimate(problem: Any, kind: str, options: Mapping[str, Any], *, name: str | None = None,
-             workers: int = 1) -> Estimate:
+             workers: int = 1, done: np.ndarray | None = None) -> Estimate:
     """The estimated cost of one study of ``kind`` with checked ``options`` (what ``studies._plan.plan``
-    returns for it) on ``problem``, with ``workers`` processes for a grid study."""
+    returns for it) on ``problem``, with ``workers`` processes for a grid study; ``done`` (bool, the
+    grid's shape; grid studies only): the points already saved, which a resumed run reads back."""
     model = _MODELS.get(kind)
     if model is None:
         n_steps = options.get("n_steps", 256)
         return _steady_state(name or kind, problem, {"values": options.get("values") or {},
                                                      "n_steps": n_steps}, workers)
-    return model(name or kind, problem, options, max(1, int(workers)))
+    saved = {} if done is None else {"done": done}  # only the grid models take it
+    return model(name or kind, problem, options, max(1, int(workers)), **saved)
+
+
+@dataclass(frozen=True)
+class _Saved:
+    """What a result file already holds of the declared runs: the names of those ``complete`` (with
+    the same options) and, for a grid study partly saved, its ``done`` mask (bool, grid shape)."""
+
+    complete: frozenset[str] = frozenset()
+    done: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+
+def _saved(path: str | os.PathLike | None, problem: Any, runs: Sequence[tuple[str, Any, Any]]) -> _Saved:
+    """What the result file ``path`` holds of ``runs`` (``(name, kind, options)``), judged as
+    ``studies._plan.run_plan`` judges it: the file's scene identity must be this problem's (else the
+    run refuses the file), and a study's ``request_hash`` the digest of its options; nothing for a
+    missing or unreadable file (the run reports those)."""
+    if path is None or not os.path.isfile(path):
+        return _Saved()
+    import h5py
+
+    from ._plan import scene_identity
+    from ._store import digest
+
+    complete, done = set(), {}
+    try:
+        with h5py.File(path, "r", locking=False) as handle:  # the last commit; a run may be writing
+            if handle.attrs.get("scene_hash") != digest(scene_identity(problem)):
+                return _Saved()
+            for name, kind, options in runs:
+                group = handle.get(name)
+                if group is None or group.attrs.get("request_hash") != digest(options):
+                    continue
+                if group.attrs.get("complete"):
+                    complete.add(name)
+                elif kind.grid and "done" in group:
+                    done[name] = np.asarray(group["done"][()], dtype=bool)
+    except OSError:  # not HDF5, unreadable: the result file's own checks say so
+        return _Saved()
+    return _Saved(frozenset(complete), done)
 
 
 def guard(problem: Any, studies: Mapping[str, Mapping[str, Any]], *, force: bool = False,
-          workers: int = 1) -> list[Estimate]:
+          workers: int = 1, result_file: str | os.PathLike | None = None) -> list[Estimate]:
     """Estimate every declared study (``{kind: options}`` as ``plan`` returns them, each of the runs
     it declares) and raise :class:`ResourceError` for the first above the memory or time limit, or
     when all together exceed the time limit; ``force=True`` logs the estimates and raises nothing.
     Also builds the scene at the ends of every axis, so that a value it cannot take is refused (a
-    ``MechanismError``) before anything is written. Returns the estimates."""
+    ``MechanismError``) before anything is written. Returns the estimates.
+
+    ``result_file``: the file the run will resume (None for a new file or one started afresh). A
+    study it holds complete with the same options is skipped by the run, so it is neither estimated
+    nor refused (a run started with ``--force`` resumes without it); a grid study partly saved is
+    estimated for its missing points only."""
     from ._kinds import KINDS
 
     limit_memory, limit_time = memory_limit(), TIME_LIMIT
     limits = f"limits {format_bytes(limit_memory)}, {format_seconds(limit_time)}"
     advice = "pass --force (force=True from Python) to run anyway"
+    runs = [(kind + suffix, KINDS[kind], each) for kind, options in studies.items()
+            for suffix, each in KINDS[kind].runs(options).items()]
+    saved = _saved(result_file, problem, runs)
     estimates = []
-    for kind, options in studies.items():
-        for suffix, each in KINDS[kind].runs(options).items():
-            found = estimate(problem, kind, each, name=kind + suffix, workers=workers)
-            over = found.memory > limit_memory or found.time > limit_time
-            if over and not force:
-                raise ResourceError(f"{found.describe()}; {limits}; {advice}")
-            if over:
-                logger.warning("%s; %s; running anyway (--force)", found.describe(), limits)
-            else:
-                logger.debug("%s", found.describe())
-            estimates.append(found)
+    for name, study_kind, each in runs:
+        if name in saved.complete:
+            logger.debug("%s: complete in %s, not estimated", name, result_file)
+            continue
+        found = estimate(problem, study_kind.name, each, name=name, workers=workers,
+                         done=saved.done.get(name))
+        over = found.memory > limit_memory or found.time > limit_time
+        if over and not force:
+            raise ResourceError(f"{found.describe()}; {limits}; {advice}")
+        if over:
+            logger.warning("%s; %s; running anyway (--force)", found.describe(), limits)
+        else:
+            logger.debug("%s", found.describe())
+        estimates.append(found)
     total = sum(found.time for found in estimates)
     if not force and total > limit_time:
         raise ResourceError(f"all studies together: about {format_seconds(total)} estimated "

@@ -246,14 +246,17 @@ def _scenes(args: argparse.Namespace) -> int:
 
 
 def load_scene(scene: str, sets: Sequence[tuple[str, Any]] = (), *, only: Sequence[str] | None = None,
-               force: bool = False, workers: int = 1) -> tuple[Any, dict[str, Any]]:
+               force: bool = False, workers: int = 1, result_file: str | Path | None = None
+               ) -> tuple[Any, dict[str, Any]]:
     """``(problem, [studies] table)`` of a built-in scene name or a .toml path, with the ``--set``
     values ``(path, value)`` of ``sets`` applied before the scene is checked, and only the studies
     named in ``only`` (all when None).
 
     A scene without a ``[studies]`` table gets the default studies; an empty one is an error that
     lists the study kinds. Unless ``force``, the resource guard (``studies.guard``) then refuses a
-    study whose estimated memory or time (with ``workers`` processes) is above its limits.
+    study whose estimated memory or time (with ``workers`` processes) is above its limits; studies
+    already complete in ``result_file`` (the file the run resumes) are not estimated, a grid study
+    partly saved there only for its missing points.
     """
     from ._guard import guard
     from ._mechanism import MechanismProblem
@@ -283,7 +286,7 @@ def load_scene(scene: str, sets: Sequence[tuple[str, Any]] = (), *, only: Sequen
         problem = MechanismProblem.from_mechanism(mechanism, parameter_paths=parameters_needed(declared),
                                                   observables=common["observables"])
     declared = select_studies(declared, only)
-    guard(problem, declared, force=force, workers=workers)
+    guard(problem, declared, force=force, workers=workers, result_file=result_file)
     return problem, declared
 
 
@@ -348,9 +351,10 @@ def _run_studies(args: argparse.Namespace) -> int:
     from ._kinds import kind_of
     from ._plan import run_plan
 
-    problem, declared = load_scene(args.scene, args.sets, only=args.only, force=args.force,
-                                   workers=args.jobs)
     out = args.out or Path(f"{Path(args.scene).stem}.h5")
+    # a run started with --force resumes without it: what the file holds complete is not estimated
+    problem, declared = load_scene(args.scene, args.sets, only=args.only, force=args.force,
+                                   workers=args.jobs, result_file=None if args.overwrite else out)
     executor, client = _executor(args)
     finished = False
     try:
