@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import logging
 import math
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
@@ -59,7 +58,7 @@ def bench_charts(n_speeds, n_values, repeats):
     print(f"1. stability charts, {n_speeds} speeds x {n_values} values = {cells} cells, "
           f"{N_STEPS} steps, 2 processes (medians of {repeats}); scaled to {TARGET_CELLS} cells "
           f"(x {scale:g})")
-    with ProcessPoolExecutor(2) as pool:
+    with studies.process_pool(2) as pool:
         for scene in CHARTS:  # warm every worker's JIT cache and imports
             chart_time(scene, 4, 2, pool, 1)
         measured = {scene: chart_time(scene, n_speeds, n_values, pool, repeats) for scene in CHARTS}

@@ -25,7 +25,6 @@ import argparse
 import logging
 import statistics
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
@@ -67,7 +66,7 @@ def bench_sweep(count, repeats):
 
     def pooled():
         clear_caches()
-        with ProcessPoolExecutor(2) as pool:
+        with studies.process_pool(2) as pool:
             return studies.sweep(problem, "speed", speeds, n_steps=256, executor=pool)
 
     def baseline():
@@ -96,7 +95,7 @@ def bench_chart(count, repeats):
 
     def pooled():
         clear_caches()
-        with ProcessPoolExecutor(2) as pool:
+        with studies.process_pool(2) as pool:
             return studies.stability_chart(problem, ("speed", speeds), ("links.coupler.thickness", thickness),
                                            n_steps=128, executor=pool)
 
