@@ -144,8 +144,9 @@ class _Recording:
 class ShootingSetup:
     """The linear start of a shooting at one parameter point (package-internal, shared by the
     nonlinear studies): ``linear`` the ``studies.Linear``, ``steady`` its steady state, ``fine`` and
-    ``coarse`` the ``mechanisms.PeriodMap`` on N and N/2 steps, ``guess`` (2m,) the linear periodic
-    state as a shooting state (coordinates, then rates, SI), ``run_time`` s of the linear start."""
+    ``coarse`` the ``mechanisms.PeriodMap`` on N and N/2 steps, ``guess`` (2m + L,) the linear periodic
+    state as a shooting state (coordinates, then rates, SI, then the L lag states, N m), ``run_time`` s
+    of the linear start."""
 
     linear: Any
     steady: Any
@@ -181,8 +182,11 @@ def shooting_setup(problem: Any, values: Mapping[str, float] | None, n_steps: in
                                 nominal=lin.nominal)
     coarse = mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps // 2, independent=fine.independent,
                                   nominal=lin.nominal)
-    # the linear periodic state on the constraints (with the axial shortening of stiffened links)
-    guess = fine.state_of(*lin.start_state(steady.state.x[0], steady.state.v[0]))
+    # the linear periodic state on the constraints (with the axial shortening of stiffened links); the
+    # lagged controllers' states are the linear coordinates' last L entries (linearize: lag.<name>)
+    start = steady.state.x[0]
+    guess = fine.state_of(*lin.start_state(start, steady.state.v[0]),
+                          lag_states=start[start.size - fine.n_lags:])
     return ShootingSetup(linear, steady, fine, coarse, guess, time.perf_counter() - started)
 
 
