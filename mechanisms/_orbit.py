@@ -39,8 +39,8 @@ import numpy as np
 
 from ._kinematics import ConvergenceError
 from ._parts import ArgumentError
-from ._simulate import (SimulationError, _consistent_accelerations, _integrate, _propagate_tangent,
-                        _resolve_model)
+from ._simulate import (SimulationError, _consistent_accelerations, _integrate, _lag_force,
+                        _propagate_tangent, _resolve_model)
 
 __all__ = ["PeriodMap", "PeriodRun"]
 
@@ -200,13 +200,15 @@ class PeriodMap:
             [[M, Phi_s^T], [Phi_s, 0]] [d sddot; d lam] = [-K dq - D dv; d(gamma - Phi_s sddot)].
 
         The two derivatives of the constraints' second-order terms are central differences along
-        the 2m directions (no Newton solves). The lag states' columns are zero: y moves neither the
-        positions nor the rates, and the integrator's start accelerations leave out the lag force."""
+        the 2m directions (no Newton solves). The lag states move neither the positions nor the
+        rates; their force ``H^T y`` enters the start's index-1 equations (as in ``_integrate``), so
+        their columns are ``[d sddot; d lam] = [[M, Phi_s^T], [Phi_s, 0]]^-1 [H^T; 0]``."""
         from ._batch import linear_terms_along
 
         model, ind, dep, m = self.model, self.independent, self.dependent, self.independent.size
         s, sdot = self.start_state(x)
-        sddot, lam = _consistent_accelerations(model, s, sdot, 0.0)
+        lags = self.lag_states_of(x)
+        sddot, lam = _consistent_accelerations(model, s, sdot, 0.0, _lag_force(model, lags))
         terms = linear_terms_along(model, np.zeros(1), s[None], sdot[None], sddot[None], lam[None])
         Phi_s = terms.jacobian[0]
         n = s.size
@@ -237,9 +239,13 @@ class PeriodMap:
         augmented = np.zeros((n + r, n + r))
         augmented[:n, :n], augmented[:n, n:], augmented[n:, :n] = terms.mass[0], Phi_s.T, Phi_s
         rhs = np.concatenate([-(terms.stiffness[0] @ dq + terms.damping[0] @ dv), rhs_constraints])
-        dsddot = np.linalg.solve(augmented, rhs)[:n]
-        start = np.stack([dq, dv, dsddot, dsddot])
-        return np.concatenate([start, np.zeros((4, n, self.n_lags))], axis=2)
+        lag_rhs = np.zeros((n + r, lags.size))
+        if lags.size:
+            lag_rhs[:n] = np.asarray(model.lag_gradients, dtype=np.float64).T
+        dsddot = np.linalg.solve(augmented, np.concatenate([rhs, lag_rhs], axis=1))[:n]
+        zeros = np.zeros((n, lags.size))
+        dq, dv = np.concatenate([dq, zeros], axis=1), np.concatenate([dv, zeros], axis=1)
+        return np.stack([dq, dv, dsddot, dsddot])
 
     # --- one period ---------------------------------------------------------------------------------
     def run(self, x: np.ndarray, *, tangent: bool = True, n_periods: int = 1) -> PeriodRun:

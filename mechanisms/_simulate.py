@@ -461,8 +461,17 @@ def _initial_state(model, nominal, s0, sdot0, t0: float):
     return s_start, v_start
 
 
-def _consistent_accelerations(model, q, v, t):
-    """Solve ``[[M, Phi_s^T], [Phi_s, 0]] [sddot; lam] = [Q; gamma]`` (the index-1 form at ``t``)."""
+def _lag_force(model, lag_states):
+    """``sum_i h_i y_i`` (n,), the force of the lagged controllers' states ``y`` (L,) N m on the
+    coordinates, or None with the lags at rest (``y = 0``: the force is zero)."""
+    if not np.any(lag_states):
+        return None
+    return np.asarray(lag_states, dtype=np.float64) @ np.asarray(model.lag_gradients, dtype=np.float64)
+
+
+def _consistent_accelerations(model, q, v, t, lag_force=None):
+    """Solve ``[[M, Phi_s^T], [Phi_s, 0]] [sddot; lam] = [Q; gamma]`` (the index-1 form at ``t``);
+    ``lag_force`` (n,), the lagged controllers' ``H^T y``, is added to ``Q`` when given."""
     n = q.shape[0]
     r = int(model.n_constraints)
     A = np.zeros((n + r, n + r))
@@ -470,7 +479,10 @@ def _consistent_accelerations(model, q, v, t):
     Phi_s = np.asarray(model.constraint_jacobian(q, t), dtype=np.float64)
     A[:n, n:] = Phi_s.T
     A[n:, :n] = Phi_s
-    b = np.concatenate([model.forces(q, v, t), model.constraint_gamma(q, v, t)])
+    forces = model.forces(q, v, t)
+    if lag_force is not None:
+        forces = forces + lag_force
+    b = np.concatenate([forces, model.constraint_gamma(q, v, t)])
     cond = np.linalg.cond(A)
     if not np.isfinite(cond) or cond > 1e13:
         raise ArgumentError(f"the augmented mass matrix at t = {t} s is singular (condition number "
@@ -916,7 +928,8 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
     L = np.empty((n_steps + 1, r))
     residual = np.empty(n_steps + 1)
 
-    sddot0, lam0 = _consistent_accelerations(model, q0, v0, t0)
+    sddot0, lam0 = _consistent_accelerations(model, q0, v0, t0,
+                                             None if stepper.lags is None else _lag_force(model, stepper.lags.y))
     S[0], V[0], A[0], L[0] = q0, v0, sddot0, lam0
     residual[0] = np.max(np.abs(model.constraints(q0, t0)), initial=0.0)
 
