@@ -123,8 +123,8 @@ class PeriodMap:
         self.dependent = np.setdiff1d(np.arange(n), self.independent)
         labels = tuple(getattr(self.model, "coord_labels", ()))
         self.lag_names = tuple(getattr(self.model, "lag_names", ()))
-        self.labels = (tuple(labels[i] for i in self.independent) if labels else ()) + tuple(
-            f"lag.{name}" for name in self.lag_names)
+        self._coordinate_labels = tuple(labels[i] for i in self.independent) if labels else ()
+        self.labels = self._coordinate_labels + tuple(f"lag.{name}" for name in self.lag_names)
         self.length_scale = max(1.0, float(np.abs(self.nominal_start[0]).max()))
         self._options = (self.rho_inf, float(tol) * self.length_scale, 20, True, int(max_step_halvings),
                          self.length_scale, False)
@@ -162,7 +162,7 @@ class PeriodMap:
         if x.shape != (self.n_state,) or not np.all(np.isfinite(x)):
             lags = f", then the lag states {list(self.lag_names)}" if self.n_lags else ""
             raise ArgumentError(f"the shooting state must be {self.n_state} finite numbers (deviations "
-                                f"of {self.labels[:self.independent.size] or 'the independent coordinates'}"
+                                f"of {self._coordinate_labels or 'the independent coordinates'}"
                                 f" and their rates{lags}); got shape {x.shape}.")
         return x
 
@@ -183,7 +183,7 @@ class PeriodMap:
             raise ConvergenceError(
                 f"no configuration satisfies the constraints with this shooting state (residual "
                 f"{np.abs(phi).max():.3g} after 30 Newton steps on the dependent coordinates): the "
-                f"deviation of {self.labels} is too large for the linkage")
+                f"deviation of {self._coordinate_labels} is too large for the linkage")
         jacobian = np.asarray(model.constraint_jacobian(s, 0.0), dtype=np.float64)
         sdot[ind] += x[m:2 * m]
         rhs = -np.asarray(model.constraint_rate(s, 0.0)) - jacobian[:, ind] @ sdot[ind]

@@ -928,8 +928,9 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
     L = np.empty((n_steps + 1, r))
     residual = np.empty(n_steps + 1)
 
-    sddot0, lam0 = _consistent_accelerations(model, q0, v0, t0,
-                                             None if stepper.lags is None else _lag_force(model, stepper.lags.y))
+    # the lags' force at t0 is part of Q in the index-1 equations, as in every step's
+    start_force = None if stepper.lags is None else _lag_force(model, stepper.lags.y)
+    sddot0, lam0 = _consistent_accelerations(model, q0, v0, t0, start_force)
     S[0], V[0], A[0], L[0] = q0, v0, sddot0, lam0
     residual[0] = np.max(np.abs(model.constraints(q0, t0)), initial=0.0)
 

@@ -93,7 +93,7 @@ class NonlinearSteadyState(Result):
     settings: Mapping[str, Any] = field(default_factory=dict)
 
     _units = {"t": "s", "crank_angle": "rad", "x": "SI (see labels)", "response": "@observables",
-              "linear_response": "@observables", "state": "SI (coordinates, their rates, lag states: see labels)",
+              "linear_response": "@observables", "state": "SI (see labels: coordinates, rates, lags)",
               "multipliers": "1", "multiplier_errors": "1"}
 
     @property
