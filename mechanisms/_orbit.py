@@ -19,6 +19,12 @@ Each period starts afresh from a consistent state (alpha acceleration ``a_0 = sd
 point is the periodic orbit of the discrete scheme to its O(h^2) error, which the N against N/2
 estimate measures.
 
+Lagged controllers (``tau y' + y = u``, ``_simulate._Lags``): their L states ``y`` (N m) are part of
+the orbit, so the shooting state becomes ``x = (z, z', y)`` (2m + L,), the run starts them at ``y``
+and the monodromy (2m + L, 2m + L) carries ``d y`` through each step (``_propagate_tangent``). ``y``
+does not move the start's positions and rates; it enters the start's accelerations through the lag
+force ``H^T y`` as the integrator's start does (``_start_sensitivity``).
+
 A period asked for again from the same state (the observables of the orbit a shooting has just found
 at its last map call) is not run again.
 """
@@ -33,8 +39,8 @@ import numpy as np
 
 from ._kinematics import ConvergenceError
 from ._parts import ArgumentError
-from ._simulate import (SimulationError, _consistent_accelerations, _integrate, _propagate_tangent,
-                        _resolve_model)
+from ._simulate import (SimulationError, _consistent_accelerations, _integrate, _lag_force,
+                        _propagate_tangent, _resolve_model)
 
 __all__ = ["PeriodMap", "PeriodRun"]
 
@@ -47,12 +53,13 @@ _START_STEP = 1.0e-5
 class PeriodRun:
     """One period of the nonlinear model from a shooting state.
 
-    ``state`` (2m,) and ``end_state`` (2m,): the deviations ``(z, z')`` at t = 0 and t = T (m or rad,
-    per s); ``monodromy`` (2m, 2m) d end_state / d state (None when not asked for); ``t`` (N+1,) s,
-    ``s``, ``sdot`` (k N + 1, n) the full coordinates and rates over the k periods run;
-    ``period_states`` (k + 1, 2m) the shooting state at t = 0, T, ..., k T; ``n_substeps`` steps the
-    integrator had to subdivide (then the monodromy is that of the uniform grid's steps only, an
-    approximation); ``run_time`` s.
+    ``state`` (2m + L,) and ``end_state`` (2m + L,): the deviations ``(z, z')`` at t = 0 and t = T (m
+    or rad, per s), followed by the L lag states ``y`` (N m; L = 0 without lagged controllers);
+    ``monodromy`` (2m + L, 2m + L) d end_state / d state (None when not asked for); ``t`` (k N + 1,)
+    s, ``s``, ``sdot`` (k N + 1, n) the full coordinates and rates over the k periods run,
+    ``lag_states`` (k N + 1, L) N m; ``period_states`` (k + 1, 2m + L) the shooting state at t = 0,
+    T, ..., k T; ``n_substeps`` steps the integrator had to subdivide (then the monodromy is that of
+    the uniform grid's steps only, an approximation); ``run_time`` s.
     """
 
     state: np.ndarray
@@ -64,6 +71,7 @@ class PeriodRun:
     period_states: np.ndarray
     n_substeps: int
     run_time: float
+    lag_states: np.ndarray | None = None
 
 
 class PeriodMap:
@@ -75,6 +83,8 @@ class PeriodMap:
     (``linearize.about(...).coefficients.independent``) to shoot in its coordinates. ``rho_inf``,
     ``tol``, ``max_step_halvings``: the integrator's (``mechanisms.simulate``). ``nominal``: the
     mechanism's ``NominalMotion`` if already computed (only its samples at t = 0 and T are used).
+    With lagged controllers the shooting state ends with their L states ``y`` (N m) at t = 0, and
+    ``labels`` with their names (``lag.<controller>``, as ``linearize`` labels them).
 
     Calling it, ``period_map(x, parameter=None) -> (end_state, monodromy)``, is the ``PeriodMap``
     of ``periodic.find_orbit`` (the parameter is fixed by the mechanism and ignored).
@@ -90,11 +100,6 @@ class PeriodMap:
                                 f"got {rho_inf!r}.")
         self.model, self.mechanism, computed = _resolve_model(system, need_nominal=nominal is None)
         nominal = computed if nominal is None else nominal
-        lags = tuple(getattr(self.model, "lag_names", ()))
-        if lags:
-            raise ArgumentError(f"`system`: the controllers {list(lags)} have a lag, whose states the "
-                                "period map does not carry (its state is the mechanism's); use the "
-                                "linear steady state, or set their `lag` to 0.")
         if nominal is None:
             raise ArgumentError("`system` must be a mechanisms.Mechanism (or a model assembled from "
                                 "one): the period map shoots about its nominal rigid motion.")
@@ -117,32 +122,55 @@ class PeriodMap:
                                 f"coordinates (the degrees of freedom); got {self.independent.size}.")
         self.dependent = np.setdiff1d(np.arange(n), self.independent)
         labels = tuple(getattr(self.model, "coord_labels", ()))
-        self.labels = tuple(labels[i] for i in self.independent) if labels else ()
+        self.lag_names = tuple(getattr(self.model, "lag_names", ()))
+        self._coordinate_labels = tuple(labels[i] for i in self.independent) if labels else ()
+        self.labels = self._coordinate_labels + tuple(f"lag.{name}" for name in self.lag_names)
         self.length_scale = max(1.0, float(np.abs(self.nominal_start[0]).max()))
         self._options = (self.rho_inf, float(tol) * self.length_scale, 20, True, int(max_step_halvings),
                          self.length_scale, False)
         self._last: tuple[np.ndarray, dict] | None = None    # the last period: its state, the arrays
 
     @property
+    def n_lags(self) -> int:
+        """L, the number of lagged controllers (their states end the shooting state)."""
+        return len(self.lag_names)
+
+    @property
     def n_state(self) -> int:
-        """2m, the size of the shooting state."""
-        return 2 * self.independent.size
+        """2m + L, the size of the shooting state."""
+        return 2 * self.independent.size + self.n_lags
 
     # --- states ----------------------------------------------------------------------------------------
-    def state_of(self, s: np.ndarray, sdot: np.ndarray, *, at_end: bool = False) -> np.ndarray:
-        """The shooting state ``(z, z')`` (2m,) of full coordinates and rates (n,) at t = 0 (or T)."""
+    def state_of(self, s: np.ndarray, sdot: np.ndarray, *, at_end: bool = False,
+                 lag_states: np.ndarray | None = None) -> np.ndarray:
+        """The shooting state ``(z, z', y)`` (2m + L,) of full coordinates and rates (n,) at t = 0
+        (or T) and the lag states ``lag_states`` (L,) N m (default 0, the lags at rest)."""
         s_nom, sdot_nom = self.nominal_end if at_end else self.nominal_start
         ind = self.independent
-        return np.concatenate([s[ind] - s_nom[ind], sdot[ind] - sdot_nom[ind]])
+        lags = np.zeros(self.n_lags) if lag_states is None else np.asarray(lag_states, dtype=np.float64)
+        if lags.shape != (self.n_lags,):
+            raise ArgumentError(f"`lag_states` must have shape ({self.n_lags},) (one per lagged controller "
+                                f"{list(self.lag_names)}); got shape {lags.shape}.")
+        return np.concatenate([s[ind] - s_nom[ind], sdot[ind] - sdot_nom[ind], lags])
+
+    def lag_states_of(self, x: np.ndarray) -> np.ndarray:
+        """The lag states ``y`` (L,) N m of the shooting state ``x`` (2m + L,): its last L entries."""
+        return np.array(self._checked(x)[2 * self.independent.size:])
+
+    def _checked(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        if x.shape != (self.n_state,) or not np.all(np.isfinite(x)):
+            lags = f", then the lag states {list(self.lag_names)}" if self.n_lags else ""
+            raise ArgumentError(f"the shooting state must be {self.n_state} finite numbers (deviations "
+                                f"of {self._coordinate_labels or 'the independent coordinates'}"
+                                f" and their rates{lags}); got shape {x.shape}.")
+        return x
 
     def start_state(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Full coordinates and rates (n,) at t = 0 that satisfy the position and velocity
-        constraints, with the independent ones ``x`` (2m,) away from the nominal motion."""
-        x = np.asarray(x, dtype=np.float64)
-        if x.shape != (self.n_state,) or not np.all(np.isfinite(x)):
-            raise ArgumentError(f"the shooting state must be {self.n_state} finite numbers (deviations "
-                                f"of {self.labels or 'the independent coordinates'} and their rates); "
-                                f"got shape {x.shape}.")
+        constraints, with the independent ones ``x[:2m]`` away from the nominal motion (the lag
+        states ``x[2m:]``: ``lag_states_of``)."""
+        x = self._checked(x)
         m, ind, dep, model = self.independent.size, self.independent, self.dependent, self.model
         s, sdot = self.nominal_start[0].copy(), self.nominal_start[1].copy()
         s[ind] += x[:m]
@@ -155,15 +183,15 @@ class PeriodMap:
             raise ConvergenceError(
                 f"no configuration satisfies the constraints with this shooting state (residual "
                 f"{np.abs(phi).max():.3g} after 30 Newton steps on the dependent coordinates): the "
-                f"deviation of {self.labels} is too large for the linkage")
+                f"deviation of {self._coordinate_labels} is too large for the linkage")
         jacobian = np.asarray(model.constraint_jacobian(s, 0.0), dtype=np.float64)
-        sdot[ind] += x[m:]
+        sdot[ind] += x[m:2 * m]
         rhs = -np.asarray(model.constraint_rate(s, 0.0)) - jacobian[:, ind] @ sdot[ind]
         sdot[dep] = np.linalg.solve(jacobian[:, dep], rhs)
         return s, sdot
 
     def _start_sensitivity(self, x: np.ndarray) -> np.ndarray:
-        """``Y_0`` (4, n, 2m): d(q, v, a, sddot)/dx of the integrator's start.
+        """``Y_0`` (4, n, 2m + L): d(q, v, a, sddot)/dx of the integrator's start.
 
         Positions: ``dq = V0 dz`` with ``V0`` the null-space basis ``[I; -Phi_d^-1 Phi_i]`` of the
         constraint Jacobian. Rates: ``dv = V0 dz' - [0; Phi_d^-1 (d/dq (Phi_s v + Phi_t)) V0 dz]``.
@@ -172,12 +200,15 @@ class PeriodMap:
             [[M, Phi_s^T], [Phi_s, 0]] [d sddot; d lam] = [-K dq - D dv; d(gamma - Phi_s sddot)].
 
         The two derivatives of the constraints' second-order terms are central differences along
-        the 2m directions (no Newton solves)."""
+        the 2m directions (no Newton solves). The lag states move neither the positions nor the
+        rates; their force ``H^T y`` enters the start's index-1 equations (as in ``_integrate``), so
+        their columns are ``[d sddot; d lam] = [[M, Phi_s^T], [Phi_s, 0]]^-1 [H^T; 0]``."""
         from ._batch import linear_terms_along
 
         model, ind, dep, m = self.model, self.independent, self.dependent, self.independent.size
         s, sdot = self.start_state(x)
-        sddot, lam = _consistent_accelerations(model, s, sdot, 0.0)
+        lags = self.lag_states_of(x)
+        sddot, lam = _consistent_accelerations(model, s, sdot, 0.0, _lag_force(model, lags))
         terms = linear_terms_along(model, np.zeros(1), s[None], sdot[None], sddot[None], lam[None])
         Phi_s = terms.jacobian[0]
         n = s.size
@@ -208,12 +239,17 @@ class PeriodMap:
         augmented = np.zeros((n + r, n + r))
         augmented[:n, :n], augmented[:n, n:], augmented[n:, :n] = terms.mass[0], Phi_s.T, Phi_s
         rhs = np.concatenate([-(terms.stiffness[0] @ dq + terms.damping[0] @ dv), rhs_constraints])
-        dsddot = np.linalg.solve(augmented, rhs)[:n]
+        lag_rhs = np.zeros((n + r, lags.size))
+        if lags.size:
+            lag_rhs[:n] = np.asarray(model.lag_gradients, dtype=np.float64).T
+        dsddot = np.linalg.solve(augmented, np.concatenate([rhs, lag_rhs], axis=1))[:n]
+        zeros = np.zeros((n, lags.size))
+        dq, dv = np.concatenate([dq, zeros], axis=1), np.concatenate([dv, zeros], axis=1)
         return np.stack([dq, dv, dsddot, dsddot])
 
     # --- one period ---------------------------------------------------------------------------------
     def run(self, x: np.ndarray, *, tangent: bool = True, n_periods: int = 1) -> PeriodRun:
-        """Integrate ``n_periods`` periods from the shooting state ``x`` (2m,); the end state and (with
+        """Integrate ``n_periods`` periods from the shooting state ``x`` (2m + L,); the end state and (with
         ``tangent``, one period only) the monodromy. Raises ``mechanisms.SimulationError`` when the
         integrator fails."""
         started = time.perf_counter()
@@ -230,7 +266,8 @@ class PeriodMap:
         if n_periods == 1 and self._last is not None and np.array_equal(self._last[0], x):
             return self._last[1]
         s0, sdot0 = self.start_state(x)
-        raw = _integrate(self.model, s0, sdot0, 0.0, self.h, self.n_steps * n_periods, *self._options)
+        raw = _integrate(self.model, s0, sdot0, 0.0, self.h, self.n_steps * n_periods, *self._options,
+                         lag0=self.lag_states_of(x) if self.n_lags else None)
         if raw["status"] != 0:
             raise SimulationError(f"the period map failed: {raw['message']}", None)
         if n_periods == 1:
@@ -238,10 +275,12 @@ class PeriodMap:
         return raw
 
     def _monodromy_of(self, x: np.ndarray, raw: dict) -> np.ndarray:
-        """The monodromy (2m, 2m) of the period ``raw`` run from ``x``."""
-        final = _propagate_tangent(self.model, raw, self.h, self.rho_inf, self._start_sensitivity(x))
+        """The monodromy (2m + L, 2m + L) of the period ``raw`` run from ``x``."""
+        lag_start = np.eye(self.n_lags, self.n_state, 2 * self.independent.size)   # y(0) = x[2m:]
+        final, lag_final = _propagate_tangent(self.model, raw, self.h, self.rho_inf,
+                                              self._start_sensitivity(x), lag_start)
         ind = self.independent
-        return np.concatenate([final[0][ind], final[1][ind]])
+        return np.concatenate([final[0][ind], final[1][ind], lag_final])
 
     def _period_run(self, x: np.ndarray, raw: dict, monodromy: np.ndarray | None, started: float
                     ) -> PeriodRun:
@@ -251,11 +290,11 @@ class PeriodMap:
         ends = np.arange(0, raw["s"].shape[0], self.n_steps)
         positions = raw["s"][ends][:, ind] - (self.nominal_start[0][ind]
                                               + np.outer(np.arange(ends.size), winding[ind]))
-        period_states = np.concatenate([positions, raw["sdot"][ends][:, ind] - self.nominal_end[1][ind]],
-                                       axis=1)
+        period_states = np.concatenate([positions, raw["sdot"][ends][:, ind] - self.nominal_end[1][ind],
+                                        raw["lag_states"][ends]], axis=1)
         return PeriodRun(state=x, end_state=period_states[-1], monodromy=monodromy, t=raw["t"], s=raw["s"],
                          sdot=raw["sdot"], period_states=period_states, n_substeps=int(raw["n_substeps"]),
-                         run_time=time.perf_counter() - started)
+                         run_time=time.perf_counter() - started, lag_states=raw["lag_states"])
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) every kernel a period uses: one step with its tangent

@@ -461,8 +461,17 @@ def _initial_state(model, nominal, s0, sdot0, t0: float):
     return s_start, v_start
 
 
-def _consistent_accelerations(model, q, v, t):
-    """Solve ``[[M, Phi_s^T], [Phi_s, 0]] [sddot; lam] = [Q; gamma]`` (the index-1 form at ``t``)."""
+def _lag_force(model, lag_states):
+    """``sum_i h_i y_i`` (n,), the force of the lagged controllers' states ``y`` (L,) N m on the
+    coordinates, or None with the lags at rest (``y = 0``: the force is zero)."""
+    if not np.any(lag_states):
+        return None
+    return np.asarray(lag_states, dtype=np.float64) @ np.asarray(model.lag_gradients, dtype=np.float64)
+
+
+def _consistent_accelerations(model, q, v, t, lag_force=None):
+    """Solve ``[[M, Phi_s^T], [Phi_s, 0]] [sddot; lam] = [Q; gamma]`` (the index-1 form at ``t``);
+    ``lag_force`` (n,), the lagged controllers' ``H^T y``, is added to ``Q`` when given."""
     n = q.shape[0]
     r = int(model.n_constraints)
     A = np.zeros((n + r, n + r))
@@ -470,7 +479,10 @@ def _consistent_accelerations(model, q, v, t):
     Phi_s = np.asarray(model.constraint_jacobian(q, t), dtype=np.float64)
     A[:n, n:] = Phi_s.T
     A[n:, :n] = Phi_s
-    b = np.concatenate([model.forces(q, v, t), model.constraint_gamma(q, v, t)])
+    forces = model.forces(q, v, t)
+    if lag_force is not None:
+        forces = forces + lag_force
+    b = np.concatenate([forces, model.constraint_gamma(q, v, t)])
     cond = np.linalg.cond(A)
     if not np.isfinite(cond) or cond > 1e13:
         raise ArgumentError(f"the augmented mass matrix at t = {t} s is singular (condition number "
@@ -916,7 +928,9 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
     L = np.empty((n_steps + 1, r))
     residual = np.empty(n_steps + 1)
 
-    sddot0, lam0 = _consistent_accelerations(model, q0, v0, t0)
+    # the lags' force at t0 is part of Q in the index-1 equations, as in every step's
+    start_force = None if stepper.lags is None else _lag_force(model, stepper.lags.y)
+    sddot0, lam0 = _consistent_accelerations(model, q0, v0, t0, start_force)
     S[0], V[0], A[0], L[0] = q0, v0, sddot0, lam0
     residual[0] = np.max(np.abs(model.constraints(q0, t0)), initial=0.0)
 
@@ -1022,15 +1036,16 @@ def _substeps(stepper, q_n, v_n, a, sddot_n, lam_n, t_n, h, max_halvings):
 # ---------------------------------------------------------------------------------------------------
 # Tangent of the discrete step map (for shooting: the monodromy of a run)
 # ---------------------------------------------------------------------------------------------------
-def _propagate_tangent(model, run: Mapping[str, Any], h: float, rho_inf: float,
-                       start: np.ndarray) -> np.ndarray:
+def _propagate_tangent(model, run: Mapping[str, Any], h: float, rho_inf: float, start: np.ndarray,
+                       lag_start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Carry the sensitivity of the integrator's state through the converged steps of ``run``.
 
-    ``start`` (4, n, p): d(q, v, a, sddot) / d(p start parameters) at ``t0``; returns the same at the
-    run's last step. Differentiating (GA1)-(GA3) and the converged step equations (NR) gives, per
-    step, with the Jacobians at the new state (``q, v, sddot, lam`` at ``t_{n+1}``):
+    ``start`` (4, n, p): d(q, v, a, sddot) / d(p start parameters) at ``t0``; ``lag_start`` (L, p)
+    d y / d(parameters) of the model's L lag states (default 0). Returns the same two at the run's
+    last step. Differentiating (GA1)-(GA3) and the converged step equations (NR) gives, per step,
+    with the Jacobians at the new state (``q, v, sddot, lam`` at ``t_{n+1}``):
 
-        G [d sddot_{n+1}; d lam_{n+1}] = -[K_t d qhat + C_t d vhat;  Phi_s d qhat / beta']
+        G [d sddot_{n+1}; d lam_{n+1}] = -[K_t d qhat + C_t d vhat - H^T d c_n;  Phi_s d qhat / beta']
 
     ``G`` the exact iteration matrix of (NR) (``K_t``, ``C_t`` from ``linear_terms_along``: the
     same analytic derivatives Newton uses), ``d qhat``, ``d vhat`` the differentiated predictors of
@@ -1038,6 +1053,11 @@ def _propagate_tangent(model, run: Mapping[str, Any], h: float, rho_inf: float,
     (GA1) for ``d a``. ``lam`` does not enter the next step (only its predictor), so the state is
     (q, v, a, sddot). The run must have taken every step at ``h`` (no substeps): the caller checks
     ``run["n_substeps"]``. A singular ``G`` gives NaN sensitivities.
+
+    Lags (``_Lags``): ``y_{n+1} = c_n + w u(q_{n+1}, v_{n+1})`` with the known part ``c_n = ((1 - r)
+    y_n + r u_n) / (1 + r)``, ``w = r / (1 + r)``, enters Q as ``H^T y_{n+1}`` (``H`` the lags'
+    gradients, (L, n)): ``K_t``, ``C_t`` gain ``-H^T w du/ds``, ``-H^T w du/ds'`` (the terms
+    ``_Lags.add_force_jacobians`` gives Newton) and the right-hand side the known part ``d c_n``.
     """
     from ._batch import linear_terms_along
 
@@ -1047,18 +1067,58 @@ def _propagate_tangent(model, run: Mapping[str, Any], h: float, rho_inf: float,
     terms = linear_terms_along(model, run["t"][1:], run["s"][1:], run["sdot"][1:],
                                run["sddot"][1:], run["lam"][1:])
     state = np.array(start, dtype=np.float64, order="C")
-    _tangent_steps(np.ascontiguousarray(terms.mass), np.ascontiguousarray(terms.stiffness),
-                   np.ascontiguousarray(terms.damping), np.ascontiguousarray(terms.jacobian), h,
-                   alpha_m, alpha_f, beta, gamma, beta_p, gamma_p, state)
-    return state
+    lags = _LagTangent(model, run, h, state.shape[2], lag_start)
+    stiffness, damping = lags.with_force_jacobians(terms.stiffness, terms.damping)
+    _tangent_steps(np.ascontiguousarray(terms.mass), np.ascontiguousarray(stiffness),
+                   np.ascontiguousarray(damping), np.ascontiguousarray(terms.jacobian), h,
+                   alpha_m, alpha_f, beta, gamma, beta_p, gamma_p, state, lags.gradients,
+                   lags.decay, lags.weight, lags.du_ds, lags.du_dv, lags.state)
+    return state, lags.state
+
+
+class _LagTangent:
+    """The lag terms of ``_propagate_tangent`` along ``run``: ``gradients`` H (L, n), per lag the
+    trapezoidal rule's ``decay`` (1 - r) / (1 + r) and ``weight`` r / (1 + r) (L,), the inputs'
+    derivatives ``du_ds``, ``du_dv`` (N+1, L, n) at the run's states and the sensitivity ``state``
+    (L, p) (L = 0 without lags: empty arrays, and the kernel's lag loops do nothing)."""
+
+    def __init__(self, model, run, h, n_columns, lag_start):
+        n, n_samples = run["s"].shape[1], run["s"].shape[0]
+        n_lags = len(getattr(model, "lag_names", ()))
+        self.state = (np.zeros((n_lags, n_columns)) if lag_start is None
+                      else np.array(lag_start, dtype=np.float64, order="C").reshape(n_lags, n_columns))
+        if not n_lags:
+            self.gradients = np.zeros((0, n))
+            self.decay = self.weight = np.zeros(0)
+            self.du_ds = self.du_dv = np.zeros((n_samples, 0, n))
+            return
+        ratio = 0.5 * h / np.asarray(model.lag_time_constants, dtype=np.float64)
+        self.decay, self.weight = (1.0 - ratio) / (1.0 + ratio), ratio / (1.0 + ratio)
+        self.gradients = np.ascontiguousarray(model.lag_gradients, dtype=np.float64)
+        _, du_ds, du_dv = model.lag_inputs_along(run["t"], run["s"], run["sdot"])
+        self.du_ds = np.ascontiguousarray(du_ds, dtype=np.float64)
+        self.du_dv = np.ascontiguousarray(du_dv, dtype=np.float64)
+
+    def with_force_jacobians(self, stiffness, damping):
+        """``K_t``, ``C_t`` (N, n, n) at the steps' new states with the lag force's Jacobians (the
+        arrays themselves without lags)."""
+        if not self.decay.size:
+            return stiffness, damping
+        weighted = self.gradients.T * self.weight                      # (n, L)
+        return (stiffness - weighted @ self.du_ds[1:], damping - weighted @ self.du_dv[1:])
 
 
 @numba.njit(cache=True)
-def _tangent_steps(mass, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, gamma_p, state):
-    """The step loop of ``_propagate_tangent``, in place on ``state`` (4, n, p) = d(q, v, a, sddot):
-    per step the differentiated predictors (``_start_step``), the exact iteration matrix from
-    ``mass``, ``K``, ``C`` (N, n, n) and ``Phi_s`` (N, r, n) factorised (LAPACK) and solved for the
-    p columns, then (GA2), (GA3) and (GA1). A zero pivot fills ``state`` with NaN.
+def _tangent_steps(mass, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, gamma_p, state,
+                   lag_gradients, lag_decay, lag_weight, du_ds, du_dv, lag_state):
+    """The step loop of ``_propagate_tangent``, in place on ``state`` (4, n, p) = d(q, v, a, sddot)
+    and ``lag_state`` (L, p) = d y: per step the differentiated predictors (``_start_step``) and the
+    known part of the lags, ``d c_n = decay d y_n + weight (du/ds d q_n + du/ds' d v_n)``, the exact
+    iteration matrix from ``mass``, ``K``, ``C`` (N, n, n, the lags' force Jacobians included) and
+    ``Phi_s`` (N, r, n) factorised (LAPACK) and solved for the p columns (right-hand side with
+    ``lag_gradients^T d c_n``), then (GA2), (GA3), (GA1) and ``d y_{n+1} = d c_n + weight (du/ds
+    d q_{n+1} + du/ds' d v_{n+1})``; ``du_ds``, ``du_dv`` (N+1, L, n) at the grid's states. A zero
+    pivot fills ``state`` with NaN.
 
     One factorisation per step replaced a batched ``np.linalg.inv`` of all N matrices and BLAS
     products: 11 ms instead of 17 ms per period on ``four_bar_fem4`` (N = 256, n + r = 30, p = 24),
@@ -1072,7 +1132,13 @@ def _tangent_steps(mass, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, 
     G_T = np.empty((n + r, n + r))
     piv = np.empty(n + r + 3, dtype=np.int32)
     solution = np.empty((p, n + r))       # the right-hand sides, then d(sddot, lam), as rows
+    n_lags = lag_state.shape[0]
+    lag_known = np.empty((n_lags, p))     # d c_n, the lags' part known at t_n
     for step in range(mass.shape[0]):
+        _lag_input_change(du_ds[step], du_dv[step], dq, dv, lag_weight, lag_known)
+        for k in range(n_lags):
+            for j in range(p):
+                lag_known[k, j] += lag_decay[k] * lag_state[k, j]
         for i in range(n):
             for j in range(p):
                 da_known = (alpha_f * dsddot[i, j] - alpha_m * da[i, j]) / (1.0 - alpha_m)
@@ -1085,6 +1151,8 @@ def _tangent_steps(mass, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, 
                 for k in range(n):
                     acc += K[step, i, k] * dqhat[k, j] + C[step, i, k] * dvhat[k, j]
                 solution[j, i] = -acc
+                for k in range(n_lags):
+                    solution[j, i] += lag_gradients[k, i] * lag_known[k, j]
             for k in range(r):
                 acc = 0.0
                 for i in range(n):
@@ -1096,6 +1164,7 @@ def _tangent_steps(mass, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, 
         _fill_iteration_matrix(mass[step], tangent, Phi_s[step], G_T)
         if not _lu_factor(G_T, piv) > 0.0:
             state[:] = np.nan
+            lag_state[:] = np.nan
             return
         _lu_solve_rows(G_T, piv, solution)
         for i in range(n):
@@ -1106,3 +1175,19 @@ def _tangent_steps(mass, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, 
                 da[i, j] = (alpha_f * dsddot[i, j] + (1.0 - alpha_f) * dsddot_new
                             - alpha_m * da[i, j]) / (1.0 - alpha_m)
                 dsddot[i, j] = dsddot_new
+        _lag_input_change(du_ds[step + 1], du_dv[step + 1], dq, dv, lag_weight, lag_state)
+        for k in range(n_lags):
+            for j in range(p):
+                lag_state[k, j] += lag_known[k, j]
+
+
+@numba.njit(cache=True)
+def _lag_input_change(du_ds, du_dv, dq, dv, weight, out):
+    """``out[k] = weight[k] (du_ds[k] dq + du_dv[k] dv)`` (L, p), the weighted change of the lags'
+    inputs ``u`` (L,) for the changes ``dq``, ``dv`` (n, p) of the state; ``du_ds``, ``du_dv`` (L, n)."""
+    for k in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            acc = 0.0
+            for i in range(dq.shape[0]):
+                acc += du_ds[k, i] * dq[i, j] + du_dv[k, i] * dv[i, j]
+            out[k, j] = weight[k] * acc

@@ -240,8 +240,6 @@ def test_linear_lag_state_is_the_filtered_strain_feedback(controlled):
 
 
 def test_lag_refusals_outside_the_linear_steady_state_and_the_run(controlled):
-    with pytest.raises(mechanisms.ArgumentError, match=r"controllers \['strain'\] have a lag"):
-        mechanisms.PeriodMap(lagged(controlled, 1e-3), n_steps=16)
     with pytest.raises(mechanisms.ArgumentError, match=r"`lag0` must have shape \(1,\)"):
         mechanisms.simulate(lagged(controlled, 1e-3), n_periods=1, steps_per_period=16, lag0=[0.0, 1.0])
     with pytest.raises(periodic.PeriodicError, match="2 beta = gamma"):

@@ -46,14 +46,16 @@ MAX_RELATIVE_ERROR = periodic.MAX_RELATIVE_ERROR
 class NonlinearSteadyState(Result):
     """The periodic orbit of the full nonlinear model over one period, with its stability.
 
-    ``t`` (N+1,) s; ``crank_angle`` (N+1,) rad; ``x`` (N+1, m) the independent coordinates' deviation
-    from the nominal rigid motion (SI unit of each coordinate, see ``labels``); ``response``
+    ``t`` (N+1,) s; ``crank_angle`` (N+1,) rad; ``x`` (N+1, m + L) the independent coordinates' deviation
+    from the nominal rigid motion (SI unit of each coordinate, see ``labels``), then the states of the
+    L lagged controllers (N m, ``lag.<name>``; L = 0 without); ``response``
     {spec: (N+1,)} observables (deviation from their nominal values, as the linear steady state
     reports them); ``response_error`` {spec: float} the estimated max abs error of each (N against
     N/2 steps); ``linear_response`` {spec: (N+1,)} the linear periodic state on the same grid;
-    ``state`` (2m,) the orbit's shooting state (coordinates and rates at t = 0); ``multipliers`` (2m,)
-    complex, the Floquet multipliers of the nonlinear orbit (from the monodromy of the discrete step
-    map), ``multiplier_errors`` (2m,) the error estimate of their moduli, ``spectral_radius``;
+    ``state`` (2m + L,) the orbit's shooting state (coordinates and rates at t = 0, then the lag
+    states); ``multipliers`` (2m + L,) complex, the Floquet multipliers of the nonlinear orbit (from the
+    monodromy of the discrete step map), ``multiplier_errors`` (2m + L,) the error estimate of their
+    moduli, ``spectral_radius``;
     ``error_estimate`` max abs error of ``state``; ``iterations`` Newton steps, ``map_calls`` period
     map evaluations (N/2 included), ``residual`` the final relative residual; ``status``,
     ``message``, ``is_stable``: ``periodic.find_orbit``'s verdict (``failed`` with the reason when
@@ -91,7 +93,7 @@ class NonlinearSteadyState(Result):
     settings: Mapping[str, Any] = field(default_factory=dict)
 
     _units = {"t": "s", "crank_angle": "rad", "x": "SI (see labels)", "response": "@observables",
-              "linear_response": "@observables", "state": "SI (see labels, then their rates)",
+              "linear_response": "@observables", "state": "SI (see labels: coordinates, rates, lags)",
               "multipliers": "1", "multiplier_errors": "1"}
 
     @property
@@ -144,8 +146,9 @@ class _Recording:
 class ShootingSetup:
     """The linear start of a shooting at one parameter point (package-internal, shared by the
     nonlinear studies): ``linear`` the ``studies.Linear``, ``steady`` its steady state, ``fine`` and
-    ``coarse`` the ``mechanisms.PeriodMap`` on N and N/2 steps, ``guess`` (2m,) the linear periodic
-    state as a shooting state (coordinates, then rates, SI), ``run_time`` s of the linear start."""
+    ``coarse`` the ``mechanisms.PeriodMap`` on N and N/2 steps, ``guess`` (2m + L,) the linear periodic
+    state as a shooting state (coordinates, then rates, SI, then the L lag states, N m), ``run_time`` s
+    of the linear start."""
 
     linear: Any
     steady: Any
@@ -181,17 +184,21 @@ def shooting_setup(problem: Any, values: Mapping[str, float] | None, n_steps: in
                                 nominal=lin.nominal)
     coarse = mechanisms.PeriodMap(lin.mechanism, n_steps=n_steps // 2, independent=fine.independent,
                                   nominal=lin.nominal)
-    # the linear periodic state on the constraints (with the axial shortening of stiffened links)
-    guess = fine.state_of(*lin.start_state(steady.state.x[0], steady.state.v[0]))
+    # the linear periodic state on the constraints (with the axial shortening of stiffened links); the
+    # lagged controllers' states are the linear coordinates' last L entries (linearize: lag.<name>)
+    start = steady.state.x[0]
+    guess = fine.state_of(*lin.start_state(start, steady.state.v[0]),
+                          lag_states=start[start.size - fine.n_lags:])
     return ShootingSetup(linear, steady, fine, coarse, guess, time.perf_counter() - started)
 
 
 def orbit_observables(linear: Any, period_map: Any, state: np.ndarray) -> tuple[dict, np.ndarray, int]:
     """Over one period of ``period_map`` (a ``mechanisms.PeriodMap`` whose steps divide the N steps of
-    ``linear``, a ``studies.Linear``) from the shooting state ``state`` (2m,): ({spec: (n+1,)} the
-    deviations of the observables from their nominal values (units of each spec), z (n+1, m) the
-    independent coordinates' deviations (SI), the number of steps the integrator split into substeps),
-    n the map's steps. Package-internal, shared by the nonlinear studies."""
+    ``linear``, a ``studies.Linear``) from the shooting state ``state`` (2m + L,): ({spec: (n+1,)} the
+    deviations of the observables from their nominal values (units of each spec), z (n+1, m + L) the
+    independent coordinates' deviations (SI) and the L lag states (N m), the number of steps the
+    integrator split into substeps), n the map's steps. Package-internal, shared by the nonlinear
+    studies."""
     lin = linear.context
     run = period_map.run(state, tangent=False)
     stride = (lin.nominal.s.shape[0] - 1) // period_map.n_steps
@@ -202,7 +209,8 @@ def orbit_observables(linear: Any, period_map: Any, state: np.ndarray) -> tuple[
         observable = model.observable(spec)
         response[spec] = np.array([observable.value(s) - observable.value(s_nom)
                                    for s, s_nom in zip(run.s, nominal_s)])
-    return response, (run.s - nominal_s)[:, period_map.independent], run.n_substeps
+    z = np.concatenate([(run.s - nominal_s)[:, period_map.independent], run.lag_states], axis=1)
+    return response, z, run.n_substeps
 
 
 def substep_verdict(status: str, message: str, n_substeps: int, n_steps: int) -> tuple[str, str]:
@@ -248,8 +256,10 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
     on N/4 steps must give a ratio of successive differences of z in the asymptotic range
     (``periodic.error_verdict``, as the linear steady state's check), and each observable's error must
     stay within ``MAX_RELATIVE_ERROR`` of its peak-to-peak."""
-    linear, n_steps = setup.linear, setup.fine.n_steps
+    linear, n_steps, m = setup.linear, setup.fine.n_steps, setup.fine.independent.size
     coarse_response, z_coarse, coarse_substeps = orbit_observables(linear, setup.coarse, coarse_state)
+    # the convergence check on the coordinates (the lag states, N m, would set its scale instead)
+    z, z_coarse = z[:, :m], z_coarse[:, :m]
     errors = {spec: ERROR_FACTOR * float(np.abs(response[spec][::2] - coarse_response[spec]).max())
               for spec in response}
     reasons = [substep_reason(coarse_substeps, n_steps, "the N/2 run's")]
@@ -257,6 +267,7 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
     quarter = periodic.find_orbit(quarter_map, coarse_state, speed, tol=tol, max_iterations=max_iterations)
     if quarter.converged:
         _, z_quarter, quarter_substeps = orbit_observables(linear, quarter_map, quarter.state)
+        z_quarter = z_quarter[:, :m]
         check = periodic.error_verdict(float(np.abs(z[::2] - z_coarse).max()),
                                        float(np.abs(z_coarse[::2] - z_quarter).max()), ORDER,
                                        scale=float(np.abs(z).max()), n_steps=n_steps, quantity="z")
@@ -309,7 +320,7 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
             reasons += trust
     else:
         response = {spec: np.full(n_steps + 1, np.nan) for spec in specs}
-        z = np.full((n_steps + 1, fine.independent.size), np.nan)
+        z = np.full((n_steps + 1, fine.independent.size + fine.n_lags), np.nan)
     status, message = untrusted_verdict(orbit.status, orbit.message, [r for r in reasons if r])
     run_time = time.perf_counter() - started
     if orbit.converged:

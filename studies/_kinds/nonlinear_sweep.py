@@ -120,8 +120,9 @@ class NonlinearSweep(Result):
 class _ParameterMap:
     """``(y, parameter value) -> (end y, monodromy)`` of the mechanism at that value, the other
     parameters at ``values``, on the scaled shooting state ``y = x / scale``: the coordinates divided by
-    their largest deviation in the linear start, the rates by theirs, so that positions (m) and rates
-    (m/s, about speed times larger) weigh alike in the continuation's norms. The period maps of the last
+    their largest deviation in the linear start, the rates and the lagged controllers' states (N m) by
+    theirs, so that positions (m) and rates (m/s, about speed times larger) weigh alike in the
+    continuation's norms. The period maps of the last
     few values are kept (the corrector calls the map several times at one value)."""
 
     def __init__(self, problem: Any, parameter: str, values: Mapping[str, float], n_steps: int,
@@ -181,13 +182,18 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
             raise StudiesError(f"{name}: expected a finite value of {parameter!r}, got {value!r}")
     if start == stop:
         raise StudiesError(f"stop: expected a value different from start = {start!r}")
+    if parameter.startswith("controllers.") and parameter.endswith(".lag") and 0.0 in (start, stop):
+        # a zero lag has no state: the shooting state would change size along the branch
+        raise StudiesError(f"start, stop: expected lags {parameter!r} > 0 over the whole range (a lag of 0 "
+                           f"removes the controller's state from the orbit), got {start!r} .. {stop!r}")
     started = time.perf_counter()
     fixed = {k: v for k, v in (values or {}).items() if k != parameter}
     first = shooting_setup(problem, dict(fixed, **{parameter: start}), n_steps)
     m = first.fine.independent.size
     guess = first.guess
-    scale = np.concatenate([np.full(m, max(np.abs(guess[:m]).max(), 1e-12)),
-                            np.full(m, max(np.abs(guess[m:]).max(), 1e-12))])
+    # coordinates, rates and the lagged controllers' states (N m) each by their own size
+    scale = np.concatenate([np.full(size, max(np.abs(block).max(initial=0.0), 1e-12)) for block, size in
+                            ((guess[:m], m), (guess[m:2 * m], m), (guess[2 * m:], first.fine.n_lags))])
     period_map = _ParameterMap(problem, parameter, fixed, n_steps, first.fine.independent, scale)
     # the N/2 map: each orbit's multipliers get error bars, so ok / unstable and the bifurcations rest
     # on them and not on a bare stability_tol (as nonlinear_steady_state's verdict)
