@@ -15,7 +15,10 @@ N = ``--n-steps`` generalized-alpha steps per period for both routes.
 
 Both are timed ``--repeats`` times, interleaved; medians and the ratio are printed.
 
-Usage: ``python benchmarks/bench_nonlinear_steady.py [--n-steps 256] [--repeats 3]``
+``--dampings 0.01 0.003 0.001`` repeats the comparison at lighter damping: the transient's periods
+grow as 1 / damping, the shooting's cost does not.
+
+Usage: ``python benchmarks/bench_nonlinear_steady.py [--n-steps 256] [--repeats 3] [--dampings ...]``
 """
 
 from __future__ import annotations
@@ -51,19 +54,12 @@ def observable_deviation(setup, s):
     return values - np.resize(nominal, values.size)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n-steps", type=int, default=256)
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--accuracy", type=float, default=1e-3)
-    parser.add_argument("--tol", type=float, default=1e-4)
-    parser.add_argument("--max-periods", type=int, default=200)
-    args = parser.parse_args()
+def compare(problem, damping, args):
+    """(periods the transient needs, shooting s, transient s, shooting error / peak to peak, Newton
+    steps, period maps, peak to peak m) at one damping ratio, medians of ``args.repeats``."""
     n = args.n_steps
-    problem = studies.MechanismProblem.from_scene("four_bar_fem4", parameter_paths=[DAMPING])
-    values = {"speed": 100.0, DAMPING: 0.01}
-    mechanism = problem.mechanism({DAMPING: 0.01})
-
+    values = {"speed": 100.0, DAMPING: damping}
+    mechanism = problem.mechanism({DAMPING: damping})
     _, orbit, setup = shoot(problem, values, n, tol=1e-10)       # warm-up and reference
     reference = observable_deviation(setup, setup.fine.run(orbit.state, tangent=False).s)
     peak_to_peak = np.ptp(reference)
@@ -77,9 +73,8 @@ def main() -> None:
             periods = p
             break
     if periods is None:
-        raise SystemExit(f"the transient did not reach {args.accuracy:g} of the peak-to-peak in "
-                         f"{args.max_periods} periods")
-
+        raise SystemExit(f"damping {damping:g}: the transient did not reach {args.accuracy:g} of the "
+                         f"peak-to-peak in {args.max_periods} periods")
     shooting_times, transient_times, errors = [], [], []
     for _ in range(args.repeats):
         seconds, found, check = shoot(problem, values, n, tol=args.tol)
@@ -90,14 +85,29 @@ def main() -> None:
         mechanisms.simulate(mechanism, n_periods=periods, steps_per_period=n, estimate_error=False,
                             observables=[SPEC])
         transient_times.append(time.perf_counter() - started)
-    shooting, transient = statistics.median(shooting_times), statistics.median(transient_times)
-    print(f"four_bar_fem4, 100 rad/s, 1 % damping, N = {n} steps per period; midspan deflection "
-          f"peak to peak {peak_to_peak:.4g} m")
-    print(f"shooting (linear start + Newton, {found.iterations} steps, {found.map_calls} period maps): "
-          f"median {shooting:.3f} s, error {max(errors):.2g} of the peak to peak")
-    print(f"transient from the rigid start: {periods} periods to {args.accuracy:g} of the peak to peak, "
-          f"median {transient:.3f} s")
-    print(f"ratio transient / shooting: {transient / shooting:.1f}")
+    return (periods, statistics.median(shooting_times), statistics.median(transient_times), max(errors),
+            found.iterations, found.map_calls, peak_to_peak)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n-steps", type=int, default=256)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--accuracy", type=float, default=1e-3)
+    parser.add_argument("--tol", type=float, default=1e-4)
+    parser.add_argument("--max-periods", type=int, default=400)
+    parser.add_argument("--dampings", type=float, nargs="+", default=[0.01],
+                        help="damping ratios of the coupler, one comparison each (the issue's: 0.01)")
+    args = parser.parse_args()
+    problem = studies.MechanismProblem.from_scene("four_bar_fem4", parameter_paths=[DAMPING])
+    print(f"four_bar_fem4, 100 rad/s, N = {args.n_steps} steps per period, midspan deflection; "
+          f"accuracy {args.accuracy:g} of its peak to peak")
+    print("damping | transient periods | transient s | shooting s (Newton steps, period maps) | "
+          "shooting error / p2p | ratio")
+    for damping in args.dampings:
+        periods, shooting, transient, error, steps, maps, _ = compare(problem, damping, args)
+        print(f"{damping:7.3%} | {periods:17d} | {transient:11.3f} | {shooting:8.3f} ({steps}, {maps})"
+              f"{'':>17} | {error:20.2g} | {transient / shooting:5.1f}")
 
 
 if __name__ == "__main__":

@@ -56,8 +56,8 @@ class PeriodRun:
     ``state`` (2m + L,) and ``end_state`` (2m + L,): the deviations ``(z, z')`` at t = 0 and t = T (m
     or rad, per s), followed by the L lag states ``y`` (N m; L = 0 without lagged controllers);
     ``monodromy`` (2m + L, 2m + L) d end_state / d state (None when not asked for); ``t`` (k N + 1,)
-    s, ``s``, ``sdot`` (k N + 1, n) the full coordinates and rates over the k periods run,
-    ``lag_states`` (k N + 1, L) N m; ``period_states`` (k + 1, 2m + L) the shooting state at t = 0,
+    s, ``s``, ``sdot`` (k N + 1, n) the full coordinates and rates over the k periods run, ``lam``
+    (k N + 1, r) the multipliers, ``lag_states`` (k N + 1, L) N m; ``period_states`` (k + 1, 2m + L) the shooting state at t = 0,
     T, ..., k T; ``n_substeps`` steps the integrator had to subdivide (then the monodromy is that of
     the uniform grid's steps only, an approximation); ``run_time`` s.
     """
@@ -72,6 +72,7 @@ class PeriodRun:
     n_substeps: int
     run_time: float
     lag_states: np.ndarray | None = None
+    lam: np.ndarray | None = None
 
 
 class PeriodMap:
@@ -294,7 +295,8 @@ class PeriodMap:
                                         raw["lag_states"][ends]], axis=1)
         return PeriodRun(state=x, end_state=period_states[-1], monodromy=monodromy, t=raw["t"], s=raw["s"],
                          sdot=raw["sdot"], period_states=period_states, n_substeps=int(raw["n_substeps"]),
-                         run_time=time.perf_counter() - started, lag_states=raw["lag_states"])
+                         run_time=time.perf_counter() - started, lag_states=raw["lag_states"],
+                         lam=raw["lam"])
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) every kernel a period uses: one step with its tangent

@@ -275,10 +275,9 @@ class MechanismProblem:
         n = linear.system.n_steps
         # On the constraints exactly, with the second-order axial shortening of stiffened links.
         s0, sdot0 = lin.start_state(x0, v0)
-        observers = {spec: model.observable(spec) for spec in linear.observables}
         # the observables that are functions of s the integrator evaluates (with its error
         # estimates); forces, torques and magnitudes come from its multipliers and rates below
-        direct = [spec for spec, obs in observers.items() if of_coordinates(obs)]
+        direct = [spec for spec in linear.observables if of_coordinates(model.observable(spec))]
         # the lagged controllers' states are the last linear coordinates (linearize labels them
         # lag.<name>): the run starts them at the linear state, not at rest
         n_lags = len(getattr(model, "lag_names", ()))
@@ -290,41 +289,8 @@ class MechanismProblem:
         if steps_per_period != n:
             raise StudiesError(f"steps_per_period ({steps_per_period}) must equal the linear grid's "
                              f"n_steps ({n}) to subtract the nominal motion sample by sample")
-        reps = int(math.ceil(run.t.size / n))
-
-        def periodic(values):   # a quantity on the nominal grid, repeated over the run
-            return np.tile(np.asarray(values)[:-1], reps)[: run.t.size]
-
-        def along_run(obs, observable_map):
-            """The observable along the run as the linear route reports it: deviations of
-            functions of s, totals of forces and torques."""
-            kind = type(obs).__name__
-            if kind == "PairMagnitude":
-                return np.hypot(*(along_run(c, m) for c, m in
-                                  zip(obs.components, observable_map.components)))
-            if kind == "MultiplierObservable":
-                return run.lam @ obs.weights
-            if kind == "TorqueLawObservable":
-                # the run's model applies the nominal torque as feedforward (the map's nominal)
-                lags = run.lag_states if run.lag_states is not None else [None] * run.t.size
-                feedback = np.array([model.drive_torques(sk, vk, tk, lk, lag_states=yk)[obs.drive_index]
-                                     for sk, vk, tk, lk, yk in zip(run.s, run.sdot, run.t, run.lam, lags)])
-                return periodic(observable_map.nominal) + feedback
-            if getattr(obs, "needs_axial_force", False):   # its elastic part; nominal below
-                def value(sk):
-                    return obs.value(sk, axial_force=0.0)
-            else:
-                value = obs.value
-            values = (run.observables[obs.spec] if obs.spec in run.observables
-                      else np.array([value(sk) for sk in run.s]))
-            values = deviation_from_nominal(values, periodic([value(sk) for sk in lin.nominal.s]),
-                                            getattr(obs, "unit", ""))
-            if observable_map.nominal is not None:   # the axially rigid link's nominal axial stress
-                values = values + periodic(observable_map.nominal)
-            return values
-
-        maps = dict(zip(linear.observables, linear.maps))
-        observables = {spec: along_run(obs, maps[spec]) for spec, obs in observers.items()}
+        observables = observables_along(linear, run.t, run.s, run.sdot, run.lam, run.lag_states,
+                                        computed=run.observables)
         error = {spec: float(run.observable_error.get(spec, float("nan")))
                  for spec in linear.observables}
         return NonlinearRun(t=run.t, observables=observables, run_time=run.run_time,
@@ -363,6 +329,61 @@ class MechanismProblem:
             c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
             outlines[link.name] = np.stack([x[:, None] + c * xi - s * w, y[:, None] + s * xi + c * w], axis=-1)
         return outlines, float(magnification)
+
+
+def observables_along(linear: Linear, t: np.ndarray, s: np.ndarray, sdot: np.ndarray, lam: np.ndarray,
+                      lag_states: np.ndarray | None = None, *, stride: int = 1,
+                      computed: Mapping[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+    """{spec: (K,)} each of ``linear.observables`` along a run of the full nonlinear model of the
+    linearised mechanism (``linear.context.mechanism``; a torque drive's nominal torque applied as its
+    feedforward, as ``mechanisms.simulate`` and ``PeriodMap`` do), as the linear route reports it: functions of the coordinates as deviations from their values along the
+    nominal motion (angles modulo 2 pi), joint forces and drive torques as totals from the run's
+    multipliers and rates, stresses with the nominal axial stress of an axially rigid link.
+
+    ``t`` (K,) s, ``s``, ``sdot`` (K, n), ``lam`` (K, r), ``lag_states`` (K, L) or None: the run on the
+    grid of every ``stride``-th sample of the linear grid, from a whole period's start (t = 0, T, ...;
+    whole periods or not);
+    ``computed``: {spec: (K,)} values the integrator already evaluated. Package-internal, shared by
+    the nonlinear check's transient and the nonlinear periodic states."""
+    import mechanisms
+
+    lin = linear.context
+    # the mechanism's model without feedforward (a speed family's result keeps the base speed's
+    # model): its torque law gives the feedback part, the observable map's nominal the rest
+    model = mechanisms.assemble(lin.mechanism)
+    nominal_s = lin.nominal.s[::stride]
+    reps = int(math.ceil(len(t) / (nominal_s.shape[0] - 1)))
+    computed = computed or {}
+
+    def periodic(values):   # a quantity on the linear grid, repeated over the run
+        return np.tile(np.asarray(values)[::stride][:-1], reps)[: len(t)]
+
+    def along_run(obs, observable_map):
+        kind = type(obs).__name__
+        if kind == "PairMagnitude":
+            return np.hypot(*(along_run(c, m) for c, m in zip(obs.components, observable_map.components)))
+        if kind == "MultiplierObservable":
+            return lam @ obs.weights
+        if kind == "TorqueLawObservable":
+            # the run's model applies the nominal torque as feedforward (the map's nominal)
+            lags = lag_states if lag_states is not None and lag_states.size else [None] * len(t)
+            feedback = np.array([model.drive_torques(sk, vk, tk, lk, lag_states=yk)[obs.drive_index]
+                                 for sk, vk, tk, lk, yk in zip(s, sdot, t, lam, lags)])
+            return periodic(observable_map.nominal) + feedback
+        if getattr(obs, "needs_axial_force", False):   # its elastic part; nominal below
+            def value(sk):
+                return obs.value(sk, axial_force=0.0)
+        else:
+            value = obs.value
+        values = (computed[obs.spec] if obs.spec in computed else np.array([value(sk) for sk in s]))
+        values = deviation_from_nominal(values, np.tile([value(sk) for sk in nominal_s[:-1]], reps)[: len(t)],
+                                        getattr(obs, "unit", ""))
+        if observable_map.nominal is not None:   # the axially rigid link's nominal axial stress
+            values = values + periodic(observable_map.nominal)
+        return values
+
+    maps = dict(zip(linear.observables, linear.maps))
+    return {spec: along_run(model.observable(spec), maps[spec]) for spec in linear.observables}
 
 
 def deviation_from_nominal(values: np.ndarray, nominal: np.ndarray, unit: str) -> np.ndarray:
