@@ -26,5 +26,5 @@ from ._kinematics import (ConvergenceError as ConvergenceError, NominalMotion as
 from ._observables import default_observables as default_observables
 from ._protocol import ConstrainedModel as ConstrainedModel, Observable as Observable
 from ._simulate import (SimulationError as SimulationError, SimulationResult as SimulationResult,
-                        simulate as simulate)
+                        integrated_model as integrated_model, simulate as simulate)
 from ._orbit import PeriodMap as PeriodMap, PeriodRun as PeriodRun

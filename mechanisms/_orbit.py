@@ -257,11 +257,11 @@ class PeriodMap:
         if tangent and n_periods != 1:
             raise ArgumentError("`tangent` needs `n_periods` = 1 (the monodromy of one period).")
         x = np.array(x, dtype=np.float64)
-        raw = self._integrate(x, int(n_periods))
+        raw = self._period_arrays(x, int(n_periods))
         monodromy = self._monodromy_of(x, raw) if tangent else None
         return self._period_run(x, raw, monodromy, started)
 
-    def _integrate(self, x: np.ndarray, n_periods: int) -> dict:
+    def _period_arrays(self, x: np.ndarray, n_periods: int) -> dict:
         """The integrator's arrays over ``n_periods`` from ``x``: the last period again when ``x`` is
         its state (a shooting's last map call is at the orbit whose observables are asked next)."""
         if n_periods == 1 and self._last is not None and np.array_equal(self._last[0], x):
@@ -272,7 +272,12 @@ class PeriodMap:
         if raw["status"] != 0:
             raise SimulationError(f"the period map failed: {raw['message']}", None)
         if n_periods == 1:
-            self._last = (x, raw)
+            # a copy of the state as the key, and the arrays read-only: a caller that changes the
+            # returned state or trajectory must not change what the next call returns
+            for array in raw.values():
+                if isinstance(array, np.ndarray):
+                    array.flags.writeable = False
+            self._last = (x.copy(), raw)
         return raw
 
     def _monodromy_of(self, x: np.ndarray, raw: dict) -> np.ndarray:

@@ -409,6 +409,21 @@ def _time_grid(t0: float, t_end, n_periods, dt, steps_per_period, period) -> tup
     return duration / n_steps, n_steps
 
 
+def integrated_model(mechanism: Any, nominal: Any = None) -> Any:
+    """The model ``simulate`` and ``PeriodMap`` integrate for the ``mechanism``: ``assemble(mechanism)``,
+    and with torque drives the nominal inverse-dynamics torque as their feedforward
+    (``feedforward_torques`` of ``nominal``, the mechanism's ``nominal_motion``, computed when not
+    given). Its ``drive_torques`` is the torque a run applies (feedforward, feedback and limits)."""
+    from ._assemble import assemble
+    from ._kinematics import feedforward_torques, nominal_motion
+    from ._parts import TorqueDrive
+
+    if not any(isinstance(d, TorqueDrive) for d in mechanism.drives):
+        return assemble(mechanism)
+    nominal = nominal_motion(mechanism) if nominal is None else nominal
+    return assemble(mechanism, feedforward=feedforward_torques(mechanism, nominal))
+
+
 def _resolve_model(system: Any, need_nominal: bool):
     """(model, mechanism or None, nominal motion or None) from a Mechanism or a protocol model.
 
@@ -417,14 +432,10 @@ def _resolve_model(system: Any, need_nominal: bool):
     start state is needed or for the feedforward."""
     from ._parts import Mechanism, TorqueDrive
     if isinstance(system, Mechanism):
-        from ._assemble import assemble
-        from ._kinematics import feedforward_torques, nominal_motion
+        from ._kinematics import nominal_motion
         torque_drives = any(isinstance(d, TorqueDrive) for d in system.drives)
         nominal = nominal_motion(system) if (need_nominal or torque_drives) else None
-        if not torque_drives:
-            return assemble(system), system, nominal
-        return (assemble(system, feedforward=feedforward_torques(system, nominal)), system,
-                nominal)
+        return integrated_model(system, nominal), system, nominal
     required = ("n_coords", "n_constraints", "mass_matrix", "forces", "constraints",
                 "constraint_jacobian", "constraint_rate", "constraint_gamma",
                 "mass_matrix_jacobian", "force_jacobians", "constraint_force_jacobian")

@@ -269,9 +269,9 @@ class MechanismProblem:
         import mechanisms
 
         lin = linear.context
-        # the model of this mechanism (a speed family's result keeps the base speed's model, whose
-        # rheonomic drive constraint has the base speed)
-        model = mechanisms.assemble(lin.mechanism)
+        # the model a run of this mechanism integrates (a speed family's result keeps the base
+        # speed's model, whose rheonomic drive constraint has the base speed)
+        model = mechanisms.integrated_model(lin.mechanism)
         n = linear.system.n_steps
         # On the constraints exactly, with the second-order axial shortening of stiffened links.
         s0, sdot0 = lin.start_state(x0, v0)
@@ -282,14 +282,14 @@ class MechanismProblem:
         # lag.<name>): the run starts them at the linear state, not at rest
         n_lags = len(getattr(model, "lag_names", ()))
         lag0 = np.asarray(x0, dtype=float)[-n_lags:] if n_lags else None
-        run = mechanisms.simulate(lin.mechanism, n_periods=n_periods, steps_per_period=steps_per_period,
+        run = mechanisms.simulate(model, n_periods=n_periods, steps_per_period=steps_per_period,
                                   s0=s0, sdot0=sdot0, observables=direct, estimate_error=True, lag0=lag0)
         if not run.success:
             raise ComputationError(f"nonlinear run of {self.name!r} failed: {run.message}")
         if steps_per_period != n:
             raise StudiesError(f"steps_per_period ({steps_per_period}) must equal the linear grid's "
                              f"n_steps ({n}) to subtract the nominal motion sample by sample")
-        observables = observables_along(linear, run.t, run.s, run.sdot, run.lam, run.lag_states,
+        observables = observables_along(linear, model, run.t, run.s, run.sdot, run.lam, run.lag_states,
                                         computed=run.observables)
         error = {spec: float(run.observable_error.get(spec, float("nan")))
                  for spec in linear.observables}
@@ -331,26 +331,24 @@ class MechanismProblem:
         return outlines, float(magnification)
 
 
-def observables_along(linear: Linear, t: np.ndarray, s: np.ndarray, sdot: np.ndarray, lam: np.ndarray,
-                      lag_states: np.ndarray | None = None, *, stride: int = 1,
-                      computed: Mapping[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
-    """{spec: (K,)} each of ``linear.observables`` along a run of the full nonlinear model of the
-    linearised mechanism (``linear.context.mechanism``; a torque drive's nominal torque applied as its
-    feedforward, as ``mechanisms.simulate`` and ``PeriodMap`` do), as the linear route reports it: functions of the coordinates as deviations from their values along the
-    nominal motion (angles modulo 2 pi), joint forces and drive torques as totals from the run's
-    multipliers and rates, stresses with the nominal axial stress of an axially rigid link.
+def observables_along(linear: Linear, model: Any, t: np.ndarray, s: np.ndarray, sdot: np.ndarray,
+                      lam: np.ndarray, lag_states: np.ndarray | None = None, *, stride: int = 1,
+                      computed: Mapping[str, np.ndarray] | None = None,
+                      specs: Any = None) -> dict[str, np.ndarray]:
+    """{spec: (K,)} each of ``specs`` (default ``linear.observables``) along a run of ``model``, the full nonlinear model
+    the run integrated (``mechanisms.integrated_model`` of ``linear.context.mechanism``: a torque
+    drive's nominal torque is its feedforward), as the linear route reports it: functions of the
+    coordinates as deviations from their values along the nominal motion (angles modulo 2 pi), joint
+    forces from the run's multipliers and drive torques as the run applied them (feedforward,
+    feedback, lag states, limits), both totals; stresses with the nominal axial stress of an axially
+    rigid link.
 
     ``t`` (K,) s, ``s``, ``sdot`` (K, n), ``lam`` (K, r), ``lag_states`` (K, L) or None: the run on the
     grid of every ``stride``-th sample of the linear grid, from a whole period's start (t = 0, T, ...;
     whole periods or not);
     ``computed``: {spec: (K,)} values the integrator already evaluated. Package-internal, shared by
     the nonlinear check's transient and the nonlinear periodic states."""
-    import mechanisms
-
     lin = linear.context
-    # the mechanism's model without feedforward (a speed family's result keeps the base speed's
-    # model): its torque law gives the feedback part, the observable map's nominal the rest
-    model = mechanisms.assemble(lin.mechanism)
     nominal_s = lin.nominal.s[::stride]
     reps = int(math.ceil(len(t) / (nominal_s.shape[0] - 1)))
     computed = computed or {}
@@ -365,11 +363,11 @@ def observables_along(linear: Linear, t: np.ndarray, s: np.ndarray, sdot: np.nda
         if kind == "MultiplierObservable":
             return lam @ obs.weights
         if kind == "TorqueLawObservable":
-            # the run's model applies the nominal torque as feedforward (the map's nominal)
+            # what the run applied: the feedforward (the map's nominal) and the feedback summed
+            # before the drive's limits, which the linear route's nominal + change cannot show
             lags = lag_states if lag_states is not None and lag_states.size else [None] * len(t)
-            feedback = np.array([model.drive_torques(sk, vk, tk, lk, lag_states=yk)[obs.drive_index]
-                                 for sk, vk, tk, lk, yk in zip(s, sdot, t, lam, lags)])
-            return periodic(observable_map.nominal) + feedback
+            return np.array([model.drive_torques(sk, vk, tk, lk, lag_states=yk)[obs.drive_index]
+                             for sk, vk, tk, lk, yk in zip(s, sdot, t, lam, lags)])
         if getattr(obs, "needs_axial_force", False):   # its elastic part; nominal below
             def value(sk):
                 return obs.value(sk, axial_force=0.0)
@@ -383,7 +381,8 @@ def observables_along(linear: Linear, t: np.ndarray, s: np.ndarray, sdot: np.nda
         return values
 
     maps = dict(zip(linear.observables, linear.maps))
-    return {spec: along_run(model.observable(spec), maps[spec]) for spec in linear.observables}
+    return {spec: along_run(model.observable(spec), maps[spec])
+            for spec in (linear.observables if specs is None else specs)}
 
 
 def deviation_from_nominal(values: np.ndarray, nominal: np.ndarray, unit: str) -> np.ndarray:

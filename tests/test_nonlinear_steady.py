@@ -10,6 +10,7 @@ import pytest
 import mechanisms
 import studies
 from studies._kinds.nonlinear_steady_state import shooting_setup
+from tests._tangent_twin import central_differences, tight_period_map
 
 SPEC = "coupler.deflection@0.5"
 
@@ -34,22 +35,13 @@ def trusted(problem):
 @pytest.mark.slow
 def test_monodromy_matches_finite_differences_of_the_period_map(problem):
     setup = shooting_setup(problem, None, 64)
-    period_map = mechanisms.PeriodMap(setup.linear.context.mechanism, n_steps=64,
-                                      independent=setup.fine.independent, tol=1e-12)
+    period_map = tight_period_map(setup)
     x0 = setup.guess
     monodromy = period_map.run(x0).monodromy
     m = x0.size // 2
-    differences = np.empty_like(monodromy)
-    for j in range(x0.size):
-        # a step 1e-5 of the block's size: truncation (the stiff axial coordinates are strongly
-        # nonlinear) and the integrator's Newton tolerance 1e-12 m are both far below the check
-        block = x0[:m] if j < m else x0[m:]
-        step = 1e-5 * np.abs(block).max()
-        plus, minus = x0.copy(), x0.copy()
-        plus[j] += step
-        minus[j] -= step
-        differences[:, j] = (period_map.run(plus, tangent=False).end_state
-                             - period_map.run(minus, tangent=False).end_state) / (2.0 * step)
+    # steps 1e-5 of each block's size: truncation (the stiff axial coordinates are strongly
+    # nonlinear) and the integrator's Newton tolerance 1e-12 m are both far below the check
+    differences = central_differences(period_map, x0, ((slice(0, m), 1e-5), (slice(m, None), 1e-5)))
     assert np.abs(monodromy - differences).max() <= 1e-4 * np.abs(monodromy).max()
     # the multipliers agree as well (the two leading ones, a lightly damped bending pair)
     leading = np.sort(np.abs(np.linalg.eigvals(monodromy)))[::-1][:2]
@@ -68,6 +60,12 @@ def test_a_period_asked_for_again_from_the_same_state_is_not_run_again(problem):
     moved[0] += 1e-9
     other = period_map.run(moved, tangent=False)
     assert other.s is not first.s and not np.array_equal(other.end_state, first.end_state)
+    # a caller cannot change the cached period: the key is a copy, the arrays are read-only
+    first = period_map.run(setup.guess)
+    first.state[0] += 1e-4
+    assert period_map.run(first.state, tangent=False).s is not first.s
+    with pytest.raises(ValueError, match="read-only"):
+        first.s[0, 0] = 0.0
 
 
 @pytest.mark.slow
@@ -136,6 +134,21 @@ def test_forces_torques_and_stresses_of_the_orbit_are_those_a_long_transient_end
     for spec in specs:
         assert np.isfinite(orbit.response[spec]).all()
         assert differences[spec] <= 0.1 * orbit.response_error[spec], spec
+
+
+@pytest.mark.slow
+def test_the_torque_of_a_saturated_drive_stays_within_its_limit():
+    # the torque the run applied: feedforward and feedback summed, then limited (the linear route's
+    # nominal + change exceeds the limit; adding the nominal to a limited feedback did too)
+    limit = 1.5
+    mechanism = mechanisms.load("four_bar_controlled").with_parameter("drive.torque_limit", limit)
+    problem = studies.MechanismProblem.from_mechanism(mechanism, observables=[SPEC, "drive.O.torque"])
+    result = studies.nonlinear_steady_state(problem, n_steps=128)
+    assert result.is_stable
+    torque, linear = result.response["drive.O.torque"], result.linear_response["drive.O.torque"]
+    assert np.abs(linear).max() > 1.5 * limit                       # the unlimited law asks for more
+    assert np.abs(torque).max() <= limit * (1.0 + 1e-12)
+    assert np.isclose(np.abs(torque).max(), limit)                 # and the drive saturates
 
 
 @pytest.mark.slow
@@ -296,8 +309,10 @@ def test_an_empty_sweep_range_from_the_command_line_is_exit_2(tmp_path, capsys):
 def test_period_doubling_of_the_nonlinear_orbit_confirmed_by_a_transient():
     # four_bar_ritz, the stiffened thesis four-bar: the linear model doubles its period at 183 rad/s
     # (README); the nonlinear orbit loses stability the same way, a little earlier
-    ritz = studies.MechanismProblem.from_scene("four_bar_ritz")
+    # with a joint force as well: the transient past the instability reports it as the orbits do
+    ritz = studies.MechanismProblem.from_scene("four_bar_ritz", observables=[SPEC, "joint.B.force"])
     sweep = studies.nonlinear_sweep(ritz, start=170.0, stop=180.0, n_steps=128, step=4.0, transient_periods=60)
+    assert np.isfinite(sweep.transient["joint.B.force"]).all()
     assert sweep.status == "unstable"
     (where,), (kind,) = sweep.bifurcation_values, sweep.bifurcation_kinds
     assert kind == "period_doubling" and 170.0 < where < 180.0

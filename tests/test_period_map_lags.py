@@ -8,6 +8,7 @@ import pytest
 import mechanisms
 import studies
 from studies._kinds.nonlinear_steady_state import shooting_setup
+from tests._tangent_twin import central_differences, tangent_numpy, tight_period_map
 
 SPEC = "coupler.deflection@0.5"
 TAU = 5e-3           # the strain feedback's lag, s: h / tau = 0.1 at N = 128 (period 63 ms)
@@ -47,8 +48,7 @@ def test_shooting_state_ends_with_the_lag_states(lagged, problem):
 @pytest.mark.slow
 def test_monodromy_with_lags_matches_finite_differences_of_the_period_map(problem):
     setup = shooting_setup(problem, None, 64)
-    period_map = mechanisms.PeriodMap(setup.linear.context.mechanism, n_steps=64,
-                                      independent=setup.fine.independent, tol=1e-12)
+    period_map = tight_period_map(setup)
     x0 = setup.guess
     monodromy = period_map.run(x0).monodromy
     m = period_map.independent.size
@@ -56,15 +56,7 @@ def test_monodromy_with_lags_matches_finite_differences_of_the_period_map(proble
     # the map being nearly linear in y (the force it adds is linear), where smaller steps only raise
     # the noise of the integrator's Newton tolerance (~1e-12 / step: 2e-7 at 1e-3, 3e-6 at 1e-5)
     blocks = ((slice(0, m), 1e-5), (slice(m, 2 * m), 1e-5), (slice(2 * m, None), 1e-3))
-    differences = np.empty_like(monodromy)
-    for block, relative_step in blocks:
-        step = relative_step * np.abs(x0[block]).max()
-        for j in range(x0.size)[block]:
-            plus, minus = x0.copy(), x0.copy()
-            plus[j] += step
-            minus[j] -= step
-            differences[:, j] = (period_map.run(plus, tangent=False).end_state
-                                 - period_map.run(minus, tangent=False).end_state) / (2.0 * step)
+    differences = central_differences(period_map, x0, blocks)
     scale = np.abs(monodromy).max()
     assert np.abs(monodromy - differences).max() <= 1e-4 * scale
     # the lag's row and column, each against its own size (other units than the rest): the row as
@@ -114,3 +106,41 @@ def test_a_sweep_of_a_lag_must_stay_above_zero(lagged):
                                                       observables=(SPEC,))
     with pytest.raises(studies.StudiesError, match="a lag of 0 removes the controller's state"):
         studies.nonlinear_sweep(problem, "controllers.strain.lag", start=0.0, stop=TAU)
+
+
+@pytest.mark.parametrize("scene, lag", [("four_bar_fem4", None), ("four_bar_controlled", TAU)])
+def test_tangent_kernel_equals_its_numpy_twin(scene, lag):
+    # the numba kernel (one LAPACK factorisation and loops per step, lag rows included) against the
+    # differentiated step written out in numpy with a dense solve per step
+    from mechanisms._simulate import _propagate_tangent
+
+    mechanism = mechanisms.load(scene)
+    if lag is not None:
+        mechanism = mechanism.with_parameter("controllers.strain.lag", lag)
+    setup = shooting_setup(studies.MechanismProblem.from_mechanism(mechanism, observables=(SPEC,)), None, 32)
+    period_map, x = setup.fine, setup.guess
+    run = period_map._period_arrays(x, 1)
+    start = period_map._start_sensitivity(x)
+    lag_start = np.eye(period_map.n_lags, period_map.n_state, 2 * period_map.independent.size)
+    kernel, kernel_lags = _propagate_tangent(period_map.model, run, period_map.h, period_map.rho_inf, start,
+                                             lag_start)
+    twin, twin_lags = tangent_numpy(period_map.model, run, period_map.h, period_map.rho_inf, start, lag_start)
+    assert np.abs(kernel - twin).max() <= 1e-9 * np.abs(twin).max()
+    assert kernel_lags.shape == twin_lags.shape == (period_map.n_lags, period_map.n_state)
+    if period_map.n_lags:
+        assert np.abs(kernel_lags - twin_lags).max() <= 1e-9 * np.abs(twin_lags).max()
+
+
+def test_a_run_started_with_lag_states_starts_on_the_equations_with_their_force(lagged):
+    # the start's accelerations and multipliers solve M sddot + Phi_s^T lam = Q + H^T y0 (the force
+    # every step applies), not the equations without the lag force
+    y0 = 0.125
+    run = mechanisms.simulate(lagged, n_periods=0.25, steps_per_period=64, lag0=[y0], estimate_error=False)
+    model = mechanisms.integrated_model(lagged)
+    s, sdot, t = run.s[0], run.sdot[0], run.t[0]
+    residual = (model.mass_matrix(s) @ run.sddot[0] + model.constraint_jacobian(s, t).T @ run.lam[0]
+                - model.forces(s, sdot, t) - y0 * np.asarray(model.lag_gradients)[0])
+    scale = np.abs(model.forces(s, sdot, t)).max()
+    assert np.abs(residual).max() <= 1e-10 * scale
+    without = residual + y0 * np.asarray(model.lag_gradients)[0]
+    assert np.abs(without).max() > 1e3 * np.abs(residual).max()

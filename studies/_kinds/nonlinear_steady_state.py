@@ -50,8 +50,9 @@ class NonlinearSteadyState(Result):
     ``t`` (N+1,) s; ``crank_angle`` (N+1,) rad; ``x`` (N+1, m + L) the independent coordinates' deviation
     from the nominal rigid motion (SI unit of each coordinate, see ``labels``), then the states of the
     L lagged controllers (N m, ``lag.<name>``; L = 0 without); ``response``
-    {spec: (N+1,)} observables (deviation from their nominal values, as the linear steady state
-    reports them); ``response_error`` {spec: float} the estimated max abs error of each (N against
+    {spec: (N+1,)} observables as the linear steady state reports them (deviations from their
+    nominal values; joint forces, drive torques and stresses as totals, a drive's torque as the run
+    applied it, within its limits); ``response_error`` {spec: float} the estimated max abs error of each (N against
     N/2 steps); ``linear_response`` {spec: (N+1,)} the linear periodic state on the same grid;
     ``state`` (2m + L,) the orbit's shooting state (coordinates and rates at t = 0, then the lag
     states); ``multipliers`` (2m + L,) complex, the Floquet multipliers of the nonlinear orbit (from the
@@ -193,31 +194,38 @@ def shooting_setup(problem: Any, values: Mapping[str, float] | None, n_steps: in
     return ShootingSetup(linear, steady, fine, coarse, guess, time.perf_counter() - started)
 
 
-def orbit_observables(linear: Any, period_map: Any, state: np.ndarray) -> tuple[dict, np.ndarray, int]:
+def orbit_observables(linear: Any, period_map: Any, state: np.ndarray, *, observables: bool = True
+                      ) -> tuple[dict, np.ndarray, int]:
     """Over one period of ``period_map`` (a ``mechanisms.PeriodMap`` whose steps divide the N steps of
     ``linear``, a ``studies.Linear``) from the shooting state ``state`` (2m + L,): ({spec: (n+1,)} the
     observables as the linear steady state reports them (``studies._mechanism.observables_along``:
     deviations from their nominal values, totals of forces, torques and stresses; units of each
-    spec), z (n+1, m + L) the independent coordinates' deviations (SI) and the L lag states (N m), the
-    number of steps the integrator split into substeps), n the map's steps. Package-internal, shared
-    by the nonlinear studies.
+    spec; {} without ``observables``), z (n+1, m + L) the independent coordinates' deviations (SI)
+    and the L lag states (N m), the number of steps the integrator split into substeps), n the map's
+    steps. Package-internal, shared by the nonlinear studies.
 
     Observables of the multipliers or rates (joint forces, drive torques) are read over a second
     period: each period of the map restarts from the shooting state with consistent accelerations
     and multipliers, which the index-3 scheme's own differ from; the multipliers carry that restart
     for the first ~16 steps (1.3 % of a joint force's peak to peak at N = 256, 4 % at N = 128, about
     the size of their N/2 error estimate), whereas the second period is the scheme's steady motion,
-    as a long transient ends in it. Positions carry the restart far less (0.04 of their error
-    estimate) and are read over the first."""
+    as a long transient ends in it. The coordinates carry the restart far less (0.04 of their error
+    estimate): they, and the observables that are functions of them, are read over the first."""
     lin = linear.context
     model, n = period_map.model, period_map.n_steps
-    settled = not all(of_coordinates(model.observable(spec)) for spec in linear.observables)
+    settled = {spec for spec in (linear.observables if observables else ())
+               if not of_coordinates(model.observable(spec))}
     run = period_map.run(state, tangent=False, n_periods=2 if settled else 1)
     stride = (lin.nominal.s.shape[0] - 1) // n
-    last = slice(n, 2 * n + 1) if settled else slice(0, n + 1)
-    lag_states = run.lag_states[last] if run.lag_states is not None else None
-    response = observables_along(linear, run.t[last], run.s[last], run.sdot[last],
-                                 run.lam[last], lag_states, stride=stride)
+    response = {}
+    for period, specs in ((0, [spec for spec in linear.observables if observables and spec not in settled]),
+                          (1, sorted(settled))):
+        if specs:
+            part = slice(period * n, (period + 1) * n + 1)
+            lag_states = run.lag_states[part] if run.lag_states is not None else None
+            response.update(observables_along(linear, model, run.t[part], run.s[part], run.sdot[part],
+                                              run.lam[part], lag_states, stride=stride, specs=specs))
+    response = {spec: response[spec] for spec in linear.observables if spec in response}
     z = np.concatenate([(run.s[:n + 1] - lin.nominal.s[::stride])[:, period_map.independent],
                         run.lag_states[:n + 1]], axis=1)
     return response, z, run.n_substeps
@@ -276,7 +284,8 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
     quarter_map = setup.period_map(n_steps // 4)
     quarter = periodic.find_orbit(quarter_map, coarse_state, speed, tol=tol, max_iterations=max_iterations)
     if quarter.converged:
-        _, z_quarter, quarter_substeps = orbit_observables(linear, quarter_map, quarter.state)
+        _, z_quarter, quarter_substeps = orbit_observables(linear, quarter_map, quarter.state,
+                                                           observables=False)
         z_quarter = z_quarter[:, :m]
         check = periodic.error_verdict(float(np.abs(z[::2] - z_coarse).max()),
                                        float(np.abs(z_coarse[::2] - z_quarter).max()), ORDER,

@@ -23,6 +23,7 @@ from .._store import Result, register
 from .._studies import check_integer, check_n_steps, check_parameter
 from .._summary import Headline, Summary, largest_over_grid
 from .._plots import headline, plain
+from .._mechanism import observables_along
 from .nonlinear_steady_state import ERROR_FACTOR, MIN_STEPS, TOL, orbit_observables, shooting_setup, substep_verdict
 
 #: Periods of the transient run from the last stable orbit past the loss of stability.
@@ -289,15 +290,9 @@ def _after_instability(problem, period_map, branch, fixed, parameter, n_steps, p
     except RuntimeError as error:
         return f"{words} fails ({error}): the machine leaves the model's range", float(beyond), np.empty(0), {}
     linear = problem.linearize(dict(fixed, **{parameter: float(beyond)}), n_steps=n_steps)
-    nominal_s = linear.context.nominal.s[:-1]
-    model = period_map.at(float(beyond)).model
-    transient = {}
-    for spec in specs:
-        observable = model.observable(spec)
-        nominal = np.array([observable.value(s) for s in nominal_s])
-        values = np.array([observable.value(s) for s in run.s])
-        transient[spec] = values - np.resize(nominal, values.size)
-    return f"{words} {_settles(run.period_states)}", float(beyond), run.t, transient
+    transient = observables_along(linear, period_map.at(float(beyond)).model, run.t, run.s, run.sdot, run.lam,
+                                  run.lag_states)
+    return f"{words} {_settles(run.period_states)}", float(beyond), run.t, {spec: transient[spec] for spec in specs}
 
 
 def _settles(states: np.ndarray) -> str:
