@@ -356,8 +356,7 @@ def _case(machine: Any, plan: _Plan, n_periods: int, n_steps: int, band: float) 
                  saturation={key: float("nan") for key in SATURATION_KEYS})
     try:
         nominal = mechanisms.nominal_motion(machine, n_steps=n_steps)
-        model = mechanisms.assemble(machine, feedforward=mechanisms.feedforward_torques(
-            machine, mechanisms.nominal_motion(machine)))   # the feedforward simulate() applies
+        model = mechanisms.integrated_model(machine)   # with the feedforward simulate() applies
         fine = _run(machine, model, nominal, plan, n_periods, n_steps)
     except Exception as error:
         if not is_numerical_failure(error):
