@@ -272,12 +272,7 @@ class PeriodMap:
         if raw["status"] != 0:
             raise SimulationError(f"the period map failed: {raw['message']}", None)
         if n_periods == 1:
-            # a copy of the state as the key, and the arrays read-only: a caller that changes the
-            # returned state or trajectory must not change what the next call returns
-            for array in raw.values():
-                if isinstance(array, np.ndarray):
-                    array.flags.writeable = False
-            self._last = (x.copy(), raw)
+            self._last = (x.copy(), raw)    # a copy: the caller keeps ``x`` (``PeriodRun.state``)
         return raw
 
     def _monodromy_of(self, x: np.ndarray, raw: dict) -> np.ndarray:
@@ -298,10 +293,13 @@ class PeriodMap:
                                               + np.outer(np.arange(ends.size), winding[ind]))
         period_states = np.concatenate([positions, raw["sdot"][ends][:, ind] - self.nominal_end[1][ind],
                                         raw["lag_states"][ends]], axis=1)
-        return PeriodRun(state=x, end_state=period_states[-1], monodromy=monodromy, t=raw["t"], s=raw["s"],
-                         sdot=raw["sdot"], period_states=period_states, n_substeps=int(raw["n_substeps"]),
-                         run_time=time.perf_counter() - started, lag_states=raw["lag_states"],
-                         lam=raw["lam"])
+        # copies of the arrays: the map keeps the last period's to differentiate or return it again,
+        # and a caller that writes into a PeriodRun must not change them (read-only arrays instead
+        # would make numba compile read-only variants of the kernels they reach)
+        return PeriodRun(state=x, end_state=period_states[-1], monodromy=monodromy, t=raw["t"].copy(),
+                         s=raw["s"].copy(), sdot=raw["sdot"].copy(), period_states=period_states,
+                         n_substeps=int(raw["n_substeps"]), run_time=time.perf_counter() - started,
+                         lag_states=raw["lag_states"].copy(), lam=raw["lam"].copy())
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) every kernel a period uses: one step with its tangent

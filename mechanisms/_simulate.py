@@ -413,7 +413,8 @@ def integrated_model(mechanism: Any, nominal: Any = None) -> Any:
     """The model ``simulate`` and ``PeriodMap`` integrate for the ``mechanism``: ``assemble(mechanism)``,
     and with torque drives the nominal inverse-dynamics torque as their feedforward
     (``feedforward_torques`` of ``nominal``, the mechanism's ``nominal_motion``, computed when not
-    given). Its ``drive_torques`` is the torque a run applies (feedforward, feedback and limits)."""
+    given). Its ``drive_torques`` is the torque a run applies (feedforward plus feedback clipped to the
+    drive's limits, plus the lag states given)."""
     from ._assemble import assemble
     from ._kinematics import feedforward_torques, nominal_motion
     from ._parts import TorqueDrive

@@ -4,8 +4,8 @@ The kernels are compiled on first use and cached on disk (``cache=True``; numba'
 ``NUMBA_CACHE_DIR``). Without a warm-up, the first study of a fresh install would report the
 compilation (tens of seconds) as its run time. :func:`warm_up` runs each declared study's code path
 once on a tiny grid (32 steps per period; one point of each grid study, a two-period nonlinear
-check), so that every kernel is compiled, with the argument types of the real run, before the timed
-work: the run times a study reports are then computing times. The compile time is measured apart
+check, one Newton step of a shooting), so that every kernel is compiled, with the argument types of
+the real run, before the timed work: the run times a study reports are then computing times. The compile time is measured apart
 (numba's ``numba:compile`` events, which a load from the disk cache does not raise), announced
 when it starts ("compiling numerical kernels (first run only, ...)"), and recorded in the result
 file as the attribute ``compile_time`` (s).
@@ -108,6 +108,9 @@ def warm_up(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> CompileCl
                 _attempt(f"a {name} point", _grid_point, problem, kind.point)
             elif name == "nonlinear_check" and getattr(problem, "supports_nonlinear", False):
                 _attempt("nonlinear check", _nonlinear_check, problem)
+            elif name in ("nonlinear_steady_state", "nonlinear_sweep") and getattr(problem, "supports_nonlinear",
+                                                                                   False):
+                _attempt("shooting", _shooting, problem)
     if clock.count:
         logger.info("compiled the numerical kernels in %.0f s (cached for the next runs; "
                     "not counted in the studies' run times)", time.perf_counter() - started)
@@ -146,6 +149,14 @@ def _nonlinear_check(problem: Any) -> None:
     from ._kinds.nonlinear_check import nonlinear_check
 
     nonlinear_check(problem, n_steps=WARM_UP_STEPS, n_periods=2)
+
+
+def _shooting(problem: Any) -> None:
+    """One Newton step of the nonlinear shooting (a period, its monodromy, a trial period): the
+    integrator's and the monodromy's kernels."""
+    from ._kinds.nonlinear_steady_state import nonlinear_steady_state
+
+    nonlinear_steady_state(problem, n_steps=WARM_UP_STEPS, max_iterations=1)
 
 
 class _muted:

@@ -339,8 +339,9 @@ def observables_along(linear: Linear, model: Any, t: np.ndarray, s: np.ndarray, 
     the run integrated (``mechanisms.integrated_model`` of ``linear.context.mechanism``: a torque
     drive's nominal torque is its feedforward), as the linear route reports it: functions of the
     coordinates as deviations from their values along the nominal motion (angles modulo 2 pi), joint
-    forces from the run's multipliers and drive torques as the run applied them (feedforward,
-    feedback, lag states, limits), both totals; stresses with the nominal axial stress of an axially
+    forces from the run's multipliers and drive torques as the run applied them (feedforward plus
+    feedback clipped to the drive's limits, plus the lagged controllers' states, which act outside
+    them), both totals; stresses with the nominal axial stress of an axially
     rigid link.
 
     ``t`` (K,) s, ``s``, ``sdot`` (K, n), ``lam`` (K, r), ``lag_states`` (K, L) or None: the run on the

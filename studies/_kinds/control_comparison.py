@@ -357,7 +357,7 @@ def _case(machine: Any, plan: _Plan, n_periods: int, n_steps: int, band: float) 
     try:
         nominal = mechanisms.nominal_motion(machine, n_steps=n_steps)
         model = mechanisms.integrated_model(machine)   # with the feedforward simulate() applies
-        fine = _run(machine, model, nominal, plan, n_periods, n_steps)
+        fine = _run(model, nominal, plan, n_periods, n_steps)
     except Exception as error:
         if not is_numerical_failure(error):
             raise
@@ -369,7 +369,7 @@ def _case(machine: Any, plan: _Plan, n_periods: int, n_steps: int, band: float) 
         return found
     fine_settling = {name: settling_time(fine["t"], fine[name], n_steps, band) for name in plan.units}
     try:
-        coarse = _run(machine, model, nominal, plan, n_periods, n_steps // 2, stride=2)
+        coarse = _run(model, nominal, plan, n_periods, n_steps // 2, stride=2)
         coarse_settling = {name: settling_time(coarse["t"], coarse[name], n_steps // 2, band)
                            for name in plan.units}
     except Exception as error:
@@ -417,13 +417,14 @@ class _RunFailed(ComputationError):
         self.partial = partial
 
 
-def _run(machine: Any, model: Any, nominal: Any, plan: _Plan, n_periods: int, steps_per_period: int, *,
+def _run(model: Any, nominal: Any, plan: _Plan, n_periods: int, steps_per_period: int, *,
          stride: int = 1) -> dict[str, np.ndarray]:
-    """``mechanisms.simulate`` from the rigid nominal state at t = 0 with ``steps_per_period``; the
-    quantities of ``plan`` along it (``stride``: the nominal motion's samples per run step)."""
+    """``mechanisms.simulate`` of ``model`` (``mechanisms.integrated_model`` of the machine) from the
+    rigid nominal state at t = 0 with ``steps_per_period``; the quantities of ``plan`` along it
+    (``stride``: the nominal motion's samples per run step)."""
     import mechanisms
 
-    run = mechanisms.simulate(machine, n_periods=n_periods, steps_per_period=steps_per_period,
+    run = mechanisms.simulate(model, n_periods=n_periods, steps_per_period=steps_per_period,
                               s0=nominal.s[0], sdot0=nominal.sdot[0], observables=plan.direct,
                               estimate_error=False, throw=False)
     quantities = _along(run, model, nominal.s[::stride], nominal.sdot[::stride], plan)

@@ -52,7 +52,7 @@ class NonlinearSteadyState(Result):
     L lagged controllers (N m, ``lag.<name>``; L = 0 without); ``response``
     {spec: (N+1,)} observables as the linear steady state reports them (deviations from their
     nominal values; joint forces, drive torques and stresses as totals, a drive's torque as the run
-    applied it, within its limits); ``response_error`` {spec: float} the estimated max abs error of each (N against
+    applied it: feedforward plus feedback clipped to its limits, plus lag states); ``response_error`` {spec: float} the estimated max abs error of each (N against
     N/2 steps); ``linear_response`` {spec: (N+1,)} the linear periodic state on the same grid;
     ``state`` (2m + L,) the orbit's shooting state (coordinates and rates at t = 0, then the lag
     states); ``multipliers`` (2m + L,) complex, the Floquet multipliers of the nonlinear orbit (from the
@@ -214,7 +214,7 @@ def orbit_observables(linear: Any, period_map: Any, state: np.ndarray, *, observ
     lin = linear.context
     model, n = period_map.model, period_map.n_steps
     settled = {spec for spec in (linear.observables if observables else ())
-               if not of_coordinates(model.observable(spec))}
+               if not _of_coordinates_only(model.observable(spec))}
     run = period_map.run(state, tangent=False, n_periods=2 if settled else 1)
     stride = (lin.nominal.s.shape[0] - 1) // n
     response = {}
@@ -229,6 +229,15 @@ def orbit_observables(linear: Any, period_map: Any, state: np.ndarray, *, observ
     z = np.concatenate([(run.s[:n + 1] - lin.nominal.s[::stride])[:, period_map.independent],
                         run.lag_states[:n + 1]], axis=1)
     return response, z, run.n_substeps
+
+
+def _of_coordinates_only(observable: Any) -> bool:
+    """Whether ``observable`` is a function of the coordinates, or the magnitude of a pair of such
+    (a point's displacement; a joint force's magnitude is not)."""
+    components = getattr(observable, "components", None)
+    if components is not None:
+        return all(_of_coordinates_only(component) for component in components)
+    return of_coordinates(observable)
 
 
 def substep_verdict(status: str, message: str, n_substeps: int, n_steps: int) -> tuple[str, str]:
