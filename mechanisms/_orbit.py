@@ -57,9 +57,10 @@ class PeriodRun:
     or rad, per s), followed by the L lag states ``y`` (N m; L = 0 without lagged controllers);
     ``monodromy`` (2m + L, 2m + L) d end_state / d state (None when not asked for); ``t`` (k N + 1,)
     s, ``s``, ``sdot`` (k N + 1, n) the full coordinates and rates over the k periods run, ``lam``
-    (k N + 1, r) the multipliers, ``lag_states`` (k N + 1, L) N m; ``period_states`` (k + 1, 2m + L) the shooting state at t = 0,
-    T, ..., k T; ``n_substeps`` steps the integrator had to subdivide (then the monodromy is that of
-    the uniform grid's steps only, an approximation); ``run_time`` s.
+    (k N + 1, r) the multipliers, ``lag_states`` (k N + 1, L) N m (the arrays are the run's own
+    copies); ``period_states`` (k + 1, 2m + L) the shooting state at t = 0, T, ..., k T;
+    ``n_substeps`` steps the integrator had to subdivide (then the monodromy is that of the uniform
+    grid's steps only, an approximation); ``run_time`` s.
     """
 
     state: np.ndarray

@@ -5,10 +5,10 @@ The kernels are compiled on first use and cached on disk (``cache=True``; numba'
 compilation (tens of seconds) as its run time. :func:`warm_up` runs each declared study's code path
 once on a tiny grid (32 steps per period; one point of each grid study, a two-period nonlinear
 check, one Newton step of a shooting), so that every kernel is compiled, with the argument types of
-the real run, before the timed work: the run times a study reports are then computing times. The compile time is measured apart
-(numba's ``numba:compile`` events, which a load from the disk cache does not raise), announced
-when it starts ("compiling numerical kernels (first run only, ...)"), and recorded in the result
-file as the attribute ``compile_time`` (s).
+the real run, before the timed work: the run times a study reports are then computing times. The
+compile time is measured apart (numba's ``numba:compile`` events, which a load from the disk cache
+does not raise), announced when it starts ("compiling numerical kernels (first run only, ...)"),
+and recorded in the result file as the attribute ``compile_time`` (s).
 """
 
 from __future__ import annotations
@@ -106,10 +106,11 @@ def warm_up(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> CompileCl
             kind = KINDS[name]
             if kind.grid and kind.point is not None:
                 _attempt(f"a {name} point", _grid_point, problem, kind.point)
-            elif name == "nonlinear_check" and getattr(problem, "supports_nonlinear", False):
+            elif not getattr(problem, "supports_nonlinear", False):
+                continue
+            elif name == "nonlinear_check":
                 _attempt("nonlinear check", _nonlinear_check, problem)
-            elif name in ("nonlinear_steady_state", "nonlinear_sweep") and getattr(problem, "supports_nonlinear",
-                                                                                   False):
+            elif name in ("nonlinear_steady_state", "nonlinear_sweep"):
                 _attempt("shooting", _shooting, problem)
     if clock.count:
         logger.info("compiled the numerical kernels in %.0f s (cached for the next runs; "

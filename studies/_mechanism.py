@@ -335,14 +335,14 @@ def observables_along(linear: Linear, model: Any, t: np.ndarray, s: np.ndarray, 
                       lam: np.ndarray, lag_states: np.ndarray | None = None, *, stride: int = 1,
                       computed: Mapping[str, np.ndarray] | None = None,
                       specs: Any = None) -> dict[str, np.ndarray]:
-    """{spec: (K,)} each of ``specs`` (default ``linear.observables``) along a run of ``model``, the full nonlinear model
-    the run integrated (``mechanisms.integrated_model`` of ``linear.context.mechanism``: a torque
-    drive's nominal torque is its feedforward), as the linear route reports it: functions of the
-    coordinates as deviations from their values along the nominal motion (angles modulo 2 pi), joint
-    forces from the run's multipliers and drive torques as the run applied them (feedforward plus
-    feedback clipped to the drive's limits, plus the lagged controllers' states, which act outside
-    them), both totals; stresses with the nominal axial stress of an axially
-    rigid link.
+    """{spec: (K,)} each of ``specs`` (default ``linear.observables``) along a run of ``model``, the
+    full nonlinear model the run integrated (``mechanisms.integrated_model`` of
+    ``linear.context.mechanism``: a torque drive's nominal torque is its feedforward), as the linear
+    route reports it: functions of the coordinates as deviations from their values along the
+    nominal motion (angles modulo 2 pi), joint forces from the run's multipliers and drive torques as
+    the run applied them (feedforward plus feedback clipped to the drive's limits, plus the lagged
+    controllers' states, which act outside them), both totals; stresses with the nominal axial
+    stress of an axially rigid link.
 
     ``t`` (K,) s, ``s``, ``sdot`` (K, n), ``lam`` (K, r), ``lag_states`` (K, L) or None: the run on the
     grid of every ``stride``-th sample of the linear grid, from a whole period's start (t = 0, T, ...;
@@ -354,8 +354,11 @@ def observables_along(linear: Linear, model: Any, t: np.ndarray, s: np.ndarray, 
     reps = int(math.ceil(len(t) / (nominal_s.shape[0] - 1)))
     computed = computed or {}
 
-    def periodic(values):   # a quantity on the linear grid, repeated over the run
-        return np.tile(np.asarray(values)[::stride][:-1], reps)[: len(t)]
+    def repeated(one_period):   # samples over one period of the run's grid, repeated over the run
+        return np.tile(np.asarray(one_period), reps)[: len(t)]
+
+    def periodic(values):       # a quantity on the linear grid (N+1,), repeated over the run
+        return repeated(np.asarray(values)[::stride][:-1])
 
     def along_run(obs, observable_map):
         kind = type(obs).__name__
@@ -375,7 +378,7 @@ def observables_along(linear: Linear, model: Any, t: np.ndarray, s: np.ndarray, 
         else:
             value = obs.value
         values = (computed[obs.spec] if obs.spec in computed else np.array([value(sk) for sk in s]))
-        values = deviation_from_nominal(values, np.tile([value(sk) for sk in nominal_s[:-1]], reps)[: len(t)],
+        values = deviation_from_nominal(values, repeated([value(sk) for sk in nominal_s[:-1]]),
                                         getattr(obs, "unit", ""))
         if observable_map.nominal is not None:   # the axially rigid link's nominal axial stress
             values = values + periodic(observable_map.nominal)

@@ -52,8 +52,8 @@ class NonlinearSteadyState(Result):
     L lagged controllers (N m, ``lag.<name>``; L = 0 without); ``response``
     {spec: (N+1,)} observables as the linear steady state reports them (deviations from their
     nominal values; joint forces, drive torques and stresses as totals, a drive's torque as the run
-    applied it: feedforward plus feedback clipped to its limits, plus lag states); ``response_error`` {spec: float} the estimated max abs error of each (N against
-    N/2 steps); ``linear_response`` {spec: (N+1,)} the linear periodic state on the same grid;
+    applied it: feedforward plus feedback clipped to its limits, plus lag states);
+    ``response_error`` {spec: float} the estimated max abs error of each (N against N/2 steps); ``linear_response`` {spec: (N+1,)} the linear periodic state on the same grid;
     ``state`` (2m + L,) the orbit's shooting state (coordinates and rates at t = 0, then the lag
     states); ``multipliers`` (2m + L,) complex, the Floquet multipliers of the nonlinear orbit (from the
     monodromy of the discrete step map), ``multiplier_errors`` (2m + L,) the error estimate of their
@@ -222,9 +222,8 @@ def orbit_observables(linear: Any, period_map: Any, state: np.ndarray, *, observ
                           (1, sorted(settled))):
         if specs:
             part = slice(period * n, (period + 1) * n + 1)
-            lag_states = run.lag_states[part] if run.lag_states is not None else None
             response.update(observables_along(linear, model, run.t[part], run.s[part], run.sdot[part],
-                                              run.lam[part], lag_states, stride=stride, specs=specs))
+                                              run.lam[part], run.lag_states[part], stride=stride, specs=specs))
     response = {spec: response[spec] for spec in linear.observables if spec in response}
     z = np.concatenate([(run.s[:n + 1] - lin.nominal.s[::stride])[:, period_map.independent],
                         run.lag_states[:n + 1]], axis=1)
