@@ -26,12 +26,12 @@ import logging
 import math
 
 import numpy as np
+from bench_linearize import median_time  # this folder is the script's path: the same timer
 
 import linearize
 import mechanisms
 import periodic
 import studies
-from bench_linearize import median_time  # this folder is the script's path: the same timer
 
 N_STEPS = 32
 TARGET_CELLS, TARGET_SECONDS = 100 * 100, 120.0

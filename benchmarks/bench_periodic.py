@@ -112,7 +112,9 @@ def scipy_shooting(case, method, rtol):
     y0 = np.zeros((2 * n, m))
     y0[:, : 2 * n] = np.eye(2 * n)
     options = {"jac": jac} if method == "Radau" else {}
-    sol = scipy.integrate.solve_ivp(rhs, (0.0, case.period), y0.ravel(), method=method, rtol=rtol, atol=rtol * 1e-3, **options)
+    sol = scipy.integrate.solve_ivp(
+        rhs, (0.0, case.period), y0.ravel(), method=method, rtol=rtol, atol=rtol * 1e-3, **options
+    )
     if sol.status != 0:
         raise RuntimeError(f"{method} failed: {sol.message}")
     Y = sol.y[:, -1].reshape(2 * n, m)
@@ -159,13 +161,25 @@ def run_case(case, quick):
     for label, extrapolate in (("Newmark", False), ("Newmark+Richardson", True)):
         for n_steps in steps:
             t, (z0, mu, status, _), t_solve = timed(lambda: newmark(case, n_steps, extrapolate), repeats)
-            rows.append((label, f"N={n_steps}", state_error(z0, ref_z0, case.n), multiplier_error(mu, ref_mu), t, t_solve, status))
+            rows.append(
+                (
+                    label,
+                    f"N={n_steps}",
+                    state_error(z0, ref_z0, case.n),
+                    multiplier_error(mu, ref_mu),
+                    t,
+                    t_solve,
+                    status,
+                )
+            )
             if rows[-1][2] < TARGET / 100:
                 break
     for method in ("DOP853", "Radau"):
         for rtol in 10.0 ** -np.arange(3.0, 10.5, 0.5):
             t, (z0, mu), _ = timed(lambda: scipy_shooting(case, method, rtol), 1 if quick else 3)
-            rows.append((method, f"rtol={rtol:.0e}", state_error(z0, ref_z0, case.n), multiplier_error(mu, ref_mu), t, t, ""))
+            rows.append(
+                (method, f"rtol={rtol:.0e}", state_error(z0, ref_z0, case.n), multiplier_error(mu, ref_mu), t, t, "")
+            )
             if rows[-1][2] < TARGET / 100:
                 break
     print("| method | setting | state error | mu error | time [ms] | solve only [ms] | status |")
@@ -193,9 +207,11 @@ def overhead():
         system = periodic.PeriodicSystem.from_functions(
             1.0, lambda t: mass, lambda t: damping, lambda t: stiffness * (1.0 + 0.1 * np.cos(2 * np.pi * t)),
             lambda t: force * np.cos(2 * np.pi * t), n_steps=n_steps)
-        for label, call in (("steady_state", lambda: (periodic.steady_state(system),)),
-                            ("steady_state(estimate_error=False)", lambda: (periodic.steady_state(system, estimate_error=False),)),
-                            ("floquet", lambda: (periodic.floquet(system),))):  # timed() wants a tuple
+        for label, call in (
+            ("steady_state", lambda: (periodic.steady_state(system),)),
+            ("steady_state(estimate_error=False)", lambda: (periodic.steady_state(system, estimate_error=False),)),
+            ("floquet", lambda: (periodic.floquet(system),)),
+        ):  # timed() wants a tuple
             call()
             print(f"n={n} N={n_steps} {label}: {timed(call, repeats)[0] * 1e6:.1f} us")
 

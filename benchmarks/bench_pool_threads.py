@@ -20,9 +20,9 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+from bench_linearize import median_time  # this folder is the script's path: the same timer
 
 import studies
-from bench_linearize import median_time  # this folder is the script's path: the same timer
 from studies import _grid
 
 WORKERS = 2

@@ -174,7 +174,10 @@ def mechanism(quick):
     import mechanisms
 
     print("\n## four_bar_fem4 at its scene speed, coupler of n_elements Hermite elements, N = 256, CPU time")
-    print("| elements | n | nonzero fraction | linearize.about [s] | loops [s] | LAPACK [s] | chosen [s] | loops / LAPACK |")
+    print(
+        "| elements | n | nonzero fraction | linearize.about [s] | loops [s] | LAPACK [s] | chosen [s] "
+        "| loops / LAPACK |"
+    )
     print("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for n_elements in (4, 8, 16, 32) if quick else (4, 8, 16, 32, 64):
         model = mechanisms.load("four_bar_fem4").with_parameter("links.coupler.discretisation.n_elements", n_elements)

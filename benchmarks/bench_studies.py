@@ -7,7 +7,8 @@
 2. A 100 x 100 stability chart (speed 20..400 rad/s x coupler thickness 1.2..2.4 mm, 128 steps) on a
    2-process pool.
 3. Steady state at 1 % accuracy of the peak mid-span deflection with 1 % modal damping (coupler
-   damping ratio 0.01), on four_bar_fem4 and on four_bar_thesis: shooting on the linearised system (linearisation included) against
+   damping ratio 0.01), on four_bar_fem4 and on four_bar_thesis: shooting on the linearised system (linearisation
+   included) against
    brute-force integration of the full nonlinear model (``mechanisms.simulate``) from the nominal
    rigid motion until the transient has died out. The reference is the
    linear steady state at 2048 steps with Richardson extrapolation (the nonlinear-linear difference

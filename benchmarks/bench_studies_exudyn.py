@@ -3,7 +3,8 @@ PyPI) against flexvib's shooting, at 1 % accuracy of the peak mid-span deflectio
 
 The same mechanism as benchmarks/bench_studies.py part 3 (four_bar_fem4 with 1 % damping at the first
 bending frequency): rigid crank and rocker (ObjectRigidBody2D), the coupler as ``ANCF_ELEMENTS`` = 16
-ANCF cable elements (ObjectANCFCable2D: cubic Hermite position field, axial and bending strain, damping proportional to the
+ANCF cable elements (ObjectANCFCable2D: cubic Hermite position field, axial and bending strain, damping proportional
+to the
 strain rates, i.e. the stiffness-proportional Rayleigh damping of the scene), revolute joints, the
 crank speed imposed by a velocity-level coordinate constraint. Exudyn integrates with generalized-alpha
 (spectral radius 0.8, as ``mechanisms.simulate``) from the nominal rigid motion until the periodicity
@@ -30,12 +31,12 @@ import statistics
 import time
 
 import numpy as np
+from bench_studies import periods_to_target
 
 import linearize
 import mechanisms
 import periodic
 import studies
-from bench_studies import periods_to_target
 
 SCENE = "four_bar_fem4"
 SPEC = "coupler.deflection@0.5"
@@ -50,10 +51,19 @@ def four_bar():
 def exudyn_run(mechanism, n_periods: int, steps_per_period: int):
     """Simulate in Exudyn; returns (t, mid-span deflection relative to the chord (m), run time s)."""
     import exudyn as exu
-    from exudyn.itemInterface import (MarkerBodyPosition, MarkerNodeCoordinate, NodePoint2DSlope1,
-                                      NodePointGround, NodeRigidBody2D, ObjectANCFCable2D,
-                                      ObjectConnectorCoordinate, ObjectGround, ObjectJointRevolute2D,
-                                      ObjectRigidBody2D, SensorNode)
+    from exudyn.itemInterface import (
+        MarkerBodyPosition,
+        MarkerNodeCoordinate,
+        NodePoint2DSlope1,
+        NodePointGround,
+        NodeRigidBody2D,
+        ObjectANCFCable2D,
+        ObjectConnectorCoordinate,
+        ObjectGround,
+        ObjectJointRevolute2D,
+        ObjectRigidBody2D,
+        SensorNode,
+    )
 
     nominal = mechanisms.nominal_motion(mechanism, n_steps=64)
     labels = list(nominal.model.coord_labels)

@@ -16,11 +16,18 @@ import numpy as np
 import mechanisms
 import periodic
 
-from ._core import (WARN_CONDITION, LinearCoefficients, LinearizationError, choose_independent,
-                    interpolate_periodic, linear_coefficients, spectral_tail)
+from ._core import (
+    WARN_CONDITION,
+    LinearCoefficients,
+    LinearizationError,
+    choose_independent,
+    interpolate_periodic,
+    linear_coefficients,
+    spectral_tail,
+)
 from ._geometric import axial_forces, geometric_stiffness
 from ._observe import ObservableMap, evaluate_maps, needs_multiplier_maps, observable_maps
-from ._range import LinearRange, drive_probes, link_probes, linear_range, sample_abscissae
+from ._range import LinearRange, drive_probes, linear_range, link_probes, sample_abscissae
 
 logger = logging.getLogger(__name__)
 

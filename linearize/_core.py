@@ -60,7 +60,8 @@ class LinearizationError(ValueError):
     """The mechanism or the request cannot be linearised as asked: a toggle (dead-centre) position
     along the prescribed motion, an over-constrained linkage, a drive that ``speed_family`` cannot
     scale, a joint whose load on a stiffened link is not a point force, or an argument of the wrong
-    shape or value (the message names it). Bad input, hence a ``ValueError``; numerical failures on a valid mechanism raise ``mechanisms.ConvergenceError``
+    shape or value (the message names it). Bad input, hence a ``ValueError``; numerical failures on a valid mechanism
+    raise ``mechanisms.ConvergenceError``
     (a ``RuntimeError``)."""
 
 

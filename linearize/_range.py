@@ -129,7 +129,8 @@ class LinearRange:
 class _LinkProbe:
     """What the measures of one elastic link need, fixed by the configuration on the grid:
     ``columns`` (n_e,) of the link's elastic coordinates in ``z``; ``x`` (n_x,) the sample
-    abscissae (m, ``sample_abscissae``); ``w, dw, ddw`` (n_x, n_e) the shape rows there; ``axial`` (N+1, n_x) the nominal axial force (N, tension
+    abscissae (m, ``sample_abscissae``); ``w, dw, ddw`` (n_x, n_e) the shape rows there; ``axial`` (N+1, n_x) the
+    nominal axial force (N, tension
     positive) there, or ``None``; and the link's constants."""
 
     link: mechanisms.ElasticLink

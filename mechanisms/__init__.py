@@ -1,30 +1,60 @@
 """Planar mechanisms with elastic links in redundant generalized coordinates."""
 
-from ._parts import (GROUND as GROUND, DampingMatrix as DampingMatrix, ElasticLink as ElasticLink,
-                     CONTROLLER_TYPES as CONTROLLER_TYPES, DCMotor as DCMotor,
-                     ObservableFeedback as ObservableFeedback, PDController as PDController,
-                     Fem as Fem, Mechanism as Mechanism, ModalDamping as ModalDamping,
-                     PointMass as PointMass, PrescribedDrive as PrescribedDrive,
-                     Rayleigh as Rayleigh, Revolute as Revolute, RigidLink as RigidLink, Ritz as Ritz,
-                     Slider as Slider, TorqueDrive as TorqueDrive, UserShapes as UserShapes)
-from ._assemble import (JointRows as JointRows, LinkLayout as LinkLayout, Model as Model,
-                        assemble as assemble, drive_law as drive_law)
-from ._batch import (ConstraintTerms as ConstraintTerms, LinearTerms as LinearTerms,
-                     constraint_terms_along as constraint_terms_along,
-                     inertia_residual_along as inertia_residual_along,
-                     linear_terms_along as linear_terms_along)
-from ._beams import (BeamShapes as BeamShapes, beam_matrices as beam_matrices,
-                     beam_shapes as beam_shapes)
-from ._parts import ArgumentError as ArgumentError, MechanismError as MechanismError
-from ._parts import DISCRETISATION_TYPES as DISCRETISATION_TYPES, JOINT_TYPES as JOINT_TYPES
-from ._load import build as build, load as load, loads as loads, scenes as scenes
-from ._scenes import (four_bar as four_bar, six_bar as six_bar, slider_crank as slider_crank,
-                      two_link_arm as two_link_arm, parallel_robot as parallel_robot)
-from ._kinematics import (ConvergenceError as ConvergenceError, NominalMotion as NominalMotion,
-                          feedforward_torques as feedforward_torques,
-                          nominal_motion as nominal_motion)
+from ._assemble import JointRows as JointRows
+from ._assemble import LinkLayout as LinkLayout
+from ._assemble import Model as Model
+from ._assemble import assemble as assemble
+from ._assemble import drive_law as drive_law
+from ._batch import ConstraintTerms as ConstraintTerms
+from ._batch import LinearTerms as LinearTerms
+from ._batch import constraint_terms_along as constraint_terms_along
+from ._batch import inertia_residual_along as inertia_residual_along
+from ._batch import linear_terms_along as linear_terms_along
+from ._beams import BeamShapes as BeamShapes
+from ._beams import beam_matrices as beam_matrices
+from ._beams import beam_shapes as beam_shapes
+from ._kinematics import ConvergenceError as ConvergenceError
+from ._kinematics import NominalMotion as NominalMotion
+from ._kinematics import feedforward_torques as feedforward_torques
+from ._kinematics import nominal_motion as nominal_motion
+from ._load import build as build
+from ._load import load as load
+from ._load import loads as loads
+from ._load import scenes as scenes
 from ._observables import default_observables as default_observables
-from ._protocol import ConstrainedModel as ConstrainedModel, Observable as Observable
-from ._simulate import (SimulationError as SimulationError, SimulationResult as SimulationResult,
-                        integrated_model as integrated_model, simulate as simulate)
-from ._orbit import PeriodMap as PeriodMap, PeriodRun as PeriodRun
+from ._orbit import PeriodMap as PeriodMap
+from ._orbit import PeriodRun as PeriodRun
+from ._parts import CONTROLLER_TYPES as CONTROLLER_TYPES
+from ._parts import DISCRETISATION_TYPES as DISCRETISATION_TYPES
+from ._parts import GROUND as GROUND
+from ._parts import JOINT_TYPES as JOINT_TYPES
+from ._parts import ArgumentError as ArgumentError
+from ._parts import DampingMatrix as DampingMatrix
+from ._parts import DCMotor as DCMotor
+from ._parts import ElasticLink as ElasticLink
+from ._parts import Fem as Fem
+from ._parts import Mechanism as Mechanism
+from ._parts import MechanismError as MechanismError
+from ._parts import ModalDamping as ModalDamping
+from ._parts import ObservableFeedback as ObservableFeedback
+from ._parts import PDController as PDController
+from ._parts import PointMass as PointMass
+from ._parts import PrescribedDrive as PrescribedDrive
+from ._parts import Rayleigh as Rayleigh
+from ._parts import Revolute as Revolute
+from ._parts import RigidLink as RigidLink
+from ._parts import Ritz as Ritz
+from ._parts import Slider as Slider
+from ._parts import TorqueDrive as TorqueDrive
+from ._parts import UserShapes as UserShapes
+from ._protocol import ConstrainedModel as ConstrainedModel
+from ._protocol import Observable as Observable
+from ._scenes import four_bar as four_bar
+from ._scenes import parallel_robot as parallel_robot
+from ._scenes import six_bar as six_bar
+from ._scenes import slider_crank as slider_crank
+from ._scenes import two_link_arm as two_link_arm
+from ._simulate import SimulationError as SimulationError
+from ._simulate import SimulationResult as SimulationResult
+from ._simulate import integrated_model as integrated_model
+from ._simulate import simulate as simulate

@@ -58,10 +58,24 @@ from . import _batch, _kernels
 from ._batch import ConstraintTerms, LinearTerms
 from ._beams import BeamShapes, beam_matrices, beam_shapes, membrane_projection
 from ._observables import make_observable
+from ._parts import (
+    GROUND,
+    ArgumentError,
+    DampingMatrix,
+    ElasticLink,
+    Mechanism,
+    MechanismError,
+    ModalDamping,
+    ObservableFeedback,
+    PDController,
+    PrescribedDrive,
+    Rayleigh,
+    Revolute,
+    RigidLink,
+    Slider,
+    TorqueDrive,
+)
 from ._reduce import equivalent_mass_points, equivalent_strain_points
-from ._parts import (GROUND, ArgumentError, DampingMatrix, ElasticLink, Mechanism, MechanismError, ModalDamping,
-                     ObservableFeedback, PDController, PrescribedDrive, Rayleigh, Revolute, RigidLink,
-                     Slider, TorqueDrive)
 
 logger = logging.getLogger(__name__)
 

@@ -241,7 +241,8 @@ def _reduced(link: ElasticLink, attachments: tuple[tuple[float, bool], ...]) -> 
 # ---------------------------------------------------------------------------------------------------
 def clamped_free_roots(n: int) -> np.ndarray:
     """The first ``n`` roots ``beta L`` of ``cos(b) cosh(b) = -1`` (1.8751, 4.6941, ...)."""
-    f = lambda b: math.cos(b) + 1.0 / math.cosh(b)  # same roots, no overflow
+    def f(b):
+        return math.cos(b) + 1.0 / math.cosh(b)  # same roots, no overflow
     return np.array([brentq(f, (i - 1) * math.pi + 1e-3, i * math.pi, xtol=1e-15, rtol=1e-15)
                      for i in range(1, n + 1)])
 

@@ -17,10 +17,24 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Mapping
 
-from ._parts import (CONTROLLER_TYPES, DISCRETISATION_TYPES, JOINT_TYPES, DampingMatrix, DCMotor,
-                     ElasticLink,
-                     Mechanism, MechanismError, ModalDamping, PointMass, PrescribedDrive, Rayleigh,
-                     RigidLink, TorqueDrive, UserShapes, _is_number)
+from ._parts import (
+    CONTROLLER_TYPES,
+    DISCRETISATION_TYPES,
+    JOINT_TYPES,
+    DampingMatrix,
+    DCMotor,
+    ElasticLink,
+    Mechanism,
+    MechanismError,
+    ModalDamping,
+    PointMass,
+    PrescribedDrive,
+    Rayleigh,
+    RigidLink,
+    TorqueDrive,
+    UserShapes,
+    _is_number,
+)
 
 _TOP_KEYS = ("name", "description", "period", "gravity", "initial_angles", "links", "joints",
              "drive", "drives", "point_masses", "controllers", "studies")
@@ -340,11 +354,19 @@ def _build(spec: Mapping[str, Any]) -> Mechanism:
                       for name, value in angles.items()}
     top.string("description", "")  # checked only: documentation, kept in the spec
     period = top.number("period", "s", positive=True) if top.has("period") else None
-    return Mechanism(name=top.string("name"), links=tuple(links), joints=tuple(joints),
-                     drives=tuple(drives), point_masses=tuple(point_masses),
-                     gravity=top.pair("gravity", "m/s^2", (0.0, 0.0)),
-                     initial_angles=initial_angles, period=period,
-                     controllers=tuple(controllers), spec=copy.deepcopy(dict(spec)), studies=copy.deepcopy(dict(top.table("studies"))))
+    return Mechanism(
+        name=top.string("name"),
+        links=tuple(links),
+        joints=tuple(joints),
+        drives=tuple(drives),
+        point_masses=tuple(point_masses),
+        gravity=top.pair("gravity", "m/s^2", (0.0, 0.0)),
+        initial_angles=initial_angles,
+        period=period,
+        controllers=tuple(controllers),
+        spec=copy.deepcopy(dict(spec)),
+        studies=copy.deepcopy(dict(top.table("studies"))),
+    )
 
 
 # ---------------------------------------------------------------------------------------------------

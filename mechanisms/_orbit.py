@@ -39,8 +39,14 @@ import numpy as np
 
 from ._kinematics import ConvergenceError
 from ._parts import ArgumentError
-from ._simulate import (SimulationError, _consistent_accelerations, _integrate, _lag_force,
-                        _propagate_tangent, _resolve_model)
+from ._simulate import (
+    SimulationError,
+    _consistent_accelerations,
+    _integrate,
+    _lag_force,
+    _propagate_tangent,
+    _resolve_model,
+)
 
 __all__ = ["PeriodMap", "PeriodRun"]
 

@@ -26,11 +26,11 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
-
-import numpy as np
 import re
 from dataclasses import dataclass, field
 from typing import Any, Callable, ClassVar, Mapping, Union
+
+import numpy as np
 
 GROUND = "ground"
 

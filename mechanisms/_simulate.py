@@ -735,7 +735,7 @@ class _Stepper:
             self.lags.begin(h)
         full_newton = full_newton or not self.jacobian_reuse
         failure = ""
-        for attempt in range(2):
+        for _attempt in range(2):
             failure = self._newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev,
                                    extrapolate, t, h, beta_p, gamma_p, full_newton)
             if not failure:

@@ -72,7 +72,8 @@ class FloquetResult:
         estimate the errors of quantities derived from the multipliers (characteristic frequencies)
         from them without another run.
     spectral_radius_error : float
-        Error bar of ``|critical_multiplier|``, twice the N/2 error estimate of its modulus (NaN without ``estimate_error``: the verdict then
+        Error bar of ``|critical_multiplier|``, twice the N/2 error estimate of its modulus (NaN without
+        ``estimate_error``: the verdict then
         has no error bar, only ``stability_tol``).
     critical_multiplier : complex
         The multiplier that decides stability (see :func:`periodic.stability_verdict`).

@@ -186,7 +186,8 @@ def newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hi
     """March ``x, v`` (n, m) from ``t_0`` to ``t_N`` in place; ``a`` (n, m) receives the final acceleration.
 
     M, C, K (N+1, n, n), f (N+1, n), first_order (n,) int8 (1 for a first-order coordinate, see the
-    module notes; its rows of ``v`` are replaced by consistent rates at the start), forced (m,).  When ``x_hist`` has N+1 rows the states at all
+    module notes; its rows of ``v`` are replaced by consistent rates at the start), forced (m,).  When ``x_hist`` has
+    N+1 rows the states at all
     samples are written to ``x_hist, v_hist, a_hist`` (N+1, n, m); pass zero-row arrays to skip.
     Returns -1 on success, else the sample index whose matrix (M_0 in N0, the effective matrix of
     N2 otherwise) has an exactly zero pivot.  The hand-written LU and column loops (small n);

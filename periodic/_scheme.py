@@ -82,7 +82,8 @@ class Newmark:
         """Integrate the columns of ``x, v`` (n, m) over one period of ``system`` in place (``a``
         (n, m) receives the end accelerations); column j carries the force ``forced[j] * f(t)``.
         ``x_hist, v_hist, a_hist`` (N+1, n, m) receive every sample, or have length 0. Returns the
-        kernel's status: -1, or the sample whose matrix was singular (see ``raise_on_singular``). The shooting and ``floquet``
+        kernel's status: -1, or the sample whose matrix was singular (see ``raise_on_singular``). The shooting and
+        ``floquet``
         call only this, so a scheme of another family is a class with its own ``march``."""
         if system.n_first_order and 2.0 * self.beta != self.gamma:
             raise PeriodicError(

@@ -28,12 +28,14 @@ from ._floquet import (
     RESONANCE_TOL,
     NearResonanceWarning,
     analyse_multipliers,
-    monodromy,
-    multiplier_errors as estimate_multiplier_errors,
     modulus_errors,
-    sorted_eigenvalues,
+    monodromy,
     near_resonance,
     raise_on_singular,
+    sorted_eigenvalues,
+)
+from ._floquet import (
+    multiplier_errors as estimate_multiplier_errors,
 )
 from ._scheme import DEFAULT_SCHEME, Newmark, as_scheme
 from ._system import (

@@ -319,7 +319,9 @@ def _as_samples(name: str, values, *, ndim: int, shape=None) -> np.ndarray:
         raise PeriodicError(f"{name}: expected shape {want}, got {arr.shape}")
     if not np.isfinite(arr).all():
         bad = np.argwhere(~np.isfinite(arr))[0]
-        raise PeriodicError(f"{name}: expected finite values, got {arr[tuple(bad)]} at index {tuple(int(i) for i in bad)}")
+        raise PeriodicError(
+            f"{name}: expected finite values, got {arr[tuple(bad)]} at index {tuple(int(i) for i in bad)}"
+        )
     return arr
 
 
@@ -352,7 +354,9 @@ def _sample(name: str, func, times: np.ndarray) -> np.ndarray:
             try:
                 value = func(t)
             except Exception as exc:  # any failure of user code is reported with its argument and time
-                raise PeriodicError(f"{name}: the callable raised {type(exc).__name__} at t = {t:.6g} s: {exc}") from exc
+                raise PeriodicError(
+                    f"{name}: the callable raised {type(exc).__name__} at t = {t:.6g} s: {exc}"
+                ) from exc
             shape = np.shape(value)
             if out is None:
                 out = np.empty((times.size,) + shape)

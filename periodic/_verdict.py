@@ -28,7 +28,8 @@ range, where the error is ``C h^p``.  A third level N/4 tests it: the ratio of s
 ``r = |x_{N/2} - x_{N/4}| / |x_N - x_{N/2}|`` tends to ``2^p``.  If the errors shrank geometrically
 by ``r`` per halving of h, the estimate would be ``(r - 1) / (2^p - 1)`` times the true error: the
 accepted band ``-ORDER_TOLERANCE <= log2 r - p <= CONSERVATIVE_ORDERS`` (r in [2.83, 16] at order 2)
-keeps that factor in [0.61, 5]: an estimate too small is refused, a conservative one kept.  A ratio near 2^p can also be a coincidence of a grid far too coarse (measured: the
+keeps that factor in [0.61, 5]: an estimate too small is refused, a conservative one kept.  A ratio near 2^p can also
+be a coincidence of a grid far too coarse (measured: the
 four-bar at N = 8 has r = 3.06 and an estimate 22x too small): an N/4 grid of 2 steps puts the
 fundamental harmonic at its Nyquist frequency and resolves nothing, so the N/4 grid must have at
 least ``MIN_QUARTER_STEPS`` = 4 steps (N >= 16).  Finally an estimate may be trustworthy and still
@@ -192,7 +193,8 @@ def stability_verdict(multipliers, multiplier_errors, step_rates, *, stability_t
         kind = "fold" if mu.real > 0.0 else "period_doubling"
     else:
         kind = "secondary_hopf"
-    where = f"Floquet multiplier {mu:.6g}, |mu| - 1 = {excess:.3g}, its error bar {error:.2g} + tolerance {stability_tol:.2g}"
+    where = (f"Floquet multiplier {mu:.6g}, |mu| - 1 = {excess:.3g}, its error bar {error:.2g} + "
+             f"tolerance {stability_tol:.2g}")
     converged = None if coarse is None or quarter is None else _modulus_convergence(
         mu, np.asarray(coarse), np.asarray(quarter), order, n_steps)
     if unresolved and not (converged is not None and converged.trusted and radius >= UNRESOLVED_GROWTH):

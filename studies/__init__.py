@@ -9,12 +9,12 @@ input raises :class:`StudiesError` (a ``ValueError``); a study that cannot be co
 from ._errors import ComputationError as ComputationError
 from ._errors import StudiesError as StudiesError
 from ._grid import PointOutcome as PointOutcome
+from ._grid import process_pool as process_pool
+from ._grid import run_grid as run_grid
 from ._guard import Estimate as Estimate
 from ._guard import ResourceError as ResourceError
 from ._guard import estimate as estimate
 from ._guard import guard as guard
-from ._grid import process_pool as process_pool
-from ._grid import run_grid as run_grid
 from ._kinds.campbell import CampbellResult as CampbellResult
 from ._kinds.campbell import campbell as campbell
 from ._kinds.control_comparison import ControlComparison as ControlComparison
@@ -53,8 +53,49 @@ from ._store import load as load
 from ._store import open_file as open_file
 
 __all__ = [
-    "CampbellResult", "ComputationError", "ControlComparison", "control_comparison", "FrequencySeparation", "MassBudget", "OptimizeResult", "StabilityMargin", "TorqueLimit", "optimize", "Description", "Estimate", "ResourceError", "ResultFileError", "StorageError", "estimate", "guard", "ErrorCostResult", "Linear", "MechanismProblem",
-    "NonlinearCheck", "NonlinearSteadyState", "NonlinearSweep", "NonlinearRun", "PeriodicCoefficients", "PeriodicProblem", "Plot", "PointOutcome",
-    "StabilityChart", "SteadyStateResult", "StudiesError", "SweepResult", "campbell", "error_cost", "load",
-    "mathieu_problem", "nonlinear_check", "nonlinear_steady_state", "nonlinear_sweep", "open_file", "process_pool", "run_grid", "stability_chart", "steady_state", "sweep",
+    "CampbellResult",
+    "ComputationError",
+    "ControlComparison",
+    "control_comparison",
+    "FrequencySeparation",
+    "MassBudget",
+    "OptimizeResult",
+    "StabilityMargin",
+    "TorqueLimit",
+    "optimize",
+    "Description",
+    "Estimate",
+    "ResourceError",
+    "ResultFileError",
+    "StorageError",
+    "estimate",
+    "guard",
+    "ErrorCostResult",
+    "Linear",
+    "MechanismProblem",
+    "NonlinearCheck",
+    "NonlinearSteadyState",
+    "NonlinearSweep",
+    "NonlinearRun",
+    "PeriodicCoefficients",
+    "PeriodicProblem",
+    "Plot",
+    "PointOutcome",
+    "StabilityChart",
+    "SteadyStateResult",
+    "StudiesError",
+    "SweepResult",
+    "campbell",
+    "error_cost",
+    "load",
+    "mathieu_problem",
+    "nonlinear_check",
+    "nonlinear_steady_state",
+    "nonlinear_sweep",
+    "open_file",
+    "process_pool",
+    "run_grid",
+    "stability_chart",
+    "steady_state",
+    "sweep",
 ]

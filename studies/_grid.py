@@ -27,9 +27,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from ._errors import StudiesError
-
-from ._store import (deferred_interrupts, differing_paths, digest, encode, owner_of, scene_numbers,
-                     write_attrs)
+from ._store import deferred_interrupts, differing_paths, digest, encode, owner_of, scene_numbers, write_attrs
 
 logger = logging.getLogger(__name__)
 

@@ -15,7 +15,6 @@ import periodic
 from . import _verdicts as verdicts
 from ._problem import Linear
 
-
 #: The integration scheme of every study. Its ``error_factor`` (``1 / (2**order - 1)``) turns the
 #: difference between an N-step and an N/2-step value into the error estimate of the N-step value.
 STUDY_SCHEME = periodic.SCHEMES["trapezoidal"]

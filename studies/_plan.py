@@ -19,8 +19,7 @@ from ._errors import StudiesError, is_numerical_failure
 from ._kind import integer, reject_unknown
 from ._kinds import KINDS
 from ._problem import SPEED
-from ._store import (ResultFile, StorageError, canonical, differing_paths, digest, read_group,
-                     scene_numbers, write_attrs)
+from ._store import ResultFile, StorageError, canonical, differing_paths, digest, read_group, scene_numbers, write_attrs
 
 __all__ = ["RunInterrupted", "StudiesError", "default_table", "parameters_needed", "plan", "run_plan",
            "scene_identity"]
@@ -151,7 +150,7 @@ def _run_studies(problem: Any, runs: list, file: ResultFile, *, executor: Any, p
     from ._console import progress_bar
 
     results, failures = {}, {}
-    for name, kind, options in runs:  # a grid group made by this run gets these attributes
+    for name, _kind, options in runs:  # a grid group made by this run gets these attributes
         file.study_attrs[name] = {"request": canonical(options), "request_hash": digest(options)}
     with progress_bar(runs, desc="studies", unit="study", enabled=progress and len(runs) > 1) as bar:
         # An overall bar, since a study without grid points (steady state, nonlinear check,
@@ -215,7 +214,7 @@ def _points_saved(path: str, runs: list) -> tuple[int, int]:
     saved = 0
     try:
         with h5py.File(path, "r", locking=False) as handle:
-            for name, kind, options in runs:
+            for name, _kind, options in runs:
                 group = handle.get(name)
                 if group is None or group.attrs.get("request_hash") != digest(options):
                     continue

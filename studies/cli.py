@@ -1,4 +1,5 @@
-"""The ``flexvib`` command: ``scenes``, ``run``, ``plot``, ``animate``, ``report``, ``info``, ``check``, ``demo`` (see ``flexvib --help``)."""
+"""The ``flexvib`` command: ``scenes``, ``run``, ``plot``, ``animate``, ``report``, ``info``, ``check``, ``demo``
+(see ``flexvib --help``)."""
 
 from __future__ import annotations
 

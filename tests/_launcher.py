@@ -2,7 +2,8 @@
 
 Each line on stdin is JSON ``{"argv": [...], "log": path}``; the launcher forks a child that runs
 ``studies.cli.main(argv)`` exactly as the ``flexvib`` script does, its stdout and stderr going to
-``log``, prints ``pid PID``, waits for it and prints ``exit CODE`` (or ``signal NUMBER``). The child is a separate process killed like a
+``log``, prints ``pid PID``, waits for it and prints ``exit CODE`` (or ``signal NUMBER``). The child is a separate
+process killed like a
 command (SIGKILL, SIGTERM), but starts in milliseconds: the imports and the numba kernels are loaded
 once here (``--warm ARGS...`` runs one command in-process first), so that twenty kills cost twenty
 partial runs, not twenty interpreter start-ups.

@@ -78,7 +78,9 @@ class CentroidPendulum:
         """Rigid nominal motion hanging below the moving pivot (theta = -pi/2), with multipliers
         from the rigid inverse dynamics: arrays t, s, sdot, sddot, lam."""
         t = np.linspace(0.0, period, n_steps + 1)
-        s = np.zeros((t.size, 3)); sd = np.zeros_like(s); sdd = np.zeros_like(s)
+        s = np.zeros((t.size, 3))
+        sd = np.zeros_like(s)
+        sdd = np.zeros_like(s)
         lam = np.zeros((t.size, 2))
         for k, tk in enumerate(t):
             p, pd, pdd = self.path(tk)

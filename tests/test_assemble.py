@@ -24,8 +24,21 @@ from scipy.integrate import quad
 import linearize
 import mechanisms as mk
 import periodic
-from mechanisms import (GROUND, ElasticLink, Fem, Mechanism, PointMass, PrescribedDrive, Rayleigh,
-                        Revolute, RigidLink, Ritz, Slider, TorqueDrive, assemble)
+from mechanisms import (
+    GROUND,
+    ElasticLink,
+    Fem,
+    Mechanism,
+    PointMass,
+    PrescribedDrive,
+    Rayleigh,
+    Revolute,
+    RigidLink,
+    Ritz,
+    Slider,
+    TorqueDrive,
+    assemble,
+)
 
 L0, L1, L2, L3 = 0.254, 0.0508, 0.2794, 0.2794
 STEEL = dict(width=0.02, thickness=0.0016, density=7800.0)
@@ -39,7 +52,10 @@ ALPHA, BETA = 0.7, 2.0e-5                   # Rayleigh damping on the coupler
 DRIVE = dict(rate=100.0, offset=0.3, harmonics=((1, 0.01, 0.02), (3, 0.0, 0.005)))
 
 
-def fourbar(discretisation=Ritz(2, 1), *, stiffening=True, rotary=False, torque=False,
+COUPLER_RITZ = Ritz(2, 1)
+
+
+def fourbar(discretisation=COUPLER_RITZ, *, stiffening=True, rotary=False, torque=False,
             young=E, gravity=GRAVITY):
     """The thesis four-bar OABC with an elastic coupler, a point mass on it, gravity and damping."""
     crank = RigidLink.uniform("crank", L1, **STEEL)
@@ -419,7 +435,8 @@ def test_gamma_and_rate_are_time_derivatives_of_the_constraints(case):
     a = rng.normal(size=model.n_coords) * 100.0
     t = 0.01
     h = 1e-5
-    along = lambda tau: model.constraints(s + sdot * tau + 0.5 * a * tau**2, t + tau)
+    def along(tau):
+        return model.constraints(s + sdot * tau + 0.5 * a * tau**2, t + tau)
     f = [along(k * h) for k in (-2, -1, 0, 1, 2)]
     first = (f[0] - 8 * f[1] + 8 * f[3] - f[4]) / (12 * h)
     second = (-f[0] + 16 * f[1] - 30 * f[2] + 16 * f[3] - f[4]) / (12 * h * h)
@@ -534,8 +551,10 @@ def test_ritz_strain_observable_is_the_projection_onto_the_axial_mode():
     s, _ = random_state(model, np.random.default_rng(5), q_scale=3e-2)
     shapes = model.layouts["coupler"].shapes
     q = s[model.layouts["coupler"].elastic]
-    axial_slope = lambda x: shapes.evaluate([x]).du[0, 2]
-    slope = lambda x: shapes.evaluate([x]).dw[0] @ q
+    def axial_slope(x):
+        return shapes.evaluate([x]).du[0, 2]
+    def slope(x):
+        return shapes.evaluate([x]).dw[0] @ q
     gram = quad(lambda x: axial_slope(x) ** 2, 0.0, L2, epsabs=0.0, epsrel=1e-13)[0]
     projected = quad(lambda x: axial_slope(x) * slope(x) ** 2 / 2, 0.0, L2, epsabs=0.0,
                      epsrel=1e-13)[0] / gram
@@ -745,9 +764,10 @@ def test_power_balance_along_the_equations_of_motion(options):
     lam = rng.normal(size=model.n_constraints) * 10.0
     sddot = np.linalg.solve(model.mass_matrix(s), model.forces(s, sdot, t) - jac.T @ lam)
     h = 2e-7
-    energy = lambda tau: (model.kinetic_energy(s + sdot * tau + 0.5 * sddot * tau**2,
-                                               sdot + sddot * tau)
-                          + model.potential_energy(s + sdot * tau + 0.5 * sddot * tau**2))
+    def energy(tau):
+        return (model.kinetic_energy(s + sdot * tau + 0.5 * sddot * tau**2,
+                                                   sdot + sddot * tau)
+                              + model.potential_energy(s + sdot * tau + 0.5 * sddot * tau**2))
     e = [energy(k * h) for k in (-2, -1, 1, 2)]
     rate = (e[0] - 8 * e[1] + 8 * e[2] - e[3]) / (12 * h)
     expected = model.drive_power(s, sdot, t, lam) - model.damping_power(sdot, s)

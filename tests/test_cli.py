@@ -144,14 +144,22 @@ def test_bad_input_exits_2_with_a_clear_message(argv, message, capsys, tmp_path,
     assert message in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("table, message", [
-    ("[studies.sweep]\nparameter = 'speed'\nstrat = 1.0\n", "unknown key 'strat'; did you mean 'start'?"),
-    ("[studies]\nn_steps = 33\n[studies.steady_state]\n", "n_steps: expected an even integer"),
-    ("[studies.sweep]\nparameter = 'links.coupler.thicknes'\nvalues = [1e-3]\n", "no parameter 'links.coupler.thicknes'"),
-    ("[studies]\nn_steps = 32\n", "declares no study"),
-    ("[studies]\nobservables = ['coupler.deflektion@0.5']\n[studies.steady_state]\n",
-     "unknown quantity 'deflektion'"),
-])
+@pytest.mark.parametrize(
+    "table, message",
+    [
+        ("[studies.sweep]\nparameter = 'speed'\nstrat = 1.0\n", "unknown key 'strat'; did you mean 'start'?"),
+        ("[studies]\nn_steps = 33\n[studies.steady_state]\n", "n_steps: expected an even integer"),
+        (
+            "[studies.sweep]\nparameter = 'links.coupler.thicknes'\nvalues = [1e-3]\n",
+            "no parameter 'links.coupler.thicknes'",
+        ),
+        ("[studies]\nn_steps = 32\n", "declares no study"),
+        (
+            "[studies]\nobservables = ['coupler.deflektion@0.5']\n[studies.steady_state]\n",
+            "unknown quantity 'deflektion'",
+        ),
+    ],
+)
 def test_bad_studies_table_exits_2_naming_the_key(table, message, tmp_path, capsys):
     scene = tmp_path / "bad.toml"
     scene.write_text(mechanisms.load("four_bar_thesis").to_toml() + table)

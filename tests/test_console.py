@@ -98,7 +98,7 @@ def _warning_check(monkeypatch):
 
     def warning_check(problem, **options):
         for _ in range(2):
-            warnings.warn("speed 0.7 rad/s is near a resonance", periodic.NearResonanceWarning)
+            warnings.warn("speed 0.7 rad/s is near a resonance", periodic.NearResonanceWarning, stacklevel=2)
         logging.getLogger("studies._grid").warning("a point failed")
         return original(problem, **options)
 

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import linearize
-from tests._columns import euler_column
 import mechanisms as mc
 import periodic
 from linearize import LinearizationError
+from tests._columns import euler_column
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,6 @@ import pytest
 import linearize
 import mechanisms as mc
 import periodic
-
 from tests._columns import euler_column
 
 

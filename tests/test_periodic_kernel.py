@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import periodic
-from periodic import _demo as demo
 from periodic import __main__ as demo_command
+from periodic import _demo as demo
 from periodic._newmark import SOLVE_INVERSE, SOLVE_LAPACK, SOLVE_LOOPS, _lu_factor, _lu_solve, march, mass_pivot_ratios
 from studies._demo import write_demo
 from tests._newmark_twin import newmark_numpy

@@ -191,7 +191,9 @@ def manufactured_functions():
         return K0 + np.cos(2.0 * t) * K1 + np.sin(t) * K1.T
 
     def exact(t):
-        x = np.array([np.sin(t) + 0.3 * np.cos(2 * t), 0.5 * np.cos(t) - 0.2 * np.sin(3 * t), 0.4 * np.sin(2 * t) + 0.1])
+        x = np.array(
+            [np.sin(t) + 0.3 * np.cos(2 * t), 0.5 * np.cos(t) - 0.2 * np.sin(3 * t), 0.4 * np.sin(2 * t) + 0.1]
+        )
         v = np.array([np.cos(t) - 0.6 * np.sin(2 * t), -0.5 * np.sin(t) - 0.6 * np.cos(3 * t), 0.8 * np.cos(2 * t)])
         a = np.array([-np.sin(t) - 1.2 * np.cos(2 * t), -0.5 * np.cos(t) + 1.8 * np.sin(3 * t), -1.6 * np.sin(2 * t)])
         return x, v, a
@@ -217,7 +219,7 @@ def manufactured_runs(request):
 
 def test_manufactured_solution_orders(manufactured_runs):
     errors = {key: [] for key in ("x", "v", "a", "x4", "v4", "a4")}
-    for system, truth, plain, extrapolated in manufactured_runs:
+    for _system, truth, plain, extrapolated in manufactured_runs:
         assert plain.status == "ok"
         for suffix, result in (("", plain), ("4", extrapolated)):
             for j, key in enumerate("xva"):
@@ -249,7 +251,9 @@ def test_steady_state_is_periodic_and_multipliers_agree_with_floquet(manufacture
 def test_liouville_formula():
     functions, _ = manufactured_functions()
     mass, damping = functions[0], functions[1]
-    exact, _ = scipy.integrate.quad(lambda t: -np.trace(np.linalg.solve(mass(t), damping(t))), 0.0, TWO_PI, epsabs=1e-13)
+    exact, _ = scipy.integrate.quad(
+        lambda t: -np.trace(np.linalg.solve(mass(t), damping(t))), 0.0, TWO_PI, epsabs=1e-13
+    )
     gaps = []
     for n_steps in GRID:
         result = periodic.floquet(PeriodicSystem.from_functions(TWO_PI, *functions, n_steps=int(n_steps)))
@@ -308,7 +312,9 @@ def test_undamped_system_on_the_unit_circle_works():
 @pytest.mark.parametrize("damping_ratio", [0.0, 1e-4])
 def test_forcing_at_resonance_is_flagged(damping_ratio):
     omega = 1.0
-    system = constant_system(np.eye(1), 2 * damping_ratio * omega * np.eye(1), omega**2 * np.eye(1), np.ones(1), omega, 200)
+    system = constant_system(
+        np.eye(1), 2 * damping_ratio * omega * np.eye(1), omega**2 * np.eye(1), np.ones(1), omega, 200
+    )
     with pytest.warns(NearResonanceWarning, match=r"multiplier .* from \+1 .*cond\(I - Phi\) = "):
         result = periodic.steady_state(system)
     assert result.status == "near_resonance"
@@ -336,7 +342,8 @@ STIFF_F = np.array([1.0, 1e9j])
 @pytest.mark.usefixtures("each_kernel_path")
 def test_unresolved_stiff_mode_is_not_called_a_resonance(n_steps):
     """Trapezoidal R -> -1 for the stiff DOF, so over even N its multipliers approach +1 (|1 - mu| =
-    1 - exp(-4 N^2 / (5e5 T)) < 1e-2 at N = 52, 100); this must be labelled an unresolved stiff mode, with an accurate solution."""
+    1 - exp(-4 N^2 / (5e5 T)) < 1e-2 at N = 52, 100); this must be labelled an unresolved stiff mode, with an
+    accurate solution."""
     system = constant_system(STIFF_M, STIFF_C, STIFF_K, STIFF_F, 1.0, n_steps)
     with warnings.catch_warnings():
         warnings.simplefilter("error", NearResonanceWarning)
@@ -436,7 +443,7 @@ def test_coarse_solution_comes_back_for_observable_error_estimates(manufactured_
 
 def test_multiplier_error_estimates_match_true_errors(constant_runs):
     exact_mu = np.linalg.eigvals(scipy.linalg.expm(state_matrix(M2, C2, K2) * TWO_PI / OMEGA2))
-    for system, plain, extrapolated in constant_runs[1:]:
+    for _system, plain, extrapolated in constant_runs[1:]:
         true_errors = np.abs(plain.multipliers[:, None] - exact_mu[None, :]).min(axis=1)
         # |mu_N - mu_{N/2}| / 3 = true error * (1 + O(h^2)), as for the state.
         np.testing.assert_allclose(plain.multiplier_errors / true_errors, 1.0, atol=0.2)

@@ -48,7 +48,9 @@ def test_mathieu_tongues_are_unstable_with_their_kind(order, kind):
     assert (result.status, result.instability_kind, result.is_stable) == ("unstable", kind, False)
     assert result.spectral_radius - 1.0 > result.spectral_radius_error > 0.0
     assert np.sign(result.critical_multiplier.real) == (-1 if order == 1 else 1)
-    assert result.message.startswith("unstable: ") and kind.replace("_", " ") in result.message.replace("fold or", "fold")
+    assert result.message.startswith("unstable: ") and kind.replace("_", " ") in result.message.replace(
+        "fold or", "fold"
+    )
     # Same verdict from the steady state (unforced: x = 0, the error check agrees to round-off).
     steady = periodic.steady_state(system)
     assert (steady.status, steady.instability_kind, steady.is_stable) == ("unstable", kind, False)
@@ -161,7 +163,9 @@ def test_coarse_grid_is_inaccurate_and_fine_grid_ok():
     fine = periodic.steady_state(periodic.demo_system(512))
     assert fine.status == "ok" and fine.error_trusted and fine.error_ratio == pytest.approx(4.0, abs=0.1)
     assert fine.x_quarter.shape == (129, 2)
-    np.testing.assert_array_equal(fine.x_quarter, periodic.steady_state(periodic.demo_system(128), estimate_error=False).x)
+    np.testing.assert_array_equal(
+        fine.x_quarter, periodic.steady_state(periodic.demo_system(128), estimate_error=False).x
+    )
     skipped = periodic.steady_state(periodic.demo_system(512), estimate_error=False)
     assert skipped.x_quarter is None and not skipped.error_trusted and np.isnan(skipped.error_ratio)
     assert np.isnan(skipped.spectral_radius_error) and skipped.status == "ok"

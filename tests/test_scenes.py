@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 import mechanisms
-from mechanisms import (ElasticLink, Mechanism, MechanismError, PrescribedDrive, Revolute,
-                        RigidLink, Slider)
+from mechanisms import ElasticLink, Mechanism, MechanismError, PrescribedDrive, Revolute, RigidLink, Slider
 
 BUILDERS = {
     "four_bar_fem4": lambda: mechanisms.four_bar(),

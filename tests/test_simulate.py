@@ -19,7 +19,7 @@ import sympy as sp
 from scipy.integrate import solve_ivp
 
 import mechanisms
-from mechanisms._simulate import _lu_factor, _lu_solve, _lu_solve_rows, SimulationError
+from mechanisms._simulate import SimulationError, _lu_factor, _lu_solve, _lu_solve_rows
 
 G = 9.81
 

@@ -13,8 +13,18 @@ from __future__ import annotations
 from typing import Any
 
 from .._kind import StudyKind
-from . import (campbell, control_comparison, error_cost, nonlinear_check, nonlinear_steady_state, nonlinear_sweep,
-               optimize, stability_chart, steady_state, sweep)
+from . import (
+    campbell,
+    control_comparison,
+    error_cost,
+    nonlinear_check,
+    nonlinear_steady_state,
+    nonlinear_sweep,
+    optimize,
+    stability_chart,
+    steady_state,
+    sweep,
+)
 
 _MODULES = (
     steady_state,

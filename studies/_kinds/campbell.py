@@ -12,17 +12,33 @@ import numpy as np
 
 import periodic
 
+from .. import _verdicts as verdicts
 from .._errors import StudiesError
 from .._grid import run_grid
 from .._kind import HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, steps
-from .._numerics import STUDY_SCHEME, characteristic_frequencies, crossings, frozen_modes, track_modes, \
-    unstable_intervals
+from .._numerics import (
+    STUDY_SCHEME,
+    characteristic_frequencies,
+    crossings,
+    frozen_modes,
+    track_modes,
+    unstable_intervals,
+)
 from .._plots import Plot, axes_for, cost_line, drawn, largest, mark_statuses, plain
 from .._problem import SPEED
-from .. import _verdicts as verdicts
 from .._store import register
-from .._studies import GridResult, check_grid, check_integer, check_n_steps, collect, grid_status, grid_summary, \
-    open_store, reduction_check, reduction_headlines
+from .._studies import (
+    GridResult,
+    check_grid,
+    check_integer,
+    check_n_steps,
+    collect,
+    grid_status,
+    grid_summary,
+    open_store,
+    reduction_check,
+    reduction_headlines,
+)
 from .._summary import Headline, Summary, listed, ranges
 
 #: The fewest steps per period a Campbell diagram accepts (docs/studies.md).

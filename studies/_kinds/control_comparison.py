@@ -20,13 +20,13 @@ import numpy as np
 
 from .._errors import ComputationError, StudiesError, is_numerical_failure
 from .._kind import MAX_PERIODS, PERIODS_WHY, StudyKind, fraction, integer, speed_values, steps
+from .._mechanism import deviation_from_nominal
 from .._plots import Plot, axes_for, drawn, headline, label, plain
 from .._problem import SPEED
 from .._store import Result, register
 from .._studies import check_integer, check_n_steps
 from .._summary import Headline, Summary
 from .._verdicts import combine
-from .._mechanism import deviation_from_nominal
 
 logger = logging.getLogger(__name__)
 
@@ -106,7 +106,8 @@ class ControlComparison(Result):
 
     ``t`` (n_t,) s, ``n_t = n_periods * n_steps + 1``; ``with_control`` and ``without_control``
     {quantity: (n_t,)}: each quantity's time history (NaN after the time a run failed).
-    ``quantities``: their names in report order; by ``roles`` {quantity: role}: ``"elastic"``, the scene's observables of the coordinates (the
+    ``quantities``: their names in report order; by ``roles`` {quantity: role}: ``"elastic"``, the scene's
+    observables of the coordinates (the
     coupler's midspan deflection by default), deviations from the rigid nominal motion; ``"speed"``,
     ``drive.<J>.rate`` the controlled drive's relative rate minus its nominal (rad/s, the crank speed
     fluctuation); ``"output"``, the output's deviation from its nominal (the output link's angle,
@@ -584,9 +585,15 @@ def _headlines(result: ControlComparison) -> Summary:
                              result.steady_peak_error["with"][name], f"(without feedback: {without})"))
     for name in result.quantity("elastic"):
         without = result.settling_time["without"][name]
-        rows.append(Headline(f"{name} settling time with control", result.settling_time["with"][name], "s",
-                             result.settling_time_error["with"][name],
-                             f"(without feedback: {plain(without, 3) + ' s' if math.isfinite(without) else 'not settled'})"))
+        rows.append(
+            Headline(
+                f"{name} settling time with control",
+                result.settling_time["with"][name],
+                "s",
+                result.settling_time_error["with"][name],
+                f"(without feedback: {plain(without, 3) + ' s' if math.isfinite(without) else 'not settled'})",
+            )
+        )
     speed = result.parameters.get(SPEED, float("nan"))
     return Summary(status=f"{headline(result.status)} at speed {plain(speed, 3)} rad/s",
                    run_time=float(np.nansum(list(result.run_time.values()))), rows=rows)

@@ -10,8 +10,18 @@ from typing import Any, Mapping
 import numpy as np
 
 from .._errors import StudiesError, is_numerical_failure
-from .._kind import MAX_AXIS_POINTS, MAX_PERIODS, PERIODS_WHY, StudyKind, boolean, fraction, integer, \
-    number, speed_values, steps
+from .._kind import (
+    MAX_AXIS_POINTS,
+    MAX_PERIODS,
+    PERIODS_WHY,
+    StudyKind,
+    boolean,
+    fraction,
+    integer,
+    number,
+    speed_values,
+    steps,
+)
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, drawn, headline, label, plain
 from .._problem import SPEED
@@ -276,9 +286,14 @@ def _verdict(specs, scale, difference, defect, linear_error, nonlinear_error, to
                           f"{defect[spec]:.3g} over the last period is {defect[spec] / scale[spec]:.3g} of the "
                           f"linear peak to peak (allowed {settle / scale[spec]:.3g})"))
         elif not difference[spec] <= allowed:
-            found.append(("differs", f"{spec}: nonlinear and linear differ by {100 * difference[spec] / scale[spec]:.3g} % "
-                          f"of the linear peak to peak (allowed: the two error estimates and the "
-                          f"tolerance, {100 * allowed / scale[spec]:.3g} %)"))
+            found.append(
+                (
+                    "differs",
+                    f"{spec}: nonlinear and linear differ by {100 * difference[spec] / scale[spec]:.3g} % "
+                    f"of the linear peak to peak (allowed: the two error estimates and the "
+                    f"tolerance, {100 * allowed / scale[spec]:.3g} %)",
+                )
+            )
         else:
             found.append(("agrees", f"{spec}: agrees within {100 * difference[spec] / scale[spec]:.3g} % of the "
                           f"peak to peak (allowed {100 * allowed / scale[spec]:.3g} %)"))

@@ -53,7 +53,8 @@ class NonlinearSteadyState(Result):
     {spec: (N+1,)} observables as the linear steady state reports them (deviations from their
     nominal values; joint forces, drive torques and stresses as totals, a drive's torque as the run
     applied it: feedforward plus feedback clipped to its limits, plus lag states);
-    ``response_error`` {spec: float} the estimated max abs error of each (N against N/2 steps); ``linear_response`` {spec: (N+1,)} the linear periodic state on the same grid;
+    ``response_error`` {spec: float} the estimated max abs error of each (N against N/2 steps); ``linear_response``
+    {spec: (N+1,)} the linear periodic state on the same grid;
     ``state`` (2m + L,) the orbit's shooting state (coordinates and rates at t = 0, then the lag
     states); ``multipliers`` (2m + L,) complex, the Floquet multipliers of the nonlinear orbit (from the
     monodromy of the discrete step map), ``multiplier_errors`` (2m + L,) the error estimate of their

@@ -16,14 +16,13 @@ import periodic
 
 from .._errors import StudiesError
 from .._kind import MAX_PERIODS, MAX_STEPS, PERIODS_WHY, STEPS_WHY, StudyKind, boolean, integer, number
+from .._mechanism import observables_along
 from .._numerics import solve_steady
-from .._plots import Plot, axes_for, cost_line, drawn, label
+from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
 from .._problem import SPEED
 from .._store import Result, register
 from .._studies import check_integer, check_n_steps, check_parameter
 from .._summary import Headline, Summary, largest_over_grid
-from .._plots import headline, plain
-from .._mechanism import observables_along
 from .nonlinear_steady_state import ERROR_FACTOR, MIN_STEPS, TOL, orbit_observables, shooting_setup, substep_verdict
 
 #: Periods of the transient run from the last stable orbit past the loss of stability.
@@ -44,19 +43,20 @@ ORBITS_WHY = "orbits of one branch, each a few nonlinear periods with their mono
 class NonlinearSweep(Result):
     """The nonlinear periodic orbit over one parameter, with the linear response for comparison.
 
-    ``parameter`` ("speed" or a dotted scene path, unit ``parameter_unit``); ``values`` (k,) the branch's
-    parameter values in the order followed (not monotone past a fold); ``peak_to_peak`` {spec: (k,)} of
-    the nonlinear orbit and ``peak_to_peak_error`` {spec: (k,)} its estimated error (units of each spec;
-``|ptp_N - ptp_{N/2}| / 3`` from the orbit found again on N/2 steps, NaN where it was not found);
-``linear_at_branch`` {spec: (k,)} the linear periodic state's at the same values;
-    ``linear_values`` (n_lin,) and ``linear_peak_to_peak`` {spec: (n_lin,)} the linear curve over the
-    whole range; ``stable`` (k,) bool; ``spectral_radius`` (k,) of the nonlinear orbits; ``statuses``
-    (k,) each orbit's status (its stability decided with the error bars of the N/2 orbit's multipliers); ``bifurcation_values`` (b,) and ``bifurcation_kinds`` (b,) where a
-    multiplier crosses the unit circle ("fold", "period_doubling", "secondary_hopf");
-    ``after_instability``: what the transient from the last stable orbit, just past the loss of
-    stability, does ("" when stability is not lost), with ``transient_value`` its parameter value,
-    ``transient_t`` (n_t,) s and ``transient`` {spec: (n_t,)} its observables (deviation from nominal);
-    ``status``, ``message`` the branch's (``periodic.continue_orbits``); ``run_time`` s.
+        ``parameter`` ("speed" or a dotted scene path, unit ``parameter_unit``); ``values`` (k,) the branch's
+        parameter values in the order followed (not monotone past a fold); ``peak_to_peak`` {spec: (k,)} of
+        the nonlinear orbit and ``peak_to_peak_error`` {spec: (k,)} its estimated error (units of each spec;
+    ``|ptp_N - ptp_{N/2}| / 3`` from the orbit found again on N/2 steps, NaN where it was not found);
+    ``linear_at_branch`` {spec: (k,)} the linear periodic state's at the same values;
+        ``linear_values`` (n_lin,) and ``linear_peak_to_peak`` {spec: (n_lin,)} the linear curve over the
+        whole range; ``stable`` (k,) bool; ``spectral_radius`` (k,) of the nonlinear orbits; ``statuses``
+        (k,) each orbit's status (its stability decided with the error bars of the N/2 orbit's multipliers);
+        ``bifurcation_values`` (b,) and ``bifurcation_kinds`` (b,) where a
+        multiplier crosses the unit circle ("fold", "period_doubling", "secondary_hopf");
+        ``after_instability``: what the transient from the last stable orbit, just past the loss of
+        stability, does ("" when stability is not lost), with ``transient_value`` its parameter value,
+        ``transient_t`` (n_t,) s and ``transient`` {spec: (n_t,)} its observables (deviation from nominal);
+        ``status``, ``message`` the branch's (``periodic.continue_orbits``); ``run_time`` s.
     """
 
     problem: str

@@ -22,13 +22,26 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .._errors import StudiesError, is_numerical_failure
-from .._kind import MAX_AXIS_POINTS, MAX_HARMONIC, HARMONIC_WHY, PERIODS_WHY, MAX_PERIODS, StudyKind, axis, \
-    boolean, fraction, integer, number, reject_unknown, steps
+from .._kind import (
+    HARMONIC_WHY,
+    MAX_AXIS_POINTS,
+    MAX_HARMONIC,
+    MAX_PERIODS,
+    PERIODS_WHY,
+    StudyKind,
+    axis,
+    boolean,
+    fraction,
+    integer,
+    number,
+    reject_unknown,
+    steps,
+)
+from .._mechanism import COUNT_KEYS
 from .._numerics import frozen_modes, peak_summary, solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
 from .._problem import SPEED
 from .._store import Result, register
-from .._mechanism import COUNT_KEYS
 from .._studies import check_integer, check_n_steps, check_parameter
 from .._summary import Headline, Summary
 from .._verdicts import combine

@@ -12,16 +12,26 @@ import numpy as np
 
 import periodic
 
+from .. import _verdicts as verdicts
 from .._errors import StudiesError
 from .._grid import run_grid
 from .._kind import StudyKind, axis, steps, sub_table
 from .._numerics import STUDY_SCHEME
 from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses, plain, radius_norm
 from .._problem import SPEED
-from .. import _verdicts as verdicts
 from .._store import register
-from .._studies import GridResult, check_grid, check_n_steps, check_parameter, collect, grid_status, \
-    grid_summary, open_store, reduction_check, reduction_headlines
+from .._studies import (
+    GridResult,
+    check_grid,
+    check_n_steps,
+    check_parameter,
+    collect,
+    grid_status,
+    grid_summary,
+    open_store,
+    reduction_check,
+    reduction_headlines,
+)
 from .._summary import Headline, Summary, largest_over_grid, ranges
 
 #: The fewest steps per period a stability chart accepts (docs/studies.md).
@@ -85,9 +95,12 @@ class StabilityChart(GridResult):
             ax.legend(fontsize="x-small", loc="upper left", framealpha=0.6)
         ax.set_xlabel(label(self.parameters[0], self.parameter_units[0]))
         ax.set_ylabel(label(self.parameters[1], self.parameter_units[1]))
-        ax.set_title(f"{self.problem}: stability chart (black: |mu| = 1; colours on a log scale each side of 1)\n" + cost_line(
-            f"spectral radius to {plain(largest(self.spectral_radius_error))}", self.run_time)
-            + self.reduction_note(), fontsize="small")
+        ax.set_title(
+            f"{self.problem}: stability chart (black: |mu| = 1; colours on a log scale each side of 1)\n"
+            + cost_line(f"spectral radius to {plain(largest(self.spectral_radius_error))}", self.run_time)
+            + self.reduction_note(),
+            fontsize="small",
+        )
         return drawn(axes, artists)
 
 

@@ -9,8 +9,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .._kind import StudyKind, speed_values, steps
 from .._drawing import draw_mechanism, mechanism_drawing
+from .._kind import StudyKind, speed_values, steps
 from .._numerics import peak_summary, solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain, plot_multipliers
 from .._store import Result, register

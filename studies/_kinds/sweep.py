@@ -16,14 +16,35 @@ import periodic
 from .._grid import run_grid
 from .._kind import AXIS_KEYS, HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, steps
 from .._numerics import crossings, frozen_modes, peak_summary, solve_steady, unstable_intervals
-from .._plots import LABEL_ROW_HEIGHT, Plot, axes_for, cost_line, drawn, label, label_positions, largest, \
-    mark_statuses, plain
+from .._plots import (
+    LABEL_ROW_HEIGHT,
+    Plot,
+    axes_for,
+    cost_line,
+    drawn,
+    label,
+    label_positions,
+    largest,
+    mark_statuses,
+    plain,
+)
 from .._problem import SPEED
 from .._store import register
-from .._verdicts import combine
-from .._studies import GridResult, check_grid, check_integer, check_n_steps, check_parameter, collect, \
-    grid_status, grid_summary, open_store, reduction_check, reduction_headlines
+from .._studies import (
+    GridResult,
+    check_grid,
+    check_integer,
+    check_n_steps,
+    check_parameter,
+    collect,
+    grid_status,
+    grid_summary,
+    open_store,
+    reduction_check,
+    reduction_headlines,
+)
 from .._summary import PEAK_UNITS, Headline, Summary, largest_over_grid, listed, ranges
+from .._verdicts import combine
 
 #: Frozen-time eigenproblems per period for the resonance bands of a sweep (the bands of smooth
 #: coefficients converge fast in the number of samples; 32 resolves a band edge to well under 1 %
@@ -47,7 +68,8 @@ class SweepResult(GridResult):
     each point; ``peak_to_peak`` {spec: (n,)} and ``peak_to_peak_error`` {spec: (n,)} (twice the max
     error estimate plus the sampling correction of the extremes); ``peak`` {spec: (n,)} the largest
     magnitude over the period and ``peak_error`` {spec: (n,)} (``studies._numerics.peak_summary``;
-    for joint forces, drive torques and stresses the totals, nominal plus elastic change); ``spectral_radius`` (n,); ``multipliers`` (n, 2m) complex; ``error_estimate`` (n,)
+    for joint forces, drive torques and stresses the totals, nominal plus elastic change); ``spectral_radius`` (n,);
+    ``multipliers`` (n, 2m) complex; ``error_estimate`` (n,)
     max error of the coordinates; ``frozen_min``, ``frozen_max``, ``frozen_mean`` (n, m) rad/s the
     band of each frozen-time natural frequency (ascending order) over the period; ``resonances``
     ((k, mode, value), ...) where ``k * speed`` crosses the mean of frozen frequency ``mode``
@@ -82,10 +104,24 @@ class SweepResult(GridResult):
     peak: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
 
-    _units = {"peak": "@observables", "peak_error": "@observables", "spectral_radius_error": "1", "is_stable": "1", "linear_range": "1", "values": "@parameter_unit", "speed": "rad/s", "peak_to_peak": "@observables",
-              "peak_to_peak_error": "@observables", "spectral_radius": "1", "multipliers": "1",
-              "error_estimate": "SI (see labels)", "frozen_min": "rad/s", "frozen_max": "rad/s",
-              "frozen_mean": "rad/s", **GridResult._units}
+    _units = {
+        "peak": "@observables",
+        "peak_error": "@observables",
+        "spectral_radius_error": "1",
+        "is_stable": "1",
+        "linear_range": "1",
+        "values": "@parameter_unit",
+        "speed": "rad/s",
+        "peak_to_peak": "@observables",
+        "peak_to_peak_error": "@observables",
+        "spectral_radius": "1",
+        "multipliers": "1",
+        "error_estimate": "SI (see labels)",
+        "frozen_min": "rad/s",
+        "frozen_max": "rad/s",
+        "frozen_mean": "rad/s",
+        **GridResult._units,
+    }
 
     def plot(self, *, axes: Any = None) -> Plot:
         """Peak-to-peak of each observable and the spectral radius against the swept parameter, with
@@ -117,7 +153,7 @@ class SweepResult(GridResult):
             ax.set_xlabel(xlabel)
             for start, end in self.instabilities:
                 artists.setdefault("instabilities", []).append(ax.axvspan(start, end, color="C3", alpha=0.2))
-        for k, mode, value in self.resonances:
+        for _k, _mode, value in self.resonances:
             for ax in axes:
                 artists.setdefault("resonances", []).append(ax.axvline(value, color="0.5", ls=":", lw=0.8))
         # the k:mode labels in staggered rows above the top axes, the lowest harmonics first (the
