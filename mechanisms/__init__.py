@@ -1,10 +1,6 @@
 """Planar mechanisms with elastic links in redundant generalized coordinates."""
 
-from ._assemble import JointRows as JointRows
-from ._assemble import LinkLayout as LinkLayout
-from ._assemble import Model as Model
 from ._assemble import assemble as assemble
-from ._assemble import drive_law as drive_law
 from ._batch import ConstraintTerms as ConstraintTerms
 from ._batch import LinearTerms as LinearTerms
 from ._batch import constraint_terms_along as constraint_terms_along
@@ -21,6 +17,9 @@ from ._load import build as build
 from ._load import load as load
 from ._load import loads as loads
 from ._load import scenes as scenes
+from ._model import JointRows as JointRows
+from ._model import LinkLayout as LinkLayout
+from ._model import Model as Model
 from ._observables import default_observables as default_observables
 from ._orbit import PeriodMap as PeriodMap
 from ._orbit import PeriodRun as PeriodRun
@@ -47,6 +46,7 @@ from ._parts import Ritz as Ritz
 from ._parts import Slider as Slider
 from ._parts import TorqueDrive as TorqueDrive
 from ._parts import UserShapes as UserShapes
+from ._parts import drive_law as drive_law
 from ._protocol import ConstrainedModel as ConstrainedModel
 from ._protocol import Observable as Observable
 from ._scenes import four_bar as four_bar

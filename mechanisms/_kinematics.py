@@ -28,8 +28,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ._assemble import Model, assemble
+from ._assemble import assemble
 from ._batch import constraint_terms_along, inertia_residual_along, scaled_correction
+from ._model import Model
 from ._parts import GROUND, ArgumentError, Mechanism, MechanismError, PrescribedDrive, Revolute, TorqueDrive
 
 logger = logging.getLogger(__name__)
