@@ -27,6 +27,8 @@ from ._parts import CONTROLLER_TYPES as CONTROLLER_TYPES
 from ._parts import DISCRETISATION_TYPES as DISCRETISATION_TYPES
 from ._parts import GROUND as GROUND
 from ._parts import JOINT_TYPES as JOINT_TYPES
+from ._parts import AngleRow as AngleRow
+from ._parts import AngleTerm as AngleTerm
 from ._parts import ArgumentError as ArgumentError
 from ._parts import DampingMatrix as DampingMatrix
 from ._parts import DCMotor as DCMotor
@@ -38,6 +40,8 @@ from ._parts import ModalDamping as ModalDamping
 from ._parts import ObservableFeedback as ObservableFeedback
 from ._parts import PDController as PDController
 from ._parts import PointMass as PointMass
+from ._parts import PointRow as PointRow
+from ._parts import PointTerm as PointTerm
 from ._parts import PrescribedDrive as PrescribedDrive
 from ._parts import Rayleigh as Rayleigh
 from ._parts import Revolute as Revolute
@@ -47,6 +51,7 @@ from ._parts import Slider as Slider
 from ._parts import TorqueDrive as TorqueDrive
 from ._parts import UserShapes as UserShapes
 from ._parts import drive_law as drive_law
+from ._parts import register_joint as register_joint
 from ._protocol import ConstrainedModel as ConstrainedModel
 from ._protocol import Observable as Observable
 from ._scenes import four_bar as four_bar

@@ -45,7 +45,6 @@ torque drive adds ``tau h`` to ``Q`` with ``h`` the gradient of that relative an
 from __future__ import annotations
 
 import logging
-import math
 from collections import OrderedDict
 from typing import Callable, Mapping
 
@@ -56,7 +55,6 @@ from scipy.sparse.csgraph import connected_components
 from ._beams import beam_matrices, beam_shapes, membrane_projection
 from ._model import JointRows, LinkLayout, Model, _DriveInfo, _Tables
 from ._parts import (
-    GROUND,
     DampingMatrix,
     ElasticLink,
     Mechanism,
@@ -64,9 +62,7 @@ from ._parts import (
     ModalDamping,
     PrescribedDrive,
     Rayleigh,
-    Revolute,
     RigidLink,
-    Slider,
     TorqueDrive,
 )
 from ._reduce import equivalent_mass_points, equivalent_strain_points
@@ -200,45 +196,26 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
         mp_int.append((lay.offset, *push(su, sw, dw)))
         mp_real.append((pm.mass, pm.inertia, cx, cy))
 
-    # constraints
-    constraint_labels, ct_int, ct_real, phi0 = [], [], [], []
+    # constraints: each joint's rows (``mechanisms/_parts/rows.py``) stored through the writer
+    writer = _ConstraintWriter(layouts, push, n)
+    constraint_labels, angle_rows = [], []
     joint_rows = {}
     for joint in mechanism.joints:
         row = len(constraint_labels)
-        if isinstance(joint, Revolute):
-            constraint_labels += [f"{joint.name}.x", f"{joint.name}.y"]
-            phi0 += [0.0, 0.0]
-            ends = []
-            for link_name, point, sign in ((joint.link_a, joint.point_a, 1.0),
-                                           (joint.link_b, joint.point_b, -1.0)):
-                if link_name == GROUND:
-                    phi0[row] += sign * float(point[0])
-                    phi0[row + 1] += sign * float(point[1])
-                    continue
-                lay = layouts[link_name]
-                cx, cy, su, sw, _ = _point_local(lay, point)
-                ends.append((link_name, (cx, cy)))
-                stored = push(su, sw)
-                for axis in (0, 1):
-                    ct_int.append((row + axis, lay.offset, *stored))
-                    ct_real.append((sign * (axis == 0), sign * (axis == 1), cx, cy))
-            joint_rows[joint.name] = JointRows(joint.name, "revolute", (row, row + 1), tuple(ends))
-        elif isinstance(joint, Slider):
-            constraint_labels.append(f"{joint.name}.n")
-            lay = layouts[joint.link]
-            ox, oy = (float(c) for c in joint.origin)
-            nx, ny = -math.sin(joint.angle), math.cos(joint.angle)
-            phi0.append(-(nx * ox + ny * oy))
-            cx, cy, su, sw, _ = _point_local(lay, joint.point)
-            ct_int.append((row, lay.offset, *push(su, sw)))
-            ct_real.append((nx, ny, cx, cy))
-            joint_rows[joint.name] = JointRows(joint.name, "slider", (row,),
-                                               ((joint.link, (cx, cy)),))
-        else:  # Mechanism accepts Revolute and Slider only: a new kind needs its rows here
-            raise NotImplementedError(f"assemble() has no constraint rows for joint "
-                                      f"{joint.name!r} of type {type(joint).__name__}")
+        rows = tuple(joint.constraint_rows())
+        if len(rows) != joint.n_equations:
+            raise MechanismError(f"joint {joint.name!r}: constraint_rows() gave {len(rows)} rows, "
+                                 f"but its n_equations is {joint.n_equations}")
+        for k, constraint in enumerate(rows):
+            constraint_labels.append(f"{joint.name}.{constraint.label}")
+            angle_rows.append(constraint.unit == "rad")
+            writer.new_row()
+            constraint.store(writer, row + k)
+        ends = tuple((link, layouts[link].link.point_position(point)) for link, point in joint.ends)
+        joint_rows[joint.name] = JointRows(joint.name, joint.TYPE, tuple(range(row, row + len(rows))),
+                                           ends, bool(joint.point_force))
 
-    # drives (a Mechanism has checked them: each names a revolute joint, with finite numbers)
+    # drives (a Mechanism has checked them: each names a joint with drive terms, finite numbers)
     if feedforward is not None and not callable(feedforward) and not isinstance(feedforward,
                                                                                  Mapping):
         raise TypeError(f"feedforward must be a callable tau(t) or a mapping joint name -> "
@@ -253,40 +230,30 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
             if key not in torque_joints:
                 raise MechanismError(f"feedforward names joint {key!r}, which has no TorqueDrive; "
                                      f"torque drives act at {torque_joints}")
-    drive_rows_h = []
     drives = []
     for drive in mechanism.drives:
-        joint = mechanism.joint(drive.joint)
-        gradient = np.zeros(n)
-        for link_name, point, sign in ((joint.link_a, joint.point_a, -1.0),
-                                       (joint.link_b, joint.point_b, 1.0)):
-            if link_name == GROUND:
-                continue
-            lay = layouts[link_name]
-            *_, dw = _point_local(lay, point)
-            gradient[lay.offset + 2] += sign
-            gradient[lay.elastic] += sign * dw
+        terms = mechanism.joint(drive.joint).drive_terms()
+        gradient = writer.angle_gradient(terms)
         if drive.inertia > 0.0:
-            # rotor and flywheel: a rotary inertia turning with link_b (the driven side) about
-            # the joint, a mass point of no mass (exact when link_a is the ground)
-            side, point = ((joint.link_b, joint.point_b) if joint.link_b != GROUND
-                           else (joint.link_a, joint.point_a))
-            lay = layouts[side]
-            cx, cy, su, sw, dw = _point_local(lay, point)
+            # rotor and flywheel: a rotary inertia turning with the driven side (the first term,
+            # link_b) about the joint, a mass point of no mass (exact when link_a is the ground)
+            lay = layouts[terms[0].link]
+            cx, cy, su, sw, dw = _point_local(lay, terms[0].point)
             mp_int.append((lay.offset, *push(su, sw, dw)))
             mp_real.append((0.0, float(drive.inertia), cx, cy))
         if isinstance(drive, PrescribedDrive):
             row = len(constraint_labels)
             constraint_labels.append(f"drive:{drive.joint}")
-            phi0.append(0.0)
-            drive_rows_h.append((row, gradient))
+            angle_rows.append(True)
+            writer.new_row()
+            writer.linear[row] = gradient
             drives.append(_DriveInfo(drive, gradient, row, None))
         else:
             law = feedforward if callable(feedforward) else (feedforward or {}).get(drive.joint)
             drives.append(_DriveInfo(drive, gradient, -1, law))
     r = len(constraint_labels)
     h_lin = np.zeros((r, n))
-    for row, gradient in drive_rows_h:
+    for row, gradient in writer.linear.items():
         h_lin[row] = gradient
 
     has_matrices = bool(np.any(k0) or np.any(c0))
@@ -295,19 +262,73 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
         np.array(mp_real, dtype=np.float64).reshape(-1, 4),
         np.array(sp_int, dtype=np.int64).reshape(-1, 6),
         np.array(sp_real, dtype=np.float64).reshape(-1, 3),
-        np.array(ct_int, dtype=np.int64).reshape(-1, 5),
-        np.array(ct_real, dtype=np.float64).reshape(-1, 4),
+        np.array(writer.ct_int, dtype=np.int64).reshape(-1, 5),
+        np.array(writer.ct_real, dtype=np.float64).reshape(-1, 4),
         np.array(shp, dtype=np.float64),
         np.array(idx, dtype=np.int64),
-        np.array(phi0, dtype=np.float64),
+        np.array(writer.phi0, dtype=np.float64),
         h_lin,
         k0 if has_matrices else np.zeros((0, 0)),
         c0 if has_matrices else np.zeros((0, 0)))
     # A Mechanism always has its period (given, or 2 pi / |rate| of the first drive).
     model = Model(mechanism, layouts, coord_labels, constraint_labels, tables, tuple(drives),
-                  float(mechanism.period), joint_rows)
+                  float(mechanism.period), joint_rows, np.array(angle_rows, dtype=bool))
     model._attach_controllers()
     return model
+
+
+class _ConstraintWriter:
+    """Where the joints' rows (``mechanisms/_parts/rows.py``, the ``RowWriter`` protocol) go: point
+    terms into the kernels' constraint terms ``ct_int``, ``ct_real`` (``_kernels``), angle terms into
+    the linear rows ``h_lin`` (``linear``: row -> (n,)), constants into ``phi0``."""
+
+    def __init__(self, layouts, push, n):
+        self.layouts, self.push, self.n = layouts, push, n
+        self.ct_int: list[tuple] = []
+        self.ct_real: list[tuple] = []
+        self.phi0: list[float] = []
+        self.linear: dict[int, np.ndarray] = {}
+        self._stored: dict[tuple, tuple[int, int, int]] = {}   # a point's shape rows, stored once
+
+    def new_row(self) -> None:
+        self.phi0.append(0.0)
+
+    def _layout(self, link, kind):
+        if link not in self.layouts:
+            raise MechanismError(f"a {kind} term names {link!r}, which is not a link of the "
+                                 f"mechanism ({list(self.layouts)}); a term on the ground is a "
+                                 f"constant of the row")
+        return self.layouts[link]
+
+    def point_term(self, row, link, point, direction):
+        lay = self._layout(link, "point")
+        cx, cy, su, sw, _ = _point_local(lay, point)
+        key = (link, cx, cy)
+        if key not in self._stored:
+            self._stored[key] = self.push(su, sw)
+        self.ct_int.append((row, lay.offset, *self._stored[key]))
+        self.ct_real.append((direction[0], direction[1], cx, cy))
+
+    def angle_term(self, row, link, point, coefficient):
+        gradient = self.linear.setdefault(row, np.zeros(self.n))
+        self._add_angle(gradient, link, point, coefficient)
+
+    def constant(self, row, value):
+        self.phi0[row] += value
+
+    def _add_angle(self, gradient, link, point, coefficient):
+        """gradient += coefficient d(theta + w'(x))/ds of the link's section at ``point``."""
+        lay = self._layout(link, "angle")
+        *_, dw = _point_local(lay, point)
+        gradient[lay.offset + 2] += coefficient
+        gradient[lay.elastic] += coefficient * dw
+
+    def angle_gradient(self, terms) -> np.ndarray:
+        """``sum_i c_i d(theta_i + w_i'(x_i))/ds`` (n,) of ``AngleTerm``s (a drive's angle)."""
+        gradient = np.zeros(self.n)
+        for term in terms:
+            self._add_angle(gradient, term.link, term.point, float(term.coefficient))
+        return gradient
 
 
 def _layout(mechanism):

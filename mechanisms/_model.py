@@ -127,14 +127,14 @@ class _Lag:
 class JointRows:
     """Where a joint lives in the constraints: ``model.joint_rows(name)``.
 
-    ``kind``: ``"revolute"`` (rows ``"J.x", "J.y"``, ``Phi = r_a - r_b``) or ``"slider"`` (row
-    ``"J.n"``, ``Phi = n . (r - origin)``); ``rows``: indices into ``Phi`` and ``lam``; ``ends``:
-    ``(link name, (x, y))`` for each side of the joint on a link (the ground side left out), with
-    the attachment point's position (m) in the undeformed link frame. ``point_force``: the joint
-    acts at one material point of each link it joins (its ``ends``), with the force
-    ``-Phi_J,R^T lam_J`` on the link (``Phi_J,R`` the joint's rows of the constraint Jacobian on the
-    link's frame position R); true of both kinds, and what the geometric stiffness of ``linearize``
-    needs to know of a joint, so a new point-force joint needs no change there.
+    ``kind``: the joint's scene ``TYPE`` (``"revolute"``: rows ``"J.x", "J.y"``, ``Phi = r_a - r_b``;
+    ``"slider"``: row ``"J.n"``, ``Phi = n . (r - origin)``; a registered joint: its own rows);
+    ``rows``: indices into ``Phi`` and ``lam``; ``ends``: ``(link name, (x, y))`` for each side of
+    the joint on a link (the ground side left out), with the attachment point's position (m) in
+    the undeformed link frame. ``point_force`` (the joint class's): the joint acts at one material
+    point of each link it joins (its ``ends``), with the force ``-Phi_J,R^T lam_J`` on the link
+    (``Phi_J,R`` the joint's rows of the constraint Jacobian on the link's frame position R) and no
+    moment; what the geometric stiffness of ``linearize`` needs to know of a joint.
     """
 
     name: str
@@ -155,7 +155,7 @@ class Model:
     """
 
     def __init__(self, mechanism, layouts, coord_labels, constraint_labels, tables, drives,
-                 period, joint_rows):
+                 period, joint_rows, angle_rows):
         self.mechanism = mechanism
         self.layouts: dict[str, LinkLayout] = layouts
         self.coord_labels = tuple(coord_labels)
@@ -179,6 +179,8 @@ class Model:
         self._lags: tuple[_Lag, ...] = ()  # the lagged controllers (``_attach_controllers``)
         self.drive_rows = np.array([d.row for d in self._prescribed], dtype=np.int64)
         self._joint_rows: dict[str, JointRows] = joint_rows
+        #: (r,) bool: the constraint rows in radians (drive rows, ``AngleRow``); the others in metres
+        self.angle_rows = angle_rows
 
     # --- input checks --------------------------------------------------------------------------
     def _vector(self, value, size, name):

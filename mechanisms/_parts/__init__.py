@@ -20,9 +20,10 @@ together (names, mobility, Grashof for four-bars), raising ``MechanismError`` (a
 names the offending part and key. Checks that need the assembled equations (assembly at ``t = 0``, a
 crank that cannot turn, toggle positions) run at the start of ``mechanisms.nominal_motion``.
 
-One module per noun: ``checks`` (errors, shared checks, limits), ``discretisations``, ``damping``,
-``links``, ``joints``, ``drives``, ``controllers``, ``mechanism`` (with ``grashof``); the scene spec
-is read by ``table`` and ``scene`` and written by ``spec``.
+One module per noun: ``checks`` (errors, shared checks, limits), ``discretisations``,
+``damping``, ``links``, ``rows`` (the constraint-row vocabulary), ``joints``, ``drives``,
+``controllers``, ``mechanism`` (with ``grashof``); the scene spec is read by ``table`` and
+``scene`` and written by ``spec``.
 """
 
 from .checks import GROUND as GROUND
@@ -45,7 +46,12 @@ from .drives import drive_law as drive_law
 from .joints import JOINT_TYPES as JOINT_TYPES
 from .joints import Revolute as Revolute
 from .joints import Slider as Slider
+from .joints import register_joint as register_joint
 from .links import ElasticLink as ElasticLink
 from .links import PointMass as PointMass
 from .links import RigidLink as RigidLink
 from .mechanism import Mechanism as Mechanism
+from .rows import AngleRow as AngleRow
+from .rows import AngleTerm as AngleTerm
+from .rows import PointRow as PointRow
+from .rows import PointTerm as PointTerm

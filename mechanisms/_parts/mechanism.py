@@ -13,7 +13,7 @@ from .checks import GROUND, MAX_TURNS, MechanismError, _check_number, _check_pai
 from .controllers import CONTROLLER_TYPES, Controller
 from .drives import Drive, PrescribedDrive, TorqueDrive
 from .grashof import check_four_bar
-from .joints import JOINT_TYPES, Joint, Revolute
+from .joints import JOINT_TYPES, Joint
 from .links import ElasticLink, Link, PointMass, RigidLink, _pin_position
 from .scene import parts_from_spec
 
@@ -174,10 +174,10 @@ def _validate(mech: Mechanism) -> None:
         if not isinstance(drive, (PrescribedDrive, TorqueDrive)):
             raise MechanismError(f"drives must be PrescribedDrive or TorqueDrive, got {drive!r}")
         joint = joints.get(drive.joint)
-        if not isinstance(joint, Revolute):
+        if joint is None or joint.drive_terms() is None:
+            drivable = [j.name for j in mech.joints if j.drive_terms() is not None]
             raise MechanismError(f"drive names joint {drive.joint!r}, which is not a revolute joint "
-                                 f"of the mechanism (revolute joints: "
-                                 f"{[j.name for j in mech.joints if isinstance(j, Revolute)]})")
+                                 f"of the mechanism (joints a drive can act at: {drivable})")
         if drive.joint in driven:
             raise MechanismError(f"joint {drive.joint!r} is driven twice")
         driven.add(drive.joint)
