@@ -47,10 +47,13 @@ from ._parts import Rayleigh as Rayleigh
 from ._parts import Revolute as Revolute
 from ._parts import RigidLink as RigidLink
 from ._parts import Ritz as Ritz
+from ._parts import ShapeLayout as ShapeLayout
+from ._parts import ShapeValues as ShapeValues
 from ._parts import Slider as Slider
 from ._parts import TorqueDrive as TorqueDrive
 from ._parts import UserShapes as UserShapes
 from ._parts import drive_law as drive_law
+from ._parts import register_discretisation as register_discretisation
 from ._parts import register_joint as register_joint
 from ._protocol import ConstrainedModel as ConstrainedModel
 from ._protocol import Observable as Observable

@@ -20,7 +20,8 @@ together (names, mobility, Grashof for four-bars), raising ``MechanismError`` (a
 names the offending part and key. Checks that need the assembled equations (assembly at ``t = 0``, a
 crank that cannot turn, toggle positions) run at the start of ``mechanisms.nominal_motion``.
 
-One module per noun: ``checks`` (errors, shared checks, limits), ``discretisations``,
+One module per noun: ``checks`` (errors, shared checks, limits), ``discretisations`` (their
+registry and interface; ``fem`` and ``ritz`` hold the built-in ones with their shapes),
 ``damping``, ``links``, ``rows`` (the constraint-row vocabulary), ``joints``, ``drives``,
 ``controllers``, ``mechanism`` (with ``grashof``); the scene spec is read by ``table`` and
 ``scene`` and written by ``spec``.
@@ -36,13 +37,14 @@ from .damping import DampingMatrix as DampingMatrix
 from .damping import ModalDamping as ModalDamping
 from .damping import Rayleigh as Rayleigh
 from .discretisations import DISCRETISATION_TYPES as DISCRETISATION_TYPES
-from .discretisations import Fem as Fem
-from .discretisations import Ritz as Ritz
-from .discretisations import UserShapes as UserShapes
+from .discretisations import ShapeLayout as ShapeLayout
+from .discretisations import ShapeValues as ShapeValues
+from .discretisations import register_discretisation as register_discretisation
 from .drives import DCMotor as DCMotor
 from .drives import PrescribedDrive as PrescribedDrive
 from .drives import TorqueDrive as TorqueDrive
 from .drives import drive_law as drive_law
+from .fem import Fem as Fem
 from .joints import JOINT_TYPES as JOINT_TYPES
 from .joints import Revolute as Revolute
 from .joints import Slider as Slider
@@ -51,6 +53,8 @@ from .links import ElasticLink as ElasticLink
 from .links import PointMass as PointMass
 from .links import RigidLink as RigidLink
 from .mechanism import Mechanism as Mechanism
+from .ritz import Ritz as Ritz
+from .ritz import UserShapes as UserShapes
 from .rows import AngleRow as AngleRow
 from .rows import AngleTerm as AngleTerm
 from .rows import PointRow as PointRow

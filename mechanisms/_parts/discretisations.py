@@ -1,105 +1,107 @@
-"""Discretisations of an elastic link (``ElasticLink.discretisation``)."""
+"""Discretisations of an elastic link (``ElasticLink.discretisation``): the registry and what a
+discretisation declares.
+
+A discretisation is a frozen class that carries its shape functions and checks; nothing else in
+``mechanisms`` or ``linearize`` asks which one a link has (mass, stiffness, stiffening, damping, the
+observables and the linear-range measures all follow from the shapes). It declares:
+
+* ``TYPE`` (its scene-file ``type``), ``KEYS`` (its scene-table keys, ``"type"`` among them),
+  ``from_table(table)`` and ``to_table()`` (the scene file both ways; ``table`` reads keys with
+  their units and checks, ``mechanisms/_parts/table.py``), so that a mechanism using it reaches every
+  study, the result file, the resume identity and the worker pool through its scene text;
+* ``layout(link, attachments) -> ShapeLayout``: the names of the link's elastic coordinates and,
+  optionally, the Gauss rule along the link (``None``: one is found by doubling the points until
+  the shapes' integrals converge, ``_beams``) and a basis the shapes are multiplied by;
+  ``attachments`` are the ``(x, moment)`` where the mechanism loads the link (a reduced model's
+  static corrections need them; others ignore them); bad options raise ``MechanismError``;
+* ``values(link, x, basis) -> ShapeValues``: the shapes and their derivatives at abscissae ``x``
+  (m, (m,)), each (m, n_elastic);
+* ``check_boundary`` (class attribute): whether ``_beams`` checks the shapes' values at the ends
+  against the link's boundary conditions (``u(0) = w(0) = 0``, and ``w(L) = 0`` or ``w'(0) = 0``);
+  ``False`` for shapes exact by construction.
+
+``register_discretisation(cls)`` enters a class in ``DISCRETISATION_TYPES``; ``Fem`` (the default
+of a scene), ``Ritz`` and ``UserShapes`` register themselves in their modules (``fem``, ``ritz``).
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar, Union
+from typing import Any
 
-from .checks import MAX_ELEMENTS, MAX_MODES, MechanismError, _check_count
+import numpy as np
+
+from .checks import MechanismError
+
+#: The discretisations a scene file can name, by ``type``; filled by ``register_discretisation``.
+DISCRETISATION_TYPES: dict[str, type] = {}
+#: The ``type`` of a scene's elastic link without one.
+DEFAULT_DISCRETISATION = "fem"
+
+_INTERFACE = ("TYPE", "KEYS", "from_table", "to_table", "layout", "values", "check_boundary")
+
+Discretisation = Any
 
 
 @dataclass(frozen=True)
-class Ritz:
-    """Ritz-Galerkin discretisation with the thesis's modes (seed eq. 2.2 and 2.4).
+class ShapeValues:
+    """Shape functions at ``m`` abscissae, each (m, n_elastic): axial ``u, du`` (value and d/dx),
+    transverse ``w, dw, ddw`` (value, slope, curvature). Units: 1, 1/m, 1/m^2 per unit coordinate."""
 
-    Pinned-pinned bending ``X_i(x) = sin(i pi x / L)``, ``i = 1..n_bending``; axial
-    ``Y_k(x) = sin((2k - 1) pi x / (2 L))``, ``k = 1..n_axial`` (ignored when the link has no axial
-    deformation). For ``clamped-free`` links the clamped-free beam modes are used instead.
-    """
-
-    n_bending: int = 2
-    n_axial: int = 1
-
-    # the scene file (see Revolute for the pattern; the shapes themselves are in _beams.beam_shapes)
-    TYPE: ClassVar[str] = "ritz"
-    KEYS: ClassVar[tuple[str, ...]] = ("type", "n_bending", "n_axial")
-
-    #: why the mode counts are bounded (``MAX_MODES``)
-    LIMIT: ClassVar[str] = "more modes than an Euler-Bernoulli beam describes"
-
-    def __post_init__(self) -> None:
-        _check_count("Ritz", "n_bending", self.n_bending, 1, MAX_MODES, self.LIMIT)
-        _check_count("Ritz", "n_axial", self.n_axial, 0, MAX_MODES, self.LIMIT)
+    u: np.ndarray
+    du: np.ndarray
+    w: np.ndarray
+    dw: np.ndarray
+    ddw: np.ndarray
 
     @classmethod
-    def from_table(cls, table) -> "Ritz":
-        return cls(table.integer("n_bending", 2, minimum=1, maximum=MAX_MODES, why=cls.LIMIT),
-                   table.integer("n_axial", 1, minimum=0, maximum=MAX_MODES, why=cls.LIMIT))
-
-    def to_table(self) -> dict[str, Any]:
-        return {"type": self.TYPE, "n_bending": self.n_bending, "n_axial": self.n_axial}
-
-
-@dataclass(frozen=True)
-class UserShapes:
-    """Ritz-Galerkin discretisation with shape functions supplied by the user.
-
-    Each callable takes ``(x, length)`` with ``x`` an array in metres and returns a tuple
-    ``(value, first_derivative, second_derivative)`` of arrays shaped like ``x``. Bending shapes must
-    satisfy the link's boundary conditions (the loader checks them at the ends).
-    """
-
-    bending: tuple[Callable, ...] = ()
-    axial: tuple[Callable, ...] = ()
-
-    def __post_init__(self) -> None:
-        if not self.bending or not all(callable(f) for f in self.bending + self.axial):
-            raise MechanismError("UserShapes: bending must be a non-empty tuple of callables and "
-                                 "axial a tuple of callables")
+    def from_functions(cls, bending, axial) -> "ShapeValues":
+        """Bending coordinates first, then axial: ``bending`` and ``axial`` are sequences of
+        ``(value, d/dx, d2/dx2)`` arrays (m,), one per coordinate (the axial second derivative is
+        not used)."""
+        bending, axial = list(bending), list(axial)
+        m = len(bending[0][0]) if bending else len(axial[0][0]) if axial else 0
+        nb, na = len(bending), len(axial)
+        u, du, w, dw, ddw = (np.zeros((m, nb + na)) for _ in range(5))
+        for i, (value, slope, curvature) in enumerate(bending):
+            w[:, i], dw[:, i], ddw[:, i] = value, slope, curvature
+        for j, (value, slope, _) in enumerate(axial):
+            u[:, nb + j], du[:, nb + j] = value, slope
+        return cls(u, du, w, dw, ddw)
 
 
 @dataclass(frozen=True)
-class Fem:
-    """Hermite beam finite elements (seed eq. 2.5-2.8): ``n_elements`` equal elements, three DOF per
-    node (axial, transverse, rotation), the link's boundary conditions removed.
+class ShapeLayout:
+    """What a discretisation makes of a link: ``labels`` of its elastic coordinates (without the
+    link name), ``quadrature`` ``(x (m), weights (m))`` along it or ``None`` (found adaptively),
+    ``basis`` (n_shapes, n_elastic) the shapes are multiplied by (a reduced element model) or
+    ``None``."""
 
-    ``modes`` (optional): reduce the element model to its ``modes`` lowest modes under the link's
-    boundary conditions plus the static correction modes its joints, drives and point masses and the
-    floating frame's distributed inertia load need (``mechanisms._reduce``); the cost then grows with
-    the modes, not the elements. ``None`` (the default): the full element model.
-    """
-
-    n_elements: int = 1
-    modes: int | None = None
-
-    TYPE: ClassVar[str] = "fem"
-    KEYS: ClassVar[tuple[str, ...]] = ("type", "n_elements", "modes")
-
-    #: why the element count is bounded (``MAX_ELEMENTS``)
-    LIMIT: ClassVar[str] = "each element adds 3 coordinates, and the matrices grow as their square"
-
-    def __post_init__(self) -> None:
-        _check_count("Fem", "n_elements", self.n_elements, 1, MAX_ELEMENTS, self.LIMIT)
-        if self.modes is not None:
-            _check_count("Fem", "modes", self.modes, 1, MAX_MODES, Ritz.LIMIT)
-
-    @classmethod
-    def from_table(cls, table) -> "Fem":
-        modes = (table.integer("modes", minimum=1, maximum=MAX_MODES, why=Ritz.LIMIT)
-                 if table.has("modes") else None)
-        return cls(table.integer("n_elements", 1, minimum=1, maximum=MAX_ELEMENTS, why=cls.LIMIT),
-                   modes)
-
-    def to_table(self) -> dict[str, Any]:
-        table = {"type": self.TYPE, "n_elements": self.n_elements}
-        if self.modes is not None:
-            table["modes"] = self.modes
-        return table
+    labels: tuple[str, ...]
+    quadrature: tuple[np.ndarray, np.ndarray] | None = None
+    basis: np.ndarray | None = None
 
 
-Discretisation = Union[Ritz, UserShapes, Fem]
-#: The discretisations a scene file can name, by ``type`` (the first is the default). A class listed
-#: here declares ``TYPE``, ``KEYS``, ``from_table(table)`` and ``to_table()``; its shape functions
-#: are built in ``_beams.beam_shapes``. (``UserShapes`` holds callables: Python only.)
-DISCRETISATION_TYPES: dict[str, type] = {cls.TYPE: cls for cls in (Fem, Ritz)}
+def bending_and_axial_labels(n_bending: int, n_axial: int) -> tuple[str, ...]:
+    """``b1 .. b<n_bending>, a1 .. a<n_axial>``: the labels of a Ritz-type basis."""
+    return tuple(f"b{i + 1}" for i in range(n_bending)) + tuple(f"a{k + 1}" for k in range(n_axial))
 
+
+def register_discretisation(cls: type) -> type:
+    """Enter the discretisation class ``cls`` in ``DISCRETISATION_TYPES`` under its ``TYPE`` and
+    return it (usable as a class decorator). ``cls`` declares the interface of the module
+    docstring; a ``TYPE`` already taken by another class is refused (``MechanismError``)."""
+    missing = [name for name in _INTERFACE if not hasattr(cls, name)]
+    if missing:
+        raise MechanismError(f"register_discretisation: {cls!r} lacks {missing}; a discretisation "
+                             f"declares {list(_INTERFACE)} (see mechanisms.Ritz)")
+    if not isinstance(cls.TYPE, str) or not cls.TYPE or "type" not in cls.KEYS:
+        raise MechanismError(f"register_discretisation: {cls.__name__}.TYPE must be a non-empty "
+                             f"string and KEYS must include 'type'; got TYPE={cls.TYPE!r}, "
+                             f"KEYS={cls.KEYS!r}")
+    taken = DISCRETISATION_TYPES.get(cls.TYPE)
+    if taken is not None and taken is not cls:
+        raise MechanismError(f"register_discretisation: discretisation type {cls.TYPE!r} is "
+                             f"already {taken!r}; give {cls.__name__} another TYPE")
+    DISCRETISATION_TYPES[cls.TYPE] = cls
+    return cls

@@ -8,7 +8,8 @@ from typing import Mapping, Union
 
 from .checks import MechanismError, PointRef, _check_name, _check_number, _check_pair, _is_number
 from .damping import Damping, DampingMatrix, ModalDamping, Rayleigh
-from .discretisations import Discretisation, Fem, Ritz, UserShapes
+from .discretisations import DISCRETISATION_TYPES, Discretisation
+from .fem import Fem
 
 
 @dataclass(frozen=True)
@@ -93,8 +94,10 @@ class ElasticLink:
             _check_number(owner, key, getattr(self, key), unit, positive=True)
         if self.yield_strength is not None:
             _check_number(owner, "yield_strength", self.yield_strength, "Pa", positive=True)
-        if not isinstance(self.discretisation, (Ritz, UserShapes, Fem)):
-            raise MechanismError(f"{owner}: discretisation must be Ritz, UserShapes or Fem, got "
+        if type(self.discretisation) not in DISCRETISATION_TYPES.values():
+            names = ", ".join(cls.__name__ for cls in DISCRETISATION_TYPES.values())
+            raise MechanismError(f"{owner}: discretisation must be a registered discretisation "
+                                 f"({names}; mechanisms.register_discretisation adds one), got "
                                  f"{self.discretisation!r}")
         if self.boundary not in _BOUNDARIES:
             raise MechanismError(f"{owner}: boundary must be one of {_BOUNDARIES}, got "

@@ -14,7 +14,7 @@ from typing import Any, Mapping
 from .checks import MechanismError
 from .controllers import CONTROLLER_TYPES
 from .damping import DampingMatrix, ModalDamping, Rayleigh
-from .discretisations import DISCRETISATION_TYPES
+from .discretisations import DEFAULT_DISCRETISATION, DISCRETISATION_TYPES
 from .drives import DCMotor, PrescribedDrive, TorqueDrive
 from .joints import JOINT_TYPES
 from .links import ElasticLink, PointMass, RigidLink
@@ -27,8 +27,6 @@ _RIGID_KEYS = ("type", "length", "mass", "inertia", "centroid", "points", "width
 _ELASTIC_KEYS = ("type", "length", "density", "youngs_modulus", "width", "thickness", "area",
                  "second_moment", "discretisation", "boundary", "axial", "geometric_stiffening",
                  "rotary_inertia", "damping", "yield_strength", "outer_fibre")
-_DISCRETISATION_KEYS = tuple(dict.fromkeys(key for cls in DISCRETISATION_TYPES.values()
-                                           for key in cls.KEYS))
 _DAMPING_KEYS = {"rayleigh": ("type", "alpha", "beta", "ratio"), "modal": ("type", "ratios"),
                  "matrix": ("type", "matrix"), "none": ("type",)}
 _PRESCRIBED_KEYS = ("type", "joint", "rate", "offset", "harmonics")
@@ -79,8 +77,9 @@ def _elastic_link(name: str, t: _Table) -> ElasticLink:
         second_moment = t.number("second_moment", "m^4", positive=True)
 
     d = t.table("discretisation")
-    kind = _Table(d, f"{t.path}.discretisation", _DISCRETISATION_KEYS
-                  ).string("type", next(iter(DISCRETISATION_TYPES)), tuple(DISCRETISATION_TYPES))
+    every_key = tuple(dict.fromkeys(key for cls in DISCRETISATION_TYPES.values() for key in cls.KEYS))
+    kind = _Table(d, f"{t.path}.discretisation", every_key).string(
+        "type", DEFAULT_DISCRETISATION, tuple(DISCRETISATION_TYPES))
     cls = DISCRETISATION_TYPES[kind]
     discretisation = cls.from_table(_Table(d, f"{t.path}.discretisation", cls.KEYS))
 

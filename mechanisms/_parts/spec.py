@@ -12,7 +12,6 @@ from typing import Any, Mapping
 
 from .checks import MechanismError
 from .damping import DampingMatrix, ModalDamping, Rayleigh
-from .discretisations import UserShapes
 from .drives import TorqueDrive
 from .links import ElasticLink, RigidLink
 
@@ -66,9 +65,6 @@ def _link_spec(link: RigidLink | ElasticLink) -> dict[str, Any]:
         if link.points:
             entry["points"] = {key: list(p) for key, p in link.points.items()}
         return entry
-    if isinstance(link.discretisation, UserShapes):
-        raise MechanismError(f"link {link.name!r}: user shape functions cannot be written to a "
-                             f"scene; use Ritz or Fem, or change the parts with Mechanism.replace")
     entry = {"type": "elastic", "length": link.length, "density": link.density,
              "youngs_modulus": link.youngs_modulus, "area": link.area,
              "second_moment": link.second_moment, "boundary": link.boundary, "axial": link.axial,
