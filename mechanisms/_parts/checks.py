@@ -88,3 +88,22 @@ def _check_pair(owner: str, key: str, value: object, unit: str) -> None:
         raise MechanismError(f"{owner}: {key} must be a pair of finite numbers ({unit}), "
                              f"got {value!r}")
 
+
+def register_class(registry: dict[str, type], cls: type, interface: tuple[str, ...], kind: str,
+                   example: str) -> type:
+    """Enter ``cls`` in ``registry`` under its ``TYPE`` (the registries of joints and
+    discretisations): it must declare every name of ``interface`` and a ``TYPE`` no other class
+    has taken; returns ``cls``. Raises ``MechanismError`` naming what is missing."""
+    missing = [name for name in interface if not hasattr(cls, name)]
+    if missing:
+        raise MechanismError(f"register_{kind}: {cls!r} lacks {missing}; a {kind} class declares "
+                             f"{list(interface)} (see {example})")
+    if not isinstance(cls.TYPE, str) or not cls.TYPE or "type" not in cls.KEYS:
+        raise MechanismError(f"register_{kind}: {cls.__name__}.TYPE must be a non-empty string and "
+                             f"KEYS must include 'type'; got TYPE={cls.TYPE!r}, KEYS={cls.KEYS!r}")
+    taken = registry.get(cls.TYPE)
+    if taken is not None and taken is not cls:
+        raise MechanismError(f"register_{kind}: {kind} type {cls.TYPE!r} is already {taken!r}; give "
+                             f"{cls.__name__} another TYPE")
+    registry[cls.TYPE] = cls
+    return cls

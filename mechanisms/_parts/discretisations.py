@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import MechanismError
+from .checks import register_class
 
 #: The discretisations a scene file can name, by ``type``; filled by ``register_discretisation``.
 DISCRETISATION_TYPES: dict[str, type] = {}
@@ -91,17 +91,4 @@ def register_discretisation(cls: type) -> type:
     """Enter the discretisation class ``cls`` in ``DISCRETISATION_TYPES`` under its ``TYPE`` and
     return it (usable as a class decorator). ``cls`` declares the interface of the module
     docstring; a ``TYPE`` already taken by another class is refused (``MechanismError``)."""
-    missing = [name for name in _INTERFACE if not hasattr(cls, name)]
-    if missing:
-        raise MechanismError(f"register_discretisation: {cls!r} lacks {missing}; a discretisation "
-                             f"declares {list(_INTERFACE)} (see mechanisms.Ritz)")
-    if not isinstance(cls.TYPE, str) or not cls.TYPE or "type" not in cls.KEYS:
-        raise MechanismError(f"register_discretisation: {cls.__name__}.TYPE must be a non-empty "
-                             f"string and KEYS must include 'type'; got TYPE={cls.TYPE!r}, "
-                             f"KEYS={cls.KEYS!r}")
-    taken = DISCRETISATION_TYPES.get(cls.TYPE)
-    if taken is not None and taken is not cls:
-        raise MechanismError(f"register_discretisation: discretisation type {cls.TYPE!r} is "
-                             f"already {taken!r}; give {cls.__name__} another TYPE")
-    DISCRETISATION_TYPES[cls.TYPE] = cls
-    return cls
+    return register_class(DISCRETISATION_TYPES, cls, _INTERFACE, "discretisation", "mechanisms.Ritz")

@@ -31,7 +31,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar, Union
 
-from .checks import GROUND, MechanismError, PointRef, _check_name, _check_number, _check_pair
+from .checks import GROUND, MechanismError, PointRef, _check_name, _check_number, _check_pair, register_class
 from .rows import AngleTerm, PointRow, PointTerm
 
 #: The joint classes by their scene-file ``type`` (the first is the default type), filled by
@@ -47,19 +47,7 @@ def register_joint(cls: type) -> type:
     """Enter the joint class ``cls`` in ``JOINT_TYPES`` under its ``TYPE`` and return it (usable as
     a class decorator). ``cls`` must declare the interface of the module docstring; a ``TYPE``
     already taken by another class is refused (``MechanismError``)."""
-    missing = [name for name in _JOINT_INTERFACE if not hasattr(cls, name)]
-    if missing:
-        raise MechanismError(f"register_joint: {cls!r} lacks {missing}; a joint class declares "
-                             f"{list(_JOINT_INTERFACE)} (see mechanisms.Revolute)")
-    if not isinstance(cls.TYPE, str) or not cls.TYPE or "type" not in cls.KEYS:
-        raise MechanismError(f"register_joint: {cls.__name__}.TYPE must be a non-empty string and "
-                             f"KEYS must include 'type'; got TYPE={cls.TYPE!r}, KEYS={cls.KEYS!r}")
-    taken = JOINT_TYPES.get(cls.TYPE)
-    if taken is not None and taken is not cls:
-        raise MechanismError(f"register_joint: joint type {cls.TYPE!r} is already {taken!r}; give "
-                             f"{cls.__name__} another TYPE")
-    JOINT_TYPES[cls.TYPE] = cls
-    return cls
+    return register_class(JOINT_TYPES, cls, _JOINT_INTERFACE, "joint", "mechanisms.Revolute")
 
 
 @register_joint

@@ -20,7 +20,7 @@ Each row names its ``label``: the constraint is labelled ``"<joint>.<label>"``.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import ClassVar, Protocol
 
 from .checks import MechanismError, PointRef, _check_number, _check_pair, _is_number
 
@@ -65,52 +65,61 @@ class AngleTerm:
         _check_number(f"angle term on link {self.link!r}", "coefficient", self.coefficient, "1")
 
 
-def _check_row(kind: str, label: object, terms: tuple, term_type: type, constant: object) -> None:
-    if not isinstance(label, str) or not label or "." in label:
-        raise MechanismError(f"{kind}: label must be a non-empty word without dots, got {label!r}")
-    if not terms or not all(isinstance(term, term_type) for term in terms):
-        raise MechanismError(f"{kind} {label!r}: terms must be a non-empty tuple of "
-                             f"{term_type.__name__}, got {terms!r}")
-    if not _is_number(constant):
-        raise MechanismError(f"{kind} {label!r}: constant must be a number, got {constant!r}")
-
-
 @dataclass(frozen=True)
-class PointRow:
-    """One constraint ``sum_i d_i . r_i + constant = 0`` (m) on points' world positions."""
+class _Row:
+    """One constraint row: ``sum of its terms + constant = 0``; a subclass names its ``term`` type
+    and ``unit`` and stores a term through the writer."""
 
     label: str
-    terms: tuple[PointTerm, ...]
+    terms: tuple
     constant: float = 0.0
+
+    term: ClassVar[type]
+    unit: ClassVar[str]
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "terms", tuple(self.terms))
-        _check_row("PointRow", self.label, self.terms, PointTerm, self.constant)
-
-    unit = "m"
+        kind = type(self).__name__
+        if not isinstance(self.label, str) or not self.label or "." in self.label:
+            raise MechanismError(f"{kind}: label must be a non-empty word without dots, got "
+                                 f"{self.label!r}")
+        if not self.terms or not all(isinstance(term, self.term) for term in self.terms):
+            raise MechanismError(f"{kind} {self.label!r}: terms must be a non-empty tuple of "
+                                 f"{self.term.__name__}, got {self.terms!r}")
+        if not _is_number(self.constant):
+            raise MechanismError(f"{kind} {self.label!r}: constant must be a number, got "
+                                 f"{self.constant!r}")
 
     def store(self, writer: RowWriter, row: int) -> None:
+        """Put the row in the assembled tables as constraint ``row``."""
         writer.constant(row, float(self.constant))
         for term in self.terms:
-            writer.point_term(row, term.link, term.point, tuple(float(d) for d in term.direction))
+            self._store_term(writer, row, term)
+
+    def _store_term(self, writer: RowWriter, row: int, term) -> None:
+        raise NotImplementedError
 
 
 @dataclass(frozen=True)
-class AngleRow:
+class PointRow(_Row):
+    """One constraint ``sum_i d_i . r_i + constant = 0`` (m) on points' world positions
+    (``terms``: ``PointTerm``)."""
+
+    term: ClassVar[type] = PointTerm
+    unit: ClassVar[str] = "m"
+
+    def _store_term(self, writer: RowWriter, row: int, term: PointTerm) -> None:
+        writer.point_term(row, term.link, term.point, (float(term.direction[0]),
+                                                       float(term.direction[1])))
+
+
+@dataclass(frozen=True)
+class AngleRow(_Row):
     """One constraint ``sum_i c_i (theta_i + w_i'(x_i)) + constant = 0`` (rad) on material
-    angles."""
+    angles (``terms``: ``AngleTerm``)."""
 
-    label: str
-    terms: tuple[AngleTerm, ...]
-    constant: float = 0.0
+    term: ClassVar[type] = AngleTerm
+    unit: ClassVar[str] = "rad"
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "terms", tuple(self.terms))
-        _check_row("AngleRow", self.label, self.terms, AngleTerm, self.constant)
-
-    unit = "rad"
-
-    def store(self, writer: RowWriter, row: int) -> None:
-        writer.constant(row, float(self.constant))
-        for term in self.terms:
-            writer.angle_term(row, term.link, term.point, float(term.coefficient))
+    def _store_term(self, writer: RowWriter, row: int, term: AngleTerm) -> None:
+        writer.angle_term(row, term.link, term.point, float(term.coefficient))
