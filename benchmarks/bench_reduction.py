@@ -31,7 +31,7 @@ import numpy as np
 import linearize
 import mechanisms
 import periodic
-from mechanisms import _beams
+from mechanisms._parts import fem as _fem
 
 SPEC = "coupler.deflection@0.5"
 N_STEPS = 256
@@ -68,7 +68,7 @@ def main(argv=None):
     for _ in range(repeats):
         t_fem4, ptp_fem4 = timed(lambda: steady_peak_to_peak(coupler(4)))
         t_cached, ptp_reduced = timed(lambda: steady_peak_to_peak(coupler(64, 6)))
-        _beams._reduced.cache_clear()          # recompute the reduction: a geometry sweep
+        _fem._reduced.cache_clear()          # recompute the reduction: a geometry sweep
         t_fresh, _ = timed(lambda: steady_peak_to_peak(coupler(64, 6)))
         rows.append((t_fem4, t_cached, t_fresh))
     t_full, ptp_full = timed(lambda: steady_peak_to_peak(coupler(64)))

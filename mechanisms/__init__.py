@@ -1,10 +1,6 @@
 """Planar mechanisms with elastic links in redundant generalized coordinates."""
 
-from ._assemble import JointRows as JointRows
-from ._assemble import LinkLayout as LinkLayout
-from ._assemble import Model as Model
 from ._assemble import assemble as assemble
-from ._assemble import drive_law as drive_law
 from ._batch import ConstraintTerms as ConstraintTerms
 from ._batch import LinearTerms as LinearTerms
 from ._batch import constraint_terms_along as constraint_terms_along
@@ -21,6 +17,9 @@ from ._load import build as build
 from ._load import load as load
 from ._load import loads as loads
 from ._load import scenes as scenes
+from ._model import JointRows as JointRows
+from ._model import LinkLayout as LinkLayout
+from ._model import Model as Model
 from ._observables import default_observables as default_observables
 from ._orbit import PeriodMap as PeriodMap
 from ._orbit import PeriodRun as PeriodRun
@@ -28,6 +27,8 @@ from ._parts import CONTROLLER_TYPES as CONTROLLER_TYPES
 from ._parts import DISCRETISATION_TYPES as DISCRETISATION_TYPES
 from ._parts import GROUND as GROUND
 from ._parts import JOINT_TYPES as JOINT_TYPES
+from ._parts import AngleRow as AngleRow
+from ._parts import AngleTerm as AngleTerm
 from ._parts import ArgumentError as ArgumentError
 from ._parts import DampingMatrix as DampingMatrix
 from ._parts import DCMotor as DCMotor
@@ -39,14 +40,21 @@ from ._parts import ModalDamping as ModalDamping
 from ._parts import ObservableFeedback as ObservableFeedback
 from ._parts import PDController as PDController
 from ._parts import PointMass as PointMass
+from ._parts import PointRow as PointRow
+from ._parts import PointTerm as PointTerm
 from ._parts import PrescribedDrive as PrescribedDrive
 from ._parts import Rayleigh as Rayleigh
 from ._parts import Revolute as Revolute
 from ._parts import RigidLink as RigidLink
 from ._parts import Ritz as Ritz
+from ._parts import ShapeLayout as ShapeLayout
+from ._parts import ShapeValues as ShapeValues
 from ._parts import Slider as Slider
 from ._parts import TorqueDrive as TorqueDrive
 from ._parts import UserShapes as UserShapes
+from ._parts import drive_law as drive_law
+from ._parts import register_discretisation as register_discretisation
+from ._parts import register_joint as register_joint
 from ._protocol import ConstrainedModel as ConstrainedModel
 from ._protocol import Observable as Observable
 from ._scenes import four_bar as four_bar

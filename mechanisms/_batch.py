@@ -7,7 +7,7 @@ that offers the method of the same name (``mechanisms.Model`` does: one numba ca
 through the kernels below) is evaluated by it; any other model through its per-sample protocol
 methods. Both give the same numbers up to summation order (tests/test_batch.py).
 
-The kernels here take the assembled model's tables (``_assemble._Tables``, layouts in ``_kernels``)
+The kernels here take the assembled model's tables (``_model._Tables``, layouts in ``_kernels``)
 as arrays and fill their outputs; only ``Model`` calls them.
 """
 

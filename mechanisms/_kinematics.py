@@ -28,9 +28,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ._assemble import Model, assemble
+from ._assemble import assemble
 from ._batch import constraint_terms_along, inertia_residual_along, scaled_correction
-from ._parts import GROUND, ArgumentError, Mechanism, MechanismError, PrescribedDrive, Revolute, TorqueDrive
+from ._model import Model
+from ._parts import GROUND, ArgumentError, Mechanism, MechanismError, PrescribedDrive, TorqueDrive
 
 logger = logging.getLogger(__name__)
 
@@ -242,8 +243,12 @@ class _RigidSystem:
             scale = max(link.length for link in mechanism.links)
         self.column_scale = np.array([1.0 if labels[i].endswith(".theta") else scale
                                       for i in rigid])
-        self.row_scale = np.array([1.0 if label.startswith("drive:") else 1.0 / scale
-                                   for label in constraint_labels])
+        # rows in radians (drives, angle relations) stay; a model that does not say which rows
+        # are angles has them labelled "drive:..."
+        angle_rows = getattr(model, "angle_rows", None)
+        if angle_rows is None:
+            angle_rows = [label.startswith("drive:") for label in constraint_labels]
+        self.row_scale = np.array([1.0 if angle else 1.0 / scale for angle in angle_rows])
         self.constraint_labels = constraint_labels
 
     def jacobian(self, s: np.ndarray, t: float) -> np.ndarray:
@@ -418,9 +423,11 @@ def _initial_guess(mech: Mechanism, labels: list[str], n: int, period: float) ->
     joints = {j.name: j for j in mech.joints}
     for _ in range(len(mech.drives)):
         for drive in mech.drives:
-            joint = joints[drive.joint]
-            base = 0.0 if joint.link_a == GROUND else angles[joint.link_a]
-            angles[joint.link_b] = base + drive.angle(0.0, period)[0]
+            # the driven side's frame angle from the drive's relative angle (the other terms'
+            # frame angles as guessed so far)
+            driven, *others = joints[drive.joint].drive_terms()
+            base = -sum(term.coefficient * angles[term.link] for term in others)
+            angles[driven.link] = (base + drive.angle(0.0, period)[0]) / driven.coefficient
     links = {link.name: link for link in mech.links}
     origins: dict[str, np.ndarray] = {}
 
@@ -433,17 +440,18 @@ def _initial_guess(mech: Mechanism, labels: list[str], n: int, period: float) ->
         origins[name] = np.zeros(2)
         origins[name] = at - world(name, point)
 
-    for joint in mech.joints:
-        if isinstance(joint, Revolute) and joint.link_a == GROUND and joint.link_b not in origins:
-            place(joint.link_b, joint.point_b, np.array(joint.point_a, dtype=float))
-    for _ in range(len(mech.joints)):
-        for joint in mech.joints:
-            if not isinstance(joint, Revolute) or joint.link_a == GROUND:
+    pins = [pin for pin in (joint.coincident_points() for joint in mech.joints) if pin]
+    for (link_a, point_a), (link_b, point_b) in pins:
+        if link_a == GROUND and link_b not in origins:
+            place(link_b, point_b, np.array(point_a, dtype=float))
+    for _ in range(len(pins)):
+        for (link_a, point_a), (link_b, point_b) in pins:
+            if link_a == GROUND:
                 continue
-            if joint.link_a in origins and joint.link_b not in origins:
-                place(joint.link_b, joint.point_b, world(joint.link_a, joint.point_a))
-            elif joint.link_b in origins and joint.link_a not in origins:
-                place(joint.link_a, joint.point_a, world(joint.link_b, joint.point_b))
+            if link_a in origins and link_b not in origins:
+                place(link_b, point_b, world(link_a, point_a))
+            elif link_b in origins and link_a not in origins:
+                place(link_a, point_a, world(link_b, point_b))
     s = np.zeros(n)
     for name in links:
         x, y = origins.get(name, np.zeros(2))

@@ -22,9 +22,10 @@ Specs (``link`` a link name, ``f`` a fraction of the link length in [0, 1], defa
 
 Quantities that are not functions of ``s`` alone (``linearize`` supplies the nominal motion):
 
-* ``"joint.J.fx"``, ``"joint.J.fy"``: the force (N, global axes) of joint ``J`` on its ``link_b``
-  from its ``link_a`` (a slider: on its link from the ground), a weighted sum of the joint's
-  multipliers (``MultiplierObservable``); ``"joint.J.force"`` its magnitude.
+* ``"joint.J.<component>"``: a component of joint ``J``'s force, a weighted sum of its multipliers
+  (``MultiplierObservable``) with the weights its class declares (``force_components()``): for a
+  revolute joint and a slider ``fx``, ``fy``, the force (N, global axes) on its ``link_b`` from its
+  ``link_a`` (a slider: on its link from the ground), and ``force`` their magnitude.
 * ``"drive.J.torque"``: the torque (N m) of the drive at joint ``J`` on its ``link_b``:
   ``-lam`` of a prescribed drive's row (``MultiplierObservable``), the torque law of a torque drive
   (``TorqueLawObservable``).
@@ -44,7 +45,6 @@ from ._parts import ArgumentError, ElasticLink
 _KINDS = {"deflection": "m", "transverse": "m", "strain": "1", "moment": "N m", "angle": "rad"}
 _POINT_KINDS = {"point_error_x": 0, "point_error_y": 1}
 _STRESS_KINDS = {"stress_top": 1.0, "stress_bottom": -1.0}  # sign of the fibre's y
-_JOINT_KINDS = ("fx", "fy", "force")
 
 
 @dataclass(frozen=True)
@@ -386,29 +386,29 @@ def _stress_observable(model, spec, name, lay, kind, where) -> StressObservable:
 
 
 def _joint_observable(model, spec, joint_name, kind):
-    if kind not in _JOINT_KINDS:
-        raise ArgumentError(f"observable {spec!r}: unknown joint quantity {kind!r}; expected one "
-                            f"of {list(_JOINT_KINDS)}")
+    """``joint.J.<component>``: a weighted sum of joint J's multipliers, the weights its force map
+    (``force_components()`` of the joint's class); ``force`` the magnitude of ``fx`` and ``fy``."""
     try:
         rows = model.joint_rows(joint_name)
     except ArgumentError as error:
         raise ArgumentError(f"observable {spec!r}: {error}") from None
-    if kind == "force":
-        return PairMagnitude(spec, "N", kind, (_joint_observable(model, f"joint.{joint_name}.fx",
-                                                                 joint_name, "fx"),
-                                               _joint_observable(model, f"joint.{joint_name}.fy",
-                                                                 joint_name, "fy")))
-    axis = 0 if kind == "fx" else 1
+    joint = model.mechanism.joint(joint_name)
+    components = dict(joint.force_components())
+    known = list(components) + (["force"] if {"fx", "fy"} <= set(components) else [])
+    if kind not in known:
+        raise ArgumentError(f"observable {spec!r}: unknown quantity {kind!r} of joint "
+                            f"{joint_name!r} (a {joint.TYPE} joint); expected one of {known}")
+    if kind == "force" and kind not in components:
+        return PairMagnitude(spec, joint.force_unit, kind, tuple(
+            _joint_observable(model, f"joint.{joint_name}.{axis}", joint_name, axis)
+            for axis in ("fx", "fy")))
+    weights_on_rows = tuple(float(w) for w in components[kind])
+    if len(weights_on_rows) != len(rows.rows):
+        raise ArgumentError(f"observable {spec!r}: the force map of joint {joint_name!r} gives "
+                            f"{len(weights_on_rows)} weights for its {len(rows.rows)} rows")
     weights = np.zeros(model.n_constraints)
-    if rows.kind == "revolute":
-        # Phi = r_a - r_b: the force on link_b is -(dPhi/dR_b)^T lam = +lam.
-        weights[rows.rows[axis]] = 1.0
-    else:
-        # slider, Phi = n . (r - origin): the force on the link is -n lam
-        angle = model.mechanism.joint(joint_name).angle
-        normal = (-np.sin(angle), np.cos(angle))
-        weights[rows.rows[0]] = -normal[axis]
-    return MultiplierObservable(spec, "N", kind, weights)
+    weights[list(rows.rows)] = weights_on_rows
+    return MultiplierObservable(spec, joint.force_unit, kind, weights)
 
 
 def _drive_observable(model, spec, joint_name, kind):

@@ -210,7 +210,7 @@ def test_values_of_an_axis_have_a_limit():
 # ---------------------------------------------------------------------------------------------------
 def _four_bar_text(**changes) -> str:
     """four_bar_fem4 with keys changed (``links__coupler__discretisation`` for a nested key)."""
-    from mechanisms._load import dumps  # the scene writer checks no sizes: it writes any spec
+    from mechanisms._parts.spec import dumps  # the scene writer checks no sizes: it writes any spec
 
     spec = mechanisms.load("four_bar_fem4").to_spec()
     for path, value in changes.items():

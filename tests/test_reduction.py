@@ -13,6 +13,7 @@ import linearize
 import mechanisms as mc
 import periodic
 from mechanisms import _beams
+from mechanisms._parts import fem as _fem
 
 SPEC = "coupler.deflection@0.5"
 FOUR_BAR = mc.load("four_bar_fem4")
@@ -247,7 +248,7 @@ def test_sparse_element_matrices_equal_the_quadrature_of_the_element_shapes(chan
     unreduced element model (every Gauss point of the link, dense)."""
     link = dataclasses.replace(LINK, discretisation=mc.Fem(12), **changes)
     mass, stiffness = mc.beam_matrices(mc.beam_shapes(link))
-    sparse_mass, sparse_stiffness = _beams.element_matrices(link)
+    sparse_mass, sparse_stiffness = _fem.element_matrices(link)
     for dense, assembled in ((mass, sparse_mass), (stiffness, sparse_stiffness)):
         assert np.abs(assembled.toarray() - dense).max() <= 1e-13 * np.abs(dense).max()
 
@@ -260,7 +261,7 @@ def test_lanczos_modes_equal_dense_lapack():
     from mechanisms import _reduce
 
     link = dataclasses.replace(LINK, discretisation=mc.Fem(64))
-    mass, stiffness = _beams.element_matrices(link)
+    mass, stiffness = _fem.element_matrices(link)
     bending = np.flatnonzero([not label.startswith("u") for label in mc.beam_shapes(link).labels])
     k_block, m_block = stiffness[bending][:, bending], mass[bending][:, bending]
     assert k_block.shape[0] > _reduce._DENSE_BELOW            # the sparse path

@@ -1,0 +1,103 @@
+"""Controllers: what they add to the torque of the ``TorqueDrive`` at their joint."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar, Union
+
+from .checks import MechanismError, _check_name, _check_number
+
+
+@dataclass(frozen=True)
+class PDController:
+    """PD on the driven angle of the torque drive at ``joint`` (the thesis's case): adds
+    ``kp (angle_nominal - angle) + kd (rate_nominal - rate)`` (N m) to its torque."""
+
+    TYPE: ClassVar[str] = "pd"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "joint", "kp", "kd", "lag")
+
+    name: str
+    joint: str
+    kp: float = 0.0
+    kd: float = 0.0
+    lag: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_name("controller", self.name)
+        owner = f"controller {self.name!r}"
+        _check_number(owner, "kp", self.kp, "N m/rad", nonnegative=True)
+        _check_number(owner, "kd", self.kd, "N m s/rad", nonnegative=True)
+        _check_lag(owner, self.lag)
+
+    @classmethod
+    def from_table(cls, name: str, table) -> "PDController":
+        return cls(name, table.string("joint"), table.number("kp", "N m/rad", 0.0, nonnegative=True),
+                   table.number("kd", "N m s/rad", 0.0, nonnegative=True), _lag_of(table))
+
+    def to_table(self) -> dict[str, Any]:
+        return {"type": self.TYPE, "joint": self.joint, "kp": self.kp, "kd": self.kd,
+                **_lag_entry(self.lag)}
+
+
+@dataclass(frozen=True)
+class ObservableFeedback:
+    """Feedback of a measured elastic quantity to the torque drive at ``joint``: adds
+    ``-(gain o + rate_gain o')`` (N m) to its torque, ``o`` the observable ``observable`` (e.g.
+    ``"coupler.strain@0.5"``, the strain a gauge at midspan reads; its unit sets those of the
+    gains) and ``o'`` its time derivative. The observable must be a linear function of the elastic
+    coordinates alone (deflection, slope, curvature, strain of a link), so that it is zero on the
+    rigid nominal motion and the feedback vanishes there."""
+
+    TYPE: ClassVar[str] = "feedback"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "joint", "observable", "gain", "rate_gain", "lag")
+
+    name: str
+    joint: str
+    observable: str
+    gain: float = 0.0
+    rate_gain: float = 0.0
+    lag: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_name("controller", self.name)
+        owner = f"controller {self.name!r}"
+        if not isinstance(self.observable, str) or not self.observable:
+            raise MechanismError(f"{owner}: observable must be an observable spec such as "
+                                 f"'coupler.strain@0.5', got {self.observable!r}")
+        _check_number(owner, "gain", self.gain, "N m per unit of the observable")
+        _check_number(owner, "rate_gain", self.rate_gain, "N m s per unit of the observable")
+        _check_lag(owner, self.lag)
+
+    @classmethod
+    def from_table(cls, name: str, table) -> "ObservableFeedback":
+        return cls(name, table.string("joint"), table.string("observable"),
+                   table.number("gain", "N m per unit of the observable", 0.0),
+                   table.number("rate_gain", "N m s per unit of the observable", 0.0), _lag_of(table))
+
+    def to_table(self) -> dict[str, Any]:
+        return {"type": self.TYPE, "joint": self.joint, "observable": self.observable,
+                "gain": self.gain, "rate_gain": self.rate_gain, **_lag_entry(self.lag)}
+
+
+# A controller's ``lag`` (s): the time constant of a first-order lag ``lag y' + y = u`` between its
+# law ``u`` and the torque ``y`` it adds (0: none).  For these linear laws a sensor lag (the measured
+# signal filtered, its rate taken from the filtered signal) is the same transfer function, so one
+# key serves both.
+def _check_lag(owner: str, lag: object) -> None:
+    _check_number(owner, "lag", lag, "s", nonnegative=True)
+
+
+def _lag_of(table) -> float:
+    return table.number("lag", "s", 0.0, nonnegative=True)
+
+
+def _lag_entry(lag: float) -> dict[str, float]:
+    """The ``lag`` key of a controller's table: written only when there is a lag (older tables stay
+    as they were)."""
+    return {"lag": lag} if lag else {}
+
+
+Controller = Union[PDController, ObservableFeedback]
+#: The controller classes by their scene-file ``type``.
+CONTROLLER_TYPES: dict[str, type] = {cls.TYPE: cls for cls in (PDController, ObservableFeedback)}
+

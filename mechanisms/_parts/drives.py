@@ -1,0 +1,191 @@
+"""Drives: a prescribed motion or a torque at a revolute joint, and the DC motor of a torque drive."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Union
+
+import numpy as np
+
+from .checks import MAX_HARMONIC_ORDER, MAX_HARMONICS, MechanismError, _check_count, _check_number, _is_number
+
+
+def _check_drive(drive: "PrescribedDrive | TorqueDrive") -> None:
+    owner = f"drive at joint {drive.joint!r}"
+    _check_number(owner, "rate", drive.rate, "rad/s")
+    _check_number(owner, "offset", drive.offset, "rad")
+    if len(drive.harmonics) > MAX_HARMONICS:
+        raise MechanismError(f"{owner}: harmonics has {len(drive.harmonics)} entries; at most "
+                             f"{MAX_HARMONICS} (the motion is sampled n_steps times per period)")
+    for i, harmonic in enumerate(drive.harmonics):
+        if len(harmonic) != 3:
+            raise MechanismError(f"{owner}: harmonics[{i}] must be (k, cos_k, sin_k), got "
+                                 f"{harmonic!r}")
+        _check_count(owner, f"harmonics[{i}] order k", harmonic[0], 1, MAX_HARMONIC_ORDER,
+                     "the motion is sampled n_steps times per period, at most 65536")
+        _check_number(owner, f"harmonics[{i}] cos_k", harmonic[1], "rad")
+        _check_number(owner, f"harmonics[{i}] sin_k", harmonic[2], "rad")
+
+
+def drive_law(drive: "PrescribedDrive | TorqueDrive", period: float | None, t
+              ) -> tuple[float, float, float]:
+    """Nominal relative angle of a drive at time ``t`` (s) with its first and second derivatives:
+    ``offset + rate t + sum_k cos_k cos(k w t) + sin_k sin(k w t)``, ``w = 2 pi / period``.
+    ``t`` may also be an array: the three results are then arrays of its shape."""
+    angle = drive.offset + drive.rate * t
+    rate = drive.rate + 0.0 * t
+    acc = 0.0 * t
+    if drive.harmonics:
+        w = 2.0 * math.pi / period
+        for k, ck, sk in drive.harmonics:
+            kw = k * w
+            c, s = np.cos(kw * t), np.sin(kw * t)
+            angle += ck * c + sk * s
+            rate += kw * (-ck * s + sk * c)
+            acc -= kw * kw * (ck * c + sk * s)
+    return angle, rate, acc
+
+
+def _drive_angle(drive: "PrescribedDrive | TorqueDrive", t: float,
+                 period: float | None) -> tuple[float, float, float]:
+    """The drive's nominal relative angle (rad), its rate (rad/s) and acceleration (rad/s^2) at
+    time ``t`` (s); ``period`` (s) sets the harmonics' fundamental (``drive_law``)."""
+    return drive_law(drive, period, t)
+
+
+@dataclass(frozen=True)
+class PrescribedDrive:
+    """Prescribes the relative rotation at revolute joint ``joint``: the angle of ``link_b``'s material
+    tangent minus that of ``link_a`` (ground: absolute angle) follows
+
+        angle(t) = offset + rate t + sum_k (cos_k cos(k w t) + sin_k sin(k w t)),  w = 2 pi / period
+
+    with ``harmonics`` a tuple of ``(k, cos_k, sin_k)``. One constraint equation (rheonomic).
+    ``inertia`` (kg m^2) turns with ``link_b`` about the joint: the rotor and flywheel a torque
+    drive carries into its nominal motion (``TorqueDrive.inertia``); not a scene key."""
+
+    joint: str
+    rate: float = 0.0
+    offset: float = 0.0
+    harmonics: tuple[tuple[int, float, float], ...] = ()
+    inertia: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_drive(self)
+        _check_number(f"drive at joint {self.joint!r}", "inertia", self.inertia, "kg m^2",
+                      nonnegative=True)
+
+    angle = _drive_angle
+
+
+@dataclass(frozen=True)
+class DCMotor:
+    """A DC motor with a linear speed-torque characteristic behind a gear of ratio ``gear_ratio``
+    (motor speed / crank speed). At full supply voltage the motor gives ``stall_torque`` (N m) at
+    rest and none at ``no_load_speed`` (rad/s, motor shaft); at the command ``v`` in [-1, 1] (the
+    voltage over the supply voltage) its torque is ``stall_torque (v - omega_m / no_load_speed)``.
+    At the crank (angle rate ``theta'``, ``omega_m = G theta'``):
+
+        tau = G stall_torque v - c theta',     c = G^2 stall_torque / no_load_speed (back EMF),
+
+    and the rotor adds ``G^2 rotor_inertia`` (kg m^2) on the crank. From armature constants
+    (``from_armature``): ``stall_torque = k_t V / R``, ``no_load_speed = V / k_t`` (SI: the
+    back-EMF constant equals the torque constant ``k_t``)."""
+
+    stall_torque: float
+    no_load_speed: float
+    rotor_inertia: float = 0.0
+    gear_ratio: float = 1.0
+
+    def __post_init__(self) -> None:
+        _check_number("motor", "stall_torque", self.stall_torque, "N m", positive=True)
+        _check_number("motor", "no_load_speed", self.no_load_speed, "rad/s", positive=True)
+        _check_number("motor", "rotor_inertia", self.rotor_inertia, "kg m^2", nonnegative=True)
+        _check_number("motor", "gear_ratio", self.gear_ratio, "1", positive=True)
+
+    @classmethod
+    def from_armature(cls, *, resistance: float, torque_constant: float, supply_voltage: float,
+                      rotor_inertia: float = 0.0, gear_ratio: float = 1.0) -> "DCMotor":
+        """The motor of armature resistance (ohm), torque constant (N m/A = V s/rad) and supply
+        voltage (V)."""
+        _check_number("motor", "resistance", resistance, "ohm", positive=True)
+        _check_number("motor", "torque_constant", torque_constant, "N m/A", positive=True)
+        _check_number("motor", "supply_voltage", supply_voltage, "V", positive=True)
+        return cls(torque_constant * supply_voltage / resistance, supply_voltage / torque_constant,
+                   rotor_inertia, gear_ratio)
+
+    @property
+    def back_emf_damping(self) -> float:
+        """``c = G^2 stall_torque / no_load_speed`` (N m s/rad at the crank)."""
+        return self.gear_ratio ** 2 * self.stall_torque / self.no_load_speed
+
+    @property
+    def peak_command(self) -> float:
+        """The largest command at the crank, ``G stall_torque`` (N m): full supply voltage."""
+        return self.gear_ratio * self.stall_torque
+
+    @property
+    def reflected_inertia(self) -> float:
+        """The rotor's inertia seen at the crank, ``G^2 rotor_inertia`` (kg m^2)."""
+        return self.gear_ratio ** 2 * self.rotor_inertia
+
+
+@dataclass(frozen=True)
+class TorqueDrive:
+    """A torque on ``link_b`` of revolute joint ``joint`` (reaction on ``link_a``). The nominal motion
+    follows ``PrescribedDrive(joint, rate, offset, harmonics)``; the applied torque is the nominal
+    inverse-dynamics torque (the feedforward; ``feedforward=False`` switches it off) plus a PD
+    correction on the deviation from it:
+
+        tau = tau_nominal(t) + kp (angle_nominal - angle) + kd (rate_nominal - rate)
+
+    plus what the mechanism's controllers acting at this joint add. Without the feedforward the
+    nominal motion is only the reference of the feedback (and the motion the linearisation is
+    about): the machine follows it only as closely as the feedback forces it to. ``motor`` (a ``DCMotor`` or
+    ``None``: an ideal torque source) adds its back-EMF damping ``c (rate_nominal - rate)`` (its
+    feedforward voltage covers the back EMF of the nominal speed) and its rotor inertia;
+    ``flywheel`` (kg m^2) is an inertia on ``link_b`` about the joint. The torque saturates at
+    ``+-torque_limit`` (N m) and, with a motor, where the command reaches the supply voltage
+    (``|tau + c rate| <= G stall_torque``), in nonlinear runs; the linearisation uses the
+    unsaturated law and its linear range reports the peak demanded torque against the limits.
+    """
+
+    joint: str
+    rate: float = 0.0
+    offset: float = 0.0
+    harmonics: tuple[tuple[int, float, float], ...] = ()
+    kp: float = 0.0
+    kd: float = 0.0
+    motor: DCMotor | None = None
+    flywheel: float = 0.0
+    torque_limit: float = math.inf
+    feedforward: bool = True
+
+    def __post_init__(self) -> None:
+        _check_drive(self)
+        owner = f"drive at joint {self.joint!r}"
+        if not isinstance(self.feedforward, bool):
+            raise MechanismError(f"{owner}: feedforward must be true or false, got "
+                                 f"{self.feedforward!r}")
+        _check_number(owner, "kp", self.kp, "N m/rad", nonnegative=True)
+        _check_number(owner, "kd", self.kd, "N m s/rad", nonnegative=True)
+        _check_number(owner, "flywheel", self.flywheel, "kg m^2", nonnegative=True)
+        if not (self.torque_limit == math.inf or (_is_number(self.torque_limit)
+                                                 and self.torque_limit > 0)):
+            raise MechanismError(f"{owner}: torque_limit must be a positive number (N m), got "
+                                 f"{self.torque_limit!r}")
+        if self.motor is not None and not isinstance(self.motor, DCMotor):
+            raise MechanismError(f"{owner}: motor must be a DCMotor or None, got {self.motor!r}")
+
+    @property
+    def inertia(self) -> float:
+        """Inertia (kg m^2) turning with ``link_b`` about the joint: the motor's rotor through its
+        gear and the flywheel."""
+        return self.flywheel + (self.motor.reflected_inertia if self.motor is not None else 0.0)
+
+    angle = _drive_angle
+
+
+Drive = Union[PrescribedDrive, TorqueDrive]
+

@@ -1,0 +1,250 @@
+"""A scene spec (nested dicts, what ``tomllib`` returns for a scene file) -> the parts of a mechanism.
+
+The format is documented key by key in ``docs/scenes.md``. ``parts_from_spec`` checks every key
+(unknown keys get the nearest valid one suggested) and turns section dimensions and damping ratios
+into the parts' derived quantities; ``Mechanism.from_spec`` makes the mechanism of them.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Any, Mapping
+
+from .checks import MechanismError
+from .controllers import CONTROLLER_TYPES
+from .damping import DampingMatrix, ModalDamping, Rayleigh
+from .discretisations import DEFAULT_DISCRETISATION, DISCRETISATION_TYPES
+from .drives import DCMotor, PrescribedDrive, TorqueDrive
+from .joints import JOINT_TYPES
+from .links import ElasticLink, PointMass, RigidLink
+from .table import _REQUIRED, _Table
+
+_TOP_KEYS = ("name", "description", "period", "gravity", "initial_angles", "links", "joints",
+             "drive", "drives", "point_masses", "controllers", "studies")
+_RIGID_KEYS = ("type", "length", "mass", "inertia", "centroid", "points", "width", "thickness",
+               "density")
+_ELASTIC_KEYS = ("type", "length", "density", "youngs_modulus", "width", "thickness", "area",
+                 "second_moment", "discretisation", "boundary", "axial", "geometric_stiffening",
+                 "rotary_inertia", "damping", "yield_strength", "outer_fibre")
+_DAMPING_KEYS = {"rayleigh": ("type", "alpha", "beta", "ratio"), "modal": ("type", "ratios"),
+                 "matrix": ("type", "matrix"), "none": ("type",)}
+_PRESCRIBED_KEYS = ("type", "joint", "rate", "offset", "harmonics")
+_TORQUE_KEYS = _PRESCRIBED_KEYS + ("kp", "kd", "motor", "flywheel", "torque_limit", "feedforward")
+_MOTOR_KEYS = ("stall_torque", "no_load_speed", "resistance", "torque_constant", "supply_voltage",
+               "rotor_inertia", "gear_ratio")
+_POINT_MASS_KEYS = ("link", "point", "mass", "inertia")
+
+def _rigid_link(name: str, t: _Table) -> RigidLink:
+    length = t.number("length", "m", positive=True)
+    centroid = t.pair("centroid", "m") if t.has("centroid") else None
+    points_table = t.table("points")
+    points = {key: _Table({"p": value}, f"{t.path}.points", ("p",)).pair("p", "m")
+              for key, value in points_table.items()}
+    section = [key for key in ("width", "thickness", "density") if t.has(key)]
+    explicit = [key for key in ("mass", "inertia") if t.has(key)]
+    if section and explicit:
+        raise MechanismError(f"{t.path}: give either mass and inertia, or width, thickness and "
+                             f"density (a uniform bar), not both (got {section + explicit})")
+    if section:
+        return RigidLink.uniform(name, length, width=t.number("width", "m", positive=True),
+                                 thickness=t.number("thickness", "m", positive=True),
+                                 density=t.number("density", "kg/m^3", positive=True),
+                                 centroid=centroid, points=points)
+    if not explicit:
+        raise MechanismError(f"{t.path}: missing mass and inertia (or width, thickness and density "
+                             f"for a uniform bar)")
+    return RigidLink(name, length, mass=t.number("mass", "kg", positive=True),
+                     inertia=t.number("inertia", "kg m^2", nonnegative=True), centroid=centroid,
+                     points=points)
+
+
+def _elastic_link(name: str, t: _Table) -> ElasticLink:
+    length = t.number("length", "m", positive=True)
+    density = t.number("density", "kg/m^3", positive=True)
+    modulus = t.number("youngs_modulus", "Pa", positive=True)
+    rectangle = [key for key in ("width", "thickness") if t.has(key)]
+    explicit = [key for key in ("area", "second_moment") if t.has(key)]
+    if rectangle and explicit:
+        raise MechanismError(f"{t.path}: give either width and thickness (a rectangle bending about "
+                             f"the thin direction) or area and second_moment, not both")
+    if rectangle or not explicit:
+        width, thickness = t.number("width", "m", positive=True), t.number("thickness", "m",
+                                                                           positive=True)
+        area, second_moment = width * thickness, width * thickness**3 / 12.0
+    else:
+        area = t.number("area", "m^2", positive=True)
+        second_moment = t.number("second_moment", "m^4", positive=True)
+
+    d = t.table("discretisation")
+    every_key = tuple(dict.fromkeys(key for cls in DISCRETISATION_TYPES.values() for key in cls.KEYS))
+    kind = _Table(d, f"{t.path}.discretisation", every_key).string(
+        "type", DEFAULT_DISCRETISATION, tuple(DISCRETISATION_TYPES))
+    cls = DISCRETISATION_TYPES[kind]
+    discretisation = cls.from_table(_Table(d, f"{t.path}.discretisation", cls.KEYS))
+
+    link = ElasticLink(name, length, density=density, youngs_modulus=modulus, area=area,
+                       second_moment=second_moment, discretisation=discretisation,
+                       boundary=t.string("boundary", "pinned-pinned",
+                                         ("pinned-pinned", "clamped-free")),
+                       axial=t.boolean("axial", True),
+                       geometric_stiffening=t.boolean("geometric_stiffening", True),
+                       rotary_inertia=t.boolean("rotary_inertia", False),
+                       yield_strength=(t.number("yield_strength", "Pa", positive=True)
+                                       if t.has("yield_strength") else None),
+                       outer_fibre=(t.number("outer_fibre", "m", positive=True)
+                                    if t.has("outer_fibre") else None))
+    if not t.has("damping"):
+        return link
+    d = t.table("damping")
+    all_damping_keys = tuple(dict.fromkeys(k for keys in _DAMPING_KEYS.values() for k in keys))
+    kind = _Table(d, f"{t.path}.damping", all_damping_keys).string("type", "rayleigh",
+                                                                    tuple(_DAMPING_KEYS))
+    dt = _Table(d, f"{t.path}.damping", _DAMPING_KEYS[kind])
+    if kind == "none":
+        return link
+    if kind == "rayleigh":
+        if dt.has("ratio"):
+            if dt.has("beta") or dt.has("alpha"):
+                raise MechanismError(f"{dt.path}: give either ratio (stiffness-proportional damping "
+                                     f"with that ratio at the first bending frequency) or alpha "
+                                     f"and beta, not both")
+            # C = beta K gives the ratio beta omega / 2 at omega: beta = 2 zeta / omega_1.
+            ratio = dt.number("ratio", "1", nonnegative=True)
+            damping = Rayleigh(0.0, 2.0 * ratio / link.first_bending_frequency())
+        else:
+            damping = Rayleigh(dt.number("alpha", "1/s", 0.0, nonnegative=True),
+                               dt.number("beta", "s", 0.0, nonnegative=True))
+    elif kind == "modal":
+        ratios = dt.raw("ratios")
+        if not isinstance(ratios, list):
+            raise MechanismError(f"{dt.path}.ratios must be a list of damping ratios, got "
+                                 f"{ratios!r}")
+        damping = ModalDamping(tuple(ratios))
+    else:
+        matrix = dt.raw("matrix")
+        if not isinstance(matrix, list) or not all(isinstance(row, list) for row in matrix):
+            raise MechanismError(f"{dt.path}.matrix must be a list of rows (N s/m), got {matrix!r}")
+        damping = DampingMatrix(tuple(tuple(row) for row in matrix))
+    return ElasticLink(**{**{f: getattr(link, f) for f in link.__dataclass_fields__},
+                          "damping": damping})
+
+
+def _joint(name: str, data: object, path: str):
+    """A joint from its ``[joints.<name>]`` table: the class its ``type`` names reads its own keys."""
+    every_key = tuple(dict.fromkeys(key for cls in JOINT_TYPES.values() for key in cls.KEYS))
+    kind = _Table(data, path, every_key).string("type", next(iter(JOINT_TYPES)), tuple(JOINT_TYPES))
+    cls = JOINT_TYPES[kind]
+    return cls.from_table(name, _Table(data, path, cls.KEYS))
+
+
+def _drive(data: object, path: str, joint: str | None) -> PrescribedDrive | TorqueDrive:
+    kind = _Table(data, path, _TORQUE_KEYS).string("type", "prescribed", ("prescribed", "torque"))
+    t = _Table(data, path, _TORQUE_KEYS if kind == "torque" else _PRESCRIBED_KEYS)
+    if joint is not None and t.has("joint"):
+        raise MechanismError(f"{path}: the joint is the table name {joint!r}; remove key 'joint'")
+    harmonics = t.raw("harmonics", [])
+    if not isinstance(harmonics, list) or not all(isinstance(h, list) and len(h) == 3
+                                                  for h in harmonics):
+        raise MechanismError(f"{path}.harmonics must be a list of [k, cos_k, sin_k] (rad), got "
+                             f"{harmonics!r}")
+    common = dict(joint=joint if joint is not None else t.string("joint"),
+                  rate=t.number("rate", "rad/s", 0.0), offset=t.number("offset", "rad", 0.0),
+                  harmonics=tuple(tuple(h) for h in harmonics))
+    if kind == "torque":
+        limit = t.number("torque_limit", "N m", positive=True) if t.has("torque_limit") else math.inf
+        return TorqueDrive(**common, kp=t.number("kp", "N m/rad", 0.0, nonnegative=True),
+                           kd=t.number("kd", "N m s/rad", 0.0, nonnegative=True),
+                           motor=_motor(t.table("motor"), f"{path}.motor") if t.has("motor") else None,
+                           flywheel=t.number("flywheel", "kg m^2", 0.0, nonnegative=True),
+                           torque_limit=limit, feedforward=t.boolean("feedforward", True))
+    return PrescribedDrive(**common)
+
+
+def _motor(data: object, path: str) -> DCMotor:
+    """A ``[drive.motor]`` table: the characteristic by ``stall_torque`` and ``no_load_speed`` or by
+    the armature constants ``resistance``, ``torque_constant``, ``supply_voltage``."""
+    t = _Table(data, path, _MOTOR_KEYS)
+    extra = dict(rotor_inertia=t.number("rotor_inertia", "kg m^2", 0.0, nonnegative=True),
+                 gear_ratio=t.number("gear_ratio", "1", 1.0, positive=True))
+    characteristic = [k for k in ("stall_torque", "no_load_speed") if t.has(k)]
+    armature = [k for k in ("resistance", "torque_constant", "supply_voltage") if t.has(k)]
+    if characteristic and armature:
+        raise MechanismError(f"{path}: give either stall_torque and no_load_speed or the armature "
+                             f"constants resistance, torque_constant and supply_voltage, not both")
+    if armature:
+        return DCMotor.from_armature(resistance=t.number("resistance", "ohm", positive=True),
+                                     torque_constant=t.number("torque_constant", "N m/A",
+                                                              positive=True),
+                                     supply_voltage=t.number("supply_voltage", "V", positive=True),
+                                     **extra)
+    return DCMotor(t.number("stall_torque", "N m", positive=True),
+                   t.number("no_load_speed", "rad/s", positive=True), **extra)
+
+
+def _controller(name: str, data: object, path: str):
+    """A controller from its ``[controllers.<name>]`` table: its ``type`` picks the class, which
+    reads its own keys."""
+    every_key = tuple(dict.fromkeys(key for cls in CONTROLLER_TYPES.values() for key in cls.KEYS))
+    kind = _Table(data, path, every_key).string("type", _REQUIRED, tuple(CONTROLLER_TYPES))
+    cls = CONTROLLER_TYPES[kind]
+    return cls.from_table(name, _Table(data, path, cls.KEYS))
+
+
+def _named_tables(t: _Table, key: str) -> dict[str, Any]:
+    tables = t.table(key)
+    for name in tables:
+        if not isinstance(tables[name], Mapping):
+            raise MechanismError(f"{key}.{name} must be a table, got {tables[name]!r}")
+    return dict(tables)
+
+
+def parts_from_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
+    """The keyword arguments of ``Mechanism`` (its parts, with ``spec`` itself kept) read from a
+    scene spec; raises ``MechanismError`` naming the key path and what was expected."""
+    top = _Table(spec, "scene", _TOP_KEYS)
+    top.path = ""  # top-level keys print as "links.coupler.length", not "scene.links..."
+    links = []
+    for name, data in _named_tables(top, "links").items():
+        path = f"links.{name}"
+        kind = _Table(data, path, tuple(dict.fromkeys(_RIGID_KEYS + _ELASTIC_KEYS))).string(
+            "type", _REQUIRED, ("rigid", "elastic"))
+        links.append(_rigid_link(name, _Table(data, path, _RIGID_KEYS)) if kind == "rigid"
+                     else _elastic_link(name, _Table(data, path, _ELASTIC_KEYS)))
+    if not links:
+        raise MechanismError("the scene has no [links.<name>] tables")
+    joints = [_joint(name, data, f"joints.{name}")
+              for name, data in _named_tables(top, "joints").items()]
+    if top.has("drive") and top.has("drives"):
+        raise MechanismError("give either one [drive] table or [drives.<joint>] tables, not both")
+    drives = ([_drive(top.table("drive"), "drive", None)] if top.has("drive") else
+              [_drive(data, f"drives.{joint}", joint)
+               for joint, data in _named_tables(top, "drives").items()])
+    point_masses = []
+    for name, data in _named_tables(top, "point_masses").items():
+        t = _Table(data, f"point_masses.{name}", _POINT_MASS_KEYS)
+        point_masses.append(PointMass(t.string("link"), t.point("point"),
+                                      t.number("mass", "kg", positive=True),
+                                      t.number("inertia", "kg m^2", 0.0, nonnegative=True)))
+    controllers = [_controller(name, data, f"controllers.{name}")
+                   for name, data in _named_tables(top, "controllers").items()]
+    angles = top.table("initial_angles")
+    initial_angles = {name: _Table({"a": value}, "initial_angles", ("a",)).number("a", "rad")
+                      for name, value in angles.items()}
+    top.string("description", "")  # checked only: documentation, kept in the spec
+    period = top.number("period", "s", positive=True) if top.has("period") else None
+    return dict(
+        name=top.string("name"),
+        links=tuple(links),
+        joints=tuple(joints),
+        drives=tuple(drives),
+        point_masses=tuple(point_masses),
+        gravity=top.pair("gravity", "m/s^2", (0.0, 0.0)),
+        initial_angles=initial_angles,
+        period=period,
+        controllers=tuple(controllers),
+        spec=copy.deepcopy(dict(spec)),
+        studies=copy.deepcopy(dict(top.table("studies"))),
+    )
+
+
