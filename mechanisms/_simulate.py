@@ -56,8 +56,8 @@ from typing import Any, Mapping, Sequence
 
 import numba
 import numpy as np
-from llvmlite import binding as llvm_binding
-from numba.extending import get_cython_function_address
+
+from periodic import lapack
 
 from ._kinematics import ConvergenceError
 from ._observables import default_observables
@@ -149,86 +149,22 @@ class SimulationResult:
 # Numba kernels
 # ---------------------------------------------------------------------------------------------------
 # The iteration matrix (n + r ~ 20-70) is factorised once and reused over a modified-Newton
-# iteration, and its pivots give ``min_pivot_ratio``. LAPACK's dgetrf / dgetrs (scipy's bundled
-# LAPACK) do the work; numba's np.linalg.solve, which factorises and copies at every solve, made the
-# thesis four-bar's runs 14-18 % slower (20 revolutions at 125 and 400 steps per period), whereas
-# direct dgetrf / dgetrs calls cost 0-4 % (125) and 3-10 % (400) against the hand-written LU they
-# replaced (medians of interleaved runs; a cold OpenBLAS call takes ~2-3 us more). The kernels
-# reach LAPACK through symbols registered with LLVM (not through ctypes pointers, which
-# numba refuses to cache): the cached machine code names the symbol, and importing this module
-# binds it to scipy's function in every process.
-for _name in ("dgetrf", "dgetrs"):
-    llvm_binding.add_symbol(f"flexvib_mechanisms_{_name}",
-                            get_cython_function_address("scipy.linalg.cython_lapack", _name))
-_INT_P, _DOUBLE_P = numba.types.CPointer(numba.int32), numba.types.CPointer(numba.float64)
-# Fortran signatures, all arguments by reference: dgetrf(m, n, a, lda, ipiv, info),
-# dgetrs(trans, n, nrhs, a, lda, ipiv, b, ldb, info)
-_dgetrf = numba.types.ExternalFunction("flexvib_mechanisms_dgetrf", numba.void(
-    _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P, _INT_P))
-_dgetrs = numba.types.ExternalFunction("flexvib_mechanisms_dgetrs", numba.void(
-    numba.types.CPointer(numba.int8), _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P, _DOUBLE_P,
-    _INT_P, _INT_P))
-_NO_TRANSPOSE = np.array([ord("N")], dtype=np.int8)
-
-
+# iteration, and its pivots give ``min_pivot_ratio``. LAPACK's dgetrf / dgetrs (``periodic.lapack``, the
+# packages' one binding) do the work; numba's np.linalg.solve, which factorises and copies at every solve, made
+# the thesis four-bar's runs 14-18 % slower (20 revolutions at 125 and 400 steps per period), whereas direct
+# dgetrf / dgetrs calls cost 0-4 % (125) and 3-10 % (400) against the hand-written LU they replaced (medians
+# of interleaved runs; a cold OpenBLAS call takes ~2-3 us more). The matrix is built transposed
+# (``periodic.lapack``'s order).
 @numba.njit(cache=True)
-def _lu_factor(A_T, piv):
-    """LU factorisation with partial pivoting, ``P A = L U`` (LAPACK dgetrf), of the (n, n) matrix
-    ``A`` whose transpose ``A_T`` is given (C order, hence ``A`` in LAPACK's column-major order);
-    ``A_T`` is overwritten with the factors, ``piv`` (n + 3,) int32 with the pivot rows (1-based)
-    followed by room for the integers LAPACK takes by reference (n, nrhs, info).
+def _lu_factor(G_T, piv):
+    """``P G = L U`` of the iteration matrix G whose transpose ``G_T`` (n, n) is given (``periodic.lapack``'s
+    convention; LAPACK dgetrf), in place; ``piv`` (n,) int32 receives the pivots.
 
     Returns ``min |u_kk| / max |u_kk|`` (0.0 when a pivot is exactly zero) as a cheap singularity
     indicator."""
-    n = A_T.shape[0]
-    piv[n] = n
-    _dgetrf(piv[n:].ctypes, piv[n:].ctypes, A_T.ctypes, piv[n:].ctypes, piv.ctypes,
-            piv[n + 2:].ctypes)
-    if piv[n + 2] != 0:
+    if not lapack.factor_lapack(G_T, piv):
         return 0.0  # info > 0: u_kk exactly zero at k = info
-    umax = 0.0
-    umin = np.inf
-    for k in range(n):
-        umax = max(umax, abs(A_T[k, k]))
-        umin = min(umin, abs(A_T[k, k]))
-    if umax == 0.0:
-        return 0.0
-    return umin / umax
-
-
-@numba.njit(cache=True)
-def _lu_solve(LU_T, piv, b):
-    """Solve ``A x = b`` in place, ``b`` (n,) contiguous, from ``_lu_factor``'s output (LAPACK
-    dgetrs)."""
-    n = LU_T.shape[0]
-    piv[n] = n
-    piv[n + 1] = 1  # one right-hand side; info goes to piv[n + 2] (dgetrs zeroes it first)
-    _dgetrs(_NO_TRANSPOSE.ctypes, piv[n:].ctypes, piv[n + 1:].ctypes, LU_T.ctypes, piv[n:].ctypes,
-            piv.ctypes, b.ctypes, piv[n:].ctypes, piv[n + 2:].ctypes)
-
-
-@numba.njit(cache=True)
-def _lu_solve_rows(LU_T, piv, B):
-    """Solve ``A X = B^T`` in place for the p rows of ``B`` (p, n) from ``_lu_factor``'s output, by
-    loops: for the many right-hand sides of the tangent, OpenBLAS's dgetrs splits them over threads,
-    which on a loaded machine made each call milliseconds instead of microseconds."""
-    n = LU_T.shape[0]
-    for j in range(B.shape[0]):
-        b = B[j]
-        for i in range(n):              # the row interchanges, in LAPACK's order (1-based pivots)
-            k = piv[i] - 1
-            if k != i:
-                b[i], b[k] = b[k], b[i]
-        for i in range(n):              # L y = b, L unit lower triangular: L[i, k] = LU_T[k, i]
-            acc = b[i]
-            for k in range(i):
-                acc -= LU_T[k, i] * b[k]
-            b[i] = acc
-        for i in range(n - 1, -1, -1):  # U x = y
-            acc = b[i]
-            for k in range(i + 1, n):
-                acc -= LU_T[k, i] * b[k]
-            b[i] = acc / LU_T[i, i]
+    return lapack.pivot_ratio(G_T)
 
 
 @numba.njit(cache=True)
@@ -295,7 +231,7 @@ def _newton_update(LU, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, ga
         rhs[i] = -acc
     for k in range(r):
         rhs[n + k] = -Phi[k] / beta_p
-    _lu_solve(LU, piv, rhs)
+    lapack.solve_rows_lapack(LU, piv, rhs.reshape((1, rhs.shape[0])), False)
     dq_max = 0.0
     finite = True
     for i in range(n):
@@ -704,7 +640,7 @@ class _Stepper:
         self.rhs = np.empty(n + r)
         self.G = np.empty((n + r, n + r))
         self.tangent = np.empty((n, n))
-        self.piv = np.empty(n + r + 3, dtype=np.int32)
+        self.piv = np.empty(n + r, dtype=np.int32)
         self.tangent_h = None      # the step the kept tangent terms were scaled with, or None
         self.residual = np.nan     # max |Phi| at the last converged solve
         self.counts = {"n_newton": 0, "n_jacobian": 0, "n_factorizations": 0}
@@ -1142,8 +1078,8 @@ def _tangent_steps(mass, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, 
     dvhat = np.empty((n, p))
     tangent = np.empty((n, n))
     G_T = np.empty((n + r, n + r))
-    piv = np.empty(n + r + 3, dtype=np.int32)
-    solution = np.empty((p, n + r))       # the right-hand sides, then d(sddot, lam), as rows
+    piv = np.empty(n + r, dtype=np.int32)
+    solution = np.empty((n + r, p))       # the right-hand sides, then d(sddot, lam), as columns
     n_lags = lag_state.shape[0]
     lag_known = np.empty((n_lags, p))     # d c_n, the lags' part known at t_n
     for step in range(mass.shape[0]):
@@ -1162,14 +1098,14 @@ def _tangent_steps(mass, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, 
                 acc = 0.0
                 for k in range(n):
                     acc += K[step, i, k] * dqhat[k, j] + C[step, i, k] * dvhat[k, j]
-                solution[j, i] = -acc
+                solution[i, j] = -acc
                 for k in range(n_lags):
-                    solution[j, i] += lag_gradients[k, i] * lag_known[k, j]
+                    solution[i, j] += lag_gradients[k, i] * lag_known[k, j]
             for k in range(r):
                 acc = 0.0
                 for i in range(n):
                     acc += Phi_s[step, k, i] * dqhat[i, j]
-                solution[j, n + k] = -acc / beta_p
+                solution[n + k, j] = -acc / beta_p
         for i in range(n):
             for j in range(n):
                 tangent[i, j] = beta_p * K[step, i, j] + gamma_p * C[step, i, j]
@@ -1178,10 +1114,10 @@ def _tangent_steps(mass, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, 
             state[:] = np.nan
             lag_state[:] = np.nan
             return
-        _lu_solve_rows(G_T, piv, solution)
+        lapack.solve_columns_loops(G_T, piv, solution, False)
         for i in range(n):
             for j in range(p):
-                dsddot_new = solution[j, i]
+                dsddot_new = solution[i, j]
                 dq[i, j] = dqhat[i, j] + beta_p * dsddot_new
                 dv[i, j] = dvhat[i, j] + gamma_p * dsddot_new
                 da[i, j] = (alpha_f * dsddot[i, j] + (1.0 - alpha_f) * dsddot_new
