@@ -135,7 +135,7 @@ def newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hi
     n_samples = M.shape[0]
     n, m = x.shape
     store = x_hist.shape[0] == n_samples
-    lu = np.empty((n, n))  # S, i.e. S^T in periodic.lapack's order
+    lu = np.empty((n, n))
     piv = np.empty(n, dtype=np.int32)
     xp = np.empty((n, m))
     vp = np.empty((n, m))
@@ -145,9 +145,9 @@ def newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hi
     # (N0): starting acceleration (and the rates of first-order coordinates)
     _start_system(M[0], C[0], first_order, v, lu)
     _residual_force(C[0], K[0], f[0], forced, x, v, a, work)
-    if not lapack.factor_loops(lu, piv):
+    if not lapack.factor_rowmajor(lu, piv):
         return 0
-    lapack.solve_columns_loops(lu, piv, a, True)
+    lapack.solve_rowmajor(lu, piv, a)
     _split_start(first_order, v, a)
     if store:
         _copy(x, x_hist[0])
@@ -163,10 +163,10 @@ def newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hi
         for i in range(n):
             for j in range(n):
                 lu[i, j] = M[k + 1, i, j] + c_a * C[k + 1, i, j] + k_a * K[k + 1, i, j]
-        if not lapack.factor_loops(lu, piv):
+        if not lapack.factor_rowmajor(lu, piv):
             return k + 1
         _residual_force(C[k + 1], K[k + 1], f[k + 1], forced, xp, vp, a, work)
-        lapack.solve_columns_loops(lu, piv, a, True)
+        lapack.solve_rowmajor(lu, piv, a)
         # (N3): correctors
         for i in range(n):
             for j in range(m):
@@ -182,8 +182,8 @@ def newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hi
 # ---------------------------------------------------------------------------------------------------
 # Large n: LAPACK's blocked LU, and the solves of all columns as one matrix product
 # ---------------------------------------------------------------------------------------------------
-# periodic.lapack's convention: its array holds the transpose of the matrix it factors.  Both kernels fill
-# the effective matrix S as it is (no strided copy), so the routines factor S^T: the solves then solve
+# periodic.lapack's convention: its LAPACK routines read their array as the transpose of the matrix.  The
+# kernel fills the effective matrix S as it is (no strided copy), so LAPACK factors S^T: dgetrs then solves
 # S x = b with `transposed`, and dgetri leaves inv(S^T)^T = inv(S) in C order, ready for one dgemm.
 #: The linear solvers of :func:`march` (see :func:`choose_solver`): the hand-written LU and its
 #: column loops (:func:`newmark_march`); LAPACK's dgetrf and dgetrs (the columns transposed to
@@ -315,9 +315,9 @@ def mass_pivot_ratios(M):
     lu = np.empty((n, n))
     piv = np.empty(n, dtype=np.int32)
     for k in range(n_samples):
-        lapack.transpose(M[k], lu)
+        _copy(M[k], lu)
         scale = np.abs(lu).max()
-        if scale == 0.0 or not lapack.factor_loops(lu, piv):
+        if scale == 0.0 or not lapack.factor_rowmajor(lu, piv):
             out[k] = 0.0
             continue
         smallest = abs(lu[0, 0])

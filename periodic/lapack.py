@@ -1,34 +1,34 @@
-"""LU factorisation and solves inside numba kernels, in one convention: LAPACK's own (scipy's bundled dgetrf,
-dgetrs, dgetri) and a hand-written twin for small or sparse matrices.
+"""LU factorisation and solves inside numba kernels: LAPACK's (scipy's bundled dgetrf, dgetrs, dgetri,
+bound here once) and a hand-written LU for small or sparse matrices.
 
-The one place in the packages that binds LAPACK: ``periodic``'s Newmark kernels and ``mechanisms``' Newton
-iterations, step tangents and position continuation call these routines (``mechanisms`` may import this module of
-``periodic`` and nothing else of it; ``tests/test_imports.py``).
+The one place in the packages that binds LAPACK or writes an LU: ``periodic``'s Newmark kernels and
+``mechanisms``' Newton iterations, step tangents and position continuation call these routines (``mechanisms``
+may import this module of ``periodic`` and nothing else of it; ``tests/test_imports.py``).
 
-Convention (LAPACK's, column-major):
+LAPACK's convention (column-major), for every ``*_lapack`` routine and :func:`solve_columns_loops`:
 
 - A matrix A (n, n) is passed as a C-order float64 array ``lu`` holding its transpose, ``lu[j, i] = A[i, j]``:
-  that is A in LAPACK's column-major order (build it transposed, or copy with :func:`transpose`).
-- :func:`factor_lapack` (dgetrf) and :func:`factor_loops` (hand-written) overwrite ``lu`` with the factors of
-  ``P A = L U`` (partial pivoting by rows of A) as dgetrf leaves them, and ``pivots`` (n,) int32 with dgetrf's
-  ``ipiv`` (1-based: row i was interchanged with row ``pivots[i] - 1``).  Both return False when a pivot is
-  exactly zero.  The two give the same factors up to rounding, so either serves every solve:
-- :func:`solve_rows_lapack` (dgetrs) solves ``A x = b`` (or ``A^T x = b``) for the m rows b of a C-order
-  (m, n) array, LAPACK's column-major (n, m) right-hand side (one vector b (n,) as ``b.reshape((1, n))``);
-  :func:`solve_columns_loops` (loops that skip zero factors) solves ``A x = b`` (or ``A^T x = b``) for the m
-  columns of a C-order (n, m) array; :func:`invert_lapack` (dgetri) overwrites the factors with inv(A) in the
-  same layout (the array then holds inv(A)^T).
-- A matrix S at hand in C order, as it is, is A = S^T to these routines: factor it without copying, then
-  solve ``S x = b`` with ``transposed``, or invert it (the array then holds inv(S^T)^T = inv(S)).
-- :func:`pivot_ratio` is ``min |u_kk| / max |u_kk|``, a cheap singularity indicator; :func:`solve_in_place`
-  solves one small system given in C order (transposed in place, factored and solved in one call).
+  that is A in LAPACK's column-major order (build it transposed, or copy with :func:`transpose`).  A matrix S
+  at hand in C order as it is is A = S^T to these routines.
+- :func:`factor_lapack` (dgetrf) overwrites ``lu`` with the factors of ``P A = L U`` (partial pivoting by rows
+  of A), ``pivots`` (n,) int32 with dgetrf's ``ipiv`` (1-based: row i was interchanged with row
+  ``pivots[i] - 1``), and returns False when a pivot is exactly zero.
+- :func:`solve_rows_lapack` (dgetrs) solves ``A x = b`` (or ``A^T x = b``: S x = b for S given as it is) for
+  the m rows b of a C-order (m, n) array, LAPACK's column-major (n, m) right-hand side (one vector b (n,) as
+  ``b.reshape((1, n))``); :func:`solve_columns_loops` solves ``A x = b`` for the m columns of a C-order (n, m)
+  array by loops; :func:`invert_lapack` (dgetri) overwrites the factors with inv(A) in the same layout (the
+  array then holds inv(A)^T, which is inv(S) for S given as it is).
+
+The hand-written LU, :func:`factor_rowmajor` and :func:`solve_rowmajor`, takes the matrix in C order as it is
+(row-major ``P A = L U``, the same 1-based int32 pivots): the same elimination written in LAPACK's layout was
+1.4-1.7x slower at n = 2-6 (equal from n = 12), where the Newmark kernels spend their time.
+:func:`solve_in_place` solves one small system with it; :func:`pivot_ratio` (``min |u_kk| / max |u_kk|``, a
+cheap singularity indicator) reads the diagonal of either layout.
 
 Which to use: the loops beat LAPACK called from a kernel 2x at n = 2-12 (OpenBLAS's per-call overhead) and on
 sparse matrices (a finite-element link's, 6-22 % nonzero: the loops skip zeros, LAPACK pays for them);
 LAPACK's blocked dgetrf wins on dense matrices from n ~ 20 (``periodic._newmark`` and ``benchmarks/
-bench_shooting_scale.py`` measure the crossover).  OpenBLAS's dgetrs splits many right-hand sides over threads,
-which on a loaded machine made each call milliseconds: many columns go to the loops or to one dgemm with the
-inverse.
+bench_shooting_scale.py`` measure the crossover).
 
 LAPACK is reached through symbols registered with LLVM, not ctypes pointers, which numba refuses to cache: the
 cached machine code names the symbol, and importing this module binds it to scipy's function in every process.
@@ -43,11 +43,12 @@ from numba.extending import get_cython_function_address
 
 __all__ = [
     "factor_lapack",
-    "factor_loops",
+    "factor_rowmajor",
     "invert_lapack",
     "pivot_ratio",
     "solve_columns_loops",
     "solve_in_place",
+    "solve_rowmajor",
     "solve_rows_lapack",
     "transpose",
     "GETRI_WORK_PER_ROW",
@@ -83,68 +84,77 @@ def factor_lapack(lu, pivots):
 
 
 @numba.njit(cache=True)
-def factor_loops(lu, pivots):
-    """:func:`factor_lapack` by loops (same layout and pivots, results to rounding): Gaussian elimination by
-    rows of A, which are the columns of ``lu``; rows of U whose entry is zero are skipped (sparse matrices).
-    Returns False when a pivot is exactly zero."""
-    n = lu.shape[0]
+def factor_rowmajor(a, pivots):
+    """``P A = L U`` with partial pivoting of the matrix A given in C order as it is (``a[i, j] = A[i, j]``,
+    the row-major layout, not LAPACK's), in place: ``a`` receives L (unit diagonal, below) and U, ``pivots``
+    (n,) int32 the 1-based row interchanges as dgetrf's.  Rows whose multiplier is zero are skipped (sparse
+    matrices).  Returns False when a pivot is exactly zero.  Solve with :func:`solve_rowmajor`."""
+    n = a.shape[0]
     for k in range(n):
-        # lu[k, i] = A[i, k]: the pivot search runs along a row of lu
         p = k
-        amax = abs(lu[k, k])
+        amax = abs(a[k, k])
         for i in range(k + 1, n):
-            if abs(lu[k, i]) > amax:
-                amax = abs(lu[k, i])
+            if abs(a[i, k]) > amax:
+                amax = abs(a[i, k])
                 p = i
         pivots[k] = p + 1
         if amax == 0.0:
             return False
-        if p != k:  # interchange rows k and p of A (all of them: L's part too, as dgetrf does)
+        if p != k:
             for j in range(n):
-                tmp = lu[j, k]
-                lu[j, k] = lu[j, p]
-                lu[j, p] = tmp
-        inv = 1.0 / lu[k, k]
-        for i in range(k + 1, n):  # the multipliers L[i, k]
-            lu[k, i] *= inv
-        for j in range(k + 1, n):  # A[i, j] -= L[i, k] U[k, j] for i, j > k
-            ukj = lu[j, k]
-            if ukj != 0.0:
-                for i in range(k + 1, n):
-                    lu[j, i] -= lu[k, i] * ukj
+                tmp = a[k, j]
+                a[k, j] = a[p, j]
+                a[p, j] = tmp
+        inv = 1.0 / a[k, k]
+        for i in range(k + 1, n):
+            lik = a[i, k] * inv
+            a[i, k] = lik
+            if lik != 0.0:
+                for j in range(k + 1, n):
+                    a[i, j] -= lik * a[k, j]
     return True
 
 
 @numba.njit(cache=True)
-def solve_columns_loops(lu, pivots, b, transposed):
-    """Overwrite ``b`` (n, m), C order, with ``A^-1 b`` (``A^-T b`` with ``transposed``: for a matrix S given in
-    C order as it is, ``lu`` holds A = S^T and this solves S x = b), its m columns solved, from the factors of
-    :func:`factor_lapack` or :func:`factor_loops`, by loops that skip zero factors."""
+def solve_rowmajor(lu, pivots, b):
+    """Overwrite ``b`` (n, m), C order, with ``A^-1 b`` (its m columns solved) from :func:`factor_rowmajor`,
+    by loops that skip zero factors.  One right-hand side b (n,): pass ``b.reshape((n, 1))``."""
     n = lu.shape[0]
     m = b.shape[1]
-    if transposed:
-        # A^T = U^T L^T P: U^T y = b, then L^T w = y (U[l, i] = lu[i, l], L[l, i] = lu[i, l]: rows of lu)
-        for i in range(n):
-            for l in range(i):
-                uli = lu[i, l]
-                if uli != 0.0:
-                    for j in range(m):
-                        b[i, j] -= uli * b[l, j]
-            inv = 1.0 / lu[i, i]
+    for k in range(n):
+        p = pivots[k] - 1
+        if p != k:
             for j in range(m):
-                b[i, j] *= inv
-        for i in range(n - 1, -1, -1):
-            for l in range(i + 1, n):
-                lli = lu[i, l]
-                if lli != 0.0:
-                    for j in range(m):
-                        b[i, j] -= lli * b[l, j]
-        for k in range(n - 1, -1, -1):  # x = P^T w: the interchanges in reverse order
-            _swap_rows(b, k, pivots[k] - 1)
-        return
+                tmp = b[k, j]
+                b[k, j] = b[p, j]
+                b[p, j] = tmp
+    for i in range(n):  # L y = P b, unit diagonal
+        for l in range(i):
+            lil = lu[i, l]
+            if lil != 0.0:
+                for j in range(m):
+                    b[i, j] -= lil * b[l, j]
+    for i in range(n - 1, -1, -1):  # U x = y
+        for l in range(i + 1, n):
+            uil = lu[i, l]
+            if uil != 0.0:
+                for j in range(m):
+                    b[i, j] -= uil * b[l, j]
+        inv = 1.0 / lu[i, i]
+        for j in range(m):
+            b[i, j] *= inv
+
+
+@numba.njit(cache=True)
+def solve_columns_loops(lu, pivots, b):
+    """Overwrite ``b`` (n, m), C order, with ``A^-1 b`` (its m columns solved) from the factors of
+    :func:`factor_lapack`, by loops that skip zero factors (no BLAS threads: OpenBLAS's dgetrs splits many
+    right-hand sides over threads, which on a loaded machine made each call milliseconds)."""
+    n = lu.shape[0]
+    m = b.shape[1]
     for k in range(n):  # P b, in dgetrf's order
         _swap_rows(b, k, pivots[k] - 1)
-    for l in range(n):  # L y = P b (unit diagonal; L[i, l] = lu[l, i])
+    for l in range(n):  # L y = P b (unit diagonal; L[i, l] = lu[l, i]: a row of lu per column of L)
         for i in range(l + 1, n):
             lil = lu[l, i]
             if lil != 0.0:
@@ -174,8 +184,8 @@ def _swap_rows(b, k, p):
 def solve_rows_lapack(lu, pivots, b, transposed):
     """Overwrite the m rows of ``b`` (m, n), C order (LAPACK's column-major (n, m)), with the solutions of
     ``A x = row`` (``A^T x = row`` with ``transposed``: for a matrix S given in C order as it is, ``lu`` holds
-    A = S^T and this solves S x = row) from the factors of :func:`factor_lapack` or :func:`factor_loops`
-    (LAPACK dgetrs).  One right-hand side b (n,): pass ``b.reshape((1, n))``."""
+    A = S^T and this solves S x = row) from the factors of :func:`factor_lapack` (LAPACK dgetrs).  One
+    right-hand side b (n,): pass ``b.reshape((1, n))``."""
     ints = np.empty(3, dtype=np.int32)  # n, nrhs, info
     ints[0] = lu.shape[0]
     ints[1] = b.shape[0]
@@ -186,7 +196,7 @@ def solve_rows_lapack(lu, pivots, b, transposed):
 
 @numba.njit(cache=True)
 def invert_lapack(lu, pivots, work):
-    """Overwrite the factors in ``lu`` (from :func:`factor_lapack` or :func:`factor_loops`) with inv(A) in the
+    """Overwrite the factors in ``lu`` (from :func:`factor_lapack`) with inv(A) in the
     same layout, i.e. ``lu`` then holds inv(A)^T in C order (LAPACK dgetri; 4/3 n^3 flops).  ``work`` is scratch
     of at least n (best :data:`GETRI_WORK_PER_ROW` n) entries."""
     ints = np.empty(3, dtype=np.int32)  # n, lwork, info
@@ -220,21 +230,15 @@ def transpose(source, target):
 
 @numba.njit(cache=True)
 def solve_in_place(a, b):
-    """Overwrite ``b`` (n,) with the solution of ``a x = b`` for a small ``a`` (n, n) given as it is (C order,
-    not transposed), which is overwritten: transposed in place into LAPACK's order, then by its factors
-    (:func:`factor_loops`).  False when a pivot is exactly zero, or when the shapes do not match (not square).
-    Inside kernels it replaces ``np.linalg.solve``, whose numba implementation alone costs seconds of the first
-    run's compilation."""
+    """Overwrite ``b`` (n,) with the solution of ``a x = b`` for a small ``a`` (n, n) given as it is (C order),
+    which is overwritten by its factors (:func:`factor_rowmajor`).  False when a pivot is exactly zero, or when
+    the shapes do not match (not square).  Inside kernels it replaces ``np.linalg.solve``, whose numba
+    implementation alone costs seconds of the first run's compilation."""
     n = a.shape[0]
     if a.shape[1] != n or b.shape[0] != n:
         return False
-    for i in range(n):  # into LAPACK's order
-        for j in range(i + 1, n):
-            tmp = a[i, j]
-            a[i, j] = a[j, i]
-            a[j, i] = tmp
     pivots = np.empty(n, dtype=np.int32)
-    if not factor_loops(a, pivots):
+    if not factor_rowmajor(a, pivots):
         return False
-    solve_columns_loops(a, pivots, b.reshape((n, 1)), False)
+    solve_rowmajor(a, pivots, b.reshape((n, 1)))
     return True

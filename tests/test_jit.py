@@ -105,7 +105,7 @@ def test_the_warm_up_compiles_every_kernel_the_run_calls(tmp_path):
     assert found["run"] == found["warm_up"]
     called = {name: sigs for name, sigs in found["run"].items() if sigs}
     assert "periodic._newmark.newmark_march" in called and "mechanisms._batch.linear_terms_kernel" in called
-    assert "mechanisms._simulate._tangent_steps" in called    # the shooting's monodromy
+    assert "mechanisms._alpha_tangent._tangent_steps" in called    # the shooting's monodromy
     assert not [name for name, sigs in called.items() if len(sigs) != 1]
     assert not [name for name, sigs in called.items() if any("Literal" in s for s in sigs)]
 
