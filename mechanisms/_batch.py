@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from periodic.lapack import solve_in_place
+
 from . import _kernels
 
 
@@ -191,40 +193,6 @@ def scaled_correction(corrected, predicted, rigid, column_scale):
     for j in range(rigid.shape[0]):
         worst = max(worst, abs(corrected[rigid[j]] - predicted[rigid[j]]) / column_scale[j])
     return worst
-
-
-@numba.njit(cache=True)
-def solve_in_place(a, b):
-    """Overwrite ``b`` (n,) with the solution of ``a x = b``, ``a`` (n, n) overwritten by its LU
-    factors (Gaussian elimination with partial pivoting, as LAPACK's gesv); False when a pivot is
-    exactly zero. Replaces ``np.linalg.solve``, whose numba implementation alone costs seconds of
-    the first run's compilation (tests/test_batch.py holds it to numpy's). False also when the
-    shapes do not match (not square)."""
-    n = a.shape[0]
-    if a.shape[1] != n or b.shape[0] != n:
-        return False
-    for k in range(n):
-        p = k
-        for i in range(k + 1, n):
-            if abs(a[i, k]) > abs(a[p, k]):
-                p = i
-        if a[p, k] == 0.0:
-            return False
-        if p != k:
-            for j in range(n):
-                a[k, j], a[p, j] = a[p, j], a[k, j]
-            b[k], b[p] = b[p], b[k]
-        for i in range(k + 1, n):
-            factor = a[i, k] / a[k, k]
-            for j in range(k + 1, n):
-                a[i, j] -= factor * a[k, j]
-            b[i] -= factor * b[k]
-    for i in range(n - 1, -1, -1):
-        acc = b[i]
-        for j in range(i + 1, n):
-            acc -= a[i, j] * b[j]
-        b[i] = acc / a[i, i]
-    return True
 
 
 @numba.njit(cache=True)

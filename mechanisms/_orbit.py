@@ -13,13 +13,13 @@ the same deviation at ``t = T`` and its Jacobian, the monodromy of the discrete 
 ``Y_0`` (4n, 2m) the sensitivity of the integrator's start (q, v, a = sddot, sddot) to ``x`` (the
 constraints' null space and the differentiated index-1 equations; see ``_start_sensitivity``),
 ``Y_N`` the product of the step tangents from the integrator's own iteration matrices
-(``_simulate._propagate_tangent``) and ``P_T`` the selection of the independent positions and rates.
+(``_alpha_tangent._propagate_tangent``) and ``P_T`` the selection of the independent positions and rates.
 
 Each period starts afresh from a consistent state (alpha acceleration ``a_0 = sddot_0``), so a fixed
 point is the periodic orbit of the discrete scheme to its O(h^2) error, which the N against N/2
 estimate measures.
 
-Lagged controllers (``tau y' + y = u``, ``_simulate._Lags``): their L states ``y`` (N m) are part of
+Lagged controllers (``tau y' + y = u``, ``_alpha_step._Lags``): their L states ``y`` (N m) are part of
 the orbit, so the shooting state becomes ``x = (z, z', y)`` (2m + L,), the run starts them at ``y``
 and the monodromy (2m + L, 2m + L) carries ``d y`` through each step (``_propagate_tangent``). ``y``
 does not move the start's positions and rates; it enters the start's accelerations through the lag
@@ -37,16 +37,11 @@ from typing import Any
 
 import numpy as np
 
+from ._alpha_run import _consistent_accelerations, _integrate, _lag_force
+from ._alpha_tangent import _propagate_tangent
 from ._kinematics import ConvergenceError
 from ._parts import ArgumentError
-from ._simulate import (
-    SimulationError,
-    _consistent_accelerations,
-    _integrate,
-    _lag_force,
-    _propagate_tangent,
-    _resolve_model,
-)
+from ._simulate import SimulationError, _resolve_model
 
 __all__ = ["PeriodMap", "PeriodRun"]
 

@@ -2,7 +2,9 @@
 
 Newmark shooting on a uniform grid of N steps (numba kernels).  Knows nothing of mechanisms.
 Nonlinear systems: periodic orbits of any period map by Newton shooting (``find_orbit``) and their
-continuation over a parameter with bifurcation detection (``continue_orbits``).
+continuation over a parameter with bifurcation detection (``continue_orbits``).  Schemes of other families are
+objects satisfying ``Scheme``, named by ``register_scheme`` and looked up by ``get_scheme``.  ``periodic.lapack``
+(a public module, the packages' one home of the numba LU routines) binds LAPACK for the kernels.
 """
 
 from ._continuation import OrbitBranch as OrbitBranch
@@ -21,6 +23,8 @@ from ._orbit import find_orbit as find_orbit
 from ._scheme import SCHEMES as SCHEMES
 from ._scheme import Newmark as Newmark
 from ._scheme import Scheme as Scheme
+from ._scheme import get_scheme as get_scheme
+from ._scheme import register_scheme as register_scheme
 from ._shooting import SteadyState as SteadyState
 from ._shooting import steady_state as steady_state
 from ._system import PeriodicError as PeriodicError
@@ -61,6 +65,8 @@ __all__ = [
     "error_verdict",
     "find_orbit",
     "floquet",
+    "get_scheme",
+    "register_scheme",
     "stability_verdict",
     "steady_state",
     "worst_status",

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._scheme import DEFAULT_SCHEME, Newmark, as_scheme
+from ._scheme import DEFAULT_SCHEME, Scheme, get_scheme
 from ._system import (
     PeriodicSystem,
     ShootingError,
@@ -97,7 +97,7 @@ class FloquetResult:
         formula for the exact monodromy.  The two agree to O(h^2) when all modes are resolved; an unresolved damped
         mode makes them differ (its numerical multiplier is not exp(lam T)).
     n_steps : int
-    scheme : Newmark
+    scheme : Scheme
         The scheme used; ``scheme.error_factor * |mu_N - mu_{N/2}|`` estimates a multiplier's error
         (with a second call on ``system.coarsened()``).
     run_time : float
@@ -122,24 +122,24 @@ class FloquetResult:
     liouville_log_det: float
     liouville_log_det_exact: float
     n_steps: int
-    scheme: Newmark
+    scheme: Scheme
     run_time: float
 
 
 def floquet(
     system: PeriodicSystem,
     *,
-    scheme: Newmark | str = DEFAULT_SCHEME,
+    scheme: Scheme | str = DEFAULT_SCHEME,
     stability_tol: float = STABILITY_TOL,
     estimate_error: bool = False,
 ) -> FloquetResult:
-    """Monodromy, multipliers and stability of ``system`` by ``scheme`` (a :class:`Newmark` or a name
-    in ``SCHEMES``) with N steps.  ``estimate_error=True`` also runs N/2 steps (N even >= 4) for the
-    multipliers' errors, the error bar of the stability verdict.  Raises :class:`ShootingError` if a
-    step's matrix is singular."""
+    """Monodromy, multipliers and stability of ``system`` by ``scheme`` (a :class:`Scheme`, e.g. a
+    :class:`Newmark`, or a name in ``SCHEMES``) with N steps.  ``estimate_error=True`` also runs N/2 steps
+    (N even >= 4) for the multipliers' errors, the error bar of the stability verdict.  Raises
+    :class:`ShootingError` if a step's matrix is singular."""
     start = time.perf_counter()
     check_system(system)
-    scheme = as_scheme(scheme)
+    scheme = get_scheme(scheme)
     stability_tol = check_tol("stability_tol", stability_tol, STABILITY_TOL)
     if estimate_error:
         check_quarterable(system.n_steps, "use such an n_steps or estimate_error=False")
@@ -184,7 +184,7 @@ def floquet(
     )
 
 
-def monodromy(system: PeriodicSystem, scheme: Newmark, *, particular: bool):
+def monodromy(system: PeriodicSystem, scheme: Scheme, *, particular: bool):
     """``Phi`` (s, s) of the state ``z = [x; v[massive]]`` (s = ``system.n_state``, 2n without
     first-order coordinates) and, if ``particular``, the end state ``b`` (s,) of the forced solution
     from rest.  The rates of first-order coordinates are not states: the kernel sets them consistently."""

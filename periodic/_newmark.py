@@ -54,69 +54,8 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from llvmlite import binding as llvm_binding
-from numba.extending import get_cython_function_address
 
-
-@numba.njit(cache=True)
-def _lu_factor(a, piv):
-    """In-place LU with partial pivoting, ``P a = L U`` (LAPACK getrf convention).
-
-    Returns False when a pivot is exactly zero.
-    """
-    n = a.shape[0]
-    for k in range(n):
-        p = k
-        amax = abs(a[k, k])
-        for i in range(k + 1, n):
-            if abs(a[i, k]) > amax:
-                amax = abs(a[i, k])
-                p = i
-        piv[k] = p
-        if amax == 0.0:
-            return False
-        if p != k:
-            for j in range(n):
-                tmp = a[k, j]
-                a[k, j] = a[p, j]
-                a[p, j] = tmp
-        inv = 1.0 / a[k, k]
-        for i in range(k + 1, n):
-            lik = a[i, k] * inv
-            a[i, k] = lik
-            if lik != 0.0:
-                for j in range(k + 1, n):
-                    a[i, j] -= lik * a[k, j]
-    return True
-
-
-@numba.njit(cache=True)
-def _lu_solve(lu, piv, b):
-    """Overwrite ``b`` (n, m) with ``a^{-1} b`` from the factors of :func:`_lu_factor`."""
-    n = lu.shape[0]
-    m = b.shape[1]
-    for k in range(n):
-        p = piv[k]
-        if p != k:
-            for j in range(m):
-                tmp = b[k, j]
-                b[k, j] = b[p, j]
-                b[p, j] = tmp
-    for i in range(n):  # L y = P b, unit diagonal
-        for l in range(i):
-            lil = lu[i, l]
-            if lil != 0.0:
-                for j in range(m):
-                    b[i, j] -= lil * b[l, j]
-    for i in range(n - 1, -1, -1):  # U x = y
-        for l in range(i + 1, n):
-            uil = lu[i, l]
-            if uil != 0.0:
-                for j in range(m):
-                    b[i, j] -= uil * b[l, j]
-        inv = 1.0 / lu[i, i]
-        for j in range(m):
-            b[i, j] *= inv
+from . import lapack
 
 
 @numba.njit(cache=True)
@@ -197,7 +136,7 @@ def newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hi
     n, m = x.shape
     store = x_hist.shape[0] == n_samples
     lu = np.empty((n, n))
-    piv = np.empty(n, dtype=np.int64)
+    piv = np.empty(n, dtype=np.int32)
     xp = np.empty((n, m))
     vp = np.empty((n, m))
     work = np.empty((n, m))
@@ -206,9 +145,9 @@ def newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hi
     # (N0): starting acceleration (and the rates of first-order coordinates)
     _start_system(M[0], C[0], first_order, v, lu)
     _residual_force(C[0], K[0], f[0], forced, x, v, a, work)
-    if not _lu_factor(lu, piv):
+    if not lapack.factor_rowmajor(lu, piv):
         return 0
-    _lu_solve(lu, piv, a)
+    lapack.solve_rowmajor(lu, piv, a)
     _split_start(first_order, v, a)
     if store:
         _copy(x, x_hist[0])
@@ -224,10 +163,10 @@ def newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hi
         for i in range(n):
             for j in range(n):
                 lu[i, j] = M[k + 1, i, j] + c_a * C[k + 1, i, j] + k_a * K[k + 1, i, j]
-        if not _lu_factor(lu, piv):
+        if not lapack.factor_rowmajor(lu, piv):
             return k + 1
         _residual_force(C[k + 1], K[k + 1], f[k + 1], forced, xp, vp, a, work)
-        _lu_solve(lu, piv, a)
+        lapack.solve_rowmajor(lu, piv, a)
         # (N3): correctors
         for i in range(n):
             for j in range(m):
@@ -243,27 +182,9 @@ def newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hi
 # ---------------------------------------------------------------------------------------------------
 # Large n: LAPACK's blocked LU, and the solves of all columns as one matrix product
 # ---------------------------------------------------------------------------------------------------
-# scipy's LAPACK (the OpenBLAS whose dgemm numba's np.dot calls) is reached through symbols
-# registered with LLVM, not ctypes pointers, which numba refuses to cache: the cached machine code
-# names the symbol, and importing this module binds it to scipy's function in every process.
-_LAPACK_SYMBOLS = {name: f"flexvib_periodic_{name}" for name in ("dgetrf", "dgetrs", "dgetri")}
-for _name, _symbol in _LAPACK_SYMBOLS.items():
-    llvm_binding.add_symbol(_symbol, get_cython_function_address("scipy.linalg.cython_lapack", _name))
-_INT_P, _DOUBLE_P = numba.types.CPointer(numba.int32), numba.types.CPointer(numba.float64)
-# Fortran signatures, every argument by reference: dgetrf(m, n, a, lda, ipiv, info),
-# dgetrs(trans, n, nrhs, a, lda, ipiv, b, ldb, info) and dgetri(n, a, lda, ipiv, work, lwork, info).
-_dgetrf = numba.types.ExternalFunction(_LAPACK_SYMBOLS["dgetrf"], numba.void(
-    _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P, _INT_P))
-_dgetrs = numba.types.ExternalFunction(_LAPACK_SYMBOLS["dgetrs"], numba.void(
-    numba.types.CPointer(numba.int8), _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P))
-_dgetri = numba.types.ExternalFunction(_LAPACK_SYMBOLS["dgetri"], numba.void(
-    _INT_P, _DOUBLE_P, _INT_P, _INT_P, _DOUBLE_P, _INT_P, _INT_P))
-# LAPACK (column-major) reads the kernel's C-order matrix S as S^T: it factors S^T, and solves
-# S X = B with the transposed factors.
-_TRANSPOSED = np.array([ord("T")], dtype=np.int8)
-# Work of dgetri per row of the matrix (its block size; n is the least it accepts).
-_GETRI_WORK_PER_ROW = 64
-
+# periodic.lapack's convention: its LAPACK routines read their array as the transpose of the matrix.  The
+# kernel fills the effective matrix S as it is (no strided copy), so LAPACK factors S^T: dgetrs then solves
+# S x = b with `transposed`, and dgetri leaves inv(S^T)^T = inv(S) in C order, ready for one dgemm.
 #: The linear solvers of :func:`march` (see :func:`choose_solver`): the hand-written LU and its
 #: column loops (:func:`newmark_march`); LAPACK's dgetrf and dgetrs (the columns transposed to
 #: LAPACK's order and back, O(n m)); LAPACK's dgetrf and dgetri, and all columns in one dgemm
@@ -272,32 +193,18 @@ SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE = 0, 1, 2
 
 
 @numba.njit(cache=True)
-def _transpose(source, target):
-    """``target[:, :] = source.T`` (2-D) as a loop (see :func:`_copy`)."""
-    for i in range(source.shape[0]):
-        for j in range(source.shape[1]):
-            target[j, i] = source[i, j]
-
-
-@numba.njit(cache=True)
-def _lapack_factor(lu, pivots, sizes, getri_work, invert):
-    """dgetrf of the (n, n) C-order ``lu`` in place (LAPACK factors its transpose), and with ``invert``
-    dgetri, which leaves inv(S^T) in LAPACK's order, i.e. inv(S) in C order.  ``pivots`` (n,) and
-    ``sizes`` (3,) int32 (room for the integers LAPACK takes by reference: n, a count, info).
-    Returns False when a pivot is exactly zero (``info > 0``)."""
-    sizes[0] = lu.shape[0]
-    _dgetrf(sizes.ctypes, sizes.ctypes, lu.ctypes, sizes.ctypes, pivots.ctypes, sizes[2:].ctypes)
-    if sizes[2] != 0:
+def _lapack_factor(lu, pivots, getri_work, invert):
+    """dgetrf of ``lu`` (n, n), which holds S in C order (``periodic.lapack`` factors S^T), and with
+    ``invert`` dgetri, which leaves inv(S) in C order.  Returns False when a pivot is exactly zero."""
+    if not lapack.factor_lapack(lu, pivots):
         return False
     if invert:
-        sizes[1] = getri_work.shape[0]
-        _dgetri(sizes.ctypes, lu.ctypes, sizes.ctypes, pivots.ctypes, getri_work.ctypes, sizes[1:].ctypes,
-                sizes[2:].ctypes)
+        lapack.invert_lapack(lu, pivots, getri_work)
     return True
 
 
 @numba.njit(cache=True)
-def _lapack_solve(lu, pivots, sizes, b, work, work_t, invert):
+def _lapack_solve(lu, pivots, b, work, work_t, invert):
     """Overwrite ``b`` (n, m) with ``S^-1 b`` from :func:`_lapack_factor`: one dgemm with the inverse, or
     dgetrs on the columns transposed to LAPACK's order (C-order (m, n) is LAPACK's (n, m)) and back.
     ``work`` (n, m) and ``work_t`` (m, n) are scratch."""
@@ -305,12 +212,9 @@ def _lapack_solve(lu, pivots, sizes, b, work, work_t, invert):
         _copy(b, work)
         np.dot(lu, work, b)
         return
-    _transpose(b, work_t)
-    sizes[0] = lu.shape[0]
-    sizes[1] = b.shape[1]
-    _dgetrs(_TRANSPOSED.ctypes, sizes.ctypes, sizes[1:].ctypes, lu.ctypes, sizes.ctypes, pivots.ctypes,
-            work_t.ctypes, sizes.ctypes, sizes[2:].ctypes)
-    _transpose(work_t, b)
+    lapack.transpose(b, work_t)
+    lapack.solve_rows_lapack(lu, pivots, work_t, True)
+    lapack.transpose(work_t, b)
 
 
 @numba.njit(cache=True)
@@ -324,17 +228,16 @@ def newmark_march_lapack(M, C, K, f, first_order, h, beta, gamma, forced, x, v, 
     store = x_hist.shape[0] == n_samples
     lu = np.empty((n, n))
     pivots = np.empty(n, dtype=np.int32)
-    sizes = np.zeros(3, dtype=np.int32)
-    getri_work = np.empty(_GETRI_WORK_PER_ROW * n)
+    getri_work = np.empty(lapack.GETRI_WORK_PER_ROW * n)
     predicted = np.empty((2, n, m))  # x~ and v~ of (N1)
     work, work_t = np.empty((n, m)), np.empty((m, n))
     c_a, k_a = gamma * h, beta * h * h
     # (N0), then per step (N1) predictors, (N2) effective matrix and solve, (N3) correctors
     _start_system(M[0], C[0], first_order, v, lu)
     _residual_force(C[0], K[0], f[0], forced, x, v, a, work)
-    if not _lapack_factor(lu, pivots, sizes, getri_work, invert):
+    if not _lapack_factor(lu, pivots, getri_work, invert):
         return 0
-    _lapack_solve(lu, pivots, sizes, a, work, work_t, invert)
+    _lapack_solve(lu, pivots, a, work, work_t, invert)
     _split_start(first_order, v, a)
     for k in range(n_samples):
         if store:
@@ -350,10 +253,10 @@ def newmark_march_lapack(M, C, K, f, first_order, h, beta, gamma, forced, x, v, 
         for i in range(n):
             for j in range(n):
                 lu[i, j] = M[k + 1, i, j] + c_a * C[k + 1, i, j] + k_a * K[k + 1, i, j]
-        if not _lapack_factor(lu, pivots, sizes, getri_work, invert):
+        if not _lapack_factor(lu, pivots, getri_work, invert):
             return k + 1
         _residual_force(C[k + 1], K[k + 1], f[k + 1], forced, predicted[0], predicted[1], a, work)
-        _lapack_solve(lu, pivots, sizes, a, work, work_t, invert)
+        _lapack_solve(lu, pivots, a, work, work_t, invert)
         for i in range(n):
             for j in range(m):
                 x[i, j] = predicted[0, i, j] + k_a * a[i, j]
@@ -410,11 +313,11 @@ def mass_pivot_ratios(M):
     n_samples, n = M.shape[0], M.shape[1]
     out = np.empty(n_samples)
     lu = np.empty((n, n))
-    piv = np.empty(n, dtype=np.int64)
+    piv = np.empty(n, dtype=np.int32)
     for k in range(n_samples):
         _copy(M[k], lu)
         scale = np.abs(lu).max()
-        if scale == 0.0 or not _lu_factor(lu, piv):
+        if scale == 0.0 or not lapack.factor_rowmajor(lu, piv):
             out[k] = 0.0
             continue
         smallest = abs(lu[0, 0])

@@ -37,7 +37,7 @@ from ._floquet import (
 from ._floquet import (
     multiplier_errors as estimate_multiplier_errors,
 )
-from ._scheme import DEFAULT_SCHEME, Newmark, as_scheme
+from ._scheme import DEFAULT_SCHEME, Scheme, get_scheme
 from ._system import (
     PeriodicError,
     PeriodicSystem,
@@ -136,7 +136,7 @@ class SteadyState:
         Every non-ok part in words, most severe first (for ``"ok"``: the radius and the error check).
     n_steps : int
     extrapolated : bool
-    scheme : Newmark
+    scheme : Scheme
         The scheme used.
     run_time : float
         Wall time in s, including the N/2 and N/4 runs.
@@ -168,7 +168,7 @@ class SteadyState:
     message: str
     n_steps: int
     extrapolated: bool
-    scheme: Newmark
+    scheme: Scheme
     run_time: float
 
 
@@ -188,12 +188,12 @@ def steady_state(
     *,
     extrapolate: bool = False,
     estimate_error: bool = True,
-    scheme: Newmark | str = DEFAULT_SCHEME,
+    scheme: Scheme | str = DEFAULT_SCHEME,
     resonance_tol: float = RESONANCE_TOL,
     stability_tol: float = STABILITY_TOL,
 ) -> SteadyState:
-    """Periodic steady state of ``system`` by shooting with ``scheme`` (a :class:`Newmark` or a name in
-    ``SCHEMES``) on its N steps.
+    """Periodic steady state of ``system`` by shooting with ``scheme`` (a :class:`Scheme`, e.g. a
+    :class:`Newmark`, or a name in ``SCHEMES``) on its N steps.
 
     ``extrapolate=True`` returns the Richardson extrapolation of the N and N/2 results (order 4;
     needs a symmetric scheme, ``gamma = 1/2``, and an even N >= 4).  ``estimate_error=True`` runs N/2
@@ -204,13 +204,13 @@ def steady_state(
     """
     start = time.perf_counter()
     check_system(system)
-    scheme = as_scheme(scheme)
+    scheme = get_scheme(scheme)
     resonance_tol = check_tol("resonance_tol", resonance_tol)
     stability_tol = check_tol("stability_tol", stability_tol, STABILITY_TOL)
     if extrapolate and not scheme.symmetric:
         raise PeriodicError(
-            f"extrapolate: Richardson extrapolation to order 4 needs the symmetric scheme gamma = 1/2, "
-            f"got {scheme!r}; use a symmetric scheme (e.g. scheme='trapezoidal') or extrapolate=False"
+            f"extrapolate: Richardson extrapolation gains two orders only for a symmetric scheme (Newmark's with "
+            f"gamma = 1/2), got {scheme!r}; use a symmetric scheme (e.g. scheme='trapezoidal') or extrapolate=False"
         )
     if estimate_error:
         check_quarterable(system.n_steps, "use such an n_steps or estimate_error=False")
@@ -299,7 +299,7 @@ def steady_state(
     )
 
 
-def _shoot(system: PeriodicSystem, scheme: Newmark, *, conditioning: bool = True) -> _Shot:
+def _shoot(system: PeriodicSystem, scheme: Scheme, *, conditioning: bool = True) -> _Shot:
     """The periodic solution on ``system``'s grid; ``conditioning=False`` skips the SVD of ``I - Phi``
     (condition number and inverse norm NaN), for the N/2 and N/4 runs, whose conditioning is not reported."""
     n = system.n_dof

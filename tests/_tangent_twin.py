@@ -1,5 +1,5 @@
 """Slow, obvious numpy references for the monodromy of ``mechanisms.PeriodMap``: a twin of the
-tangent kernel (``mechanisms._simulate._propagate_tangent``) written from the differentiated
+tangent kernel (``mechanisms._alpha_tangent._propagate_tangent``) written from the differentiated
 generalized-alpha step, one dense ``np.linalg.solve`` per step, and central finite differences of
 the period map itself."""
 

@@ -1,7 +1,8 @@
 """The import rules of the four packages, read from their source (every import, also inside functions).
 
-* Dependencies run one way: ``studies -> linearize -> (mechanisms, periodic)``; ``periodic`` and
-  ``mechanisms`` import none of the others.
+* Dependencies run one way: ``studies -> linearize -> (mechanisms, periodic)``; ``periodic`` imports none of
+  the others, and ``mechanisms`` only ``periodic.lapack`` (the packages' one home of the LAPACK bindings, a
+  public module of the generic numerics), nothing else of ``periodic``.
 * No package imports another package's private module (``mechanisms._batch`` from ``linearize``).
 * File and figure libraries (h5py, matplotlib) are imported only in ``studies``.
 """
@@ -19,10 +20,12 @@ PACKAGES = ("periodic", "mechanisms", "linearize", "studies")
 #: package -> the packages it may import (directly).
 ALLOWED = {
     "periodic": set(),
-    "mechanisms": set(),
+    "mechanisms": {"periodic"},
     "linearize": {"mechanisms", "periodic"},
     "studies": {"linearize", "mechanisms", "periodic"},
 }
+#: package -> {imported package: the only modules of it that it may import} (narrower than ALLOWED).
+ONLY = {"mechanisms": {"periodic": {"periodic.lapack"}}}
 STUDIES_ONLY = {"h5py", "matplotlib"}
 
 
@@ -60,6 +63,10 @@ def _violations(package: str) -> list[str]:
                     problems.append(f"{where}:{line}: {package} imports {name} (upward or sideways)")
                 elif any(part.startswith("_") for part in rest):
                     problems.append(f"{where}:{line}: {package} imports the private module {name}")
+                elif top in ONLY.get(package, {}) and not any(
+                        name == module or name.startswith(module + ".") for module in ONLY[package][top]):
+                    problems.append(f"{where}:{line}: {package} imports {name} (only "
+                                    f"{', '.join(sorted(ONLY[package][top]))} of {top})")
             if top in STUDIES_ONLY and package != "studies":
                 problems.append(f"{where}:{line}: {package} imports {top} (only studies may)")
     return problems
@@ -88,3 +95,10 @@ def test_the_checker_sees_a_violation(tmp_path, monkeypatch):
     ]
     assert [v.split(": ", 1)[1] for v in _violations("linearize")] == [
         "linearize imports the private module mechanisms._batch"]
+    (tmp_path / "mechanisms").mkdir()
+    (tmp_path / "mechanisms" / "_ok.py").write_text(
+        "from periodic import lapack\nfrom periodic.lapack import factor_loops\n"
+        "from periodic import steady_state\nimport periodic\n")
+    assert [v.split(": ", 1)[1] for v in _violations("mechanisms")] == [
+        "mechanisms imports periodic.steady_state (only periodic.lapack of periodic)",
+        "mechanisms imports periodic (only periodic.lapack of periodic)"]

@@ -1,7 +1,7 @@
 """The numba warm-up of ``flexvib run`` (studies/_jit.py) and the compile-time economies of the
 kernels: the compile clock, the warm-up covering every kernel a run calls (so that no study's run
-time includes a compilation), one signature per kernel, and the continuation's in-kernel solve
-against numpy's."""
+time includes a compilation) and one signature per kernel (the continuation's in-kernel solve is
+tested in tests/test_lapack.py)."""
 
 from __future__ import annotations
 
@@ -13,35 +13,11 @@ import textwrap
 from pathlib import Path
 
 import numba
-import numpy as np
 import pytest
 
-from mechanisms._batch import solve_in_place
 from studies._jit import CompileClock
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-@pytest.mark.parametrize("n", [1, 2, 3, 7])
-def test_solve_in_place_matches_numpy(n):
-    rng = np.random.default_rng(n)
-    a = rng.standard_normal((n, n)) + n * np.eye(n)
-    a[0, 0] = 0.0  # the first step needs a row swap (partial pivoting)
-    b = rng.standard_normal(n)
-    expected = np.linalg.solve(a, b) if np.linalg.matrix_rank(a) == n else None
-    work, x = a.copy(), b.copy()
-    ok = solve_in_place(work, x)
-    if expected is None:
-        assert not ok
-    else:
-        assert ok
-        np.testing.assert_allclose(x, expected, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(a @ x, b, rtol=1e-12, atol=1e-12)
-
-
-def test_solve_in_place_refuses_singular_and_non_square_systems():
-    assert not solve_in_place(np.array([[1.0, 2.0], [2.0, 4.0]]), np.ones(2))
-    assert not solve_in_place(np.zeros((2, 3)), np.ones(2))
 
 
 def test_compile_clock_counts_a_compilation_once_with_its_callees():
@@ -129,7 +105,7 @@ def test_the_warm_up_compiles_every_kernel_the_run_calls(tmp_path):
     assert found["run"] == found["warm_up"]
     called = {name: sigs for name, sigs in found["run"].items() if sigs}
     assert "periodic._newmark.newmark_march" in called and "mechanisms._batch.linear_terms_kernel" in called
-    assert "mechanisms._simulate._tangent_steps" in called    # the shooting's monodromy
+    assert "mechanisms._alpha_tangent._tangent_steps" in called    # the shooting's monodromy
     assert not [name for name, sigs in called.items() if len(sigs) != 1]
     assert not [name for name, sigs in called.items() if any("Literal" in s for s in sigs)]
 

@@ -112,7 +112,7 @@ def test_a_sweep_of_a_lag_must_stay_above_zero(lagged):
 def test_tangent_kernel_equals_its_numpy_twin(scene, lag):
     # the numba kernel (one LAPACK factorisation and loops per step, lag rows included) against the
     # differentiated step written out in numpy with a dense solve per step
-    from mechanisms._simulate import _propagate_tangent
+    from mechanisms._alpha_tangent import _propagate_tangent
 
     mechanism = mechanisms.load(scene)
     if lag is not None:

@@ -13,7 +13,7 @@ import pytest
 import periodic
 from periodic import __main__ as demo_command
 from periodic import _demo as demo
-from periodic._newmark import SOLVE_INVERSE, SOLVE_LAPACK, SOLVE_LOOPS, _lu_factor, _lu_solve, march, mass_pivot_ratios
+from periodic._newmark import SOLVE_INVERSE, SOLVE_LAPACK, SOLVE_LOOPS, march, mass_pivot_ratios
 from studies._demo import write_demo
 from tests._newmark_twin import newmark_numpy
 
@@ -58,26 +58,6 @@ def test_kernel_reports_the_singular_sample(solver):
     status = march(M, C, K, np.zeros((n_steps + 1, 2)), 0.1, 0.25, 0.5, np.zeros(2), x, v, a, empty, empty, empty,
                    solver)
     assert status == 4
-
-
-@pytest.mark.parametrize("n", [1, 2, 13, 60])
-def test_lu_kernels_match_numpy_solve(n):
-    rng = np.random.default_rng(n)
-    A = rng.normal(size=(n, n)) + np.sqrt(n) * np.eye(n)  # well conditioned
-    B = rng.normal(size=(n, 2 * n + 1))                   # the shooting's 2n + 1 columns
-    assert np.linalg.cond(A) < 1e3
-    lu, piv = A.copy(), np.empty(n, dtype=np.int64)
-    assert _lu_factor(lu, piv)
-    X = B.copy()
-    _lu_solve(lu, piv, X)
-    np.testing.assert_allclose(X, np.linalg.solve(A, B), rtol=0, atol=1e-12)
-
-
-def test_lu_factor_reports_an_exactly_zero_pivot():
-    # rank 2 of 3 with no zero entries: elimination leaves an exact zero pivot (dyadic entries);
-    # newmark_march then returns the sample index (see test_kernel_reports_the_singular_sample)
-    A = np.array([[2.0, 1.0, 3.0], [4.0, 2.0, 6.0], [1.0, 3.0, 0.5]])
-    assert not _lu_factor(A, np.empty(3, dtype=np.int64))
 
 
 def test_mass_pivot_ratios_against_singular_values():

@@ -14,12 +14,11 @@ import math
 
 import numpy as np
 import pytest
-import scipy.linalg
 import sympy as sp
 from scipy.integrate import solve_ivp
 
 import mechanisms
-from mechanisms._simulate import SimulationError, _lu_factor, _lu_solve, _lu_solve_rows
+from mechanisms import SimulationError
 
 G = 9.81
 
@@ -265,53 +264,6 @@ def test_hand_model_derivatives_match_finite_differences(soft_double):
         fd = (m.constraint_jacobian(s + e, t).T @ lam
               - m.constraint_jacobian(s - e, t).T @ lam) / (2 * eps)
         np.testing.assert_allclose(m.constraint_force_jacobian(s, lam, t)[:, j], fd, atol=1e-7)
-
-
-# ---------------------------------------------------------------------------------------------------
-# Kernels
-# ---------------------------------------------------------------------------------------------------
-def test_lu_kernels_solve_like_numpy():
-    rng = np.random.default_rng(0)
-    for n in (1, 5, 30):
-        A = rng.normal(size=(n, n)) + n * np.eye(n) * rng.choice([0.0, 1.0])
-        b = rng.normal(size=n)
-        # the kernels take A transposed (A in LAPACK's column-major order), the pivots as int32
-        LU, piv = A.T.copy(), np.empty(n + 3, dtype=np.int32)
-        assert _lu_factor(LU, piv) > 0.0
-        x = b.copy()
-        _lu_solve(LU, piv, x)
-        # backward stable: residual ~ n eps |A| |x|
-        assert np.linalg.norm(A @ x - b) <= 1e-12 * n * np.linalg.norm(A) * np.linalg.norm(x)
-    assert _lu_factor(np.zeros((3, 3)), np.empty(6, dtype=np.int32)) == 0.0
-
-
-@pytest.mark.parametrize("n", [1, 2, 13, 60])
-def test_lu_kernels_match_numpy_solve_and_the_pivots_of_A(n):
-    rng = np.random.default_rng(n)
-    A = rng.normal(size=(n, n)) + np.sqrt(n) * np.eye(n)  # well conditioned
-    B = rng.normal(size=(n, 3 * n + 1))                   # many right-hand sides, one factorisation
-    LU, piv = A.T.copy(), np.empty(n + 3, dtype=np.int32)
-    ratio = _lu_factor(LU, piv)
-    # the pivot ratio is that of P A = L U (partial pivoting by rows of A, not of A^T)
-    U = scipy.linalg.lu(A)[2]
-    pivots = np.abs(np.diag(U))
-    assert ratio == pytest.approx(pivots.min() / pivots.max(), rel=1e-12)
-    assert np.linalg.cond(A) < 1e3
-    for j in range(B.shape[1]):
-        x = B[:, j].copy()
-        _lu_solve(LU, piv, x)
-        np.testing.assert_allclose(x, np.linalg.solve(A, B[:, j]), rtol=0, atol=1e-12)
-    # the tangent's many right-hand sides at once, as the rows of a (k, n) array, by loops
-    rows = B.T.copy(order="C")
-    _lu_solve_rows(LU, piv, rows)
-    np.testing.assert_allclose(rows.T, np.linalg.solve(A, B), rtol=0, atol=1e-12)
-
-
-def test_lu_factor_reports_an_exactly_zero_pivot():
-    # rank 2 of 3 with no zero entries: elimination leaves an exact zero pivot (dyadic entries),
-    # which the Newton iteration reports as a singular iteration matrix (ratio not > 0)
-    A = np.array([[2.0, 1.0, 3.0], [4.0, 2.0, 6.0], [1.0, 3.0, 0.5]])
-    assert _lu_factor(A.T.copy(), np.empty(6, dtype=np.int32)) == 0.0
 
 
 # ---------------------------------------------------------------------------------------------------
