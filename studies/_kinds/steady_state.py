@@ -201,7 +201,7 @@ def _reduction_error(linear: Any, x: np.ndarray, n_steps: int) -> Any:
 
     lin = linear.context
     if getattr(lin, "mechanism", None) is None:   # not a mechanism: nothing is reduced
-        return linearize.ReductionError("next", {}, {}, {}, 0.0, linearize.REDUCTION_TOL, "ok",
+        return linearize.ReductionCheck("next", {}, {}, {}, 0.0, linearize.REDUCTION_TOL, "ok",
                                         "no reduced link", 0.0)
     return linearize.reduction_error(lin.mechanism, n_steps=n_steps, observables=lin.observables,
                                      response=lin.observe(x))
