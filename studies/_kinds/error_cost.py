@@ -177,7 +177,7 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
     run_time = np.full((levels.size, len(steps)), np.nan)
     point_status = np.full(run_time.shape, "missing", dtype=object)
     point_message = np.full(run_time.shape, "", dtype=object)
-    peaks = {name: {s: np.full(run_time.shape, np.nan) for s in specs} for name in PEAK_FIELDS}
+    peaks = {measure: {s: np.full(run_time.shape, np.nan) for s in specs} for measure in PEAK_FIELDS}
     n_dof = np.zeros(levels.size)
     for i, level in enumerate(levels):
         for j, n in enumerate(steps):
@@ -187,9 +187,9 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
             run_time[i, j] = time.perf_counter() - tick
             n_dof[i] = linear.system.n_dof
             point_status[i, j], point_message[i, j] = steady.status, steady.message
-            for name, values in peak_summary(steady.response, steady.response_error).items():
+            for measure, summary in peak_summary(steady.response, steady.response_error).items():
                 for k, spec in enumerate(specs):
-                    peaks[name][spec][i, j] = values[k]
+                    peaks[measure][spec][i, j] = summary[k]
             response = steady.response[:: n // base]
             for k, spec in enumerate(specs):
                 error[spec][i, j] = np.abs(response[:, k] - reference[:, k]).max() / scale[k]

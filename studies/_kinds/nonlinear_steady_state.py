@@ -447,7 +447,8 @@ def _summary(result: NonlinearSteadyState) -> str:
 def _headlines(result: NonlinearSteadyState) -> Summary:
     rows = response_rows(result.response, result.response_error, result.units)
     for spec in result.response:
-        nonlinear, linear = result.peak_to_peak[spec], result.linear_peak_to_peak[spec]
+        # sampled, as the table's other peak-to-peak rows (``response_rows``)
+        nonlinear, linear = np.ptp(result.response[spec]), np.ptp(result.linear_response[spec])
         rows.append(Headline(f"{spec} peak to peak, nonlinear / linear", nonlinear / linear if linear else math.nan))
     errors = np.asarray(result.multiplier_errors, dtype=float)
     rows.append(Headline("spectral radius of the nonlinear orbit", float(result.spectral_radius), "1",
