@@ -39,12 +39,26 @@ class ReductionCheck:
     """The check of a modal reduction: the reduction error of a mechanism's steady state against a
     reference, with its verdict (a result, not an exception; ``reduction_error`` returns it).
 
-    ``reference``: ``"next"`` (every reduced link with ``modes + 2``) or ``"full"``; ``modes``
-    {link: (modes, reference modes or None for the full model)}; ``difference`` {spec: float} the
-    largest difference of each observable over the period (its unit), ``relative`` {spec: float}
-    that over the reference's peak-to-peak; ``error`` the largest relative difference;
-    ``tolerance``; ``status`` ``"ok"`` or ``"inaccurate"`` (``periodic.STATUSES``); ``message``;
-    ``run_time`` s (both steady states).
+    Attributes
+    ----------
+    reference : str
+        ``"next"`` (every reduced link with ``modes + 2``) or ``"full"``.
+    modes : dict
+        {link: (modes, reference modes or None for the full model)}.
+    difference : dict, {spec: float}, unit of each observable
+        The largest difference of each observable over the period.
+    relative : dict, {spec: float}, 1
+        That over the reference's peak-to-peak.
+    error : float, 1
+        The largest relative difference.
+    tolerance : float, 1
+        The relative tolerance deciding the status.
+    status : str
+        ``"ok"`` or ``"inaccurate"`` (``periodic.STATUSES``).
+    message : str
+        The verdict in words, naming the links and the fix.
+    run_time : float, s
+        Both steady states.
     """
 
     reference: str

@@ -52,8 +52,8 @@ class Evaluation:
     verdicts, ``peaks`` {name: {spec: (n_s,)}} the observables' summaries (``studies._result``);
     ``failed`` holds the reason when the sweep could not be computed."""
 
-    measure: np.ndarray = None
-    error: np.ndarray = None
+    measure: np.ndarray | None = None
+    error: np.ndarray | None = None
     scaled: dict = field(default_factory=dict)
     reported: dict = field(default_factory=dict)
     verdicts: list = field(default_factory=list)

@@ -64,7 +64,7 @@ class NonlinearCheck(DerivedPeaks, StudyResult):
     problem, scene : str
         The problem's name and scene text.
     parameters : dict
-        {name: value} the point.
+        {name: value} the point checked.
     units : dict
         {spec: unit} of each observable.
     settings : dict

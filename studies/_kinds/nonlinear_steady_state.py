@@ -54,7 +54,7 @@ class NonlinearSteadyState(DerivedPeaks, StudyResult):
     problem, scene : str
         The problem's name and scene text.
     parameters : dict
-        {name: value} the point.
+        {name: value} where the orbit is sought.
     units : dict
         {spec: unit} of each observable.
     response : dict of ndarray, {spec: (N+1,)}, units[spec]
