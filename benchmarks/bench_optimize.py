@@ -22,7 +22,8 @@ import numpy as np
 
 import mechanisms
 import studies
-from studies._kinds.optimize import _Evaluator, _Objective
+from studies._kinds._optimize_search import Evaluator as _Evaluator
+from studies._kinds._optimize_search import Objective as _Objective
 
 BOUNDS = {"controllers.strain.gain": (0.0, 2.0e5), "controllers.strain.rate_gain": (-100.0, 100.0)}
 SPEEDS = np.linspace(70.0, 110.0, 10)   # rad/s: up to where the motor's command nears its supply voltage

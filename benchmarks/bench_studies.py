@@ -85,7 +85,7 @@ def bench_sweep(count, repeats):
     print(f"  in-process {t_serial:8.2f} s   2 processes {t_pool:8.2f} s   "
           f"baseline about()+steady_state per speed {t_base:8.2f} s (scaled from every 10th speed)   "
           f"ratio baseline/in-process {t_base / t_serial:6.1f}")
-    print(f"  failed points {int((result.status == 'failed').sum())}, max error estimate "
+    print(f"  failed points {int((result.point_status == 'failed').sum())}, max error estimate "
           f"{np.nanmax(result.peak_to_peak_error[SPEC]):.2g} m, resonances {len(result.resonances)}")
 
 
@@ -103,7 +103,7 @@ def bench_chart(count, repeats):
     t_pool, chart = median_time(pooled, repeats)
     unstable = int((chart.spectral_radius > 1 + chart.stability_tol).sum())
     print(f"stability chart {count} x {count}, 128 steps, 2 processes: {t_pool:8.2f} s "
-          f"({unstable} unstable points, {int((chart.status == 'failed').sum())} failed)")
+          f"({unstable} unstable points, {int((chart.point_status == 'failed').sum())} failed)")
 
 
 def peak(values):

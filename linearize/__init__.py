@@ -16,7 +16,7 @@ from ._range import DriveRange as DriveRange
 from ._range import LinearRange as LinearRange
 from ._range import LinkRange as LinkRange
 from ._reduction import REDUCTION_TOL as REDUCTION_TOL
-from ._reduction import ReductionError as ReductionError
+from ._reduction import ReductionCheck as ReductionCheck
 from ._reduction import reduced_links as reduced_links
 from ._reduction import reduction_error as reduction_error
 from ._reduction import reference_mechanism as reference_mechanism

@@ -25,7 +25,7 @@ import periodic
 from ._about import about
 from ._core import LinearizationError
 
-__all__ = ["ReductionError", "reduction_error", "REDUCTION_TOL", "reduced_links", "reference_mechanism"]
+__all__ = ["ReductionCheck", "reduction_error", "REDUCTION_TOL", "reduced_links", "reference_mechanism"]
 
 #: Default tolerance of the reduction error: 0.1 % of each observable's peak-to-peak.
 REDUCTION_TOL = 1e-3
@@ -35,15 +35,30 @@ _REFERENCES = ("next", "full")
 
 
 @dataclass(frozen=True)
-class ReductionError:
-    """The reduction error of a mechanism's steady state.
+class ReductionCheck:
+    """The check of a modal reduction: the reduction error of a mechanism's steady state against a
+    reference, with its verdict (a result, not an exception; ``reduction_error`` returns it).
 
-    ``reference``: ``"next"`` (every reduced link with ``modes + 2``) or ``"full"``; ``modes``
-    {link: (modes, reference modes or None for the full model)}; ``difference`` {spec: float} the
-    largest difference of each observable over the period (its unit), ``relative`` {spec: float}
-    that over the reference's peak-to-peak; ``error`` the largest relative difference;
-    ``tolerance``; ``status`` ``"ok"`` or ``"inaccurate"`` (``periodic.STATUSES``); ``message``;
-    ``run_time`` s (both steady states).
+    Attributes
+    ----------
+    reference : str
+        ``"next"`` (every reduced link with ``modes + 2``) or ``"full"``.
+    modes : dict
+        {link: (modes, reference modes or None for the full model)}.
+    difference : dict, {spec: float}, unit of each observable
+        The largest difference of each observable over the period.
+    relative : dict, {spec: float}, 1
+        That over the reference's peak-to-peak.
+    error : float, 1
+        The largest relative difference.
+    tolerance : float, 1
+        The relative tolerance deciding the status.
+    status : str
+        ``"ok"`` or ``"inaccurate"`` (``periodic.STATUSES``).
+    message : str
+        The verdict in words, naming the links and the fix.
+    run_time : float, s
+        Both steady states.
     """
 
     reference: str
@@ -87,7 +102,7 @@ def reference_mechanism(mechanism, reference: str = "next"):
 
 def reduction_error(mechanism, *, n_steps: int = 256, observables=None, reference: str = "next",
                     tolerance: float = REDUCTION_TOL,
-                    response: Mapping[str, np.ndarray] | None = None) -> ReductionError:
+                    response: Mapping[str, np.ndarray] | None = None) -> ReductionCheck:
     """The reduction error of the steady state of ``mechanism`` (``about(mechanism, n_steps=...,
     observables=...)``, ``periodic.steady_state``) against ``reference`` (``"next"``: modes + 2 on
     every reduced link; ``"full"``: the element models unreduced). A mechanism without reduced links
@@ -100,7 +115,7 @@ def reduction_error(mechanism, *, n_steps: int = 256, observables=None, referenc
                                  f"peak-to-peak); received {tolerance!r}")
     started = time.perf_counter()
     if not reduced_links(mechanism):
-        return ReductionError(reference, {}, {}, {}, 0.0, float(tolerance), "ok",
+        return ReductionCheck(reference, {}, {}, {}, 0.0, float(tolerance), "ok",
                               "no reduced link", time.perf_counter() - started)
     other, modes = reference_mechanism(mechanism, reference)
     exact = _steady_response(other, n_steps, observables)
@@ -120,7 +135,7 @@ def reduction_error(mechanism, *, n_steps: int = 256, observables=None, referenc
     else:
         status = "ok"
         message = f"modal reduction error {error:.3g} <= {tolerance:g} ({against})"
-    return ReductionError(reference, modes, difference, relative, float(error), float(tolerance),
+    return ReductionCheck(reference, modes, difference, relative, float(error), float(tolerance),
                           status, message, time.perf_counter() - started)
 
 

@@ -40,7 +40,7 @@ def write_figures(results: Mapping[str, Any], outdir: Path, extensions: Sequence
 def _messages(results: Mapping[str, Any]) -> dict[str, str]:
     """Each single study's message (grid studies say theirs per point, in the table's status)."""
     return {name: str(result.message) for name, result in results.items()
-            if isinstance(getattr(result, "message", None), str) and result.message}
+            if not getattr(result, "is_grid", False) and result.message}
 
 
 def markdown(results: Mapping[str, Any], figures: Mapping[str, list[Path]], *, title: str) -> str:

@@ -22,7 +22,8 @@ from . import _verdicts as verdicts
 from ._errors import StudiesError
 from ._grid import STATUS_FAILED, GridStore
 from ._plots import plain
-from ._store import Result, _write_array, owner_of
+from ._result import StudyResult
+from ._store import _write_array, owner_of
 from ._summary import Headline
 
 
@@ -99,39 +100,68 @@ def collect(outcomes: Mapping[tuple[int, ...], Any], shape: tuple[int, ...]) -> 
                                       dtype=complex if np.iscomplexobj(value) else float)
             if outcome.status != STATUS_FAILED:
                 arrays[key][index] = value
-    arrays.update(done=done, status=status.astype(str), message=message.astype(str),
+    arrays.update(done=done, point_status=status.astype(str), point_message=message.astype(str),
                   point_run_time=run_time)
     return arrays
 
 
 @dataclass(frozen=True, eq=False)
-class GridResult(Result):
-    """Fields shared by the grid studies: ``problem`` name, ``scene`` text, ``settings``; per grid
-    point ``done`` (bool; False where an interrupted run did not get), ``status`` ("ok", a periodic
-    status, "inaccurate" or "failed"), ``message`` (str) and ``point_run_time`` (s).
+class GridResult(StudyResult):
+    """Fields shared by the grid studies (the common ones in ``studies._result``).
 
-    Study-level, for a mechanism with a modally reduced link (``reduction_check``, once per study at
-    the scene's own values): ``reduction_error`` (relative, 1: the largest difference of an
-    observable from the next larger mode set over its peak-to-peak; 0 without a reduced link),
-    ``reduction_status`` ("ok", "inaccurate", or "failed" when the check could not be solved),
-    ``reduction_message`` ("" without a reduced link) and ``reduction_run_time`` s (in
-    ``run_time``). ``overall_status`` combines the points' worst status with the reduction's.
+    Attributes
+    ----------
+    problem : str
+        The problem's name.
+    scene : str
+        The scene text (TOML), or the equation of a ``PeriodicProblem``.
+    settings : dict
+        The study's arguments (JSON-like).
+    done : ndarray of bool, grid shape
+        Whether each point was computed (False where an interrupted run did not get).
+    point_status : ndarray of str, grid shape
+        Each point's verdict ("ok", a periodic status, "inaccurate" or "failed"; "missing" where not
+        done); stored as the dataset ``status``.
+    point_message : ndarray of str, grid shape
+        Each point's message; stored as the dataset ``message``.
+    point_run_time : ndarray of float, grid shape, s
+        Each point's wall time.
+    run_time : float, s
+        The whole study's wall time (grid, reduction check and the stacking of the points).
+    reduction_error : float, 1
+        The modal reduction's check (``reduction_check``, once per study at the scene's own values):
+        the largest difference of an observable from the next larger mode set over its
+        peak-to-peak; 0 without a reduced link.
+    reduction_status : str
+        "ok", "inaccurate", or "failed" when the check could not be solved.
+    reduction_message : str
+        "" without a reduced link.
+    reduction_run_time : float, s
+        The check's cost (in ``run_time``).
+    status : str
+        Property: the worst of the done points' statuses and the reduction check's.
+    message : str
+        Property: the count of each status, the worst points and the reduction check's message.
     """
 
     problem: str
     scene: str
     settings: Mapping[str, Any]
     done: np.ndarray
-    status: np.ndarray
-    message: np.ndarray
+    point_status: np.ndarray
+    point_message: np.ndarray
     point_run_time: np.ndarray
     # keyword-only, so that the kinds' own fields without defaults may follow
+    run_time: float = field(default=float("nan"), kw_only=True)
     reduction_error: float = field(default=0.0, kw_only=True)
     reduction_status: str = field(default="ok", kw_only=True)
     reduction_message: str = field(default="", kw_only=True)
     reduction_run_time: float = field(default=0.0, kw_only=True)
 
-    _units = {"done": "1", "status": "1", "message": "1", "point_run_time": "s",
+    is_grid = True
+    # the grid store (``studies._grid.GridStore``) writes the points' verdicts as "status", "message"
+    _stored_as = {"point_status": ("status",), "point_message": ("message",)}
+    _units = {"done": "1", "point_status": "1", "point_message": "1", "point_run_time": "s",
               "reduction_error": "1", "reduction_run_time": "s"}
     #: Scalars written as 0-d datasets, so that they carry their ``units`` like the arrays.
     _scalars_with_units = ("reduction_error", "reduction_run_time")
@@ -143,12 +173,29 @@ class GridResult(Result):
                 del group.attrs[name]
             _write_array(group, name, np.asarray(float(getattr(self, name))), self._unit(name))
 
+    def _done_verdicts(self) -> list[tuple[str, str]]:
+        done = np.asarray(self.done, dtype=bool)
+        return [(str(status), str(message)) for status, message in
+                zip(np.asarray(self.point_status)[done], np.asarray(self.point_message)[done])]
+
     @property
-    def overall_status(self) -> str:
+    def status(self) -> str:
         """The study's status: the worst of its points' (done ones) and its reduction check's."""
-        points = [str(status) for status in np.asarray(self.status)[np.asarray(self.done, dtype=bool)]]
-        return verdicts.combine([(status, "") for status in points]
+        return verdicts.combine([(status, "") for status, _ in self._done_verdicts()]
                                 + [(self.reduction_status, self.reduction_message)])[0]
+
+    @property
+    def message(self) -> str:
+        """The count of each point status, the worst points (when not ``ok``) and the reduction
+        check's verdict when it is not ``ok``."""
+        done = np.asarray(self.done, dtype=bool)
+        words = [f"{int(done.sum())}/{done.size} points: {status_counts(np.asarray(self.point_status)[done])}"]
+        worst = worst_cases(np.where(done, self.point_status, "missing"), self.point_message,
+                            point_name)
+        words += [f"worst: {worst}"] if worst else []
+        words += [f"modal reduction {self.reduction_status}: {self.reduction_message}"] \
+            if self.reduction_status != "ok" else []
+        return "; ".join(words)
 
     def reduction_note(self) -> str:
         """A line for the figures' titles when the reduction check is not ``ok`` ("" otherwise)."""
@@ -190,7 +237,7 @@ def reduction_check(problem: Any, *, n_steps: int) -> dict[str, Any]:
 def grid_status(result: GridResult) -> str:
     """The status column of a grid study: the count of each point status, and the reduction check's
     verdict when it is not ``ok``."""
-    counts = status_counts(result.status[result.done])
+    counts = status_counts(result.point_status[result.done])
     return counts if result.reduction_status == "ok" else f"{counts}; modal reduction {result.reduction_status}"
 
 
@@ -208,11 +255,16 @@ def grid_summary(result: GridResult, extra: str = "", *, point: Any = None) -> s
     """``flexvib run``'s line for a grid study: points done, the count of each status, ``extra``, run
     time, and the worst cases (``point(index) -> str`` names a grid point, e.g. "speed 185")."""
     done = int(result.done.sum())
-    line = f"{done}/{result.done.size} points: {status_counts(result.status[result.done])}{extra}; " \
+    line = f"{done}/{result.done.size} points: {status_counts(result.point_status[result.done])}{extra}; " \
            f"{result.run_time:.3g} s"
-    worst = worst_cases(result.status, result.message, point or (lambda index: f"point {index}"))
+    worst = worst_cases(result.point_status, result.point_message, point or point_name)
     line += f"\n    worst: {worst}" if worst else ""
     return line + (f"\n    {result.reduction_status}: {result.reduction_message}" if result.reduction_message else "")
+
+
+def point_name(index: tuple) -> str:
+    """"point (3, 1)": a grid point named by its index."""
+    return f"point {tuple(int(i) for i in index)}"
 
 
 def status_counts(status: np.ndarray) -> str:

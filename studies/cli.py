@@ -383,7 +383,7 @@ def _run_studies(args: argparse.Namespace) -> int:
     # a single study whose computation failed (a nonlinear check whose run failed) is written with
     # the status "failed"; grid studies report their failed points in their summary
     failed = sorted(name for name, result in results.items()
-                    if isinstance(getattr(result, "status", None), str) and result.status == "failed")
+                    if not getattr(result, "is_grid", False) and result.status == "failed")
     if failed:
         print(f"failed: {', '.join(failed)}")
     print(f"wrote {out}")

@@ -101,7 +101,7 @@ def test_info_summarises(mathieu_run, capsys):
         assert f"compile_time: {float(handle.attrs['compile_time']):.3g} s" in out
     # each grid study's verdicts are tallied, as the run's summary does
     sweep = studies.load(mathieu_run)["sweep"]
-    names, counts = np.unique(sweep.status, return_counts=True)
+    names, counts = np.unique(sweep.point_status, return_counts=True)
     tally = out.split("[sweep]")[1].split("statuses: ")[1].splitlines()[0]
     assert sorted(tally.split(", ")) == sorted(f"{c} {n}" for n, c in zip(names, counts))
 

@@ -91,7 +91,7 @@ def test_periodic_state_equals_the_end_of_a_long_transient(problem, shot):
     assert np.abs(last - previous).max() <= 1e-5 * peak_to_peak   # settled: successive periods agree
     assert np.abs(last - shot.response[SPEC]).max() <= shot.response_error[SPEC]
     # and the near-resonance correction of the linear model the issue names: about 0.91 at N = 256
-    nonlinear, linear = shot.peak_to_peak(SPEC)
+    nonlinear, linear = shot.peak_to_peak[SPEC], shot.linear_peak_to_peak[SPEC]
     assert 0.88 < nonlinear / linear < 0.95
 
 
@@ -217,12 +217,12 @@ def test_continuation_over_speed_against_single_orbits(problem):
     assert sweep.stable.all() and sweep.after_instability == ""
     # the branch's end point is the orbit a single shooting finds there (independent start: linear state)
     single = studies.nonlinear_steady_state(problem, {"speed": 100.0}, n_steps=128)
-    np.testing.assert_allclose(sweep.peak_to_peak[SPEC][-1], single.peak_to_peak(SPEC)[0], rtol=1e-6)
-    np.testing.assert_allclose(sweep.linear_at_branch[SPEC][-1], single.peak_to_peak(SPEC)[1], rtol=1e-9)
+    np.testing.assert_allclose(sweep.peak_to_peak[SPEC][-1], single.peak_to_peak[SPEC], rtol=1e-6)
+    np.testing.assert_allclose(sweep.linear_at_branch[SPEC][-1], single.linear_peak_to_peak[SPEC], rtol=1e-9)
     # the peak-to-peak error of each orbit: N against N/2, here against two separate shootings from the
     # linear start (N = 128 and 64); the N/2 orbit also gave each orbit's multipliers their error bars
     half = studies.nonlinear_steady_state(problem, {"speed": 100.0}, n_steps=64)
-    expected = abs(single.peak_to_peak(SPEC)[0] - half.peak_to_peak(SPEC)[0]) / 3.0
+    expected = abs(single.peak_to_peak[SPEC] - half.peak_to_peak[SPEC]) / 3.0
     np.testing.assert_allclose(sweep.peak_to_peak_error[SPEC][-1], expected, rtol=1e-4)
     assert np.all(sweep.peak_to_peak_error[SPEC] > 0.0) and sweep.peak_to_peak_error[SPEC].size == sweep.values.size
     assert sweep.linear_values[0] == 96.0 and sweep.linear_peak_to_peak[SPEC].size == sweep.linear_values.size
@@ -345,7 +345,7 @@ def test_continuation_through_the_sharp_bend_near_73_rad_s():
     assert np.all(np.diff(sweep.values) > 0.0)
     # the end point is the orbit a single shooting from the linear state finds there
     single = studies.nonlinear_steady_state(problem, {"speed": 76.0}, n_steps=64)
-    np.testing.assert_allclose(sweep.peak_to_peak[SPEC][-1], single.peak_to_peak(SPEC)[0], rtol=1e-6)
+    np.testing.assert_allclose(sweep.peak_to_peak[SPEC][-1], single.peak_to_peak[SPEC], rtol=1e-6)
 
 
 @pytest.mark.slow

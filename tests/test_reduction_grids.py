@@ -1,6 +1,6 @@
 """The modal reduction's error in the grid studies (sweep, Campbell diagram, stability chart): one
 check per study at the scene's own values, reported at study level (fields with units in HDF5,
-``overall_status``, the summary line and the headlines); nothing for a scene without a reduced
+``status``, the summary line and the headlines); nothing for a scene without a reduced
 link. The check's number is compared with ``linearize.reduction_error`` run on its own, and
 the 1-mode coupler against the full element model (an independent reference)."""
 
@@ -51,8 +51,8 @@ def test_a_sweep_on_a_one_mode_coupler_is_inaccurate_at_study_level(sweeps):
     number is ``linearize.reduction_error`` at the scene's values, and it is near the actual
     difference from the full element model (within a factor 3)."""
     coarse = sweeps[1]
-    assert set(coarse.status) == {"ok"}
-    assert coarse.reduction_status == "inaccurate" and coarse.overall_status == "inaccurate"
+    assert set(coarse.point_status) == {"ok"}
+    assert coarse.reduction_status == "inaccurate" and coarse.status == "inaccurate"
     assert "raise modes" in coarse.reduction_message
     assert "every point's numbers carry this reduction error" in coarse.reduction_message
     own = linearize.reduction_error(_coupler(16, 1), n_steps=N_STEPS)
@@ -73,7 +73,7 @@ def test_a_sweep_on_a_one_mode_coupler_is_inaccurate_at_study_level(sweeps):
 
 def test_a_sweep_on_a_six_mode_coupler_is_ok_with_its_reduction_error_reported(sweeps):
     fine = sweeps[6]
-    assert fine.reduction_status == "ok" and fine.overall_status == "ok"
+    assert fine.reduction_status == "ok" and fine.status == "ok"
     assert 0.0 < fine.reduction_error < linearize.REDUCTION_TOL
     assert "6 modes against 8" in fine.reduction_message
     assert sweep_kind._headlines(fine).status == "2 ok"
@@ -89,7 +89,7 @@ def test_a_sweep_without_a_reduced_link_is_unchanged(sweeps):
     plain = sweeps[None]
     assert (plain.reduction_error, plain.reduction_status, plain.reduction_message,
             plain.reduction_run_time) == (0.0, "ok", "", 0.0)
-    assert plain.overall_status == "ok"
+    assert plain.status == "ok"
     assert "modal reduction" not in sweep_kind._summary(plain)
     headlines = sweep_kind._headlines(plain)
     assert headlines.status == "2 ok"
@@ -115,7 +115,7 @@ def test_reduction_fields_round_trip_through_hdf5_with_units(sweeps, tmp_path):
         stored = studies.load(path)["sweep"]
         for name in ("reduction_error", "reduction_status", "reduction_message", "reduction_run_time"):
             assert getattr(stored, name) == getattr(sweeps[modes], name), name
-        assert stored.overall_status == sweeps[modes].overall_status
+        assert stored.status == sweeps[modes].status
         # written again from what was read, the numbers keep their units
         stored.save(path, "again")
         with h5py.File(path, "r") as handle:
@@ -149,7 +149,7 @@ def test_campbell_and_stability_chart_report_the_reduction_at_study_level(sweeps
     """The same check, once per study, in a Campbell diagram and a stability chart on the 1-mode
     coupler: the same error as the sweep's at the same steps."""
     for result, kind in zip(coarse_grids, (campbell_kind, chart_kind)):
-        assert result.reduction_status == "inaccurate" and result.overall_status == "inaccurate"
+        assert result.reduction_status == "inaccurate" and result.status == "inaccurate"
         assert result.reduction_error == pytest.approx(sweeps[1].reduction_error, rel=1e-9)
         assert "modal reduction inaccurate" in kind._headlines(result).status
         assert "raise modes" in kind._summary(result)
@@ -181,7 +181,7 @@ def test_a_failed_reduction_check_is_reported_and_keeps_the_grid(monkeypatch):
 
     monkeypatch.setattr(linearize, "reduction_error", fail)
     result = studies.sweep(_problem(_coupler(16, 1)), "speed", SPEEDS[:1], n_steps=N_STEPS)
-    assert result.reduction_status == "failed" and result.overall_status == "failed"
+    assert result.reduction_status == "failed" and result.status == "failed"
     assert "no periodic solution (test)" in result.reduction_message
     assert np.isnan(result.reduction_error) and result.done.all()
 

@@ -107,7 +107,7 @@ def _headline_numbers(results):
             f"{plain(sweep.values[best], 3)} rad/s",
             *(f"{plain(a, 3)}–{plain(b, 3)}" for a, b in sweep.instabilities),
             *(f"{k}:{mode + 1} at {plain(value, 3)}" for k, mode, value in sweep.resonances),
-            f"{int(((results['stability_chart'].status == 'unstable')).sum())} of "
+            f"{int(((results['stability_chart'].point_status == 'unstable')).sum())} of "
             f"{results['stability_chart'].done.size}"], lower
 
 
@@ -310,10 +310,10 @@ def test_sweep_headlines_take_the_largest_response_from_ok_points_only(mathieu_f
     sweep = studies.load(mathieu_file)["sweep"]
     values = np.asarray(sweep.peak_to_peak["x"], dtype=float)
     worst = int(np.nanargmax(values))
-    status = np.array(sweep.status, dtype=object)
+    status = np.array(sweep.point_status, dtype=object)
     status[:] = "ok"
     status[worst] = "unstable"
-    marked = dataclasses.replace(sweep, status=status.astype(str))
+    marked = dataclasses.replace(sweep, point_status=status.astype(str))
     rows = {row.quantity: row for row in KINDS["sweep"].headlines(marked).rows}
     second = float(np.nanmax(np.delete(values, worst)))
     assert rows["largest x peak to peak (ok points)"].value == pytest.approx(second)
@@ -321,7 +321,7 @@ def test_sweep_headlines_take_the_largest_response_from_ok_points_only(mathieu_f
     assert overall.value == pytest.approx(values[worst]) and "unstable" in overall.where
     status[worst] = "ok"
     rows = {row.quantity: row for row in KINDS["sweep"].headlines(
-        dataclasses.replace(sweep, status=status.astype(str))).rows}
+        dataclasses.replace(sweep, point_status=status.astype(str))).rows}
     assert rows["largest x peak to peak (ok points)"].value == pytest.approx(values[worst])
     assert "largest x peak to peak, any point" not in rows
 

@@ -84,7 +84,7 @@ def test_speed_sweep_peak_to_peak_and_resonances():
     found = sorted((k, mode, round(value, 12)) for k, mode, value in result.resonances)
     expected = sorted((k, 0, round(1.0 / k, 12)) for k in (1, 2, 3, 4) if 0.2 <= 1.0 / k <= 1.6)
     assert found == expected
-    assert result.instabilities == () and np.all(result.status == "ok") and result.done.all()
+    assert result.instabilities == () and np.all(result.point_status == "ok") and result.done.all()
 
 
 def test_sweep_marks_the_principal_parametric_instability(principal_tongue):
@@ -104,8 +104,8 @@ def test_sweep_marks_the_principal_parametric_instability(principal_tongue):
 def test_failed_point_is_recorded_not_raised():
     problem = studies.mathieu_problem(epsilon=0.0)
     result = studies.sweep(problem, "speed", [0.5, -1.0, 0.8], n_steps=32)  # N/4 = 8 resolves it
-    assert list(result.status) == ["ok", "failed", "ok"]
-    assert "speed" in result.message[1] and "positive" in result.message[1]
+    assert list(result.point_status) == ["ok", "failed", "ok"]
+    assert "speed" in result.point_message[1] and "positive" in result.point_message[1]
     assert np.isnan(result.spectral_radius[1]) and np.isfinite(result.spectral_radius[[0, 2]]).all()
 
 
@@ -237,7 +237,7 @@ def test_error_cost_shows_second_order_and_a_sharp_estimate():
     assert np.all(np.abs(slopes[1:] - 2.0) <= 0.1), slopes  # Newmark gamma = 1/2 is of order 2
     ratio = result.error_estimate["x"][0] / error
     assert np.all((ratio[1:] > 0.8) & (ratio[1:] < 1.25)), ratio
-    assert result.run_time.shape == (1, 4) and np.all(result.run_time > 0)
+    assert result.point_run_time.shape == (1, 4) and np.all(result.point_run_time > 0)
 
 
 def test_error_cost_over_a_resolution_parameter(crossing_problem):

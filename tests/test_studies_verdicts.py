@@ -86,27 +86,27 @@ def test_outside_linear_range_without_stiffening_says_it_cannot_see_buckling():
 
 def test_inaccurate_when_the_quarter_grid_is_not_asymptotic_and_failed_point_recorded():
     result = studies.sweep(studies.mathieu_problem(epsilon=0.0), "speed", [0.5, -1.0, 0.8], n_steps=16)
-    assert list(result.status) == ["inaccurate", "failed", "inaccurate"]
-    assert "refine n_steps" in result.message[2]
+    assert list(result.point_status) == ["inaccurate", "failed", "inaccurate"]
+    assert "refine n_steps" in result.point_message[2]
     # at 0.5 rad/s the lightly damped mode's multiplier, 0.56 from +1, is "near" it only within its
     # (untrusted) error estimate: the step, not a resonance, is named as the cause
-    assert "refine n_steps" in result.message[0] and "possibly near resonance" in result.message[0]
-    assert list(studies.sweep(studies.mathieu_problem(epsilon=0.0), "speed", [0.5], n_steps=32).status) == ["ok"]
+    assert "refine n_steps" in result.point_message[0] and "possibly near resonance" in result.point_message[0]
+    assert list(studies.sweep(studies.mathieu_problem(epsilon=0.0), "speed", [0.5], n_steps=32).point_status) == ["ok"]
     assert list(result.is_stable) == [True, False, True]
 
 
 def test_unresolved_stiff_mode_in_a_campbell_diagram(four_bar):
     result = studies.campbell(four_bar, [100.0, 120.0], n_steps=64, frozen_samples=8)
-    assert set(result.status) == {"unresolved_stiff_mode"} and result.is_stable.all()
+    assert set(result.point_status) == {"unresolved_stiff_mode"} and result.is_stable.all()
 
 
 def test_sweep_marks_and_stores_the_instability(four_bar, tmp_path):
     with studies.open_file(tmp_path / "s.h5") as out:
         sweep = studies.sweep(four_bar, "speed", [100.0, 186.0], n_steps=256, out=out)
-    assert list(sweep.status[:1]) == ["ok"] and sweep.status[1] == "unstable"
+    assert list(sweep.point_status[:1]) == ["ok"] and sweep.point_status[1] == "unstable"
     assert list(sweep.is_stable) == [True, False]
     back = studies.load(tmp_path / "s.h5")["sweep"]
-    assert list(back.status) == list(sweep.status) and list(back.is_stable) == [True, False]
+    assert list(back.point_status) == list(sweep.point_status) and list(back.is_stable) == [True, False]
     assert set(back.linear_range) >= {"coupler.peak_slope", "coupler.peak_compression_over_euler"}
     drawing = sweep.plot()
     assert [a.get_label() for a in drawing.artists["status"]] == ["UNSTABLE"] * 2

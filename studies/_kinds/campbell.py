@@ -26,6 +26,7 @@ from .._numerics import (
 )
 from .._plots import Plot, axes_for, cost_line, drawn, largest, mark_statuses, plain
 from .._problem import SPEED
+from .._result import NoObservables
 from .._store import register
 from .._studies import (
     GridResult,
@@ -49,45 +50,66 @@ FROZEN_SAMPLES = 64
 
 @register
 @dataclass(frozen=True, eq=False)
-class CampbellResult(GridResult):
-    """Campbell diagram: frozen-time natural frequencies against crank speed.
+class CampbellResult(NoObservables, GridResult):
+    """Campbell diagram: frozen-time natural frequencies against crank speed (the fields every
+    result has: ``studies._result``; no observable response, so ``peak``... are empty; those of every
+    grid study: ``GridResult``).
 
-    ``speeds`` (n,) rad/s; ``crank_angle`` (n_frozen,) rad at which the frozen systems are taken;
-    ``frozen`` (n, n_frozen, m) rad/s ascending at each sample; ``shapes`` (n, m, m) mode shapes at
-    crank angle 0 (columns); ``multipliers`` (n, 2m) and ``multipliers_coarse`` (n, 2m) with N and
-    N/2 steps; ``period`` (n,) s; after the grid: ``order``
-    (n, m) tracked mode j is frequency column ``order[i, j]`` at speed i (MAC tracking),
-    ``tracking_mac`` (n, m) the MAC of each step, ``band_min``/``band_max``/``band_mean`` (n, m) rad/s
-    band of each tracked mode over the crank angle, ``characteristic`` (n, 2m) rad/s Floquet
-    characteristic frequencies unfolded to the nearest frozen mean frequency and
-    ``characteristic_error`` (n, 2m) rad/s their estimated error (N against N/2), ``mode_labels`` (m,),
-    ``harmonics`` the k of the lines ``k * speed``; ``spectral_radius``, ``spectral_radius_error``,
-    ``is_stable`` (n,) the stability verdict at each speed (``status``, ``message``: unstable, marginal,
-    unresolved_stiff_mode ...); ``reduction_*`` the modal reduction's check at the scene's values
-    (``GridResult``).
+    Attributes
+    ----------
+    labels : tuple of str, (m,)
+        The independent coordinates.
+    speeds : ndarray, (n,), rad/s
+        The crank speeds.
+    crank_angle : ndarray, (n_frozen,), rad
+        The crank angles at which the frozen systems are taken.
+    frozen : ndarray, (n, n_frozen, m), rad/s
+        The frozen-time natural frequencies, ascending at each sample.
+    shapes : ndarray, (n, m, m), 1
+        The mode shapes at crank angle 0 (columns).
+    multipliers, multipliers_coarse : ndarray of complex, (n, 2m), 1
+        The Floquet multipliers with N and N/2 steps.
+    spectral_radius, spectral_radius_error : ndarray, (n,), 1
+        The spectral radius at each speed and its estimated error.
+    is_stable : ndarray of bool, (n,)
+        The stability verdict at each speed.
+    period : ndarray, (n,), s
+        The period at each speed.
+    order : ndarray of int, (n, m)
+        Tracked mode j is frequency column ``order[i, j]`` at speed i (MAC tracking).
+    tracking_mac : ndarray, (n, m), 1
+        The MAC of each tracking step.
+    band_min, band_max, band_mean : ndarray, (n, m), rad/s
+        The band of each tracked mode over the crank angle.
+    characteristic, characteristic_error : ndarray, (n, 2m), rad/s
+        The Floquet characteristic frequencies unfolded to the nearest frozen mean frequency, and
+        their estimated error (N against N/2).
+    mode_labels : tuple of str, (m,)
+        The tracked modes' names.
+    harmonics : tuple of int
+        The k of the lines ``k * speed``.
     """
 
     labels: tuple[str, ...]
     speeds: np.ndarray
-    crank_angle: np.ndarray = None
-    frozen: np.ndarray = None
-    shapes: np.ndarray = None
-    multipliers: np.ndarray = None
-    multipliers_coarse: np.ndarray = None
-    spectral_radius: np.ndarray = None
-    spectral_radius_error: np.ndarray = None
-    is_stable: np.ndarray = None
-    period: np.ndarray = None
-    order: np.ndarray = None
-    tracking_mac: np.ndarray = None
-    band_min: np.ndarray = None
-    band_max: np.ndarray = None
-    band_mean: np.ndarray = None
-    characteristic: np.ndarray = None
-    characteristic_error: np.ndarray = None
+    crank_angle: np.ndarray | None = None
+    frozen: np.ndarray | None = None
+    shapes: np.ndarray | None = None
+    multipliers: np.ndarray | None = None
+    multipliers_coarse: np.ndarray | None = None
+    spectral_radius: np.ndarray | None = None
+    spectral_radius_error: np.ndarray | None = None
+    is_stable: np.ndarray | None = None
+    period: np.ndarray | None = None
+    order: np.ndarray | None = None
+    tracking_mac: np.ndarray | None = None
+    band_min: np.ndarray | None = None
+    band_max: np.ndarray | None = None
+    band_mean: np.ndarray | None = None
+    characteristic: np.ndarray | None = None
+    characteristic_error: np.ndarray | None = None
     mode_labels: tuple = ()
     harmonics: tuple = ()
-    run_time: float = float("nan")
 
     _units = {"speeds": "rad/s", "crank_angle": "rad", "frozen": "rad/s", "shapes": "1",
               "multipliers": "1", "multipliers_coarse": "1", "period": "s", "order": "1",
@@ -124,7 +146,7 @@ class CampbellResult(GridResult):
                 ax.annotate(f"{k}x", (speeds[-1], min(k * speeds[-1], top)), fontsize="x-small")
             ax.set_ylim(0.0, top)
             # the speeds whose verdict is not ok (unstable, marginal, ...) marked along the axis
-            artists["status"] = mark_statuses(ax, speeds, np.full(speeds.shape, 0.02 * top), self.status)
+            artists["status"] = mark_statuses(ax, speeds, np.full(speeds.shape, 0.02 * top), self.point_status)
             ax.legend(fontsize="x-small", loc="upper left")
         ax.set_xlabel("speed (rad/s)")  # 2 pi / period: the crank speed of a four-bar
         ax.set_ylabel("frequency (rad/s)")

@@ -23,7 +23,8 @@ from .._kind import MAX_PERIODS, PERIODS_WHY, StudyKind, fraction, integer, spee
 from .._mechanism import deviation_from_nominal
 from .._plots import Plot, axes_for, drawn, headline, label, plain
 from .._problem import SPEED
-from .._store import Result, register
+from .._result import DerivedPeaks, StudyResult, peaks_of
+from .._store import register
 from .._studies import check_integer, check_n_steps
 from .._summary import Headline, Summary
 from .._verdicts import combine
@@ -101,31 +102,16 @@ def settling_time(t: np.ndarray, y: np.ndarray, steps_per_period: int, band: flo
 # ---------------------------------------------------------------------------------------------------
 @register
 @dataclass(frozen=True, eq=False)
-class ControlComparison(Result):
-    """The start-up with and without feedback (``CASES = ("with", "without")``).
+class ControlComparison(DerivedPeaks, StudyResult):
+    """The start-up with and without feedback (``CASES = ("with", "without")``; the fields every
+    result has: ``studies._result``).
 
-    ``t`` (n_t,) s, ``n_t = n_periods * n_steps + 1``; ``with_control`` and ``without_control``
-    {quantity: (n_t,)}: each quantity's time history (NaN after the time a run failed).
-    ``quantities``: their names in report order; by ``roles`` {quantity: role}: ``"elastic"``, the scene's
-    observables of the coordinates (the
-    coupler's midspan deflection by default), deviations from the rigid nominal motion; ``"speed"``,
-    ``drive.<J>.rate`` the controlled drive's relative rate minus its nominal (rad/s, the crank speed
-    fluctuation); ``"output"``, the output's deviation from its nominal (the output link's angle,
-    rad, or a point's displacement, m); ``"torque"``, ``drive.<J>.torque`` the drive's total torque
-    (N m). ``units`` {quantity: unit}.
-
-    Per case (``{"with": {quantity: value}, "without": {...}}``): ``steady_peak`` max |q| over the last
-    period, ``steady_peak_error`` its error estimate (``max |q_N - q_N/2| / 3`` over the last period,
-    a run with half the steps; NaN when that run failed), ``settling_time`` s (:func:`settling_time`,
-    NaN when not settled or failed), ``settling_time_error`` (``|t_s(N) - t_s(N/2)|``), ``settled``
-    (bool); ``run_time`` {case: s} (both of its runs); ``failed`` {case: message or ""}.
-
-    The controlled drive's saturation, ``saturation`` {case: {key: value}} (``SATURATION_KEYS``; NaN
-    when the run failed): ``peak_demanded_torque`` N m, the largest |torque| the unsaturated law asks
-    for over the last period; ``peak_command`` N m, the largest motor command |tau + c theta'| over
-    it; ``clipped_fraction``, the fraction of the last period's samples where the drive saturates;
-    ``clipped_until`` s, the time of the last saturated sample (NaN: never). ``torque_limit`` and
-    ``command_limit`` (``G stall_torque``) N m, inf where the drive has none.
+    The quantities, by ``roles`` {quantity: role}: ``"elastic"``, the scene's observables of the
+    coordinates (the coupler's midspan deflection by default), deviations from the rigid nominal
+    motion; ``"speed"``, ``drive.<J>.rate`` the controlled drive's relative rate minus its nominal
+    (rad/s, the crank speed fluctuation); ``"output"``, the output's deviation from its nominal (the
+    output link's angle, rad, or a point's displacement, m); ``"torque"``, ``drive.<J>.torque`` the
+    drive's total torque (N m).
 
     ``status``, the worst of: ``failed`` (a run failed: the message says which and why; the other
     is kept); ``unstable`` (a quantity with control grows period after period); ``outside_linear_range``
@@ -134,6 +120,55 @@ class ControlComparison(Result):
     refine ``n_steps``; or a quantity with control not settled: raise ``n_periods``); else ``ok``.
     ``message`` also says which quantities do not settle without feedback, the elastic settling
     times and a saturation during the start-up only.
+
+    Attributes
+    ----------
+    problem, scene : str
+        The problem's name and scene text.
+    parameters : dict
+        {name: value} the point.
+    quantities : tuple of str
+        The quantities' names in report order.
+    units : dict
+        {quantity: unit}.
+    roles : dict
+        {quantity: role} (see above).
+    settings : dict
+        The study's arguments.
+    t : ndarray, (n_t,), s
+        The samples, ``n_t = n_periods * n_steps + 1``.
+    with_control, without_control : dict of ndarray, {quantity: (n_t,)}, units[quantity]
+        Each quantity's time history (NaN after the time a run failed).
+    steady_peak : dict, {case: {quantity: float}}, units[quantity]
+        The max |q| over the last period.
+    steady_peak_error : dict, {case: {quantity: float}}, units[quantity]
+        Its error estimate, ``max |q_N - q_N/2| / 3`` over the last period (a run with half the
+        steps; NaN when that run failed).
+    settling_time : dict, {case: {quantity: float}}, s
+        :func:`settling_time` (NaN when not settled or failed).
+    settling_time_error : dict, {case: {quantity: float}}, s
+        ``|t_s(N) - t_s(N/2)|``.
+    settled : dict, {case: {quantity: bool}}
+        Whether each quantity settled.
+    run_time : float, s
+        The whole study (both cases).
+    case_run_time : dict, {case: float}, s
+        Each case's two runs.
+    failed : dict, {case: str}
+        The failure's message, or "".
+    saturation : dict, {case: {key: float}}
+        The controlled drive's saturation (``SATURATION_KEYS``; NaN when the run failed):
+        ``peak_demanded_torque`` N m, the largest |torque| the unsaturated law asks for over the last
+        period; ``peak_command`` N m, the largest motor command |tau + c theta'| over it;
+        ``clipped_fraction``, the fraction of the last period's samples where the drive saturates;
+        ``clipped_until`` s, the time of the last saturated sample (NaN: never).
+    torque_limit, command_limit : float, N m
+        The drive's torque limit and ``G stall_torque`` (inf where the drive has none).
+    status, message : str
+        See above.
+    peak, peak_error, peak_to_peak, peak_to_peak_error : dict, {quantity: float}, units[quantity]
+        Properties: over the last period of the run with control (the machine as designed), with
+        ``steady_peak_error["with"]`` as the samples' error.
     """
 
     problem: str
@@ -151,15 +186,28 @@ class ControlComparison(Result):
     settling_time: Mapping[str, Mapping[str, float]]
     settling_time_error: Mapping[str, Mapping[str, float]]
     settled: Mapping[str, Mapping[str, bool]]
-    run_time: Mapping[str, float]
+    run_time: float
     failed: Mapping[str, str] = field(default_factory=dict)
     saturation: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     torque_limit: float = math.inf
     command_limit: float = math.inf
     status: str = "ok"
     message: str = ""
+    case_run_time: Mapping[str, float] = field(default_factory=dict)
 
     _units = {"t": "s", "with_control": "@observables", "without_control": "@observables"}
+
+    def _peaks(self) -> dict[str, dict[str, float]]:
+        steps = int(self.settings.get("n_steps", 0)) or max(np.size(self.t) - 1, 2)
+        last = {name: np.asarray(self.with_control[name])[-(steps + 1):] for name in self.quantities}
+        return peaks_of(last, self.steady_peak_error.get("with", {}))
+
+    def _filled(self, group: Any) -> dict[str, Any]:
+        if "case_run_time" in group.attrs:
+            return {}
+        # written when run_time was the cases' {case: s}
+        cases = dict(self.run_time) if isinstance(self.run_time, Mapping) else {}
+        return {"case_run_time": cases, "run_time": float(np.nansum(list(cases.values())))}
 
     def history(self, case: str) -> Mapping[str, np.ndarray]:
         """The time histories of ``case`` ("with" or "without")."""
@@ -222,6 +270,7 @@ def control_comparison(problem: Any, values: Mapping[str, float] | None = None, 
     angle of the last link pivoted on the ground other than the driven one, e.g. ``"rocker.angle"``,
     else the displacement of the last link's end, ``"<link>.point_error@1.0"``). A run that fails
     numerically gives status ``failed`` with the reason, not an exception; the other run is kept."""
+    started = time.perf_counter()
     if not hasattr(problem, "mechanism"):
         raise StudiesError(f"problem {getattr(problem, 'name', problem)!r}: a control comparison needs a "
                            f"mechanism (studies.MechanismProblem) whose drive has a controller")
@@ -251,7 +300,8 @@ def control_comparison(problem: Any, values: Mapping[str, float] | None = None, 
         units=plan.units, roles=plan.roles,
         settings={"n_steps": n_steps, "n_periods": n_periods, "band": band, "output": plan.output},
         t=t, with_control=results["with"]["history"], without_control=results["without"]["history"],
-        **per_case, run_time={case: results[case]["run_time"] for case in CASES},
+        **per_case, run_time=time.perf_counter() - started,
+        case_run_time={case: results[case]["run_time"] for case in CASES},
         failed={case: results[case]["failed"] for case in CASES}, torque_limit=plan.torque_limit,
         command_limit=plan.command_limit, status=status, message=message)
 
@@ -596,7 +646,7 @@ def _headlines(result: ControlComparison) -> Summary:
         )
     speed = result.parameters.get(SPEED, float("nan"))
     return Summary(status=f"{headline(result.status)} at speed {plain(speed, 3)} rad/s",
-                   run_time=float(np.nansum(list(result.run_time.values()))), rows=rows)
+                   run_time=float(result.run_time), rows=rows)
 
 
 KIND = StudyKind(name="control_comparison", result=ControlComparison,

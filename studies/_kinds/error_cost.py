@@ -4,7 +4,7 @@ period and optionally a resolution parameter (e.g. a number of elements)."""
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -13,24 +13,59 @@ import periodic
 
 from .._errors import StudiesError
 from .._kind import MAX_STEPS, STEPS_WHY, StudyKind, axis, integer, speed_values, sub_table
-from .._numerics import STUDY_SCHEME, solve_steady
+from .._numerics import STUDY_SCHEME, peak_summary, solve_steady
 from .._plots import Plot, axes_for, drawn, plain, tidy_log_axes
-from .._store import Result, register
+from .._result import PEAK_FIELDS, StudyResult, unknown_peaks
+from .._store import register
 from .._studies import check_grid, check_n_steps, check_parameter
 from .._summary import Headline, Summary
 
 
 @register
 @dataclass(frozen=True, eq=False)
-class ErrorCostResult(Result):
-    """Error against run time.
+class ErrorCostResult(StudyResult):
+    """Error against run time (the fields every result has: ``studies._result``; the grid is
+    resolutions x step counts, (n_r, n_s)). The reference is the finest resolution with
+    ``reference_steps`` steps and Richardson extrapolation.
 
-    ``resolutions`` (n_r,) values of ``resolution_parameter`` (e.g. a number of elements; empty name
-    when only the steps vary); ``n_steps`` (n_s,) steps per period; ``n_dof`` (n_r,) size of the linear
-    system; ``error`` {spec: (n_r, n_s)} max abs difference from the reference over the period,
-    divided by the reference's peak-to-peak; ``error_estimate`` {spec: (n_r, n_s)} the self-estimated
-    error (same scaling); ``run_time`` (n_r, n_s) s of linearisation plus shooting; the reference is
-    the finest resolution with ``reference_steps`` steps and Richardson extrapolation.
+    Attributes
+    ----------
+    problem, scene : str
+        The problem's name and scene text.
+    resolution_parameter : str
+        The parameter of ``resolutions`` (e.g. a number of elements; "" when only the steps vary).
+    units : dict
+        {spec: unit} of each observable.
+    settings : dict
+        The study's arguments.
+    resolutions : ndarray, (n_r,)
+        The values of ``resolution_parameter``.
+    n_steps : ndarray of int, (n_s,)
+        Steps per period.
+    n_dof : ndarray, (n_r,)
+        The size of the linear system at each resolution.
+    error : dict of ndarray, {spec: (n_r, n_s)}, 1
+        The max abs difference from the reference over the period, over the reference's
+        peak-to-peak.
+    error_estimate : dict of ndarray, {spec: (n_r, n_s)}, 1
+        The self-estimated error (same scaling).
+    point_run_time : ndarray, (n_r, n_s), s
+        Linearisation plus shooting at each point (``run_time`` in files written before the results
+        shared their field names).
+    reference_steps : int
+        The reference's steps per period.
+    reference_run_time : float, s
+        The reference's cost.
+    run_time : float, s
+        The whole study (reference and points).
+    status, message : str
+        The reference's verdict (the errors are measured against it; "ok" and a note in files
+        written before results had a status).
+    point_status, point_message : ndarray of str, (n_r, n_s)
+        Each point's steady-state verdict (coarse points may well be ``inaccurate``: that is what
+        the study shows).
+    peak, peak_error, peak_to_peak, peak_to_peak_error : dict of ndarray, {spec: (n_r, n_s)}, units[spec]
+        Each point's observable summaries (``studies._numerics.peak_summary``).
     """
 
     problem: str
@@ -43,12 +78,33 @@ class ErrorCostResult(Result):
     n_dof: np.ndarray
     error: Mapping[str, np.ndarray]
     error_estimate: Mapping[str, np.ndarray]
-    run_time: np.ndarray
+    point_run_time: np.ndarray
     reference_steps: int
     reference_run_time: float
+    run_time: float = float("nan")
+    status: str = "ok"
+    message: str = ""
+    point_status: np.ndarray | None = None
+    point_message: np.ndarray | None = None
+    peak: Mapping[str, np.ndarray] = field(default_factory=dict)
+    peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
+    peak_to_peak: Mapping[str, np.ndarray] = field(default_factory=dict)
+    peak_to_peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
 
+    # before results shared their field names, the points' run times were "run_time"
+    _stored_as = {"point_run_time": ("point_run_time", "run_time")}
     _units = {"resolutions": "1", "n_steps": "1", "n_dof": "1", "error": "1", "error_estimate": "1",
-              "run_time": "s"}
+              "point_run_time": "s", "point_status": "1", "point_message": "1", "peak": "@observables",
+              "peak_error": "@observables", "peak_to_peak": "@observables", "peak_to_peak_error": "@observables"}
+
+    def _filled(self, group: Any) -> dict[str, Any]:
+        if "point_run_time" in group:
+            return {}
+        shape = np.shape(self.point_run_time)
+        return {"run_time": float(self.reference_run_time + np.nansum(self.point_run_time)),
+                "message": "written before error_cost results had a status: the reference was not judged",
+                "point_status": np.full(shape, "missing"), "point_message": np.full(shape, ""),
+                **unknown_peaks(self.error, shape)}
 
     def plot(self, *, axes: Any = None) -> Plot:
         """Relative error of each observable against run time, one line per resolution."""
@@ -60,8 +116,8 @@ class ErrorCostResult(Result):
             for i, level in enumerate(self.resolutions):
                 name = f"{spec}" + (f", {self.resolution_parameter} = {level:g}" if self.resolution_parameter
                                     else "")
-                artists[spec] += ax.loglog(self.run_time[i], self.error[spec][i], "o-", label=name)
-                for n, x, y in zip(self.n_steps, self.run_time[i], self.error[spec][i]):
+                artists[spec] += ax.loglog(self.point_run_time[i], self.error[spec][i], "o-", label=name)
+                for n, x, y in zip(self.n_steps, self.point_run_time[i], self.error[spec][i]):
                     ax.annotate(f"N={n}", (x, y), fontsize="x-small")
         ax.set_xlabel("run time (s)")
         ax.set_ylabel("relative error (1)")
@@ -119,6 +175,9 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
     error = {s: np.full((levels.size, len(steps)), np.nan) for s in specs}
     estimate = {s: np.full((levels.size, len(steps)), np.nan) for s in specs}
     run_time = np.full((levels.size, len(steps)), np.nan)
+    point_status = np.full(run_time.shape, "missing", dtype=object)
+    point_message = np.full(run_time.shape, "", dtype=object)
+    peaks = {measure: {s: np.full(run_time.shape, np.nan) for s in specs} for measure in PEAK_FIELDS}
     n_dof = np.zeros(levels.size)
     for i, level in enumerate(levels):
         for j, n in enumerate(steps):
@@ -127,6 +186,10 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
             steady = solve_steady(linear)
             run_time[i, j] = time.perf_counter() - tick
             n_dof[i] = linear.system.n_dof
+            point_status[i, j], point_message[i, j] = steady.status, steady.message
+            for measure, summary in peak_summary(steady.response, steady.response_error).items():
+                for k, spec in enumerate(specs):
+                    peaks[measure][spec][i, j] = summary[k]
             response = steady.response[:: n // base]
             for k, spec in enumerate(specs):
                 error[spec][i, j] = np.abs(response[:, k] - reference[:, k]).max() / scale[k]
@@ -137,7 +200,9 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
         settings={"values": dict(values or {}), "n_steps": steps, "reference_steps": reference_steps,
                   "resolution": [name, levels] if name else None},
         resolutions=levels, n_steps=np.array(steps), n_dof=n_dof, error=error, error_estimate=estimate,
-        run_time=run_time, reference_steps=reference_steps, reference_run_time=reference_time)
+        point_run_time=run_time, reference_steps=reference_steps, reference_run_time=reference_time,
+        run_time=time.perf_counter() - start, status=reference_state.status, message=reference_state.message,
+        point_status=point_status.astype(str), point_message=point_message.astype(str), **peaks)
 
 
 #: The most step counts an error-cost study compares (each is a run of its own).
@@ -176,7 +241,7 @@ def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> ErrorCostResult:
 def _summary(result: ErrorCostResult) -> str:
     best = ", ".join(f"{k} {v[-1, -1]:.2g}" for k, v in result.error.items())
     return (f"{len(result.n_steps)} step counts x {len(result.resolutions)} resolutions; finest relative "
-            f"error {best} in {result.run_time[-1, -1]:.3g} s")
+            f"error {best} in {result.point_run_time[-1, -1]:.3g} s")
 
 
 def _headlines(result: ErrorCostResult) -> Summary:
@@ -184,10 +249,9 @@ def _headlines(result: ErrorCostResult) -> Summary:
              if result.resolution_parameter else "")
     rows = [Headline(f"{spec} relative error at N = {result.n_steps[-1]}{level}", float(values[-1, -1]), "1",
                      where=f"(estimated {plain(result.error_estimate[spec][-1, -1])}; "
-                           f"{plain(result.run_time[-1, -1])} s)")
+                           f"{plain(result.point_run_time[-1, -1])} s)")
             for spec, values in result.error.items()]
-    return Summary(status="ok", run_time=float(result.reference_run_time + np.nansum(result.run_time)),
-                   rows=rows)
+    return Summary(status=result.status, run_time=float(result.run_time), rows=rows)
 
 
 def _varies(options: Mapping[str, Any]) -> tuple[str, ...]:

@@ -25,7 +25,8 @@ from .._kind import (
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, drawn, headline, label, plain
 from .._problem import SPEED
-from .._store import Result, register
+from .._result import DerivedPeaks, StudyResult, peaks_of
+from .._store import register
 from .._studies import check_integer, check_n_steps
 from .._summary import Headline, Summary
 from .._verdicts import combine
@@ -48,27 +49,66 @@ VERDICTS = ("failed", "not_periodic", "differs", "agrees")
 
 @register
 @dataclass(frozen=True, eq=False)
-class NonlinearCheck(Result):
-    """The full nonlinear model against the linear periodic solution.
-
-    ``t_linear`` (N+1,) s and ``linear`` {spec: (N+1,)}: the linear steady state over one period;
-    ``t`` (n_t,) s and ``nonlinear`` {spec: (n_t,)}: the nonlinear run from the linear state at t = 0
-    over ``n_periods``; ``linear_error`` and ``nonlinear_error`` {spec: float} the estimated max
-    error of each route (NaN when the integrator gives none); ``difference`` {spec: float} max over
-    the last period of |nonlinear - linear|; ``relative_difference`` {spec: float} the same over the
-    linear peak-to-peak; ``periodicity_defect`` {spec: float} max |o(t) - o(t - T)| over the last
-    period of the nonlinear run; from rest (when asked): ``t_rest``, ``rest`` {spec: (n_rest,)},
-    ``rest_difference`` {spec: float} over the last period, ``periods_to_steady`` (periods until the
-    periodicity defect fell below ``steady_tol`` times the peak-to-peak, NaN if never); costs
-    ``linear_run_time``, ``nonlinear_run_time``, ``rest_run_time`` s.
+class NonlinearCheck(DerivedPeaks, StudyResult):
+    """The full nonlinear model against the linear periodic solution (the fields every result has:
+    ``studies._result``).
 
     ``verdict``: ``"agrees"`` (every observable's difference within ``linear_error + nonlinear_error +
     tolerance * peak-to-peak``), ``"differs"`` (not so: ``message`` gives the relative difference and
     the linear-range measures that explain it), ``"not_periodic"`` (the periodicity defect exceeds
     ``2 nonlinear_error + periodic_tol * peak-to-peak``: the machine does not settle) or ``"failed"``
-    (the nonlinear run failed; ``message`` says why, the nonlinear fields are empty). ``status``,
-    ``is_stable``: the linear steady state's verdict (``failed`` when the run failed), its message
-    first in ``message``; ``linear_range`` {"<link>.<measure>": value} of the linear solution.
+    (the nonlinear run failed; ``message`` says why, the nonlinear fields are empty).
+
+    Attributes
+    ----------
+    problem, scene : str
+        The problem's name and scene text.
+    parameters : dict
+        {name: value} the point checked.
+    units : dict
+        {spec: unit} of each observable.
+    settings : dict
+        The study's arguments.
+    t_linear : ndarray, (N+1,), s
+        The linear steady state's samples over one period.
+    linear : dict of ndarray, {spec: (N+1,)}, units[spec]
+        The linear steady state.
+    linear_error, nonlinear_error : dict, {spec: float}, units[spec]
+        The estimated max error of each route (NaN when the integrator gives none).
+    t : ndarray, (n_t,), s
+        The nonlinear run's samples (from the linear state at t = 0, over ``n_periods``).
+    nonlinear : dict of ndarray, {spec: (n_t,)}, units[spec]
+        The nonlinear run.
+    difference : dict, {spec: float}, units[spec]
+        The max over the last period of |nonlinear - linear|.
+    relative_difference : dict, {spec: float}, 1
+        The same over the linear peak-to-peak.
+    periodicity_defect : dict, {spec: float}, units[spec]
+        The max |o(t) - o(t - T)| over the last period of the nonlinear run.
+    linear_run_time, nonlinear_run_time, rest_run_time : float, s
+        The cost of each run (NaN for one not run or failed).
+    t_rest : ndarray or None, (n_rest,), s
+        The run from rest (when asked).
+    rest : dict of ndarray, {spec: (n_rest,)}, units[spec]
+        Its observables.
+    rest_difference : dict, {spec: float}, units[spec]
+        Its difference from the linear state over the last period.
+    periods_to_steady : float
+        The periods until the periodicity defect fell below ``steady_tol`` times the peak-to-peak
+        (NaN if never).
+    verdict : str
+        See above.
+    status, message : str
+        The linear steady state's verdict (``failed`` when the run failed), its message first.
+    is_stable : bool
+        The linear steady state's stability.
+    linear_range : dict, {"<link>.<measure>": float}, 1
+        The linear solution's linear-range measures.
+    run_time : float, s
+        Property: the sum of the runs' costs.
+    peak, peak_error, peak_to_peak, peak_to_peak_error : dict, {spec: float}, units[spec]
+        Properties: over the last period of the nonlinear run, with its error estimate (NaN when it
+        failed or gives none).
     """
 
     problem: str
@@ -87,7 +127,7 @@ class NonlinearCheck(Result):
     periodicity_defect: Mapping[str, float]
     linear_run_time: float
     nonlinear_run_time: float
-    t_rest: np.ndarray = None
+    t_rest: np.ndarray | None = None
     rest: Mapping[str, np.ndarray] = field(default_factory=dict)
     rest_difference: Mapping[str, float] = field(default_factory=dict)
     periods_to_steady: float = float("nan")
@@ -100,6 +140,18 @@ class NonlinearCheck(Result):
 
     _units = {"t_linear": "s", "linear": "@observables", "t": "s", "nonlinear": "@observables",
               "t_rest": "s", "rest": "@observables"}
+
+    @property
+    def run_time(self) -> float:
+        """The study's cost, s: its runs' (linear, nonlinear, from rest) together."""
+        return float(np.nansum([self.linear_run_time, self.nonlinear_run_time, self.rest_run_time]))
+
+    def _peaks(self) -> dict[str, dict[str, float]]:
+        """Over the last period of the nonlinear run (NaN where it failed)."""
+        steps = int(self.settings.get("n_steps", np.size(self.t_linear) - 1))
+        last = {spec: np.asarray(self.nonlinear.get(spec, np.full(steps + 1, np.nan)))[-(steps + 1):]
+                for spec in self.linear}
+        return peaks_of(last, self.nonlinear_error)
 
     def plot(self, *, axes: Any = None) -> Plot:
         """Nonlinear run from the linear state (and from rest) against the linear periodic solution,
@@ -258,7 +310,7 @@ def _against_periodic_state(problem, values, n_steps, common, lin, scale, linear
     return NonlinearCheck(
         **dict(common, settings=dict(common["settings"], periodic_state=True)), t=orbit.t,
         nonlinear=dict(orbit.response), nonlinear_error=nonlinear_error, difference=difference,
-        relative_difference=relative, periodicity_defect=defect, nonlinear_run_time=orbit.run_time,
+        relative_difference=relative, periodicity_defect=defect, nonlinear_run_time=orbit.shooting_run_time,
         verdict=verdict, status=status,
         message=f"{words}; against the nonlinear periodic state ({orbit.message}); {linear_words}", **extra)
 
@@ -353,9 +405,8 @@ def _headlines(result: NonlinearCheck) -> Summary:
                              f"({plain(100 * result.relative_difference[spec])} % of peak to peak)"))
     if np.isfinite(result.periods_to_steady):
         rows.append(Headline("periods to steady state from rest", result.periods_to_steady))
-    run_time = float(np.nansum([result.linear_run_time, result.nonlinear_run_time, result.rest_run_time]))
     words = f"{result.verdict.replace('_', ' ')} at speed {plain(speed, 3)} rad/s (linear: {headline(result.status)})"
-    return Summary(status=words, run_time=run_time, rows=rows)
+    return Summary(status=words, run_time=result.run_time, rows=rows)
 
 
 KIND = StudyKind(name="nonlinear_check", result=NonlinearCheck,

@@ -19,7 +19,8 @@ from .._kind import StudyKind, integer, number, speed_values, steps
 from .._mechanism import observables_along, of_coordinates
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
-from .._store import Result, register
+from .._result import DerivedPeaks, StudyResult, peaks_of
+from .._store import register
 from .._studies import check_integer, check_n_steps
 from .._summary import Headline, Summary, response_rows
 
@@ -44,27 +45,70 @@ MAX_RELATIVE_ERROR = periodic.MAX_RELATIVE_ERROR
 
 @register
 @dataclass(frozen=True, eq=False)
-class NonlinearSteadyState(Result):
-    """The periodic orbit of the full nonlinear model over one period, with its stability.
+class NonlinearSteadyState(DerivedPeaks, StudyResult):
+    """The periodic orbit of the full nonlinear model over one period, with its stability (the
+    fields every result has: ``studies._result``).
 
-    ``t`` (N+1,) s; ``crank_angle`` (N+1,) rad; ``x`` (N+1, m + L) the independent coordinates' deviation
-    from the nominal rigid motion (SI unit of each coordinate, see ``labels``), then the states of the
-    L lagged controllers (N m, ``lag.<name>``; L = 0 without); ``response``
-    {spec: (N+1,)} observables as the linear steady state reports them (deviations from their
-    nominal values; joint forces, drive torques and stresses as totals, a drive's torque as the run
-    applied it: feedforward plus feedback clipped to its limits, plus lag states);
-    ``response_error`` {spec: float} the estimated max abs error of each (N against N/2 steps); ``linear_response``
-    {spec: (N+1,)} the linear periodic state on the same grid;
-    ``state`` (2m + L,) the orbit's shooting state (coordinates and rates at t = 0, then the lag
-    states); ``multipliers`` (2m + L,) complex, the Floquet multipliers of the nonlinear orbit (from the
-    monodromy of the discrete step map), ``multiplier_errors`` (2m + L,) the error estimate of their
-    moduli, ``spectral_radius``;
-    ``error_estimate`` max abs error of ``state``; ``iterations`` Newton steps, ``map_calls`` period
-    map evaluations (N/2 included), ``residual`` the final relative residual; ``status``,
-    ``message``, ``is_stable``: ``periodic.find_orbit``'s verdict (``failed`` with the reason when
-    Newton did not converge), ``instability_kind`` the bifurcation kind ("fold", "period_doubling",
-    "secondary_hopf" or ""); ``run_time`` s of the shooting (N and N/2, JIT compilation excluded),
-    ``linear_run_time`` s of the linear start.
+    Attributes
+    ----------
+    problem, scene : str
+        The problem's name and scene text.
+    parameters : dict
+        {name: value} where the orbit is sought.
+    units : dict
+        {spec: unit} of each observable.
+    response : dict of ndarray, {spec: (N+1,)}, units[spec]
+        The observables as the linear steady state reports them (deviations from their nominal
+        values; joint forces, drive torques and stresses as totals, a drive's torque as the run
+        applied it: feedforward plus feedback clipped to its limits, plus lag states).
+    response_error : dict, {spec: float}, units[spec]
+        The estimated max abs error of each (N against N/2 steps).
+    linear_response : dict of ndarray, {spec: (N+1,)}, units[spec]
+        The linear periodic state on the same grid.
+    labels : tuple of str, (m + L,)
+        The independent coordinates, then ``lag.<name>`` of the L lagged controllers.
+    t : ndarray, (N+1,), s
+        The samples over one period.
+    crank_angle : ndarray, (N+1,), rad
+        The crank angle at each sample.
+    x : ndarray, (N+1, m + L), SI (see labels)
+        The independent coordinates' deviation from the nominal rigid motion, then the lag states
+        (N m; L = 0 without).
+    state : ndarray, (2m + L,), SI
+        The orbit's shooting state (coordinates and rates at t = 0, then the lag states).
+    multipliers : ndarray of complex, (2m + L,), 1
+        The Floquet multipliers of the nonlinear orbit (from the monodromy of the discrete step map).
+    multiplier_errors : ndarray, (2m + L,), 1
+        The error estimate of their moduli.
+    spectral_radius : float, 1
+        Their largest modulus.
+    error_estimate : float, SI
+        The max abs error of ``state``.
+    iterations, map_calls : int
+        Newton steps, and period map evaluations (N/2 included).
+    residual : float, 1
+        The final relative residual.
+    status, message : str
+        ``periodic.find_orbit``'s verdict (``failed`` with the reason when Newton did not converge),
+        made at least ``inaccurate`` where its numbers are not trusted.
+    is_stable : bool
+        The orbit's stability (a best estimate where the status says it is not trusted).
+    instability_kind : str
+        "fold", "period_doubling", "secondary_hopf" or "".
+    n_steps : int
+        Steps per period N.
+    run_time : float, s
+        The whole study: the linear start and the shooting.
+    linear_run_time : float, s
+        The linear start.
+    shooting_run_time : float, s
+        The shooting (N and N/2, JIT compilation excluded).
+    settings : dict
+        The study's arguments.
+    peak, peak_error, peak_to_peak, peak_to_peak_error : dict, {spec: float}, units[spec]
+        Properties: of ``response`` with ``response_error`` (``studies._numerics.peak_summary``).
+    linear_peak_to_peak : dict, {spec: float}, units[spec]
+        Property: the peak-to-peak of ``linear_response``.
     """
 
     problem: str
@@ -94,6 +138,7 @@ class NonlinearSteadyState(Result):
     run_time: float
     linear_run_time: float
     settings: Mapping[str, Any] = field(default_factory=dict)
+    shooting_run_time: float = float("nan")
 
     _units = {"t": "s", "crank_angle": "rad", "x": "SI (see labels)", "response": "@observables",
               "linear_response": "@observables", "state": "SI (see labels: coordinates, rates, lags)",
@@ -103,9 +148,19 @@ class NonlinearSteadyState(Result):
     def headline(self) -> str:
         return headline(self.status, self.instability_kind)
 
-    def peak_to_peak(self, spec: str) -> tuple[float, float]:
-        """(nonlinear, linear) peak-to-peak of observable ``spec`` over the period."""
-        return float(np.ptp(self.response[spec])), float(np.ptp(self.linear_response[spec]))
+    def _peaks(self) -> dict[str, dict[str, float]]:
+        return peaks_of(self.response, self.response_error)
+
+    @property
+    def linear_peak_to_peak(self) -> dict[str, float]:
+        """{spec: float} the peak-to-peak of the linear periodic state (units of each spec)."""
+        return peaks_of(self.linear_response, {})["peak_to_peak"]
+
+    def _filled(self, group: Any) -> dict[str, Any]:
+        if "shooting_run_time" in group.attrs:
+            return {}
+        # written when run_time was the shooting's alone
+        return {"shooting_run_time": self.run_time, "run_time": self.run_time + self.linear_run_time}
 
     def plot(self, *, axes: Any = None) -> Plot:
         """Each observable over one crank revolution, nonlinear and linear (one axes each), and the
@@ -115,7 +170,7 @@ class NonlinearSteadyState(Result):
         angle = np.degrees(self.crank_angle - self.crank_angle[0])
         artists: dict[str, list] = {}
         for ax, spec in zip(axes, specs):
-            nonlinear, linear = self.peak_to_peak(spec)
+            nonlinear, linear = self.peak_to_peak[spec], self.linear_peak_to_peak[spec]
             artists[spec] = (ax.plot(angle, self.response[spec], color="C0", label="nonlinear periodic")
                              + ax.plot(angle, self.linear_response[spec], "--", color="C1",
                                        label="linear periodic"))
@@ -129,7 +184,7 @@ class NonlinearSteadyState(Result):
         artists["multipliers"] = plot_multipliers(
             self.multipliers, ax=axes[-1],
             title=f"spectral radius {self.spectral_radius:.6f}\n" + cost_line(
-                f"{self.iterations} Newton steps, state error {self.error_estimate:.2g}", self.run_time))
+                f"{self.iterations} Newton steps, state error {self.error_estimate:.2g}", self.shooting_run_time))
         return drawn(axes, artists)
 
 
@@ -352,8 +407,9 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
     status, message = untrusted_verdict(orbit.status, orbit.message, [r for r in reasons if r])
     run_time = time.perf_counter() - started
     if orbit.converged:
-        ratios = ", ".join(f"{spec} {np.ptp(response[spec]) / np.ptp(linear_response[spec]):.4g}"
-                           for spec in specs if np.ptp(linear_response[spec]) > 0)
+        nonlinear_ptp, linear_ptp = (peaks_of(r, {})["peak_to_peak"] for r in (response, linear_response))
+        ratios = ", ".join(f"{spec} {nonlinear_ptp[spec] / linear_ptp[spec]:.4g}"
+                           for spec in specs if linear_ptp[spec] > 0)
         message += f"; peak to peak nonlinear / linear: {ratios}"
     return NonlinearSteadyState(
         problem=problem.name, parameters=parameters, scene=problem.text, labels=tuple(linear.labels),
@@ -365,7 +421,7 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
         iterations=orbit.iterations, map_calls=orbit.map_calls, residual=orbit.residual,
         status=status, message=message, is_stable=orbit.is_stable,
         instability_kind="" if orbit.bifurcation == "none" else orbit.bifurcation, n_steps=n_steps,
-        run_time=run_time, linear_run_time=setup.run_time,
+        run_time=run_time + setup.run_time, linear_run_time=setup.run_time, shooting_run_time=run_time,
         settings={"n_steps": n_steps, "tol": tol, "max_iterations": max_iterations})
 
 
@@ -385,18 +441,19 @@ def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> NonlinearSteadyS
 def _summary(result: NonlinearSteadyState) -> str:
     errors = ", ".join(f"{k} +- {v:.2g}" for k, v in result.response_error.items())
     return (f"{result.headline}: {result.message}; spectral radius {result.spectral_radius:.6f}; errors "
-            f"{errors}; {result.run_time:.3g} s shooting + {result.linear_run_time:.3g} s linear start")
+            f"{errors}; {result.shooting_run_time:.3g} s shooting + {result.linear_run_time:.3g} s linear start")
 
 
 def _headlines(result: NonlinearSteadyState) -> Summary:
     rows = response_rows(result.response, result.response_error, result.units)
     for spec in result.response:
-        nonlinear, linear = result.peak_to_peak(spec)
+        # sampled, as the table's other peak-to-peak rows (``response_rows``)
+        nonlinear, linear = np.ptp(result.response[spec]), np.ptp(result.linear_response[spec])
         rows.append(Headline(f"{spec} peak to peak, nonlinear / linear", nonlinear / linear if linear else math.nan))
     errors = np.asarray(result.multiplier_errors, dtype=float)
     rows.append(Headline("spectral radius of the nonlinear orbit", float(result.spectral_radius), "1",
                          float(np.nanmax(errors)) if errors.size and np.isfinite(errors).any() else math.nan))
-    return Summary(status=result.headline, run_time=float(result.run_time) + float(result.linear_run_time),
+    return Summary(status=result.headline, run_time=float(result.run_time),
                    rows=rows)
 
 

@@ -17,10 +17,11 @@ import periodic
 from .._errors import StudiesError
 from .._kind import MAX_PERIODS, MAX_STEPS, PERIODS_WHY, STEPS_WHY, StudyKind, boolean, integer, number
 from .._mechanism import observables_along
-from .._numerics import solve_steady
+from .._numerics import peak, peak_to_peak, solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
 from .._problem import SPEED
-from .._store import Result, register
+from .._result import StudyResult, unknown_peaks
+from .._store import register
 from .._studies import check_integer, check_n_steps, check_parameter
 from .._summary import Headline, Summary, largest_over_grid
 from .nonlinear_steady_state import ERROR_FACTOR, MIN_STEPS, TOL, orbit_observables, shooting_setup, substep_verdict
@@ -40,23 +41,62 @@ ORBITS_WHY = "orbits of one branch, each a few nonlinear periods with their mono
 
 @register
 @dataclass(frozen=True, eq=False)
-class NonlinearSweep(Result):
-    """The nonlinear periodic orbit over one parameter, with the linear response for comparison.
+class NonlinearSweep(StudyResult):
+    """The nonlinear periodic orbit over one parameter, with the linear response for comparison (the
+    fields every result has: ``studies._result``; the grid is the branch's k orbits).
 
-        ``parameter`` ("speed" or a dotted scene path, unit ``parameter_unit``); ``values`` (k,) the branch's
-        parameter values in the order followed (not monotone past a fold); ``peak_to_peak`` {spec: (k,)} of
-        the nonlinear orbit and ``peak_to_peak_error`` {spec: (k,)} its estimated error (units of each spec;
-    ``|ptp_N - ptp_{N/2}| / 3`` from the orbit found again on N/2 steps, NaN where it was not found);
-    ``linear_at_branch`` {spec: (k,)} the linear periodic state's at the same values;
-        ``linear_values`` (n_lin,) and ``linear_peak_to_peak`` {spec: (n_lin,)} the linear curve over the
-        whole range; ``stable`` (k,) bool; ``spectral_radius`` (k,) of the nonlinear orbits; ``statuses``
-        (k,) each orbit's status (its stability decided with the error bars of the N/2 orbit's multipliers);
-        ``bifurcation_values`` (b,) and ``bifurcation_kinds`` (b,) where a
-        multiplier crosses the unit circle ("fold", "period_doubling", "secondary_hopf");
-        ``after_instability``: what the transient from the last stable orbit, just past the loss of
-        stability, does ("" when stability is not lost), with ``transient_value`` its parameter value,
-        ``transient_t`` (n_t,) s and ``transient`` {spec: (n_t,)} its observables (deviation from nominal);
-        ``status``, ``message`` the branch's (``periodic.continue_orbits``); ``run_time`` s.
+    Peaks and peak-to-peaks are those of ``studies._numerics.peak_summary`` (extremes refined through
+    their neighbours) for the nonlinear orbits and the linear curves alike; their errors
+    ``|value_N - value_{N/2}| / 3`` from the orbit found again on N/2 steps (NaN where it was not).
+
+    Attributes
+    ----------
+    problem, scene : str
+        The problem's name and scene text.
+    parameter : str
+        "speed" or a dotted scene path.
+    parameter_unit : str
+        Its unit.
+    units : dict
+        {spec: unit} of each observable.
+    values : ndarray, (k,), parameter_unit
+        The branch's parameter values in the order followed (not monotone past a fold).
+    peak_to_peak, peak_to_peak_error : dict of ndarray, {spec: (k,)}, units[spec]
+        The nonlinear orbit's peak-to-peak and its estimated error.
+    peak, peak_error : dict of ndarray, {spec: (k,)}, units[spec]
+        The nonlinear orbit's largest magnitude and its estimated error.
+    linear_at_branch : dict of ndarray, {spec: (k,)}, units[spec]
+        The linear periodic state's peak-to-peak at the same values.
+    linear_values : ndarray, (n_lin,), parameter_unit
+        The linear curve's values over the whole range.
+    linear_peak_to_peak : dict of ndarray, {spec: (n_lin,)}, units[spec]
+        The linear curve.
+    stable : ndarray of bool, (k,)
+        Each orbit's stability.
+    spectral_radius : ndarray, (k,), 1
+        Of the nonlinear orbits.
+    point_status : ndarray of str, (k,)
+        Each orbit's status (its stability decided with the error bars of the N/2 orbit's
+        multipliers).
+    bifurcation_values : ndarray, (b,), parameter_unit
+        Where a multiplier crosses the unit circle.
+    bifurcation_kinds : tuple of str, (b,)
+        "fold", "period_doubling", "secondary_hopf".
+    after_instability : str
+        What the transient from the last stable orbit, just past the loss of stability, does (""
+        when stability is not lost).
+    transient_value : float, parameter_unit
+        The transient's parameter value.
+    transient_t : ndarray, (n_t,), s
+        The transient's samples.
+    transient : dict of ndarray, {spec: (n_t,)}, units[spec]
+        Its observables (deviation from nominal).
+    status, message : str
+        The branch's (``periodic.continue_orbits``).
+    run_time : float, s
+        The whole study.
+    settings : dict
+        The study's arguments.
     """
 
     problem: str
@@ -72,7 +112,7 @@ class NonlinearSweep(Result):
     linear_peak_to_peak: Mapping[str, np.ndarray]
     stable: np.ndarray
     spectral_radius: np.ndarray
-    statuses: tuple[str, ...]
+    point_status: np.ndarray
     bifurcation_values: np.ndarray
     bifurcation_kinds: tuple[str, ...]
     after_instability: str
@@ -83,12 +123,24 @@ class NonlinearSweep(Result):
     message: str
     run_time: float
     settings: Mapping[str, Any] = field(default_factory=dict)
+    peak: Mapping[str, np.ndarray] = field(default_factory=dict)
+    peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
 
+    # written as "statuses" (a tuple) before the results shared their field names
+    _stored_as = {"point_status": ("point_status", "statuses")}
     _units = {"values": "@parameter_unit", "peak_to_peak": "@observables",
               "peak_to_peak_error": "@observables", "linear_at_branch": "@observables",
               "linear_values": "@parameter_unit", "linear_peak_to_peak": "@observables", "stable": "1",
               "spectral_radius": "1", "bifurcation_values": "@parameter_unit", "transient_t": "s",
-              "transient": "@observables"}
+              "transient": "@observables", "peak": "@observables", "peak_error": "@observables",
+              "point_status": "1"}
+
+    def _filled(self, group: Any) -> dict[str, Any]:
+        if "peak" in group:
+            return {}
+        unknown = unknown_peaks(self.peak_to_peak, np.shape(self.values))
+        return {"point_status": np.asarray(self.point_status, dtype=str), "peak": unknown["peak"],
+                "peak_error": unknown["peak_error"]}
 
     def plot(self, *, axes: Any = None) -> Plot:
         """Peak-to-peak of each observable against the parameter: the linear curve (dashed), the
@@ -207,6 +259,8 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
     specs = first.linear.observables
     nonlinear = {spec: [] for spec in specs}
     nonlinear_error = {spec: [] for spec in specs}
+    peaks = {spec: [] for spec in specs}
+    peak_errors = {spec: [] for spec in specs}
     linear_at = {spec: [] for spec in specs}
     statuses, split = list(branch.statuses), []
     for k, (value, state) in enumerate(zip(branch.parameters, branch.states)):
@@ -218,17 +272,18 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
             statuses[k] = substep_verdict(statuses[k], "", n_substeps + coarse_substeps, n_steps)[0]
             split.append(f"{value:.6g}")
         for j, spec in enumerate(specs):
-            nonlinear[spec].append(np.ptp(response[spec]))
-            nonlinear_error[spec].append(ERROR_FACTOR * abs(np.ptp(response[spec]) - np.ptp(coarse_response[spec]))
-                                         if coarse_response else math.nan)
-            linear_at[spec].append(np.ptp(steady.response[:, j]))
+            for values, errors, measure in ((nonlinear, nonlinear_error, peak_to_peak), (peaks, peak_errors, peak)):
+                values[spec].append(measure(response[spec])[0])
+                errors[spec].append(ERROR_FACTOR * abs(values[spec][-1] - measure(coarse_response[spec])[0])
+                                    if coarse_response else math.nan)
+            linear_at[spec].append(peak_to_peak(steady.response[:, j])[0])
     linear_values = np.linspace(start, stop, LINEAR_POINTS)
     linear_curve = {spec: [] for spec in specs}
     for value in linear_values:
         steady = solve_steady(problem.linearize(dict(fixed, **{parameter: float(value)}), n_steps=n_steps,
                                                 context=False))
         for k, spec in enumerate(specs):
-            linear_curve[spec].append(np.ptp(steady.response[:, k]))
+            linear_curve[spec].append(peak_to_peak(steady.response[:, k])[0])
     after, transient_value, transient_t, transient = _after_instability(
         problem, period_map, branch, fixed, parameter, n_steps, transient_periods, specs)
     message = branch.message + (f"; {after}" if after else "")
@@ -243,11 +298,14 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
         units=dict(zip(specs, first.linear.units)), values=np.asarray(branch.parameters, dtype=float),
         peak_to_peak={s: np.array(v, dtype=float) for s, v in nonlinear.items()},
         peak_to_peak_error={s: np.array(v, dtype=float) for s, v in nonlinear_error.items()},
+        peak={s: np.array(v, dtype=float) for s, v in peaks.items()},
+        peak_error={s: np.array(v, dtype=float) for s, v in peak_errors.items()},
         linear_at_branch={s: np.array(v, dtype=float) for s, v in linear_at.items()},
         linear_values=linear_values, linear_peak_to_peak={s: np.array(v) for s, v in linear_curve.items()},
         stable=np.asarray(branch.stable, dtype=bool),
         spectral_radius=np.array([np.abs(m).max() for m in branch.multipliers], dtype=float),
-        statuses=tuple(statuses), bifurcation_values=np.array([b[0] for b in branch.bifurcations], dtype=float),
+        point_status=np.array(statuses, dtype=str),
+        bifurcation_values=np.array([b[0] for b in branch.bifurcations], dtype=float),
         bifurcation_kinds=tuple(b[1] for b in branch.bifurcations), after_instability=after,
         transient_value=transient_value, transient_t=transient_t, transient=transient,
         status=status, message=message, run_time=time.perf_counter() - started,

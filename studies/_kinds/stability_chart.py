@@ -19,6 +19,7 @@ from .._kind import StudyKind, axis, steps, sub_table
 from .._numerics import STUDY_SCHEME
 from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses, plain, radius_norm
 from .._problem import SPEED
+from .._result import NoObservables
 from .._store import register
 from .._studies import (
     GridResult,
@@ -40,26 +41,36 @@ MIN_STEPS = 32
 
 @register
 @dataclass(frozen=True, eq=False)
-class StabilityChart(GridResult):
-    """Spectral radius over two parameters.
+class StabilityChart(NoObservables, GridResult):
+    """Spectral radius over two parameters (the fields every result has: ``studies._result``; no
+    observable response, so ``peak``... are empty; those of every grid study: ``GridResult``).
 
-    ``first`` (n1,) values of ``parameters[0]``, ``second`` (n2,) of ``parameters[1]`` (units
-    ``parameter_units``); ``spectral_radius`` (n1, n2) and ``spectral_radius_error`` (n1, n2) its
-    estimated error (N against N/2 steps); ``is_stable`` (n1, n2) bool, ``status`` and ``message``
-    each cell's verdict (unstable only beyond the radius's error bar, marginal within it);
-    ``stability_tol`` the tolerance of ``|mu| = 1``; ``run_time`` s; ``reduction_*`` the modal
-    reduction's check at the scene's values (``GridResult``).
+    Attributes
+    ----------
+    parameters : tuple of str, (2,)
+        The two parameters.
+    parameter_units : tuple of str, (2,)
+        Their units.
+    first : ndarray, (n1,), parameter_units[0]
+        The values of ``parameters[0]``.
+    second : ndarray, (n2,), parameter_units[1]
+        The values of ``parameters[1]``.
+    spectral_radius, spectral_radius_error : ndarray, (n1, n2), 1
+        The spectral radius of each cell and its estimated error (N against N/2 steps).
+    is_stable : ndarray of bool, (n1, n2)
+        Each cell's stability (unstable only beyond the radius's error bar, marginal within it).
+    stability_tol : float, 1
+        The tolerance of ``|mu| = 1``.
     """
 
     parameters: tuple[str, str]
     parameter_units: tuple[str, str]
     first: np.ndarray
     second: np.ndarray
-    spectral_radius: np.ndarray = None
-    spectral_radius_error: np.ndarray = None
+    spectral_radius: np.ndarray | None = None
+    spectral_radius_error: np.ndarray | None = None
     stability_tol: float = 1e-6
-    run_time: float = float("nan")
-    is_stable: np.ndarray = None
+    is_stable: np.ndarray | None = None
 
     _units = {"spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1", **GridResult._units}
 
@@ -90,7 +101,7 @@ class StabilityChart(GridResult):
         artists["colorbar"] = [colorbar]
         # each cell's verdict: unstable cells crossed, marginal / inaccurate ... marked, with a legend
         first, second = np.meshgrid(self.first, self.second, indexing="ij")
-        artists["status"] = mark_statuses(ax, first, second, self.status)
+        artists["status"] = mark_statuses(ax, first, second, self.point_status)
         if artists["status"]:
             ax.legend(fontsize="x-small", loc="upper left", framealpha=0.6)
         ax.set_xlabel(label(self.parameters[0], self.parameter_units[0]))
@@ -188,7 +199,7 @@ def _headlines(result: StabilityChart) -> Summary:
         return (f"{a} {plain(result.first[index[0]], 3)} {ua}, ".replace(" 1,", ",")
                 + f"{b} {plain(result.second[index[1]], 3)} {ub}".removesuffix(" 1"))
 
-    unstable = (result.status == "unstable") & result.done
+    unstable = (result.point_status == "unstable") & result.done
     rows = [Headline("unstable points", f"{int(unstable.sum())} of {int(result.done.sum())}")]
     if unstable.any():
         i, j = np.nonzero(unstable)

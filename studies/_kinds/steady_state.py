@@ -13,7 +13,8 @@ from .._drawing import draw_mechanism, mechanism_drawing
 from .._kind import StudyKind, speed_values, steps
 from .._numerics import peak_summary, solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain, plot_multipliers
-from .._store import Result, register
+from .._result import StudyResult
+from .._store import register
 from .._studies import check_n_steps
 from .._summary import Headline, Summary, response_rows
 from .._verdicts import combine
@@ -25,30 +26,77 @@ MIN_STEPS = 16
 
 @register
 @dataclass(frozen=True, eq=False)
-class SteadyStateResult(Result):
-    """Periodic steady response over one period, with Floquet multipliers.
+class SteadyStateResult(StudyResult):
+    """Periodic steady response over one period, with Floquet multipliers (the fields every result
+    has: ``studies._result``).
 
-    ``t`` (N+1,) s; ``crank_angle`` (N+1,) rad; ``x`` (N+1, m) independent coordinates (SI unit of each
-    coordinate, see ``labels``); ``response`` {spec: (N+1,)} observables; ``response_error``
-    {spec: float} estimated max abs error of each; ``peak``, ``peak_to_peak`` {spec: float} the
-    largest magnitude and the peak-to-peak of each over the period, ``peak_error``,
-    ``peak_to_peak_error`` {spec: float} their estimated errors (``studies._numerics.peak_summary``),
-    in the observables' units (for joint forces, drive torques and stresses: of the totals, nominal
-    plus elastic change); ``multipliers`` (2m,) complex; ``error_estimate``
-    max abs error of ``x``; ``spectral_radius_error`` its estimated error; ``status``, ``message``,
-    ``is_stable`` the verdict (``studies._verdicts``: stability with its error bar, error trust, near
-    resonance, unresolved modes, linear range); ``instability_kind`` ("fold", "period_doubling",
-    "secondary_hopf" or ""); ``linear_range`` {"<link>.<measure>": value} the linear-range measures
-    (empty for problems without links); ``run_time`` s (linearisation, N, N/2, N/4 shooting); for mechanisms
-    ``outlines`` {link: (N+1, n_points, 2)} m, points along each link over the period with the
-    deflection magnified ``magnification`` times (empty for other problems); ``rigid_outlines`` the
-    same points without deflection, ``plates`` {link: (N+1, k, 2)} m the corners of rigid links with
-    named points, ``joints`` {joint: (N+1, 2)} m, ``ground_joints`` the joints on the ground (see
-    ``studies._drawing.mechanism_drawing``); ``drive`` the joint of the turning drive ("" without
-    one: figures use time as abscissa) and ``drive_rate`` its rate, rad/s; ``reduction_error``
-    (relative, 1) the modal reduction's error (``linearize.reduction_error`` against the next larger
-    mode set: the largest difference of an observable over its peak-to-peak; 0 without a reduced
-    link), its verdict among the others, and ``reduction_run_time`` s its cost (in ``run_time``).
+    Attributes
+    ----------
+    problem : str
+        The problem's name.
+    parameters : dict
+        {name: value} the parameter values of the point.
+    scene : str
+        The scene text.
+    labels : tuple of str, (m,)
+        The independent coordinates.
+    units : dict
+        {spec: unit} of each observable.
+    t : ndarray, (N+1,), s
+        The time samples over one period.
+    crank_angle : ndarray, (N+1,), rad
+        The crank angle at each sample.
+    x : ndarray, (N+1, m), SI (see labels)
+        The independent coordinates.
+    response : dict of ndarray, {spec: (N+1,)}, units[spec]
+        The observables (for joint forces, drive torques and stresses: the totals, nominal plus
+        elastic change).
+    response_error : dict, {spec: float}, units[spec]
+        The estimated max abs error of each observable (N against N/2).
+    peak, peak_error, peak_to_peak, peak_to_peak_error : dict, {spec: float}, units[spec]
+        The largest magnitude and the peak-to-peak of each observable over the period and their
+        estimated errors (``studies._numerics.peak_summary``).
+    multipliers : ndarray of complex, (2m,), 1
+        The Floquet multipliers.
+    spectral_radius, spectral_radius_error : float, 1
+        Their largest modulus and its estimated error.
+    error_estimate : float, SI
+        The max abs error of ``x``.
+    status, message : str
+        The verdict (``studies._verdicts``: stability with its error bar, error trust, near
+        resonance, unresolved modes, linear range, modal reduction).
+    is_stable : bool
+        False only where unstable.
+    instability_kind : str
+        "fold", "period_doubling", "secondary_hopf" or "".
+    linear_range : dict, {"<link>.<measure>": float}, 1
+        The linear-range measures (empty for problems without links).
+    n_steps : int
+        Steps per period N.
+    run_time : float, s
+        Linearisation, N, N/2, N/4 shooting and the reduction check.
+    shooting_run_time : float, s
+        The shooting alone.
+    outlines, rigid_outlines : dict of ndarray, {link: (N+1, n_points, 2)}, m
+        Points along each link over the period, with the deflection magnified ``magnification``
+        times and without deflection (empty for other problems than mechanisms).
+    magnification : float, 1
+        The deflection's magnification in the drawings.
+    plates : dict of ndarray, {link: (N+1, k, 2)}, m
+        The corners of rigid links with named points.
+    joints : dict of ndarray, {joint: (N+1, 2)}, m
+        The joints' positions (``studies._drawing.mechanism_drawing``).
+    ground_joints : tuple of str
+        The joints on the ground.
+    drive : str
+        The joint of the turning drive ("" without one: figures use time as abscissa).
+    drive_rate : float, rad/s
+        Its rate.
+    reduction_error : float, 1
+        The modal reduction's error (``linearize.reduction_error`` against the next larger mode set:
+        the largest difference of an observable over its peak-to-peak; 0 without a reduced link).
+    reduction_run_time : float, s
+        Its cost (in ``run_time``).
     """
 
     problem: str
@@ -82,7 +130,7 @@ class SteadyStateResult(Result):
     rigid_outlines: Mapping[str, np.ndarray] = field(default_factory=dict)
     plates: Mapping[str, np.ndarray] = field(default_factory=dict)
     joints: Mapping[str, np.ndarray] = field(default_factory=dict)
-    ground_joints: tuple = ()
+    ground_joints: tuple[str, ...] = ()
     drive: str = ""
     drive_rate: float = float("nan")
     reduction_error: float = 0.0
@@ -201,7 +249,7 @@ def _reduction_error(linear: Any, x: np.ndarray, n_steps: int) -> Any:
 
     lin = linear.context
     if getattr(lin, "mechanism", None) is None:   # not a mechanism: nothing is reduced
-        return linearize.ReductionError("next", {}, {}, {}, 0.0, linearize.REDUCTION_TOL, "ok",
+        return linearize.ReductionCheck("next", {}, {}, {}, 0.0, linearize.REDUCTION_TOL, "ok",
                                         "no reduced link", 0.0)
     return linearize.reduction_error(lin.mechanism, n_steps=n_steps, observables=lin.observables,
                                      response=lin.observe(x))

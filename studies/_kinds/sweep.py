@@ -62,23 +62,45 @@ MIN_STEPS = 16
 @register
 @dataclass(frozen=True, eq=False)
 class SweepResult(GridResult):
-    """Peak-to-peak response and stability against one parameter.
+    """Peak-to-peak response and stability against one parameter (the fields every result has:
+    ``studies._result``; those of every grid study: ``GridResult``).
 
-    ``values`` (n,) of ``parameter`` (unit ``parameter_unit``); ``speed`` (n,) crank speed rad/s at
-    each point; ``peak_to_peak`` {spec: (n,)} and ``peak_to_peak_error`` {spec: (n,)} (twice the max
-    error estimate plus the sampling correction of the extremes); ``peak`` {spec: (n,)} the largest
-    magnitude over the period and ``peak_error`` {spec: (n,)} (``studies._numerics.peak_summary``;
-    for joint forces, drive torques and stresses the totals, nominal plus elastic change); ``spectral_radius`` (n,);
-    ``multipliers`` (n, 2m) complex; ``error_estimate`` (n,)
-    max error of the coordinates; ``frozen_min``, ``frozen_max``, ``frozen_mean`` (n, m) rad/s the
-    band of each frozen-time natural frequency (ascending order) over the period; ``resonances``
-    ((k, mode, value), ...) where ``k * speed`` crosses the mean of frozen frequency ``mode``
-    (0-based); ``instabilities`` ((start, end), ...) parameter intervals with spectral radius above 1
-    (parametric instability: unstable beyond the radius's error bar); ``spectral_radius_error`` (n,);
-    ``is_stable`` (n,) bool; ``status``, ``message`` (n,) each point's verdict; ``linear_range``
-    {"<link>.<measure>": (n,)} the linear-range measures (mechanisms); ``run_time`` s wall time of
-    the whole sweep; ``reduction_*`` the modal reduction's check at the scene's values
-    (``GridResult``).
+    Attributes
+    ----------
+    parameter : str
+        The swept parameter ("speed" or a scene path).
+    parameter_unit : str
+        Its unit.
+    labels : tuple of str, (m,)
+        The independent coordinates.
+    units : dict
+        {spec: unit} of each observable.
+    values : ndarray, (n,), parameter_unit
+        The swept values.
+    speed : ndarray, (n,), rad/s
+        The crank speed at each point.
+    peak_to_peak, peak_to_peak_error : dict of ndarray, {spec: (n,)}, units[spec]
+        Each observable's peak-to-peak over the period and its estimated error (twice the max error
+        estimate plus the sampling correction of the extremes).
+    peak, peak_error : dict of ndarray, {spec: (n,)}, units[spec]
+        The largest magnitude over the period and its error (``studies._numerics.peak_summary``; for
+        joint forces, drive torques and stresses the totals, nominal plus elastic change).
+    spectral_radius, spectral_radius_error : ndarray, (n,), 1
+        The monodromy's spectral radius and its estimated error.
+    is_stable : ndarray of bool, (n,)
+        Each point's stability verdict (unstable only beyond the radius's error bar).
+    multipliers : ndarray of complex, (n, 2m), 1
+        The Floquet multipliers.
+    error_estimate : ndarray, (n,), SI (see labels)
+        The max error of the coordinates.
+    frozen_min, frozen_max, frozen_mean : ndarray, (n, m), rad/s
+        The band of each frozen-time natural frequency (ascending order) over the period.
+    resonances : tuple of (k, mode, value)
+        Where ``k * speed`` crosses the mean of frozen frequency ``mode`` (0-based).
+    instabilities : tuple of (start, end)
+        Parameter intervals where the spectral radius exceeds 1 beyond its error bar.
+    linear_range : dict of ndarray, {"<link>.<measure>": (n,)}, 1
+        The linear-range measures (mechanisms).
     """
 
     parameter: str
@@ -86,20 +108,19 @@ class SweepResult(GridResult):
     labels: tuple[str, ...]
     units: Mapping[str, str]
     values: np.ndarray
-    speed: np.ndarray = None
+    speed: np.ndarray | None = None
     peak_to_peak: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak_to_peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
-    spectral_radius: np.ndarray = None
-    multipliers: np.ndarray = None
-    error_estimate: np.ndarray = None
-    frozen_min: np.ndarray = None
-    frozen_max: np.ndarray = None
-    frozen_mean: np.ndarray = None
+    spectral_radius: np.ndarray | None = None
+    multipliers: np.ndarray | None = None
+    error_estimate: np.ndarray | None = None
+    frozen_min: np.ndarray | None = None
+    frozen_max: np.ndarray | None = None
+    frozen_mean: np.ndarray | None = None
     resonances: tuple = ()
     instabilities: tuple = ()
-    run_time: float = float("nan")
-    spectral_radius_error: np.ndarray = None
-    is_stable: np.ndarray = None
+    spectral_radius_error: np.ndarray | None = None
+    is_stable: np.ndarray | None = None
     linear_range: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
@@ -146,7 +167,7 @@ class SweepResult(GridResult):
         artists["status"] = []
         for ax, y in zip(axes, curves):
             if y is not None:
-                artists["status"] += mark_statuses(ax, x, y, self.status)
+                artists["status"] += mark_statuses(ax, x, y, self.point_status)
         if artists["status"]:
             axes[-1].legend(fontsize="x-small", loc="best")
         for ax in axes:
@@ -305,7 +326,7 @@ def _headlines(result: SweepResult) -> Summary:
     # A largest response is a headline only where the point's verdict is "ok": at an unstable point, or
     # one outside the linear range, the linear periodic solution is not what the machine does. The
     # largest over all points is shown as well when it sits at such a point, with that point's status.
-    statuses = np.asarray(result.status)
+    statuses = np.asarray(result.point_status)
     trusted = np.asarray(result.done, dtype=bool) & (statuses == "ok")
 
     def largest(name: str, values: Any, errors: Any, unit_of_values: str) -> list[Headline]:
