@@ -47,8 +47,31 @@ _STRESS_KINDS = {"stress_top": 1.0, "stress_bottom": -1.0}  # sign of the fibre'
 _JOINT_KINDS = ("fx", "fy", "force")
 
 
+# How an observable is evaluated is its own business: each class below says it in two methods,
+# ``linear_map(route)`` (the linearisation: ``route`` is what ``linearize`` hands over) and
+# ``along_run(run, linear_map)`` (a full nonlinear run: ``run`` is what ``studies`` hands over),
+# both duck-typed and documented in ``_protocol.py`` (``LinearRoute``, ``RunRoute``). A route
+# offers a few primitives (a gradient map, a sum of multipliers, a drive's torque law, a magnitude,
+# the nominal axial force) and the observable composes them. We prefer this to a declared category
+# read through a table in ``linearize`` and ``studies``: a new kind of observable built from the
+# same primitives (a new joint's force map, a new stress) then needs no edit of either table, and
+# mechanisms still imports neither package.
+class _OfCoordinates:
+    """The route of a function of the coordinates ``s`` alone: its linear change is
+    ``gradient(s0) . x``; along a run, its value less its value along the nominal motion."""
+
+    of_coordinates = True        # value(s) and gradient(s) are the whole quantity
+    needs_multipliers = False    # its linear map reads no multiplier maps
+
+    def linear_map(self, route):
+        return route.coordinates(self)
+
+    def along_run(self, run, linear_map) -> np.ndarray:
+        return run.coordinates(self, linear_map)
+
+
 @dataclass(frozen=True)
-class LinkObservable:
+class LinkObservable(_OfCoordinates):
     """One observable (see the module docstring). ``value(s)`` -> float, ``gradient(s)`` -> (n,)."""
 
     spec: str
@@ -132,7 +155,7 @@ def default_observables(mechanism) -> tuple[str, ...]:
 
 
 @dataclass(frozen=True)
-class PointObservable:
+class PointObservable(_OfCoordinates):
     """Global x or y position (m) of a material point of a link (module docstring):
     ``r = R + A(theta) (p + S q)``, ``p = (px, py)`` its undeformed local position, ``S = [Su; Sw]``
     the link's shape rows there (empty for a rigid link). ``value(s)`` -> float, ``gradient(s)``
@@ -191,6 +214,15 @@ class MultiplierObservable:
     kind: str
     weights: np.ndarray    # (r,)
 
+    of_coordinates = False
+    needs_multipliers = True
+
+    def linear_map(self, route):
+        return route.multipliers(self.weights, self.unit)
+
+    def along_run(self, run, linear_map) -> np.ndarray:
+        return run.multipliers(self.weights)
+
     def value_from(self, lam) -> float:
         return float(self.weights @ np.asarray(lam, dtype=float))
 
@@ -212,6 +244,17 @@ class TorqueLawObservable:
     gradient: np.ndarray   # h (n,)
     joint: str
 
+    of_coordinates = False
+    needs_multipliers = False
+
+    def linear_map(self, route):
+        return route.torque_law(self.drive_index, self.joint, self.unit)
+
+    def along_run(self, run, linear_map) -> np.ndarray:
+        # what the run applied: feedforward and feedback summed before the drive's limits, which
+        # the linear route's nominal + change cannot show
+        return run.drive_torque(self.drive_index)
+
     def value(self, s) -> float:
         raise _not_of_coordinates(self.spec, "the drive's torque law: Model.drive_torques(s, "
                                              "sdot, t, lam)")
@@ -226,6 +269,19 @@ class PairMagnitude:
     unit: str
     kind: str
     components: tuple      # (observable a, observable b)
+
+    of_coordinates = False   # the magnitude of a change is not a function of s (value raises)
+
+    @property
+    def needs_multipliers(self) -> bool:
+        return any(component.needs_multipliers for component in self.components)
+
+    def linear_map(self, route):
+        return route.magnitude(self.unit, tuple(c.linear_map(route) for c in self.components))
+
+    def along_run(self, run, linear_map) -> np.ndarray:
+        return np.hypot(*(component.along_run(run, component_map) for component, component_map
+                          in zip(self.components, linear_map.components)))
 
     def value(self, s) -> float:
         raise _not_of_coordinates(self.spec, "the magnitude of a change or of a force: "
@@ -257,7 +313,23 @@ class StressObservable:
     def needs_axial_force(self) -> bool:
         return self.strain is None
 
+    @property
+    def of_coordinates(self) -> bool:
+        return not self.needs_axial_force
+
     depends_on_elastic_only = True
+    needs_multipliers = False
+
+    def linear_map(self, route):
+        # the nominal axial stress of an axially rigid link (not a function of s) plus the elastic
+        # change; with axial coordinates the strain's response carries the whole axial force
+        nominal = (route.axial_force(self.link, self.x) / self.area if self.needs_axial_force
+                   else None)
+        return route.coordinates(self, nominal=nominal)
+
+    def along_run(self, run, linear_map) -> np.ndarray:
+        # the elastic part along the run; the run adds the map's nominal axial stress
+        return run.coordinates(self, linear_map, value=lambda s: self.value(s, axial_force=0.0))
 
     def value(self, s, axial_force: float | None = None) -> float:
         """The stress at ``s``; ``axial_force`` (N) is required without axial coordinates (and
