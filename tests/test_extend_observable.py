@@ -253,3 +253,26 @@ def test_a_sweep_reports_it_resumes_by_its_spec_and_refuses_other_observables(tm
     other = studies.MechanismProblem.from_mechanism(_four_bar(), observables=("coupler.curvature@0.25",))
     with studies.open_file(path) as out, pytest.raises(ValueError, match="other settings"):
         studies.sweep(other, "speed", speeds, n_steps=32, out=out)
+
+
+def test_the_command_reports_it_from_a_scenes_observables(tmp_path, capsys):
+    """``flexvib run`` called in-process on a scene whose ``[studies] observables`` name it: the
+    file holds what ``studies.steady_state`` gives; a misspelt name exits with code 2 and the
+    nearest name."""
+    from studies.cli import main
+
+    scene = _four_bar().to_toml() + ('\n[studies]\nobservables = ["coupler.curvature@0.5", "coupler.chord_angle"]'
+                                     '\n[studies.steady_state]\nn_steps = 32\n')
+    (tmp_path / "scene.toml").write_text(scene)
+    assert main(["run", str(tmp_path / "scene.toml"), "--out", str(tmp_path / "run.h5"), "--quiet"]) == 0
+    stored = studies.load(tmp_path / "run.h5")["steady_state"]
+    problem = studies.MechanismProblem.from_mechanism(
+        _four_bar(), observables=("coupler.curvature@0.5", "coupler.chord_angle"))
+    direct = studies.steady_state(problem, n_steps=32)
+    assert stored.units == direct.units
+    for spec in direct.units:
+        assert stored.peak_to_peak[spec] == pytest.approx(direct.peak_to_peak[spec], rel=1e-12)
+    (tmp_path / "typo.toml").write_text(scene.replace('"coupler.chord_angle"', '"coupler.chord_angel"'))
+    capsys.readouterr()
+    assert main(["run", str(tmp_path / "typo.toml"), "--out", str(tmp_path / "typo.h5"), "--quiet"]) == 2
+    assert "did you mean 'chord_angle'" in capsys.readouterr().err
