@@ -5,6 +5,7 @@ from ._about import SpeedFamily as SpeedFamily
 from ._about import about as about
 from ._about import default_observables as default_observables
 from ._about import speed_family as speed_family
+from ._about import supports_speed_family as supports_speed_family
 from ._core import LinearCoefficients as LinearCoefficients
 from ._core import LinearizationError as LinearizationError
 from ._core import linear_coefficients as linear_coefficients

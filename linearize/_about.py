@@ -31,8 +31,8 @@ from ._range import LinearRange, drive_probes, linear_range, link_probes, sample
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["LinearizedMechanism", "SpeedFamily", "about", "speed_family", "default_observables",
-           "ObservableMap"]
+__all__ = ["LinearizedMechanism", "SpeedFamily", "about", "speed_family", "supports_speed_family",
+           "default_observables", "ObservableMap"]
 
 
 @dataclass(frozen=True)
@@ -499,13 +499,20 @@ class SpeedFamily:
                                    run_time=time.perf_counter() - started)
 
 
+def supports_speed_family(mechanism) -> bool:
+    """Whether ``speed_family`` applies to ``mechanism``: it has drives and every one is a
+    ``mechanisms.PrescribedDrive`` (the motion a function of the phase 2 pi t / period)."""
+    return bool(mechanism.drives) and all(isinstance(d, mechanisms.PrescribedDrive)
+                                          for d in mechanism.drives)
+
+
 def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFamily:
     """Linearise once, with the coefficients' exact dependence on the speed (see ``SpeedFamily``).
     Needs every drive prescribed (a torque drive's feedforward and PD law are not polynomial in
     the speed: linearise it at each speed with ``about``)."""
     started = time.perf_counter()
     drives = mechanism.drives
-    if not drives or not all(isinstance(d, mechanisms.PrescribedDrive) for d in drives):
+    if not supports_speed_family(mechanism):
         raise LinearizationError(
             "speed_family needs every drive to be a PrescribedDrive (the motion a function of the "
             f"phase 2 pi t / period); received drives {drives!r}. Use linearize.about() at each "

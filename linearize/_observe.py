@@ -1,6 +1,7 @@
 """Maps from the independent coordinates ``z`` of a linearised mechanism to its observables.
 
-An observable of the coordinates (``mechanisms`` ``LinkObservable``, ``PointObservable``) changes by
+Each observable builds its map from the primitives of ``_Route`` (its ``linear_map``; the protocol is
+``mechanisms`` ``LinearRoute``). An observable of the coordinates changes by
 ``g(s0) . x`` with ``x = V z``: its *deviation* from the nominal value (zero for the elastic
 quantities; for a point's position, the point's displacement from its rigid nominal position). The
 force-like observables are reported as *totals*, nominal plus linearised change:
@@ -121,12 +122,9 @@ def torque_law_map(model, joint, t, s, sdot, coefficients, *, saturate=True):
 
 
 def needs_multiplier_maps(model, specs) -> bool:
-    """Whether any spec is (or has a component that is) a sum of multipliers: only those need
-    ``linear_coefficients(..., multipliers=True)``."""
-    def needs(obs):
-        return (type(obs).__name__ == "MultiplierObservable"
-                or any(needs(c) for c in getattr(obs, "components", ())))
-    return any(needs(model.observable(spec)) for spec in specs)
+    """Whether any spec's linear map reads the multipliers' change (its observable declares
+    ``needs_multipliers``): only those need ``linear_coefficients(..., multipliers=True)``."""
+    return any(model.observable(spec).needs_multipliers for spec in specs)
 
 
 def observable_maps(model, specs, *, t, s, sdot, sddot, lam, coefficients, drive_torque
@@ -134,54 +132,62 @@ def observable_maps(model, specs, *, t, s, sdot, sddot, lam, coefficients, drive
     """The ``ObservableMap`` of each spec of ``model.observable`` along the nominal motion ``s,
     sdot, sddot`` (N+1, n) at times ``t`` (N+1,), with the model's multipliers ``lam`` (N+1, r),
     the nominal drive torques ``drive_torque`` (N+1, n_drives) and the ``LinearCoefficients``
-    ``coefficients`` (basis ``V``, ``Vdot``, multiplier maps)."""
-    context = _Context(model, t, s, sdot, sddot, lam, coefficients, drive_torque)
-    return {spec: context.map(model.observable(spec)) for spec in specs}
+    ``coefficients`` (basis ``V``, ``Vdot``, multiplier maps). Each observable builds its own map
+    from the primitives of ``_Route`` (``mechanisms`` ``LinearRoute``)."""
+    route = _Route(model, t, s, sdot, sddot, lam, coefficients, drive_torque)
+    return {spec: model.observable(spec).linear_map(route) for spec in specs}
 
 
-class _Context:
+class _Route:
+    """The ``LinearRoute`` an observable's ``linear_map`` reads (``mechanisms/_protocol.py``):
+    the pieces of linear maps along one nominal motion."""
+
     def __init__(self, model, t, s, sdot, sddot, lam, coefficients, drive_torque):
         self.model, self.t, self.s, self.sdot, self.sddot, self.lam = model, t, s, sdot, sddot, lam
         self.c = coefficients
         self.drive_torque = drive_torque
         self.rigid_nominal = not np.any(s[:, np.asarray(model.elastic_index, dtype=np.int64)])
 
-    def map(self, obs) -> ObservableMap:
-        kind = type(obs).__name__
-        if kind == "PairMagnitude":
-            return ObservableMap(obs.unit, components=tuple(self.map(c) for c in obs.components))
-        if kind == "MultiplierObservable":
-            w = obs.weights
-            a_x, a_v, a_a = self.c.multiplier_maps
-            return ObservableMap(obs.unit, nominal=self.lam @ w,
-                                 position=np.einsum("r,kri->ki", w, a_x),
-                                 rate=np.einsum("r,kri->ki", w, a_v),
-                                 acceleration=np.einsum("r,kri->ki", w, a_a))
-        if kind == "TorqueLawObservable":
-            # change dtau/ds x + dtau/ds' x', x = V z, x' = V z' + V' z (the law's derivatives
-            # along the nominal motion: gains, motor back EMF, controller feedback)
-            law, position, rate = torque_law_map(self.model, obs.joint, self.t, self.s, self.sdot,
-                                                 self.c)
-            # on the nominal motion the feedback vanishes: the torque is the feedforward, the
-            # inverse-dynamics torque, or the law's own value (zero) when it is switched off
-            feedforward = self.model.mechanism.drives[obs.drive_index].feedforward
-            nominal = self.drive_torque[:, obs.drive_index].copy() if feedforward else law
-            return ObservableMap(obs.unit, nominal=nominal, position=position, rate=rate)
-        position = self._gradient_map(obs)
-        nominal = None
-        if kind == "StressObservable" and obs.needs_axial_force:
-            axial = axial_forces(self.model, self.t, self.s, self.sdot, self.sddot, self.lam,
-                                 {obs.link: np.array([obs.x])})[obs.link]
-            # None: the link is loaded by a joint that is not a point force (no inverse dynamics)
-            nominal = (np.full(len(self.t), np.nan) if axial is None
-                       else axial[:, 0] / obs.area)
-        return ObservableMap(obs.unit, nominal=nominal, position=position)
+    def coordinates(self, observable, nominal=None) -> ObservableMap:
+        """A function of ``s``: its change ``g(s0) . V z``; with ``nominal`` (N+1,) a part that is
+        not a function of ``s`` (the map is then the total)."""
+        return ObservableMap(observable.unit, nominal=nominal, position=self._gradient_map(observable))
 
-    def _gradient_map(self, obs) -> np.ndarray:
+    def multipliers(self, weights, unit) -> ObservableMap:
+        """``weights . lam`` (weights (r,)): nominal plus the multipliers' linear change."""
+        a_x, a_v, a_a = self.c.multiplier_maps
+        return ObservableMap(unit, nominal=self.lam @ weights,
+                             position=np.einsum("r,kri->ki", weights, a_x),
+                             rate=np.einsum("r,kri->ki", weights, a_v),
+                             acceleration=np.einsum("r,kri->ki", weights, a_a))
+
+    def torque_law(self, drive_index, joint, unit) -> ObservableMap:
+        """The torque law of the torque drive ``drive_index`` (at ``joint``): its change
+        dtau/ds x + dtau/ds' x', x = V z, x' = V z' + V' z (the law's derivatives along the
+        nominal motion: gains, motor back EMF, controller feedback)."""
+        law, position, rate = torque_law_map(self.model, joint, self.t, self.s, self.sdot, self.c)
+        # on the nominal motion the feedback vanishes: the torque is the feedforward, the
+        # inverse-dynamics torque, or the law's own value (zero) when it is switched off
+        feedforward = self.model.mechanism.drives[drive_index].feedforward
+        nominal = self.drive_torque[:, drive_index].copy() if feedforward else law
+        return ObservableMap(unit, nominal=nominal, position=position, rate=rate)
+
+    def magnitude(self, unit, components) -> ObservableMap:
+        """``hypot`` of the two maps ``components`` along the response."""
+        return ObservableMap(unit, components=tuple(components))
+
+    def axial_force(self, link, x) -> np.ndarray:
+        """The nominal axial force (N+1,) N of the rigid inverse dynamics in ``link`` at abscissa
+        ``x`` (m); NaN where the link is loaded by a joint that is not a point force."""
+        axial = axial_forces(self.model, self.t, self.s, self.sdot, self.sddot, self.lam,
+                             {link: np.array([x])})[link]
+        return np.full(len(self.t), np.nan) if axial is None else axial[:, 0]
+
+    def _gradient_map(self, observable) -> np.ndarray:
         """``g(s0(t)) . V(t)`` (N+1, m). An observable of the elastic coordinates alone has the same
         gradient at every sample of a rigid nominal motion (its elastic coordinates are zero)."""
-        if self.rigid_nominal and getattr(obs, "depends_on_elastic_only", False):
-            gradients = np.broadcast_to(obs.gradient(self.s[0]), self.s.shape)
+        if self.rigid_nominal and getattr(observable, "depends_on_elastic_only", False):
+            gradients = np.broadcast_to(observable.gradient(self.s[0]), self.s.shape)
         else:
-            gradients = np.stack([obs.gradient(sk) for sk in self.s])
+            gradients = np.stack([observable.gradient(sk) for sk in self.s])
         return np.einsum("kn,kni->ki", gradients, self.c.V)

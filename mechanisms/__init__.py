@@ -56,7 +56,10 @@ from ._parts import drive_law as drive_law
 from ._parts import register_discretisation as register_discretisation
 from ._parts import register_joint as register_joint
 from ._protocol import ConstrainedModel as ConstrainedModel
+from ._protocol import LinearRoute as LinearRoute
 from ._protocol import Observable as Observable
+from ._protocol import RunRoute as RunRoute
+from ._quantities import register_observable as register_observable
 from ._scenes import four_bar as four_bar
 from ._scenes import parallel_robot as parallel_robot
 from ._scenes import six_bar as six_bar

@@ -20,6 +20,11 @@ Specs (``link`` a link name, ``f`` a fraction of the link length in [0, 1], defa
   the displacement of the point from its rigid nominal position (the output precision).
   ``"link.point_error@p"``: the magnitude of that displacement (``PairMagnitude``).
 
+The quantities of a link (the part after ``link.``) are looked up in one registry
+(``mechanisms._quantities``) that the built-in ones above join at import and
+``mechanisms.register_observable(name, function, unit=...)`` extends with a user's function of the
+coordinates; an unknown name is refused with the nearest one suggested.
+
 Quantities that are not functions of ``s`` alone (``linearize`` supplies the nominal motion):
 
 * ``"joint.J.<component>"``: a component of joint ``J``'s force, a weighted sum of its multipliers
@@ -36,19 +41,32 @@ Quantities that are not functions of ``s`` alone (``linearize`` supplies the nom
 
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass
 
 import numpy as np
 
 from ._parts import ArgumentError, ElasticLink
+from ._quantities import OfCoordinates, add_quantity, fraction_of, quantity
 
 _KINDS = {"deflection": "m", "transverse": "m", "strain": "1", "moment": "N m", "angle": "rad"}
 _POINT_KINDS = {"point_error_x": 0, "point_error_y": 1}
 _STRESS_KINDS = {"stress_top": 1.0, "stress_bottom": -1.0}  # sign of the fibre's y
 
 
+# How an observable is evaluated is its own business: each class below says it in two methods,
+# ``linear_map(route)`` (the linearisation: ``route`` is what ``linearize`` hands over) and
+# ``along_run(run, linear_map)`` (a full nonlinear run: ``run`` is what ``studies`` hands over),
+# both duck-typed and documented in ``_protocol.py`` (``LinearRoute``, ``RunRoute``); functions of
+# the coordinates share them (``OfCoordinates``). A route offers a few primitives (a gradient map, a
+# sum of multipliers, a drive's torque law, a magnitude, the nominal axial force) and the observable
+# composes them. We prefer this to a declared category read through a table in ``linearize`` and
+# ``studies``: a new kind of observable built from the same primitives (a new joint's force map, a
+# new stress) then needs no edit of either table, and mechanisms still imports neither package.
+
+
 @dataclass(frozen=True)
-class LinkObservable:
+class LinkObservable(OfCoordinates):
     """One observable (see the module docstring). ``value(s)`` -> float, ``gradient(s)`` -> (n,)."""
 
     spec: str
@@ -132,7 +150,7 @@ def default_observables(mechanism) -> tuple[str, ...]:
 
 
 @dataclass(frozen=True)
-class PointObservable:
+class PointObservable(OfCoordinates):
     """Global x or y position (m) of a material point of a link (module docstring):
     ``r = R + A(theta) (p + S q)``, ``p = (px, py)`` its undeformed local position, ``S = [Su; Sw]``
     the link's shape rows there (empty for a rigid link). ``value(s)`` -> float, ``gradient(s)``
@@ -191,6 +209,15 @@ class MultiplierObservable:
     kind: str
     weights: np.ndarray    # (r,)
 
+    of_coordinates = False
+    needs_multipliers = True
+
+    def linear_map(self, route):
+        return route.multipliers(self.weights, self.unit)
+
+    def along_run(self, run, linear_map) -> np.ndarray:
+        return run.multipliers(self.weights)
+
     def value_from(self, lam) -> float:
         return float(self.weights @ np.asarray(lam, dtype=float))
 
@@ -212,6 +239,17 @@ class TorqueLawObservable:
     gradient: np.ndarray   # h (n,)
     joint: str
 
+    of_coordinates = False
+    needs_multipliers = False
+
+    def linear_map(self, route):
+        return route.torque_law(self.drive_index, self.joint, self.unit)
+
+    def along_run(self, run, linear_map) -> np.ndarray:
+        # what the run applied: feedforward and feedback summed before the drive's limits, which
+        # the linear route's nominal + change cannot show
+        return run.drive_torque(self.drive_index)
+
     def value(self, s) -> float:
         raise _not_of_coordinates(self.spec, "the drive's torque law: Model.drive_torques(s, "
                                              "sdot, t, lam)")
@@ -226,6 +264,19 @@ class PairMagnitude:
     unit: str
     kind: str
     components: tuple      # (observable a, observable b)
+
+    of_coordinates = False   # the magnitude of a change is not a function of s (value raises)
+
+    @property
+    def needs_multipliers(self) -> bool:
+        return any(component.needs_multipliers for component in self.components)
+
+    def linear_map(self, route):
+        return route.magnitude(self.unit, tuple(c.linear_map(route) for c in self.components))
+
+    def along_run(self, run, linear_map) -> np.ndarray:
+        return np.hypot(*(component.along_run(run, component_map) for component, component_map
+                          in zip(self.components, linear_map.components)))
 
     def value(self, s) -> float:
         raise _not_of_coordinates(self.spec, "the magnitude of a change or of a force: "
@@ -257,7 +308,23 @@ class StressObservable:
     def needs_axial_force(self) -> bool:
         return self.strain is None
 
+    @property
+    def of_coordinates(self) -> bool:
+        return not self.needs_axial_force
+
     depends_on_elastic_only = True
+    needs_multipliers = False
+
+    def linear_map(self, route):
+        # the nominal axial stress of an axially rigid link (not a function of s) plus the elastic
+        # change; with axial coordinates the strain's response carries the whole axial force
+        nominal = (route.axial_force(self.link, self.x) / self.area if self.needs_axial_force
+                   else None)
+        return route.coordinates(self, nominal=nominal)
+
+    def along_run(self, run, linear_map) -> np.ndarray:
+        # the elastic part along the run; the run adds the map's nominal axial stress
+        return run.coordinates(self, linear_map, value=lambda s: self.value(s, axial_force=0.0))
 
     def value(self, s, axial_force: float | None = None) -> float:
         """The stress at ``s``; ``axial_force`` (N) is required without axial coordinates (and
@@ -298,30 +365,12 @@ def make_observable(model, spec: str):
         return _drive_observable(model, spec, parts[1], parts[2])
     name, _, kind = head.rpartition(".")
     if name not in model.layouts:
-        raise ArgumentError(f"observable {spec!r}: unknown link {name!r}; links are "
+        close = difflib.get_close_matches(name, list(model.layouts), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ArgumentError(f"observable {spec!r}: unknown link {name!r}{hint}; links are "
                             f"{list(model.layouts)} (or 'joint.<name>.fx|fy|force', "
                             f"'drive.<joint>.torque')")
-    known = sorted([*_KINDS, *_POINT_KINDS, "point_error", *_STRESS_KINDS])
-    if kind not in known:
-        raise ArgumentError(f"observable {spec!r}: unknown quantity {kind!r}; expected one of "
-                            f"{known}")
-    lay = model.layouts[name]
-    if kind in _POINT_KINDS or kind == "point_error":
-        return _point_observable(model, spec, lay, kind, where)
-    if kind in _STRESS_KINDS:
-        return _stress_observable(model, spec, name, lay, kind, where)
-    return _link_observable(model, spec, lay, kind, where)
-
-
-def _fraction(spec: str, where: str) -> float:
-    try:
-        fraction = float(where) if where else 0.5
-    except ValueError:
-        raise ArgumentError(f"observable {spec!r}: the part after '@' must be a fraction of the "
-                            f"length in [0, 1]; received {where!r}") from None
-    if not 0.0 <= fraction <= 1.0:
-        raise ArgumentError(f"observable {spec!r}: fraction must be in [0, 1]; received {fraction}")
-    return fraction
+    return quantity(spec, kind)(model, spec, model.layouts[name], kind, where)
 
 
 def _link_observable(model, spec, lay, kind, where) -> LinkObservable:
@@ -334,7 +383,7 @@ def _link_observable(model, spec, lay, kind, where) -> LinkObservable:
         return LinkObservable(**common, x=0.0, rows=(), flexural_rigidity=0.0, membrane=())
     if lay.shapes is None:
         raise ArgumentError(f"observable {spec!r}: {kind} needs an elastic link; {name!r} is rigid")
-    x = _fraction(spec, where) * lay.link.length
+    x = fraction_of(spec, where) * lay.link.length
     v = lay.shapes.evaluate([x, lay.link.length])
     rows = (v.u[0], v.w[0], v.du[0], v.dw[0], v.ddw[0], v.u[1], v.w[1])
     membrane = ()
@@ -359,7 +408,7 @@ def _point_observable(model, spec, lay, kind, where):
         except ValueError as error:
             raise ArgumentError(f"observable {spec!r}: {error}") from None
     else:
-        px, py = _fraction(spec, where) * link.length, 0.0
+        px, py = fraction_of(spec, where) * link.length, 0.0
     if lay.shapes is None:
         su = sw = np.zeros(0)
     else:
@@ -369,10 +418,11 @@ def _point_observable(model, spec, lay, kind, where):
                            (float(px), float(py)), su, sw)
 
 
-def _stress_observable(model, spec, name, lay, kind, where) -> StressObservable:
+def _stress_observable(model, spec, lay, kind, where) -> StressObservable:
+    name = lay.link.name
     if lay.shapes is None:
         raise ArgumentError(f"observable {spec!r}: stress needs an elastic link; {name!r} is rigid")
-    fraction = _fraction(spec, where)
+    fraction = fraction_of(spec, where)
     link = lay.link
     moment = _link_observable(model, f"{name}.moment@{fraction!r}", lay, "moment", repr(fraction))
     strain = None
@@ -383,6 +433,15 @@ def _stress_observable(model, spec, name, lay, kind, where) -> StressObservable:
     return StressObservable(spec, "Pa", kind, name, fraction * link.length,
                             _STRESS_KINDS[kind] * link.fibre_distance, link.area,
                             link.second_moment, link.youngs_modulus * link.area, moment, strain)
+
+
+# the built-in quantities of a link, in the one registry (``_quantities``) that user ones join
+for _kind in _KINDS:
+    add_quantity(_kind, _link_observable)
+for _kind in (*_POINT_KINDS, "point_error"):
+    add_quantity(_kind, _point_observable)
+for _kind in _STRESS_KINDS:
+    add_quantity(_kind, _stress_observable)
 
 
 def _joint_observable(model, spec, joint_name, kind):

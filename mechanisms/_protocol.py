@@ -48,7 +48,7 @@ row ``"drive:J"`` is minus the torque the drive applies to ``link_b`` (N m). Fin
 
 from __future__ import annotations
 
-from typing import Protocol, Sequence
+from typing import Any, Callable, Protocol, Sequence
 
 import numpy as np
 
@@ -84,18 +84,73 @@ class ConstrainedModel(Protocol):
 
 
 class Observable(Protocol):
-    """A scalar quantity of the mechanism that users ask about, with its gradient for linear maps.
+    """A scalar quantity of the mechanism that users ask about, and how it is evaluated.
 
     Made by ``model.observable(spec)``; specs are strings such as ``"coupler.deflection@0.5"``
     (transverse deflection relative to the chord at half the length, m), ``"arm.transverse@1.0"``
     (transverse displacement in the link frame, m), ``"coupler.strain@0.5"`` (membrane strain, 1),
-    ``"coupler.moment@0.5"`` (bending moment, N m) and ``"rocker.angle"`` (frame angle, rad); see
-    ``mechanisms._observables``. ``mechanisms.default_observables(mechanism)`` names the ones
-    reported when none are asked for. Joint reactions are not observables of ``s``: they are the
-    multipliers of the joint's rows (``model.joint_rows``).
+    ``"coupler.moment@0.5"`` (bending moment, N m), ``"rocker.angle"`` (frame angle, rad), joint
+    forces, drive torques and stresses; see ``mechanisms._observables``, and
+    ``mechanisms.register_observable`` for a new quantity of a link.
+    ``mechanisms.default_observables(mechanism)`` names the ones reported when none are asked for.
+
+    An observable carries its evaluation route (no caller asks for its class):
+
+    * ``of_coordinates``: True when ``value(s)`` and ``gradient(s)`` are the whole quantity
+      (``mechanisms.simulate`` evaluates it, a controller may feed it back); False for joint forces,
+      drive torques, magnitudes and the stress of an axially rigid link (``value`` raises).
+    * ``needs_multipliers``: whether its linear map reads the multipliers' change (``linearize``
+      then computes the multiplier maps).
+    * ``depends_on_elastic_only`` (optional, default False): value and gradient read only the
+      elastic coordinates, so the gradient is the same at every sample of a rigid nominal motion.
+    * ``linear_map(route)``: its linear map about the nominal motion, built from the primitives of
+      ``route`` (a ``LinearRoute``, which ``linearize`` passes in); returns what the route returns
+      (a ``linearize.ObservableMap``).
+    * ``along_run(run, linear_map)``: its values (K,) along a full nonlinear run as the linear route
+      reports them, from the primitives of ``run`` (a ``RunRoute``, which ``studies`` passes in) and
+      its own ``linear_map`` (the object ``linear_map(route)`` returned).
     """
 
     spec: str
     unit: str
+    of_coordinates: bool
+    needs_multipliers: bool
     def value(self, s: np.ndarray) -> float: ...
     def gradient(self, s: np.ndarray) -> np.ndarray: ...  # d value / ds, (n,)
+    def linear_map(self, route: "LinearRoute") -> Any: ...
+    def along_run(self, run: "RunRoute", linear_map: Any) -> np.ndarray: ...
+
+
+class LinearRoute(Protocol):
+    """What ``linearize`` hands an observable's ``linear_map``: maps along the nominal motion on the
+    grid of N+1 samples, each a ``linearize.ObservableMap`` (``nominal`` part plus gains on the
+    independent coordinates z, z', z''). Duck-typed: ``mechanisms`` imports no ``linearize``."""
+
+    def coordinates(self, observable: Observable, nominal: np.ndarray | None = None) -> Any:
+        """A function of ``s``: the change ``gradient(s0) . V z`` (a deviation); with ``nominal``
+        (N+1,) a part that is not a function of ``s``, the map is then the total."""
+    def multipliers(self, weights: np.ndarray, unit: str) -> Any:
+        """``weights . lam`` (weights (r,)): the nominal multipliers plus their linear change."""
+    def torque_law(self, drive_index: int, joint: str, unit: str) -> Any:
+        """The torque law of the torque drive ``mechanism.drives[drive_index]`` at ``joint``."""
+    def magnitude(self, unit: str, components: tuple) -> Any:
+        """``hypot`` of two maps (the components' ``linear_map``) along the response."""
+    def axial_force(self, link: str, x: float) -> np.ndarray:
+        """The nominal axial force (N+1,) N of the rigid inverse dynamics in ``link`` at abscissa
+        ``x`` (m); NaN where it is unknown (a joint that is not a point force)."""
+
+
+class RunRoute(Protocol):
+    """What ``studies`` hands an observable's ``along_run``: a full nonlinear run of K samples (from
+    a whole period's start, on the linear grid or every stride-th sample of it). Duck-typed."""
+
+    def coordinates(self, observable: Observable, linear_map: Any,
+                    value: Callable[[np.ndarray], float] | None = None) -> np.ndarray:
+        """``value`` (default ``observable.value``) along the run less its values along the
+        nominal motion (angles, unit ``"rad"``, modulo 2 pi), plus ``linear_map.nominal`` when it
+        has one: (K,)."""
+    def multipliers(self, weights: np.ndarray) -> np.ndarray:
+        """``lam @ weights`` along the run, (K,)."""
+    def drive_torque(self, drive_index: int) -> np.ndarray:
+        """The torque the run's drive ``drive_index`` applied (feedforward plus feedback within its
+        limits, plus lagged controllers' states), (K,) N m."""

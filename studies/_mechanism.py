@@ -224,8 +224,7 @@ class MechanismProblem:
         speed = params[SPEED]
         # Prescribed drives make the motion a function of the phase 2 pi t / period: a speed
         # family covers every speed (torque drives are linearised at each speed).
-        prescribed = bool(mechanism.drives) and all(
-            type(d).__name__ == "PrescribedDrive" for d in mechanism.drives)
+        prescribed = linearize.supports_speed_family(mechanism)
         family_key = (self.text, tuple(sorted(others.items())), n_steps, self.observable_specs)
         at_scene_speed = math.isclose(speed, _speed(mechanism), rel_tol=1e-12)
         if prescribed and at_scene_speed and family_key not in _families:
@@ -308,7 +307,7 @@ class MechanismProblem:
         s_full, _ = lin.full_state(z, np.zeros_like(z))
         deflections = {}
         for link in mechanism.links:
-            if type(link).__name__ != "ElasticLink":
+            if model.layouts[link.name].shapes is None:   # a rigid link does not deflect
                 continue
             rows = []
             for fraction in np.linspace(0.0, 1.0, n_points):
@@ -349,44 +348,53 @@ def observables_along(linear: Linear, model: Any, t: np.ndarray, s: np.ndarray, 
     whole periods or not);
     ``computed``: {spec: (K,)} values the integrator already evaluated. Package-internal, shared by
     the nonlinear check's transient and the nonlinear periodic states."""
-    lin = linear.context
-    nominal_s = lin.nominal.s[::stride]
-    reps = int(math.ceil(len(t) / (nominal_s.shape[0] - 1)))
-    computed = computed or {}
+    maps = dict(zip(linear.observables, linear.maps))
+    run = _RunRoute(linear.context.nominal.s, stride, model, t, s, sdot, lam, lag_states, computed or {})
+    return {spec: model.observable(spec).along_run(run, maps[spec])
+            for spec in (linear.observables if specs is None else specs)}
 
-    def repeated(one_period):   # samples over one period of the run's grid, repeated over the run
-        return np.tile(np.asarray(one_period), reps)[: len(t)]
 
-    def periodic(values):       # a quantity on the linear grid (N+1,), repeated over the run
-        return repeated(np.asarray(values)[::stride][:-1])
+class _RunRoute:
+    """The ``RunRoute`` an observable's ``along_run`` reads (``mechanisms/_protocol.py``): a run
+    of ``model`` at times ``t`` (K,) with ``s``, ``sdot`` (K, n), ``lam`` (K, r), ``lag_states``
+    (K, L) or None, on the grid of every ``stride``-th sample of the nominal motion ``nominal_s``
+    (N+1, n) from a whole period's start; ``computed`` {spec: (K,)} values the integrator
+    evaluated."""
 
-    def along_run(obs, observable_map):
-        kind = type(obs).__name__
-        if kind == "PairMagnitude":
-            return np.hypot(*(along_run(c, m) for c, m in zip(obs.components, observable_map.components)))
-        if kind == "MultiplierObservable":
-            return lam @ obs.weights
-        if kind == "TorqueLawObservable":
-            # what the run applied: the feedforward (the map's nominal) and the feedback summed
-            # before the drive's limits, which the linear route's nominal + change cannot show
-            lags = lag_states if lag_states is not None and lag_states.size else [None] * len(t)
-            return np.array([model.drive_torques(sk, vk, tk, lk, lag_states=yk)[obs.drive_index]
-                             for sk, vk, tk, lk, yk in zip(s, sdot, t, lam, lags)])
-        if getattr(obs, "needs_axial_force", False):   # its elastic part; nominal below
-            def value(sk):
-                return obs.value(sk, axial_force=0.0)
-        else:
-            value = obs.value
-        values = (computed[obs.spec] if obs.spec in computed else np.array([value(sk) for sk in s]))
-        values = deviation_from_nominal(values, repeated([value(sk) for sk in nominal_s[:-1]]),
-                                        getattr(obs, "unit", ""))
-        if observable_map.nominal is not None:   # the axially rigid link's nominal axial stress
-            values = values + periodic(observable_map.nominal)
+    def __init__(self, nominal_s, stride, model, t, s, sdot, lam, lag_states, computed):
+        self.nominal_s, self.stride = nominal_s[::stride], stride
+        self.model, self.t, self.s, self.sdot, self.lam = model, t, s, sdot, lam
+        self.lag_states, self.computed = lag_states, computed
+        self._reps = int(math.ceil(len(t) / (self.nominal_s.shape[0] - 1)))
+
+    def _repeated(self, one_period) -> np.ndarray:
+        """Samples over one period of the run's grid, repeated over the run."""
+        return np.tile(np.asarray(one_period), self._reps)[: len(self.t)]
+
+    def coordinates(self, observable: Any, linear_map: Any, value: Any = None) -> np.ndarray:
+        """A function ``value`` of ``s`` (default ``observable.value``) as the linear route
+        reports it: its change from its values along the nominal motion (angles modulo 2 pi),
+        plus the map's nominal part when it has one (the axially rigid link's nominal axial
+        stress)."""
+        value = observable.value if value is None else value
+        values = (self.computed[observable.spec] if observable.spec in self.computed
+                  else np.array([value(sk) for sk in self.s]))
+        values = deviation_from_nominal(values, self._repeated([value(sk) for sk in self.nominal_s[:-1]]),
+                                        observable.unit)
+        if linear_map.nominal is not None:   # on the linear grid (N+1,)
+            values = values + self._repeated(np.asarray(linear_map.nominal)[::self.stride][:-1])
         return values
 
-    maps = dict(zip(linear.observables, linear.maps))
-    return {spec: along_run(model.observable(spec), maps[spec])
-            for spec in (linear.observables if specs is None else specs)}
+    def multipliers(self, weights: np.ndarray) -> np.ndarray:
+        """``lam @ weights`` along the run (K,)."""
+        return self.lam @ weights
+
+    def drive_torque(self, drive_index: int) -> np.ndarray:
+        """The torque (K,) N m the run's drive ``drive_index`` applied (``model.drive_torques``)."""
+        lags = (self.lag_states if self.lag_states is not None and self.lag_states.size
+                else [None] * len(self.t))
+        return np.array([self.model.drive_torques(sk, vk, tk, lk, lag_states=yk)[drive_index]
+                         for sk, vk, tk, lk, yk in zip(self.s, self.sdot, self.t, self.lam, lags)])
 
 
 def deviation_from_nominal(values: np.ndarray, nominal: np.ndarray, unit: str) -> np.ndarray:
@@ -399,10 +407,9 @@ def deviation_from_nominal(values: np.ndarray, nominal: np.ndarray, unit: str) -
 
 def of_coordinates(observable: Any) -> bool:
     """Whether ``observable`` is a function of the coordinates alone (``mechanisms.simulate``
-    evaluates it): not a force, torque, magnitude or the stress of an axially rigid link."""
-    return (callable(getattr(observable, "value", None))
-            and callable(getattr(observable, "gradient", None))
-            and not getattr(observable, "needs_axial_force", False))
+    evaluates it; the observable declares it, ``mechanisms.Observable``): not a force, torque,
+    magnitude or the stress of an axially rigid link."""
+    return bool(observable.of_coordinates)
 
 
 def _scene_paths(spec: Mapping[str, Any], prefix: str = "") -> list[str]:

@@ -10,7 +10,7 @@ import linearize
 import mechanisms
 import periodic
 import studies
-from studies._mechanism import MechanismProblem
+from studies import MechanismProblem
 
 
 @pytest.fixture(scope="module")
