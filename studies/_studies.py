@@ -173,15 +173,11 @@ class GridResult(StudyResult):
                 del group.attrs[name]
             _write_array(group, name, np.asarray(float(getattr(self, name))), self._unit(name))
 
-    def _done_verdicts(self) -> list[tuple[str, str]]:
-        done = np.asarray(self.done, dtype=bool)
-        return [(str(status), str(message)) for status, message in
-                zip(np.asarray(self.point_status)[done], np.asarray(self.point_message)[done])]
-
     @property
     def status(self) -> str:
         """The study's status: the worst of its points' (done ones) and its reduction check's."""
-        return verdicts.combine([(status, "") for status, _ in self._done_verdicts()]
+        done = np.asarray(self.done, dtype=bool)
+        return verdicts.combine([(str(status), "") for status in np.asarray(self.point_status)[done]]
                                 + [(self.reduction_status, self.reduction_message)])[0]
 
     @property
