@@ -1,4 +1,5 @@
-"""Numba kernels: Newmark's scheme on many columns at once, with a small hand-written LU or LAPACK.
+"""Numba kernels: Newmark's scheme on many columns at once, with the hand-written LU or LAPACK of
+``periodic.lapack``.
 
 Newmark's scheme for ``M(t) x'' + C(t) x' + K(t) x = f(t)`` on ``t_k = k h`` (Newmark 1959;
 Hughes, The Finite Element Method, eq. 9.1.5-9.1.7), written in predictor-corrector form:
@@ -27,9 +28,9 @@ Cost per step, m columns (m = 2n+1 for the monodromy, 1 for the forced run): 2/3
 2 n^2 m (solves) + 4 n^2 m (the products C v~ and K x~), about 12.7 n^3 flops at m = 2n+1.  Three
 linear solvers do the LU and the solves; :func:`march` runs the one :func:`choose_solver` picks:
 
-- ``SOLVE_LOOPS`` (:func:`newmark_march`), the hand-written LU below, for n < ``LAPACK_FROM_N_DOF``
-  = 20, and for sparse matrices (fewer than ``LAPACK_FROM_DENSITY`` = 50 % nonzero entries, as a
-  finite-element link's: its loops skip zeros; 1.2x faster than LAPACK on the four-bar with 16-64
+- ``SOLVE_LOOPS`` (:func:`newmark_march`), the hand-written LU (``periodic.lapack.factor_rowmajor``), for
+  n < ``LAPACK_FROM_N_DOF`` = 20, and for sparse matrices (fewer than ``LAPACK_FROM_DENSITY`` = 50 %
+  nonzero entries, as a finite-element link's: its loops skip zeros; 1.2x faster than LAPACK on the four-bar with 16-64
   coupler elements, n = 48-192).  It beats np.linalg.solve inside njit (which copies to Fortran
   order) 6x at n = 2 and 4x at n = 10, and LAPACK called from the kernel 2x at n = 2-12 (OpenBLAS's
   per-call overhead).

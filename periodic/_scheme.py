@@ -82,12 +82,10 @@ class Newmark:
         return 2.0 * self.beta >= self.gamma >= 0.5
 
     def march(self, system, forced, x, v, a, x_hist, v_hist, a_hist) -> int:
-        """Integrate the columns of ``x, v`` (n, m) over one period of ``system`` in place (``a``
-        (n, m) receives the end accelerations); column j carries the force ``forced[j] * f(t)``.
-        ``x_hist, v_hist, a_hist`` (N+1, n, m) receive every sample, or have length 0. Returns the
-        kernel's status: -1, or the sample whose matrix was singular (see ``raise_on_singular``). The shooting and
-        ``floquet``
-        call only this, so a scheme of another family is a class with its own ``march``."""
+        """:class:`Scheme`'s ``march`` (the arguments and the return value are documented there): integrate the
+        columns of ``x, v`` (n, m) over one period of ``system`` in place by the numba kernel
+        (``periodic._newmark``).  The shooting and ``floquet`` call only this, so a scheme of another family
+        is an object with its own ``march``."""
         if system.n_first_order and 2.0 * self.beta != self.gamma:
             raise PeriodicError(
                 f"scheme: first-order coordinates {system.first_order.tolist()} need a Newmark scheme with "

@@ -221,8 +221,7 @@ def pivot_ratio(lu):
 
 @numba.njit(cache=True)
 def transpose(source, target):
-    """``target[:, :] = source.T`` (2-D), as a loop: an array assigned to a slice would compile numba's
-    shape-mismatch message (string formatting, seconds of the first run's compilation)."""
+    """``target[:, :] = source.T`` (2-D) as a loop (a slice assignment's shape check compiles slowly)."""
     for i in range(source.shape[0]):
         for j in range(source.shape[1]):
             target[j, i] = source[i, j]

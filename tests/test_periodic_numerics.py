@@ -14,6 +14,7 @@ import scipy.linalg
 import scipy.special
 
 import periodic
+import tests.test_extend_scheme  # noqa: F401  (registers schemes from outside: the convergence test covers them)
 from periodic import NearResonanceWarning, PeriodicSystem
 from tests._paths import PATHS, kernel_path
 
@@ -401,9 +402,12 @@ def test_every_registered_scheme_has_its_declared_order_and_an_honest_estimate(n
     """Observed order of x on the manufactured solution = ``scheme.order``; ``error_estimate`` (which uses
     ``scheme.error_factor``) within 20 % of the true error at the finest N; a symmetric scheme gains
     two orders by Richardson extrapolation.  E.g. "damped" (gamma = 0.6, beta = (gamma + 1/2)^2 / 4)
-    is first order and its estimate uses 2^1 - 1.  A newly registered scheme is checked here."""
+    is first order and its estimate uses 2^1 - 1.  A newly registered scheme is checked here (those of
+    tests/test_extend_scheme.py, registered at its import, too)."""
     scheme = periodic.SCHEMES[name]
-    assert scheme.unconditionally_stable  # the shooting integrates every mode over a whole period
+    # the shooting integrates every mode over a whole period (a scheme that declares its stability must
+    # declare it unconditional; test_every_registered_scheme_damps_an_unresolved_mode measures it for all)
+    assert getattr(scheme, "unconditionally_stable", True)
     functions, exact = manufactured_functions()
     errors, errors_extrapolated = [], []
     for n_steps in GRID:
@@ -419,6 +423,19 @@ def test_every_registered_scheme_has_its_declared_order_and_an_honest_estimate(n
     assert result.error_estimate / errors[-1] == pytest.approx(1.0, abs=0.2)
     if scheme.symmetric:
         assert observed_order(GRID, errors_extrapolated) == pytest.approx(scheme.order + 2, abs=0.3)
+
+
+@pytest.mark.parametrize("name", sorted(periodic.SCHEMES))
+def test_every_registered_scheme_damps_an_unresolved_mode(name):
+    """A-stability, measured: a mode the step does not resolve (omega h = 10^3, undamped and damped) keeps
+    its multipliers' moduli at most 1 (the exact ones: 1 and exp(-zeta omega T)), so it cannot fake an
+    instability.  Every entry of SCHEMES, registered ones included."""
+    omega, n_steps = 2.0e4 * np.pi, 20
+    for zeta in (0.0, 0.05):
+        ones = np.ones((n_steps + 1, 1, 1))
+        system = PeriodicSystem(1.0, ones, 2.0 * zeta * omega * ones, omega**2 * ones)
+        radius = np.abs(periodic.floquet(system, scheme=name).multipliers).max()
+        assert radius <= 1.0 + 1e-9, (zeta, radius)
 
 
 def test_coarse_solution_comes_back_for_observable_error_estimates(manufactured_runs, request):

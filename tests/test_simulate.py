@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.linalg
 import sympy as sp
 from scipy.integrate import solve_ivp
 
@@ -264,6 +265,24 @@ def test_hand_model_derivatives_match_finite_differences(soft_double):
         fd = (m.constraint_jacobian(s + e, t).T @ lam
               - m.constraint_jacobian(s - e, t).T @ lam) / (2 * eps)
         np.testing.assert_allclose(m.constraint_force_jacobian(s, lam, t)[:, j], fd, atol=1e-7)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Kernels (the LU routines themselves: tests/test_lapack.py)
+# ---------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("n", [1, 2, 13, 60])
+def test_the_newton_factorisation_reports_the_pivot_ratio_of_the_iteration_matrix(n):
+    """``min_pivot_ratio`` is that of P G = L U (partial pivoting by rows of G, the matrix built transposed),
+    and 0 for an exactly singular G, which the Newton iteration reports as a singular iteration matrix."""
+    from mechanisms._alpha_step import _lu_factor
+
+    rng = np.random.default_rng(n)
+    G = rng.normal(size=(n, n)) + np.sqrt(n) * np.eye(n)
+    pivots = np.abs(np.diag(scipy.linalg.lu(G)[2]))
+    assert _lu_factor(G.T.copy(), np.empty(n, dtype=np.int32)) == pytest.approx(pivots.min() / pivots.max(),
+                                                                             rel=1e-12)
+    singular = np.array([[2.0, 1.0, 3.0], [4.0, 2.0, 6.0], [1.0, 3.0, 0.5]])
+    assert _lu_factor(singular.T.copy(), np.empty(3, dtype=np.int32)) == 0.0
 
 
 # ---------------------------------------------------------------------------------------------------
