@@ -23,7 +23,7 @@ import numpy as np
 import mechanisms
 from studies import _mechanism
 from studies._guard import estimate
-from studies._kinds import KINDS
+from studies import kinds
 from studies._mechanism import MechanismProblem
 
 SCENE = "four_bar_fem4"
@@ -37,8 +37,8 @@ def options(kind: str, n_steps: int) -> dict:
         "campbell": {"values": [80.0, 90.0, 100.0, 110.0], "n_steps": n_steps, "frozen_samples": 32},
         "nonlinear_check": {"n_periods": 2, "n_steps": n_steps},
     }
-    checked = KINDS[kind].check(f"studies.{kind}", tables[kind], n_steps)
-    return next(iter(KINDS[kind].runs(checked).values()))  # the one run the table declares
+    checked = kinds()[kind].check(f"studies.{kind}", tables[kind], n_steps)
+    return next(iter(kinds()[kind].runs(checked).values()))  # the one run the table declares
 
 
 def measure(problem, kind: str, checked: dict) -> tuple[float, float]:
@@ -46,7 +46,7 @@ def measure(problem, kind: str, checked: dict) -> tuple[float, float]:
     _mechanism._families.clear()
     tracemalloc.start()
     start = time.perf_counter()
-    KINDS[kind].run(problem, checked, out=None, executor=None, progress=False)
+    kinds()[kind].run(problem, checked, out=None, executor=None, progress=False)
     seconds = time.perf_counter() - start
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()

@@ -27,7 +27,17 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from ._errors import StudiesError
-from ._store import deferred_interrupts, differing_paths, digest, encode, owner_of, scene_numbers, write_attrs
+from ._store import (
+    FORMAT_VERSION,
+    deferred_interrupts,
+    differing_paths,
+    digest,
+    encode,
+    owner_of,
+    scene_numbers,
+    stored_name,
+    write_attrs,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -108,13 +118,15 @@ class GridStore:
         return self._owner.writing(extra) if self._owner is not None else contextlib.nullcontext()
 
     @classmethod
-    def open(cls, parent: Any, name: str, shape: tuple[int, ...], *, kind: str,
+    def open(cls, parent: Any, name: str, shape: tuple[int, ...], *, kind: type,
              settings: Mapping[str, Any], units: Mapping[str, str],
              header: Mapping[str, Any]) -> "GridStore":
         """Create the group, or reopen it for a resume when its settings match: the same values, the
         same scene numbers (the scene's name, description and studies may differ) and the same
-        outputs. ``header``: the result's descriptive fields (problem, scene, labels, ...) written as
+        outputs. ``kind``: the result class (the group's ``kind`` is its registered name).
+        ``header``: the result's descriptive fields (problem, scene, labels, ...) written as
         attributes at once, so that an interrupted file loads."""
+        kind = stored_name(kind)
         identity = digest(grid_identity(settings, units))
         group = parent.get(name)
         if group is not None and "kind" in group.attrs:  # a group made by a plan has no kind yet
@@ -134,6 +146,7 @@ class GridStore:
         with owner.writing() if owner is not None else contextlib.nullcontext():
             group = parent.require_group(name)
             group.attrs["kind"] = kind
+            group.attrs["format_version"] = FORMAT_VERSION
             group.attrs["settings_hash"] = identity
             group.attrs["complete"] = False
             write_attrs(group, header)

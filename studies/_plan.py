@@ -3,7 +3,7 @@
 A scene declares the studies to run; ``plan(table)`` checks every key and fills the defaults,
 ``run_plan`` runs the declared studies (and nothing else) into one HDF5 file, skipping studies
 already complete in it with the same request and resuming interrupted grids. The kinds of study
-and their tables are those of the registry ``studies._kinds.KINDS``.
+and their tables are those of the registry ``studies.kinds()``.
 """
 
 from __future__ import annotations
@@ -16,8 +16,7 @@ import numpy as np
 
 from . import _jit
 from ._errors import StudiesError, is_numerical_failure
-from ._kind import integer, reject_unknown
-from ._kinds import KINDS
+from ._kind import COMMON_KEYS, integer, kind_named, kinds, reject_unknown
 from ._problem import SPEED
 from ._store import ResultFile, StorageError, canonical, differing_paths, digest, read_group, scene_numbers, write_attrs
 
@@ -26,14 +25,11 @@ __all__ = ["RunInterrupted", "StudiesError", "default_table", "parameters_needed
 
 logger = logging.getLogger(__name__)
 
-_COMMON = ("n_steps", "observables")
-
-
 def default_table(nominal_speed: float) -> dict[str, Any]:
     """The studies run for a scene without a ``[studies]`` table, each kind's default (steady state,
     a 100-point speed sweep and a 40-speed Campbell diagram from 0.2 to 4 times the scene's speed
     ``2 pi / period`` (rad/s), a 3-period nonlinear check)."""
-    tables = {name: kind.default(nominal_speed) for name, kind in KINDS.items()}
+    tables = {name: kind.default(nominal_speed) for name, kind in kinds().items()}
     return {name: table for name, table in tables.items() if table is not None}
 
 
@@ -42,7 +38,7 @@ def plan(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, 
     (options are what each kind's ``run`` takes: the keyword arguments of its study function)."""
     if not isinstance(table, Mapping):
         raise StudiesError(f"[studies]: expected a table, got {table!r}")
-    reject_unknown("studies", table, _COMMON + tuple(KINDS))
+    reject_unknown("studies", table, COMMON_KEYS + tuple(kinds()))
     n_steps = integer("studies", "n_steps", table.get("n_steps", 256), 4, even=True)
     observables = table.get("observables")
     if observables is not None and (not isinstance(observables, list)
@@ -51,7 +47,7 @@ def plan(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, 
                            f"'coupler.deflection@0.5', got {observables!r}")
     common = {"n_steps": n_steps, "observables": None if observables is None else tuple(observables)}
     studies: dict[str, dict[str, Any]] = {}
-    for name, kind in KINDS.items():
+    for name, kind in kinds().items():
         if name not in table:
             continue
         where = f"studies.{name}"
@@ -62,13 +58,13 @@ def plan(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, 
         studies[name] = kind.check(where, options, n_steps)
     if not studies:
         raise StudiesError(f"[studies] declares no study; add at least one of the tables "
-                           f"{', '.join(f'[studies.{k}]' for k in KINDS)}")
+                           f"{', '.join(f'[studies.{k}]' for k in kinds())}")
     return common, studies
 
 
 def parameters_needed(studies: Mapping[str, Mapping[str, Any]]) -> tuple[str, ...]:
     """The scene parameters (dotted paths, not ``speed``) the declared studies vary."""
-    names = [path for name, options in studies.items() for path in KINDS[name].varies(options)]
+    names = [path for name, options in studies.items() for path in kind_named(name).varies(options)]
     return tuple(dict.fromkeys(n for n in names if n != SPEED))
 
 
@@ -113,8 +109,8 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
     study starts its clock (``studies._jit.warm_up``), and record the compile time of the run as the
     file attribute ``compile_time`` (s; 0 when every kernel came from the disk cache).
     """
-    runs = [(name + suffix, KINDS[name], each) for name, options in studies.items()
-            for suffix, each in KINDS[name].runs(options).items()]
+    runs = [(name + suffix, kind_named(name), each) for name, options in studies.items()
+            for suffix, each in kind_named(name).runs(options).items()]
     try:
         with ResultFile(path, scene=scene_identity(problem), overwrite=overwrite) as file:
             _refuse_other_grid_options(file, runs)

@@ -7,7 +7,8 @@ import html
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from ._summary import in_run_order, markdown_table, summaries
+from ._kind import in_run_order, kind_of, summaries
+from ._summary import markdown_table
 
 REPORT_NAME = "report"
 
@@ -21,8 +22,6 @@ def write_figures(results: Mapping[str, Any], outdir: Path, extensions: Sequence
     matplotlib.use("Agg")
     matplotlib.rcParams["svg.fonttype"] = "none"  # keep text as text: editable and searchable
     import matplotlib.pyplot as plt
-
-    from ._kinds import kind_of
 
     outdir.mkdir(parents=True, exist_ok=True)
     written: dict[str, list[Path]] = {}

@@ -43,13 +43,73 @@ from ._errors import StudiesError
 
 logger = logging.getLogger(__name__)
 
-_REGISTRY: dict[str, type] = {}
+#: The result format this flexvib writes: the file attribute and each study group's attribute
+#: ``format_version``. Format 1 (files without the attribute, flexvib before it was recorded): a
+#: group's ``kind`` is the name of its result class. Format 2: ``kind`` is the registered name of the
+#: study kind (``studies.register_kind``), a stable string, so that moving or renaming a result class
+#: breaks no file. A file or group of a higher format is refused (:func:`check_format`).
+FORMAT_VERSION = 2
+
+#: Result classes by the name a file stores them under (the kind's name and its aliases).
+_RESULTS: dict[str, type] = {}
+_NAMES: dict[type, str] = {}
 
 
-def register(cls: type) -> type:
-    """Class decorator: make ``cls`` loadable by its ``kind`` (the class name)."""
-    _REGISTRY[cls.__name__] = cls
-    return cls
+class ResultFileError(StudiesError):
+    """A result file that cannot be used as asked (a folder, an unwritable path, not a flexvib file,
+    another scene, written by another live run, a newer result format): exit code 2, the file
+    untouched."""
+
+
+class StorageError(RuntimeError):
+    """The disk filled (or failed) while a run was writing: exit code 1; the last commit stands."""
+
+
+def register_result(name: str, cls: type, *, aliases: tuple[str, ...] = ()) -> None:
+    """Make ``cls`` loadable from groups whose ``kind`` is ``name`` (format 2) or one of ``aliases``
+    (the names older files wrote); ``studies.register_kind`` calls it for each kind."""
+    for stored in (name, *aliases):
+        if _RESULTS.get(stored, cls) is not cls:
+            raise StudiesError(f"result kind {stored!r} is already stored by {_RESULTS[stored].__name__}")
+    for stored in (name, *aliases):
+        _RESULTS[stored] = cls
+    _NAMES[cls] = name
+
+
+def stored_name(cls: type) -> str:
+    """The ``kind`` attribute a result of class ``cls`` is written with: its kind's registered name."""
+    try:
+        return _NAMES[cls]
+    except KeyError:
+        raise StudiesError(f"{cls.__name__} is not the result of a registered study kind; register its "
+                           f"kind with studies.register_kind before writing it") from None
+
+
+def format_of(item: Any) -> int:
+    """The result format of an h5py group or file: its own ``format_version``, else its file's, else
+    1 (written before the format was recorded)."""
+    for attrs in (item.attrs, item.file.attrs):
+        if "format_version" in attrs:
+            try:
+                return int(attrs["format_version"])
+            except (TypeError, ValueError):
+                raise ResultFileError(f"{item.file.filename}: unreadable format_version "
+                                      f"{attrs['format_version']!r}") from None
+    return 1
+
+
+def check_format(item: Any) -> int:
+    """``format_of(item)``, refused when this flexvib cannot read it (a newer format): the message names
+    the flexvib version and format that wrote it, and what to do."""
+    version = format_of(item)
+    if version > FORMAT_VERSION:
+        writer = item.file.attrs.get("flexvib_version", "?")
+        raise ResultFileError(
+            f"result file {str(item.file.filename)!r}: written by flexvib {writer} in result format "
+            f"{version}; this flexvib ({versions()['flexvib']}) reads formats 1 to {FORMAT_VERSION}. "
+            f"Upgrade flexvib (pip install -U flexvib) to read it, or run the scene again with this "
+            f"version")
+    return version
 
 
 def versions() -> dict[str, str]:
@@ -75,6 +135,9 @@ def open_file(path: str | Path, mode: str = "a"):
             if Path(path).is_file() and h5py.is_hdf5(path):
                 with h5py.File(path, "r", locking=False) as existing:
                     foreign = "flexvib_version" not in existing.attrs and len(existing) > 0
+                    if not foreign:  # never add to a file of a newer format
+                        for item in (existing, *(g for g in existing.values() if hasattr(g, "attrs"))):
+                            check_format(item)
                 if foreign:
                     raise StudiesError(f"result file {str(path)!r}: an HDF5 file not written by flexvib; "
                                        f"refusing to change it (choose another path)")
@@ -124,7 +187,8 @@ class Result:
         return total
 
     def _write(self, group: Any) -> None:
-        group.attrs["kind"] = type(self).__name__
+        group.attrs["kind"] = stored_name(type(self))
+        group.attrs["format_version"] = FORMAT_VERSION
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)
             if isinstance(value, np.ndarray):
@@ -139,8 +203,8 @@ class Result:
         group.attrs["complete"] = True
 
     def save(self, path: str | Path, name: str | None = None) -> None:
-        """Write to the file ``path`` as group ``name`` (default: the class kind), replacing it."""
-        name = name or type(self).__name__
+        """Write to the file ``path`` as group ``name`` (default: its kind's name), replacing it."""
+        name = name or stored_name(type(self))
         with open_file(path) as handle:
             if name in handle:
                 del handle[name]
@@ -239,16 +303,20 @@ def load(path: str | Path) -> dict[str, Result]:
     except OSError as error:
         raise StudiesError(f"{str(path)!r} is not an HDF5 result file: {error}") from None
     with handle:
+        check_format(handle)
         return {name: read_group(group) for name, group in handle.items()}
 
 
 def read_group(group: Any) -> Result:
-    """The result stored in one study group (its class from the ``kind`` attribute)."""
+    """The result stored in one study group (its class from the ``kind`` attribute: the registered
+    kind's name, or in format 1 the result class's name, which each kind lists as an alias)."""
+    check_format(group)
     kind = group.attrs.get("kind")
-    if kind not in _REGISTRY:
+    if kind not in _RESULTS:
         raise StudiesError(f"{group.file.filename}: group {group.name!r} has unknown kind {kind!r} "
-                           f"(known: {sorted(_REGISTRY)})")
-    return _REGISTRY[kind].from_hdf5(group)
+                           f"(known: {', '.join(sorted(_NAMES.values()))}); register the study kind "
+                           f"that wrote it (studies.register_kind) before loading")
+    return _RESULTS[kind].from_hdf5(group)
 
 
 def study_attrs(group: Any) -> dict[str, Any]:
@@ -260,18 +328,6 @@ def study_attrs(group: Any) -> dict[str, Any]:
         except json.JSONDecodeError:
             out[key] = value
     return out
-
-
-# ---------------------------------------------------------------------------------------------------
-# errors of result files
-# ---------------------------------------------------------------------------------------------------
-class ResultFileError(StudiesError):
-    """A result file that cannot be used as asked (a folder, an unwritable path, not a flexvib file,
-    another scene, written by another live run): exit code 2, the file untouched."""
-
-
-class StorageError(RuntimeError):
-    """The disk filled (or failed) while a run was writing: exit code 1; the last commit stands."""
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -561,7 +617,17 @@ class ResultFile:
         if "flexvib_version" not in attrs:
             raise self.refusal("is an HDF5 file not written by flexvib; refusing to change it",
                              "choose another --out")
-        if self.overwrite or self.scene is None:
+        if self.overwrite:
+            return
+        written = int(attrs.get("format_version", 1))
+        if written != FORMAT_VERSION and names:
+            raise self.refusal(
+                f"was written by flexvib {attrs.get('flexvib_version', '?')} in result format {written}; "
+                f"this flexvib writes format {FORMAT_VERSION} and "
+                + ("cannot read it" if written > FORMAT_VERSION else "does not add to an older file"),
+                "run with --overwrite to start it afresh, or choose another --out"
+                + (" (studies.load still reads it)" if written < FORMAT_VERSION else ""))
+        if self.scene is None:
             return
         if "scene_hash" not in attrs:
             if names:
@@ -707,5 +773,6 @@ def _stamp(handle: Any) -> None:
     """Versions and creation time of a new result file."""
     stamp = versions()
     handle.attrs["flexvib_version"] = stamp["flexvib"]
+    handle.attrs["format_version"] = FORMAT_VERSION
     handle.attrs["versions"] = json.dumps(stamp, sort_keys=True)
     handle.attrs["created"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")

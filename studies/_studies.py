@@ -63,10 +63,11 @@ def check_parameter(problem: Any, name: str) -> str:
     return name
 
 
-def open_store(out: Any, name: str, shape: tuple[int, ...], kind: str, settings: Mapping[str, Any],
+def open_store(out: Any, name: str, shape: tuple[int, ...], kind: type, settings: Mapping[str, Any],
                units: Mapping[str, str], header: Mapping[str, Any],
                axes: Mapping[str, tuple[np.ndarray, str]]) -> GridStore | None:
-    """The resumable store of a grid study in ``out`` (None without a file), with its axes written."""
+    """The resumable store of a grid study in ``out`` (None without a file), with its axes written;
+    ``kind`` the result class."""
     if out is None:
         return None
     owner = owner_of(out)

@@ -23,19 +23,17 @@ DEFAULT_SCENE = "four_bar_ritz"
 #: A built-in non-mechanism scene: the damped, forced Mathieu oscillator (studies.mathieu_problem),
 #: whose every number is known independently; small and fast, for trying the command out.
 MATHIEU = "mathieu"
-_MATHIEU_STUDIES = {
-    "n_steps": 128,
-    "steady_state": {"speed": 0.7},
-    "sweep": {"parameter": "speed", "start": 0.2, "stop": 3.0, "count": 57},
-    "campbell": {"start": 0.2, "stop": 3.0, "count": 15},
-    "stability_chart": {"x": {"parameter": "speed", "start": 0.5, "stop": 3.0, "count": 26},
-                        "y": {"parameter": "epsilon", "start": 0.0, "stop": 0.8, "count": 9},
-                        "n_steps": 64},
-    "nonlinear_check": {"speed": 0.7, "n_periods": 3},
-    "error_cost": {"speed": 0.7, "n_steps": [16, 32, 64, 128]},
-    "optimize": {"objective": "rms:x", "bounds": {"natural_frequency": [1.2, 2.0]}, "speeds": [1.0, 2.0],
-                 "constraints": {"stability_margin": 0.01}, "n_steps": 64},
-}
+#: Steps per period of the mathieu scene's studies (each kind's ``demo`` table may set its own).
+MATHIEU_STEPS = 128
+
+
+def mathieu_studies() -> dict:
+    """The ``[studies]`` table of the built-in ``mathieu`` scene: each registered kind's ``demo``
+    table (kinds without one, such as the mechanism-only ones, are not in it)."""
+    from ._kind import kinds
+
+    return {"n_steps": MATHIEU_STEPS,
+            **{name: dict(kind.demo) for name, kind in kinds().items() if kind.demo is not None}}
 
 
 #: Set to 1 for the traceback of an internal error (a bug), which is otherwise one line.
@@ -266,7 +264,7 @@ def load_scene(scene: str, sets: Sequence[tuple[str, Any]] = (), *, only: Sequen
     from ._problem import mathieu_problem
 
     if scene == MATHIEU:
-        common, declared = plan(override_studies(_MATHIEU_STUDIES, sets))
+        common, declared = plan(override_studies(mathieu_studies(), sets))
         problem = mathieu_problem()
     else:
         path = Path(scene)
@@ -349,7 +347,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _run_studies(args: argparse.Namespace) -> int:
-    from ._kinds import kind_of
+    from ._kind import kind_of
     from ._plan import run_plan
 
     out = args.out or Path(f"{Path(args.scene).stem}.h5")
@@ -375,7 +373,8 @@ def _run_studies(args: argparse.Namespace) -> int:
     for name, message in failures.items():
         print(f"{name:16s} FAILED: {message}")
     if results:
-        from ._summary import summaries, text_table
+        from ._kind import summaries
+        from ._summary import text_table
 
         print()
         print(text_table(summaries(results)))
@@ -453,7 +452,7 @@ def _report_command(args: argparse.Namespace) -> int:
 
 
 #: Study attributes ``flexvib info`` does not print: shown in its header line, or bulky and internal.
-_INFO_HIDDEN = ("kind", "problem", "complete", "request", "request_hash", "settings_hash", "scene",
+_INFO_HIDDEN = ("kind", "format_version", "problem", "complete", "request", "request_hash", "settings_hash", "scene",
                 "outlines", "labels", "mode_labels")
 
 
@@ -462,7 +461,7 @@ def _info(args: argparse.Namespace) -> int:
     be read is called CORRUPT (exit code 1)."""
     import h5py
 
-    from ._store import study_attrs
+    from ._store import format_of, study_attrs
     from ._studies import status_counts
 
     if not args.file.is_file():
@@ -473,8 +472,8 @@ def _info(args: argparse.Namespace) -> int:
         raise UsageError(f"{str(args.file)!r} is not an HDF5 result file ({error})") from None
     corrupt = []
     with handle:
-        print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, created "
-              f"{handle.attrs.get('created', '?')}")
+        print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, result format "
+              f"{format_of(handle)}, created {handle.attrs.get('created', '?')}")
         print(f"  versions: {handle.attrs.get('versions', '?')}")
         if "compile_time" in handle.attrs:   # numba compilation of the last run, outside its run times
             print(f"  compile_time: {float(handle.attrs['compile_time']):.3g} s")

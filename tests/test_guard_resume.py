@@ -11,9 +11,8 @@ import numpy as np
 import pytest
 
 import mechanisms
-from studies import _guard
+from studies import _guard, kinds
 from studies._guard import ResourceError, estimate, guard
-from studies._kinds import KINDS
 from studies._mechanism import MechanismProblem
 from studies.cli import load_scene, main
 
@@ -111,7 +110,7 @@ THICKNESS = "links.coupler.thickness"
 
 def test_a_chart_with_rows_saved_needs_only_the_linearisations_of_the_others():
     problem = MechanismProblem.from_mechanism(mechanisms.load("four_bar_fem4"), parameter_paths=(THICKNESS,))
-    chart = KINDS["stability_chart"]
+    chart = kinds()["stability_chart"]
 
     def options(thicknesses):
         return chart.check("s", {"x": {"parameter": "speed", "values": [50.0, 100.0]},

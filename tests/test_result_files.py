@@ -267,7 +267,7 @@ def test_info_calls_a_study_whose_data_cannot_be_read_corrupt(result_file, capsy
         raw.write(b"\xff" * chunk.size)
     assert main(["info", str(result_file)]) == 1
     captured = capsys.readouterr()
-    assert "[steady_state] SteadyStateResult of four_bar_fem1, CORRUPT (extra: " in captured.out
+    assert "[steady_state] steady_state of four_bar_fem1, CORRUPT (extra: " in captured.out
     assert captured.err.startswith("flexvib: error: ") and "cannot read steady_state" in captured.err
 
 

@@ -13,9 +13,10 @@ import numpy as np
 import periodic
 
 from .. import _verdicts as verdicts
+from .._cost import axis_words, grid_cost, with_reduction_check
 from .._errors import StudiesError
 from .._grid import run_grid
-from .._kind import HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, steps
+from .._kind import HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, register_kind, steps
 from .._numerics import (
     STUDY_SCHEME,
     characteristic_frequencies,
@@ -26,7 +27,6 @@ from .._numerics import (
 )
 from .._plots import Plot, axes_for, cost_line, drawn, largest, mark_statuses, plain
 from .._problem import SPEED
-from .._store import register
 from .._studies import (
     GridResult,
     check_grid,
@@ -47,7 +47,6 @@ MIN_STEPS = 32
 FROZEN_SAMPLES = 64
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class CampbellResult(GridResult):
     """Campbell diagram: frozen-time natural frequencies against crank speed.
@@ -180,7 +179,7 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
     units = {"frozen": "rad/s", "shapes": "1", "multipliers": "1", "multipliers_coarse": "1", "period": "s",
              "crank_angle": "rad", "spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1"}
     header = dict(problem=problem.name, scene=problem.text, labels=labels)
-    store = open_store(out, name, grid.shape, "CampbellResult", settings, units, header,
+    store = open_store(out, name, grid.shape, CampbellResult, settings, units, header,
                        {"speeds": (grid, "rad/s")})
     points = [((i,), {SPEED: float(v)}) for i, v in enumerate(grid)]
     outcomes = run_grid(campbell_point, problem, points,
@@ -277,8 +276,19 @@ def _default(nominal_speed: float) -> dict[str, Any]:
     return {"start": 0.2 * abs(nominal_speed), "stop": 4.0 * abs(nominal_speed), "count": 40}
 
 
-KIND = StudyKind(name="campbell", result=CampbellResult,
-                 keys=("start", "stop", "count", "values", "spacing", "frozen_samples", "max_harmonic",
-                       "n_steps"),
-                 check=_check, run=_run, summary=_summary, grid=True, point=campbell_point,
-                 default=_default, headlines=_headlines)
+def _cost(name, problem, options, workers, done=None):
+    """A periodic solve and ``frozen_samples`` frozen-time eigenproblems per speed."""
+    axis = (SPEED, np.asarray(options["speeds"]))
+    frozen = options["frozen_samples"]
+    found = grid_cost(name, problem, [axis], options["n_steps"], frozen=frozen, workers=workers, done=done,
+                      point_doubles=lambda s: (frozen + s.m + 8.0) * s.m,
+                      words=[axis_words(*axis), f"{frozen} frozen samples"])
+    return with_reduction_check(found, problem, {}, options["n_steps"])
+
+
+KIND = register_kind(StudyKind(
+    name="campbell", result=CampbellResult,
+    keys=("start", "stop", "count", "values", "spacing", "frozen_samples", "max_harmonic", "n_steps"),
+    check=_check, run=_run, summary=_summary, grid=True, point=campbell_point, default=_default,
+    headlines=_headlines, cost=_cost, demo={"start": 0.2, "stop": 3.0, "count": 15},
+    aliases=("CampbellResult",)))

@@ -11,16 +11,16 @@ import numpy as np
 
 import periodic
 
+from .._cost import STUDY_SECONDS, Estimate, Sizes, linearisation, sizes_at, solve_seconds
 from .._errors import StudiesError
-from .._kind import MAX_STEPS, STEPS_WHY, StudyKind, axis, integer, speed_values, sub_table
+from .._kind import MAX_STEPS, STEPS_WHY, StudyKind, axis, integer, register_kind, speed_values, sub_table
 from .._numerics import STUDY_SCHEME, solve_steady
 from .._plots import Plot, axes_for, drawn, plain, tidy_log_axes
-from .._store import Result, register
+from .._store import Result
 from .._studies import check_grid, check_n_steps, check_parameter
 from .._summary import Headline, Summary
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class ErrorCostResult(Result):
     """Error against run time.
@@ -194,6 +194,31 @@ def _varies(options: Mapping[str, Any]) -> tuple[str, ...]:
     return () if options["resolution"] is None else (options["resolution"][0],)
 
 
-KIND = StudyKind(name="error_cost", result=ErrorCostResult, keys=("speed", "n_steps", "reference_steps",
-                                                                   "resolution"),
-                 check=_check, run=_run, summary=_summary, varies=_varies, headlines=_headlines)
+def _cost(name, problem, options, workers):
+    """A linearisation and periodic solve per step count and resolution, and the reference (N and
+    N/2 with Richardson) at the finest resolution."""
+    values = dict(options["values"])
+    resolution = options["resolution"]
+    grids = [float(v) for v in resolution[1]] if resolution is not None else [None]
+    step_counts = list(options["n_steps"])
+    reference = options["reference_steps"] or 4 * max(step_counts)
+    memory, seconds = 0.0, STUDY_SECONDS
+    largest = Sizes(0, 0)
+    for index, value in enumerate(grids):
+        at = values if value is None else dict(values, **{resolution[0]: value})
+        sizes = sizes_at(problem, at)
+        largest = max(largest, sizes, key=lambda s: s.m)
+        # the finest resolution (the last) also computes the reference, with Richardson (N and N/2)
+        counts = step_counts + ([reference, reference // 2] if index == len(grids) - 1 else [])
+        for n_steps in counts:
+            build_bytes, build_seconds = linearisation(n_steps, sizes)
+            memory = max(memory, build_bytes)
+            seconds += build_seconds + solve_seconds(n_steps, sizes)
+    return Estimate(name, memory, seconds, f"{len(step_counts)} step counts up to {reference} x "
+                                           f"{len(grids)} resolutions x {largest.m} coordinates")
+
+
+KIND = register_kind(StudyKind(
+    name="error_cost", result=ErrorCostResult, keys=("speed", "n_steps", "reference_steps", "resolution"),
+    check=_check, run=_run, summary=_summary, varies=_varies, headlines=_headlines, cost=_cost,
+    demo={"speed": 0.7, "n_steps": [16, 32, 64, 128]}, aliases=("ErrorCostResult",)))

@@ -14,12 +14,22 @@ import numpy as np
 
 import periodic
 
+from .._cost import (
+    SHOOTING_PERIODS,
+    STUDY_SECONDS,
+    Estimate,
+    linearisation,
+    nonlinear_period_seconds,
+    sizes_at,
+    solve_seconds,
+    tangent_bytes,
+)
 from .._errors import StudiesError
-from .._kind import StudyKind, integer, number, speed_values, steps
+from .._kind import WARM_UP_STEPS, StudyKind, integer, number, register_kind, speed_values, steps
 from .._mechanism import observables_along, of_coordinates
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
-from .._store import Result, register
+from .._store import Result
 from .._studies import check_integer, check_n_steps
 from .._summary import Headline, Summary, response_rows
 
@@ -42,7 +52,6 @@ ERROR_FACTOR = 1.0 / (2**ORDER - 1)
 MAX_RELATIVE_ERROR = periodic.MAX_RELATIVE_ERROR
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class NonlinearSteadyState(Result):
     """The periodic orbit of the full nonlinear model over one period, with its stability.
@@ -400,6 +409,28 @@ def _headlines(result: NonlinearSteadyState) -> Summary:
                    rows=rows)
 
 
-KIND = StudyKind(name="nonlinear_steady_state", result=NonlinearSteadyState,
-                 keys=("speed", "n_steps", "tol", "max_iterations"), check=_check, run=_run, summary=_summary,
-                 headlines=_headlines)
+def _cost(name, problem, options, workers):
+    """A linearisation and periodic solve (the start), and ``SHOOTING_PERIODS`` periods of the period
+    map with the monodromy's iteration matrices."""
+    sizes = sizes_at(problem, options["values"])
+    n_steps = options["n_steps"]
+    build_bytes, build_seconds = linearisation(n_steps, sizes)
+    seconds = (STUDY_SECONDS + build_seconds + solve_seconds(n_steps, sizes)
+               + SHOOTING_PERIODS * nonlinear_period_seconds(n_steps, sizes))
+    memory = max(build_bytes, tangent_bytes(n_steps, sizes))
+    return Estimate(name, memory, seconds, f"{SHOOTING_PERIODS:g} periods x {n_steps} steps x {sizes.n} "
+                                           "coordinates")
+
+
+
+def warm_up_shooting(problem: Any) -> None:
+    """One Newton step of the nonlinear shooting on the JIT warm-up's tiny grid (a period, its
+    monodromy, a trial period): the integrator's and the monodromy's kernels."""
+    if getattr(problem, "supports_nonlinear", False):
+        nonlinear_steady_state(problem, n_steps=WARM_UP_STEPS, max_iterations=1)
+
+
+KIND = register_kind(StudyKind(
+    name="nonlinear_steady_state", result=NonlinearSteadyState, keys=("speed", "n_steps", "tol", "max_iterations"),
+    check=_check, run=_run, summary=_summary, headlines=_headlines, cost=_cost, warm_up=warm_up_shooting,
+    aliases=("NonlinearSteadyState",)))

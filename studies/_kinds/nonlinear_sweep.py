@@ -14,16 +14,35 @@ import numpy as np
 
 import periodic
 
+from .._cost import (
+    NONLINEAR_DOUBLES,
+    STUDY_SECONDS,
+    SWEEP_POINT_PERIODS,
+    Estimate,
+    largest_sizes,
+    linearisation,
+    nonlinear_period_seconds,
+    solve_seconds,
+    tangent_bytes,
+)
 from .._errors import StudiesError
-from .._kind import MAX_PERIODS, MAX_STEPS, PERIODS_WHY, STEPS_WHY, StudyKind, boolean, integer, number
+from .._kind import MAX_PERIODS, MAX_STEPS, PERIODS_WHY, STEPS_WHY, StudyKind, boolean, integer, number, register_kind
 from .._mechanism import observables_along
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
 from .._problem import SPEED
-from .._store import Result, register
+from .._store import Result
 from .._studies import check_integer, check_n_steps, check_parameter
 from .._summary import Headline, Summary, largest_over_grid
-from .nonlinear_steady_state import ERROR_FACTOR, MIN_STEPS, TOL, orbit_observables, shooting_setup, substep_verdict
+from .nonlinear_steady_state import (
+    ERROR_FACTOR,
+    MIN_STEPS,
+    TOL,
+    orbit_observables,
+    shooting_setup,
+    substep_verdict,
+    warm_up_shooting,
+)
 
 #: Periods of the transient run from the last stable orbit past the loss of stability.
 TRANSIENT_PERIODS = 100
@@ -38,7 +57,6 @@ MAX_ORBITS = 10_000
 ORBITS_WHY = "orbits of one branch, each a few nonlinear periods with their monodromy"
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class NonlinearSweep(Result):
     """The nonlinear periodic orbit over one parameter, with the linear response for comparison.
@@ -377,8 +395,29 @@ def _headlines(result: NonlinearSweep) -> Summary:
     return Summary(status=headline(result.status), run_time=float(result.run_time), rows=rows)
 
 
-KIND = StudyKind(name="nonlinear_sweep", result=NonlinearSweep,
-                 keys=("parameter", "start", "stop", "step", "method", "n_steps", "tol", "max_points",
-                       "stop_at_instability", "transient_periods"),
-                 check=_check, run=_run, summary=_summary, varies=lambda options: (options["parameter"],),
-                 headlines=_headlines)
+def _cost(name, problem, options, workers):
+    """``SWEEP_POINT_PERIODS`` periods and two linearisations per orbit of the branch, the linear
+    curve's ``LINEAR_POINTS`` and the transient."""
+    start, stop, n_steps = options["start"], options["stop"], options["n_steps"]
+    axis = (options["parameter"], np.array([start, stop], dtype=float))
+    sizes = largest_sizes(problem, [axis])
+    step = options["step"] or abs(stop - start) / 50.0  # periodic.continue_orbits' default
+    # an empty range (refused by the table check) has the one orbit at start, not a division by zero
+    orbits = min(options["max_points"], math.ceil(abs(stop - start) / step) + 1 if step > 0.0 else 1)
+    build_bytes, build_seconds = linearisation(n_steps, sizes)
+    periods = orbits * SWEEP_POINT_PERIODS + options["transient_periods"]
+    seconds = (STUDY_SECONDS + (2 * orbits + LINEAR_POINTS) * (build_seconds + solve_seconds(n_steps, sizes))
+               + periods * nonlinear_period_seconds(n_steps, sizes))
+    memory = max(build_bytes, tangent_bytes(n_steps, sizes),
+                 8.0 * NONLINEAR_DOUBLES * options["transient_periods"] * n_steps * sizes.n)
+    return Estimate(name, memory, seconds, f"{orbits} orbits x {SWEEP_POINT_PERIODS:g} periods + "
+                                           f"{options['transient_periods']} periods x {n_steps} steps x "
+                                           f"{sizes.n} coordinates")
+
+
+KIND = register_kind(StudyKind(
+    name="nonlinear_sweep", result=NonlinearSweep,
+    keys=("parameter", "start", "stop", "step", "method", "n_steps", "tol", "max_points", "stop_at_instability",
+          "transient_periods"),
+    check=_check, run=_run, summary=_summary, varies=lambda options: (options["parameter"],),
+    headlines=_headlines, cost=_cost, warm_up=warm_up_shooting, aliases=("NonlinearSweep",)))

@@ -21,6 +21,15 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from .._cost import (
+    FAMILY_DOUBLES,
+    LINEARISATION_DOUBLES,
+    STUDY_SECONDS,
+    Estimate,
+    largest_sizes,
+    linearisation,
+    solve_seconds,
+)
 from .._errors import StudiesError, is_numerical_failure
 from .._kind import (
     HARMONIC_WHY,
@@ -34,6 +43,7 @@ from .._kind import (
     fraction,
     integer,
     number,
+    register_kind,
     reject_unknown,
     steps,
 )
@@ -41,7 +51,7 @@ from .._mechanism import COUNT_KEYS
 from .._numerics import frozen_modes, peak_summary, solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
 from .._problem import SPEED
-from .._store import Result, register
+from .._store import Result
 from .._studies import check_integer, check_n_steps, check_parameter
 from .._summary import Headline, Summary
 from .._verdicts import combine
@@ -160,7 +170,6 @@ def _check_constraints(constraints: Any) -> tuple:
 # ---------------------------------------------------------------------------------------------------
 # the result
 # ---------------------------------------------------------------------------------------------------
-@register
 @dataclass(frozen=True, eq=False)
 class OptimizeResult(Result):
     """The optimum of an objective over scene parameters, with the path that led there.
@@ -913,5 +922,34 @@ def _varies(options: Mapping[str, Any]) -> tuple[str, ...]:
     return tuple(options["bounds"])
 
 
-KIND = StudyKind(name="optimize", result=OptimizeResult, keys=TABLE_KEYS, check=_check, run=_run,
-                 summary=_summary, varies=_varies, headlines=_headlines)
+def _cost(name, problem, options, workers):
+    """At most ``max_evaluations`` sweeps over the speeds, each a linearisation and a periodic solve
+    per speed (an upper bound: a speed family makes the linearisations cheaper), the map's sweeps and
+    the nonlinear check at the optimum."""
+    from .nonlinear_check import nonlinear_check_cost
+
+    bounds = options["bounds"]
+    axes = [(path, np.array(pair, dtype=float)) for path, pair in bounds.items()]
+    sizes = largest_sizes(problem, axes)
+    speeds = 1 if options["speeds"] is None else len(options["speeds"])
+    evaluations = options["max_evaluations"] or default_evaluations(options["method"], len(bounds))
+    sweeps = evaluations + (options["map_points"] ** 2 if len(bounds) >= 2 else 0)
+    build_bytes, build_seconds = linearisation(options["n_steps"], sizes)
+    frozen = 32 if "frequency_separation" in options["constraints"] else 0
+    seconds = STUDY_SECONDS + sweeps * speeds * (build_seconds + solve_seconds(options["n_steps"], sizes, frozen))
+    memory = FAMILY_DOUBLES / LINEARISATION_DOUBLES * build_bytes
+    if options["check"]:
+        check = nonlinear_check_cost(name, problem, {"values": {}, "n_steps": options["n_steps"],
+                                                     "n_periods": options["check_periods"], "from_rest": False,
+                                                     "max_periods_from_rest": 0}, workers)
+        seconds, memory = seconds + check.time, max(memory, check.memory)
+    return Estimate(name, memory, seconds, f"at most {sweeps} evaluations x {speeds} speeds x "
+                                           f"{options['n_steps']} steps x {sizes.m} coordinates")
+
+
+KIND = register_kind(StudyKind(
+    name="optimize", result=OptimizeResult, keys=TABLE_KEYS, check=_check, run=_run, summary=_summary,
+    varies=_varies, headlines=_headlines, cost=_cost,
+    demo={"objective": "rms:x", "bounds": {"natural_frequency": [1.2, 2.0]}, "speeds": [1.0, 2.0],
+          "constraints": {"stability_margin": 0.01}, "n_steps": 64},
+    aliases=("OptimizeResult",)))

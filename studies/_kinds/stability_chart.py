@@ -13,13 +13,13 @@ import numpy as np
 import periodic
 
 from .. import _verdicts as verdicts
+from .._cost import axis_words, grid_cost, with_reduction_check
 from .._errors import StudiesError
 from .._grid import run_grid
-from .._kind import StudyKind, axis, steps, sub_table
+from .._kind import StudyKind, axis, register_kind, steps, sub_table
 from .._numerics import STUDY_SCHEME
 from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses, plain, radius_norm
 from .._problem import SPEED
-from .._store import register
 from .._studies import (
     GridResult,
     check_grid,
@@ -38,7 +38,6 @@ from .._summary import Headline, Summary, largest_over_grid, ranges
 MIN_STEPS = 32
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class StabilityChart(GridResult):
     """Spectral radius over two parameters.
@@ -152,7 +151,7 @@ def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tu
     units = (problem.units[names[0]], problem.units[names[1]])
     header = dict(problem=problem.name, scene=problem.text, parameters=names, parameter_units=units,
                   stability_tol=periodic.STABILITY_TOL)
-    store = open_store(out, name, shape, "StabilityChart", settings,
+    store = open_store(out, name, shape, StabilityChart, settings,
                        {"spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1"}, header,
                        {"first": (axes[0], units[0]), "second": (axes[1], units[1])})
     # The crank speed varies fastest, so that consecutive points (and a worker's batch) share the
@@ -217,6 +216,18 @@ def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, p
                            executor=executor, out=out, name=KIND.name, progress=progress)
 
 
-KIND = StudyKind(name="stability_chart", result=StabilityChart, keys=("x", "y", "n_steps"), check=_check,
-                 run=_run, summary=_summary, grid=True, point=chart_point,
-                 varies=lambda options: (options["first"][0], options["second"][0]), headlines=_headlines)
+def _cost(name, problem, options, workers, done=None):
+    """A periodic solve per point of the two axes."""
+    axes = [(parameter, np.asarray(grid)) for parameter, grid in (options["first"], options["second"])]
+    found = grid_cost(name, problem, axes, options["n_steps"], workers=workers, done=done,
+                      point_doubles=lambda s: 4.0 * s.m + 4.0, words=[axis_words(*axis) for axis in axes])
+    return with_reduction_check(found, problem, {}, options["n_steps"])
+
+
+KIND = register_kind(StudyKind(
+    name="stability_chart", result=StabilityChart, keys=("x", "y", "n_steps"), check=_check, run=_run,
+    summary=_summary, grid=True, point=chart_point,
+    varies=lambda options: (options["first"][0], options["second"][0]), headlines=_headlines, cost=_cost,
+    demo={"x": {"parameter": "speed", "start": 0.5, "stop": 3.0, "count": 26},
+          "y": {"parameter": "epsilon", "start": 0.0, "stop": 0.8, "count": 9}, "n_steps": 64},
+    aliases=("StabilityChart",)))

@@ -9,11 +9,12 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .._cost import steady_solves, with_reduction_check
 from .._drawing import draw_mechanism, mechanism_drawing
-from .._kind import StudyKind, speed_values, steps
+from .._kind import StudyKind, register_kind, speed_values, steps
 from .._numerics import peak_summary, solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain, plot_multipliers
-from .._store import Result, register
+from .._store import Result
 from .._studies import check_n_steps
 from .._summary import Headline, Summary, response_rows
 from .._verdicts import combine
@@ -23,7 +24,6 @@ from .._verdicts import combine
 MIN_STEPS = 16
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class SteadyStateResult(Result):
     """Periodic steady response over one period, with Floquet multipliers.
@@ -237,6 +237,13 @@ def _figures(result: SteadyStateResult) -> dict[str, Any]:
     return figures
 
 
-KIND = StudyKind(name="steady_state", result=SteadyStateResult, keys=("speed", "n_steps"), check=_check,
-                 run=_run, summary=_summary, default=lambda nominal_speed: {}, figures=_figures,
-                 headlines=_headlines)
+def _cost(name, problem, options, workers):
+    """A linearisation and a periodic solve, and the modal reduction's check where a link is reduced."""
+    found = steady_solves(name, problem, [options["values"]], options["n_steps"])
+    return with_reduction_check(found, problem, options["values"], options["n_steps"], extra_solve=False)
+
+
+KIND = register_kind(StudyKind(
+    name="steady_state", result=SteadyStateResult, keys=("speed", "n_steps"), check=_check, run=_run,
+    summary=_summary, default=lambda nominal_speed: {}, figures=_figures, headlines=_headlines, cost=_cost,
+    demo={"speed": 0.7}, aliases=("SteadyStateResult",)))

@@ -13,8 +13,9 @@ import numpy as np
 
 import periodic
 
+from .._cost import axis_words, grid_cost, with_reduction_check
 from .._grid import run_grid
-from .._kind import AXIS_KEYS, HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, steps
+from .._kind import AXIS_KEYS, HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, register_kind, steps
 from .._numerics import crossings, frozen_modes, peak_summary, solve_steady, unstable_intervals
 from .._plots import (
     LABEL_ROW_HEIGHT,
@@ -29,7 +30,6 @@ from .._plots import (
     plain,
 )
 from .._problem import SPEED
-from .._store import register
 from .._studies import (
     GridResult,
     check_grid,
@@ -59,7 +59,6 @@ STATUS_INACCURATE = "inaccurate"
 MIN_STEPS = 16
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class SweepResult(GridResult):
     """Peak-to-peak response and stability against one parameter.
@@ -233,7 +232,7 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
                   for name in ("peak_to_peak_error", "peak", "peak_error")})
     header = dict(problem=problem.name, scene=problem.text, parameter=parameter,
                   parameter_unit=problem.units[parameter], labels=names.labels, units=obs_units)
-    store = open_store(out, name, grid.shape, "SweepResult", settings, units, header,
+    store = open_store(out, name, grid.shape, SweepResult, settings, units, header,
                        {"values": (grid, problem.units[parameter])})
     points = [((i,), {parameter: float(v)}) for i, v in enumerate(grid)]
     outcomes = run_grid(sweep_point, problem, points,
@@ -343,6 +342,16 @@ def _default(nominal_speed: float) -> dict[str, Any]:
             "count": 100}
 
 
-KIND = StudyKind(name="sweep", result=SweepResult, keys=AXIS_KEYS + ("max_harmonic", "n_steps"),
-                 check=_check, run=_run, summary=_summary, grid=True, point=sweep_point,
-                 varies=lambda options: (options["parameter"],), default=_default, headlines=_headlines)
+def _cost(name, problem, options, workers, done=None):
+    """A periodic solve and 32 frozen-time eigenproblems per point (``studies._cost.grid_cost``)."""
+    axis = (options["parameter"], np.asarray(options["values"]))
+    found = grid_cost(name, problem, [axis], options["n_steps"], workers=workers, frozen=32, done=done,
+                      point_doubles=lambda s: 8.0 * s.m + 4.0, words=[axis_words(*axis)])
+    return with_reduction_check(found, problem, {}, options["n_steps"])
+
+
+KIND = register_kind(StudyKind(
+    name="sweep", result=SweepResult, keys=AXIS_KEYS + ("max_harmonic", "n_steps"), check=_check, run=_run,
+    summary=_summary, grid=True, point=sweep_point, varies=lambda options: (options["parameter"],),
+    default=_default, headlines=_headlines, cost=_cost,
+    demo={"parameter": "speed", "start": 0.2, "stop": 3.0, "count": 57}, aliases=("SweepResult",)))
