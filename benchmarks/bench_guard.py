@@ -21,9 +21,8 @@ import tracemalloc
 import numpy as np
 
 import mechanisms
-from studies import _mechanism
+from studies import _mechanism, kinds
 from studies._guard import estimate
-from studies import kinds
 from studies._mechanism import MechanismProblem
 
 SCENE = "four_bar_fem4"
