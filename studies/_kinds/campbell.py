@@ -12,11 +12,6 @@ import numpy as np
 
 import periodic
 
-from .. import _verdicts as verdicts
-from .._cost import axis_words, grid_cost, with_reduction_check
-from .._errors import StudiesError
-from .._grid import run_grid
-from .._kind import HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, register_kind, steps
 from .._numerics import (
     STUDY_SCHEME,
     characteristic_frequencies,
@@ -26,20 +21,36 @@ from .._numerics import (
     unstable_intervals,
 )
 from .._plots import Plot, axes_for, cost_line, drawn, largest, mark_statuses, plain
-from .._problem import SPEED
-from .._studies import (
+from .._toolkit import (
+    HARMONIC_WHY,
+    MAX_HARMONIC,
+    SPEED,
     GridResult,
+    Headline,
+    StudiesError,
+    StudyKind,
+    Summary,
+    axis,
+    axis_words,
     check_grid,
     check_integer,
     check_n_steps,
     collect,
+    combine,
+    grid_cost,
     grid_status,
     grid_summary,
+    integer,
+    listed,
     open_store,
+    ranges,
     reduction_check,
     reduction_headlines,
+    register_kind,
+    run_grid,
+    steps,
+    with_reduction_check,
 )
-from .._summary import Headline, Summary, listed, ranges
 
 #: The fewest steps per period a Campbell diagram accepts (docs/studies.md).
 MIN_STEPS = 32
@@ -147,7 +158,7 @@ def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, f
     index, frozen, shapes = frozen_modes(linear.system, frozen_samples)
     result = periodic.floquet(linear.system, scheme=STUDY_SCHEME, estimate_error=True)
     unresolved = int((~result.resolved).sum())
-    status, message = verdicts.combine([
+    status, message = combine([
         (result.status, result.message),
         ("unresolved_stiff_mode" if unresolved else "ok",
          f"{unresolved} multipliers belong to modes the {n_steps} steps do not resolve (stiff modes; "

@@ -18,23 +18,34 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .._cost import (
+from .._mechanism import deviation_from_nominal
+from .._plots import Plot, axes_for, drawn, headline, label, plain
+from .._toolkit import (
+    MAX_PERIODS,
     NONLINEAR_DOUBLES,
     NONLINEAR_STEP_N2_SECONDS,
     NONLINEAR_STEP_SECONDS,
+    PERIODS_WHY,
+    SPEED,
     STUDY_SECONDS,
+    ComputationError,
     Estimate,
+    Headline,
+    Result,
+    StudiesError,
+    StudyKind,
+    Summary,
+    check_integer,
+    check_n_steps,
+    combine,
+    fraction,
+    integer,
+    is_numerical_failure,
+    register_kind,
     sizes_at,
+    speed_values,
+    steps,
 )
-from .._errors import ComputationError, StudiesError, is_numerical_failure
-from .._kind import MAX_PERIODS, PERIODS_WHY, StudyKind, fraction, integer, register_kind, speed_values, steps
-from .._mechanism import deviation_from_nominal
-from .._plots import Plot, axes_for, drawn, headline, label, plain
-from .._problem import SPEED
-from .._store import Result
-from .._studies import check_integer, check_n_steps
-from .._summary import Headline, Summary
-from .._verdicts import combine
 
 logger = logging.getLogger(__name__)
 

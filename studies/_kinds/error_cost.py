@@ -11,14 +11,31 @@ import numpy as np
 
 import periodic
 
-from .._cost import STUDY_SECONDS, Estimate, Sizes, linearisation, sizes_at, solve_seconds
-from .._errors import StudiesError
-from .._kind import MAX_STEPS, STEPS_WHY, StudyKind, axis, integer, register_kind, speed_values, sub_table
 from .._numerics import STUDY_SCHEME, solve_steady
 from .._plots import Plot, axes_for, drawn, plain, tidy_log_axes
-from .._store import Result
-from .._studies import check_grid, check_n_steps, check_parameter
-from .._summary import Headline, Summary
+from .._toolkit import (
+    MAX_STEPS,
+    STEPS_WHY,
+    STUDY_SECONDS,
+    Estimate,
+    Headline,
+    Result,
+    Sizes,
+    StudiesError,
+    StudyKind,
+    Summary,
+    axis,
+    check_grid,
+    check_n_steps,
+    check_parameter,
+    integer,
+    linearisation,
+    register_kind,
+    sizes_at,
+    solve_seconds,
+    speed_values,
+    sub_table,
+)
 
 
 @dataclass(frozen=True, eq=False)

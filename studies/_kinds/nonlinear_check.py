@@ -9,38 +9,39 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .._cost import (
+from .._numerics import solve_steady
+from .._plots import Plot, axes_for, drawn, headline, label, plain
+from .._toolkit import (
+    MAX_AXIS_POINTS,
+    MAX_PERIODS,
     NONLINEAR_DOUBLES,
     NONLINEAR_STEP_N2_SECONDS,
     NONLINEAR_STEP_SECONDS,
-    STUDY_SECONDS,
-    Estimate,
-    linearisation,
-    sizes_at,
-    solve_seconds,
-)
-from .._errors import StudiesError, is_numerical_failure
-from .._kind import (
-    MAX_AXIS_POINTS,
-    MAX_PERIODS,
     PERIODS_WHY,
+    SPEED,
+    STUDY_SECONDS,
     WARM_UP_STEPS,
+    Estimate,
+    Headline,
+    Result,
+    StudiesError,
     StudyKind,
+    Summary,
     boolean,
+    check_integer,
+    check_n_steps,
+    combine,
     fraction,
     integer,
+    is_numerical_failure,
+    linearisation,
     number,
     register_kind,
+    sizes_at,
+    solve_seconds,
     speed_values,
     steps,
 )
-from .._numerics import solve_steady
-from .._plots import Plot, axes_for, drawn, headline, label, plain
-from .._problem import SPEED
-from .._store import Result
-from .._studies import check_integer, check_n_steps
-from .._summary import Headline, Summary
-from .._verdicts import combine
 
 #: The fewest steps per period a nonlinear check accepts (docs/studies.md): the nonlinear run takes
 #: the linear grid's steps, and its own error estimate needs them.

@@ -14,24 +14,33 @@ import numpy as np
 
 import periodic
 
-from .._cost import (
-    SHOOTING_PERIODS,
-    STUDY_SECONDS,
-    Estimate,
-    linearisation,
-    nonlinear_period_seconds,
-    sizes_at,
-    solve_seconds,
-    tangent_bytes,
-)
-from .._errors import StudiesError
-from .._kind import WARM_UP_STEPS, StudyKind, integer, number, register_kind, speed_values, steps
 from .._mechanism import observables_along, of_coordinates
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
-from .._store import Result
-from .._studies import check_integer, check_n_steps
-from .._summary import Headline, Summary, response_rows
+from .._toolkit import (
+    SHOOTING_PERIODS,
+    STUDY_SECONDS,
+    WARM_UP_STEPS,
+    Estimate,
+    Headline,
+    Result,
+    StudiesError,
+    StudyKind,
+    Summary,
+    check_integer,
+    check_n_steps,
+    integer,
+    linearisation,
+    nonlinear_period_seconds,
+    number,
+    register_kind,
+    response_rows,
+    sizes_at,
+    solve_seconds,
+    speed_values,
+    steps,
+    tangent_bytes,
+)
 
 #: The fewest steps per period (docs/studies.md): N/2 = 16 steps must still carry the integrator.
 MIN_STEPS = 32

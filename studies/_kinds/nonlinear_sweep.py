@@ -14,26 +14,38 @@ import numpy as np
 
 import periodic
 
-from .._cost import (
-    NONLINEAR_DOUBLES,
-    STUDY_SECONDS,
-    SWEEP_POINT_PERIODS,
-    Estimate,
-    largest_sizes,
-    linearisation,
-    nonlinear_period_seconds,
-    solve_seconds,
-    tangent_bytes,
-)
-from .._errors import StudiesError
-from .._kind import MAX_PERIODS, MAX_STEPS, PERIODS_WHY, STEPS_WHY, StudyKind, boolean, integer, number, register_kind
 from .._mechanism import observables_along
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
-from .._problem import SPEED
-from .._store import Result
-from .._studies import check_integer, check_n_steps, check_parameter
-from .._summary import Headline, Summary, largest_over_grid
+from .._toolkit import (
+    MAX_PERIODS,
+    MAX_STEPS,
+    NONLINEAR_DOUBLES,
+    PERIODS_WHY,
+    SPEED,
+    STEPS_WHY,
+    STUDY_SECONDS,
+    SWEEP_POINT_PERIODS,
+    Estimate,
+    Headline,
+    Result,
+    StudiesError,
+    StudyKind,
+    Summary,
+    boolean,
+    check_integer,
+    check_n_steps,
+    check_parameter,
+    integer,
+    largest_over_grid,
+    largest_sizes,
+    linearisation,
+    nonlinear_period_seconds,
+    number,
+    register_kind,
+    solve_seconds,
+    tangent_bytes,
+)
 from .nonlinear_steady_state import (
     ERROR_FACTOR,
     MIN_STEPS,

@@ -21,40 +21,42 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .._cost import (
+from .._mechanism import COUNT_KEYS
+from .._numerics import frozen_modes, peak_summary, solve_steady
+from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
+from .._toolkit import (
     FAMILY_DOUBLES,
-    LINEARISATION_DOUBLES,
-    STUDY_SECONDS,
-    Estimate,
-    largest_sizes,
-    linearisation,
-    solve_seconds,
-)
-from .._errors import StudiesError, is_numerical_failure
-from .._kind import (
     HARMONIC_WHY,
+    LINEARISATION_DOUBLES,
     MAX_AXIS_POINTS,
     MAX_HARMONIC,
     MAX_PERIODS,
     PERIODS_WHY,
+    SPEED,
+    STUDY_SECONDS,
+    Estimate,
+    Headline,
+    Result,
+    StudiesError,
     StudyKind,
+    Summary,
     axis,
     boolean,
+    check_integer,
+    check_n_steps,
+    check_parameter,
+    combine,
     fraction,
     integer,
+    is_numerical_failure,
+    largest_sizes,
+    linearisation,
     number,
     register_kind,
     reject_unknown,
+    solve_seconds,
     steps,
 )
-from .._mechanism import COUNT_KEYS
-from .._numerics import frozen_modes, peak_summary, solve_steady
-from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
-from .._problem import SPEED
-from .._store import Result
-from .._studies import check_integer, check_n_steps, check_parameter
-from .._summary import Headline, Summary
-from .._verdicts import combine
 
 #: The fewest steps per period an optimisation accepts (its steady states' error check uses N/4).
 MIN_STEPS = 16

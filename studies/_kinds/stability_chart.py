@@ -12,27 +12,36 @@ import numpy as np
 
 import periodic
 
-from .. import _verdicts as verdicts
-from .._cost import axis_words, grid_cost, with_reduction_check
-from .._errors import StudiesError
-from .._grid import run_grid
-from .._kind import StudyKind, axis, register_kind, steps, sub_table
 from .._numerics import STUDY_SCHEME
 from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses, plain, radius_norm
-from .._problem import SPEED
-from .._studies import (
+from .._toolkit import (
+    SPEED,
     GridResult,
+    Headline,
+    StudiesError,
+    StudyKind,
+    Summary,
+    axis,
+    axis_words,
     check_grid,
     check_n_steps,
     check_parameter,
     collect,
+    combine,
+    grid_cost,
     grid_status,
     grid_summary,
+    largest_over_grid,
     open_store,
+    ranges,
     reduction_check,
     reduction_headlines,
+    register_kind,
+    run_grid,
+    steps,
+    sub_table,
+    with_reduction_check,
 )
-from .._summary import Headline, Summary, largest_over_grid, ranges
 
 #: The fewest steps per period a stability chart accepts (docs/studies.md).
 MIN_STEPS = 32
@@ -122,7 +131,7 @@ def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int):
     linear = problem.linearize(values, n_steps=n_steps, context=False)
     result = periodic.floquet(linear.system, scheme=STUDY_SCHEME, estimate_error=True)
     unresolved = ~result.resolved & (np.abs(result.multipliers) > 1.0 + result.stability_tol)
-    status, message = verdicts.combine([
+    status, message = combine([
         (result.status, result.message),
         ("unresolved_stiff_mode" if unresolved.any() else "ok",
          "an unstable multiplier belongs to a mode the step does not resolve: refine n_steps"

@@ -9,15 +9,23 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .._cost import steady_solves, with_reduction_check
 from .._drawing import draw_mechanism, mechanism_drawing
-from .._kind import StudyKind, register_kind, speed_values, steps
 from .._numerics import peak_summary, solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain, plot_multipliers
-from .._store import Result
-from .._studies import check_n_steps
-from .._summary import Headline, Summary, response_rows
-from .._verdicts import combine
+from .._toolkit import (
+    Headline,
+    Result,
+    StudyKind,
+    Summary,
+    check_n_steps,
+    combine,
+    register_kind,
+    response_rows,
+    speed_values,
+    steady_solves,
+    steps,
+    with_reduction_check,
+)
 
 #: The fewest steps per period a steady state accepts (docs/studies.md): N/4 = 4 steps is the
 #: coarsest level of the error check.

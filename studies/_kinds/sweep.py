@@ -13,9 +13,6 @@ import numpy as np
 
 import periodic
 
-from .._cost import axis_words, grid_cost, with_reduction_check
-from .._grid import run_grid
-from .._kind import AXIS_KEYS, HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, register_kind, steps
 from .._numerics import crossings, frozen_modes, peak_summary, solve_steady, unstable_intervals
 from .._plots import (
     LABEL_ROW_HEIGHT,
@@ -29,22 +26,39 @@ from .._plots import (
     mark_statuses,
     plain,
 )
-from .._problem import SPEED
-from .._studies import (
+from .._toolkit import (
+    AXIS_KEYS,
+    HARMONIC_WHY,
+    MAX_HARMONIC,
+    PEAK_UNITS,
+    SPEED,
     GridResult,
+    Headline,
+    StudyKind,
+    Summary,
+    axis,
+    axis_words,
     check_grid,
     check_integer,
     check_n_steps,
     check_parameter,
     collect,
+    combine,
+    grid_cost,
     grid_status,
     grid_summary,
+    integer,
+    largest_over_grid,
+    listed,
     open_store,
+    ranges,
     reduction_check,
     reduction_headlines,
+    register_kind,
+    run_grid,
+    steps,
+    with_reduction_check,
 )
-from .._summary import PEAK_UNITS, Headline, Summary, largest_over_grid, listed, ranges
-from .._verdicts import combine
 
 #: Frozen-time eigenproblems per period for the resonance bands of a sweep (the bands of smooth
 #: coefficients converge fast in the number of samples; 32 resolves a band edge to well under 1 %
