@@ -52,6 +52,7 @@ from ._problem import NonlinearRun as NonlinearRun
 from ._problem import PeriodicCoefficients as PeriodicCoefficients
 from ._problem import PeriodicProblem as PeriodicProblem
 from ._problem import mathieu_problem as mathieu_problem
+from ._resultfile import ResultFile as ResultFile
 from ._store import FORMAT_VERSION as FORMAT_VERSION
 from ._store import Result as Result
 from ._store import ResultFileError as ResultFileError
@@ -65,6 +66,7 @@ __all__ = [
     "FORMAT_VERSION",
     "Headline",
     "Result",
+    "ResultFile",
     "StudyKind",
     "Summary",
     "kind_of",

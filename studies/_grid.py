@@ -27,17 +27,9 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from ._errors import StudiesError
-from ._store import (
-    FORMAT_VERSION,
-    deferred_interrupts,
-    differing_paths,
-    digest,
-    encode,
-    owner_of,
-    scene_numbers,
-    stored_name,
-    write_attrs,
-)
+from ._identity import differing_paths, digest, scene_numbers
+from ._store import FORMAT_VERSION, encode, stored_name, write_attrs
+from ._writes import deferred_interrupts, owner_of
 
 logger = logging.getLogger(__name__)
 
@@ -93,7 +85,7 @@ class GridStore:
     ``point_run_time`` (grid shape, s), and one dataset per output name of shape
     ``grid shape + value shape``, created at the first successful point, pre-filled with NaN, with a
     ``units`` attribute from ``units`` (looked up by the name, then by its first path component).
-    In a ``studies._store.ResultFile`` each point is one write (an interrupt waits for its end) and
+    In a ``studies._resultfile.ResultFile`` each point is one write (an interrupt waits for its end) and
     the file commits every few seconds; in a plain h5py file each point is flushed.
     """
 
@@ -220,7 +212,7 @@ class GridStore:
 
 def grid_identity(settings: Mapping[str, Any], units: Mapping[str, str]) -> dict[str, Any]:
     """What makes two runs of a grid study the same: its settings with the scene text replaced by the
-    numbers of the scene (``studies._store.scene_numbers``), and its output names."""
+    numbers of the scene (``studies._identity.scene_numbers``), and its output names."""
     plain = dict(settings)
     if isinstance(plain.get("scene"), str):
         plain["scene"] = scene_numbers(plain["scene"])

@@ -59,8 +59,8 @@ def _saved(path: str | os.PathLike | None, problem: Any, runs: Sequence[tuple[st
         return _Saved()
     import h5py
 
+    from ._identity import digest
     from ._plan import scene_identity
-    from ._store import digest
 
     complete, done = set(), {}
     try:

@@ -16,9 +16,11 @@ import numpy as np
 
 from . import _jit
 from ._errors import StudiesError, is_numerical_failure
+from ._identity import canonical, differing_paths, digest, scene_numbers
 from ._kind import COMMON_KEYS, integer, kind_named, kinds, reject_unknown
 from ._problem import SPEED
-from ._store import ResultFile, StorageError, canonical, differing_paths, digest, read_group, scene_numbers, write_attrs
+from ._resultfile import ResultFile
+from ._store import StorageError, read_group, write_attrs
 
 __all__ = ["RunInterrupted", "StudiesError", "default_table", "parameters_needed", "plan", "run_plan",
            "scene_identity"]
@@ -71,7 +73,7 @@ def parameters_needed(studies: Mapping[str, Mapping[str, Any]]) -> tuple[str, ..
 def scene_identity(problem: Any) -> dict[str, Any]:
     """What identifies the scene of a run (its sha256 is the result file's ``scene_hash``): the
     numbers of the scene (its tables without name, description and studies,
-    ``studies._store.scene_numbers``) and the observables; for a ``PeriodicProblem`` also its name,
+    ``studies._identity.scene_numbers``) and the observables; for a ``PeriodicProblem`` also its name,
     parameters and observable rows (its text is an equation, not a scene)."""
     identity: dict[str, Any] = {"scene": scene_numbers(getattr(problem, "text", ""))}
     if hasattr(problem, "observable_specs"):
@@ -99,7 +101,7 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
     ``(results, failures)``: ``{kind: result}`` and ``{kind: message}`` of studies that failed
     numerically (see ``studies._errors``).
 
-    The file is written through ``studies._store.ResultFile`` (any kill leaves it readable). A file
+    The file is written through ``studies._resultfile.ResultFile`` (any kill leaves it readable). A file
     of another scene, or holding a grid study asked with other options, is refused before anything
     is written (``overwrite``: start the file afresh). Grid studies resume an interrupted run; the
     other studies are skipped when the file already holds a complete result for the same options,

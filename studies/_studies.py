@@ -22,8 +22,9 @@ from . import _verdicts as verdicts
 from ._errors import StudiesError
 from ._grid import STATUS_FAILED, GridStore
 from ._plots import plain
-from ._store import Result, _write_array, owner_of
+from ._store import Result, write_array
 from ._summary import Headline
+from ._writes import owner_of
 
 
 def check_n_steps(n_steps: Any, *, minimum: int = 16, multiple: int = 4, study: str = "this study") -> int:
@@ -142,7 +143,7 @@ class GridResult(Result):
         for name in self._scalars_with_units:
             if name in group.attrs:
                 del group.attrs[name]
-            _write_array(group, name, np.asarray(float(getattr(self, name))), self._unit(name))
+            write_array(group, name, np.asarray(float(getattr(self, name))), self._unit(name))
 
     @property
     def overall_status(self) -> str:
