@@ -1,4 +1,4 @@
-"""Calibration of the resource guard's cost models (studies/_guard.py) against real runs.
+"""Calibration of the resource guard's cost models (studies/_cost.py) against real runs.
 
 For the thesis four-bar with 1 to 32 Hermite elements on the coupler (12 to 105 coordinates) and 64
 to 512 steps, each study kind is run small (a few grid points, 2 nonlinear periods) in this process
@@ -6,7 +6,7 @@ with tracemalloc on, and its peak traced memory (numpy's arrays included) and wa
 next to the guard's estimate for the same options, as ratios measured / estimated. Times are medians
 of ``--repeats`` runs with a warm JIT cache and fresh speed-family caches. The guard is meant to be
 good to a factor of a few and on the safe side: ratios between about 0.3 and 1.5 are fine; if a
-machine gives ratios far outside, scale the constants in studies/_guard.py.
+machine gives ratios far outside, scale the constants in studies/_cost.py.
 
 Run: .venv/bin/python benchmarks/bench_guard.py [--quick] [--repeats 3]
 """
@@ -21,8 +21,7 @@ import tracemalloc
 import numpy as np
 
 import mechanisms
-from studies import _mechanism, kinds
-from studies._guard import estimate
+from studies import _mechanism, estimate, kinds
 from studies._mechanism import MechanismProblem
 
 SCENE = "four_bar_fem4"

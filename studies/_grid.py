@@ -142,7 +142,7 @@ class GridStore:
             group.attrs["settings_hash"] = identity
             group.attrs["complete"] = False
             write_attrs(group, header)
-            if owner is not None:  # what the plan asked of this study (studies._plan)
+            if owner is not None:  # what the plan asked of this study (studies.cli._run)
                 write_attrs(group, owner.study_attrs.get(name, {}))
             group.attrs["settings"] = encode(settings)
             group.create_dataset("done", shape=shape, dtype=bool, fillvalue=False)
@@ -294,7 +294,7 @@ def run_grid(point: Callable, problem: Any, points: Sequence[tuple[tuple[int, ..
 
 
 def _progress(total: int, initial: int, description: str, enabled: bool):
-    from ._console import progress_bar
+    from ._progress import progress_bar
 
     return progress_bar(total=total, initial=initial, desc=description, unit="point", enabled=enabled,
                         leave=False)

@@ -28,7 +28,8 @@ AXIS_KEYS = ("parameter", "start", "stop", "count", "values", "spacing")
 
 # Upper bounds of the size-like keys of the [studies] tables (docs/studies.md, "Limits"), each with
 # the reason given when a value is refused. They stop absurd values when the table is read; what a
-# study costs in all (points x steps x coordinates) is estimated by the resource guard (_guard.py).
+# study costs in all (points x steps x coordinates) is estimated by its kind's cost model (StudyKind.cost)
+# for the resource guard.
 #: Steps per period: 65536 resolve a mode of 10^4 times the crank frequency to 0.01 %.
 MAX_STEPS = 65536
 STEPS_WHY = "65536 steps per period resolve modes up to 10^4 times the crank frequency"

@@ -68,7 +68,7 @@ class ResultFile:
         self._broken = False
         self._dirty = False  # written since the last commit (a run that wrote nothing commits nothing)
         self._signals = contextlib.ExitStack()
-        #: attributes a study group gets when it is created (``studies._plan``: what was asked of it)
+        #: attributes a study group gets when it is created (``studies.cli._run``: what was asked of it)
         self.study_attrs: dict[str, dict[str, Any]] = {}
 
     # -- opening -------------------------------------------------------------------------------

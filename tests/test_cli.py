@@ -233,7 +233,7 @@ def test_a_bad_scene_exits_2_naming_it(tmp_path, capsys):
 
 
 def _raise_in_run(monkeypatch, error):
-    from studies import _plan
+    from studies.cli import _run as _plan
 
     def run_plan(*args, **kwargs):
         raise error

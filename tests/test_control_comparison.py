@@ -13,7 +13,7 @@ import pytest
 
 import mechanisms
 import studies
-from studies import _guard, kinds
+from studies import kinds
 from studies._kinds.control_comparison import settling_time
 
 N_STEPS, N_PERIODS = 64, 8
@@ -195,8 +195,8 @@ def test_table_defaults_and_cost_model():
     assert options == {"values": {"speed": 80.0}, "n_steps": 128, "n_periods": 20, "band": 0.05,
                        "output": "coupler.point_error@0.5"}
     problem = studies.MechanismProblem.from_mechanism(_torque_four_bar(**GAINS))
-    short = _guard.estimate(problem, "control_comparison", options)
-    long = _guard.estimate(problem, "control_comparison", dict(options, n_periods=200))
+    short = studies.estimate(problem, "control_comparison", options)
+    long = studies.estimate(problem, "control_comparison", dict(options, n_periods=200))
     assert long.time > 5.0 * short.time and "2 runs x 20 periods" in short.sizes
 
 

@@ -1,4 +1,4 @@
-"""The resource guard (studies/_guard.py), the loader's limits on scene sizes, the empty [studies]
+"""The resource guard (studies/cli/_guard.py), the loader's limits on scene sizes, the empty [studies]
 table and the frozen samples a file records."""
 
 from __future__ import annotations
@@ -11,10 +11,12 @@ import pytest
 
 import mechanisms
 import studies
-from studies import _mechanism, _plan, kinds
-from studies._guard import ResourceError, estimate, format_bytes, format_seconds, guard, memory_limit
+from studies import ResourceError, _mechanism, estimate, guard, kinds
+from studies._cost import format_bytes, format_seconds
 from studies._mechanism import MechanismProblem
+from studies.cli import _run as _plan
 from studies.cli import load_scene, main
+from studies.cli._guard import memory_limit
 
 ELEMENTS = "links.coupler.discretisation.n_elements"
 

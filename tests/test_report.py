@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 import studies
-from studies import _animate, _kind, _summary, kind_of, kinds
+from studies import _kind, _summary, kind_of, kinds
 from studies._drawing import frame_points, plate_corners
 from studies._mechanism import MechanismProblem
 from studies._plots import plain
-from studies.cli import main
+from studies.cli import _animate, main
 
 from ._figure_text import text_problems
 

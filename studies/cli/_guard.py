@@ -12,9 +12,9 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ._cost import Estimate, estimate, format_bytes, format_seconds
-from ._errors import StudiesError
-from ._kind import kind_named
+from .._cost import Estimate, estimate, format_bytes, format_seconds
+from .._errors import StudiesError
+from .._kind import kind_named
 
 __all__ = ["Estimate", "ResourceError", "estimate", "guard", "memory_limit", "TIME_LIMIT"]
 
@@ -52,15 +52,15 @@ class _Saved:
 
 def _saved(path: str | os.PathLike | None, problem: Any, runs: Sequence[tuple[str, Any, Any]]) -> _Saved:
     """What the result file ``path`` holds of ``runs`` (``(name, kind, options)``), judged as
-    ``studies._plan.run_plan`` judges it: the file's scene identity must be this problem's (else the
+    ``studies.cli._run.run_plan`` judges it: the file's scene identity must be this problem's (else the
     run refuses the file), and a study's ``request_hash`` the digest of its options; nothing for a
     missing or unreadable file (the run reports those)."""
     if path is None or not os.path.isfile(path):
         return _Saved()
     import h5py
 
-    from ._identity import digest
-    from ._plan import scene_identity
+    from .._identity import digest
+    from ._run import scene_identity
 
     complete, done = set(), {}
     try:

@@ -7,8 +7,8 @@ import html
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from ._kind import in_run_order, kind_of, summaries
-from ._summary import markdown_table
+from .._kind import in_run_order, kind_of, summaries
+from .._summary import markdown_table
 
 REPORT_NAME = "report"
 
@@ -57,7 +57,7 @@ def markdown(results: Mapping[str, Any], figures: Mapping[str, list[Path]], *, t
 
 def html_page(results: Mapping[str, Any], figures: Mapping[str, list[Path]], *, title: str) -> str:
     """The same report as one HTML page (no external assets but the PNG files beside it)."""
-    from ._summary import COLUMNS, table_rows
+    from .._summary import COLUMNS, table_rows
 
     escape = html.escape
     head = "".join(f"<th>{escape(c)}</th>" for c in COLUMNS)

@@ -21,8 +21,8 @@ import time
 import warnings
 from typing import Any, Mapping
 
-from ._kind import WARM_UP_STEPS, kind_named
-from ._problem import SPEED
+from .._kind import WARM_UP_STEPS, kind_named
+from .._problem import SPEED
 
 __all__ = ["CompileClock", "warm_up"]
 
@@ -124,7 +124,7 @@ def _attempt(what: str, run, *args) -> None:
 def _steady_state(problem: Any) -> None:
     """The steady state at the scene's values, every piece of it (linearisation, periodic solve,
     observables, the drawing): what every kind builds on."""
-    from ._kinds.steady_state import steady_state
+    from .._kinds.steady_state import steady_state
 
     steady_state(problem, n_steps=WARM_UP_STEPS)
 
