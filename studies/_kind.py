@@ -105,6 +105,9 @@ class StudyKind:
     ``warm_up(problem) -> None``: runs the kind's own code path on a tiny grid before the run's
     clocks start, so that numba compiles its kernels (``WARM_UP_STEPS`` steps); None: a grid kind
     runs one ``point``, another needs nothing beyond the steady state every run warms up.
+    ``schemes``: the kind integrates with a periodic scheme, named by the ``[studies]`` table's
+    ``scheme`` key: the plan adds it to the options (``options["scheme"]``, part of the request and
+    its hash) and ``run`` passes it to the study function.
     ``aliases``: other names files store this kind under (result format 1 wrote the result class's
     name), read by ``studies.load``.
     """
@@ -125,6 +128,7 @@ class StudyKind:
     cost: Callable[..., Any] | None = None
     demo: Mapping[str, Any] | None = None
     warm_up: Callable[[Any], None] | None = None
+    schemes: bool = False
     aliases: tuple[str, ...] = ()
 
 

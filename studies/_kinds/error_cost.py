@@ -11,7 +11,7 @@ import numpy as np
 
 import periodic
 
-from .._numerics import STUDY_SCHEME, solve_steady
+from .._numerics import DEFAULT_SCHEME, solve_steady, study_scheme
 from .._plots import Plot, axes_for, drawn, plain, tidy_log_axes
 from .._toolkit import (
     MAX_STEPS,
@@ -106,12 +106,13 @@ def check_step_counts(n_steps: Sequence[int], reference_steps: int | None) -> tu
 
 def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
                n_steps: Sequence[int] = (32, 64, 128, 256), resolution: tuple[str, Sequence[float]] | None = None,
-               reference_steps: int | None = None) -> ErrorCostResult:
+               reference_steps: int | None = None, scheme: str = DEFAULT_SCHEME) -> ErrorCostResult:
     """Error of the steady response against run time, over steps per period and (optionally) a
     resolution parameter such as a number of elements ``("links.coupler.discretisation.n_elements",
     (1, 2, 4))``. The reference is the finest resolution at ``reference_steps`` (default 4 x the
     largest ``n_steps``) with Richardson extrapolation (order 4). Runs in-process so the times are
-    comparable."""
+    comparable. ``scheme`` names the periodic scheme (``periodic.SCHEMES``)."""
+    scheme_used = study_scheme(scheme)
     steps, reference_steps = check_step_counts(n_steps, reference_steps)
     base = steps[0]
     if resolution is None:
@@ -128,7 +129,7 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
 
     start = time.perf_counter()
     reference_linear = problem.linearize(at(levels[-1]), n_steps=reference_steps)
-    reference_state = periodic.steady_state(reference_linear.system, scheme=STUDY_SCHEME, extrapolate=True)
+    reference_state = periodic.steady_state(reference_linear.system, scheme=scheme_used, extrapolate=True)
     reference = reference_linear.observe(reference_state.x)[:: reference_steps // base]
     reference_time = time.perf_counter() - start
     specs = reference_linear.observables
@@ -141,7 +142,7 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
         for j, n in enumerate(steps):
             tick = time.perf_counter()
             linear = problem.linearize(at(level), n_steps=n)
-            steady = solve_steady(linear)
+            steady = solve_steady(linear, scheme)
             run_time[i, j] = time.perf_counter() - tick
             n_dof[i] = linear.system.n_dof
             response = steady.response[:: n // base]
@@ -237,5 +238,5 @@ def _cost(name, problem, options, workers):
 
 KIND = register_kind(StudyKind(
     name="error_cost", result=ErrorCostResult, keys=("speed", "n_steps", "reference_steps", "resolution"),
-    check=_check, run=_run, summary=_summary, varies=_varies, headlines=_headlines, cost=_cost,
+    check=_check, run=_run, summary=_summary, varies=_varies, headlines=_headlines, cost=_cost, schemes=True,
     demo={"speed": 0.7, "n_steps": [16, 32, 64, 128]}, aliases=("ErrorCostResult",)))

@@ -13,7 +13,15 @@ import numpy as np
 
 import periodic
 
-from .._numerics import crossings, frozen_modes, peak_summary, solve_steady, unstable_intervals
+from .._numerics import (
+    DEFAULT_SCHEME,
+    crossings,
+    frozen_modes,
+    peak_summary,
+    solve_steady,
+    study_scheme,
+    unstable_intervals,
+)
 from .._plots import (
     LABEL_ROW_HEIGHT,
     Plot,
@@ -185,11 +193,12 @@ class SweepResult(GridResult):
         return drawn(axes, artists)
 
 
-def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, frozen_samples: int):
+def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, frozen_samples: int,
+                scheme: str = DEFAULT_SCHEME):
     """One sweep point: steady state, multipliers, frozen frequency bands (a top-level function so
     that process pools and Dask can pickle it)."""
     linear = problem.linearize(values, n_steps=n_steps, context=False)
-    steady = solve_steady(linear)
+    steady = solve_steady(linear, scheme)
     _, frozen, _ = frozen_modes(linear.system, frozen_samples)
     response = steady.response
     data = {
@@ -220,12 +229,14 @@ def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, froz
 
 def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int = 256,
           max_harmonic: int = 4, executor: Executor | None = None, out: Any = None,
-          name: str = "sweep", progress: bool = False) -> SweepResult:
+          name: str = "sweep", progress: bool = False, scheme: str = DEFAULT_SCHEME) -> SweepResult:
     """Sweep ``parameter`` (e.g. ``"speed"``) over ``values``: peak-to-peak of each observable and its
     error, spectral radius, multipliers, frozen frequency bands; resonances ``k * speed`` (k = 1 ..
     ``max_harmonic``) crossing a mean frozen frequency and parametric instabilities (spectral radius
-    above 1) marked. ``out``: h5py File/Group to write into (resumable)."""
+    above 1) marked. ``out``: h5py File/Group to write into (resumable). ``scheme`` names the
+    periodic scheme (``periodic.SCHEMES``)."""
     start = time.perf_counter()
+    study_scheme(scheme)
     parameter = check_parameter(problem, parameter)
     grid = check_grid("values", values)
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a sweep")
@@ -236,7 +247,7 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
     # the number used
     frozen_samples = min(FROZEN_SAMPLES, n_steps)
     settings = {"parameter": parameter, "values": grid, "n_steps": n_steps, "scene": problem.text,
-                "frozen_samples": frozen_samples}
+                "frozen_samples": frozen_samples, "scheme": scheme}
     units = {"speed": "rad/s", "spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1",
              "linear_range": "1", "multipliers": "1",
              "error_estimate": "SI (see labels)", "frozen_min": "rad/s", "frozen_max": "rad/s",
@@ -250,7 +261,7 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
                        {"values": (grid, problem.units[parameter])})
     points = [((i,), {parameter: float(v)}) for i, v in enumerate(grid)]
     outcomes = run_grid(sweep_point, problem, points,
-                        {"n_steps": n_steps, "frozen_samples": frozen_samples}, executor=executor,
+                        {"n_steps": n_steps, "frozen_samples": frozen_samples, "scheme": scheme}, executor=executor,
                         store=store, progress=progress, description=f"{name} over {parameter}")
     fields = collect(outcomes, grid.shape)
     per_observable = {name: {spec: fields.pop(f"{name}/{spec}") for spec in obs_units
@@ -296,7 +307,7 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
 def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, progress: bool) -> SweepResult:
     return sweep(problem, options["parameter"], options["values"], n_steps=options["n_steps"],
                  max_harmonic=options["max_harmonic"], executor=executor, out=out, name=KIND.name,
-                 progress=progress)
+                 progress=progress, scheme=options.get("scheme", DEFAULT_SCHEME))
 
 
 def _summary(result: SweepResult) -> str:
@@ -367,5 +378,5 @@ def _cost(name, problem, options, workers, done=None):
 KIND = register_kind(StudyKind(
     name="sweep", result=SweepResult, keys=AXIS_KEYS + ("max_harmonic", "n_steps"), check=_check, run=_run,
     summary=_summary, grid=True, point=sweep_point, varies=lambda options: (options["parameter"],),
-    default=_default, headlines=_headlines, cost=_cost,
+    default=_default, headlines=_headlines, cost=_cost, schemes=True,
     demo={"parameter": "speed", "start": 0.2, "stop": 3.0, "count": 57}, aliases=("SweepResult",)))

@@ -15,6 +15,7 @@ scene without a ``[studies]`` table too.
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import tomllib
 from dataclasses import dataclass
@@ -23,7 +24,10 @@ from typing import Any, Mapping, Sequence
 
 from .._errors import StudiesError, UsageError
 from .._kind import COMMON_KEYS, integer, kind_named, kinds, reject_unknown
+from .._numerics import DEFAULT_SCHEME, study_scheme
 from .._problem import SPEED
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["MATHIEU", "ScenePlan", "apply_overrides", "default_table", "parse_set", "plan"]
 
@@ -169,7 +173,13 @@ def plan(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, 
                                     or not all(isinstance(s, str) for s in observables)):
         raise StudiesError(f"[studies] observables: expected a list of specs such as "
                            f"'coupler.deflection@0.5', got {observables!r}")
-    common = {"n_steps": n_steps, "observables": None if observables is None else tuple(observables)}
+    scheme = table.get("scheme", DEFAULT_SCHEME)
+    try:
+        study_scheme(scheme)
+    except StudiesError as error:
+        raise StudiesError(f"[studies] {error}") from None
+    common = {"n_steps": n_steps, "observables": None if observables is None else tuple(observables),
+              "scheme": scheme}
     studies: dict[str, dict[str, Any]] = {}
     for name, kind in kinds().items():
         if name not in table:
@@ -180,6 +190,11 @@ def plan(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, 
             raise StudiesError(f"[{where}]: expected a table, got {options!r}")
         reject_unknown(where, options, kind.keys)
         studies[name] = kind.check(where, options, n_steps)
+        if kind.schemes:  # part of the request, so a run with another scheme is another study
+            studies[name]["scheme"] = scheme
+        elif scheme != DEFAULT_SCHEME:
+            logger.warning("[studies] scheme = %r: %s does not integrate with a periodic scheme (runs as it "
+                           "does with any)", scheme, name)
     if not studies:
         raise StudiesError(f"[studies] declares no study; add at least one of the tables "
                            f"{', '.join(f'[studies.{k}]' for k in kinds())}")
