@@ -1,34 +1,15 @@
-"""What a study kind is built with: the one internal module every module of ``studies._kinds`` imports
-its infrastructure from (declaring and registering the kind and checking its table, its cost model, storing
-its result, running grid points, verdicts and summary rows). The numerics (``studies._numerics``) and the
-figures (``studies._plots``) are imported on their own, as are the problems' helpers (``studies._mechanism``).
+"""What a study kind is built with: the one internal module every module of ``studies._kinds``
+imports its infrastructure from (checking its table, its cost model as the namespace ``cost``,
+storing its result, running grid points, verdicts and summary rows). The declaration itself
+(``StudyKind``, ``register_kind``) comes from ``studies._kind``, as it does for a kind defined
+outside the package (``studies.StudyKind``); the numerics (``studies._numerics``), the figures
+(``studies._plots``) and the problems' helpers (``studies._mechanism``) are imported on their own.
 """
 
 from __future__ import annotations
 
-# its cost model for the resource guard
-from ._cost import (
-    FAMILY_DOUBLES,
-    LINEARISATION_DOUBLES,
-    NONLINEAR_DOUBLES,
-    NONLINEAR_STEP_N2_SECONDS,
-    NONLINEAR_STEP_SECONDS,
-    SHOOTING_PERIODS,
-    STUDY_SECONDS,
-    SWEEP_POINT_PERIODS,
-    Estimate,
-    Sizes,
-    axis_words,
-    grid_cost,
-    largest_sizes,
-    linearisation,
-    nonlinear_period_seconds,
-    sizes_at,
-    solve_seconds,
-    steady_solves,
-    tangent_bytes,
-    with_reduction_check,
-)
+# its cost model for the resource guard (cost.sizes_at, cost.grid_cost, ...)
+from . import _cost as cost
 
 # errors
 from ._errors import (
@@ -53,13 +34,11 @@ from ._kind import (
     PERIODS_WHY,
     STEPS_WHY,
     WARM_UP_STEPS,
-    StudyKind,
     axis,
     boolean,
     fraction,
     integer,
     number,
-    register_kind,
     reject_unknown,
     speed_values,
     steps,
@@ -108,36 +87,25 @@ from ._verdicts import (
 )
 
 __all__ = [
+    "cost",
     "AXIS_KEYS",
     "ComputationError",
-    "Estimate",
-    "FAMILY_DOUBLES",
     "GridResult",
     "HARMONIC_WHY",
     "Headline",
-    "LINEARISATION_DOUBLES",
     "MAX_AXIS_POINTS",
     "MAX_HARMONIC",
     "MAX_PERIODS",
     "MAX_STEPS",
-    "NONLINEAR_DOUBLES",
-    "NONLINEAR_STEP_N2_SECONDS",
-    "NONLINEAR_STEP_SECONDS",
     "PEAK_UNITS",
     "PERIODS_WHY",
     "Result",
-    "SHOOTING_PERIODS",
     "SPEED",
     "STEPS_WHY",
-    "STUDY_SECONDS",
-    "SWEEP_POINT_PERIODS",
-    "Sizes",
     "StudiesError",
-    "StudyKind",
     "Summary",
     "WARM_UP_STEPS",
     "axis",
-    "axis_words",
     "boolean",
     "check_grid",
     "check_integer",
@@ -146,31 +114,21 @@ __all__ = [
     "collect",
     "combine",
     "fraction",
-    "grid_cost",
     "grid_status",
     "grid_summary",
     "integer",
     "is_numerical_failure",
     "largest_over_grid",
-    "largest_sizes",
-    "linearisation",
     "listed",
-    "nonlinear_period_seconds",
     "number",
     "open_store",
     "ranges",
     "reduction_check",
     "reduction_headlines",
-    "register_kind",
     "reject_unknown",
     "response_rows",
     "run_grid",
-    "sizes_at",
-    "solve_seconds",
     "speed_values",
-    "steady_solves",
     "steps",
     "sub_table",
-    "tangent_bytes",
-    "with_reduction_check",
 ]

@@ -12,6 +12,7 @@ import numpy as np
 
 import periodic
 
+from .._kind import StudyKind, register_kind
 from .._numerics import (
     DEFAULT_SCHEME,
     characteristic_frequencies,
@@ -29,16 +30,14 @@ from .._toolkit import (
     GridResult,
     Headline,
     StudiesError,
-    StudyKind,
     Summary,
     axis,
-    axis_words,
     check_grid,
     check_integer,
     check_n_steps,
     collect,
     combine,
-    grid_cost,
+    cost,
     grid_status,
     grid_summary,
     integer,
@@ -47,10 +46,8 @@ from .._toolkit import (
     ranges,
     reduction_check,
     reduction_headlines,
-    register_kind,
     run_grid,
     steps,
-    with_reduction_check,
 )
 
 #: The fewest steps per period a Campbell diagram accepts (docs/studies.md).
@@ -295,10 +292,10 @@ def _cost(name, problem, options, workers, done=None):
     """A periodic solve and ``frozen_samples`` frozen-time eigenproblems per speed."""
     axis = (SPEED, np.asarray(options["speeds"]))
     frozen = options["frozen_samples"]
-    found = grid_cost(name, problem, [axis], options["n_steps"], frozen=frozen, workers=workers, done=done,
+    found = cost.grid_cost(name, problem, [axis], options["n_steps"], frozen=frozen, workers=workers, done=done,
                       point_doubles=lambda s: (frozen + s.m + 8.0) * s.m,
-                      words=[axis_words(*axis), f"{frozen} frozen samples"])
-    return with_reduction_check(found, problem, {}, options["n_steps"])
+                      words=[cost.axis_words(*axis), f"{frozen} frozen samples"])
+    return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 
 KIND = register_kind(StudyKind(

@@ -18,31 +18,25 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .._kind import StudyKind, register_kind
 from .._mechanism import deviation_from_nominal
 from .._plots import Plot, axes_for, drawn, headline, label, plain
 from .._toolkit import (
     MAX_PERIODS,
-    NONLINEAR_DOUBLES,
-    NONLINEAR_STEP_N2_SECONDS,
-    NONLINEAR_STEP_SECONDS,
     PERIODS_WHY,
     SPEED,
-    STUDY_SECONDS,
     ComputationError,
-    Estimate,
     Headline,
     Result,
     StudiesError,
-    StudyKind,
     Summary,
     check_integer,
     check_n_steps,
     combine,
+    cost,
     fraction,
     integer,
     is_numerical_failure,
-    register_kind,
-    sizes_at,
     speed_values,
     steps,
 )
@@ -621,13 +615,13 @@ def _cost(name, problem, options, workers):
     """Two cases (with and without feedback), each a run of ``n_periods`` periods at N steps and its
     twin at N/2 for the error estimate (together what one ``simulate`` with its error estimate costs),
     one after the other."""
-    sizes = sizes_at(problem, options["values"])
+    sizes = cost.sizes_at(problem, options["values"])
     steps = options["n_periods"] * options["n_steps"]
-    seconds = STUDY_SECONDS + len(("with", "without")) * steps * (NONLINEAR_STEP_SECONDS
-                                                                  + NONLINEAR_STEP_N2_SECONDS * sizes.n**2)
-    memory = 8.0 * NONLINEAR_DOUBLES * steps * sizes.n
-    return Estimate(name, memory, seconds, f"2 runs x {options['n_periods']} periods x {options['n_steps']} "
-                                           f"steps x {sizes.n} coordinates")
+    seconds = cost.STUDY_SECONDS + len(("with", "without")) * steps * (cost.NONLINEAR_STEP_SECONDS
+                                                                  + cost.NONLINEAR_STEP_N2_SECONDS * sizes.n**2)
+    memory = 8.0 * cost.NONLINEAR_DOUBLES * steps * sizes.n
+    return cost.Estimate(name, memory, seconds, f"2 runs x {options['n_periods']} periods x {options['n_steps']} "
+                                                f"steps x {sizes.n} coordinates")
 
 
 KIND = register_kind(StudyKind(

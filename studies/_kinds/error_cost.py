@@ -11,28 +11,22 @@ import numpy as np
 
 import periodic
 
+from .._kind import StudyKind, register_kind
 from .._numerics import DEFAULT_SCHEME, solve_steady, study_scheme
 from .._plots import Plot, axes_for, drawn, plain, tidy_log_axes
 from .._toolkit import (
     MAX_STEPS,
     STEPS_WHY,
-    STUDY_SECONDS,
-    Estimate,
     Headline,
     Result,
-    Sizes,
     StudiesError,
-    StudyKind,
     Summary,
     axis,
     check_grid,
     check_n_steps,
     check_parameter,
+    cost,
     integer,
-    linearisation,
-    register_kind,
-    sizes_at,
-    solve_seconds,
     speed_values,
     sub_table,
 )
@@ -46,7 +40,7 @@ class ErrorCostResult(Result):
     when only the steps vary); ``n_steps`` (n_s,) steps per period; ``n_dof`` (n_r,) size of the linear
     system; ``error`` {spec: (n_r, n_s)} max abs difference from the reference over the period,
     divided by the reference's peak-to-peak; ``error_estimate`` {spec: (n_r, n_s)} the self-estimated
-    error (same scaling); ``run_time`` (n_r, n_s) s of linearisation plus shooting; the reference is
+    error (same scaling); ``run_time`` (n_r, n_s) s of cost.linearisation plus shooting; the reference is
     the finest resolution with ``reference_steps`` steps and Richardson extrapolation.
     """
 
@@ -213,27 +207,27 @@ def _varies(options: Mapping[str, Any]) -> tuple[str, ...]:
 
 
 def _cost(name, problem, options, workers):
-    """A linearisation and periodic solve per step count and resolution, and the reference (N and
+    """A cost.linearisation and periodic solve per step count and resolution, and the reference (N and
     N/2 with Richardson) at the finest resolution."""
     values = dict(options["values"])
     resolution = options["resolution"]
     grids = [float(v) for v in resolution[1]] if resolution is not None else [None]
     step_counts = list(options["n_steps"])
     reference = options["reference_steps"] or 4 * max(step_counts)
-    memory, seconds = 0.0, STUDY_SECONDS
-    largest = Sizes(0, 0)
+    memory, seconds = 0.0, cost.STUDY_SECONDS
+    largest = cost.Sizes(0, 0)
     for index, value in enumerate(grids):
         at = values if value is None else dict(values, **{resolution[0]: value})
-        sizes = sizes_at(problem, at)
+        sizes = cost.sizes_at(problem, at)
         largest = max(largest, sizes, key=lambda s: s.m)
         # the finest resolution (the last) also computes the reference, with Richardson (N and N/2)
         counts = step_counts + ([reference, reference // 2] if index == len(grids) - 1 else [])
         for n_steps in counts:
-            build_bytes, build_seconds = linearisation(n_steps, sizes)
+            build_bytes, build_seconds = cost.linearisation(n_steps, sizes)
             memory = max(memory, build_bytes)
-            seconds += build_seconds + solve_seconds(n_steps, sizes)
-    return Estimate(name, memory, seconds, f"{len(step_counts)} step counts up to {reference} x "
-                                           f"{len(grids)} resolutions x {largest.m} coordinates")
+            seconds += build_seconds + cost.solve_seconds(n_steps, sizes)
+    return cost.Estimate(name, memory, seconds, f"{len(step_counts)} step counts up to {reference} x "
+                                                f"{len(grids)} resolutions x {largest.m} coordinates")
 
 
 KIND = register_kind(StudyKind(

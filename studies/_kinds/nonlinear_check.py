@@ -9,36 +9,28 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .._kind import StudyKind, register_kind
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, drawn, headline, label, plain
 from .._toolkit import (
     MAX_AXIS_POINTS,
     MAX_PERIODS,
-    NONLINEAR_DOUBLES,
-    NONLINEAR_STEP_N2_SECONDS,
-    NONLINEAR_STEP_SECONDS,
     PERIODS_WHY,
     SPEED,
-    STUDY_SECONDS,
     WARM_UP_STEPS,
-    Estimate,
     Headline,
     Result,
     StudiesError,
-    StudyKind,
     Summary,
     boolean,
     check_integer,
     check_n_steps,
     combine,
+    cost,
     fraction,
     integer,
     is_numerical_failure,
-    linearisation,
     number,
-    register_kind,
-    sizes_at,
-    solve_seconds,
     speed_values,
     steps,
 )
@@ -371,16 +363,16 @@ def _headlines(result: NonlinearCheck) -> Summary:
 
 
 def nonlinear_check_cost(name, problem, options, workers):
-    """A linearisation and periodic solve, and the nonlinear run over its periods (from rest too)."""
-    sizes = sizes_at(problem, options["values"])
+    """A cost.linearisation and periodic solve, and the nonlinear run over its periods (from rest too)."""
+    sizes = cost.sizes_at(problem, options["values"])
     n_steps = options["n_steps"]
     periods = options["n_periods"] + (options["max_periods_from_rest"] if options["from_rest"] else 0)
-    build_bytes, build_seconds = linearisation(n_steps, sizes)
+    build_bytes, build_seconds = cost.linearisation(n_steps, sizes)
     steps = periods * n_steps
-    seconds = (STUDY_SECONDS + build_seconds + solve_seconds(n_steps, sizes)
-               + steps * (NONLINEAR_STEP_SECONDS + NONLINEAR_STEP_N2_SECONDS * sizes.n**2))
-    memory = max(build_bytes, 8.0 * NONLINEAR_DOUBLES * steps * sizes.n)
-    return Estimate(name, memory, seconds, f"{periods} periods x {n_steps} steps x {sizes.n} coordinates")
+    seconds = (cost.STUDY_SECONDS + build_seconds + cost.solve_seconds(n_steps, sizes)
+               + steps * (cost.NONLINEAR_STEP_SECONDS + cost.NONLINEAR_STEP_N2_SECONDS * sizes.n**2))
+    memory = max(build_bytes, 8.0 * cost.NONLINEAR_DOUBLES * steps * sizes.n)
+    return cost.Estimate(name, memory, seconds, f"{periods} periods x {n_steps} steps x {sizes.n} coordinates")
 
 
 

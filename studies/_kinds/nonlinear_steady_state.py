@@ -14,32 +14,24 @@ import numpy as np
 
 import periodic
 
+from .._kind import StudyKind, register_kind
 from .._mechanism import observables_along, of_coordinates
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
 from .._toolkit import (
-    SHOOTING_PERIODS,
-    STUDY_SECONDS,
     WARM_UP_STEPS,
-    Estimate,
     Headline,
     Result,
     StudiesError,
-    StudyKind,
     Summary,
     check_integer,
     check_n_steps,
+    cost,
     integer,
-    linearisation,
-    nonlinear_period_seconds,
     number,
-    register_kind,
     response_rows,
-    sizes_at,
-    solve_seconds,
     speed_values,
     steps,
-    tangent_bytes,
 )
 
 #: The fewest steps per period (docs/studies.md): N/2 = 16 steps must still carry the integrator.
@@ -419,16 +411,16 @@ def _headlines(result: NonlinearSteadyState) -> Summary:
 
 
 def _cost(name, problem, options, workers):
-    """A linearisation and periodic solve (the start), and ``SHOOTING_PERIODS`` periods of the period
+    """A cost.linearisation and periodic solve (the start), and ``cost.SHOOTING_PERIODS`` periods of the period
     map with the monodromy's iteration matrices."""
-    sizes = sizes_at(problem, options["values"])
+    sizes = cost.sizes_at(problem, options["values"])
     n_steps = options["n_steps"]
-    build_bytes, build_seconds = linearisation(n_steps, sizes)
-    seconds = (STUDY_SECONDS + build_seconds + solve_seconds(n_steps, sizes)
-               + SHOOTING_PERIODS * nonlinear_period_seconds(n_steps, sizes))
-    memory = max(build_bytes, tangent_bytes(n_steps, sizes))
-    return Estimate(name, memory, seconds, f"{SHOOTING_PERIODS:g} periods x {n_steps} steps x {sizes.n} "
-                                           "coordinates")
+    build_bytes, build_seconds = cost.linearisation(n_steps, sizes)
+    seconds = (cost.STUDY_SECONDS + build_seconds + cost.solve_seconds(n_steps, sizes)
+               + cost.SHOOTING_PERIODS * cost.nonlinear_period_seconds(n_steps, sizes))
+    memory = max(build_bytes, cost.tangent_bytes(n_steps, sizes))
+    return cost.Estimate(name, memory, seconds, f"{cost.SHOOTING_PERIODS:g} periods x {n_steps} steps x {sizes.n} "
+                                                "coordinates")
 
 
 

@@ -14,37 +14,28 @@ import numpy as np
 
 import periodic
 
+from .._kind import StudyKind, register_kind
 from .._mechanism import observables_along
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
 from .._toolkit import (
     MAX_PERIODS,
     MAX_STEPS,
-    NONLINEAR_DOUBLES,
     PERIODS_WHY,
     SPEED,
     STEPS_WHY,
-    STUDY_SECONDS,
-    SWEEP_POINT_PERIODS,
-    Estimate,
     Headline,
     Result,
     StudiesError,
-    StudyKind,
     Summary,
     boolean,
     check_integer,
     check_n_steps,
     check_parameter,
+    cost,
     integer,
     largest_over_grid,
-    largest_sizes,
-    linearisation,
-    nonlinear_period_seconds,
     number,
-    register_kind,
-    solve_seconds,
-    tangent_bytes,
 )
 from .nonlinear_steady_state import (
     ERROR_FACTOR,
@@ -408,23 +399,23 @@ def _headlines(result: NonlinearSweep) -> Summary:
 
 
 def _cost(name, problem, options, workers):
-    """``SWEEP_POINT_PERIODS`` periods and two linearisations per orbit of the branch, the linear
+    """``cost.SWEEP_POINT_PERIODS`` periods and two linearisations per orbit of the branch, the linear
     curve's ``LINEAR_POINTS`` and the transient."""
     start, stop, n_steps = options["start"], options["stop"], options["n_steps"]
     axis = (options["parameter"], np.array([start, stop], dtype=float))
-    sizes = largest_sizes(problem, [axis])
+    sizes = cost.largest_sizes(problem, [axis])
     step = options["step"] or abs(stop - start) / 50.0  # periodic.continue_orbits' default
     # an empty range (refused by the table check) has the one orbit at start, not a division by zero
     orbits = min(options["max_points"], math.ceil(abs(stop - start) / step) + 1 if step > 0.0 else 1)
-    build_bytes, build_seconds = linearisation(n_steps, sizes)
-    periods = orbits * SWEEP_POINT_PERIODS + options["transient_periods"]
-    seconds = (STUDY_SECONDS + (2 * orbits + LINEAR_POINTS) * (build_seconds + solve_seconds(n_steps, sizes))
-               + periods * nonlinear_period_seconds(n_steps, sizes))
-    memory = max(build_bytes, tangent_bytes(n_steps, sizes),
-                 8.0 * NONLINEAR_DOUBLES * options["transient_periods"] * n_steps * sizes.n)
-    return Estimate(name, memory, seconds, f"{orbits} orbits x {SWEEP_POINT_PERIODS:g} periods + "
-                                           f"{options['transient_periods']} periods x {n_steps} steps x "
-                                           f"{sizes.n} coordinates")
+    build_bytes, build_seconds = cost.linearisation(n_steps, sizes)
+    periods = orbits * cost.SWEEP_POINT_PERIODS + options["transient_periods"]
+    seconds = (cost.STUDY_SECONDS + (2 * orbits + LINEAR_POINTS) * (build_seconds + cost.solve_seconds(n_steps, sizes))
+               + periods * cost.nonlinear_period_seconds(n_steps, sizes))
+    memory = max(build_bytes, cost.tangent_bytes(n_steps, sizes),
+                 8.0 * cost.NONLINEAR_DOUBLES * options["transient_periods"] * n_steps * sizes.n)
+    return cost.Estimate(name, memory, seconds, f"{orbits} orbits x {cost.SWEEP_POINT_PERIODS:g} periods + "
+                                                f"{options['transient_periods']} periods x {n_steps} steps x "
+                                                f"{sizes.n} coordinates")
 
 
 KIND = register_kind(StudyKind(

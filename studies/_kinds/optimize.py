@@ -21,24 +21,20 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from .._kind import StudyKind, register_kind
 from .._mechanism import COUNT_KEYS
 from .._numerics import frozen_modes, peak_summary, solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
 from .._toolkit import (
-    FAMILY_DOUBLES,
     HARMONIC_WHY,
-    LINEARISATION_DOUBLES,
     MAX_AXIS_POINTS,
     MAX_HARMONIC,
     MAX_PERIODS,
     PERIODS_WHY,
     SPEED,
-    STUDY_SECONDS,
-    Estimate,
     Headline,
     Result,
     StudiesError,
-    StudyKind,
     Summary,
     axis,
     boolean,
@@ -46,15 +42,12 @@ from .._toolkit import (
     check_n_steps,
     check_parameter,
     combine,
+    cost,
     fraction,
     integer,
     is_numerical_failure,
-    largest_sizes,
-    linearisation,
     number,
-    register_kind,
     reject_unknown,
-    solve_seconds,
     steps,
 )
 
@@ -925,28 +918,29 @@ def _varies(options: Mapping[str, Any]) -> tuple[str, ...]:
 
 
 def _cost(name, problem, options, workers):
-    """At most ``max_evaluations`` sweeps over the speeds, each a linearisation and a periodic solve
+    """At most ``max_evaluations`` sweeps over the speeds, each a cost.linearisation and a periodic solve
     per speed (an upper bound: a speed family makes the linearisations cheaper), the map's sweeps and
     the nonlinear check at the optimum."""
     from .nonlinear_check import nonlinear_check_cost
 
     bounds = options["bounds"]
     axes = [(path, np.array(pair, dtype=float)) for path, pair in bounds.items()]
-    sizes = largest_sizes(problem, axes)
+    sizes = cost.largest_sizes(problem, axes)
     speeds = 1 if options["speeds"] is None else len(options["speeds"])
     evaluations = options["max_evaluations"] or default_evaluations(options["method"], len(bounds))
     sweeps = evaluations + (options["map_points"] ** 2 if len(bounds) >= 2 else 0)
-    build_bytes, build_seconds = linearisation(options["n_steps"], sizes)
+    build_bytes, build_seconds = cost.linearisation(options["n_steps"], sizes)
     frozen = 32 if "frequency_separation" in options["constraints"] else 0
-    seconds = STUDY_SECONDS + sweeps * speeds * (build_seconds + solve_seconds(options["n_steps"], sizes, frozen))
-    memory = FAMILY_DOUBLES / LINEARISATION_DOUBLES * build_bytes
+    solve = cost.solve_seconds(options["n_steps"], sizes, frozen)
+    seconds = cost.STUDY_SECONDS + sweeps * speeds * (build_seconds + solve)
+    memory = cost.FAMILY_DOUBLES / cost.LINEARISATION_DOUBLES * build_bytes
     if options["check"]:
         check = nonlinear_check_cost(name, problem, {"values": {}, "n_steps": options["n_steps"],
                                                      "n_periods": options["check_periods"], "from_rest": False,
                                                      "max_periods_from_rest": 0}, workers)
         seconds, memory = seconds + check.time, max(memory, check.memory)
-    return Estimate(name, memory, seconds, f"at most {sweeps} evaluations x {speeds} speeds x "
-                                           f"{options['n_steps']} steps x {sizes.m} coordinates")
+    return cost.Estimate(name, memory, seconds, f"at most {sweeps} evaluations x {speeds} speeds x "
+                                                f"{options['n_steps']} steps x {sizes.m} coordinates")
 
 
 KIND = register_kind(StudyKind(

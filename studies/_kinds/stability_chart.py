@@ -12,6 +12,7 @@ import numpy as np
 
 import periodic
 
+from .._kind import StudyKind, register_kind
 from .._numerics import DEFAULT_SCHEME, study_scheme
 from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses, plain, radius_norm
 from .._toolkit import (
@@ -19,16 +20,14 @@ from .._toolkit import (
     GridResult,
     Headline,
     StudiesError,
-    StudyKind,
     Summary,
     axis,
-    axis_words,
     check_grid,
     check_n_steps,
     check_parameter,
     collect,
     combine,
-    grid_cost,
+    cost,
     grid_status,
     grid_summary,
     largest_over_grid,
@@ -36,11 +35,9 @@ from .._toolkit import (
     ranges,
     reduction_check,
     reduction_headlines,
-    register_kind,
     run_grid,
     steps,
     sub_table,
-    with_reduction_check,
 )
 
 #: The fewest steps per period a stability chart accepts (docs/studies.md).
@@ -232,9 +229,9 @@ def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, p
 def _cost(name, problem, options, workers, done=None):
     """A periodic solve per point of the two axes."""
     axes = [(parameter, np.asarray(grid)) for parameter, grid in (options["first"], options["second"])]
-    found = grid_cost(name, problem, axes, options["n_steps"], workers=workers, done=done,
-                      point_doubles=lambda s: 4.0 * s.m + 4.0, words=[axis_words(*axis) for axis in axes])
-    return with_reduction_check(found, problem, {}, options["n_steps"])
+    found = cost.grid_cost(name, problem, axes, options["n_steps"], workers=workers, done=done,
+                      point_doubles=lambda s: 4.0 * s.m + 4.0, words=[cost.axis_words(*axis) for axis in axes])
+    return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 
 KIND = register_kind(StudyKind(

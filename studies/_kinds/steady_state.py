@@ -10,21 +10,19 @@ from typing import Any, Mapping
 import numpy as np
 
 from .._drawing import draw_mechanism, mechanism_drawing
+from .._kind import StudyKind, register_kind
 from .._numerics import DEFAULT_SCHEME, peak_summary, solve_steady, study_scheme
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain, plot_multipliers
 from .._toolkit import (
     Headline,
     Result,
-    StudyKind,
     Summary,
     check_n_steps,
     combine,
-    register_kind,
+    cost,
     response_rows,
     speed_values,
-    steady_solves,
     steps,
-    with_reduction_check,
 )
 
 #: The fewest steps per period a steady state accepts (docs/studies.md): N/4 = 4 steps is the
@@ -250,8 +248,8 @@ def _figures(result: SteadyStateResult) -> dict[str, Any]:
 
 def _cost(name, problem, options, workers):
     """A linearisation and a periodic solve, and the modal reduction's check where a link is reduced."""
-    found = steady_solves(name, problem, [options["values"]], options["n_steps"])
-    return with_reduction_check(found, problem, options["values"], options["n_steps"], extra_solve=False)
+    found = cost.steady_solves(name, problem, [options["values"]], options["n_steps"])
+    return cost.with_reduction_check(found, problem, options["values"], options["n_steps"], extra_solve=False)
 
 
 KIND = register_kind(StudyKind(

@@ -13,6 +13,7 @@ import numpy as np
 
 import periodic
 
+from .._kind import StudyKind, register_kind
 from .._numerics import (
     DEFAULT_SCHEME,
     crossings,
@@ -42,17 +43,15 @@ from .._toolkit import (
     SPEED,
     GridResult,
     Headline,
-    StudyKind,
     Summary,
     axis,
-    axis_words,
     check_grid,
     check_integer,
     check_n_steps,
     check_parameter,
     collect,
     combine,
-    grid_cost,
+    cost,
     grid_status,
     grid_summary,
     integer,
@@ -62,10 +61,8 @@ from .._toolkit import (
     ranges,
     reduction_check,
     reduction_headlines,
-    register_kind,
     run_grid,
     steps,
-    with_reduction_check,
 )
 
 #: Frozen-time eigenproblems per period for the resonance bands of a sweep (the bands of smooth
@@ -370,9 +367,9 @@ def _default(nominal_speed: float) -> dict[str, Any]:
 def _cost(name, problem, options, workers, done=None):
     """A periodic solve and 32 frozen-time eigenproblems per point (``studies._cost.grid_cost``)."""
     axis = (options["parameter"], np.asarray(options["values"]))
-    found = grid_cost(name, problem, [axis], options["n_steps"], workers=workers, frozen=32, done=done,
-                      point_doubles=lambda s: 8.0 * s.m + 4.0, words=[axis_words(*axis)])
-    return with_reduction_check(found, problem, {}, options["n_steps"])
+    found = cost.grid_cost(name, problem, [axis], options["n_steps"], workers=workers, frozen=32, done=done,
+                      point_doubles=lambda s: 8.0 * s.m + 4.0, words=[cost.axis_words(*axis)])
+    return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 
 KIND = register_kind(StudyKind(
