@@ -167,3 +167,13 @@ def test_the_circle_finder_sees_a_deferred_circle(tmp_path, monkeypatch):
     assert _circle(_import_graph("studies")) == ["studies._a", "studies.sub._b", "studies._c", "studies._a"]
     (fake / "_c.py").write_text("def h():\n    return 1\n")
     assert _circle(_import_graph("studies")) == []
+
+
+def test_the_studies_library_does_not_import_the_command():
+    """``studies/cli/`` (the command's machinery) imports the library, never the other way round;
+    only the package's face re-exports the guard from it."""
+    graph = _import_graph("studies")
+    library = [name for name in graph if name != "studies" and not name.startswith("studies.cli")]
+    assert library and any(name.startswith("studies.cli.") for name in graph)
+    assert sorted(f"{name} imports {target}" for name in library for target in graph[name]
+                  if target.startswith("studies.cli")) == []
