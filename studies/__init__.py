@@ -2,6 +2,8 @@
 charts, nonlinear checks, error against run time, the start-up with and without control, optimisation
 of design values and gains; HDF5 results and the ``flexvib`` command.
 
+Each kind of study is a :class:`StudyKind` in one registry (:func:`kinds`); :func:`register_kind`
+adds one from outside the package (its table, run, result class, cost model, demo table, summary).
 Every result's ``plot(*, axes=None)`` returns a :class:`Plot` (figure, axes, artists by name). Bad
 input raises :class:`StudiesError` (a ``ValueError``); a study that cannot be computed raises a
 ``RuntimeError`` (:class:`ComputationError` here)."""

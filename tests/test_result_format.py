@@ -80,6 +80,17 @@ def test_a_newer_format_is_refused_naming_its_writer(tmp_path, where):
         studies.open_file(path)  # nor added to
 
 
+def test_flexvib_info_names_the_format_and_refuses_a_newer_one(tmp_path, capsys):
+    assert main(["info", str(FORMAT_1)]) == 0
+    assert "flexvib 0.1.0, result format 1" in capsys.readouterr().out
+    path = tmp_path / "newer.h5"
+    shutil.copyfile(FORMAT_1, path)
+    with h5py.File(path, "a") as handle:
+        handle.attrs["format_version"] = studies.FORMAT_VERSION + 1
+    assert main(["info", str(path)]) == 2
+    assert f"result format {studies.FORMAT_VERSION + 1}" in capsys.readouterr().err
+
+
 def test_a_run_does_not_add_to_a_file_of_another_format(tmp_path, capsys):
     path = tmp_path / "old.h5"
     shutil.copyfile(FORMAT_1, path)

@@ -411,7 +411,7 @@ def _info(args: argparse.Namespace) -> int:
     be read is called CORRUPT (exit code 1)."""
     import h5py
 
-    from .._store import format_of, study_attrs
+    from .._store import check_format, format_of, study_attrs
     from .._studies import status_counts
 
     if not args.file.is_file():
@@ -422,6 +422,7 @@ def _info(args: argparse.Namespace) -> int:
         raise UsageError(f"{str(args.file)!r} is not an HDF5 result file ({error})") from None
     corrupt = []
     with handle:
+        check_format(handle)  # a newer format: refused, naming the flexvib that wrote it
         print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, result format "
               f"{format_of(handle)}, created {handle.attrs.get('created', '?')}")
         print(f"  versions: {handle.attrs.get('versions', '?')}")
