@@ -280,3 +280,16 @@ def test_demo_writes_the_periodic_example_and_rejects_an_odd_step_count(tmp_path
     assert main(["demo", "--out", str(tmp_path / "odd"), "--n-steps", "63"]) == 2
     assert "n_steps: expected an even integer >= 4" in capsys.readouterr().err
     assert not list(tmp_path.glob("odd*"))
+
+
+def test_a_scene_plan_holds_the_checked_studies_of_scene_set_and_only():
+    from studies.cli import ScenePlan, UsageError
+
+    plan = ScenePlan.read("mathieu", [("studies.sweep.count", 5), ("studies.n_steps", 64)], only=["sweep"])
+    assert list(plan.studies) == ["sweep"] and plan.studies["sweep"]["values"].size == 5
+    assert plan.common["n_steps"] == 64 and plan.common["scheme"] == "trapezoidal"
+    assert plan.studies["sweep"]["scheme"] == "trapezoidal" and plan.problem.name == "mathieu"
+    with pytest.raises(UsageError, match="--set epsilon=0.1: the built-in mathieu scene has no scene table"):
+        ScenePlan.read("mathieu", [("epsilon", 0.1)])
+    with pytest.raises(UsageError, match="--only: the scene declares no study 'campbel'"):
+        ScenePlan.read("mathieu", only=["campbel"])
