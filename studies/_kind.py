@@ -170,6 +170,11 @@ def register_kind(kind: StudyKind) -> StudyKind:
         if not callable(getattr(kind, hook)):
             raise StudiesError(f"register_kind: {where}: {hook} must be callable, got "
                                f"{getattr(kind, hook)!r}")
+    if kind.demo is not None and not isinstance(kind.demo, Mapping):
+        raise StudiesError(f"register_kind: {where}: demo must be a table (a mapping) or None, got "
+                           f"{kind.demo!r}")
+    if not all(isinstance(key, str) for key in kind.keys):
+        raise StudiesError(f"register_kind: {where}: keys must be strings, got {kind.keys!r}")
     if kind.grid and not callable(kind.point):
         raise StudiesError(f"register_kind: {where} is a grid study without a point function")
     if not (isinstance(kind.result, type) and issubclass(kind.result, Result)):
@@ -178,11 +183,6 @@ def register_kind(kind: StudyKind) -> StudyKind:
     if kind.result in _BY_RESULT:
         raise StudiesError(f"register_kind: {where}: result class {kind.result.__name__} is already the "
                            f"result of kind {_BY_RESULT[kind.result].name!r}")
-    if kind.demo is not None and not isinstance(kind.demo, Mapping):
-        raise StudiesError(f"register_kind: {where}: demo must be a table (a mapping) or None, got "
-                           f"{kind.demo!r}")
-    if not all(isinstance(key, str) for key in kind.keys):
-        raise StudiesError(f"register_kind: {where}: keys must be strings, got {kind.keys!r}")
     register_result(name, kind.result, aliases=kind.aliases)
     _KINDS[name] = kind
     _BY_RESULT[kind.result] = kind

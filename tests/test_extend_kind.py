@@ -197,3 +197,20 @@ def test_it_runs_on_a_scene_file_declaring_it(tmp_path, capsys):
     scene.write_text(mechanism.to_toml() + "\n[studies.peak_table]\nspeeds = []\n")
     assert main(["run", str(scene), "--out", str(tmp_path / "bad.h5"), "--quiet"]) == 2
     assert "[studies.peak_table] speeds: expected a list of positive speeds" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"name": "Peak table"}, "must be an identifier"),
+    ({"name": "scheme"}, "is a key of the \\[studies\\] table"),
+    ({"name": "peak_table_2", "cost": None}, "declares no cost model"),
+    ({"name": "peak_table_2", "result": dict}, "result must be a subclass of studies.Result"),
+    ({"name": "peak_table_2"}, "result class PeakTable is already the result of kind 'peak_table'"),
+    ({"name": "peak_table_2", "grid": True}, "a grid study without a point function"),
+    ({"name": "peak_table_2", "demo": [1.0]}, "demo must be a table"),
+])
+def test_a_kind_missing_a_piece_is_refused_at_registration(change, message):
+    import dataclasses
+
+    with pytest.raises(studies.StudiesError, match=message):
+        studies.register_kind(dataclasses.replace(KIND, **change))
+    assert set(studies.kinds()) >= {"peak_table"} and "peak_table_2" not in studies.kinds()
