@@ -1,4 +1,4 @@
-"""Calibration of the resource guard's cost models (studies/_guard.py) against real runs.
+"""Calibration of the resource guard's cost models (studies/_cost.py) against real runs.
 
 For the thesis four-bar with 1 to 32 Hermite elements on the coupler (12 to 105 coordinates) and 64
 to 512 steps, each study kind is run small (a few grid points, 2 nonlinear periods) in this process
@@ -6,7 +6,7 @@ with tracemalloc on, and its peak traced memory (numpy's arrays included) and wa
 next to the guard's estimate for the same options, as ratios measured / estimated. Times are medians
 of ``--repeats`` runs with a warm JIT cache and fresh speed-family caches. The guard is meant to be
 good to a factor of a few and on the safe side: ratios between about 0.3 and 1.5 are fine; if a
-machine gives ratios far outside, scale the constants in studies/_guard.py.
+machine gives ratios far outside, scale the constants in studies/_cost.py.
 
 Run: .venv/bin/python benchmarks/bench_guard.py [--quick] [--repeats 3]
 """
@@ -21,9 +21,7 @@ import tracemalloc
 import numpy as np
 
 import mechanisms
-from studies import _mechanism
-from studies._guard import estimate
-from studies._kinds import KINDS
+from studies import _mechanism, estimate, kinds
 from studies._mechanism import MechanismProblem
 
 SCENE = "four_bar_fem4"
@@ -37,8 +35,8 @@ def options(kind: str, n_steps: int) -> dict:
         "campbell": {"values": [80.0, 90.0, 100.0, 110.0], "n_steps": n_steps, "frozen_samples": 32},
         "nonlinear_check": {"n_periods": 2, "n_steps": n_steps},
     }
-    checked = KINDS[kind].check(f"studies.{kind}", tables[kind], n_steps)
-    return next(iter(KINDS[kind].runs(checked).values()))  # the one run the table declares
+    checked = kinds()[kind].check(f"studies.{kind}", tables[kind], n_steps)
+    return next(iter(kinds()[kind].runs(checked).values()))  # the one run the table declares
 
 
 def measure(problem, kind: str, checked: dict) -> tuple[float, float]:
@@ -46,7 +44,7 @@ def measure(problem, kind: str, checked: dict) -> tuple[float, float]:
     _mechanism._families.clear()
     tracemalloc.start()
     start = time.perf_counter()
-    KINDS[kind].run(problem, checked, out=None, executor=None, progress=False)
+    kinds()[kind].run(problem, checked, out=None, executor=None, progress=False)
     seconds = time.perf_counter() - start
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()

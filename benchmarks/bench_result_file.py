@@ -1,6 +1,6 @@
 """What the crash-safe result file costs a grid: a Mathieu speed sweep written point by point into a
 plain h5py file (flushed at each point: the write strategy before ``ResultFile``), through
-``studies._store.ResultFile`` (a copy and an atomic rename every ``COMMIT_INTERVAL`` seconds, and at
+``studies.ResultFile`` (a copy and an atomic rename every ``COMMIT_INTERVAL`` seconds, and at
 the end), through a ``ResultFile`` that commits after every point (the worst case), and into no file.
 Medians of repeated runs in this process, side by side; ratios against the plain file.
 
@@ -20,7 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import studies  # noqa: E402
-from studies._store import ResultFile  # noqa: E402
+from studies import ResultFile  # noqa: E402
 
 
 def main() -> None:

@@ -2,19 +2,24 @@
 charts, nonlinear checks, error against run time, the start-up with and without control, optimisation
 of design values and gains; HDF5 results and the ``flexvib`` command.
 
+Each kind of study is a :class:`StudyKind` in one registry (:func:`kinds`); :func:`register_kind`
+adds one from outside the package (its table, run, result class, cost model, demo table, summary).
 Every result's ``plot(*, axes=None)`` returns a :class:`Plot` (figure, axes, artists by name). Bad
 input raises :class:`StudiesError` (a ``ValueError``); a study that cannot be computed raises a
 ``RuntimeError`` (:class:`ComputationError` here)."""
 
+from ._cost import Estimate as Estimate
+from ._cost import estimate as estimate
+from ._cost import steady_solves as steady_solves
 from ._errors import ComputationError as ComputationError
 from ._errors import StudiesError as StudiesError
 from ._grid import PointOutcome as PointOutcome
 from ._grid import process_pool as process_pool
 from ._grid import run_grid as run_grid
-from ._guard import Estimate as Estimate
-from ._guard import ResourceError as ResourceError
-from ._guard import estimate as estimate
-from ._guard import guard as guard
+from ._kind import StudyKind as StudyKind
+from ._kind import kind_of as kind_of
+from ._kind import kinds as kinds
+from ._kind import register_kind as register_kind
 from ._kinds.campbell import CampbellResult as CampbellResult
 from ._kinds.campbell import campbell as campbell
 from ._kinds.control_comparison import ControlComparison as ControlComparison
@@ -47,12 +52,29 @@ from ._problem import NonlinearRun as NonlinearRun
 from ._problem import PeriodicCoefficients as PeriodicCoefficients
 from ._problem import PeriodicProblem as PeriodicProblem
 from ._problem import mathieu_problem as mathieu_problem
+from ._resultfile import ResultFile as ResultFile
+from ._store import FORMAT_VERSION as FORMAT_VERSION
+from ._store import Result as Result
 from ._store import ResultFileError as ResultFileError
 from ._store import StorageError as StorageError
 from ._store import load as load
 from ._store import open_file as open_file
+from ._summary import Headline as Headline
+from ._summary import Summary as Summary
+from .cli._guard import ResourceError as ResourceError
+from .cli._guard import guard as guard
 
 __all__ = [
+    "FORMAT_VERSION",
+    "Headline",
+    "Result",
+    "ResultFile",
+    "StudyKind",
+    "Summary",
+    "kind_of",
+    "kinds",
+    "register_kind",
+    "steady_solves",
     "CampbellResult",
     "ComputationError",
     "ControlComparison",

@@ -27,7 +27,9 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from ._errors import StudiesError
-from ._store import deferred_interrupts, differing_paths, digest, encode, owner_of, scene_numbers, write_attrs
+from ._identity import differing_paths, digest, scene_numbers
+from ._store import FORMAT_VERSION, encode, stored_name, write_attrs
+from ._writes import deferred_interrupts, owner_of
 
 logger = logging.getLogger(__name__)
 
@@ -83,7 +85,7 @@ class GridStore:
     ``point_run_time`` (grid shape, s), and one dataset per output name of shape
     ``grid shape + value shape``, created at the first successful point, pre-filled with NaN, with a
     ``units`` attribute from ``units`` (looked up by the name, then by its first path component).
-    In a ``studies._store.ResultFile`` each point is one write (an interrupt waits for its end) and
+    In a ``studies._resultfile.ResultFile`` each point is one write (an interrupt waits for its end) and
     the file commits every few seconds; in a plain h5py file each point is flushed.
     """
 
@@ -108,13 +110,15 @@ class GridStore:
         return self._owner.writing(extra) if self._owner is not None else contextlib.nullcontext()
 
     @classmethod
-    def open(cls, parent: Any, name: str, shape: tuple[int, ...], *, kind: str,
+    def open(cls, parent: Any, name: str, shape: tuple[int, ...], *, kind: type,
              settings: Mapping[str, Any], units: Mapping[str, str],
              header: Mapping[str, Any]) -> "GridStore":
         """Create the group, or reopen it for a resume when its settings match: the same values, the
         same scene numbers (the scene's name, description and studies may differ) and the same
-        outputs. ``header``: the result's descriptive fields (problem, scene, labels, ...) written as
+        outputs. ``kind``: the result class (the group's ``kind`` is its registered name).
+        ``header``: the result's descriptive fields (problem, scene, labels, ...) written as
         attributes at once, so that an interrupted file loads."""
+        kind = stored_name(kind)
         identity = digest(grid_identity(settings, units))
         group = parent.get(name)
         if group is not None and "kind" in group.attrs:  # a group made by a plan has no kind yet
@@ -134,10 +138,11 @@ class GridStore:
         with owner.writing() if owner is not None else contextlib.nullcontext():
             group = parent.require_group(name)
             group.attrs["kind"] = kind
+            group.attrs["format_version"] = FORMAT_VERSION
             group.attrs["settings_hash"] = identity
             group.attrs["complete"] = False
             write_attrs(group, header)
-            if owner is not None:  # what the plan asked of this study (studies._plan)
+            if owner is not None:  # what the plan asked of this study (studies.cli._run)
                 write_attrs(group, owner.study_attrs.get(name, {}))
             group.attrs["settings"] = encode(settings)
             group.create_dataset("done", shape=shape, dtype=bool, fillvalue=False)
@@ -207,7 +212,7 @@ class GridStore:
 
 def grid_identity(settings: Mapping[str, Any], units: Mapping[str, str]) -> dict[str, Any]:
     """What makes two runs of a grid study the same: its settings with the scene text replaced by the
-    numbers of the scene (``studies._store.scene_numbers``), and its output names."""
+    numbers of the scene (``studies._identity.scene_numbers``), and its output names."""
     plain = dict(settings)
     if isinstance(plain.get("scene"), str):
         plain["scene"] = scene_numbers(plain["scene"])
@@ -289,7 +294,7 @@ def run_grid(point: Callable, problem: Any, points: Sequence[tuple[tuple[int, ..
 
 
 def _progress(total: int, initial: int, description: str, enabled: bool):
-    from ._console import progress_bar
+    from ._progress import progress_bar
 
     return progress_bar(total=total, initial=initial, desc=description, unit="point", enabled=enabled,
                         leave=False)

@@ -1,13 +1,16 @@
-"""What a study kind declares (:class:`StudyKind`) and the checks of its ``[studies.<kind>]`` table.
+"""What a study kind declares (:class:`StudyKind`), the one registry of kinds
+(:func:`register_kind`, :func:`kinds`, :func:`kind_of`) and the checks of a ``[studies.<kind>]`` table.
 
-Each kind lives in one module of ``studies._kinds`` and the registry there lists them; ``_plan`` (the
-``[studies]`` table) and ``cli`` (summaries, figures) only iterate that registry.
+Each kind is an object declared where it is defined (a module of ``studies._kinds``, or a user's
+module) and registered there with :func:`register_kind`; the ``[studies]`` table, the resource
+guard, the warm-up, the summary table, the figures and ``studies.load`` only ask the registry.
 """
 
 from __future__ import annotations
 
 import difflib
 import math
+import types
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
@@ -16,6 +19,8 @@ import numpy as np
 from ._errors import StudiesError
 from ._plots import headline
 from ._problem import SPEED
+from ._store import Result, register_result
+from ._studies import check_n_steps
 from ._summary import Summary
 
 #: Keys of an axis table: a parameter and its values (``values = [...]`` or ``start, stop, count``).
@@ -23,7 +28,8 @@ AXIS_KEYS = ("parameter", "start", "stop", "count", "values", "spacing")
 
 # Upper bounds of the size-like keys of the [studies] tables (docs/studies.md, "Limits"), each with
 # the reason given when a value is refused. They stop absurd values when the table is read; what a
-# study costs in all (points x steps x coordinates) is estimated by the resource guard (_guard.py).
+# study costs in all (points x steps x coordinates) is estimated by its kind's cost model (StudyKind.cost)
+# for the resource guard.
 #: Steps per period: 65536 resolve a mode of 10^4 times the crank frequency to 0.01 %.
 MAX_STEPS = 65536
 STEPS_WHY = "65536 steps per period resolve modes up to 10^4 times the crank frequency"
@@ -62,6 +68,11 @@ def _no_headlines(result: Any) -> Summary:
                    run_time=float(run_time) if np.ndim(run_time) == 0 else float(np.nansum(run_time)))
 
 
+#: Steps per period of the warm-up runs (``studies.cli``'s JIT warm-up, ``StudyKind.warm_up``): the
+#: smallest every study kind accepts (the numba types, not the sizes, decide what is compiled).
+WARM_UP_STEPS = 32
+
+
 @dataclass(frozen=True)
 class StudyKind:
     """One kind of study, as a scene declares it (``[studies.<name>]``) and as the CLI shows it.
@@ -86,6 +97,19 @@ class StudyKind:
     each saved as ``<group name><suffix>.png/.svg``.
     ``runs(options) -> {suffix: options}``: a table that declares several runs of a single (not grid)
     study, e.g. a nonlinear check at several ``speeds``, each written as group ``<name><suffix>``.
+    ``cost(name, problem, options, workers[, done]) -> studies.Estimate``: the kind's cost model for
+    the resource guard, memory (bytes) and time (s) of one run from checked options (``done``, grid
+    kinds only: the points already saved). Required: a kind without one is refused at registration,
+    so that nothing is ever sized as something cheaper. ``studies._cost`` has the sizing helpers.
+    ``demo``: its table in the built-in ``mathieu`` scene of ``flexvib run`` (None: not in it).
+    ``warm_up(problem) -> None``: runs the kind's own code path on a tiny grid before the run's
+    clocks start, so that numba compiles its kernels (``WARM_UP_STEPS`` steps); None: a grid kind
+    runs one ``point``, another needs nothing beyond the steady state every run warms up.
+    ``schemes``: the kind integrates with a periodic scheme, named by the ``[studies]`` table's
+    ``scheme`` key: the plan adds it to the options (``options["scheme"]``, part of the request and
+    its hash) and ``run`` passes it to the study function.
+    ``aliases``: other names files store this kind under (result format 1 wrote the result class's
+    name), read by ``studies.load``.
     """
 
     name: str
@@ -101,6 +125,103 @@ class StudyKind:
     figures: Callable[[Any], dict[str, Callable]] = _one_figure
     runs: Callable[[Mapping[str, Any]], dict[str, Mapping[str, Any]]] = _one_run
     headlines: Callable[[Any], Summary] = _no_headlines
+    cost: Callable[..., Any] | None = None
+    demo: Mapping[str, Any] | None = None
+    warm_up: Callable[[Any], None] | None = None
+    schemes: bool = False
+    aliases: tuple[str, ...] = ()
+
+
+# ---------------------------------------------------------------------------------------------------
+# the registry of study kinds
+# ---------------------------------------------------------------------------------------------------
+#: Keys of the ``[studies]`` table that are not kinds (a kind may not take their names).
+COMMON_KEYS = ("n_steps", "observables", "scheme")
+
+_KINDS: dict[str, StudyKind] = {}
+_BY_RESULT: dict[type, StudyKind] = {}
+
+
+def register_kind(kind: StudyKind) -> StudyKind:
+    """Add ``kind`` to the registry (in the order a run performs the kinds); returns it, so that a
+    module declares ``KIND = register_kind(StudyKind(...))``. Refused (:class:`StudiesError`): a name
+    that is not an identifier, is taken or is a ``[studies]`` key; a kind without a cost model, or
+    without the hooks it needs; a result class that is not a ``studies.Result`` or is another kind's."""
+    if not isinstance(kind, StudyKind):
+        raise TypeError(f"register_kind: expected a studies.StudyKind, got {type(kind).__name__}")
+    name = kind.name
+    where = f"study kind {name!r}"
+    if not isinstance(name, str) or not name.isidentifier() or name.startswith("_"):
+        raise StudiesError(f"register_kind: a kind's name must be an identifier not starting with '_' "
+                           f"(it names a [studies.<name>] table and an HDF5 group), got {name!r}")
+    if name in COMMON_KEYS:
+        raise StudiesError(f"register_kind: {name!r} is a key of the [studies] table "
+                           f"({', '.join(COMMON_KEYS)}); choose another name")
+    if name in _KINDS:
+        if _KINDS[name] is kind:
+            return kind
+        raise StudiesError(f"register_kind: a study kind {name!r} is already registered "
+                           f"(kinds: {', '.join(_KINDS)})")
+    if not callable(kind.cost):
+        raise StudiesError(f"register_kind: {where} declares no cost model (StudyKind(cost=...): memory "
+                           f"and time of a run for the resource guard, see studies._cost); got "
+                           f"{kind.cost!r}")
+    for hook in ("check", "run", "summary", "varies", "default", "figures", "runs", "headlines"):
+        if not callable(getattr(kind, hook)):
+            raise StudiesError(f"register_kind: {where}: {hook} must be callable, got "
+                               f"{getattr(kind, hook)!r}")
+    if kind.demo is not None and not isinstance(kind.demo, Mapping):
+        raise StudiesError(f"register_kind: {where}: demo must be a table (a mapping) or None, got "
+                           f"{kind.demo!r}")
+    if not all(isinstance(key, str) for key in kind.keys):
+        raise StudiesError(f"register_kind: {where}: keys must be strings, got {kind.keys!r}")
+    if kind.grid and not callable(kind.point):
+        raise StudiesError(f"register_kind: {where} is a grid study without a point function")
+    if not (isinstance(kind.result, type) and issubclass(kind.result, Result)):
+        raise StudiesError(f"register_kind: {where}: result must be a subclass of studies.Result, got "
+                           f"{kind.result!r}")
+    if kind.result in _BY_RESULT:
+        raise StudiesError(f"register_kind: {where}: result class {kind.result.__name__} is already the "
+                           f"result of kind {_BY_RESULT[kind.result].name!r}")
+    register_result(name, kind.result, aliases=kind.aliases)
+    _KINDS[name] = kind
+    _BY_RESULT[kind.result] = kind
+    return kind
+
+
+def kinds() -> Mapping[str, StudyKind]:
+    """The registered study kinds by name (read-only), in the order a run performs them."""
+    return types.MappingProxyType(_KINDS)
+
+
+def kind_named(name: str) -> StudyKind:
+    """The registered kind ``name`` (a :class:`StudiesError` listing the kinds otherwise)."""
+    try:
+        return _KINDS[name]
+    except KeyError:
+        close = difflib.get_close_matches(str(name), list(_KINDS), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise StudiesError(f"unknown study kind {name!r}{hint} (kinds: {', '.join(_KINDS)})") from None
+
+
+def kind_of(result: Any) -> StudyKind:
+    """The kind whose result ``result`` is (e.g. one read back by ``studies.load``)."""
+    try:
+        return _BY_RESULT[type(result)]
+    except KeyError:
+        raise StudiesError(f"{type(result).__name__} is not the result of a registered study kind") from None
+
+
+def in_run_order(results: Mapping[str, Any]) -> dict[str, Any]:
+    """Results in the order a run performs their kinds (steady state, sweep, ...), not the file's
+    alphabetical order."""
+    order = list(_KINDS)
+    return dict(sorted(results.items(), key=lambda item: order.index(kind_of(item[1]).name)))
+
+
+def summaries(results: Mapping[str, Any]) -> dict[str, Summary]:
+    """``{study name: Summary}`` of results in run order, each from its kind's ``headlines`` hook."""
+    return {name: kind_of(result).headlines(result) for name, result in in_run_order(results).items()}
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -151,8 +272,6 @@ def boolean(where: str, key: str, value: Any) -> bool:
 def steps(where: str, table: Mapping[str, Any], default: int, *, minimum: int = 16, multiple: int = 4) -> int:
     """The table's ``n_steps`` (``default`` when absent): a multiple of ``multiple`` and at least the
     study's ``minimum`` (docs/studies.md)."""
-    from ._studies import check_n_steps
-
     value = table.get("n_steps", default)
     try:
         value = check_n_steps(value, minimum=minimum, multiple=multiple, study=f"a {where.split('.')[-1]} study")

@@ -13,11 +13,28 @@ from scipy.optimize import linear_sum_assignment
 import periodic
 
 from . import _verdicts as verdicts
+from ._errors import StudiesError
 from ._problem import Linear
 
-#: The integration scheme of every study. Its ``error_factor`` (``1 / (2**order - 1)``) turns the
-#: difference between an N-step and an N/2-step value into the error estimate of the N-step value.
-STUDY_SCHEME = periodic.SCHEMES["trapezoidal"]
+#: The integration scheme of a study unless its ``scheme`` says otherwise (the ``[studies]`` table's
+#: ``scheme``, a study function's keyword). A scheme's ``error_factor`` (``1 / (2**order - 1)``) turns
+#: the difference between an N-step and an N/2-step value into the error estimate of the N-step value.
+DEFAULT_SCHEME = "trapezoidal"
+
+
+def study_scheme(name: str = DEFAULT_SCHEME) -> periodic.Scheme:
+    """The periodic scheme registered under ``name`` (``periodic.SCHEMES``, to which
+    ``periodic.register_scheme`` adds): the one place the studies resolve a scheme's name. An
+    unknown name raises :class:`StudiesError` listing the registered ones."""
+    schemes = periodic.SCHEMES
+    if not isinstance(name, str) or name not in schemes:
+        raise StudiesError(f"scheme: expected the name of a registered periodic scheme "
+                           f"({', '.join(sorted(schemes))}), got {name!r}")
+    return schemes[name]
+
+
+#: The default scheme itself.
+STUDY_SCHEME = study_scheme()
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,11 +63,12 @@ class Steady:
     run_time: float
 
 
-def solve_steady(linear: Linear) -> Steady:
-    """The steady state on N steps, its error estimate from N/2 (trusted only when N/4 shows the
-    asymptotic range: N a multiple of 4) and its verdict: stability with its error bar, error trust,
-    near resonance or unresolved modes, linear range."""
-    state = periodic.steady_state(linear.system, scheme=STUDY_SCHEME)  # N, N/2 and N/4 with verdicts
+def solve_steady(linear: Linear, scheme: str = DEFAULT_SCHEME) -> Steady:
+    """The steady state on N steps with the periodic scheme named ``scheme``, its error estimate from
+    N/2 (trusted only when N/4 shows the asymptotic range: N a multiple of 4) and its verdict:
+    stability with its error bar, error trust, near resonance or unresolved modes, linear range."""
+    # N, N/2 and N/4 with verdicts
+    state = periodic.steady_state(linear.system, scheme=study_scheme(scheme))
     response = linear.observe(state.x)
     # the error of each observable from the N/2 solution the shooting returns (it is linear in x)
     response_error = state.error_factor * np.abs(

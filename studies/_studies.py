@@ -23,8 +23,9 @@ from ._errors import StudiesError
 from ._grid import STATUS_FAILED, GridStore
 from ._plots import plain
 from ._result import StudyResult
-from ._store import _write_array, owner_of
+from ._store import write_array
 from ._summary import Headline
+from ._writes import owner_of
 
 
 def check_n_steps(n_steps: Any, *, minimum: int = 16, multiple: int = 4, study: str = "this study") -> int:
@@ -64,10 +65,11 @@ def check_parameter(problem: Any, name: str) -> str:
     return name
 
 
-def open_store(out: Any, name: str, shape: tuple[int, ...], kind: str, settings: Mapping[str, Any],
+def open_store(out: Any, name: str, shape: tuple[int, ...], kind: type, settings: Mapping[str, Any],
                units: Mapping[str, str], header: Mapping[str, Any],
                axes: Mapping[str, tuple[np.ndarray, str]]) -> GridStore | None:
-    """The resumable store of a grid study in ``out`` (None without a file), with its axes written."""
+    """The resumable store of a grid study in ``out`` (None without a file), with its axes written;
+    ``kind`` the result class."""
     if out is None:
         return None
     owner = owner_of(out)
@@ -171,7 +173,7 @@ class GridResult(StudyResult):
         for name in self._scalars_with_units:
             if name in group.attrs:
                 del group.attrs[name]
-            _write_array(group, name, np.asarray(float(getattr(self, name))), self._unit(name))
+            write_array(group, name, np.asarray(float(getattr(self, name))), self._unit(name))
 
     @property
     def status(self) -> str:

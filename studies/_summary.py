@@ -103,22 +103,6 @@ def markdown_table(summaries: Mapping[str, Summary]) -> str:
     return "\n".join(lines)
 
 
-def in_run_order(results: Mapping[str, Any]) -> dict[str, Any]:
-    """Results in the order a run performs their kinds (steady state, sweep, ...), not the file's
-    alphabetical order."""
-    from ._kinds import KINDS, kind_of
-
-    order = list(KINDS)
-    return dict(sorted(results.items(), key=lambda item: order.index(kind_of(item[1]).name)))
-
-
-def summaries(results: Mapping[str, Any]) -> dict[str, Summary]:
-    """``{study name: Summary}`` of results in run order, each from its kind's ``headlines`` hook."""
-    from ._kinds import kind_of
-
-    return {name: kind_of(result).headlines(result) for name, result in in_run_order(results).items()}
-
-
 # ---------------------------------------------------------------------------------------------------
 # helpers the kinds' headline hooks share
 # ---------------------------------------------------------------------------------------------------

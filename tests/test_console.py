@@ -16,9 +16,8 @@ import pytest
 import mechanisms
 import periodic
 import studies
-from studies import _console, _overrides
 from studies._kinds import nonlinear_check as nonlinear_check_module
-from studies.cli import main
+from studies.cli import _console, _scene, main
 
 SMALL_FOUR_BAR = """
 [studies]
@@ -180,14 +179,14 @@ def test_a_malformed_set_is_refused_by_the_parser(capsys):
 
 
 def test_set_values_are_toml_values_or_bare_words():
-    assert _overrides.parse_set("a.b=2e-3") == ("a.b", 2e-3)
-    assert _overrides.parse_set("a.b = 3") == ("a.b", 3)
-    assert _overrides.parse_set("a.b=true") == ("a.b", True)
-    assert _overrides.parse_set('a.b="speed"') == ("a.b", "speed")
-    assert _overrides.parse_set("a.b=speed") == ("a.b", "speed")
-    assert _overrides.parse_set("a.b=[60.0, 185]") == ("a.b", [60.0, 185])
+    assert _scene.parse_set("a.b=2e-3") == ("a.b", 2e-3)
+    assert _scene.parse_set("a.b = 3") == ("a.b", 3)
+    assert _scene.parse_set("a.b=true") == ("a.b", True)
+    assert _scene.parse_set('a.b="speed"') == ("a.b", "speed")
+    assert _scene.parse_set("a.b=speed") == ("a.b", "speed")
+    assert _scene.parse_set("a.b=[60.0, 185]") == ("a.b", [60.0, 185])
     table = {"links": {"coupler": {"thickness": 1e-3}}, "name": "x"}
-    changed = _overrides.apply_overrides(table, [("links.coupler.thickness", 2e-3)])
+    changed = _scene.apply_overrides(table, [("links.coupler.thickness", 2e-3)])
     assert changed["links"]["coupler"]["thickness"] == 2e-3
     assert table["links"]["coupler"]["thickness"] == 1e-3  # the original is untouched
 

@@ -13,8 +13,7 @@ import pytest
 
 import mechanisms
 import studies
-from studies import _guard
-from studies._kinds import KINDS
+from studies import kinds
 from studies._kinds.control_comparison import settling_time
 
 N_STEPS, N_PERIODS = 64, 8
@@ -126,7 +125,7 @@ def test_result_file_figure_summary_and_headlines(comparison, tmp_path, assert_s
     drawing = loaded.plot()
     assert list(drawing.artists) == list(comparison.quantities) and len(drawing.axes) == 4
     assert "with control" in drawing.axes[0].get_legend_handles_labels()[1]
-    kind = KINDS["control_comparison"]
+    kind = kinds()["control_comparison"]
     assert "without feedback" in kind.summary(comparison)
     summary = kind.headlines(comparison)
     rows = {row.quantity: row for row in summary.rows}
@@ -182,8 +181,8 @@ def test_bad_input_is_named():
         with pytest.raises(studies.StudiesError, match="output: expected the observable spec of a position"):
             studies.control_comparison(problem, output=not_a_position)
         with pytest.raises(studies.StudiesError, match=r"\[studies.control_comparison\] output"):
-            KINDS["control_comparison"].check("studies.control_comparison", {"output": not_a_position}, 128)
-    kind = KINDS["control_comparison"]
+            kinds()["control_comparison"].check("studies.control_comparison", {"output": not_a_position}, 128)
+    kind = kinds()["control_comparison"]
     with pytest.raises(studies.StudiesError, match="band"):
         kind.check("studies.control_comparison", {"band": 0.0}, 128)
     with pytest.raises(studies.StudiesError, match="n_periods: at most"):
@@ -191,13 +190,13 @@ def test_bad_input_is_named():
 
 
 def test_table_defaults_and_cost_model():
-    kind = KINDS["control_comparison"]
+    kind = kinds()["control_comparison"]
     options = kind.check("studies.control_comparison", {"speed": 80.0, "output": "coupler.point_error@0.5"}, 128)
     assert options == {"values": {"speed": 80.0}, "n_steps": 128, "n_periods": 20, "band": 0.05,
                        "output": "coupler.point_error@0.5"}
     problem = studies.MechanismProblem.from_mechanism(_torque_four_bar(**GAINS))
-    short = _guard.estimate(problem, "control_comparison", options)
-    long = _guard.estimate(problem, "control_comparison", dict(options, n_periods=200))
+    short = studies.estimate(problem, "control_comparison", options)
+    long = studies.estimate(problem, "control_comparison", dict(options, n_periods=200))
     assert long.time > 5.0 * short.time and "2 runs x 20 periods" in short.sizes
 
 

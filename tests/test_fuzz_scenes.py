@@ -30,7 +30,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 import mechanisms
-from studies import _plan
+from studies.cli import _run as _plan
 from studies.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,4 +1,4 @@
-"""The resource guard (studies/_guard.py), the loader's limits on scene sizes, the empty [studies]
+"""The resource guard (studies/cli/_guard.py), the loader's limits on scene sizes, the empty [studies]
 table and the frozen samples a file records."""
 
 from __future__ import annotations
@@ -11,11 +11,12 @@ import pytest
 
 import mechanisms
 import studies
-from studies import _mechanism, _plan
-from studies._guard import ResourceError, estimate, format_bytes, format_seconds, guard, memory_limit
-from studies._kinds import KINDS
+from studies import ResourceError, _mechanism, estimate, guard, kinds
+from studies._cost import format_bytes, format_seconds
 from studies._mechanism import MechanismProblem
+from studies.cli import _run as _plan
 from studies.cli import load_scene, main
+from studies.cli._guard import memory_limit
 
 ELEMENTS = "links.coupler.discretisation.n_elements"
 
@@ -27,7 +28,7 @@ def _scene(tmp_path, table: str, scene: str = "four_bar_fem4") -> str:
 
 
 def _checked(kind: str, table: dict, n_steps: int = 256) -> dict:
-    return KINDS[kind].check(f"studies.{kind}", table, n_steps)
+    return kinds()[kind].check(f"studies.{kind}", table, n_steps)
 
 
 @pytest.fixture(scope="module")
@@ -41,10 +42,10 @@ def four_bar():
 def test_the_memory_estimate_of_a_steady_state_bounds_its_traced_peak(four_bar):
     # an independent measurement: numpy reports its allocations to tracemalloc
     options = _checked("steady_state", {"n_steps": 128})
-    KINDS["steady_state"].run(four_bar, options)  # warm: JIT and caches of the scene
+    kinds()["steady_state"].run(four_bar, options)  # warm: JIT and caches of the scene
     _mechanism._families.clear()
     tracemalloc.start()
-    KINDS["steady_state"].run(four_bar, options)
+    kinds()["steady_state"].run(four_bar, options)
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     guess = estimate(four_bar, "steady_state", options).memory
@@ -172,7 +173,7 @@ def test_an_empty_studies_table_lists_the_kinds_and_a_missing_one_runs_the_defau
     scene = _scene(tmp_path, "\n[studies]\n")
     assert main(["run", scene, "--out", str(tmp_path / "out.h5"), "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert "declares no study" in err and all(f"[studies.{kind}]" in err for kind in KINDS)
+    assert "declares no study" in err and all(f"[studies.{kind}]" in err for kind in kinds())
     assert not (tmp_path / "out.h5").exists()
     _, declared = load_scene(_scene(tmp_path, ""))
     assert set(declared) == {"steady_state", "sweep", "campbell", "nonlinear_check"}

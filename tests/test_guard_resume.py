@@ -11,11 +11,9 @@ import numpy as np
 import pytest
 
 import mechanisms
-from studies import _guard
-from studies._guard import ResourceError, estimate, guard
-from studies._kinds import KINDS
+from studies import ResourceError, _cost, estimate, guard, kinds
 from studies._mechanism import MechanismProblem
-from studies.cli import load_scene, main
+from studies.cli import _guard, load_scene, main
 
 STUDIES = ("\n[studies]\nn_steps = 32\n[studies.steady_state]\n"
            "[studies.sweep]\nstart = 50.0\nstop = 150.0\ncount = 6\n")
@@ -111,7 +109,7 @@ THICKNESS = "links.coupler.thickness"
 
 def test_a_chart_with_rows_saved_needs_only_the_linearisations_of_the_others():
     problem = MechanismProblem.from_mechanism(mechanisms.load("four_bar_fem4"), parameter_paths=(THICKNESS,))
-    chart = KINDS["stability_chart"]
+    chart = kinds()["stability_chart"]
 
     def options(thicknesses):
         return chart.check("s", {"x": {"parameter": "speed", "values": [50.0, 100.0]},
@@ -125,6 +123,6 @@ def test_a_chart_with_rows_saved_needs_only_the_linearisations_of_the_others():
     assert left.time == pytest.approx(alone.time, rel=1e-12)
     # a grid whose points are all saved (killed before the study was marked complete) costs its
     # overhead only; a mask of another shape (not this grid) is ignored
-    assert estimate(problem, "stability_chart", whole, done=np.ones((2, 3), bool)).time == _guard.STUDY_SECONDS
+    assert estimate(problem, "stability_chart", whole, done=np.ones((2, 3), bool)).time == _cost.STUDY_SECONDS
     assert estimate(problem, "stability_chart", whole, done=np.ones((3, 2), bool)).time == \
         estimate(problem, "stability_chart", whole).time

@@ -102,3 +102,92 @@ def test_the_checker_sees_a_violation(tmp_path, monkeypatch):
     assert [v.split(": ", 1)[1] for v in _violations("mechanisms")] == [
         "mechanisms imports periodic.steady_state (only periodic.lapack of periodic)",
         "mechanisms imports periodic (only periodic.lapack of periodic)"]
+
+
+# ---------------------------------------------------------------------------------------------------
+# no import circle inside a package (every import counts, also those deferred into functions)
+# ---------------------------------------------------------------------------------------------------
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _import_graph(package: str) -> dict[str, set[str]]:
+    """``{module: modules of the package it imports}`` over every module of ``package``. An import
+    names the module it loads: ``from . import _x`` and ``from ._x import y`` both give ``_x`` (and
+    ``from .sub import mod`` gives ``sub.mod`` when that is a module); the parent packages an import
+    initialises on the way are not counted (their ``__init__`` runs once, before the module)."""
+    modules = {_module_name(path): path for path in sorted((ROOT / package).rglob("*.py"))}
+    graph: dict[str, set[str]] = {name: set() for name in modules}
+    for name, path in modules.items():
+        for _, imported in _imports(path, package):
+            if imported.split(".")[0] != package:
+                continue
+            # `from a import b`: the module a.b if it exists, else the module a
+            target = imported if imported in modules else imported.rpartition(".")[0]
+            if target in modules and target != name:
+                graph[name].add(target)
+            elif target == name:
+                graph[name].add(name)
+    return graph
+
+
+def _circle(graph: dict[str, set[str]]) -> list[str]:
+    """One import circle of ``graph`` (``[a, b, ..., a]``), or ``[]``: a depth-first search that
+    stops at the first edge back into the current path."""
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+    path: list[str] = []
+
+    def visit(node: str) -> list[str]:
+        state[node] = 1
+        path.append(node)
+        for target in sorted(graph[node]):
+            if state.get(target) == 1:
+                return path[path.index(target):] + [target]
+            if target not in state:
+                found = visit(target)
+                if found:
+                    return found
+        path.pop()
+        state[node] = 2
+        return []
+
+    for start in sorted(graph):
+        if start not in state:
+            found = visit(start)
+            if found:
+                return found
+    return []
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_no_import_circle(package):
+    circle = _circle(_import_graph(package))
+    assert not circle, f"{package} has an import circle: {' -> '.join(circle)}"
+
+
+def test_the_circle_finder_sees_a_deferred_circle(tmp_path, monkeypatch):
+    """The circle test must be able to fail: a circle closed by an import inside a function, through
+    a relative import of a subpackage, is found; a straight chain is not a circle."""
+    fake = tmp_path / "studies"
+    (fake / "sub").mkdir(parents=True)
+    (fake / "__init__.py").write_text("from ._a import f\n")
+    (fake / "_a.py").write_text("from .sub import _b\n\ndef f():\n    return _b\n")
+    (fake / "sub" / "__init__.py").write_text("")
+    (fake / "sub" / "_b.py").write_text("def g():\n    from .._c import h\n    return h\n")
+    (fake / "_c.py").write_text("def h():\n    from studies import _a\n    return _a\n")
+    (fake / "_d.py").write_text("from . import _c\n")
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
+    assert _circle(_import_graph("studies")) == ["studies._a", "studies.sub._b", "studies._c", "studies._a"]
+    (fake / "_c.py").write_text("def h():\n    return 1\n")
+    assert _circle(_import_graph("studies")) == []
+
+
+def test_the_studies_library_does_not_import_the_command():
+    """``studies/cli/`` (the command's machinery) imports the library, never the other way round;
+    only the package's face re-exports the guard from it."""
+    graph = _import_graph("studies")
+    library = [name for name in graph if name != "studies" and not name.startswith("studies.cli")]
+    assert library and any(name.startswith("studies.cli.") for name in graph)
+    assert sorted(f"{name} imports {target}" for name in library for target in graph[name]
+                  if target.startswith("studies.cli")) == []

@@ -15,7 +15,7 @@ from pathlib import Path
 import numba
 import pytest
 
-from studies._jit import CompileClock
+from studies.cli._jit import CompileClock
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -43,8 +43,9 @@ _COVERAGE_SCRIPT = textwrap.dedent("""
     import json, sys
     import numba
     import mechanisms, studies
-    from studies._jit import warm_up
-    from studies._plan import plan, run_plan
+    from studies.cli._jit import warm_up
+    from studies.cli._run import run_plan
+    from studies.cli._scene import plan
 
     scene = mechanisms.load("four_bar_thesis").to_toml() + sys.argv[2]
     problem = studies.MechanismProblem.from_mechanism(mechanisms.loads(scene),

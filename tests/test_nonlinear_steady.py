@@ -171,7 +171,7 @@ def test_the_torque_of_a_torque_drive_is_its_total_once():
 
 
 def test_result_round_trip_plot_and_summary(shot, tmp_path):
-    from studies._kinds import KINDS
+    from studies import kinds
 
     with studies.open_file(tmp_path / "r.h5", "w") as handle:
         shot.to_hdf5(handle.create_group("nonlinear_steady_state"))
@@ -181,9 +181,9 @@ def test_result_round_trip_plot_and_summary(shot, tmp_path):
     assert back.status == shot.status and back.message == shot.message
     plot = shot.plot()
     assert SPEC in plot.artists and "multipliers" in plot.artists
-    assert "peak to peak nonlinear / linear" in KINDS["nonlinear_steady_state"].summary(shot)
+    assert "peak to peak nonlinear / linear" in kinds()["nonlinear_steady_state"].summary(shot)
     # the summary table's rows: the numbers worked out here from the result's fields
-    summary = KINDS["nonlinear_steady_state"].headlines(shot)
+    summary = kinds()["nonlinear_steady_state"].headlines(shot)
     rows = {row.quantity: row for row in summary.rows}
     nonlinear, linear = np.ptp(shot.response[SPEC]), np.ptp(shot.linear_response[SPEC])
     assert rows[f"{SPEC} peak to peak"].value == pytest.approx(nonlinear)
@@ -210,7 +210,7 @@ def test_bad_arguments_name_themselves(problem):
 
 @pytest.mark.slow
 def test_continuation_over_speed_against_single_orbits(problem):
-    from studies._kinds import KINDS
+    from studies import kinds
 
     sweep = studies.nonlinear_sweep(problem, start=96.0, stop=100.0, n_steps=128, step=2.0)
     assert sweep.status == "ok" and sweep.values[0] == 96.0 and sweep.values[-1] == 100.0
@@ -228,7 +228,7 @@ def test_continuation_over_speed_against_single_orbits(problem):
     assert sweep.linear_values[0] == 96.0 and sweep.linear_peak_to_peak[SPEC].size == sweep.linear_values.size
     plot = sweep.plot()
     assert SPEC in plot.artists
-    rows = {row.quantity: row for row in KINDS["nonlinear_sweep"].headlines(sweep).rows}
+    rows = {row.quantity: row for row in kinds()["nonlinear_sweep"].headlines(sweep).rows}
     largest = rows[f"{SPEC} largest peak to peak (nonlinear orbit)"]
     assert largest.value == pytest.approx(sweep.peak_to_peak[SPEC].max())
     assert rows["loss of stability"].value == "none on the branch"
@@ -280,11 +280,11 @@ def test_nonlinear_check_against_the_periodic_state(problem):
 
 
 def test_scene_tables_are_checked():
-    from studies._kinds import KINDS
+    from studies import kinds
 
-    steady = KINDS["nonlinear_steady_state"].check("studies.nonlinear_steady_state", {"speed": 90.0}, 128)
+    steady = kinds()["nonlinear_steady_state"].check("studies.nonlinear_steady_state", {"speed": 90.0}, 128)
     assert steady == {"values": {"speed": 90.0}, "n_steps": 128, "tol": 1e-8, "max_iterations": 12}
-    sweep = KINDS["nonlinear_sweep"]
+    sweep = kinds()["nonlinear_sweep"]
     options = sweep.check("studies.nonlinear_sweep", {"parameter": "links.crank.length", "start": 0.05,
                                                       "stop": 0.04, "method": "arclength"}, 256)
     assert options["n_steps"] == 128 and options["method"] == "arclength"

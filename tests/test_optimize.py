@@ -13,8 +13,7 @@ import pytest
 
 import mechanisms
 import studies
-from studies import PeriodicCoefficients, PeriodicProblem
-from studies._kinds import KINDS
+from studies import PeriodicCoefficients, PeriodicProblem, kinds
 
 MU = 0.05  # absorber mass over primary mass
 
@@ -180,12 +179,12 @@ def test_result_round_trips_through_hdf5_and_plots(tmp_path, absorber_optimum):
     assert back.check_linear.keys() == found.check_linear.keys()
     plot = back.plot()
     assert len(plot.axes) == 2 and "path" in plot.artists
-    summary = KINDS["optimize"].headlines(back)
+    summary = kinds()["optimize"].headlines(back)
     assert summary.rows and summary.status
 
 
 def test_table_is_checked_and_bad_input_named():
-    kind = KINDS["optimize"]
+    kind = kinds()["optimize"]
     options = kind.check("studies.optimize", {"objective": "peak:x", "bounds": {"drive": {"kp": [1.0, 2.0]}},
                                               "speeds": {"start": 1.0, "stop": 2.0, "count": 3},
                                               "constraints": {"stability_margin": 0.1}}, 64)
@@ -226,7 +225,7 @@ def test_each_torque_limit_sees_its_own_drives():
     assert found.constraint_values["torque@elbow"] == pytest.approx(steady.peak["drive.elbow.torque"], rel=1e-6)
     assert steady.peak["drive.elbow.torque"] < 0.5 < steady.peak["drive.shoulder.torque"] < 1.0
     assert found.history_feasible[int(np.argmin(found.history_x[:, 0]))]
-    rows = {row.quantity for row in KINDS["optimize"].headlines(found).rows}
+    rows = {row.quantity for row in kinds()["optimize"].headlines(found).rows}
     assert {"largest peak drive torque at shoulder", "largest peak drive torque at elbow"} <= rows
     with pytest.raises(studies.StudiesError, match="one per set of joints"):
         studies.optimize(problem, {"point_masses.payload.mass": (0.05, 0.4)}, objective="rms:drive.elbow.torque",

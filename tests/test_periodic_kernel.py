@@ -1,5 +1,5 @@
 """periodic: the numba Newmark kernel against a slow, obvious numpy twin; the demo (``python -m periodic``
-and ``studies._demo.write_demo``) and its steady state against a long damped transient (scipy DOP853)."""
+and ``studies.cli._demo.write_demo``) and its steady state against a long damped transient (scipy DOP853)."""
 
 import os
 import subprocess
@@ -14,7 +14,7 @@ import periodic
 from periodic import __main__ as demo_command
 from periodic import _demo as demo
 from periodic._newmark import SOLVE_INVERSE, SOLVE_LAPACK, SOLVE_LOOPS, march, mass_pivot_ratios
-from studies._demo import write_demo
+from studies.cli._demo import write_demo
 from tests._newmark_twin import newmark_numpy
 
 SOLVERS = [SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE]  # the kernels' linear-algebra paths

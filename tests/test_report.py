@@ -9,12 +9,11 @@ import numpy as np
 import pytest
 
 import studies
-from studies import _animate, _kind, _summary
+from studies import _kind, _summary, kind_of, kinds
 from studies._drawing import frame_points, plate_corners
-from studies._kinds import KINDS, kind_of
 from studies._mechanism import MechanismProblem
 from studies._plots import plain
-from studies.cli import main
+from studies.cli import _animate, main
 
 from ._figure_text import text_problems
 
@@ -83,14 +82,14 @@ def test_plain_numbers_have_no_e_notation(value, digits, text):
 # ---------------------------------------------------------------------------------------------------
 def test_every_kind_names_its_headlines(mathieu_file):
     results = studies.load(mathieu_file)
-    # the Mathieu file holds every kind that runs on a problem without a mechanism; the kinds of the
-    # full nonlinear mechanism are summarised in test_nonlinear_steady.py, the control comparison (a
-    # mechanism with a controller) in test_control_comparison.py
-    mechanism_only = {"nonlinear_steady_state", "nonlinear_sweep", "control_comparison"}
-    assert {kind_of(result).name for result in results.values()} == set(KINDS) - mechanism_only
-    for name, kind in KINDS.items():
+    # the Mathieu file holds every kind with a demo table (those that run on a problem without a
+    # mechanism); the kinds of the full nonlinear mechanism are summarised in test_nonlinear_steady.py,
+    # the control comparison (a mechanism with a controller) in test_control_comparison.py
+    demo_kinds = {name for name, kind in kinds().items() if kind.demo is not None}
+    assert {kind_of(result).name for result in results.values()} == demo_kinds
+    for name, kind in kinds().items():
         assert kind.headlines is not _kind._no_headlines, f"{name} has no headlines for the summary"
-    for name, summary in _summary.summaries(results).items():
+    for name, summary in _kind.summaries(results).items():
         assert summary.rows, name
         assert summary.status and math.isfinite(summary.run_time), name
 
@@ -119,8 +118,8 @@ def test_run_prints_the_table_with_the_headline_numbers(tmp_path, capsys):
     results = studies.load(path)
     expected, lower = _headline_numbers(results)
     # the table printed is the kinds' headlines laid out, and its cells hold the numbers (unwrapped)
-    assert _summary.text_table(_summary.summaries(results)) in out
-    table = _summary.text_table(_summary.summaries(results), width=1000)
+    assert _summary.text_table(_kind.summaries(results)) in out
+    table = _summary.text_table(_kind.summaries(results), width=1000)
     for text in expected:
         assert text in table, text
     assert (lower > 1).any() and "unstable" in table  # the sweep crosses the principal tongue
@@ -142,7 +141,7 @@ def test_report_writes_markdown_html_and_the_figures(mathieu_file, tmp_path, cap
     links = [line.split("](")[1].rstrip(")") for line in markdown.splitlines() if line.startswith("![")]
     assert links and all((outdir / link).is_file() for link in links)
     sections = [line[3:] for line in markdown.splitlines() if line.startswith("## ")]
-    assert sections == list(_summary.in_run_order(results))
+    assert sections == list(_kind.in_run_order(results))
     assert capsys.readouterr().out.splitlines()[0].endswith("report.md")
 
 
@@ -314,13 +313,13 @@ def test_sweep_headlines_take_the_largest_response_from_ok_points_only(mathieu_f
     status[:] = "ok"
     status[worst] = "unstable"
     marked = dataclasses.replace(sweep, point_status=status.astype(str))
-    rows = {row.quantity: row for row in KINDS["sweep"].headlines(marked).rows}
+    rows = {row.quantity: row for row in kinds()["sweep"].headlines(marked).rows}
     second = float(np.nanmax(np.delete(values, worst)))
     assert rows["largest x peak to peak (ok points)"].value == pytest.approx(second)
     overall = rows["largest x peak to peak, any point"]
     assert overall.value == pytest.approx(values[worst]) and "unstable" in overall.where
     status[worst] = "ok"
-    rows = {row.quantity: row for row in KINDS["sweep"].headlines(
+    rows = {row.quantity: row for row in kinds()["sweep"].headlines(
         dataclasses.replace(sweep, point_status=status.astype(str))).rows}
     assert rows["largest x peak to peak (ok points)"].value == pytest.approx(values[worst])
     assert "largest x peak to peak, any point" not in rows

@@ -15,7 +15,7 @@ import pytest
 
 import mechanisms
 import studies
-from studies import _grid, _store
+from studies import _grid, _identity
 from studies.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -81,19 +81,19 @@ def _one_line_error(capsys, *words: str) -> str:
 def test_differing_paths_names_at_most_five_keys():
     old = {"links": {"a": {"length": 1.0, "width": 2.0}}, "gravity": [0, 0], "x": 1}
     new = {"links": {"a": {"length": 1.5, "width": 2.0}}, "gravity": [0, -9.81], "y": 1}
-    assert _store.differing_paths(old, new) == ["gravity", "links.a.length", "x", "y"]
+    assert _identity.differing_paths(old, new) == ["gravity", "links.a.length", "x", "y"]
     many = {f"k{i}": i for i in range(8)}
-    assert _store.differing_paths(many, {}) == ["k0", "k1", "k2", "k3", "k4", "..."]
+    assert _identity.differing_paths(many, {}) == ["k0", "k1", "k2", "k3", "k4", "..."]
 
 
 def test_scene_numbers_leave_out_name_description_studies_and_comments():
     text = mechanisms.load("four_bar_fem1").to_toml()
     edited = ("# a comment\n" + text.replace('name = "four_bar_fem1"', 'name = "renamed"')
               .replace("description = ", "description = 'edited' #") + STEADY)
-    assert _store.digest(_store.scene_numbers(text)) == _store.digest(_store.scene_numbers(edited))
+    assert _identity.digest(_identity.scene_numbers(text)) == _identity.digest(_identity.scene_numbers(edited))
     thicker = text.replace("thickness = 0.0016", "thickness = 0.0017", 1)
-    assert _store.digest(_store.scene_numbers(text)) != _store.digest(_store.scene_numbers(thicker))
-    assert _store.scene_numbers("x'' + x = 0") == {"text": "x'' + x = 0"}
+    assert _identity.digest(_identity.scene_numbers(text)) != _identity.digest(_identity.scene_numbers(thicker))
+    assert _identity.scene_numbers("x'' + x = 0") == {"text": "x'' + x = 0"}
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -198,7 +198,7 @@ def test_an_unwritable_folder_exits_2(tmp_path, capsys):
 # ---------------------------------------------------------------------------------------------------
 # processes: two writers, a lock left behind, an unreachable scheduler, Ctrl-C
 # ---------------------------------------------------------------------------------------------------
-HOLD = ("import sys; from studies._store import ResultFile\n"
+HOLD = ("import sys; from studies import ResultFile\n"
         "with ResultFile(sys.argv[1]):\n"
         "    print('locked', flush=True); sys.stdin.read()\n")
 
@@ -267,7 +267,7 @@ def test_info_calls_a_study_whose_data_cannot_be_read_corrupt(result_file, capsy
         raw.write(b"\xff" * chunk.size)
     assert main(["info", str(result_file)]) == 1
     captured = capsys.readouterr()
-    assert "[steady_state] SteadyStateResult of four_bar_fem1, CORRUPT (extra: " in captured.out
+    assert "[steady_state] steady_state of four_bar_fem1, CORRUPT (extra: " in captured.out
     assert captured.err.startswith("flexvib: error: ") and "cannot read steady_state" in captured.err
 
 

@@ -1,32 +1,18 @@
-"""The registry of study kinds: ``KINDS`` maps each ``[studies.<name>]`` table to its
-:class:`studies._kind.StudyKind`, in the order a run performs them.
+"""The study kinds shipped with flexvib, one module each; importing this package registers them
+(``studies.register_kind``), in the order a run performs them.
 
-Adding a study kind: write one module here (a study function, its result class with ``plot``, and a
-``KIND = StudyKind(...)`` declaring its table keys and their checks, how it runs, its summary line and
-figures; ``sweep.py`` is a grid study to copy, ``steady_state.py`` a single one), then add one line
-to ``_MODULES`` below. ``studies._plan`` (scene tables) and ``studies.cli`` (summaries, figures) find
-it here; export its study function and result class from ``studies/__init__.py`` for users.
+Adding a study kind: write one module here (a study function, its result class with ``plot``, and
+``KIND = register_kind(StudyKind(...))`` declaring its table keys and their checks, how it runs, its
+cost model, summary line, headlines, figures and demo entry; ``sweep.py`` is a grid study to copy,
+``steady_state.py`` a single one), then add its name to the import below. Nothing else names the
+kinds: the ``[studies]`` table, the resource guard, the warm-up, the summary table, the figures and
+``studies.load`` ask the registry (``studies.kinds()``). A kind defined outside the package registers
+itself the same way, with the public ``studies.StudyKind`` and ``studies.register_kind``.
 """
 
-from __future__ import annotations
-
-from typing import Any
-
-from .._kind import StudyKind
-from . import (
-    campbell,
-    control_comparison,
-    error_cost,
-    nonlinear_check,
-    nonlinear_steady_state,
-    nonlinear_sweep,
-    optimize,
-    stability_chart,
-    steady_state,
-    sweep,
-)
-
-_MODULES = (
+# isort: off
+# imported to register each kind, in the order a run performs them (not alphabetical)
+from . import (  # noqa: F401
     steady_state,
     sweep,
     campbell,
@@ -38,11 +24,4 @@ _MODULES = (
     control_comparison,
     optimize,
 )
-
-KINDS: dict[str, StudyKind] = {module.KIND.name: module.KIND for module in _MODULES}
-_BY_RESULT = {kind.result: kind for kind in KINDS.values()}
-
-
-def kind_of(result: Any) -> StudyKind:
-    """The kind whose result ``result`` is (e.g. one read back by ``studies.load``)."""
-    return _BY_RESULT[type(result)]
+# isort: on

@@ -12,35 +12,44 @@ import numpy as np
 
 import periodic
 
-from .. import _verdicts as verdicts
-from .._errors import StudiesError
-from .._grid import run_grid
-from .._kind import HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, steps
+from .._kind import StudyKind, register_kind
 from .._numerics import (
-    STUDY_SCHEME,
+    DEFAULT_SCHEME,
     characteristic_frequencies,
     crossings,
     frozen_modes,
+    study_scheme,
     track_modes,
     unstable_intervals,
 )
 from .._plots import Plot, axes_for, cost_line, drawn, largest, mark_statuses, plain
-from .._problem import SPEED
 from .._result import NoObservables
-from .._store import register
-from .._studies import (
+from .._toolkit import (
+    HARMONIC_WHY,
+    MAX_HARMONIC,
+    SPEED,
     GridResult,
+    Headline,
+    StudiesError,
+    Summary,
+    axis,
     check_grid,
     check_integer,
     check_n_steps,
     collect,
+    combine,
+    cost,
     grid_status,
     grid_summary,
+    integer,
+    listed,
     open_store,
+    ranges,
     reduction_check,
     reduction_headlines,
+    run_grid,
+    steps,
 )
-from .._summary import Headline, Summary, listed, ranges
 
 #: The fewest steps per period a Campbell diagram accepts (docs/studies.md).
 MIN_STEPS = 32
@@ -48,7 +57,6 @@ MIN_STEPS = 32
 FROZEN_SAMPLES = 64
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class CampbellResult(NoObservables, GridResult):
     """Campbell diagram: frozen-time natural frequencies against crank speed (the fields every
@@ -163,14 +171,15 @@ class CampbellResult(NoObservables, GridResult):
         return drawn(axes, artists)
 
 
-def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, frozen_samples: int):
+def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, frozen_samples: int,
+                   scheme: str = DEFAULT_SCHEME):
     """One speed of a Campbell diagram: frozen frequencies over the crank angle, mode shapes at crank
     angle 0, Floquet multipliers."""
     linear = problem.linearize(values, n_steps=n_steps, context=False)
     index, frozen, shapes = frozen_modes(linear.system, frozen_samples)
-    result = periodic.floquet(linear.system, scheme=STUDY_SCHEME, estimate_error=True)
+    result = periodic.floquet(linear.system, scheme=study_scheme(scheme), estimate_error=True)
     unresolved = int((~result.resolved).sum())
-    status, message = verdicts.combine([
+    status, message = combine([
         (result.status, result.message),
         ("unresolved_stiff_mode" if unresolved else "ok",
          f"{unresolved} multipliers belong to modes the {n_steps} steps do not resolve (stiff modes; "
@@ -184,13 +193,14 @@ def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, f
 
 def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, frozen_samples: int = FROZEN_SAMPLES,
              max_harmonic: int = 6, executor: Executor | None = None, out: Any = None,
-             name: str = "campbell", progress: bool = False) -> CampbellResult:
+             name: str = "campbell", progress: bool = False, scheme: str = DEFAULT_SCHEME) -> CampbellResult:
     """Campbell diagram over crank ``speeds`` (rad/s): frozen-time natural frequency bands over the
     crank angle, Floquet characteristic frequencies, lines ``k * speed`` (k <= ``max_harmonic``),
     modes tracked across speeds by MAC of their shapes at crank angle 0 and labelled. The frozen
     samples are taken among the steps: ``min(frozen_samples, n_steps)`` of them, the number recorded
-    in ``settings``."""
+    in ``settings``. ``scheme`` names the periodic scheme (``periodic.SCHEMES``)."""
     start = time.perf_counter()
+    error_factor = study_scheme(scheme).error_factor
     grid = check_grid("speeds", speeds)
     if (grid <= 0).any() or (np.diff(grid) <= 0).any():
         raise StudiesError(f"speeds: expected positive, increasing crank speeds (rad/s), got {speeds!r}")
@@ -198,15 +208,15 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
     frozen_samples = min(check_integer("frozen_samples", frozen_samples, 2), n_steps)
     labels = problem.describe({SPEED: float(grid[0])}).labels
     settings = {"speeds": grid, "n_steps": n_steps, "frozen_samples": frozen_samples,
-                "scene": problem.text}
+                "scene": problem.text, "scheme": scheme}
     units = {"frozen": "rad/s", "shapes": "1", "multipliers": "1", "multipliers_coarse": "1", "period": "s",
              "crank_angle": "rad", "spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1"}
     header = dict(problem=problem.name, scene=problem.text, labels=labels)
-    store = open_store(out, name, grid.shape, "CampbellResult", settings, units, header,
+    store = open_store(out, name, grid.shape, CampbellResult, settings, units, header,
                        {"speeds": (grid, "rad/s")})
     points = [((i,), {SPEED: float(v)}) for i, v in enumerate(grid)]
     outcomes = run_grid(campbell_point, problem, points,
-                        {"n_steps": n_steps, "frozen_samples": frozen_samples}, executor=executor,
+                        {"n_steps": n_steps, "frozen_samples": frozen_samples, "scheme": scheme}, executor=executor,
                         store=store, progress=progress, description=f"{name} over speed")
     fields = collect(outcomes, grid.shape)
     if "is_stable" in fields:
@@ -226,7 +236,7 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
                                                 band_mean[i])
             characteristic.append(fine)
             # the N/2 difference times the scheme's error factor estimates the error of the N-step value
-            characteristic_error.append(np.array([np.nanmin(np.abs(halved - f)) * STUDY_SCHEME.error_factor
+            characteristic_error.append(np.array([np.nanmin(np.abs(halved - f)) * error_factor
                                                   if np.isfinite(f) else np.nan for f in fine]))
         characteristic, characteristic_error = np.array(characteristic), np.array(characteristic_error)
         first = fields["shapes"][0]
@@ -264,7 +274,8 @@ def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, p
          ) -> CampbellResult:
     return campbell(problem, options["speeds"], n_steps=options["n_steps"],
                     frozen_samples=options["frozen_samples"], max_harmonic=options["max_harmonic"],
-                    executor=executor, out=out, name=KIND.name, progress=progress)
+                    executor=executor, out=out, name=KIND.name, progress=progress,
+                    scheme=options.get("scheme", DEFAULT_SCHEME))
 
 
 def _summary(result: CampbellResult) -> str:
@@ -299,8 +310,19 @@ def _default(nominal_speed: float) -> dict[str, Any]:
     return {"start": 0.2 * abs(nominal_speed), "stop": 4.0 * abs(nominal_speed), "count": 40}
 
 
-KIND = StudyKind(name="campbell", result=CampbellResult,
-                 keys=("start", "stop", "count", "values", "spacing", "frozen_samples", "max_harmonic",
-                       "n_steps"),
-                 check=_check, run=_run, summary=_summary, grid=True, point=campbell_point,
-                 default=_default, headlines=_headlines)
+def _cost(name, problem, options, workers, done=None):
+    """A periodic solve and ``frozen_samples`` frozen-time eigenproblems per speed."""
+    axis = (SPEED, np.asarray(options["speeds"]))
+    frozen = options["frozen_samples"]
+    found = cost.grid_cost(name, problem, [axis], options["n_steps"], frozen=frozen, workers=workers, done=done,
+                      point_doubles=lambda s: (frozen + s.m + 8.0) * s.m,
+                      words=[cost.axis_words(*axis), f"{frozen} frozen samples"])
+    return cost.with_reduction_check(found, problem, {}, options["n_steps"])
+
+
+KIND = register_kind(StudyKind(
+    name="campbell", result=CampbellResult,
+    keys=("start", "stop", "count", "values", "spacing", "frozen_samples", "max_harmonic", "n_steps"),
+    check=_check, run=_run, summary=_summary, grid=True, point=campbell_point, default=_default,
+    headlines=_headlines, cost=_cost, schemes=True, demo={"start": 0.2, "stop": 3.0, "count": 15},
+    aliases=("CampbellResult",)))

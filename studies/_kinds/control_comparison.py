@@ -18,16 +18,28 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .._errors import ComputationError, StudiesError, is_numerical_failure
-from .._kind import MAX_PERIODS, PERIODS_WHY, StudyKind, fraction, integer, speed_values, steps
+from .._kind import StudyKind, register_kind
 from .._mechanism import deviation_from_nominal
 from .._plots import Plot, axes_for, drawn, headline, label, plain
-from .._problem import SPEED
 from .._result import DerivedPeaks, StudyResult, peaks_of
-from .._store import register
-from .._studies import check_integer, check_n_steps
-from .._summary import Headline, Summary
-from .._verdicts import combine
+from .._toolkit import (
+    MAX_PERIODS,
+    PERIODS_WHY,
+    SPEED,
+    ComputationError,
+    Headline,
+    StudiesError,
+    Summary,
+    check_integer,
+    check_n_steps,
+    combine,
+    cost,
+    fraction,
+    integer,
+    is_numerical_failure,
+    speed_values,
+    steps,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -100,7 +112,6 @@ def settling_time(t: np.ndarray, y: np.ndarray, steps_per_period: int, band: flo
 # ---------------------------------------------------------------------------------------------------
 # the result
 # ---------------------------------------------------------------------------------------------------
-@register
 @dataclass(frozen=True, eq=False)
 class ControlComparison(DerivedPeaks, StudyResult):
     """The start-up with and without feedback (``CASES = ("with", "without")``; the fields every
@@ -649,6 +660,20 @@ def _headlines(result: ControlComparison) -> Summary:
                    run_time=float(result.run_time), rows=rows)
 
 
-KIND = StudyKind(name="control_comparison", result=ControlComparison,
-                 keys=("speed", "n_periods", "n_steps", "band", "output"),
-                 check=_check, run=_run_kind, summary=_summary, headlines=_headlines)
+def _cost(name, problem, options, workers):
+    """Two cases (with and without feedback), each a run of ``n_periods`` periods at N steps and its
+    twin at N/2 for the error estimate (together what one ``simulate`` with its error estimate costs),
+    one after the other."""
+    sizes = cost.sizes_at(problem, options["values"])
+    steps = options["n_periods"] * options["n_steps"]
+    seconds = cost.STUDY_SECONDS + len(("with", "without")) * steps * (cost.NONLINEAR_STEP_SECONDS
+                                                                  + cost.NONLINEAR_STEP_N2_SECONDS * sizes.n**2)
+    memory = 8.0 * cost.NONLINEAR_DOUBLES * steps * sizes.n
+    return cost.Estimate(name, memory, seconds, f"2 runs x {options['n_periods']} periods x {options['n_steps']} "
+                                                f"steps x {sizes.n} coordinates")
+
+
+KIND = register_kind(StudyKind(
+    name="control_comparison", result=ControlComparison, keys=("speed", "n_periods", "n_steps", "band", "output"),
+    check=_check, run=_run_kind, summary=_summary, headlines=_headlines, cost=_cost,
+    aliases=("ControlComparison",)))

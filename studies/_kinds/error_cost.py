@@ -11,17 +11,27 @@ import numpy as np
 
 import periodic
 
-from .._errors import StudiesError
-from .._kind import MAX_STEPS, STEPS_WHY, StudyKind, axis, integer, speed_values, sub_table
-from .._numerics import STUDY_SCHEME, peak_summary, solve_steady
+from .._kind import StudyKind, register_kind
+from .._numerics import DEFAULT_SCHEME, peak_summary, solve_steady, study_scheme
 from .._plots import Plot, axes_for, drawn, plain, tidy_log_axes
 from .._result import PEAK_FIELDS, StudyResult, unknown_peaks
-from .._store import register
-from .._studies import check_grid, check_n_steps, check_parameter
-from .._summary import Headline, Summary
+from .._toolkit import (
+    MAX_STEPS,
+    STEPS_WHY,
+    Headline,
+    StudiesError,
+    Summary,
+    axis,
+    check_grid,
+    check_n_steps,
+    check_parameter,
+    cost,
+    integer,
+    speed_values,
+    sub_table,
+)
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class ErrorCostResult(StudyResult):
     """Error against run time (the fields every result has: ``studies._result``; the grid is
@@ -145,12 +155,13 @@ def check_step_counts(n_steps: Sequence[int], reference_steps: int | None) -> tu
 
 def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
                n_steps: Sequence[int] = (32, 64, 128, 256), resolution: tuple[str, Sequence[float]] | None = None,
-               reference_steps: int | None = None) -> ErrorCostResult:
+               reference_steps: int | None = None, scheme: str = DEFAULT_SCHEME) -> ErrorCostResult:
     """Error of the steady response against run time, over steps per period and (optionally) a
     resolution parameter such as a number of elements ``("links.coupler.discretisation.n_elements",
     (1, 2, 4))``. The reference is the finest resolution at ``reference_steps`` (default 4 x the
     largest ``n_steps``) with Richardson extrapolation (order 4). Runs in-process so the times are
-    comparable."""
+    comparable. ``scheme`` names the periodic scheme (``periodic.SCHEMES``)."""
+    scheme_used = study_scheme(scheme)
     steps, reference_steps = check_step_counts(n_steps, reference_steps)
     base = steps[0]
     if resolution is None:
@@ -167,7 +178,7 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
 
     start = time.perf_counter()
     reference_linear = problem.linearize(at(levels[-1]), n_steps=reference_steps)
-    reference_state = periodic.steady_state(reference_linear.system, scheme=STUDY_SCHEME, extrapolate=True)
+    reference_state = periodic.steady_state(reference_linear.system, scheme=scheme_used, extrapolate=True)
     reference = reference_linear.observe(reference_state.x)[:: reference_steps // base]
     reference_time = time.perf_counter() - start
     specs = reference_linear.observables
@@ -183,7 +194,7 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
         for j, n in enumerate(steps):
             tick = time.perf_counter()
             linear = problem.linearize(at(level), n_steps=n)
-            steady = solve_steady(linear)
+            steady = solve_steady(linear, scheme)
             run_time[i, j] = time.perf_counter() - tick
             n_dof[i] = linear.system.n_dof
             point_status[i, j], point_message[i, j] = steady.status, steady.message
@@ -258,6 +269,31 @@ def _varies(options: Mapping[str, Any]) -> tuple[str, ...]:
     return () if options["resolution"] is None else (options["resolution"][0],)
 
 
-KIND = StudyKind(name="error_cost", result=ErrorCostResult, keys=("speed", "n_steps", "reference_steps",
-                                                                   "resolution"),
-                 check=_check, run=_run, summary=_summary, varies=_varies, headlines=_headlines)
+def _cost(name, problem, options, workers):
+    """A linearisation and periodic solve per step count and resolution, and the reference (N and
+    N/2 with Richardson) at the finest resolution."""
+    values = dict(options["values"])
+    resolution = options["resolution"]
+    grids = [float(v) for v in resolution[1]] if resolution is not None else [None]
+    step_counts = list(options["n_steps"])
+    reference = options["reference_steps"] or 4 * max(step_counts)
+    memory, seconds = 0.0, cost.STUDY_SECONDS
+    largest = cost.Sizes(0, 0)
+    for index, value in enumerate(grids):
+        at = values if value is None else dict(values, **{resolution[0]: value})
+        sizes = cost.sizes_at(problem, at)
+        largest = max(largest, sizes, key=lambda s: s.m)
+        # the finest resolution (the last) also computes the reference, with Richardson (N and N/2)
+        counts = step_counts + ([reference, reference // 2] if index == len(grids) - 1 else [])
+        for n_steps in counts:
+            build_bytes, build_seconds = cost.linearisation(n_steps, sizes)
+            memory = max(memory, build_bytes)
+            seconds += build_seconds + cost.solve_seconds(n_steps, sizes)
+    return cost.Estimate(name, memory, seconds, f"{len(step_counts)} step counts up to {reference} x "
+                                                f"{len(grids)} resolutions x {largest.m} coordinates")
+
+
+KIND = register_kind(StudyKind(
+    name="error_cost", result=ErrorCostResult, keys=("speed", "n_steps", "reference_steps", "resolution"),
+    check=_check, run=_run, summary=_summary, varies=_varies, headlines=_headlines, cost=_cost, schemes=True,
+    demo={"speed": 0.7, "n_steps": [16, 32, 64, 128]}, aliases=("ErrorCostResult",)))

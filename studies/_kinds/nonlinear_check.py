@@ -9,27 +9,31 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .._errors import StudiesError, is_numerical_failure
-from .._kind import (
+from .._kind import StudyKind, register_kind
+from .._numerics import solve_steady
+from .._plots import Plot, axes_for, drawn, headline, label, plain
+from .._result import DerivedPeaks, StudyResult, peaks_of
+from .._toolkit import (
     MAX_AXIS_POINTS,
     MAX_PERIODS,
     PERIODS_WHY,
-    StudyKind,
+    SPEED,
+    WARM_UP_STEPS,
+    Headline,
+    StudiesError,
+    Summary,
     boolean,
+    check_integer,
+    check_n_steps,
+    combine,
+    cost,
     fraction,
     integer,
+    is_numerical_failure,
     number,
     speed_values,
     steps,
 )
-from .._numerics import solve_steady
-from .._plots import Plot, axes_for, drawn, headline, label, plain
-from .._problem import SPEED
-from .._result import DerivedPeaks, StudyResult, peaks_of
-from .._store import register
-from .._studies import check_integer, check_n_steps
-from .._summary import Headline, Summary
-from .._verdicts import combine
 
 #: The fewest steps per period a nonlinear check accepts (docs/studies.md): the nonlinear run takes
 #: the linear grid's steps, and its own error estimate needs them.
@@ -47,7 +51,6 @@ PERIODIC_TOL = 0.05
 VERDICTS = ("failed", "not_periodic", "differs", "agrees")
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class NonlinearCheck(DerivedPeaks, StudyResult):
     """The full nonlinear model against the linear periodic solution (the fields every result has:
@@ -409,8 +412,30 @@ def _headlines(result: NonlinearCheck) -> Summary:
     return Summary(status=words, run_time=result.run_time, rows=rows)
 
 
-KIND = StudyKind(name="nonlinear_check", result=NonlinearCheck,
-                 keys=("speed", "speeds", "n_periods", "from_rest", "max_periods_from_rest", "steady_tol",
-                       "tolerance", "periodic_tol", "n_steps", "periodic_state"),
-                 check=_check, run=_run, summary=_summary, runs=_runs, default=lambda nominal_speed: {"n_periods": 3},
-                 headlines=_headlines)
+def nonlinear_check_cost(name, problem, options, workers):
+    """A linearisation and periodic solve, and the nonlinear run over its periods (from rest too)."""
+    sizes = cost.sizes_at(problem, options["values"])
+    n_steps = options["n_steps"]
+    periods = options["n_periods"] + (options["max_periods_from_rest"] if options["from_rest"] else 0)
+    build_bytes, build_seconds = cost.linearisation(n_steps, sizes)
+    steps = periods * n_steps
+    seconds = (cost.STUDY_SECONDS + build_seconds + cost.solve_seconds(n_steps, sizes)
+               + steps * (cost.NONLINEAR_STEP_SECONDS + cost.NONLINEAR_STEP_N2_SECONDS * sizes.n**2))
+    memory = max(build_bytes, 8.0 * cost.NONLINEAR_DOUBLES * steps * sizes.n)
+    return cost.Estimate(name, memory, seconds, f"{periods} periods x {n_steps} steps x {sizes.n} coordinates")
+
+
+
+def _warm_up(problem: Any) -> None:
+    """A two-period nonlinear check on the JIT warm-up's tiny grid (the integrator's kernels)."""
+    if getattr(problem, "supports_nonlinear", False):
+        nonlinear_check(problem, n_steps=WARM_UP_STEPS, n_periods=2)
+
+
+KIND = register_kind(StudyKind(
+    name="nonlinear_check", result=NonlinearCheck,
+    keys=("speed", "speeds", "n_periods", "from_rest", "max_periods_from_rest", "steady_tol", "tolerance",
+          "periodic_tol", "n_steps", "periodic_state"),
+    check=_check, run=_run, summary=_summary, runs=_runs, default=lambda nominal_speed: {"n_periods": 3},
+    headlines=_headlines, cost=nonlinear_check_cost, demo={"speed": 0.7, "n_periods": 3}, warm_up=_warm_up,
+    aliases=("NonlinearCheck",)))

@@ -14,15 +14,25 @@ import numpy as np
 
 import periodic
 
-from .._errors import StudiesError
-from .._kind import StudyKind, integer, number, speed_values, steps
+from .._kind import StudyKind, register_kind
 from .._mechanism import observables_along, of_coordinates
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
 from .._result import DerivedPeaks, StudyResult, peaks_of
-from .._store import register
-from .._studies import check_integer, check_n_steps
-from .._summary import Headline, Summary, response_rows
+from .._toolkit import (
+    WARM_UP_STEPS,
+    Headline,
+    StudiesError,
+    Summary,
+    check_integer,
+    check_n_steps,
+    cost,
+    integer,
+    number,
+    response_rows,
+    speed_values,
+    steps,
+)
 
 #: The fewest steps per period (docs/studies.md): N/2 = 16 steps must still carry the integrator.
 MIN_STEPS = 32
@@ -43,7 +53,6 @@ ERROR_FACTOR = 1.0 / (2**ORDER - 1)
 MAX_RELATIVE_ERROR = periodic.MAX_RELATIVE_ERROR
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class NonlinearSteadyState(DerivedPeaks, StudyResult):
     """The periodic orbit of the full nonlinear model over one period, with its stability (the
@@ -457,6 +466,28 @@ def _headlines(result: NonlinearSteadyState) -> Summary:
                    rows=rows)
 
 
-KIND = StudyKind(name="nonlinear_steady_state", result=NonlinearSteadyState,
-                 keys=("speed", "n_steps", "tol", "max_iterations"), check=_check, run=_run, summary=_summary,
-                 headlines=_headlines)
+def _cost(name, problem, options, workers):
+    """A linearisation and periodic solve (the start), and ``cost.SHOOTING_PERIODS`` periods of the period
+    map with the monodromy's iteration matrices."""
+    sizes = cost.sizes_at(problem, options["values"])
+    n_steps = options["n_steps"]
+    build_bytes, build_seconds = cost.linearisation(n_steps, sizes)
+    seconds = (cost.STUDY_SECONDS + build_seconds + cost.solve_seconds(n_steps, sizes)
+               + cost.SHOOTING_PERIODS * cost.nonlinear_period_seconds(n_steps, sizes))
+    memory = max(build_bytes, cost.tangent_bytes(n_steps, sizes))
+    return cost.Estimate(name, memory, seconds, f"{cost.SHOOTING_PERIODS:g} periods x {n_steps} steps x {sizes.n} "
+                                                "coordinates")
+
+
+
+def warm_up_shooting(problem: Any) -> None:
+    """One Newton step of the nonlinear shooting on the JIT warm-up's tiny grid (a period, its
+    monodromy, a trial period): the integrator's and the monodromy's kernels."""
+    if getattr(problem, "supports_nonlinear", False):
+        nonlinear_steady_state(problem, n_steps=WARM_UP_STEPS, max_iterations=1)
+
+
+KIND = register_kind(StudyKind(
+    name="nonlinear_steady_state", result=NonlinearSteadyState, keys=("speed", "n_steps", "tol", "max_iterations"),
+    check=_check, run=_run, summary=_summary, headlines=_headlines, cost=_cost, warm_up=warm_up_shooting,
+    aliases=("NonlinearSteadyState",)))

@@ -14,17 +14,38 @@ import numpy as np
 
 import periodic
 
-from .._errors import StudiesError
-from .._kind import MAX_PERIODS, MAX_STEPS, PERIODS_WHY, STEPS_WHY, StudyKind, boolean, integer, number
+from .._kind import StudyKind, register_kind
 from .._mechanism import observables_along
 from .._numerics import peak, peak_to_peak, solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
-from .._problem import SPEED
 from .._result import StudyResult, unknown_peaks
-from .._store import register
-from .._studies import check_integer, check_n_steps, check_parameter
-from .._summary import Headline, Summary, largest_over_grid
-from .nonlinear_steady_state import ERROR_FACTOR, MIN_STEPS, TOL, orbit_observables, shooting_setup, substep_verdict
+from .._toolkit import (
+    MAX_PERIODS,
+    MAX_STEPS,
+    PERIODS_WHY,
+    SPEED,
+    STEPS_WHY,
+    Headline,
+    StudiesError,
+    Summary,
+    boolean,
+    check_integer,
+    check_n_steps,
+    check_parameter,
+    cost,
+    integer,
+    largest_over_grid,
+    number,
+)
+from .nonlinear_steady_state import (
+    ERROR_FACTOR,
+    MIN_STEPS,
+    TOL,
+    orbit_observables,
+    shooting_setup,
+    substep_verdict,
+    warm_up_shooting,
+)
 
 #: Periods of the transient run from the last stable orbit past the loss of stability.
 TRANSIENT_PERIODS = 100
@@ -39,7 +60,6 @@ MAX_ORBITS = 10_000
 ORBITS_WHY = "orbits of one branch, each a few nonlinear periods with their monodromy"
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class NonlinearSweep(StudyResult):
     """The nonlinear periodic orbit over one parameter, with the linear response for comparison (the
@@ -435,8 +455,29 @@ def _headlines(result: NonlinearSweep) -> Summary:
     return Summary(status=headline(result.status), run_time=float(result.run_time), rows=rows)
 
 
-KIND = StudyKind(name="nonlinear_sweep", result=NonlinearSweep,
-                 keys=("parameter", "start", "stop", "step", "method", "n_steps", "tol", "max_points",
-                       "stop_at_instability", "transient_periods"),
-                 check=_check, run=_run, summary=_summary, varies=lambda options: (options["parameter"],),
-                 headlines=_headlines)
+def _cost(name, problem, options, workers):
+    """``cost.SWEEP_POINT_PERIODS`` periods and two linearisations per orbit of the branch, the linear
+    curve's ``LINEAR_POINTS`` and the transient."""
+    start, stop, n_steps = options["start"], options["stop"], options["n_steps"]
+    axis = (options["parameter"], np.array([start, stop], dtype=float))
+    sizes = cost.largest_sizes(problem, [axis])
+    step = options["step"] or abs(stop - start) / 50.0  # periodic.continue_orbits' default
+    # an empty range (refused by the table check) has the one orbit at start, not a division by zero
+    orbits = min(options["max_points"], math.ceil(abs(stop - start) / step) + 1 if step > 0.0 else 1)
+    build_bytes, build_seconds = cost.linearisation(n_steps, sizes)
+    periods = orbits * cost.SWEEP_POINT_PERIODS + options["transient_periods"]
+    seconds = (cost.STUDY_SECONDS + (2 * orbits + LINEAR_POINTS) * (build_seconds + cost.solve_seconds(n_steps, sizes))
+               + periods * cost.nonlinear_period_seconds(n_steps, sizes))
+    memory = max(build_bytes, cost.tangent_bytes(n_steps, sizes),
+                 8.0 * cost.NONLINEAR_DOUBLES * options["transient_periods"] * n_steps * sizes.n)
+    return cost.Estimate(name, memory, seconds, f"{orbits} orbits x {cost.SWEEP_POINT_PERIODS:g} periods + "
+                                                f"{options['transient_periods']} periods x {n_steps} steps x "
+                                                f"{sizes.n} coordinates")
+
+
+KIND = register_kind(StudyKind(
+    name="nonlinear_sweep", result=NonlinearSweep,
+    keys=("parameter", "start", "stop", "step", "method", "n_steps", "tol", "max_points", "stop_at_instability",
+          "transient_periods"),
+    check=_check, run=_run, summary=_summary, varies=lambda options: (options["parameter"],),
+    headlines=_headlines, cost=_cost, warm_up=warm_up_shooting, aliases=("NonlinearSweep",)))

@@ -21,27 +21,30 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .._errors import StudiesError
-from .._kind import (
+from .._kind import StudyKind, register_kind
+from .._mechanism import COUNT_KEYS
+from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
+from .._result import PEAK_FIELDS, StudyResult, unknown_peaks
+from .._toolkit import (
     MAX_AXIS_POINTS,
     MAX_PERIODS,
     PERIODS_WHY,
-    StudyKind,
+    SPEED,
+    Headline,
+    StudiesError,
+    Summary,
     axis,
     boolean,
+    check_integer,
+    check_n_steps,
+    check_parameter,
+    combine,
+    cost,
     integer,
     number,
     reject_unknown,
     steps,
 )
-from .._mechanism import COUNT_KEYS
-from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
-from .._problem import SPEED
-from .._result import PEAK_FIELDS, StudyResult, unknown_peaks
-from .._store import register
-from .._studies import check_integer, check_n_steps, check_parameter
-from .._summary import Headline, Summary
-from .._verdicts import combine
 from ._optimize_constraints import (
     CONSTRAINT_KEYS,
     FrequencySeparation,
@@ -72,7 +75,6 @@ TABLE_KEYS = ("objective", "bounds", "speeds", "start", "constraints", "method",
 # ---------------------------------------------------------------------------------------------------
 # the result
 # ---------------------------------------------------------------------------------------------------
-@register
 @dataclass(frozen=True, eq=False)
 class OptimizeResult(StudyResult):
     """The optimum of an objective over scene parameters, with the path that led there (the fields
@@ -606,5 +608,35 @@ def _varies(options: Mapping[str, Any]) -> tuple[str, ...]:
     return tuple(options["bounds"])
 
 
-KIND = StudyKind(name="optimize", result=OptimizeResult, keys=TABLE_KEYS, check=_check, run=_run,
-                 summary=_summary, varies=_varies, headlines=_headlines)
+def _cost(name, problem, options, workers):
+    """At most ``max_evaluations`` sweeps over the speeds, each a linearisation and a periodic solve
+    per speed (an upper bound: a speed family makes the linearisations cheaper), the map's sweeps and
+    the nonlinear check at the optimum."""
+    from .nonlinear_check import nonlinear_check_cost
+
+    bounds = options["bounds"]
+    axes = [(path, np.array(pair, dtype=float)) for path, pair in bounds.items()]
+    sizes = cost.largest_sizes(problem, axes)
+    speeds = 1 if options["speeds"] is None else len(options["speeds"])
+    evaluations = options["max_evaluations"] or default_evaluations(options["method"], len(bounds))
+    sweeps = evaluations + (options["map_points"] ** 2 if len(bounds) >= 2 else 0)
+    build_bytes, build_seconds = cost.linearisation(options["n_steps"], sizes)
+    frozen = 32 if "frequency_separation" in options["constraints"] else 0
+    solve = cost.solve_seconds(options["n_steps"], sizes, frozen)
+    seconds = cost.STUDY_SECONDS + sweeps * speeds * (build_seconds + solve)
+    memory = cost.FAMILY_DOUBLES / cost.LINEARISATION_DOUBLES * build_bytes
+    if options["check"]:
+        check = nonlinear_check_cost(name, problem, {"values": {}, "n_steps": options["n_steps"],
+                                                     "n_periods": options["check_periods"], "from_rest": False,
+                                                     "max_periods_from_rest": 0}, workers)
+        seconds, memory = seconds + check.time, max(memory, check.memory)
+    return cost.Estimate(name, memory, seconds, f"at most {sweeps} evaluations x {speeds} speeds x "
+                                                f"{options['n_steps']} steps x {sizes.m} coordinates")
+
+
+KIND = register_kind(StudyKind(
+    name="optimize", result=OptimizeResult, keys=TABLE_KEYS, check=_check, run=_run, summary=_summary,
+    varies=_varies, headlines=_headlines, cost=_cost,
+    demo={"objective": "rms:x", "bounds": {"natural_frequency": [1.2, 2.0]}, "speeds": [1.0, 2.0],
+          "constraints": {"stability_margin": 0.01}, "n_steps": 64},
+    aliases=("OptimizeResult",)))

@@ -12,34 +12,39 @@ import numpy as np
 
 import periodic
 
-from .. import _verdicts as verdicts
-from .._errors import StudiesError
-from .._grid import run_grid
-from .._kind import StudyKind, axis, steps, sub_table
-from .._numerics import STUDY_SCHEME
+from .._kind import StudyKind, register_kind
+from .._numerics import DEFAULT_SCHEME, study_scheme
 from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses, plain, radius_norm
-from .._problem import SPEED
 from .._result import NoObservables
-from .._store import register
-from .._studies import (
+from .._toolkit import (
+    SPEED,
     GridResult,
+    Headline,
+    StudiesError,
+    Summary,
+    axis,
     check_grid,
     check_n_steps,
     check_parameter,
     collect,
+    combine,
+    cost,
     grid_status,
     grid_summary,
+    largest_over_grid,
     open_store,
+    ranges,
     reduction_check,
     reduction_headlines,
+    run_grid,
+    steps,
+    sub_table,
 )
-from .._summary import Headline, Summary, largest_over_grid, ranges
 
 #: The fewest steps per period a stability chart accepts (docs/studies.md).
 MIN_STEPS = 32
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class StabilityChart(NoObservables, GridResult):
     """Spectral radius over two parameters (the fields every result has: ``studies._result``; no
@@ -129,12 +134,12 @@ def radius_ticks(norm: Any, *, spacing: float = 0.08) -> list[float]:
     return sorted(taken)
 
 
-def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int):
+def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int, scheme: str = DEFAULT_SCHEME):
     """Spectral radius of the monodromy at one point of a stability chart, with its error estimate."""
     linear = problem.linearize(values, n_steps=n_steps, context=False)
-    result = periodic.floquet(linear.system, scheme=STUDY_SCHEME, estimate_error=True)
+    result = periodic.floquet(linear.system, scheme=study_scheme(scheme), estimate_error=True)
     unresolved = ~result.resolved & (np.abs(result.multipliers) > 1.0 + result.stability_tol)
-    status, message = verdicts.combine([
+    status, message = combine([
         (result.status, result.message),
         ("unresolved_stiff_mode" if unresolved.any() else "ok",
          "an unstable multiplier belongs to a mode the step does not resolve: refine n_steps"
@@ -146,10 +151,13 @@ def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int):
 
 def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tuple[str, Sequence[float]],
                     *, n_steps: int = 128, executor: Executor | None = None, out: Any = None,
-                    name: str = "stability_chart", progress: bool = False) -> StabilityChart:
+                    name: str = "stability_chart", progress: bool = False,
+                    scheme: str = DEFAULT_SCHEME) -> StabilityChart:
     """Spectral radius of the monodromy, and its error estimate (N against N/2 steps), over a grid of
-    two parameters ``(name, values)``; the boundary ``|mu| = 1`` is drawn by ``plot``."""
+    two parameters ``(name, values)``; the boundary ``|mu| = 1`` is drawn by ``plot``. ``scheme``
+    names the periodic scheme (``periodic.SCHEMES``)."""
     start = time.perf_counter()
+    study_scheme(scheme)
     if not (isinstance(first, tuple) and len(first) == 2 and isinstance(second, tuple) and len(second) == 2):
         raise TypeError(f"first, second: expected (parameter name, values) pairs, got {first!r}, {second!r}")
     names = (check_parameter(problem, first[0]), check_parameter(problem, second[0]))
@@ -159,11 +167,11 @@ def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tu
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a stability chart")
     shape = (axes[0].size, axes[1].size)
     settings = {"parameters": names, "first": axes[0], "second": axes[1], "n_steps": int(n_steps),
-                "scene": problem.text}
+                "scene": problem.text, "scheme": scheme}
     units = (problem.units[names[0]], problem.units[names[1]])
     header = dict(problem=problem.name, scene=problem.text, parameters=names, parameter_units=units,
                   stability_tol=periodic.STABILITY_TOL)
-    store = open_store(out, name, shape, "StabilityChart", settings,
+    store = open_store(out, name, shape, StabilityChart, settings,
                        {"spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1"}, header,
                        {"first": (axes[0], units[0]), "second": (axes[1], units[1])})
     # The crank speed varies fastest, so that consecutive points (and a worker's batch) share the
@@ -173,7 +181,7 @@ def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tu
               for outer in range(shape[1 if speed_first else 0])
               for inner in range(shape[0 if speed_first else 1])
               for i, j in [(inner, outer) if speed_first else (outer, inner)]]
-    outcomes = run_grid(chart_point, problem, points, {"n_steps": int(n_steps)}, executor=executor,
+    outcomes = run_grid(chart_point, problem, points, {"n_steps": int(n_steps), "scheme": scheme}, executor=executor,
                         store=store, progress=progress, description=f"{name}")
     fields = collect(outcomes, shape)
     if "is_stable" in fields:
@@ -225,9 +233,22 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
 def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, progress: bool
          ) -> StabilityChart:
     return stability_chart(problem, options["first"], options["second"], n_steps=options["n_steps"],
-                           executor=executor, out=out, name=KIND.name, progress=progress)
+                           executor=executor, out=out, name=KIND.name, progress=progress,
+                           scheme=options.get("scheme", DEFAULT_SCHEME))
 
 
-KIND = StudyKind(name="stability_chart", result=StabilityChart, keys=("x", "y", "n_steps"), check=_check,
-                 run=_run, summary=_summary, grid=True, point=chart_point,
-                 varies=lambda options: (options["first"][0], options["second"][0]), headlines=_headlines)
+def _cost(name, problem, options, workers, done=None):
+    """A periodic solve per point of the two axes."""
+    axes = [(parameter, np.asarray(grid)) for parameter, grid in (options["first"], options["second"])]
+    found = cost.grid_cost(name, problem, axes, options["n_steps"], workers=workers, done=done,
+                      point_doubles=lambda s: 4.0 * s.m + 4.0, words=[cost.axis_words(*axis) for axis in axes])
+    return cost.with_reduction_check(found, problem, {}, options["n_steps"])
+
+
+KIND = register_kind(StudyKind(
+    name="stability_chart", result=StabilityChart, keys=("x", "y", "n_steps"), check=_check, run=_run,
+    summary=_summary, grid=True, point=chart_point, schemes=True,
+    varies=lambda options: (options["first"][0], options["second"][0]), headlines=_headlines, cost=_cost,
+    demo={"x": {"parameter": "speed", "start": 0.5, "stop": 3.0, "count": 26},
+          "y": {"parameter": "epsilon", "start": 0.0, "stop": 0.8, "count": 9}, "n_steps": 64},
+    aliases=("StabilityChart",)))

@@ -10,21 +10,26 @@ from typing import Any, Mapping
 import numpy as np
 
 from .._drawing import draw_mechanism, mechanism_drawing
-from .._kind import StudyKind, speed_values, steps
-from .._numerics import peak_summary, solve_steady
+from .._kind import StudyKind, register_kind
+from .._numerics import DEFAULT_SCHEME, peak_summary, solve_steady, study_scheme
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain, plot_multipliers
 from .._result import StudyResult
-from .._store import register
-from .._studies import check_n_steps
-from .._summary import Headline, Summary, response_rows
-from .._verdicts import combine
+from .._toolkit import (
+    Headline,
+    Summary,
+    check_n_steps,
+    combine,
+    cost,
+    response_rows,
+    speed_values,
+    steps,
+)
 
 #: The fewest steps per period a steady state accepts (docs/studies.md): N/4 = 4 steps is the
 #: coarsest level of the error check.
 MIN_STEPS = 16
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class SteadyStateResult(StudyResult):
     """Periodic steady response over one period, with Floquet multipliers (the fields every result
@@ -207,14 +212,16 @@ class SteadyStateResult(StudyResult):
         return drawn(axes, artists)
 
 
-def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_steps: int = 256
-                 ) -> SteadyStateResult:
+def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_steps: int = 256,
+                 scheme: str = DEFAULT_SCHEME) -> SteadyStateResult:
     """Periodic response of the problem's observables over one period, Floquet multipliers, error
-    estimates (N against N/2 steps) and run time."""
+    estimates (N against N/2 steps) and run time; ``scheme`` names the periodic scheme
+    (``periodic.SCHEMES``)."""
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a steady state")
+    study_scheme(scheme)
     start = time.perf_counter()
     linear = problem.linearize(values, n_steps=n_steps)
-    steady = solve_steady(linear)
+    steady = solve_steady(linear, scheme)
     state = steady.state
     reduction = _reduction_error(linear, state.x, n_steps)
     status, message = combine([(steady.status, steady.message),
@@ -261,7 +268,8 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
 
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> SteadyStateResult:
-    return steady_state(problem, options["values"], n_steps=options["n_steps"])
+    return steady_state(problem, options["values"], n_steps=options["n_steps"],
+                        scheme=options.get("scheme", DEFAULT_SCHEME))
 
 
 def _summary(result: SteadyStateResult) -> str:
@@ -285,6 +293,13 @@ def _figures(result: SteadyStateResult) -> dict[str, Any]:
     return figures
 
 
-KIND = StudyKind(name="steady_state", result=SteadyStateResult, keys=("speed", "n_steps"), check=_check,
-                 run=_run, summary=_summary, default=lambda nominal_speed: {}, figures=_figures,
-                 headlines=_headlines)
+def _cost(name, problem, options, workers):
+    """A linearisation and a periodic solve, and the modal reduction's check where a link is reduced."""
+    found = cost.steady_solves(name, problem, [options["values"]], options["n_steps"])
+    return cost.with_reduction_check(found, problem, options["values"], options["n_steps"], extra_solve=False)
+
+
+KIND = register_kind(StudyKind(
+    name="steady_state", result=SteadyStateResult, keys=("speed", "n_steps"), check=_check, run=_run,
+    summary=_summary, default=lambda nominal_speed: {}, figures=_figures, headlines=_headlines, cost=_cost,
+    demo={"speed": 0.7}, schemes=True, aliases=("SteadyStateResult",)))

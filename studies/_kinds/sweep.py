@@ -13,9 +13,16 @@ import numpy as np
 
 import periodic
 
-from .._grid import run_grid
-from .._kind import AXIS_KEYS, HARMONIC_WHY, MAX_HARMONIC, StudyKind, axis, integer, steps
-from .._numerics import crossings, frozen_modes, peak_summary, solve_steady, unstable_intervals
+from .._kind import StudyKind, register_kind
+from .._numerics import (
+    DEFAULT_SCHEME,
+    crossings,
+    frozen_modes,
+    peak_summary,
+    solve_steady,
+    study_scheme,
+    unstable_intervals,
+)
 from .._plots import (
     LABEL_ROW_HEIGHT,
     Plot,
@@ -28,23 +35,35 @@ from .._plots import (
     mark_statuses,
     plain,
 )
-from .._problem import SPEED
-from .._store import register
-from .._studies import (
+from .._toolkit import (
+    AXIS_KEYS,
+    HARMONIC_WHY,
+    MAX_HARMONIC,
+    PEAK_UNITS,
+    SPEED,
     GridResult,
+    Headline,
+    Summary,
+    axis,
     check_grid,
     check_integer,
     check_n_steps,
     check_parameter,
     collect,
+    combine,
+    cost,
     grid_status,
     grid_summary,
+    integer,
+    largest_over_grid,
+    listed,
     open_store,
+    ranges,
     reduction_check,
     reduction_headlines,
+    run_grid,
+    steps,
 )
-from .._summary import PEAK_UNITS, Headline, Summary, largest_over_grid, listed, ranges
-from .._verdicts import combine
 
 #: Frozen-time eigenproblems per period for the resonance bands of a sweep (the bands of smooth
 #: coefficients converge fast in the number of samples; 32 resolves a band edge to well under 1 %
@@ -59,7 +78,6 @@ STATUS_INACCURATE = "inaccurate"
 MIN_STEPS = 16
 
 
-@register
 @dataclass(frozen=True, eq=False)
 class SweepResult(GridResult):
     """Peak-to-peak response and stability against one parameter (the fields every result has:
@@ -193,11 +211,12 @@ class SweepResult(GridResult):
         return drawn(axes, artists)
 
 
-def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, frozen_samples: int):
+def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, frozen_samples: int,
+                scheme: str = DEFAULT_SCHEME):
     """One sweep point: steady state, multipliers, frozen frequency bands (a top-level function so
     that process pools and Dask can pickle it)."""
     linear = problem.linearize(values, n_steps=n_steps, context=False)
-    steady = solve_steady(linear)
+    steady = solve_steady(linear, scheme)
     _, frozen, _ = frozen_modes(linear.system, frozen_samples)
     response = steady.response
     data = {
@@ -228,12 +247,14 @@ def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, froz
 
 def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int = 256,
           max_harmonic: int = 4, executor: Executor | None = None, out: Any = None,
-          name: str = "sweep", progress: bool = False) -> SweepResult:
+          name: str = "sweep", progress: bool = False, scheme: str = DEFAULT_SCHEME) -> SweepResult:
     """Sweep ``parameter`` (e.g. ``"speed"``) over ``values``: peak-to-peak of each observable and its
     error, spectral radius, multipliers, frozen frequency bands; resonances ``k * speed`` (k = 1 ..
     ``max_harmonic``) crossing a mean frozen frequency and parametric instabilities (spectral radius
-    above 1) marked. ``out``: h5py File/Group to write into (resumable)."""
+    above 1) marked. ``out``: h5py File/Group to write into (resumable). ``scheme`` names the
+    periodic scheme (``periodic.SCHEMES``)."""
     start = time.perf_counter()
+    study_scheme(scheme)
     parameter = check_parameter(problem, parameter)
     grid = check_grid("values", values)
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a sweep")
@@ -244,7 +265,7 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
     # the number used
     frozen_samples = min(FROZEN_SAMPLES, n_steps)
     settings = {"parameter": parameter, "values": grid, "n_steps": n_steps, "scene": problem.text,
-                "frozen_samples": frozen_samples}
+                "frozen_samples": frozen_samples, "scheme": scheme}
     units = {"speed": "rad/s", "spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1",
              "linear_range": "1", "multipliers": "1",
              "error_estimate": "SI (see labels)", "frozen_min": "rad/s", "frozen_max": "rad/s",
@@ -254,11 +275,11 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
                   for name in ("peak_to_peak_error", "peak", "peak_error")})
     header = dict(problem=problem.name, scene=problem.text, parameter=parameter,
                   parameter_unit=problem.units[parameter], labels=names.labels, units=obs_units)
-    store = open_store(out, name, grid.shape, "SweepResult", settings, units, header,
+    store = open_store(out, name, grid.shape, SweepResult, settings, units, header,
                        {"values": (grid, problem.units[parameter])})
     points = [((i,), {parameter: float(v)}) for i, v in enumerate(grid)]
     outcomes = run_grid(sweep_point, problem, points,
-                        {"n_steps": n_steps, "frozen_samples": frozen_samples}, executor=executor,
+                        {"n_steps": n_steps, "frozen_samples": frozen_samples, "scheme": scheme}, executor=executor,
                         store=store, progress=progress, description=f"{name} over {parameter}")
     fields = collect(outcomes, grid.shape)
     per_observable = {name: {spec: fields.pop(f"{name}/{spec}") for spec in obs_units
@@ -304,7 +325,7 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
 def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, progress: bool) -> SweepResult:
     return sweep(problem, options["parameter"], options["values"], n_steps=options["n_steps"],
                  max_harmonic=options["max_harmonic"], executor=executor, out=out, name=KIND.name,
-                 progress=progress)
+                 progress=progress, scheme=options.get("scheme", DEFAULT_SCHEME))
 
 
 def _summary(result: SweepResult) -> str:
@@ -364,6 +385,16 @@ def _default(nominal_speed: float) -> dict[str, Any]:
             "count": 100}
 
 
-KIND = StudyKind(name="sweep", result=SweepResult, keys=AXIS_KEYS + ("max_harmonic", "n_steps"),
-                 check=_check, run=_run, summary=_summary, grid=True, point=sweep_point,
-                 varies=lambda options: (options["parameter"],), default=_default, headlines=_headlines)
+def _cost(name, problem, options, workers, done=None):
+    """A periodic solve and 32 frozen-time eigenproblems per point (``studies._cost.grid_cost``)."""
+    axis = (options["parameter"], np.asarray(options["values"]))
+    found = cost.grid_cost(name, problem, [axis], options["n_steps"], workers=workers, frozen=32, done=done,
+                      point_doubles=lambda s: 8.0 * s.m + 4.0, words=[cost.axis_words(*axis)])
+    return cost.with_reduction_check(found, problem, {}, options["n_steps"])
+
+
+KIND = register_kind(StudyKind(
+    name="sweep", result=SweepResult, keys=AXIS_KEYS + ("max_harmonic", "n_steps"), check=_check, run=_run,
+    summary=_summary, grid=True, point=sweep_point, varies=lambda options: (options["parameter"],),
+    default=_default, headlines=_headlines, cost=_cost, schemes=True,
+    demo={"parameter": "speed", "start": 0.2, "stop": 3.0, "count": 57}, aliases=("SweepResult",)))

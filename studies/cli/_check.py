@@ -20,10 +20,10 @@ import numpy as np
 
 import periodic
 
-from ._kinds.nonlinear_check import nonlinear_check
-from ._kinds.steady_state import steady_state
-from ._mechanism import MechanismProblem
-from ._problem import mathieu_problem
+from .._kinds.nonlinear_check import nonlinear_check
+from .._kinds.steady_state import steady_state
+from .._mechanism import MechanismProblem
+from .._problem import mathieu_problem
 
 #: The four-bar every mechanism case starts from: the thesis four-bar with geometric stiffening.
 BASE_SCENE = "four_bar_ritz"
@@ -86,7 +86,7 @@ def _error(result: Any) -> float:
 def stiff_axial():
     """The axial mode 1e4 times the crank frequency: the step does not resolve it, and must not need
     to (it follows quasi-statically); reference: the same link axially rigid."""
-    from ._numerics import frozen_modes
+    from .._numerics import frozen_modes
 
     base = _scene()
     linear = MechanismProblem.from_mechanism(base).linearize(None, n_steps=64)

@@ -19,6 +19,8 @@ import warnings
 from dataclasses import dataclass
 from typing import Iterator
 
+from .._progress import progress_bar, progress_wanted
+
 __all__ = ["CollectedWarning", "collected_warnings", "console", "progress_bar", "progress_wanted"]
 
 #: The loggers of the project's packages (every module logs under ``logging.getLogger(__name__)``,
@@ -84,19 +86,6 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     """``warnings.showwarning`` while the run lasts: collect, and log the place at DEBUG level."""
     _collector.add(category.__name__, str(message))
     logging.getLogger("flexvib").debug("%s:%s: %s: %s", filename, lineno, category.__name__, message)
-
-
-def progress_wanted(enabled: bool = True) -> bool:
-    """Whether to draw progress bars: asked for, and stderr is a terminal (never into a file)."""
-    isatty = getattr(sys.stderr, "isatty", None)
-    return bool(enabled and isatty is not None and isatty())
-
-
-def progress_bar(iterable=None, *, enabled: bool, **options):
-    """A ``tqdm`` bar on stderr, disabled unless :func:`progress_wanted` (``options`` go to tqdm)."""
-    from tqdm import tqdm
-
-    return tqdm(iterable, disable=not progress_wanted(enabled), file=sys.stderr, **options)
 
 
 class _BarAwareHandler(logging.StreamHandler):

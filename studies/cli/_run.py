@@ -1,9 +1,6 @@
-"""The ``[studies]`` table of a scene (documented key by key in docs/studies.md) and running it.
-
-A scene declares the studies to run; ``plan(table)`` checks every key and fills the defaults,
-``run_plan`` runs the declared studies (and nothing else) into one HDF5 file, skipping studies
-already complete in it with the same request and resuming interrupted grids. The kinds of study
-and their tables are those of the registry ``studies._kinds.KINDS``.
+"""Running a plan (``studies.cli._scene.ScenePlan``): ``run_plan`` runs the declared studies (and
+nothing else) into one HDF5 file, skipping studies already complete in it with the same request and
+resuming interrupted grids; ``scene_identity`` is what a resumed file must share with the run.
 """
 
 from __future__ import annotations
@@ -14,68 +11,22 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .._errors import is_numerical_failure
+from .._identity import canonical, differing_paths, digest, scene_numbers
+from .._kind import kind_named
+from .._resultfile import ResultFile
+from .._store import StorageError, read_group, write_attrs
 from . import _jit
-from ._errors import StudiesError, is_numerical_failure
-from ._kind import integer, reject_unknown
-from ._kinds import KINDS
-from ._problem import SPEED
-from ._store import ResultFile, StorageError, canonical, differing_paths, digest, read_group, scene_numbers, write_attrs
 
-__all__ = ["RunInterrupted", "StudiesError", "default_table", "parameters_needed", "plan", "run_plan",
-           "scene_identity"]
+__all__ = ["RunInterrupted", "run_plan", "scene_identity"]
 
 logger = logging.getLogger(__name__)
-
-_COMMON = ("n_steps", "observables")
-
-
-def default_table(nominal_speed: float) -> dict[str, Any]:
-    """The studies run for a scene without a ``[studies]`` table, each kind's default (steady state,
-    a 100-point speed sweep and a 40-speed Campbell diagram from 0.2 to 4 times the scene's speed
-    ``2 pi / period`` (rad/s), a 3-period nonlinear check)."""
-    tables = {name: kind.default(nominal_speed) for name, kind in KINDS.items()}
-    return {name: table for name, table in tables.items() if table is not None}
-
-
-def plan(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
-    """Check a ``[studies]`` table; returns ``(common, {kind: options})`` with the defaults filled in
-    (options are what each kind's ``run`` takes: the keyword arguments of its study function)."""
-    if not isinstance(table, Mapping):
-        raise StudiesError(f"[studies]: expected a table, got {table!r}")
-    reject_unknown("studies", table, _COMMON + tuple(KINDS))
-    n_steps = integer("studies", "n_steps", table.get("n_steps", 256), 4, even=True)
-    observables = table.get("observables")
-    if observables is not None and (not isinstance(observables, list)
-                                    or not all(isinstance(s, str) for s in observables)):
-        raise StudiesError(f"[studies] observables: expected a list of specs such as "
-                           f"'coupler.deflection@0.5', got {observables!r}")
-    common = {"n_steps": n_steps, "observables": None if observables is None else tuple(observables)}
-    studies: dict[str, dict[str, Any]] = {}
-    for name, kind in KINDS.items():
-        if name not in table:
-            continue
-        where = f"studies.{name}"
-        options = table[name]
-        if not isinstance(options, Mapping):
-            raise StudiesError(f"[{where}]: expected a table, got {options!r}")
-        reject_unknown(where, options, kind.keys)
-        studies[name] = kind.check(where, options, n_steps)
-    if not studies:
-        raise StudiesError(f"[studies] declares no study; add at least one of the tables "
-                           f"{', '.join(f'[studies.{k}]' for k in KINDS)}")
-    return common, studies
-
-
-def parameters_needed(studies: Mapping[str, Mapping[str, Any]]) -> tuple[str, ...]:
-    """The scene parameters (dotted paths, not ``speed``) the declared studies vary."""
-    names = [path for name, options in studies.items() for path in KINDS[name].varies(options)]
-    return tuple(dict.fromkeys(n for n in names if n != SPEED))
 
 
 def scene_identity(problem: Any) -> dict[str, Any]:
     """What identifies the scene of a run (its sha256 is the result file's ``scene_hash``): the
     numbers of the scene (its tables without name, description and studies,
-    ``studies._store.scene_numbers``) and the observables; for a ``PeriodicProblem`` also its name,
+    ``studies._identity.scene_numbers``) and the observables; for a ``PeriodicProblem`` also its name,
     parameters and observable rows (its text is an equation, not a scene)."""
     identity: dict[str, Any] = {"scene": scene_numbers(getattr(problem, "text", ""))}
     if hasattr(problem, "observable_specs"):
@@ -103,18 +54,18 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
     ``(results, failures)``: ``{kind: result}`` and ``{kind: message}`` of studies that failed
     numerically (see ``studies._errors``).
 
-    The file is written through ``studies._store.ResultFile`` (any kill leaves it readable). A file
+    The file is written through ``studies._resultfile.ResultFile`` (any kill leaves it readable). A file
     of another scene, or holding a grid study asked with other options, is refused before anything
     is written (``overwrite``: start the file afresh). Grid studies resume an interrupted run; the
     other studies are skipped when the file already holds a complete result for the same options,
     and recomputed otherwise. Ctrl-C or SIGTERM: :class:`RunInterrupted` after saving.
 
     ``warm_up``: once the file is accepted, compile the numba kernels the studies need before any
-    study starts its clock (``studies._jit.warm_up``), and record the compile time of the run as the
+    study starts its clock (``studies.cli._jit.warm_up``), and record the compile time of the run as the
     file attribute ``compile_time`` (s; 0 when every kernel came from the disk cache).
     """
-    runs = [(name + suffix, KINDS[name], each) for name, options in studies.items()
-            for suffix, each in KINDS[name].runs(options).items()]
+    runs = [(name + suffix, kind_named(name), each) for name, options in studies.items()
+            for suffix, each in kind_named(name).runs(options).items()]
     try:
         with ResultFile(path, scene=scene_identity(problem), overwrite=overwrite) as file:
             _refuse_other_grid_options(file, runs)
@@ -147,7 +98,7 @@ def _refuse_other_grid_options(file: ResultFile, runs: list) -> None:
 
 def _run_studies(problem: Any, runs: list, file: ResultFile, *, executor: Any, progress: bool
                  ) -> tuple[dict[str, Any], dict[str, str]]:
-    from ._console import progress_bar
+    from .._progress import progress_bar
 
     results, failures = {}, {}
     for name, _kind, options in runs:  # a grid group made by this run gets these attributes

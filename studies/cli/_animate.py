@@ -9,9 +9,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ._drawing import draw_mechanism, frame_points
-from ._errors import StudiesError
-from ._plots import _pyplot, headline, plain
+from .._drawing import draw_mechanism, frame_points
+from .._errors import StudiesError
+from .._plots import _pyplot, headline, plain
 
 #: An animation shows at most this many frames (every k-th sample of the period beyond it), so a
 #: GIF stays a few MB; 10 frames per second: a period lasts a few seconds on screen.

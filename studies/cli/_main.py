@@ -1,43 +1,24 @@
-"""The ``flexvib`` command: ``scenes``, ``run``, ``plot``, ``animate``, ``report``, ``info``, ``check``, ``demo``
+"""The ``flexvib`` command line: ``scenes``, ``run``, ``plot``, ``animate``, ``report``, ``info``, ``check``, ``demo``
 (see ``flexvib --help``)."""
 
 from __future__ import annotations
 
 import argparse
 import logging
-import math
 import os
 import signal
 import sys
 from pathlib import Path
 from typing import Any, Sequence
 
-from ._errors import UsageError, input_errors, is_numerical_failure
-from ._overrides import parse_set
+from .._errors import UsageError, input_errors, is_numerical_failure
+from ._scene import MATHIEU, ScenePlan, parse_set
 
 __all__ = ["UsageError", "load_scene", "main"]
 
 logger = logging.getLogger("flexvib")
 
 DEFAULT_SCENE = "four_bar_ritz"
-#: A built-in non-mechanism scene: the damped, forced Mathieu oscillator (studies.mathieu_problem),
-#: whose every number is known independently; small and fast, for trying the command out.
-MATHIEU = "mathieu"
-_MATHIEU_STUDIES = {
-    "n_steps": 128,
-    "steady_state": {"speed": 0.7},
-    "sweep": {"parameter": "speed", "start": 0.2, "stop": 3.0, "count": 57},
-    "campbell": {"start": 0.2, "stop": 3.0, "count": 15},
-    "stability_chart": {"x": {"parameter": "speed", "start": 0.5, "stop": 3.0, "count": 26},
-                        "y": {"parameter": "epsilon", "start": 0.0, "stop": 0.8, "count": 9},
-                        "n_steps": 64},
-    "nonlinear_check": {"speed": 0.7, "n_periods": 3},
-    "error_cost": {"speed": 0.7, "n_steps": [16, 32, 64, 128]},
-    "optimize": {"objective": "rms:x", "bounds": {"natural_frequency": [1.2, 2.0]}, "speeds": [1.0, 2.0],
-                 "constraints": {"stability_margin": 0.01}, "n_steps": 64},
-}
-
-
 #: Set to 1 for the traceback of an internal error (a bug), which is otherwise one line.
 DEBUG_VARIABLE = "FLEXVIB_DEBUG"
 
@@ -150,7 +131,7 @@ class _VersionAction(argparse.Action):
     def __call__(self, parser, namespace, values, option_string=None):
         import platform
 
-        from ._store import versions
+        from .._store import versions
 
         found = versions()
         others = ", ".join(f"{name} {version}" for name, version in found.items() if name != "flexvib")
@@ -167,7 +148,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return args.handler(args)
     except KeyboardInterrupt as interrupt:
-        # Ctrl-C or SIGTERM: a run has saved what it finished (studies._plan.RunInterrupted says what)
+        # Ctrl-C or SIGTERM: a run has saved what it finished (studies.cli._run.RunInterrupted says what)
         print(getattr(interrupt, "line", "interrupted"), file=sys.stderr)
         return 130
     except BrokenPipeError:
@@ -249,52 +230,20 @@ def _scenes(args: argparse.Namespace) -> int:
 def load_scene(scene: str, sets: Sequence[tuple[str, Any]] = (), *, only: Sequence[str] | None = None,
                force: bool = False, workers: int = 1, result_file: str | Path | None = None
                ) -> tuple[Any, dict[str, Any]]:
-    """``(problem, [studies] table)`` of a built-in scene name or a .toml path, with the ``--set``
-    values ``(path, value)`` of ``sets`` applied before the scene is checked, and only the studies
-    named in ``only`` (all when None).
-
-    A scene without a ``[studies]`` table gets the default studies; an empty one is an error that
-    lists the study kinds. Unless ``force``, the resource guard (``studies.guard``) then refuses a
-    study whose estimated memory or time (with ``workers`` processes) is above its limits; studies
-    already complete in ``result_file`` (the file the run resumes) are not estimated, a grid study
-    partly saved there only for its missing points.
-    """
-    from ._guard import guard
-    from ._mechanism import MechanismProblem
-    from ._overrides import load_mechanism, override_studies, select_studies
-    from ._plan import default_table, parameters_needed, plan
-    from ._problem import mathieu_problem
-
-    if scene == MATHIEU:
-        common, declared = plan(override_studies(_MATHIEU_STUDIES, sets))
-        problem = mathieu_problem()
-    else:
-        path = Path(scene)
-        if path.suffix == ".toml" and not path.is_file():
-            raise UsageError(f"scene file {scene!r} does not exist" if not path.exists()
-                             else f"scene file {scene!r} is not a file")
-        try:
-            mechanism = load_mechanism(scene, sets)
-        except OSError as error:  # unreadable (permissions, a device): one line, exit 2
-            raise UsageError(f"scene file {scene!r} cannot be read: {error.strerror or error}") from None
-        # "no [studies] table" runs the default set; a [studies] table that declares nothing is a
-        # mistake that plan() reports with the list of kinds
-        declares_studies = "studies" in (mechanism.spec or {})
-        # the studies' speed is the motion's fundamental frequency 2 pi / period (the crank speed)
-        table = (dict(mechanism.studies) if declares_studies
-                 else default_table(2.0 * math.pi / mechanism.period))
-        common, declared = plan(override_studies(table, sets))
-        problem = MechanismProblem.from_mechanism(mechanism, parameter_paths=parameters_needed(declared),
-                                                  observables=common["observables"])
-    declared = select_studies(declared, only)
-    guard(problem, declared, force=force, workers=workers, result_file=result_file)
-    return problem, declared
+    """``(problem, {kind: options})`` of a built-in scene name or a .toml path (``ScenePlan.read``:
+    the ``--set`` values ``(path, value)`` of ``sets`` applied before the scene is checked, only the
+    studies named in ``only``), after the resource guard (``ScenePlan.guard``: unless ``force``, a
+    study whose estimated memory or time with ``workers`` processes is above the limits is refused;
+    studies complete in ``result_file`` are not estimated)."""
+    plan = ScenePlan.read(scene, sets, only=only)
+    plan.guard(force=force, workers=workers, result_file=result_file)
+    return plan.problem, dict(plan.studies)
 
 
 def _executor(args: argparse.Namespace):
     """``(executor, client)`` of the command line: None for in-process, a pool whose workers die
     with this process, or a Dask cluster's executor and its client."""
-    from ._grid import process_pool
+    from .._grid import process_pool
 
     if args.jobs < 1:
         raise UsageError(f"--jobs: expected a positive number of workers, got {args.jobs}")
@@ -349,25 +298,24 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _run_studies(args: argparse.Namespace) -> int:
-    from ._kinds import kind_of
-    from ._plan import run_plan
+    from .._kind import kind_of
 
     out = args.out or Path(f"{Path(args.scene).stem}.h5")
+    plan = ScenePlan.read(args.scene, args.sets, only=args.only)
     # a run started with --force resumes without it: what the file holds complete is not estimated
-    problem, declared = load_scene(args.scene, args.sets, only=args.only, force=args.force,
-                                   workers=args.jobs, result_file=None if args.overwrite else out)
+    plan.guard(force=args.force, workers=args.jobs, result_file=None if args.overwrite else out)
     executor, client = _executor(args)
     finished = False
     try:
         # the kernels the studies need are compiled before any of them starts its clock
-        results, failures = run_plan(problem, declared, str(out), executor=executor,
-                                     progress=not args.quiet, overwrite=args.overwrite, warm_up=True)
+        results, failures = plan.run(out, executor=executor, progress=not args.quiet,
+                                     overwrite=args.overwrite, warm_up=True)
         finished = True
     finally:
         if client is not None:
             client.close()
         elif executor is not None:
-            from ._grid import stop_executor
+            from .._grid import stop_executor
 
             stop_executor(executor, interrupted=not finished)  # busy workers: no waiting
     for name, result in results.items():
@@ -375,7 +323,8 @@ def _run_studies(args: argparse.Namespace) -> int:
     for name, message in failures.items():
         print(f"{name:16s} FAILED: {message}")
     if results:
-        from ._summary import summaries, text_table
+        from .._kind import summaries
+        from .._summary import text_table
 
         print()
         print(text_table(summaries(results)))
@@ -402,7 +351,7 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _load_results(path: Path) -> dict[str, Any]:
-    from ._store import load
+    from .._store import load
 
     if not path.is_file():
         raise UsageError(f"result file {str(path)!r} does not exist")
@@ -453,7 +402,7 @@ def _report_command(args: argparse.Namespace) -> int:
 
 
 #: Study attributes ``flexvib info`` does not print: shown in its header line, or bulky and internal.
-_INFO_HIDDEN = ("kind", "problem", "complete", "request", "request_hash", "settings_hash", "scene",
+_INFO_HIDDEN = ("kind", "format_version", "problem", "complete", "request", "request_hash", "settings_hash", "scene",
                 "outlines", "labels", "mode_labels")
 
 
@@ -462,8 +411,8 @@ def _info(args: argparse.Namespace) -> int:
     be read is called CORRUPT (exit code 1)."""
     import h5py
 
-    from ._store import study_attrs
-    from ._studies import status_counts
+    from .._store import check_format, format_of, study_attrs
+    from .._studies import status_counts
 
     if not args.file.is_file():
         raise UsageError(f"result file {str(args.file)!r} does not exist")
@@ -473,8 +422,9 @@ def _info(args: argparse.Namespace) -> int:
         raise UsageError(f"{str(args.file)!r} is not an HDF5 result file ({error})") from None
     corrupt = []
     with handle:
-        print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, created "
-              f"{handle.attrs.get('created', '?')}")
+        check_format(handle)  # a newer format: refused, naming the flexvib that wrote it
+        print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, result format "
+              f"{format_of(handle)}, created {handle.attrs.get('created', '?')}")
         print(f"  versions: {handle.attrs.get('versions', '?')}")
         if "compile_time" in handle.attrs:   # numba compilation of the last run, outside its run times
             print(f"  compile_time: {float(handle.attrs['compile_time']):.3g} s")
@@ -519,7 +469,7 @@ def _info(args: argparse.Namespace) -> int:
 def _unreadable(group: Any) -> str:
     """Why a study group cannot be read back ("" if it can): every dataset is read, and a complete
     study is loaded as its result."""
-    from ._store import read_group
+    from .._store import read_group
 
     names: list[str] = []
     current = ""
@@ -536,6 +486,3 @@ def _unreadable(group: Any) -> str:
         return f"{current + ': ' if current else ''}{type(error).__name__}: {error}"
     return ""
 
-
-if __name__ == "__main__":
-    sys.exit(main())

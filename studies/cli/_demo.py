@@ -16,8 +16,8 @@ import numpy as np
 
 import periodic
 
-from ._errors import StudiesError
-from ._store import versions
+from .._errors import StudiesError
+from .._store import versions
 
 
 def write_demo(prefix: str | Path, *, n_steps: int = 512, extrapolate: bool = False) -> list[Path]:

@@ -21,14 +21,14 @@ import time
 import warnings
 from typing import Any, Mapping
 
+from .._kind import WARM_UP_STEPS, kind_named
+from .._problem import SPEED
+
 __all__ = ["CompileClock", "warm_up"]
 
 # under "flexvib" (the command's logger), not muted with the library's packages during the warm-up
 logger = logging.getLogger("flexvib.jit")
 
-#: Steps per period of the warm-up runs: the smallest every study kind accepts (the numba types,
-#: not the sizes, decide what is compiled).
-WARM_UP_STEPS = 32
 #: The off-nominal speed of the warm-up grid point, as a multiple of the scene's speed (grid points
 #: off the scene's speed go through the speed family's coefficients, another code path).
 OFF_NOMINAL = 1.05
@@ -94,24 +94,20 @@ def warm_up(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> CompileCl
     ``problem``, by running each kind's code path on a tiny grid; returns the running
     :class:`CompileClock` (stop it after the run: compilations the warm-up missed are counted too).
 
-    Nothing the warm-up computes is kept; a warm-up run that fails (a tiny grid may not converge)
-    is logged at DEBUG level and skipped, and its kernels compile when the study needs them."""
-    from ._kinds import KINDS
-
+    Every run warms up a linear steady state (what every kind builds on); then each kind its own
+    path: its ``warm_up`` hook, or for a grid kind one point. Nothing the warm-up computes is kept;
+    a warm-up run that fails (a tiny grid may not converge) is logged at DEBUG level and skipped, and
+    its kernels compile when the study needs them."""
     clock = CompileClock().start()
     started = time.perf_counter()
     with _muted():
         _attempt("steady state", _steady_state, problem)
         for name in studies:
-            kind = KINDS[name]
-            if kind.grid and kind.point is not None:
+            kind = kind_named(name)
+            if kind.warm_up is not None:
+                _attempt(name, kind.warm_up, problem)
+            elif kind.grid and kind.point is not None:
                 _attempt(f"a {name} point", _grid_point, problem, kind.point)
-            elif not getattr(problem, "supports_nonlinear", False):
-                continue
-            elif name == "nonlinear_check":
-                _attempt("nonlinear check", _nonlinear_check, problem)
-            elif name in ("nonlinear_steady_state", "nonlinear_sweep"):
-                _attempt("shooting", _shooting, problem)
     if clock.count:
         logger.info("compiled the numerical kernels in %.0f s (cached for the next runs; "
                     "not counted in the studies' run times)", time.perf_counter() - started)
@@ -126,14 +122,14 @@ def _attempt(what: str, run, *args) -> None:
 
 
 def _steady_state(problem: Any) -> None:
-    from ._kinds.steady_state import steady_state
+    """The steady state at the scene's values, every piece of it (linearisation, periodic solve,
+    observables, the drawing): what every kind builds on."""
+    from .._kinds.steady_state import steady_state
 
     steady_state(problem, n_steps=WARM_UP_STEPS)
 
 
 def _off_nominal(problem: Any) -> dict[str, float]:
-    from ._problem import SPEED
-
     speed = problem.parameters.get(SPEED)
     return {} if speed is None or not math.isfinite(speed) else {SPEED: OFF_NOMINAL * speed}
 
@@ -144,20 +140,6 @@ def _grid_point(problem: Any, point) -> None:
     sizes = {"n_steps": WARM_UP_STEPS, "frozen_samples": 2}
     options = {name: sizes[name] for name in inspect.signature(point).parameters if name in sizes}
     point(problem, _off_nominal(problem), **options)
-
-
-def _nonlinear_check(problem: Any) -> None:
-    from ._kinds.nonlinear_check import nonlinear_check
-
-    nonlinear_check(problem, n_steps=WARM_UP_STEPS, n_periods=2)
-
-
-def _shooting(problem: Any) -> None:
-    """One Newton step of the nonlinear shooting (a period, its monodromy, a trial period): the
-    integrator's and the monodromy's kernels."""
-    from ._kinds.nonlinear_steady_state import nonlinear_steady_state
-
-    nonlinear_steady_state(problem, n_steps=WARM_UP_STEPS, max_iterations=1)
 
 
 class _muted:

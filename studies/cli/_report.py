@@ -7,7 +7,8 @@ import html
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from ._summary import in_run_order, markdown_table, summaries
+from .._kind import in_run_order, kind_of, summaries
+from .._summary import markdown_table
 
 REPORT_NAME = "report"
 
@@ -21,8 +22,6 @@ def write_figures(results: Mapping[str, Any], outdir: Path, extensions: Sequence
     matplotlib.use("Agg")
     matplotlib.rcParams["svg.fonttype"] = "none"  # keep text as text: editable and searchable
     import matplotlib.pyplot as plt
-
-    from ._kinds import kind_of
 
     outdir.mkdir(parents=True, exist_ok=True)
     written: dict[str, list[Path]] = {}
@@ -58,7 +57,7 @@ def markdown(results: Mapping[str, Any], figures: Mapping[str, list[Path]], *, t
 
 def html_page(results: Mapping[str, Any], figures: Mapping[str, list[Path]], *, title: str) -> str:
     """The same report as one HTML page (no external assets but the PNG files beside it)."""
-    from ._summary import COLUMNS, table_rows
+    from .._summary import COLUMNS, table_rows
 
     escape = html.escape
     head = "".join(f"<th>{escape(c)}</th>" for c in COLUMNS)
