@@ -50,6 +50,7 @@ from ._parts import Ritz as Ritz
 from ._parts import ShapeLayout as ShapeLayout
 from ._parts import ShapeValues as ShapeValues
 from ._parts import Slider as Slider
+from ._parts import Slot as Slot
 from ._parts import TorqueDrive as TorqueDrive
 from ._parts import UserShapes as UserShapes
 from ._parts import drive_law as drive_law

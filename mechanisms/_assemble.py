@@ -262,7 +262,7 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
         np.array(mp_real, dtype=np.float64).reshape(-1, 4),
         np.array(sp_int, dtype=np.int64).reshape(-1, 6),
         np.array(sp_real, dtype=np.float64).reshape(-1, 3),
-        np.array(writer.ct_int, dtype=np.int64).reshape(-1, 5),
+        np.array(writer.ct_int, dtype=np.int64).reshape(-1, 6),
         np.array(writer.ct_real, dtype=np.float64).reshape(-1, 4),
         np.array(shp, dtype=np.float64),
         np.array(idx, dtype=np.int64),
@@ -300,13 +300,14 @@ class _ConstraintWriter:
                                  f"constant of the row")
         return self.layouts[link]
 
-    def point_term(self, row, link, point, direction):
+    def point_term(self, row, link, point, direction, frame=None):
         lay = self._layout(link, "point")
         cx, cy, su, sw, _ = _point_local(lay, point)
         key = (link, cx, cy)
         if key not in self._stored:
             self._stored[key] = self.push(su, sw)
-        self.ct_int.append((row, lay.offset, *self._stored[key]))
+        frame_offset = -1 if frame is None else self._layout(frame, "frame").offset
+        self.ct_int.append((row, lay.offset, *self._stored[key], frame_offset))
         self.ct_real.append((direction[0], direction[1], cx, cy))
 
     def angle_term(self, row, link, point, coefficient):

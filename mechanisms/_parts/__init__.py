@@ -48,6 +48,7 @@ from .fem import Fem as Fem
 from .joints import JOINT_TYPES as JOINT_TYPES
 from .joints import Revolute as Revolute
 from .joints import Slider as Slider
+from .joints import Slot as Slot
 from .joints import register_joint as register_joint
 from .links import ElasticLink as ElasticLink
 from .links import PointMass as PointMass
