@@ -30,6 +30,7 @@ from ._parts import JOINT_TYPES as JOINT_TYPES
 from ._parts import AngleRow as AngleRow
 from ._parts import AngleTerm as AngleTerm
 from ._parts import ArgumentError as ArgumentError
+from ._parts import ControllerLaw as ControllerLaw
 from ._parts import DampingMatrix as DampingMatrix
 from ._parts import DCMotor as DCMotor
 from ._parts import ElasticLink as ElasticLink
@@ -54,6 +55,7 @@ from ._parts import Slot as Slot
 from ._parts import TorqueDrive as TorqueDrive
 from ._parts import UserShapes as UserShapes
 from ._parts import drive_law as drive_law
+from ._parts import register_controller as register_controller
 from ._parts import register_discretisation as register_discretisation
 from ._parts import register_joint as register_joint
 from ._protocol import ConstrainedModel as ConstrainedModel

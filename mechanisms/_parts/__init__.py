@@ -31,8 +31,10 @@ from .checks import GROUND as GROUND
 from .checks import ArgumentError as ArgumentError
 from .checks import MechanismError as MechanismError
 from .controllers import CONTROLLER_TYPES as CONTROLLER_TYPES
+from .controllers import ControllerLaw as ControllerLaw
 from .controllers import ObservableFeedback as ObservableFeedback
 from .controllers import PDController as PDController
+from .controllers import register_controller as register_controller
 from .damping import DampingMatrix as DampingMatrix
 from .damping import ModalDamping as ModalDamping
 from .damping import Rayleigh as Rayleigh

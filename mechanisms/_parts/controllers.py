@@ -5,9 +5,37 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar, Union
 
-from .checks import MechanismError, _check_name, _check_number
+from .checks import MechanismError, _check_name, _check_number, register_class
+
+#: The controller classes by their scene-file ``type``, filled by ``register_controller``.
+CONTROLLER_TYPES: dict[str, type] = {}
+
+_INTERFACE = ("TYPE", "KEYS", "from_table", "to_table", "law")
 
 
+def register_controller(cls: type) -> type:
+    """Enter the controller class ``cls`` in ``CONTROLLER_TYPES`` under its ``TYPE`` and return it
+    (a class decorator). A controller is a frozen class with ``name``, ``joint`` (the torque drive
+    it adds to) and ``lag`` (s, 0 for none), its scene ``TYPE``, ``KEYS``, ``from_table(name,
+    table)``, ``to_table()`` and ``law()`` (its ``ControllerLaw``)."""
+    return register_class(CONTROLLER_TYPES, cls, _INTERFACE, "controller", "mechanisms.PDController")
+
+
+@dataclass(frozen=True)
+class ControllerLaw:
+    """What a controller adds to its torque drive's law (``Model.drive_torque_terms``):
+    ``kp (angle_nominal - angle) + kd (rate_nominal - rate)`` on the driven angle (N m/rad,
+    N m s/rad) and, with ``observable`` (a spec), ``-(gain o + rate_gain o')``. Each controller
+    class returns its own from ``law()``; the model never asks which class it holds."""
+
+    kp: float = 0.0
+    kd: float = 0.0
+    observable: str | None = None
+    gain: float = 0.0
+    rate_gain: float = 0.0
+
+
+@register_controller
 @dataclass(frozen=True)
 class PDController:
     """PD on the driven angle of the torque drive at ``joint`` (the thesis's case): adds
@@ -38,7 +66,11 @@ class PDController:
         return {"type": self.TYPE, "joint": self.joint, "kp": self.kp, "kd": self.kd,
                 **_lag_entry(self.lag)}
 
+    def law(self) -> ControllerLaw:
+        return ControllerLaw(kp=float(self.kp), kd=float(self.kd))
 
+
+@register_controller
 @dataclass(frozen=True)
 class ObservableFeedback:
     """Feedback of a measured elastic quantity to the torque drive at ``joint``: adds
@@ -78,6 +110,10 @@ class ObservableFeedback:
         return {"type": self.TYPE, "joint": self.joint, "observable": self.observable,
                 "gain": self.gain, "rate_gain": self.rate_gain, **_lag_entry(self.lag)}
 
+    def law(self) -> ControllerLaw:
+        return ControllerLaw(observable=self.observable, gain=float(self.gain),
+                             rate_gain=float(self.rate_gain))
+
 
 # A controller's ``lag`` (s): the time constant of a first-order lag ``lag y' + y = u`` between its
 # law ``u`` and the torque ``y`` it adds (0: none).  For these linear laws a sensor lag (the measured
@@ -98,6 +134,3 @@ def _lag_entry(lag: float) -> dict[str, float]:
 
 
 Controller = Union[PDController, ObservableFeedback]
-#: The controller classes by their scene-file ``type``.
-CONTROLLER_TYPES: dict[str, type] = {cls.TYPE: cls for cls in (PDController, ObservableFeedback)}
-
