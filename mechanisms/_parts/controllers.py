@@ -35,27 +35,31 @@ class ControllerLaw:
     rate_gain: float = 0.0
 
 
+@dataclass(frozen=True)
+class _Controller:
+    """What every controller has: its ``name`` and the ``joint`` of the torque drive it adds to."""
+
+    name: str
+    joint: str
+
+
 @register_controller
 @dataclass(frozen=True)
-class PDController:
+class PDController(_Controller):
     """PD on the driven angle of the torque drive at ``joint`` (the thesis's case): adds
     ``kp (angle_nominal - angle) + kd (rate_nominal - rate)`` (N m) to its torque."""
 
     TYPE: ClassVar[str] = "pd"
     KEYS: ClassVar[tuple[str, ...]] = ("type", "joint", "kp", "kd", "lag")
 
-    name: str
-    joint: str
     kp: float = 0.0
     kd: float = 0.0
     lag: float = 0.0
 
     def __post_init__(self) -> None:
-        _check_name("controller", self.name)
-        owner = f"controller {self.name!r}"
+        owner = _checked_owner(self)
         _check_number(owner, "kp", self.kp, "N m/rad", nonnegative=True)
         _check_number(owner, "kd", self.kd, "N m s/rad", nonnegative=True)
-        _check_lag(owner, self.lag)
 
     @classmethod
     def from_table(cls, name: str, table) -> "PDController":
@@ -72,7 +76,7 @@ class PDController:
 
 @register_controller
 @dataclass(frozen=True)
-class ObservableFeedback:
+class ObservableFeedback(_Controller):
     """Feedback of a measured elastic quantity to the torque drive at ``joint``: adds
     ``-(gain o + rate_gain o')`` (N m) to its torque, ``o`` the observable ``observable`` (e.g.
     ``"coupler.strain@0.5"``, the strain a gauge at midspan reads; its unit sets those of the
@@ -83,22 +87,18 @@ class ObservableFeedback:
     TYPE: ClassVar[str] = "feedback"
     KEYS: ClassVar[tuple[str, ...]] = ("type", "joint", "observable", "gain", "rate_gain", "lag")
 
-    name: str
-    joint: str
     observable: str
     gain: float = 0.0
     rate_gain: float = 0.0
     lag: float = 0.0
 
     def __post_init__(self) -> None:
-        _check_name("controller", self.name)
-        owner = f"controller {self.name!r}"
+        owner = _checked_owner(self)
         if not isinstance(self.observable, str) or not self.observable:
             raise MechanismError(f"{owner}: observable must be an observable spec such as "
                                  f"'coupler.strain@0.5', got {self.observable!r}")
         _check_number(owner, "gain", self.gain, "N m per unit of the observable")
         _check_number(owner, "rate_gain", self.rate_gain, "N m s per unit of the observable")
-        _check_lag(owner, self.lag)
 
     @classmethod
     def from_table(cls, name: str, table) -> "ObservableFeedback":
@@ -119,8 +119,12 @@ class ObservableFeedback:
 # law ``u`` and the torque ``y`` it adds (0: none).  For these linear laws a sensor lag (the measured
 # signal filtered, its rate taken from the filtered signal) is the same transfer function, so one
 # key serves both.
-def _check_lag(owner: str, lag: object) -> None:
-    _check_number(owner, "lag", lag, "s", nonnegative=True)
+def _checked_owner(controller) -> str:
+    """Check a controller's name and ``lag`` (what every controller has); its name for messages."""
+    _check_name("controller", controller.name)
+    owner = f"controller {controller.name!r}"
+    _check_number(owner, "lag", controller.lag, "s", nonnegative=True)
+    return owner
 
 
 def _lag_of(table) -> float:
