@@ -288,7 +288,7 @@ class _ConstraintWriter:
         self.ct_real: list[tuple] = []
         self.phi0: list[float] = []
         self.linear: dict[int, np.ndarray] = {}
-        self._stored: dict[tuple, tuple[int, int, int]] = {}   # a point's shape rows, stored once
+        self._stored: dict[tuple, tuple] = {}   # a point's position and stored shape rows, once
 
     def new_row(self) -> None:
         self.phi0.append(0.0)
@@ -302,12 +302,13 @@ class _ConstraintWriter:
 
     def point_term(self, row, link, point, direction, frame=None):
         lay = self._layout(link, "point")
-        cx, cy, su, sw, _ = _point_local(lay, point)
-        key = (link, cx, cy)
+        key = (link, point)
         if key not in self._stored:
-            self._stored[key] = self.push(su, sw)
+            cx, cy, su, sw, _ = _point_local(lay, point)
+            self._stored[key] = (cx, cy, self.push(su, sw))
+        cx, cy, stored = self._stored[key]
         frame_offset = -1 if frame is None else self._layout(frame, "frame").offset
-        self.ct_int.append((row, lay.offset, *self._stored[key], frame_offset))
+        self.ct_int.append((row, lay.offset, *stored, frame_offset))
         self.ct_real.append((direction[0], direction[1], cx, cy))
 
     def angle_term(self, row, link, point, coefficient):
