@@ -24,6 +24,7 @@ from ._observables import default_observables as default_observables
 from ._orbit import PeriodMap as PeriodMap
 from ._orbit import PeriodRun as PeriodRun
 from ._parts import CONTROLLER_TYPES as CONTROLLER_TYPES
+from ._parts import DAMPING_TYPES as DAMPING_TYPES
 from ._parts import DISCRETISATION_TYPES as DISCRETISATION_TYPES
 from ._parts import GROUND as GROUND
 from ._parts import JOINT_TYPES as JOINT_TYPES

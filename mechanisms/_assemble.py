@@ -49,19 +49,15 @@ from collections import OrderedDict
 from typing import Callable, Mapping
 
 import numpy as np
-from scipy.linalg import eigh
 from scipy.sparse.csgraph import connected_components
 
 from ._beams import beam_matrices, beam_shapes, membrane_projection
 from ._model import JointRows, LinkLayout, Model, _DriveInfo, _Tables
 from ._parts import (
-    DampingMatrix,
     ElasticLink,
     Mechanism,
     MechanismError,
-    ModalDamping,
     PrescribedDrive,
-    Rayleigh,
     RigidLink,
     TorqueDrive,
 )
@@ -169,8 +165,8 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
         if lay.stiffening:
             ea = link.youngs_modulus * link.area
             ei = link.youngs_modulus * link.second_moment
-            beta = link.damping.beta if isinstance(link.damping, Rayleigh) else 0.0
-            if isinstance(link.damping, (ModalDamping, DampingMatrix)):
+            beta = link.damping.strain_rate_beta if link.damping is not None else 0.0
+            if link.damping is not None and link.damping.constant_on_stiffened:
                 logger.warning("link %r: %s is a constant matrix on the elastic coordinates; with "
                                "geometric stiffening it also damps the axial motion of the chord "
                                "shortening of a bent link, which strains nothing (use Rayleigh "
@@ -383,35 +379,12 @@ def _projection_groups(projection: np.ndarray) -> list[np.ndarray]:
 
 def _damping_matrix(link: ElasticLink, m_ee: np.ndarray, k_ee: np.ndarray, *,
                     strain_rate_beta: bool) -> np.ndarray:
-    """The constant damping matrix ``C0`` of a link's elastic coordinates (N s/m). With
-    ``strain_rate_beta`` (geometric stiffening) Rayleigh's ``beta`` is left out: the strain points
-    carry it (``_kernels`` eq. 7-9)."""
-    damping = link.damping
-    n_e = m_ee.shape[0]
-    if damping is None:
-        return np.zeros((n_e, n_e))
-    if isinstance(damping, Rayleigh):
-        if strain_rate_beta:
-            return damping.alpha * m_ee
-        return damping.alpha * m_ee + damping.beta * k_ee
-    if isinstance(damping, ModalDamping):
-        # The number of modes is the discretisation's: checked here, not by ModalDamping.
-        ratios = np.asarray(damping.ratios, dtype=float)
-        if len(ratios) > n_e:
-            raise MechanismError(f"link {link.name!r}: damping.ratios must be at most {n_e} "
-                                 f"numbers (one per elastic coordinate); received "
-                                 f"{damping.ratios!r}")
-        omega2, modes = eigh(k_ee, m_ee)  # mass-normalised: modes^T M modes = I
-        omega = np.sqrt(np.maximum(omega2[:len(ratios)], 0.0))
-        mphi = m_ee @ modes[:, :len(ratios)]
-        return mphi @ np.diag(2.0 * ratios * omega) @ mphi.T
-    # DampingMatrix (ElasticLink accepts these three kinds and None only); its size is the
-    # discretisation's, checked here.
-    matrix = np.asarray(damping.matrix, dtype=float)
-    if matrix.shape != (n_e, n_e):
-        raise MechanismError(f"link {link.name!r}: damping.matrix must be a ({n_e}, {n_e}) matrix "
-                             f"(one row per elastic coordinate); received shape {matrix.shape}")
-    return matrix
+    """The constant damping matrix ``C0`` of a link's elastic coordinates (N s/m), its damping's
+    (``mechanisms/_parts/damping.py``). With ``strain_rate_beta`` (geometric stiffening) Rayleigh's
+    ``beta`` is left out: the strain points carry it (``_kernels`` eq. 7-9)."""
+    if link.damping is None:
+        return np.zeros(m_ee.shape)
+    return link.damping.constant_matrix(link.name, m_ee, k_ee, strain_rate_beta=strain_rate_beta)
 
 
 def _point_local(lay: LinkLayout, point):

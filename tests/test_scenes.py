@@ -322,7 +322,7 @@ def test_docs_name_every_key_and_their_example_runs():
     keys = set(_load._TOP_KEYS + _load._RIGID_KEYS + _load._ELASTIC_KEYS + joint_keys
                + _load._TORQUE_KEYS + _load._POINT_MASS_KEYS)
     keys.update(key for cls in mechanisms.DISCRETISATION_TYPES.values() for key in cls.KEYS)
-    keys.update(k for ks in _load._DAMPING_KEYS.values() for k in ks)
+    keys.update(key for cls in mechanisms.DAMPING_TYPES.values() for key in cls.KEYS)
     keys.update(_load._MOTOR_KEYS)
     keys.update(key for cls in mechanisms.CONTROLLER_TYPES.values() for key in cls.KEYS)
     assert [key for key in sorted(keys) if f"`{key}`" not in text] == []

@@ -35,6 +35,7 @@ from .controllers import ControllerLaw as ControllerLaw
 from .controllers import ObservableFeedback as ObservableFeedback
 from .controllers import PDController as PDController
 from .controllers import register_controller as register_controller
+from .damping import DAMPING_TYPES as DAMPING_TYPES
 from .damping import DampingMatrix as DampingMatrix
 from .damping import ModalDamping as ModalDamping
 from .damping import Rayleigh as Rayleigh
