@@ -219,11 +219,13 @@ def drive_probes(model, t, s, sdot, coefficients, period) -> tuple[_DriveProbe, 
 
 
 def sample_abscissae(link) -> np.ndarray:
-    """Abscissae (m) where the measures look: ``4 n + 1`` evenly spaced for ``n`` Hermite elements
-    (the nodes among them), 33 otherwise, each interior one also just to its left (the curvature of
-    Hermite elements jumps at a node; the shapes take the element to the right there)."""
-    disc = link.discretisation
-    n = 4 * disc.n_elements if isinstance(disc, mechanisms.Fem) else 32
+    """Abscissae (m) where the measures look: ``4 n + 1`` evenly spaced for a discretisation whose
+    shapes' curvature may jump at ``n + 1`` evenly spaced ``breakpoints(link)`` (the nodes of
+    Hermite elements, among the abscissae), 33 otherwise, each interior one also just to its left
+    (the shapes take the element to the right at a node)."""
+    breakpoints = getattr(link.discretisation, "breakpoints", None)
+    nodes = breakpoints(link) if breakpoints is not None else ()
+    n = 4 * (len(nodes) - 1) if len(nodes) > 1 else 32
     x = np.linspace(0.0, link.length, n + 1)
     return np.sort(np.concatenate([x, x[1:] - 1e-9 * link.length]))
 

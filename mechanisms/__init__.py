@@ -24,12 +24,14 @@ from ._observables import default_observables as default_observables
 from ._orbit import PeriodMap as PeriodMap
 from ._orbit import PeriodRun as PeriodRun
 from ._parts import CONTROLLER_TYPES as CONTROLLER_TYPES
+from ._parts import DAMPING_TYPES as DAMPING_TYPES
 from ._parts import DISCRETISATION_TYPES as DISCRETISATION_TYPES
 from ._parts import GROUND as GROUND
 from ._parts import JOINT_TYPES as JOINT_TYPES
 from ._parts import AngleRow as AngleRow
 from ._parts import AngleTerm as AngleTerm
 from ._parts import ArgumentError as ArgumentError
+from ._parts import ControllerLaw as ControllerLaw
 from ._parts import DampingMatrix as DampingMatrix
 from ._parts import DCMotor as DCMotor
 from ._parts import ElasticLink as ElasticLink
@@ -50,9 +52,11 @@ from ._parts import Ritz as Ritz
 from ._parts import ShapeLayout as ShapeLayout
 from ._parts import ShapeValues as ShapeValues
 from ._parts import Slider as Slider
+from ._parts import Slot as Slot
 from ._parts import TorqueDrive as TorqueDrive
 from ._parts import UserShapes as UserShapes
 from ._parts import drive_law as drive_law
+from ._parts import register_controller as register_controller
 from ._parts import register_discretisation as register_discretisation
 from ._parts import register_joint as register_joint
 from ._protocol import ConstrainedModel as ConstrainedModel

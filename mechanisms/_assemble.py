@@ -49,19 +49,15 @@ from collections import OrderedDict
 from typing import Callable, Mapping
 
 import numpy as np
-from scipy.linalg import eigh
 from scipy.sparse.csgraph import connected_components
 
 from ._beams import beam_matrices, beam_shapes, membrane_projection
 from ._model import JointRows, LinkLayout, Model, _DriveInfo, _Tables
 from ._parts import (
-    DampingMatrix,
     ElasticLink,
     Mechanism,
     MechanismError,
-    ModalDamping,
     PrescribedDrive,
-    Rayleigh,
     RigidLink,
     TorqueDrive,
 )
@@ -169,8 +165,8 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
         if lay.stiffening:
             ea = link.youngs_modulus * link.area
             ei = link.youngs_modulus * link.second_moment
-            beta = link.damping.beta if isinstance(link.damping, Rayleigh) else 0.0
-            if isinstance(link.damping, (ModalDamping, DampingMatrix)):
+            beta = link.damping.strain_rate_beta if link.damping is not None else 0.0
+            if link.damping is not None and link.damping.constant_on_stiffened:
                 logger.warning("link %r: %s is a constant matrix on the elastic coordinates; with "
                                "geometric stiffening it also damps the axial motion of the chord "
                                "shortening of a bent link, which strains nothing (use Rayleigh "
@@ -262,7 +258,7 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
         np.array(mp_real, dtype=np.float64).reshape(-1, 4),
         np.array(sp_int, dtype=np.int64).reshape(-1, 6),
         np.array(sp_real, dtype=np.float64).reshape(-1, 3),
-        np.array(writer.ct_int, dtype=np.int64).reshape(-1, 5),
+        np.array(writer.ct_int, dtype=np.int64).reshape(-1, 6),
         np.array(writer.ct_real, dtype=np.float64).reshape(-1, 4),
         np.array(shp, dtype=np.float64),
         np.array(idx, dtype=np.int64),
@@ -288,7 +284,7 @@ class _ConstraintWriter:
         self.ct_real: list[tuple] = []
         self.phi0: list[float] = []
         self.linear: dict[int, np.ndarray] = {}
-        self._stored: dict[tuple, tuple[int, int, int]] = {}   # a point's shape rows, stored once
+        self._stored: dict[tuple, tuple] = {}   # a point's position and stored shape rows, once
 
     def new_row(self) -> None:
         self.phi0.append(0.0)
@@ -300,13 +296,15 @@ class _ConstraintWriter:
                                  f"constant of the row")
         return self.layouts[link]
 
-    def point_term(self, row, link, point, direction):
+    def point_term(self, row, link, point, direction, frame=None):
         lay = self._layout(link, "point")
-        cx, cy, su, sw, _ = _point_local(lay, point)
-        key = (link, cx, cy)
+        key = (link, point)
         if key not in self._stored:
-            self._stored[key] = self.push(su, sw)
-        self.ct_int.append((row, lay.offset, *self._stored[key]))
+            cx, cy, su, sw, _ = _point_local(lay, point)
+            self._stored[key] = (cx, cy, self.push(su, sw))
+        cx, cy, stored = self._stored[key]
+        frame_offset = -1 if frame is None else self._layout(frame, "frame").offset
+        self.ct_int.append((row, lay.offset, *stored, frame_offset))
         self.ct_real.append((direction[0], direction[1], cx, cy))
 
     def angle_term(self, row, link, point, coefficient):
@@ -381,35 +379,12 @@ def _projection_groups(projection: np.ndarray) -> list[np.ndarray]:
 
 def _damping_matrix(link: ElasticLink, m_ee: np.ndarray, k_ee: np.ndarray, *,
                     strain_rate_beta: bool) -> np.ndarray:
-    """The constant damping matrix ``C0`` of a link's elastic coordinates (N s/m). With
-    ``strain_rate_beta`` (geometric stiffening) Rayleigh's ``beta`` is left out: the strain points
-    carry it (``_kernels`` eq. 7-9)."""
-    damping = link.damping
-    n_e = m_ee.shape[0]
-    if damping is None:
-        return np.zeros((n_e, n_e))
-    if isinstance(damping, Rayleigh):
-        if strain_rate_beta:
-            return damping.alpha * m_ee
-        return damping.alpha * m_ee + damping.beta * k_ee
-    if isinstance(damping, ModalDamping):
-        # The number of modes is the discretisation's: checked here, not by ModalDamping.
-        ratios = np.asarray(damping.ratios, dtype=float)
-        if len(ratios) > n_e:
-            raise MechanismError(f"link {link.name!r}: damping.ratios must be at most {n_e} "
-                                 f"numbers (one per elastic coordinate); received "
-                                 f"{damping.ratios!r}")
-        omega2, modes = eigh(k_ee, m_ee)  # mass-normalised: modes^T M modes = I
-        omega = np.sqrt(np.maximum(omega2[:len(ratios)], 0.0))
-        mphi = m_ee @ modes[:, :len(ratios)]
-        return mphi @ np.diag(2.0 * ratios * omega) @ mphi.T
-    # DampingMatrix (ElasticLink accepts these three kinds and None only); its size is the
-    # discretisation's, checked here.
-    matrix = np.asarray(damping.matrix, dtype=float)
-    if matrix.shape != (n_e, n_e):
-        raise MechanismError(f"link {link.name!r}: damping.matrix must be a ({n_e}, {n_e}) matrix "
-                             f"(one row per elastic coordinate); received shape {matrix.shape}")
-    return matrix
+    """The constant damping matrix ``C0`` of a link's elastic coordinates (N s/m), its damping's
+    (``mechanisms/_parts/damping.py``). With ``strain_rate_beta`` (geometric stiffening) Rayleigh's
+    ``beta`` is left out: the strain points carry it (``_kernels`` eq. 7-9)."""
+    if link.damping is None:
+        return np.zeros(m_ee.shape)
+    return link.damping.constant_matrix(link.name, m_ee, k_ee, strain_rate_beta=strain_rate_beta)
 
 
 def _point_local(lay: LinkLayout, point):

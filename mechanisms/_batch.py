@@ -7,8 +7,11 @@ that offers the method of the same name (``mechanisms.Model`` does: one numba ca
 through the kernels below) is evaluated by it; any other model through its per-sample protocol
 methods. Both give the same numbers up to summation order (tests/test_batch.py).
 
-The kernels here take the assembled model's tables (``_model._Tables``, layouts in ``_kernels``)
-as arrays and fill their outputs; only ``Model`` calls them.
+The kernels here take the assembled model's tables (``_model._Tables``, layouts in ``_kernels``;
+the constraint terms ``ct_int`` have six columns, the last the frame of a term in a moving link's
+frame) as arrays and fill their outputs; only ``Model`` calls them. Numba's cache of a kernel here
+is keyed by this file, not by the ``_kernels`` functions it calls: a change of a kernel's layout
+there must touch this file too (as this note did), or stale compiled code is reused.
 """
 
 from __future__ import annotations

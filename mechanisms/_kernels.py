@@ -44,8 +44,19 @@ elastic coordinates), with their values in ``shp`` (``nnz`` per row):
   At q = 0 this is the constant ``beta K_ee``; unlike it, it does not resist the chord shortening
   of a bent link (eps' = 0 there while u' moves), which the linear form would damp as an axial
   strain rate ("damping locking").
-* constraint terms ``ct_int = (row, offset, nnz, ptr, iptr)``, ``ct_real = (dx, dy, cx, cy)``:
-  ``Phi[row] += d . r``; ``shp[ptr : ptr + 2 nnz] = (S_axial, S_transverse)``.
+* constraint terms ``ct_int = (row, offset, nnz, ptr, iptr, frame)``, ``ct_real = (dx, dy, cx, cy)``:
+  ``Phi[row] += d . r`` with ``frame = -1`` (``d`` fixed in the plane: pins, sliders), else
+  ``Phi[row] += e . (r - R_f)``, ``e = A(theta_f) d``, with ``R_f, theta_f`` the frame of the link
+  whose coordinates start at ``frame`` (a point on a line of a moving link: a pin in a slot);
+  ``shp[ptr : ptr + 2 nnz] = (S_axial, S_transverse)``. With ``delta = r - R_f`` and
+  ``Je = (-e_y, e_x)`` (``de/dtheta_f``), a frame term adds to the point term's derivatives
+
+      Phi_s: -e on R_f, (Je) . delta on theta_f                                            (10)
+      gamma: -2 theta_f' (Je) . delta' + theta_f'^2 e . delta,   delta' = L s' - R_f'       (11)
+      d(Phi_s^T lam)/ds: lam [L^T Je on (point, theta_f) and its transpose, -Je on
+                         (R_f, theta_f) and its transpose, -e . delta on (theta_f, theta_f)] (12)
+
+  and the point term itself is taken with ``e`` for ``d``.
 
 Inside a kernel, ``cols[a]`` maps the point's local column ``a`` (0, 1, 2 = x, y, theta, then the
 active elastic coordinates) to its index in ``s``.
@@ -407,57 +418,108 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
 
 
 @numba.njit(cache=True)
+def _term_direction(s, frame, dx, dy):
+    """The term's direction in the plane: ``d``, or ``e = A(theta_f) d`` in a link's frame."""
+    if frame < 0:
+        return dx, dy
+    c = math.cos(s[frame + 2])
+    sn = math.sin(s[frame + 2])
+    return c * dx - sn * dy, sn * dx + c * dy
+
+
+@numba.njit(cache=True)
 def constraints(s, ct_int, ct_real, shp, idx, out):
-    """Phi[row] += d . (R + A p) over the constraint terms; out (r,) holds the constant parts."""
+    """Phi[row] += d . (R + A p), or e . (R + A p - R_f) in a frame, over the constraint terms;
+    out (r,) holds the constant parts."""
     lx, ly, cols = _scratch(ct_int[:, 2])
     for i in range(ct_int.shape[0]):
         row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
-        ptr, iptr = ct_int[i, 3], ct_int[i, 4]
+        ptr, iptr, frame = ct_int[i, 3], ct_int[i, 4], ct_int[i, 5]
         dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
         apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
-        out[row] += dx * (s[off] + apx) + dy * (s[off + 1] + apy)
+        ex, ey = _term_direction(s, frame, dx, dy)
+        rx = s[off] + apx
+        ry = s[off + 1] + apy
+        if frame >= 0:
+            rx -= s[frame]
+            ry -= s[frame + 1]
+        out[row] += ex * rx + ey * ry
 
 
 @numba.njit(cache=True)
 def constraint_jacobian(s, ct_int, ct_real, shp, idx, out):
-    """Phi_s[row] += d^T L (eq. 1); out (r, n) holds the constant (drive) rows."""
+    """Phi_s[row] += d^T L (eq. 1), with a frame eq. (10); out (r, n) holds the constant (linear)
+    rows."""
     lx, ly, cols = _scratch(ct_int[:, 2])
     for i in range(ct_int.shape[0]):
         row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
-        ptr, iptr = ct_int[i, 3], ct_int[i, 4]
+        ptr, iptr, frame = ct_int[i, 3], ct_int[i, 4], ct_int[i, 5]
         dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
-        _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
+        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
+        ex, ey = _term_direction(s, frame, dx, dy)
         for a in range(3 + nnz):
-            out[row, cols[a]] += dx * lx[a] + dy * ly[a]
+            out[row, cols[a]] += ex * lx[a] + ey * ly[a]
+        if frame >= 0:
+            out[row, frame] -= ex
+            out[row, frame + 1] -= ey
+            out[row, frame + 2] += -ey * (s[off] + apx - s[frame]) + ex * (s[off + 1] + apy
+                                                                          - s[frame + 1])
 
 
 @numba.njit(cache=True)
 def constraint_gamma(s, sdot, ct_int, ct_real, shp, idx, out):
-    """gamma[row] -= d . c (eq. 2; the point constraints do not depend on t); out (r,) holds the
-    drive rows' accelerations."""
+    """gamma[row] -= d . c (eq. 2; the point constraints do not depend on t), with a frame also
+    eq. (11); out (r,) holds the drive rows' accelerations."""
     lx, ly, cols = _scratch(ct_int[:, 2])
     for i in range(ct_int.shape[0]):
         row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
-        ptr, iptr = ct_int[i, 3], ct_int[i, 4]
+        ptr, iptr, frame = ct_int[i, 3], ct_int[i, 4], ct_int[i, 5]
         dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
         apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
+        ex, ey = _term_direction(s, frame, dx, dy)
         wt = sdot[off + 2]
         asv_x, asv_y = _elastic_velocity(sdot, nnz, lx, ly, cols)
         cxv = -wt * wt * apx - 2.0 * wt * asv_y
         cyv = -wt * wt * apy + 2.0 * wt * asv_x
-        out[row] -= dx * cxv + dy * cyv
+        out[row] -= ex * cxv + ey * cyv
+        if frame >= 0:
+            wf = sdot[frame + 2]
+            delta_x = s[off] + apx - s[frame]
+            delta_y = s[off + 1] + apy - s[frame + 1]
+            rate_x = -sdot[frame]
+            rate_y = -sdot[frame + 1]
+            for a in range(3 + nnz):
+                rate_x += lx[a] * sdot[cols[a]]
+                rate_y += ly[a] * sdot[cols[a]]
+            out[row] += (-2.0 * wf * (-ey * rate_x + ex * rate_y)
+                         + wf * wf * (ex * delta_x + ey * delta_y))
 
 
 @numba.njit(cache=True)
 def constraint_force_jacobian(s, lam, ct_int, ct_real, shp, idx, out):
-    """d(Phi_s^T lam)/ds = sum lam[row] D(d) (eq. 3); out (n, n) zeroed."""
+    """d(Phi_s^T lam)/ds = sum lam[row] D(d) (eq. 3), with a frame also eq. (12); out (n, n)
+    zeroed."""
     lx, ly, cols = _scratch(ct_int[:, 2])
     for i in range(ct_int.shape[0]):
         row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
-        ptr, iptr = ct_int[i, 3], ct_int[i, 4]
+        ptr, iptr, frame = ct_int[i, 3], ct_int[i, 4], ct_int[i, 5]
         dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
         apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
-        _add_d(out, lam[row], nnz, apx, apy, lx, ly, cols, dx, dy)
+        ex, ey = _term_direction(s, frame, dx, dy)
+        scale = lam[row]
+        _add_d(out, scale, nnz, apx, apy, lx, ly, cols, ex, ey)
+        if frame >= 0:
+            tf = frame + 2
+            for a in range(3 + nnz):
+                value = scale * (-ey * lx[a] + ex * ly[a])
+                out[cols[a], tf] += value
+                out[tf, cols[a]] += value
+            out[frame, tf] += scale * ey
+            out[tf, frame] += scale * ey
+            out[frame + 1, tf] -= scale * ex
+            out[tf, frame + 1] -= scale * ex
+            out[tf, tf] -= scale * (ex * (s[off] + apx - s[frame]) + ey * (s[off + 1] + apy
+                                                                         - s[frame + 1]))
 
 
 @numba.njit(cache=True)

@@ -23,8 +23,6 @@ from ._parts import (
     ArgumentError,
     ElasticLink,
     MechanismError,
-    ObservableFeedback,
-    PDController,
     PrescribedDrive,
     RigidLink,
     TorqueDrive,
@@ -537,10 +535,10 @@ class Model:
         driven angle plus those of ``controllers``."""
         nonlinear, feedbacks = [], []
         for controller in controllers:
-            if isinstance(controller, PDController):
-                kp, kd = kp + controller.kp, kd + controller.kd
-            elif isinstance(controller, ObservableFeedback):
-                feedbacks.append(self._feedback(controller))
+            law = controller.law()          # each controller class says what it adds
+            kp, kd = kp + law.kp, kd + law.kd
+            if law.observable is not None:
+                feedbacks.append(self._feedback(controller.name, law))
         position_gain, rate_gain = -kp * info.gradient, -kd * info.gradient
         for fb in feedbacks:
             if fb.gradient is None:
@@ -585,10 +583,11 @@ class Model:
             u[:, i], du_ds[:, i], du_dv[:, i] = self._torque_terms(lag.law, t, s, sdot, saturate=False)
         return u, du_ds, du_dv
 
-    def _feedback(self, controller: ObservableFeedback) -> _Feedback:
-        owner = f"controller {controller.name!r}: observable {controller.observable!r}"
+    def _feedback(self, name: str, law) -> _Feedback:
+        """The feedback of the observable of controller ``name``'s ``ControllerLaw``."""
+        owner = f"controller {name!r}: observable {law.observable!r}"
         try:
-            observable = make_observable(self, controller.observable)
+            observable = make_observable(self, law.observable)
         except ArgumentError as error:
             raise MechanismError(f"{owner}: {error}") from None
         if not getattr(observable, "depends_on_elastic_only", False) or getattr(
@@ -602,8 +601,7 @@ class Model:
         probe = np.random.default_rng(0).normal(scale=1e-3, size=self.n_coords)
         linear = np.allclose(observable.gradient(probe), rest, rtol=1e-12,
                              atol=1e-12 * max(np.abs(rest).max(), 1e-300))
-        return _Feedback(observable, float(controller.gain), float(controller.rate_gain),
-                         rest if linear else None)
+        return _Feedback(observable, float(law.gain), float(law.rate_gain), rest if linear else None)
 
     # --- joints and observables ----------------------------------------------------------------
     def joint_rows(self, name: str) -> JointRows:

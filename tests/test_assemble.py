@@ -56,8 +56,10 @@ COUPLER_RITZ = Ritz(2, 1)
 
 
 def fourbar(discretisation=COUPLER_RITZ, *, stiffening=True, rotary=False, torque=False,
-            young=E, gravity=GRAVITY):
-    """The thesis four-bar OABC with an elastic coupler, a point mass on it, gravity and damping."""
+            young=E, gravity=GRAVITY, slot=False):
+    """The thesis four-bar OABC with an elastic coupler, a point mass on it, gravity and damping;
+    with ``slot`` also an elastic follower pivoted on the ground with a coupler point in its slot
+    (a point on a line of a moving link, both sides elastic)."""
     crank = RigidLink.uniform("crank", L1, **STEEL)
     coupler = ElasticLink.rectangular("coupler", L2, youngs_modulus=young,
                                       discretisation=discretisation,
@@ -69,7 +71,14 @@ def fourbar(discretisation=COUPLER_RITZ, *, stiffening=True, rotary=False, torqu
               Revolute("B", "coupler", "end", "rocker", "end"),
               Revolute("C", GROUND, (L0, 0.0), "rocker", "start"))
     drive = (TorqueDrive("O", kp=3.0, kd=0.2, **DRIVE) if torque else PrescribedDrive("O", **DRIVE))
-    return Mechanism("fourbar", (crank, coupler, rocker), joints, (drive,),
+    links = (crank, coupler, rocker)
+    if slot:
+        links += (ElasticLink.rectangular("follower", 0.3, youngs_modulus=young,
+                                          discretisation=Fem(2), boundary="clamped-free",
+                                          geometric_stiffening=False, **STEEL),)
+        joints += (Revolute("F", GROUND, (0.1, -0.2), "follower", "start"),
+                   mk.Slot("S", "coupler", 0.2, "follower", 0.05, angle=0.1))
+    return Mechanism("fourbar", links, joints, (drive,),
                      point_masses=(PointMass("coupler", POINT_MASS["x"], POINT_MASS["mass"],
                                              POINT_MASS["inertia"]),),
                      gravity=gravity)
@@ -357,6 +366,8 @@ CASES = {
     "fem2-seed-eq-2.13": dict(discretisation=Fem(2), stiffening=False),
     # a soft coupler so that the inertia and gravity terms are not hidden behind the elastic ones
     "fem2-soft": dict(discretisation=Fem(2), young=2.0e4),
+    # a pin in a slot of a moving elastic link (the frame term of the constraint kernels)
+    "fem2-slot": dict(discretisation=Fem(2), slot=True),
 }
 
 
@@ -905,3 +916,43 @@ def test_assemble_reuses_the_model_of_the_same_mechanism_object_only():
     assert assemble(mechanisms.load("four_bar_fem1")) is not model
     torque = mechanism.replace(drives=(mechanisms.TorqueDrive("O", rate=100.0),))
     assert assemble(torque, feedforward=lambda t: 0.0) is not assemble(torque, feedforward=None)
+
+
+def test_a_pin_in_a_slot_follows_the_closed_form_quick_return():
+    """Whitworth's quick return: a crank pin A (radius r about O) slides in the slot along a rigid
+    rocker pivoted at C, so the rocker's angle is atan2(A - C); the slot's force on the rocker is
+    normal to it at A, so about C: I_C theta'' = d lam, d = |A - C|, and the force on the crank pin
+    along the slot's normal is -lam (``joint.S.normal``)."""
+    r, c = 0.05, (0.0, -0.15)
+    rocker_inertia = 2e-4                                  # kg m^2 about its centroid
+    mass, length = 0.1, 0.3
+    crank = RigidLink("crank", r, mass=0.02, inertia=1e-5)
+    rocker = RigidLink("rocker", length, mass=mass, inertia=rocker_inertia)
+    mech = Mechanism("quick_return", (crank, rocker),
+                     (Revolute("O", GROUND, (0.0, 0.0), "crank", "start"),
+                      Revolute("C", GROUND, c, "rocker", "start"),
+                      mk.Slot("S", "crank", "end", "rocker")),
+                     (PrescribedDrive("O", rate=10.0),), initial_angles={"rocker": 1.2})
+    motion = mk.nominal_motion(mech, n_steps=64)
+    model = motion.model
+
+    def closed_form(t):
+        phi = 10.0 * t
+        return np.arctan2(r * np.sin(phi) - c[1], r * np.cos(phi) - c[0])
+
+    theta = motion.s[:, model.link_coordinates("rocker").start + 2]
+    np.testing.assert_allclose(np.unwrap(theta), np.unwrap(closed_form(motion.t)), rtol=0, atol=1e-12)
+    h = 1e-4
+    f = [closed_form(motion.t + k * h) for k in (-2, -1, 0, 1, 2)]
+    theta_dd = (-f[0] + 16 * f[1] - 30 * f[2] + 16 * f[3] - f[4]) / (12 * h * h)
+    np.testing.assert_allclose(motion.sddot[:, model.link_coordinates("rocker").start + 2], theta_dd,
+                               rtol=0, atol=1e-6 * np.abs(theta_dd).max())
+    phi = 10.0 * motion.t
+    d = np.hypot(r * np.cos(phi) - c[0], r * np.sin(phi) - c[1])
+    pivot_inertia = rocker_inertia + mass * (length / 2) ** 2
+    normal = model.observable("joint.S.normal")
+    np.testing.assert_allclose([normal.value_from(lam) for lam in motion.lam],
+                               -pivot_inertia * theta_dd / d, rtol=0,
+                               atol=1e-6 * np.abs(pivot_inertia * theta_dd / d).max())
+    assert model.joint_rows("S").kind == "slot" and not model.joint_rows("S").point_force
+    assert mk.loads(mech.to_toml()).joint("S") == mech.joint("S")

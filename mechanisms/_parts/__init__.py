@@ -31,8 +31,11 @@ from .checks import GROUND as GROUND
 from .checks import ArgumentError as ArgumentError
 from .checks import MechanismError as MechanismError
 from .controllers import CONTROLLER_TYPES as CONTROLLER_TYPES
+from .controllers import ControllerLaw as ControllerLaw
 from .controllers import ObservableFeedback as ObservableFeedback
 from .controllers import PDController as PDController
+from .controllers import register_controller as register_controller
+from .damping import DAMPING_TYPES as DAMPING_TYPES
 from .damping import DampingMatrix as DampingMatrix
 from .damping import ModalDamping as ModalDamping
 from .damping import Rayleigh as Rayleigh
@@ -48,6 +51,7 @@ from .fem import Fem as Fem
 from .joints import JOINT_TYPES as JOINT_TYPES
 from .joints import Revolute as Revolute
 from .joints import Slider as Slider
+from .joints import Slot as Slot
 from .joints import register_joint as register_joint
 from .links import ElasticLink as ElasticLink
 from .links import PointMass as PointMass

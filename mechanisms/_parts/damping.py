@@ -1,9 +1,22 @@
-"""Damping of the elastic coordinates of a link."""
+"""Damping of the elastic coordinates of a link (``ElasticLink.damping``).
+
+Each kind is a frozen class that carries what the rest of ``mechanisms`` needs of it, and nothing
+else asks which kind a link has: ``TYPE`` and ``KEYS`` (its ``damping`` table in a scene),
+``from_table(table, link)`` and ``to_table()``, ``strain_rate_beta`` (the Kelvin-Voigt coefficient
+``beta`` (s) a link with geometric stiffening applies to its projected strain rates, ``_kernels``
+eq. 7-9; 0 for none), ``constant_on_stiffened`` (a constant matrix that on a stiffened link also
+damps the chord shortening's axial motion: the assembler warns) and ``constant_matrix(link_name,
+m_ee, k_ee, *, strain_rate_beta)``, the constant damping matrix ``C0`` (N s/m) of the link's elastic
+coordinates. ``DAMPING_TYPES`` lists them by ``TYPE``; a scene's ``type = "none"`` is no damping.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Union
+from typing import Any, ClassVar, Union
+
+import numpy as np
+from scipy.linalg import eigh
 
 from .checks import MechanismError, _check_number
 
@@ -14,14 +27,47 @@ class Rayleigh:
     Kelvin-Voigt damping ``beta``, a damping stress ``beta E`` times the strain rate of bending and
     of axial (membrane) strain. Without geometric stiffening that is ``beta K_ee``; with it, it acts
     on the rate of the projected membrane strain, so a bent link shortening its chord is not damped
-    as if it were stretched (equal to ``beta K_ee`` at zero deflection, hence in the linearisation)."""
+    as if it were stretched (equal to ``beta K_ee`` at zero deflection, hence in the linearisation).
+    In a scene, ``ratio`` instead of ``alpha`` and ``beta``: ``beta = 2 ratio / omega_1``, the
+    stiffness-proportional damping with that ratio at the link's first bending frequency."""
 
     alpha: float = 0.0
     beta: float = 0.0
 
+    TYPE: ClassVar[str] = "rayleigh"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "alpha", "beta", "ratio")
+    constant_on_stiffened: ClassVar[bool] = False
+
     def __post_init__(self) -> None:
         _check_number("Rayleigh", "alpha", self.alpha, "1/s", nonnegative=True)
         _check_number("Rayleigh", "beta", self.beta, "s", nonnegative=True)
+
+    @classmethod
+    def from_table(cls, table, link) -> "Rayleigh":
+        if table.has("ratio"):
+            if table.has("beta") or table.has("alpha"):
+                raise MechanismError(f"{table.path}: give either ratio (stiffness-proportional "
+                                     f"damping with that ratio at the first bending frequency) or "
+                                     f"alpha and beta, not both")
+            # C = beta K gives the ratio beta omega / 2 at omega: beta = 2 zeta / omega_1.
+            ratio = table.number("ratio", "1", nonnegative=True)
+            return cls(0.0, 2.0 * ratio / link.first_bending_frequency())
+        return cls(table.number("alpha", "1/s", 0.0, nonnegative=True),
+                   table.number("beta", "s", 0.0, nonnegative=True))
+
+    def to_table(self) -> dict[str, Any]:
+        return {"type": self.TYPE, "alpha": self.alpha, "beta": self.beta}
+
+    @property
+    def strain_rate_beta(self) -> float:
+        return float(self.beta)
+
+    def constant_matrix(self, link_name: str, m_ee: np.ndarray, k_ee: np.ndarray, *,
+               strain_rate_beta: bool) -> np.ndarray:
+        """``alpha M + beta K``; with ``strain_rate_beta`` the strain points carry ``beta``."""
+        if strain_rate_beta:
+            return self.alpha * m_ee
+        return self.alpha * m_ee + self.beta * k_ee
 
 
 @dataclass(frozen=True)
@@ -31,9 +77,39 @@ class ModalDamping:
 
     ratios: tuple[float, ...] = ()
 
+    TYPE: ClassVar[str] = "modal"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "ratios")
+    constant_on_stiffened: ClassVar[bool] = True
+    strain_rate_beta: ClassVar[float] = 0.0
+
     def __post_init__(self) -> None:
         for i, ratio in enumerate(self.ratios):
             _check_number("ModalDamping", f"ratios[{i}]", ratio, "1", nonnegative=True)
+
+    @classmethod
+    def from_table(cls, table, link) -> "ModalDamping":
+        ratios = table.raw("ratios")
+        if not isinstance(ratios, list):
+            raise MechanismError(f"{table.path}.ratios must be a list of damping ratios, got "
+                                 f"{ratios!r}")
+        return cls(tuple(ratios))
+
+    def to_table(self) -> dict[str, Any]:
+        return {"type": self.TYPE, "ratios": list(self.ratios)}
+
+    def constant_matrix(self, link_name: str, m_ee: np.ndarray, k_ee: np.ndarray, *,
+               strain_rate_beta: bool) -> np.ndarray:
+        """``M Phi diag(2 zeta omega) Phi^T M`` over the modes given ratios (mass-normalised)."""
+        # The number of modes is the discretisation's: checked here, not when the ratios are made.
+        n_e = m_ee.shape[0]
+        ratios = np.asarray(self.ratios, dtype=float)
+        if len(ratios) > n_e:
+            raise MechanismError(f"link {link_name!r}: damping.ratios must be at most {n_e} "
+                                 f"numbers (one per elastic coordinate); received {self.ratios!r}")
+        omega2, modes = eigh(k_ee, m_ee)  # mass-normalised: modes^T M modes = I
+        omega = np.sqrt(np.maximum(omega2[:len(ratios)], 0.0))
+        mphi = m_ee @ modes[:, :len(ratios)]
+        return mphi @ np.diag(2.0 * ratios * omega) @ mphi.T
 
 
 @dataclass(frozen=True)
@@ -41,6 +117,11 @@ class DampingMatrix:
     """An explicit damping matrix on the link's elastic coordinates, N s/m (n_elastic, n_elastic)."""
 
     matrix: tuple[tuple[float, ...], ...] = ()
+
+    TYPE: ClassVar[str] = "matrix"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "matrix")
+    constant_on_stiffened: ClassVar[bool] = True
+    strain_rate_beta: ClassVar[float] = 0.0
 
     def __post_init__(self) -> None:
         n = len(self.matrix)
@@ -51,6 +132,29 @@ class DampingMatrix:
             for j, value in enumerate(row):
                 _check_number("DampingMatrix", f"matrix[{i}][{j}]", value, "N s/m")
 
+    @classmethod
+    def from_table(cls, table, link) -> "DampingMatrix":
+        matrix = table.raw("matrix")
+        if not isinstance(matrix, list) or not all(isinstance(row, list) for row in matrix):
+            raise MechanismError(f"{table.path}.matrix must be a list of rows (N s/m), got "
+                                 f"{matrix!r}")
+        return cls(tuple(tuple(row) for row in matrix))
+
+    def to_table(self) -> dict[str, Any]:
+        return {"type": self.TYPE, "matrix": [list(row) for row in self.matrix]}
+
+    def constant_matrix(self, link_name: str, m_ee: np.ndarray, k_ee: np.ndarray, *,
+                        strain_rate_beta: bool) -> np.ndarray:
+        # its size is the discretisation's, checked here
+        n_e = m_ee.shape[0]
+        matrix = np.asarray(self.matrix, dtype=float)
+        if matrix.shape != (n_e, n_e):
+            raise MechanismError(f"link {link_name!r}: damping.matrix must be a ({n_e}, {n_e}) "
+                                 f"matrix (one row per elastic coordinate); received shape "
+                                 f"{matrix.shape}")
+        return matrix
+
 
 Damping = Union[Rayleigh, ModalDamping, DampingMatrix, None]
-
+#: The kinds of damping a scene's ``damping`` table names by ``type`` (the first is the default).
+DAMPING_TYPES: dict[str, type] = {cls.TYPE: cls for cls in (Rayleigh, ModalDamping, DampingMatrix)}

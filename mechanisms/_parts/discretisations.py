@@ -18,7 +18,9 @@ observables and the linear-range measures all follow from the shapes). It declar
   (m, (m,)), each (m, n_elastic);
 * ``check_boundary`` (class attribute): whether ``_beams`` checks the shapes' values at the ends
   against the link's boundary conditions (``u(0) = w(0) = 0``, and ``w(L) = 0`` or ``w'(0) = 0``);
-  ``False`` for shapes exact by construction.
+  ``False`` for shapes exact by construction;
+* optionally ``breakpoints(link)``: abscissae (m, evenly spaced, the ends included) where the
+  shapes' curvature may jump (element nodes), where the linear-range measures look too.
 
 ``register_discretisation(cls)`` enters a class in ``DISCRETISATION_TYPES``; ``Fem`` (the default
 of a scene), ``Ritz`` and ``UserShapes`` register themselves in their modules (``fem``, ``ritz``).

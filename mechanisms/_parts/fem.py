@@ -82,6 +82,11 @@ class Fem:
     def values(self, link, x: np.ndarray, basis: np.ndarray | None = None) -> ShapeValues:
         return _fem_values(link, self, x, basis)
 
+    def breakpoints(self, link) -> np.ndarray:
+        """The nodes (m), where the elements' curvature jumps (the optional ``breakpoints`` of the
+        interface: the linear-range measures look at and just before each)."""
+        return np.linspace(0.0, link.length, self.n_elements + 1)
+
 
 def _element_layout(link, disc: Fem) -> tuple[tuple[str, ...], tuple[np.ndarray, np.ndarray]]:
     """The unreduced element model's labels and its 4 Gauss points per element."""

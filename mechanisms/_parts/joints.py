@@ -186,5 +186,69 @@ class Slider:
         return ((self.link, self.point),)
 
 
-Joint = Union[Revolute, Slider]
 
+@register_joint
+@dataclass(frozen=True)
+class Slot:
+    """A pin in a slot: the point ``point_a`` of ``link_a`` moves on the line of ``link_b`` through
+    its material point ``point_b`` at angle ``angle`` (rad) to ``link_b``'s frame (the line turns
+    with the frame; for an elastic ``link_b`` its chord or root-tangent frame). One constraint
+    equation, the distance from the line: ``Phi = n_b . (r_a - r_b)``, ``n_b = A(theta_b) n``,
+    ``n = (-sin angle, cos angle)`` (row ``"n"``). Its force ``normal`` (N) is the force on
+    ``link_a`` along ``n_b`` (no friction). Not a point force on ``link_b`` (the contact moves along
+    it), so a stiffened ``link_b`` refuses it in the geometric stiffness."""
+
+    name: str
+    link_a: str
+    point_a: PointRef
+    link_b: str
+    point_b: PointRef = "start"
+    angle: float = 0.0
+
+    TYPE: ClassVar[str] = "slot"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "link_a", "point_a", "link_b", "point_b", "angle")
+    n_equations: ClassVar[int] = 1
+    point_force: ClassVar[bool] = False
+    force_unit: ClassVar[str] = "N"
+
+    def __post_init__(self) -> None:
+        _check_name("joint", self.name)
+        if GROUND in (self.link_a, self.link_b):
+            raise MechanismError(f"joint {self.name!r}: a slot joins two links (a slot in the "
+                                 f"ground is a slider)")
+        if self.link_a == self.link_b:
+            raise MechanismError(f"joint {self.name!r} joins link {self.link_a!r} to itself")
+        _check_number(f"joint {self.name!r}", "angle", self.angle, "rad")
+
+    @classmethod
+    def from_table(cls, name: str, table) -> "Slot":
+        return cls(name, table.string("link_a"), table.point("point_a"), table.string("link_b"),
+                   table.point("point_b") if table.has("point_b") else "start",
+                   table.number("angle", "rad", 0.0))
+
+    def to_table(self) -> dict[str, Any]:
+        return {"type": self.TYPE, "link_a": self.link_a, "point_a": self.point_a,
+                "link_b": self.link_b, "point_b": self.point_b, "angle": self.angle}
+
+    @property
+    def ends(self) -> tuple[tuple[str, PointRef], ...]:
+        return ((self.link_a, self.point_a), (self.link_b, self.point_b))
+
+    def constraint_rows(self) -> tuple[PointRow]:
+        normal = (-math.sin(self.angle), math.cos(self.angle))
+        opposite = (-normal[0], -normal[1])
+        return (PointRow("n", (PointTerm(self.link_a, self.point_a, normal, frame=self.link_b),
+                               PointTerm(self.link_b, self.point_b, opposite, frame=self.link_b))),)
+
+    def force_components(self) -> dict[str, tuple[float, ...]]:
+        """``Phi_{R_a} = n_b^T``: the force on ``link_a`` is ``-n_b lam``, along ``n_b`` ``-lam``."""
+        return {"normal": (-1.0,)}
+
+    def drive_terms(self) -> None:
+        return None
+
+    def coincident_points(self) -> tuple:
+        return ()
+
+
+Joint = Union[Revolute, Slider, Slot]

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from typing import Mapping, Union
 
 from .checks import MechanismError, PointRef, _check_name, _check_number, _check_pair, _is_number
-from .damping import Damping, DampingMatrix, ModalDamping, Rayleigh
+from .damping import DAMPING_TYPES, Damping
 from .discretisations import DISCRETISATION_TYPES, Discretisation
 from .fem import Fem
 
@@ -106,7 +106,7 @@ class ElasticLink:
             if not isinstance(getattr(self, key), bool):
                 raise MechanismError(f"{owner}: {key} must be true or false, got "
                                      f"{getattr(self, key)!r}")
-        if not isinstance(self.damping, (Rayleigh, ModalDamping, DampingMatrix, type(None))):
+        if self.damping is not None and type(self.damping) not in DAMPING_TYPES.values():
             raise MechanismError(f"{owner}: damping must be Rayleigh, ModalDamping, DampingMatrix "
                                  f"or None, got {self.damping!r}")
 

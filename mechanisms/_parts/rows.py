@@ -9,7 +9,10 @@ edit of the assembler. The rows, with ``r_i`` the world position (m) of the mate
 
 * ``PointRow``: ``Phi = sum_i d_i . r_i + constant`` (m), a linear combination of points' positions.
   A pin is two of them (``r_a - r_b`` along x and y), a point on a ground line one
-  (``n . r - n . origin``). Kernel term: ``ct_int``/``ct_real`` (``_kernels``, a point term).
+  (``n . r - n . origin``). A term may hold its direction in a moving link's frame and measure the
+  point from that frame's origin (``PointTerm.frame``): a point on a line of a moving link, a pin
+  in a slot (``n_f . (r - R_f) - n_loc . c``). Kernel term: ``ct_int``/``ct_real`` (``_kernels``, a
+  point term, eq. 10-12 for the frame).
 * ``AngleRow``: ``Phi = sum_i c_i (theta_i + w_i'(x_i)) + constant`` (rad), a linear relation
   between material angles (a gear pair, a fixed relative angle). Linear in ``s``: a row of
   ``h_lin`` and ``phi0``, with a constant Jacobian and no acceleration or force-Jacobian term.
@@ -28,9 +31,11 @@ from .checks import MechanismError, PointRef, _check_number, _check_pair, _is_nu
 class RowWriter(Protocol):
     """What a row may put in the assembled constraint tables (``_assemble`` implements it)."""
 
-    def point_term(self, row: int, link: str, point: PointRef, direction: tuple[float, float]
-                   ) -> None:
-        """``Phi[row] += direction . r(link, point)``."""
+    def point_term(self, row: int, link: str, point: PointRef, direction: tuple[float, float],
+                   frame: str | None = None) -> None:
+        """``Phi[row] += direction . r(link, point)``; with ``frame`` (a link name) the direction
+        is fixed in that link's frame and the position taken from its origin:
+        ``Phi[row] += (A(theta_f) direction) . (r - R_f)``."""
 
     def angle_term(self, row: int, link: str, point: PointRef, coefficient: float) -> None:
         """``Phi[row] += coefficient (theta + w'(x))`` of the link's section at ``point``."""
@@ -42,14 +47,20 @@ class RowWriter(Protocol):
 @dataclass(frozen=True)
 class PointTerm:
     """``direction . r``: the world position ``r`` (m) of material point ``point`` of link ``link``
-    along ``direction`` (a pair, 1)."""
+    along ``direction`` (a pair, 1). With ``frame`` (the name of a link) the direction is fixed in
+    that link's (floating) frame and ``r`` is taken from its origin: ``(A(theta_f) direction) .
+    (r - R_f)``, the distance of the point from a line of a moving link (a pin in a slot)."""
 
     link: str
     point: PointRef
     direction: tuple[float, float]
+    frame: str | None = None
 
     def __post_init__(self) -> None:
         _check_pair(f"point term on link {self.link!r}", "direction", self.direction, "1")
+        if self.frame is not None and not isinstance(self.frame, str):
+            raise MechanismError(f"point term on link {self.link!r}: frame must be a link name "
+                                 f"or None, got {self.frame!r}")
 
 
 @dataclass(frozen=True)
@@ -110,7 +121,7 @@ class PointRow(_Row):
 
     def _store_term(self, writer: RowWriter, row: int, term: PointTerm) -> None:
         writer.point_term(row, term.link, term.point, (float(term.direction[0]),
-                                                       float(term.direction[1])))
+                                                       float(term.direction[1])), term.frame)
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from typing import Any, Mapping
 
 from .checks import MechanismError
 from .controllers import CONTROLLER_TYPES
-from .damping import DampingMatrix, ModalDamping, Rayleigh
+from .damping import DAMPING_TYPES
 from .discretisations import DEFAULT_DISCRETISATION, DISCRETISATION_TYPES
 from .drives import DCMotor, PrescribedDrive, TorqueDrive
 from .joints import JOINT_TYPES
@@ -27,8 +27,6 @@ _RIGID_KEYS = ("type", "length", "mass", "inertia", "centroid", "points", "width
 _ELASTIC_KEYS = ("type", "length", "density", "youngs_modulus", "width", "thickness", "area",
                  "second_moment", "discretisation", "boundary", "axial", "geometric_stiffening",
                  "rotary_inertia", "damping", "yield_strength", "outer_fibre")
-_DAMPING_KEYS = {"rayleigh": ("type", "alpha", "beta", "ratio"), "modal": ("type", "ratios"),
-                 "matrix": ("type", "matrix"), "none": ("type",)}
 _PRESCRIBED_KEYS = ("type", "joint", "rate", "offset", "harmonics")
 _TORQUE_KEYS = _PRESCRIBED_KEYS + ("kp", "kd", "motor", "flywheel", "torque_limit", "feedforward")
 _MOTOR_KEYS = ("stall_torque", "no_load_speed", "resistance", "torque_constant", "supply_voltage",
@@ -97,35 +95,14 @@ def _elastic_link(name: str, t: _Table) -> ElasticLink:
     if not t.has("damping"):
         return link
     d = t.table("damping")
-    all_damping_keys = tuple(dict.fromkeys(k for keys in _DAMPING_KEYS.values() for k in keys))
-    kind = _Table(d, f"{t.path}.damping", all_damping_keys).string("type", "rayleigh",
-                                                                    tuple(_DAMPING_KEYS))
-    dt = _Table(d, f"{t.path}.damping", _DAMPING_KEYS[kind])
+    kinds = {**{kind: cls.KEYS for kind, cls in DAMPING_TYPES.items()}, "none": ("type",)}
+    every_key = tuple(dict.fromkeys(k for keys in kinds.values() for k in keys))
+    kind = _Table(d, f"{t.path}.damping", every_key).string("type", next(iter(DAMPING_TYPES)),
+                                                           tuple(kinds))
     if kind == "none":
         return link
-    if kind == "rayleigh":
-        if dt.has("ratio"):
-            if dt.has("beta") or dt.has("alpha"):
-                raise MechanismError(f"{dt.path}: give either ratio (stiffness-proportional damping "
-                                     f"with that ratio at the first bending frequency) or alpha "
-                                     f"and beta, not both")
-            # C = beta K gives the ratio beta omega / 2 at omega: beta = 2 zeta / omega_1.
-            ratio = dt.number("ratio", "1", nonnegative=True)
-            damping = Rayleigh(0.0, 2.0 * ratio / link.first_bending_frequency())
-        else:
-            damping = Rayleigh(dt.number("alpha", "1/s", 0.0, nonnegative=True),
-                               dt.number("beta", "s", 0.0, nonnegative=True))
-    elif kind == "modal":
-        ratios = dt.raw("ratios")
-        if not isinstance(ratios, list):
-            raise MechanismError(f"{dt.path}.ratios must be a list of damping ratios, got "
-                                 f"{ratios!r}")
-        damping = ModalDamping(tuple(ratios))
-    else:
-        matrix = dt.raw("matrix")
-        if not isinstance(matrix, list) or not all(isinstance(row, list) for row in matrix):
-            raise MechanismError(f"{dt.path}.matrix must be a list of rows (N s/m), got {matrix!r}")
-        damping = DampingMatrix(tuple(tuple(row) for row in matrix))
+    cls = DAMPING_TYPES[kind]
+    damping = cls.from_table(_Table(d, f"{t.path}.damping", cls.KEYS), link)
     return ElasticLink(**{**{f: getattr(link, f) for f in link.__dataclass_fields__},
                           "damping": damping})
 

@@ -11,7 +11,6 @@ import math
 from typing import Any, Mapping
 
 from .checks import MechanismError
-from .damping import DampingMatrix, ModalDamping, Rayleigh
 from .drives import TorqueDrive
 from .links import ElasticLink, RigidLink
 
@@ -75,13 +74,8 @@ def _link_spec(link: RigidLink | ElasticLink) -> dict[str, Any]:
     if link.outer_fibre is not None:
         entry["outer_fibre"] = link.outer_fibre
     entry["discretisation"] = link.discretisation.to_table()
-    if isinstance(link.damping, Rayleigh):
-        entry["damping"] = {"type": "rayleigh", "alpha": link.damping.alpha,
-                            "beta": link.damping.beta}
-    elif isinstance(link.damping, ModalDamping):
-        entry["damping"] = {"type": "modal", "ratios": list(link.damping.ratios)}
-    elif isinstance(link.damping, DampingMatrix):
-        entry["damping"] = {"type": "matrix", "matrix": [list(r) for r in link.damping.matrix]}
+    if link.damping is not None:
+        entry["damping"] = link.damping.to_table()
     return entry
 
 
