@@ -199,7 +199,7 @@ def _resolve_model(system: Any, need_nominal: bool):
     mechanism = mechanism if isinstance(mechanism, Mechanism) else None
     nominal = None
     if need_nominal and mechanism is not None:
-        from . import nominal_motion
+        from ._kinematics import nominal_motion
         nominal = nominal_motion(mechanism)
     return system, mechanism, nominal
 
