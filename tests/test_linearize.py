@@ -10,7 +10,7 @@ import linearize
 import mechanisms as mc
 import periodic
 from linearize import LinearizationError
-from tests._columns import euler_column
+from tests._support.columns import euler_column
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ import pytest
 import mechanisms
 import studies
 from studies._kinds.nonlinear_steady_state import shooting_setup
-from tests._tangent_twin import central_differences, tight_period_map
+from tests._support.tangent_twin import central_differences, tight_period_map
 
 SPEC = "coupler.deflection@0.5"
 

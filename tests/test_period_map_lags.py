@@ -8,7 +8,7 @@ import pytest
 import mechanisms
 import studies
 from studies._kinds.nonlinear_steady_state import shooting_setup
-from tests._tangent_twin import central_differences, tangent_numpy, tight_period_map
+from tests._support.tangent_twin import central_differences, tangent_numpy, tight_period_map
 
 SPEC = "coupler.deflection@0.5"
 TAU = 5e-3           # the strain feedback's lag, s: h / tau = 0.1 at N = 128 (period 63 ms)

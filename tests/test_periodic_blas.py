@@ -11,8 +11,8 @@ import pytest
 
 import periodic
 from periodic import _newmark
-from tests._newmark_twin import newmark_numpy
-from tests._paths import kernel_path
+from tests._support.newmark_twin import newmark_numpy
+from tests._support.paths import kernel_path
 
 RELATIVE = 1e-12
 

@@ -15,7 +15,7 @@ from periodic import __main__ as demo_command
 from periodic import _demo as demo
 from periodic._newmark import SOLVE_INVERSE, SOLVE_LAPACK, SOLVE_LOOPS, march, mass_pivot_ratios
 from studies.cli._demo import write_demo
-from tests._newmark_twin import newmark_numpy
+from tests._support.newmark_twin import newmark_numpy
 
 SOLVERS = [SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE]  # the kernels' linear-algebra paths
 

@@ -14,8 +14,7 @@ from studies._kinds import campbell as campbell_kind
 from studies._kinds import stability_chart as chart_kind
 from studies._kinds import sweep as sweep_kind
 from studies._summary import text_table
-
-from ._figure_text import text_problems
+from tests._support.figure_text import text_problems
 
 FOUR_BAR = mc.load("four_bar_fem4")
 DAMPING = "links.coupler.damping.ratio"

@@ -14,8 +14,7 @@ from studies._drawing import frame_points, plate_corners
 from studies._mechanism import MechanismProblem
 from studies._plots import plain
 from studies.cli import _animate, main
-
-from ._figure_text import text_problems
+from tests._support.figure_text import text_problems
 
 FOUR_BAR_STUDIES = """
 [studies]
