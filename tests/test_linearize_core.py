@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from linearize import LinearizationError, linear_coefficients, spectral_derivatives
-from linearize._core import choose_independent
+from linearize._core import choose_independent  # internal helper of the linearisation: no public face
 from tests._support.pendulum import CentroidPendulum
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import periodic
-from periodic import _newmark
+from periodic import _newmark  # internal kernels and their solver choice: no public face
 from tests._support.newmark_twin import newmark_numpy
 from tests._support.paths import kernel_path
 
