@@ -30,7 +30,7 @@ from mechanisms import (
     beam_matrices,
     beam_shapes,
 )
-from mechanisms._parts.ritz import clamped_free_roots
+from mechanisms._parts.ritz import clamped_free_roots  # the Ritz basis's internal roots: no public face
 
 LENGTH = 0.2794
 SECTION = dict(width=0.02, thickness=0.0016, density=7800.0, youngs_modulus=2.0e11)

@@ -9,7 +9,7 @@ import pytest
 
 import mechanisms
 import studies
-from studies import _grid
+from studies import _grid  # patched: the grid's point evaluation (internal)
 from studies.cli import main
 
 SMALL_FOUR_BAR = """
@@ -196,7 +196,7 @@ def test_dask_scheduler_from_the_command_line(mathieu_run, tmp_path, assert_same
 
 
 def test_a_study_that_cannot_be_computed_is_reported_and_the_rest_written(tmp_path, monkeypatch, capsys):
-    from studies._kinds import nonlinear_check
+    from studies._kinds import nonlinear_check  # patched: the name the kind's run calls (internal)
 
     def fails(*args, **kwargs):
         raise RuntimeError("Newton's method did not converge")
@@ -233,7 +233,7 @@ def test_a_bad_scene_exits_2_naming_it(tmp_path, capsys):
 
 
 def _raise_in_run(monkeypatch, error):
-    from studies.cli import _run as _plan
+    from studies.cli import _run as _plan  # patched: the run the command starts (internal)
 
     def run_plan(*args, **kwargs):
         raise error

@@ -14,7 +14,7 @@ import pytest
 import mechanisms
 import studies
 from studies import kinds
-from studies._kinds.control_comparison import settling_time
+from studies._kinds.control_comparison import settling_time  # the kind's internal measure: no public face
 
 N_STEPS, N_PERIODS = 64, 8
 GAINS = {"kp": 20.0, "kd": 0.5}   # N m/rad, N m s/rad: the coupler's start-up settles in ~2 periods

@@ -5,7 +5,7 @@ same for the parent of a 2-process pool, with no process of the run alive 5 s af
 that fills mid-run (a small tmpfs, where the test may mount one) stops the run with one line and
 exit code 1, the file holding what was saved before.
 
-The runs are children forked by one warm Python (``tests/_launcher.py``): killed like commands, but
+The runs are children forked by one warm Python (``tests/_support/launcher.py``): killed like commands, but
 started without twenty interpreter start-ups. One test kills a real ``python -m studies.cli`` too.
 """
 
@@ -56,7 +56,7 @@ class Launcher:
     """The warm launcher process: ``run(argv, log, kill_after=None, sig=SIGKILL)`` -> outcome."""
 
     def __init__(self, warm_argv: list[str]) -> None:
-        self.process = subprocess.Popen([sys.executable, "-m", "tests._launcher", "--warm", *warm_argv],
+        self.process = subprocess.Popen([sys.executable, "-m", "tests._support.launcher", "--warm", *warm_argv],
                                         cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                         stderr=subprocess.DEVNULL, text=True)
         assert self.process.stdout.readline().strip() == "ready"

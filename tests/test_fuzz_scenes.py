@@ -30,7 +30,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 import mechanisms
-from studies.cli import _run as _plan
+from studies.cli import _run as _plan  # patched: the run the command starts (internal)
 from studies.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]

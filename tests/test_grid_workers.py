@@ -1,4 +1,4 @@
-"""The worker processes of ``studies._grid.process_pool`` run BLAS and OpenMP on one thread each (the
+"""The worker processes of ``studies.process_pool`` run BLAS and OpenMP on one thread each (the
 processes are the parallelism); the in-process path keeps the caller's threads."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import sys
 
 import threadpoolctl
 
-from studies import _grid
+import studies
 
 #: threadpoolctl's kinds of thread pool that the workers pin.
 PINNED_APIS = ("blas", "openmp")
@@ -24,7 +24,7 @@ def _thread_pools() -> list[dict]:
 
 def test_each_worker_of_a_process_pool_runs_its_blas_on_one_thread():
     before = _thread_pools()
-    pool = _grid.process_pool(2)
+    pool = studies.process_pool(2)
     try:
         reports = [future.result(timeout=60) for future in [pool.submit(_thread_pools) for _ in range(4)]]
     finally:
@@ -40,6 +40,7 @@ def test_each_worker_of_a_process_pool_runs_its_blas_on_one_thread():
 def test_a_library_loaded_after_the_pinning_starts_on_one_thread_too():
     # a worker started by spawn or forkserver (the default from Python 3.14) loads numpy and scipy
     # after its initializer: the environment variables pin those
+    # the workers' initializer, run in a fresh process (internal: no public face)
     script = ("from studies import _grid\n"
               "_grid.single_threaded_libraries()\n"
               "import numpy, scipy.linalg, threadpoolctl\n"

@@ -11,12 +11,11 @@ import pytest
 
 import mechanisms
 import studies
-from studies import ResourceError, _mechanism, estimate, guard, kinds
-from studies._cost import format_bytes, format_seconds
-from studies._mechanism import MechanismProblem
-from studies.cli import _run as _plan
+from studies import MechanismProblem, ResourceError, _mechanism, estimate, guard, kinds  # _mechanism: caches
+from studies._cost import format_bytes, format_seconds  # the guard's message formatting: no public face
+from studies.cli import _run as _plan  # patched: the run the command would start
 from studies.cli import load_scene, main
-from studies.cli._guard import memory_limit
+from studies.cli._guard import memory_limit  # the guard's limit from the machine: no public face
 
 ELEMENTS = "links.coupler.discretisation.n_elements"
 
@@ -211,7 +210,8 @@ def test_values_of_an_axis_have_a_limit():
 # ---------------------------------------------------------------------------------------------------
 def _four_bar_text(**changes) -> str:
     """four_bar_fem4 with keys changed (``links__coupler__discretisation`` for a nested key)."""
-    from mechanisms._parts.spec import dumps  # the scene writer checks no sizes: it writes any spec
+    # the scene writer (no public face) checks no sizes: it writes any spec
+    from mechanisms._parts.spec import dumps
 
     spec = mechanisms.load("four_bar_fem4").to_spec()
     for path, value in changes.items():

@@ -15,7 +15,7 @@ from pathlib import Path
 import numba
 import pytest
 
-from studies.cli._jit import CompileClock
+from studies.cli._jit import CompileClock  # the command's warm-up machinery: no public face
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -43,6 +43,7 @@ _COVERAGE_SCRIPT = textwrap.dedent("""
     import json, sys
     import numba
     import mechanisms, studies
+    # the command's warm-up, run and [studies] check, called apart: no public face
     from studies.cli._jit import warm_up
     from studies.cli._run import run_plan
     from studies.cli._scene import plan

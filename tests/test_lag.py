@@ -13,12 +13,12 @@ import mechanisms
 import periodic
 import studies
 from periodic import PeriodicError, PeriodicSystem
-from tests._paths import PATHS, kernel_path
+from tests._support.paths import PATHS, kernel_path
 
 
 @pytest.fixture(params=PATHS)
 def each_kernel_path(request):
-    """The test runs once on each path of the Newmark kernels (tests/_paths.py)."""
+    """The test runs once on each path of the Newmark kernels (tests/_support/paths.py)."""
     with kernel_path(request.param):
         yield request.param
 

@@ -10,7 +10,7 @@ import linearize
 import mechanisms as mc
 import periodic
 from linearize import LinearizationError
-from tests._columns import euler_column
+from tests._support.columns import euler_column
 
 
 @pytest.fixture(scope="module")
@@ -185,7 +185,7 @@ def test_bad_input_is_named(four_bar):
 def test_spectrally_interpolated_nominal_motion_equals_the_direct_one(scene):
     """about() computes the nominal motion on a coarse grid and interpolates it when the coarse
     samples resolve it to round-off; it must then equal the direct computation on the fine grid."""
-    from linearize._about import _nominal_motion
+    from linearize._about import _nominal_motion  # about()'s interpolated motion: no public face
 
     mechanism = mc.load(scene)
     fast, direct = _nominal_motion(mechanism, 512), mc.nominal_motion(mechanism, n_steps=512)
@@ -197,7 +197,7 @@ def test_spectrally_interpolated_nominal_motion_equals_the_direct_one(scene):
 
 
 def test_coefficients_from_coarse_samples_equal_those_evaluated_everywhere(four_bar):
-    from linearize._about import _coefficients
+    from linearize._about import _coefficients  # about()'s sampled coefficients: no public face
 
     lin = linearize.about(four_bar, n_steps=512)
     assert lin.coefficients.stride > 1 and lin.coefficients.interpolation_error < 1e-12

@@ -1,5 +1,5 @@
 """The linearisation core on hand-written models whose linearised equations are known in closed
-form from their minimal-coordinate models (tests/_pendulum.py)."""
+form from their minimal-coordinate models (tests/_support/pendulum.py)."""
 
 import math
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from linearize import LinearizationError, linear_coefficients, spectral_derivatives
-from linearize._core import choose_independent
-from tests._pendulum import CentroidPendulum
+from linearize._core import choose_independent  # internal helper of the linearisation: no public face
+from tests._support.pendulum import CentroidPendulum
 
 
 def test_spectral_derivatives_of_a_trigonometric_polynomial_are_exact():

@@ -11,7 +11,7 @@ import pytest
 import linearize
 import mechanisms as mc
 import periodic
-from tests._columns import euler_column
+from tests._support.columns import euler_column
 
 
 def test_section_height_and_euler_load_closed_forms():

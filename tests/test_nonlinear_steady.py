@@ -9,8 +9,8 @@ import pytest
 
 import mechanisms
 import studies
-from studies._kinds.nonlinear_steady_state import shooting_setup
-from tests._tangent_twin import central_differences, tight_period_map
+from studies._kinds.nonlinear_steady_state import shooting_setup  # the kind's period maps: no public face
+from tests._support.tangent_twin import central_differences, tight_period_map
 
 SPEC = "coupler.deflection@0.5"
 
@@ -50,7 +50,7 @@ def test_monodromy_matches_finite_differences_of_the_period_map(problem):
 
 
 def test_a_period_asked_for_again_from_the_same_state_is_not_run_again(problem, monkeypatch):
-    import mechanisms._orbit as orbit_module
+    import mechanisms._orbit as orbit_module  # patched: the period map's integration (internal)
 
     setup = shooting_setup(problem, None, 32)
     period_map = setup.fine
@@ -119,12 +119,12 @@ def _against_a_long_transient(problem, n_steps):
     against the last of 40 periods of the transient route (``MechanismProblem.simulate``, the run the
     nonlinear check reads, from the linear periodic state: the slowest multiplier ~0.7 leaves
     ~1e-6 of the start)."""
-    from studies._numerics import solve_steady
+    import periodic
 
     orbit = studies.nonlinear_steady_state(problem, n_steps=n_steps)
     linear = problem.linearize(None, n_steps=n_steps)
-    steady = solve_steady(linear)
-    run = problem.simulate(linear, steady.state.x[0], steady.state.v[0], n_periods=40, steps_per_period=n_steps)
+    steady = periodic.steady_state(linear.system, scheme="trapezoidal")  # the studies' linear state
+    run = problem.simulate(linear, steady.x[0], steady.v[0], n_periods=40, steps_per_period=n_steps)
     return {spec: np.abs(run.observables[spec][-(n_steps + 1):] - orbit.response[spec]).max()
             for spec in orbit.response}, orbit
 
@@ -254,7 +254,7 @@ def test_the_sweep_judges_its_orbits_with_the_n_over_2_error_bars(problem, monke
 
 
 def test_transient_classification_names_the_period():
-    from studies._kinds.nonlinear_sweep import _settles
+    from studies._kinds.nonlinear_sweep import _settles  # the sweep's internal verdict: no public face
 
     k = np.arange(40)[:, None]
     period_one = np.ones((40, 4)) + 0.5 ** k                          # converges to one state
@@ -392,7 +392,7 @@ def test_nonlinear_check_carries_the_orbits_verdict_and_no_agreement_without_its
     # agrees / differs under the linear state's ok, and a NaN error estimate counted as zero
     import dataclasses
 
-    from studies._kinds import nonlinear_steady_state as module
+    from studies._kinds import nonlinear_steady_state as module  # patched: the name the check calls
 
     shoot = module.nonlinear_steady_state
 

@@ -10,7 +10,7 @@ import pytest
 
 import mechanisms as mc
 import studies
-from studies._numerics import peak_summary
+from studies._numerics import peak_summary  # the studies' internal peak measure: no public face
 
 SPECS = ("coupler.deflection@0.5", "joint.B.fx", "joint.A.force", "drive.O.torque",
          "coupler.stress_top@0.5", "coupler.point_error@0.5")

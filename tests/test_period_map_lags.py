@@ -7,8 +7,8 @@ import pytest
 
 import mechanisms
 import studies
-from studies._kinds.nonlinear_steady_state import shooting_setup
-from tests._tangent_twin import central_differences, tangent_numpy, tight_period_map
+from studies._kinds.nonlinear_steady_state import shooting_setup  # the kind's period maps: no public face
+from tests._support.tangent_twin import central_differences, tangent_numpy, tight_period_map
 
 SPEC = "coupler.deflection@0.5"
 TAU = 5e-3           # the strain feedback's lag, s: h / tau = 0.1 at N = 128 (period 63 ms)
@@ -112,7 +112,7 @@ def test_a_sweep_of_a_lag_must_stay_above_zero(lagged):
 def test_tangent_kernel_equals_its_numpy_twin(scene, lag):
     # the numba kernel (one LAPACK factorisation and loops per step, lag rows included) against the
     # differentiated step written out in numpy with a dense solve per step
-    from mechanisms._alpha_tangent import _propagate_tangent
+    from mechanisms._alpha_tangent import _propagate_tangent  # internal kernel: no public face
 
     mechanism = mechanisms.load(scene)
     if lag is not None:

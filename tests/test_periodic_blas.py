@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import periodic
-from periodic import _newmark
-from tests._newmark_twin import newmark_numpy
-from tests._paths import kernel_path
+from periodic import _newmark  # internal kernels and their solver choice: no public face
+from tests._support.newmark_twin import newmark_numpy
+from tests._support.paths import kernel_path
 
 RELATIVE = 1e-12
 

@@ -12,10 +12,16 @@ import pytest
 
 import periodic
 from periodic import __main__ as demo_command
-from periodic import _demo as demo
-from periodic._newmark import SOLVE_INVERSE, SOLVE_LAPACK, SOLVE_LOOPS, march, mass_pivot_ratios
-from studies.cli._demo import write_demo
-from tests._newmark_twin import newmark_numpy
+from periodic import _demo as demo  # the demo's continuous M, C, K(t), f(t) (public: sampled only)
+from periodic._newmark import (  # internal kernel and its solver paths: no public face
+    SOLVE_INVERSE,
+    SOLVE_LAPACK,
+    SOLVE_LOOPS,
+    march,
+    mass_pivot_ratios,
+)
+from studies.cli._demo import write_demo  # flexvib demo's writer: no public face
+from tests._support.newmark_twin import newmark_numpy
 
 SOLVERS = [SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE]  # the kernels' linear-algebra paths
 

@@ -16,14 +16,14 @@ import scipy.special
 import periodic
 import tests.test_extend_scheme  # noqa: F401  (registers schemes from outside: the convergence test covers them)
 from periodic import NearResonanceWarning, PeriodicSystem
-from tests._paths import PATHS, kernel_path
+from tests._support.paths import PATHS, kernel_path
 
 TWO_PI = 2.0 * np.pi
 
 
 @pytest.fixture(params=PATHS)
 def each_kernel_path(request):
-    """The test runs once on each path of the Newmark kernels (tests/_paths.py)."""
+    """The test runs once on each path of the Newmark kernels (tests/_support/paths.py)."""
     with kernel_path(request.param):
         yield request.param
 

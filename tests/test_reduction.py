@@ -12,8 +12,7 @@ from scipy.linalg import eigh
 import linearize
 import mechanisms as mc
 import periodic
-from mechanisms import _beams
-from mechanisms._parts import fem as _fem
+from mechanisms._parts import fem as _fem  # the element matrices themselves: no public face
 
 SPEC = "coupler.deflection@0.5"
 FOUR_BAR = mc.load("four_bar_fem4")
@@ -98,7 +97,7 @@ def test_equivalent_points_give_the_sums_of_every_gauss_point(name, mechanism, m
     """The kernels evaluated on the few equivalent points equal, to round-off, the same reduced shapes
     evaluated at every Gauss point of the element model (the assembler's path for dense rows)."""
     compact = mc.assemble(mechanism)
-    monkeypatch.setattr(_beams.BeamShapes, "reduced", property(lambda self: False))
+    monkeypatch.setattr(mc.BeamShapes, "reduced", property(lambda self: False))
     dense = mc.assemble(mechanism.replace())   # a new object: not the cached model
     assert len(compact._tables.mp_int) < len(dense._tables.mp_int) / 2
     for mine, reference in zip(_evaluations(compact, np.random.default_rng(1)),
@@ -258,7 +257,7 @@ def test_lanczos_modes_equal_dense_lapack():
     block against dense LAPACK (``scipy.linalg.eigh``, ``numpy.linalg.solve``). LAPACK's lowest
     eigenvalue carries an error of about 2e-8 on this pencil (stiffness condition number 1e9);
     the Rayleigh quotients of its eigenvectors (error squared) are the sharper reference."""
-    from mechanisms import _reduce
+    from mechanisms import _reduce  # the modal reduction's eigen solver: no public face
 
     link = dataclasses.replace(LINK, discretisation=mc.Fem(64))
     mass, stiffness = _fem.element_matrices(link)

@@ -10,12 +10,9 @@ import pytest
 import linearize
 import mechanisms as mc
 import studies
-from studies._kinds import campbell as campbell_kind
-from studies._kinds import stability_chart as chart_kind
-from studies._kinds import sweep as sweep_kind
-from studies._summary import text_table
-
-from ._figure_text import text_problems
+from studies._studies import reduction_check  # the grid studies' internal check: no public face
+from studies._summary import text_table  # the command's summary table: no public face
+from tests._support.figure_text import text_problems
 
 FOUR_BAR = mc.load("four_bar_fem4")
 DAMPING = "links.coupler.damping.ratio"
@@ -61,9 +58,9 @@ def test_a_sweep_on_a_one_mode_coupler_is_inaccurate_at_study_level(sweeps):
     assert actual.error / 3 < coarse.reduction_error < 3 * actual.error
     assert coarse.reduction_error > linearize.REDUCTION_TOL
     assert 0.0 < coarse.reduction_run_time < coarse.run_time
-    line = sweep_kind._summary(coarse)
+    line = studies.kinds()["sweep"].summary(coarse)
     assert "inaccurate: at the scene's values, modal reduction error" in line
-    table = sweep_kind._headlines(coarse)
+    table = studies.kinds()["sweep"].headlines(coarse)
     assert table.status == "2 ok; modal reduction inaccurate"
     row = table.rows[-1]
     assert row.quantity.startswith("modal reduction error") and row.value == coarse.reduction_error
@@ -76,8 +73,8 @@ def test_a_sweep_on_a_six_mode_coupler_is_ok_with_its_reduction_error_reported(s
     assert fine.reduction_status == "ok" and fine.status == "ok"
     assert 0.0 < fine.reduction_error < linearize.REDUCTION_TOL
     assert "6 modes against 8" in fine.reduction_message
-    assert sweep_kind._headlines(fine).status == "2 ok"
-    assert sweep_kind._headlines(fine).rows[-1].value == fine.reduction_error
+    assert studies.kinds()["sweep"].headlines(fine).status == "2 ok"
+    assert studies.kinds()["sweep"].headlines(fine).rows[-1].value == fine.reduction_error
     assert fine.reduction_note() == ""
     # the reduced sweep's numbers are the full model's to about the reduction's error
     full = studies.sweep(_problem(_coupler(16)), "speed", SPEEDS, n_steps=N_STEPS)
@@ -90,15 +87,15 @@ def test_a_sweep_without_a_reduced_link_is_unchanged(sweeps):
     assert (plain.reduction_error, plain.reduction_status, plain.reduction_message,
             plain.reduction_run_time) == (0.0, "ok", "", 0.0)
     assert plain.status == "ok"
-    assert "modal reduction" not in sweep_kind._summary(plain)
-    headlines = sweep_kind._headlines(plain)
+    assert "modal reduction" not in studies.kinds()["sweep"].summary(plain)
+    headlines = studies.kinds()["sweep"].headlines(plain)
     assert headlines.status == "2 ok"
     assert not any("reduction" in row.quantity for row in headlines.rows)
-    assert studies._studies.reduction_check(_problem(_coupler(4)), n_steps=N_STEPS) == {}
+    assert reduction_check(_problem(_coupler(4)), n_steps=N_STEPS) == {}
 
 
 def test_a_problem_without_a_mechanism_has_no_reduction_check(crossing_problem):
-    assert studies._studies.reduction_check(crossing_problem(), n_steps=N_STEPS) == {}
+    assert reduction_check(crossing_problem(), n_steps=N_STEPS) == {}
 
 
 def test_reduction_fields_round_trip_through_hdf5_with_units(sweeps, tmp_path):
@@ -148,12 +145,12 @@ def coarse_grids():
 def test_campbell_and_stability_chart_report_the_reduction_at_study_level(sweeps, coarse_grids):
     """The same check, once per study, in a Campbell diagram and a stability chart on the 1-mode
     coupler: the same error as the sweep's at the same steps."""
-    for result, kind in zip(coarse_grids, (campbell_kind, chart_kind)):
+    for result, kind in zip(coarse_grids, (studies.kinds()["campbell"], studies.kinds()["stability_chart"])):
         assert result.reduction_status == "inaccurate" and result.status == "inaccurate"
         assert result.reduction_error == pytest.approx(sweeps[1].reduction_error, rel=1e-9)
-        assert "modal reduction inaccurate" in kind._headlines(result).status
-        assert "raise modes" in kind._summary(result)
-        assert kind._headlines(result).rows[-1].quantity.startswith("modal reduction error")
+        assert "modal reduction inaccurate" in kind.headlines(result).status
+        assert "raise modes" in kind.summary(result)
+        assert kind.headlines(result).rows[-1].quantity.startswith("modal reduction error")
 
 
 @pytest.mark.slow

@@ -9,13 +9,11 @@ import numpy as np
 import pytest
 
 import studies
-from studies import _kind, _summary, kind_of, kinds
-from studies._drawing import frame_points, plate_corners
-from studies._mechanism import MechanismProblem
-from studies._plots import plain
-from studies.cli import _animate, main
-
-from ._figure_text import text_problems
+from studies import MechanismProblem, _kind, _summary, kind_of, kinds  # _kind, _summary: the summary table
+from studies._drawing import frame_points, plate_corners  # the drawings' geometry: no public face
+from studies._plots import plain  # the figures' number format: no public face
+from studies.cli import _animate, main  # _animate: flexvib animate's machinery, no public face
+from tests._support.figure_text import text_problems
 
 FOUR_BAR_STUDIES = """
 [studies]
@@ -332,7 +330,7 @@ def test_log_axes_have_readable_labels_at_any_range(size):
     data stay inside the limits."""
     import matplotlib.pyplot as plt
 
-    from studies._plots import tidy_log_axes
+    from studies._plots import tidy_log_axes  # the figures' axis helper: no public face
 
     for low, high in [(2.1e-3, 2.5e-3), (1.2e-3, 3e-3), (3e-3, 2.2e-2), (1e-4, 1e-1), (1e-9, 1e3)]:
         figure, ax = plt.subplots(layout="constrained", figsize=size)

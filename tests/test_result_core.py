@@ -36,7 +36,7 @@ def _registry():
         face = getattr(studies, name, None)
         if face is not None:
             return face() if callable(face) else face
-    from studies._kinds import KINDS
+    from studies._kinds import KINDS  # the face of a checkout without studies.kinds() (56570dd)
 
     return KINDS
 

@@ -15,7 +15,7 @@ import pytest
 
 import mechanisms
 import studies
-from studies import _grid, _identity
+from studies import _grid, _identity  # internal: patched point evaluation, parent watch, digests
 from studies.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]

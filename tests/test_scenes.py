@@ -315,7 +315,7 @@ DOCS = __import__("pathlib").Path(__file__).resolve().parents[1] / "docs" / "sce
 
 
 def test_docs_name_every_key_and_their_example_runs():
-    from mechanisms._parts import scene as _load  # the scene reader's key tuples
+    from mechanisms._parts import scene as _load  # the scene reader's key tuples: no public face
 
     text = DOCS.read_text()
 

@@ -274,7 +274,7 @@ def test_hand_model_derivatives_match_finite_differences(soft_double):
 def test_the_newton_factorisation_reports_the_pivot_ratio_of_the_iteration_matrix(n):
     """``min_pivot_ratio`` is that of P G = L U (partial pivoting by rows of G, the matrix built transposed),
     and 0 for an exactly singular G, which the Newton iteration reports as a singular iteration matrix."""
-    from mechanisms._alpha_step import _lu_factor
+    from mechanisms._alpha_step import _lu_factor  # internal kernel: no public face
 
     rng = np.random.default_rng(n)
     G = rng.normal(size=(n, n)) + np.sqrt(n) * np.eye(n)

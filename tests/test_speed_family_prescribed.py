@@ -14,7 +14,7 @@ import linearize
 import mechanisms as mc
 import periodic
 import studies
-from studies._numerics import STUDY_SCHEME, extremes
+from studies._numerics import STUDY_SCHEME, extremes  # the studies' own scheme and extremes: no public face
 
 N_STEPS = 32  # the charts' minimum; the robot's coefficients are resolved at 32 samples
 PAYLOAD = "point_masses.payload.mass"

@@ -108,7 +108,7 @@ def test_describe_names_what_the_linearisation_gives(scene):
 def test_a_sweep_builds_the_scene_once_and_never_rewrites_it(monkeypatch):
     """Scene -> Mechanism once per process: per-point work neither writes nor parses scene text; a
     parameter sweep builds each variant from the scene dict."""
-    from studies import _mechanism
+    from studies import _mechanism  # its private caches: no public face
 
     calls = []
     for name in ("to_spec", "to_toml", "with_parameters"):

@@ -13,7 +13,7 @@ import pytest
 import periodic
 import studies
 from studies.cli import main
-from studies.cli._scene import plan
+from studies.cli._scene import plan  # the command's [studies] check: no public face
 
 
 @pytest.fixture(scope="module")

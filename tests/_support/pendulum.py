@@ -1,5 +1,5 @@
 """A rigid pendulum written by hand in redundant coordinates, for tests of code that works on any
-model satisfying ``mechanisms._protocol.ConstrainedModel``.
+model satisfying ``mechanisms.ConstrainedModel``.
 
 Coordinates ``s = (x, y, theta)`` of the centroid and the body angle; the pivot sits at the body
 point ``(-arm, 0)`` and follows a prescribed path ``p(t)``:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import contextlib
 import sys
 
-from periodic import _newmark
+from periodic import _newmark  # the Newmark kernels' solver thresholds, forced: no public face
 
 #: The paths, for ``pytest.mark.parametrize`` and fixture ``params``.
 PATHS = ("loops", "lapack")
