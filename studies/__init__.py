@@ -16,6 +16,8 @@ from ._errors import StudiesError as StudiesError
 from ._grid import PointOutcome as PointOutcome
 from ._grid import process_pool as process_pool
 from ._grid import run_grid as run_grid
+from ._guard import ResourceError as ResourceError
+from ._guard import guard as guard
 from ._kind import StudyKind as StudyKind
 from ._kind import kind_of as kind_of
 from ._kind import kinds as kinds
@@ -61,8 +63,6 @@ from ._store import load as load
 from ._store import open_file as open_file
 from ._summary import Headline as Headline
 from ._summary import Summary as Summary
-from .cli._guard import ResourceError as ResourceError
-from .cli._guard import guard as guard
 
 __all__ = [
     "FORMAT_VERSION",

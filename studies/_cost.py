@@ -1,5 +1,5 @@
 """What a study costs: the helpers each study kind's cost model (``StudyKind.cost``) is written with,
-and :func:`estimate`, which asks a kind's model. The resource guard (``studies.cli._guard``)
+and :func:`estimate`, which asks a kind's model. The resource guard (``studies._guard``)
 refuses a run whose estimates exceed its limits (docs/studies.md, "Limits").
 
 The cost models are deliberately simple, each a sum of terms with one calibrated constant:

@@ -72,3 +72,17 @@ def differing_paths(old: Any, new: Any, *, limit: int = 5) -> list[str]:
 
 
 _ABSENT = object()
+
+
+def scene_identity(problem: Any) -> dict[str, Any]:
+    """What identifies the scene of a run (its sha256 is the result file's ``scene_hash``): the
+    numbers of the scene (its tables without name, description and studies,
+    ``studies._identity.scene_numbers``) and the observables; for a ``PeriodicProblem`` also its name,
+    parameters and observable rows (its text is an equation, not a scene)."""
+    identity: dict[str, Any] = {"scene": scene_numbers(getattr(problem, "text", ""))}
+    if hasattr(problem, "observable_specs"):
+        identity["observables"] = problem.observable_specs
+    if hasattr(problem, "parameter_values"):
+        identity.update(problem=problem.name, parameters=dict(problem.parameter_values),
+                        observables=problem.observable_rows, labels=problem.labels)
+    return identity

@@ -1,4 +1,4 @@
-"""The resource guard (studies/cli/_guard.py), the loader's limits on scene sizes, the empty [studies]
+"""The resource guard (studies/_guard.py), the loader's limits on scene sizes, the empty [studies]
 table and the frozen samples a file records."""
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ import mechanisms
 import studies
 from studies import MechanismProblem, ResourceError, _mechanism, estimate, guard, kinds  # _mechanism: caches
 from studies._cost import format_bytes, format_seconds  # the guard's message formatting: no public face
+from studies._guard import memory_limit  # the guard's limit from the machine: no public face
 from studies.cli import _run as _plan  # patched: the run the command would start
 from studies.cli import load_scene, main
-from studies.cli._guard import memory_limit  # the guard's limit from the machine: no public face
 
 ELEMENTS = "links.coupler.discretisation.n_elements"
 

@@ -11,8 +11,16 @@ import numpy as np
 import pytest
 
 import mechanisms
-from studies import MechanismProblem, ResourceError, _cost, estimate, guard, kinds  # _cost: STUDY_SECONDS
-from studies.cli import _guard, load_scene, main  # _guard: its TIME_LIMIT, patched (no public face)
+from studies import (  # _cost: STUDY_SECONDS
+    MechanismProblem,
+    ResourceError,
+    _cost,
+    _guard,  # its TIME_LIMIT, patched (no public face)
+    estimate,
+    guard,
+    kinds,
+)
+from studies.cli import load_scene, main
 
 STUDIES = ("\n[studies]\nn_steps = 32\n[studies.steady_state]\n"
            "[studies.sweep]\nstart = 50.0\nstop = 150.0\ncount = 6\n")

@@ -12,7 +12,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .._errors import is_numerical_failure
-from .._identity import canonical, differing_paths, digest, scene_numbers
+from .._identity import canonical, differing_paths, digest, scene_identity
 from .._kind import kind_named
 from .._resultfile import ResultFile
 from .._store import StorageError, read_group, write_attrs
@@ -21,20 +21,6 @@ from . import _jit
 __all__ = ["RunInterrupted", "run_plan", "scene_identity"]
 
 logger = logging.getLogger(__name__)
-
-
-def scene_identity(problem: Any) -> dict[str, Any]:
-    """What identifies the scene of a run (its sha256 is the result file's ``scene_hash``): the
-    numbers of the scene (its tables without name, description and studies,
-    ``studies._identity.scene_numbers``) and the observables; for a ``PeriodicProblem`` also its name,
-    parameters and observable rows (its text is an equation, not a scene)."""
-    identity: dict[str, Any] = {"scene": scene_numbers(getattr(problem, "text", ""))}
-    if hasattr(problem, "observable_specs"):
-        identity["observables"] = problem.observable_specs
-    if hasattr(problem, "parameter_values"):
-        identity.update(problem=problem.name, parameters=dict(problem.parameter_values),
-                        observables=problem.observable_rows, labels=problem.labels)
-    return identity
 
 
 class RunInterrupted(KeyboardInterrupt):

@@ -93,7 +93,7 @@ class ScenePlan:
         """The resource guard's estimates of the studies (``studies.guard``): a study above the
         limits is refused unless ``force``; studies complete in ``result_file`` (the file the run
         resumes) are not estimated, a grid partly saved there only for its missing points."""
-        from ._guard import guard
+        from .._guard import guard
 
         return guard(self.problem, self.studies, force=force, workers=workers, result_file=result_file)
 

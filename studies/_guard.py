@@ -12,9 +12,9 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .._cost import Estimate, estimate, format_bytes, format_seconds
-from .._errors import StudiesError
-from .._kind import kind_named
+from ._cost import Estimate, estimate, format_bytes, format_seconds
+from ._errors import StudiesError
+from ._kind import kind_named
 
 __all__ = ["Estimate", "ResourceError", "estimate", "guard", "memory_limit", "TIME_LIMIT"]
 
@@ -59,8 +59,7 @@ def _saved(path: str | os.PathLike | None, problem: Any, runs: Sequence[tuple[st
         return _Saved()
     import h5py
 
-    from .._identity import digest
-    from ._run import scene_identity
+    from ._identity import digest, scene_identity
 
     complete, done = set(), {}
     try:
