@@ -19,6 +19,7 @@ from mechanisms import (
     ElasticLink,
     Fem,
     Mechanism,
+    MechanismError,
     ModalDamping,
     PrescribedDrive,
     Rayleigh,
@@ -221,6 +222,17 @@ def test_user_shapes_violating_the_boundary_conditions_are_rejected():
     beam_shapes(beam(UserShapes((parabola,)), boundary="clamped-free"))  # w(0) = w'(0) = 0
     with pytest.raises(ValueError, match=r"w\(L\)"):
         beam_shapes(beam(UserShapes((parabola,))))
+
+
+def test_user_shapes_that_raise_or_return_the_wrong_thing_are_bad_input():
+    """A user function that fails on an array of abscissae (math.hypot takes scalars) or returns one
+    array instead of three is a MechanismError naming the shape and the expected signature."""
+    with pytest.raises(MechanismError, match=r"bending\[0\] raised TypeError.*f\(x, length\) -> \(value"):
+        beam_shapes(beam(UserShapes((math.hypot,))))
+    def one_array(x, length):
+        return x * (length - x)
+    with pytest.raises(MechanismError, match=r"bending\[0\] must return"):
+        beam_shapes(beam(UserShapes((one_array,))))
 
 
 FREE_FREE = (4.730040744862704, 7.853204624095838)  # cos b cosh b = 1

@@ -204,7 +204,12 @@ def _clamped_free_mode(x: np.ndarray, beta: float, length: float):
 
 
 def _call_user(f, x, link, kind, index):
-    result = f(x, link.length)
+    try:   # any failure of user code is bad input, reported with the shape it came from
+        result = f(x, link.length)
+    except Exception as error:
+        raise MechanismError(f"link {link.name!r}: UserShapes.{kind}[{index}] raised "
+                             f"{type(error).__name__}: {error}; expected f(x, length) -> (value, d/dx, "
+                             f"d2/dx2) with x an array of abscissae (m)") from error
     try:
         arrays = tuple(np.broadcast_to(np.asarray(a, dtype=float), x.shape) for a in result)
     except (TypeError, ValueError) as error:
