@@ -176,13 +176,16 @@ def register_scheme(name: str, scheme: Scheme) -> Scheme:
     """Register ``scheme`` under ``name`` in :data:`SCHEMES`, so that ``scheme=name`` selects it (in
     ``steady_state``, ``floquet`` and the studies' ``scheme`` option) and the convergence test covers it.
     Returns the scheme.  Refuses a name that is not a non-empty string (TypeError, PeriodicError), a name
-    already registered (PeriodicError: registrations are never replaced) and an object that does not satisfy
+    already registered to another scheme (PeriodicError: registrations are never replaced; the same scheme again is
+    accepted) and an object that does not satisfy
     :class:`Scheme` (see :func:`check_scheme`).  Register at import of the module that defines the scheme, so
     that every process (a study's worker pool too) sees it."""
     if not isinstance(name, str):
         raise TypeError(f"name: expected a string, got {type(name).__name__}")
     if not name.strip():
         raise PeriodicError(f"name: expected a non-empty name, got {name!r}")
+    if name in _REGISTRY and _REGISTRY[name] is scheme:   # its module imported again: nothing to do
+        return scheme
     if name in _REGISTRY:
         raise PeriodicError(f"name: {name!r} is already registered in periodic.SCHEMES ({_REGISTRY[name]!r}); "
                             "choose another name")

@@ -408,6 +408,8 @@ def test_every_registered_scheme_has_its_declared_order_and_an_honest_estimate(n
     # the shooting integrates every mode over a whole period (a scheme that declares its stability must
     # declare it unconditional; test_every_registered_scheme_damps_an_unresolved_mode measures it for all)
     assert getattr(scheme, "unconditionally_stable", True)
+    if isinstance(scheme, periodic.Newmark):   # the built-in family declares it: it must be true
+        assert scheme.unconditionally_stable
     functions, exact = manufactured_functions()
     errors, errors_extrapolated = [], []
     for n_steps in GRID:
