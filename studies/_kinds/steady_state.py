@@ -102,6 +102,9 @@ class SteadyStateResult(StudyResult):
         the largest difference of an observable over its peak-to-peak; 0 without a reduced link).
     reduction_run_time : float, s
         Its cost (in ``run_time``).
+    scheme : str
+        The periodic scheme it was integrated with, by its name in ``periodic.SCHEMES``
+        ("trapezoidal" for files written before the studies took a scheme).
     """
 
     problem: str
@@ -140,6 +143,7 @@ class SteadyStateResult(StudyResult):
     drive_rate: float = float("nan")
     reduction_error: float = 0.0
     reduction_run_time: float = 0.0
+    scheme: str = DEFAULT_SCHEME
 
     @property
     def headline(self) -> str:
@@ -245,7 +249,7 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
         n_steps=n_steps, run_time=time.perf_counter() - start, shooting_run_time=steady.run_time,
         is_stable=steady.is_stable, spectral_radius_error=steady.spectral_radius_error,
         instability_kind=steady.instability_kind, linear_range=steady.linear_range, **peaks,
-        reduction_error=reduction.error, reduction_run_time=reduction.run_time, **drawing)
+        reduction_error=reduction.error, reduction_run_time=reduction.run_time, scheme=scheme, **drawing)
 
 
 def _reduction_error(linear: Any, x: np.ndarray, n_steps: int) -> Any:

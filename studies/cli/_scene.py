@@ -193,8 +193,9 @@ def plan(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, 
         if kind.schemes:  # part of the request, so a run with another scheme is another study
             studies[name]["scheme"] = scheme
         elif scheme != DEFAULT_SCHEME:
-            logger.warning("[studies] scheme = %r: %s does not integrate with a periodic scheme (runs as it "
-                           "does with any)", scheme, name)
+            logger.warning("[studies] scheme = %r: %s does not take the option; its linear solutions (a "
+                           "shooting's start, a linear reference) use the default %r scheme", scheme, name,
+                           DEFAULT_SCHEME)
     if not studies:
         raise StudiesError(f"[studies] declares no study; add at least one of the tables "
                            f"{', '.join(f'[studies.{k}]' for k in kinds())}")
