@@ -42,6 +42,15 @@ def test_the_scheme_changes_the_numbers_within_their_error_estimates(mathieu):
     damped = studies.steady_state(mathieu, {"speed": 0.7}, n_steps=n_steps, scheme="damped")
     # first order against second: the damped scheme's error is the larger one
     assert damped.response_error["x"] > 3.0 * trapezoidal.response_error["x"]
+    assert (trapezoidal.scheme, damped.scheme) == ("trapezoidal", "damped")
+
+
+def test_a_steady_state_records_its_scheme_in_its_file(mathieu, tmp_path):
+    damped = studies.steady_state(mathieu, {"speed": 0.7}, n_steps=64, scheme="damped")
+    damped.save(tmp_path / "s.h5")
+    (back,) = studies.load(tmp_path / "s.h5").values()
+    assert back.scheme == "damped"
+    np.testing.assert_array_equal(back.response["x"], damped.response["x"])
 
 
 def test_a_grid_point_uses_the_scheme(mathieu):
