@@ -397,6 +397,71 @@ class _RunRoute:
                          for sk, vk, tk, lk, yk in zip(self.s, self.sdot, self.t, self.lam, lags)])
 
 
+class _ReadsMore(Exception):
+    """An observable's linear map asked ``_PartsRoute`` for more than functions of the coordinates."""
+
+
+@dataclass(frozen=True)
+class _PartMap:
+    """The stand-in linear map ``_PartsRoute`` returns: no nominal part; a magnitude's component maps."""
+
+    nominal: None = None
+    components: tuple = ()
+
+
+class _PartsRoute:
+    """A ``LinearRoute`` (``mechanisms/_protocol.py``) that maps nothing: it records the functions of
+    the coordinates an observable's ``linear_map`` is composed of and refuses every other primitive
+    (multipliers, a torque law, a nominal axial force)."""
+
+    def __init__(self) -> None:
+        self.parts: list[Any] = []
+
+    def coordinates(self, observable: Any, nominal: Any = None) -> _PartMap:
+        if nominal is not None or not observable.of_coordinates:
+            raise _ReadsMore
+        self.parts.append(observable)
+        return _PartMap()
+
+    def magnitude(self, unit: str, components: tuple) -> _PartMap:
+        return _PartMap(components=tuple(components))
+
+    def multipliers(self, weights: np.ndarray, unit: str) -> Any:
+        raise _ReadsMore
+
+    def torque_law(self, drive_index: int, joint: str, unit: str) -> Any:
+        raise _ReadsMore
+
+    def axial_force(self, link: str, x: float) -> Any:
+        raise _ReadsMore
+
+
+def coordinate_parts(observable: Any) -> tuple[tuple, Any] | None:
+    """``(parts, stand_in_map)``: the functions of the coordinates alone that ``observable`` is
+    composed of (itself, or the components of a point's displacement magnitude) and a stand-in for
+    its linear map that its ``along_run`` reads (``deviations_along``); None when it reads more than
+    the coordinates (a joint force or its magnitude, a drive torque, an axially rigid link's stress).
+    Found by building its linear map through a recording route: what the observable declares, not
+    its class."""
+    route = _PartsRoute()
+    try:
+        stand_in = observable.linear_map(route)
+    except _ReadsMore:
+        return None
+    return tuple(route.parts), stand_in
+
+
+def deviations_along(observable: Any, model: Any, nominal_s: np.ndarray, t: np.ndarray, s: np.ndarray,
+                     computed: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The change (K,) of ``observable`` (a function of the coordinates or a composition of such,
+    ``coordinate_parts``) along a run of ``model`` (``t`` (K,), ``s`` (K, n), from a whole period's
+    start) from its values along the nominal motion ``nominal_s`` (N+1, n, the run's grid);
+    ``computed`` {spec: (K,)} the parts' values the integrator evaluated."""
+    _, stand_in = coordinate_parts(observable)
+    run = _RunRoute(nominal_s, 1, model, t, s, None, None, None, computed)
+    return observable.along_run(run, stand_in)
+
+
 def deviation_from_nominal(values: np.ndarray, nominal: np.ndarray, unit: str) -> np.ndarray:
     """``values - nominal`` of an observable along a nonlinear run, as the linear route reports it;
     an angle (``unit`` "rad") modulo 2 pi, in (-pi, pi]: a turning link's angle gains 2 pi per

@@ -19,7 +19,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .._kind import StudyKind, register_kind
-from .._mechanism import deviation_from_nominal
+from .._mechanism import coordinate_parts, deviations_along
 from .._plots import Plot, axes_for, drawn, headline, label, plain
 from .._result import DerivedPeaks, StudyResult, peaks_of
 from .._toolkit import (
@@ -55,8 +55,6 @@ MIN_STEPS = 32
 INACCURATE_FRACTION = 0.1
 #: Richardson's divisor for the error of a second-order method from runs at h and 2h: 2^2 - 1.
 RICHARDSON = 3.0
-#: The observables an ``output`` may be: positions (an angle, a point's displacement or coordinate).
-OUTPUT_KINDS = ("angle", "point_error", "point_error_x", "point_error_y")
 #: The saturation record of each case (``ControlComparison.saturation``).
 SATURATION_KEYS = ("peak_demanded_torque", "peak_command", "clipped_fraction", "clipped_until")
 
@@ -361,13 +359,16 @@ def _quantities(problem: Any, mechanism: Any, without: Any, output: str | None) 
         logger.info("control comparison: %s not reported (not functions of the coordinates)", ", ".join(skipped))
     _check_output("output", output)
     observer = model.observable(output)   # an unknown link or fraction raises naming the spec
-    components = getattr(observer, "components", None) or ()
+    found = coordinate_parts(observer)
+    if found is None:   # a registered position quantity that reads more than the coordinates
+        raise StudiesError(f"output: expected the observable spec of a position, a function of the "
+                           f"coordinates; {output!r} is not one")
     speed, torque = f"drive.{drive.joint}.rate", f"drive.{drive.joint}.torque"
     units = {spec: model.observable(spec).unit for spec in elastic}
     units.update({speed: "rad/s", output: observer.unit, torque: "N m"})
     roles = {spec: "elastic" for spec in elastic}
     roles.update({speed: "speed", output: "output", torque: "torque"})
-    direct = tuple(dict.fromkeys(elastic + ([c.spec for c in components] if components else [output])))
+    direct = tuple(dict.fromkeys(elastic + [part.spec for part in found[0]]))
     motor = getattr(drive, "motor", None)
     return _Plan(units=units, roles=roles, drive_index=drive_index, driven=joint.link_b,
                  reference=reference, output=output, direct=direct, joint=drive.joint,
@@ -377,13 +378,17 @@ def _quantities(problem: Any, mechanism: Any, without: Any, output: str | None) 
 
 
 def _check_output(where: str, output: Any) -> None:
-    """An ``output`` must be the spec of a position: ``<link>.angle`` or a point's displacement
-    (``OUTPUT_KINDS``); its deviation from the nominal motion is the output error."""
+    """An ``output`` must be the spec of a position, ``<link>.<quantity>`` with a quantity that
+    declares itself one (``mechanisms.position_quantities()``: ``angle``, a point's displacement,
+    registered ones); its deviation from the nominal motion is the output error."""
+    import mechanisms
+
+    positions = mechanisms.position_quantities()
     kind = output.partition("@")[0].rpartition(".")[2] if isinstance(output, str) else None
-    if kind not in OUTPUT_KINDS or output.startswith(("drive.", "joint.")):
-        raise StudiesError(f"{where}: expected the observable spec of a position, '<link>.angle' or "
-                           f"'<link>.point_error@p' (also point_error_x, point_error_y), e.g. 'rocker.angle', "
-                           f"got {output!r}")
+    if kind not in positions or output.startswith(("drive.", "joint.")):
+        raise StudiesError(f"{where}: expected the observable spec of a position, '<link>.<quantity>' with "
+                           f"a quantity in {list(positions)} (mechanisms.position_quantities), e.g. "
+                           f"'rocker.angle' or '<link>.point_error@p', got {output!r}")
 
 
 def _default_output(mechanism: Any, drive_joint: Any) -> str:
@@ -507,12 +512,8 @@ def _along(run: Any, model: Any, nominal_s: np.ndarray, nominal_sdot: np.ndarray
     n = nominal_s.shape[0] - 1
     phase = np.arange(run.t.size) % n   # the nominal sample of each run sample
 
-    def deviation(spec: str) -> np.ndarray:
-        observer = model.observable(spec)
-        if getattr(observer, "components", None):   # a point's displacement: its magnitude
-            return np.hypot(*(deviation(component.spec) for component in observer.components))
-        nominal = np.array([observer.value(s) for s in nominal_s[:-1]])
-        return deviation_from_nominal(run.observables[spec], nominal[phase], observer.unit)
+    def deviation(spec: str) -> np.ndarray:   # a function of the coordinates or composed of such
+        return deviations_along(model.observable(spec), model, nominal_s, run.t, run.s, run.observables)
 
     labels = list(model.coord_labels)
     rows = [labels.index(f"{plan.driven}.theta")]
