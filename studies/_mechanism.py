@@ -24,12 +24,8 @@ from ._problem import SPEED, Description, Linear, NonlinearRun, resolve_values
 # Units of scene parameters by their last key (docs/scenes.md); others are reported as "SI".
 _UNITS = {"rate": "rad/s", "length": "m", "width": "m", "thickness": "m", "area": "m^2",
           "second_moment": "m^4", "density": "kg/m^3", "youngs_modulus": "Pa", "mass": "kg",
-          "inertia": "kg m^2", "ratio": "1", "alpha": "1/s", "beta": "s", "n_elements": "1",
-          "n_bending": "1", "n_axial": "1", "kp": "N m/rad", "kd": "N m s/rad", "period": "s"}
-#: Scene keys that are counts (whole numbers that change the number of coordinates): a study
-#: parameter on them is rounded, the guard sizes a study at their largest value, an optimisation
-#: refuses them as continuous bounds.
-COUNT_KEYS = ("n_elements", "n_bending", "n_axial", "modes")
+          "inertia": "kg m^2", "ratio": "1", "alpha": "1/s", "beta": "s", "kp": "N m/rad",
+          "kd": "N m s/rad", "period": "s"}
 _CACHE_SIZE = 8
 _mechanisms: OrderedDict = OrderedDict()
 _families: OrderedDict = OrderedDict()
@@ -150,11 +146,12 @@ class MechanismProblem:
 
         base = _cached(_mechanisms, self.text, lambda: _build(self.text, f"scene {self.name!r}"))
         changes = {}
+        counts = count_keys() if values else ()
         for key, value in (values or {}).items():
             if key == SPEED:
                 changes.update(_speed_changes(base, value))
             else:
-                changes[key] = int(round(value)) if key.split(".")[-1] in COUNT_KEYS else value
+                changes[key] = int(round(value)) if key.split(".")[-1] in counts else value
         if not changes:
             return base
         return _cached(_mechanisms, (self.text, tuple(sorted(changes.items()))),
@@ -167,7 +164,9 @@ class MechanismProblem:
 
     @property
     def units(self) -> dict[str, str]:
-        return {name: _UNITS.get(name.split(".")[-1], "rad/s" if name == SPEED else "SI")
+        counts = count_keys()   # a count (of elements, modes) has unit 1
+        return {name: "1" if name.split(".")[-1] in counts
+                else _UNITS.get(name.split(".")[-1], "rad/s" if name == SPEED else "SI")
                 for name in self.parameters}
 
     def resolve(self, values: Mapping[str, float] | None) -> dict[str, float]:
@@ -460,6 +459,18 @@ def deviations_along(observable: Any, model: Any, nominal_s: np.ndarray, t: np.n
     _, stand_in = coordinate_parts(observable)
     run = _RunRoute(nominal_s, 1, model, t, s, None, None, None, computed)
     return observable.along_run(run, stand_in)
+
+
+def count_keys() -> frozenset[str]:
+    """Scene keys that are counts (whole numbers that change the number of coordinates), as every
+    registered discretisation declares them (``COUNT_KEYS`` of the classes in
+    ``mechanisms.DISCRETISATION_TYPES``): a study parameter on them is rounded, the guard sizes a
+    study at their largest value, an optimisation refuses them as continuous bounds. Read at each
+    call: a discretisation registered later counts too."""
+    import mechanisms
+
+    return frozenset(key for cls in mechanisms.DISCRETISATION_TYPES.values()
+                     for key in getattr(cls, "COUNT_KEYS", ()))
 
 
 def deviation_from_nominal(values: np.ndarray, nominal: np.ndarray, unit: str) -> np.ndarray:

@@ -318,7 +318,8 @@ def control_comparison(problem: Any, values: Mapping[str, float] | None = None, 
 @dataclass(frozen=True)
 class _Plan:
     """What each run reports: ``units`` and ``roles`` by quantity (in report order), the controlled
-    ``drive_index`` and its joint's links (``driven``, ``reference``: None for the ground), the
+    ``drive_index``, the link it turns (``driven``) and the relative angle it turns (``turns``:
+    ``(link, coefficient)`` of its joint's ``drive_terms``, frame angles, the ground left out), the
     ``output`` spec and the coordinate observables' specs to evaluate (``direct``); the drive's
     ``joint``, ``torque_limit`` and ``command_limit`` (N m, inf where none) and the motor's
     back-EMF damping ``back_emf`` (N m s/rad at the joint, 0 without a motor)."""
@@ -327,7 +328,7 @@ class _Plan:
     roles: dict[str, str]
     drive_index: int
     driven: str
-    reference: str | None
+    turns: tuple[tuple[str, float], ...]
     output: str
     direct: tuple[str, ...]
     joint: str
@@ -348,7 +349,7 @@ def _quantities(problem: Any, mechanism: Any, without: Any, output: str | None) 
     drive_index = changed[0] if changed else 0
     drive = mechanism.drives[drive_index]
     joint = mechanism.joint(drive.joint)
-    reference = None if joint.link_a == mechanisms.GROUND else joint.link_a
+    turns = tuple((term.link, float(term.coefficient)) for term in joint.drive_terms())   # driven first
     output = _default_output(mechanism, joint) if output is None else output
     model = mechanisms.assemble(mechanism)
     specs = getattr(problem, "observable_specs", None) or mechanisms.default_observables(mechanism)
@@ -370,8 +371,8 @@ def _quantities(problem: Any, mechanism: Any, without: Any, output: str | None) 
     roles.update({speed: "speed", output: "output", torque: "torque"})
     direct = tuple(dict.fromkeys(elastic + [part.spec for part in found[0]]))
     motor = getattr(drive, "motor", None)
-    return _Plan(units=units, roles=roles, drive_index=drive_index, driven=joint.link_b,
-                 reference=reference, output=output, direct=direct, joint=drive.joint,
+    return _Plan(units=units, roles=roles, drive_index=drive_index, driven=turns[0][0],
+                 turns=turns, output=output, direct=direct, joint=drive.joint,
                  torque_limit=float(getattr(drive, "torque_limit", math.inf)),
                  command_limit=motor.peak_command if motor is not None else math.inf,
                  back_emf=motor.back_emf_damping if motor is not None else 0.0)
@@ -392,16 +393,17 @@ def _check_output(where: str, output: Any) -> None:
 
 
 def _default_output(mechanism: Any, drive_joint: Any) -> str:
-    """The angle of the last link pivoted on the ground by a revolute joint other than the driven
-    one (a four-bar's rocker), else the displacement of the last link's end (a slider's pin, an
-    arm's tip)."""
+    """The angle of the last link pinned to the ground (a joint whose ``coincident_points`` hold a
+    point of it to a ground point) by a joint other than the driven one (a four-bar's rocker), else
+    the displacement of the last link's end (a slider's pin, an arm's tip)."""
     import mechanisms
 
-    driven = drive_joint.link_b
-    pivoted = [joint.link_b if joint.link_a == mechanisms.GROUND else joint.link_a
-               for joint in mechanism.joints
-               if isinstance(joint, mechanisms.Revolute) and joint.name != drive_joint.name
-               and mechanisms.GROUND in (joint.link_a, joint.link_b)]
+    driven = drive_joint.drive_terms()[0].link
+    pivoted = []
+    for joint in mechanism.joints:
+        sides = [link for link, _ in joint.coincident_points()] if joint.name != drive_joint.name else []
+        if mechanisms.GROUND in sides:
+            pivoted += [link for link in sides if link != mechanisms.GROUND]
     names = [link.name for link in mechanism.links if link.name != driven]
     for name in reversed(names):
         if name in pivoted:
@@ -516,11 +518,8 @@ def _along(run: Any, model: Any, nominal_s: np.ndarray, nominal_sdot: np.ndarray
         return deviations_along(model.observable(spec), model, nominal_s, run.t, run.s, run.observables)
 
     labels = list(model.coord_labels)
-    rows = [labels.index(f"{plan.driven}.theta")]
-    signs = [1.0]
-    if plan.reference is not None:
-        rows.append(labels.index(f"{plan.reference}.theta"))
-        signs.append(-1.0)
+    rows = [labels.index(f"{link}.theta") for link, _ in plan.turns]
+    signs = [coefficient for _, coefficient in plan.turns]
 
     def relative_rate(sdot: np.ndarray) -> np.ndarray:
         return sum(sign * sdot[:, row] for sign, row in zip(signs, rows))
