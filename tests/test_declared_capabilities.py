@@ -161,3 +161,79 @@ def test_a_quantity_declared_a_position_may_be_the_output():
     assert mine.failed["with"] == "" and np.all(np.isfinite(mine.with_control["coupler.test_position_x@0.5"]))
     assert mine.steady_peak["with"]["coupler.test_position_x@0.5"] \
         == pytest.approx(builtin.steady_peak["with"]["coupler.point_error_x@0.5"], rel=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------------
+# a pin to the ground that is not a Revolute: the Grashof check and the default output find it
+# ---------------------------------------------------------------------------------------------------
+@mechanisms.register_joint
+@dataclass(frozen=True)
+class _GroundPin:
+    """Holds ``point`` of ``link`` at the ground position ``at`` (m): ``r - at = 0`` along x and y."""
+
+    name: str
+    link: str
+    point: object
+    at: tuple
+
+    TYPE: ClassVar[str] = "test_ground_pin"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "link", "point", "at")
+    n_equations: ClassVar[int] = 2
+    point_force: ClassVar[bool] = True
+    force_unit: ClassVar[str] = "N"
+
+    @classmethod
+    def from_table(cls, name, table):
+        return cls(name, table.string("link"), table.point("point"), table.pair("at", "m"))
+
+    def to_table(self):
+        return {"type": self.TYPE, "link": self.link, "point": self.point, "at": list(self.at)}
+
+    @property
+    def ends(self):
+        return ((self.link, self.point),)
+
+    def constraint_rows(self):
+        return tuple(mechanisms.PointRow(label, (mechanisms.PointTerm(self.link, self.point, direction),),
+                                         -float(self.at[axis]))
+                     for axis, (label, direction) in enumerate((("x", (1.0, 0.0)), ("y", (0.0, 1.0)))))
+
+    def force_components(self):
+        return {"fx": (-1.0, 0.0), "fy": (0.0, -1.0)}   # Phi = r - at: the force on the link is -lam
+
+    def drive_terms(self):
+        return None
+
+    def coincident_points(self):
+        return ((mechanisms.GROUND, tuple(self.at)), (self.link, self.point))   # the ground side first
+
+
+def _four_bar_spec(l0, l1, l2, l3, offset, *, pinned=False, **drive):
+    spec = mechanisms.load("four_bar_fem4").to_spec()
+    for name, length in (("crank", l1), ("coupler", l2), ("rocker", l3)):
+        spec["links"][name]["length"] = length
+    spec["joints"]["C"] = ({"type": "test_ground_pin", "link": "rocker", "point": "start", "at": [l0, 0.0]}
+                           if pinned else dict(spec["joints"]["C"], point_a=[l0, 0.0]))
+    spec["drive"].update(offset=offset, **drive)
+    return spec
+
+
+def test_the_grashof_check_reads_pins_from_the_joints_declarations():
+    """A non-Grashof four-bar (s + l = 0.45 > p + q = 0.42 m) whose rocker pivot is the pin above
+    is refused as the one with a revolute pivot, at the same crank angle."""
+    messages = []
+    for pinned in (False, True):
+        with pytest.raises(mechanisms.MechanismError, match="crank cannot turn fully") as info:
+            mechanisms.build(_four_bar_spec(0.3, 0.2, 0.22, 0.15, math.radians(60.0), pinned=pinned))
+        messages.append(str(info.value))
+    assert messages[0] == messages[1]
+    grashof = mechanisms.build(_four_bar_spec(0.254, 0.0508, 0.254, 0.1016, 0.0, pinned=True))
+    assert [joint.TYPE for joint in grashof.joints] == ["revolute", "revolute", "revolute", "test_ground_pin"]
+
+
+def test_the_default_output_of_a_control_comparison_is_the_angle_of_the_pinned_rocker():
+    mechanism = mechanisms.build(_four_bar_spec(0.254, 0.0508, 0.254, 0.1016, 0.0, pinned=True,
+                                                type="torque", kp=20.0, kd=0.5))
+    result = studies.control_comparison(studies.MechanismProblem.from_mechanism(mechanism), n_periods=4, n_steps=64)
+    assert result.roles["rocker.angle"] == "output"
+    assert result.roles["drive.O.rate"] == "speed"
