@@ -73,10 +73,15 @@ class ReductionCheck:
 
 
 def reduced_links(mechanism) -> tuple[str, ...]:
-    """Names of the elastic links of ``mechanism`` with a reduced element model."""
-    return tuple(link.name for link in mechanism.links
-                 if isinstance(getattr(link, "discretisation", None), mechanisms.Fem)
-                 and link.discretisation.modes is not None)
+    """Names of the elastic links of ``mechanism`` with a reduced model: a discretisation that
+    declares the optional modal reduction (``modes`` and ``with_modes``, ``mechanisms.Fem`` or a
+    registered one) with ``modes`` set."""
+    return tuple(link.name for link in mechanism.links if _is_reduced(getattr(link, "discretisation", None)))
+
+
+def _is_reduced(discretisation) -> bool:
+    return (callable(getattr(discretisation, "with_modes", None))
+            and getattr(discretisation, "modes", None) is not None)
 
 
 def reference_mechanism(mechanism, reference: str = "next"):
@@ -90,12 +95,12 @@ def reference_mechanism(mechanism, reference: str = "next"):
         disc = getattr(link, "discretisation", None)
         if link.name in reduced_links(mechanism):
             n_coordinates = mechanisms.beam_shapes(dataclasses.replace(
-                link, discretisation=mechanisms.Fem(disc.n_elements))).n_elastic
+                link, discretisation=disc.with_modes(None))).n_elastic
             larger = disc.modes + NEXT_MODES if reference == "next" else None
             if larger is not None and larger >= n_coordinates:
                 larger = None
             modes[link.name] = (disc.modes, larger)
-            link = dataclasses.replace(link, discretisation=mechanisms.Fem(disc.n_elements, larger))
+            link = dataclasses.replace(link, discretisation=disc.with_modes(larger))
         links.append(link)
     return mechanism.replace(links=tuple(links)), modes
 

@@ -437,9 +437,9 @@ def _stress_observable(model, spec, lay, kind, where) -> StressObservable:
 
 # the built-in quantities of a link, in the one registry (``_quantities``) that user ones join
 for _kind in _KINDS:
-    add_quantity(_kind, _link_observable)
+    add_quantity(_kind, _link_observable, position=_kind == "angle")   # the frame angle is a position
 for _kind in (*_POINT_KINDS, "point_error"):
-    add_quantity(_kind, _point_observable)
+    add_quantity(_kind, _point_observable, position=True)
 for _kind in _STRESS_KINDS:
     add_quantity(_kind, _stress_observable)
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from ._parts import ArgumentError
 
-__all__ = ["register_observable"]
+__all__ = ["position_quantities", "register_observable"]
 
 
 class OfCoordinates:
@@ -41,19 +41,29 @@ class OfCoordinates:
 class _Quantity:
     """How the observable of one quantity is made: ``make(model, spec, layout, name, where)``,
     ``layout`` the link's ``LinkLayout``, ``where`` the text after ``'@'`` (``""`` if none);
-    ``function`` the user's function (None for a built-in quantity)."""
+    ``function`` the user's function (None for a built-in quantity); ``position``: its value is a
+    position of the mechanism (``position_quantities``)."""
 
     make: Callable
     function: Callable | None = None
+    position: bool = False
 
 
 _QUANTITIES: dict[str, _Quantity] = {}
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
 
-def add_quantity(name: str, make: Callable) -> None:
+def add_quantity(name: str, make: Callable, *, position: bool = False) -> None:
     """Register a built-in quantity (package-internal: ``_observables``)."""
-    _QUANTITIES[name] = _Quantity(make)
+    _QUANTITIES[name] = _Quantity(make, position=position)
+
+
+def position_quantities() -> tuple[str, ...]:
+    """The names of the quantities of a link, built-in and registered, whose value is a position of
+    the mechanism (a frame angle, a point's global coordinate, the magnitude of a point's
+    displacement), so that their change from the nominal motion is an error of the motion (the
+    output of ``studies.control_comparison``); a deflection, strain or moment is not one."""
+    return tuple(name for name, known in _QUANTITIES.items() if known.position)
 
 
 def quantity(spec: str, name: str) -> Callable:
@@ -110,7 +120,7 @@ class RegisteredObservable(OfCoordinates):
 
 
 def register_observable(name: str, function: Callable, *, unit: str, at_point: bool = True,
-                        elastic_only: bool = False, replace: bool = False) -> None:
+                        elastic_only: bool = False, position: bool = False, replace: bool = False) -> None:
     """Add the quantity ``name`` of a link, a function of the coordinates, to the observable specs:
     ``"<link>.<name>@<fraction>"`` (``at_point=False``: ``"<link>.<name>"``, no ``'@'``).
 
@@ -121,7 +131,9 @@ def register_observable(name: str, function: Callable, *, unit: str, at_point: b
     its derivative in the coordinates ``s`` (n,). It may raise ``ValueError`` to refuse a link (a
     rigid one, say): the message reaches the user with the spec. ``elastic_only``: value and
     gradient read only elastic coordinates (``linearize`` then evaluates the gradient once along a
-    rigid nominal motion; leave False if unsure). ``replace``: replace a quantity registered
+    rigid nominal motion; leave False if unsure). ``position``: the value is a position of the
+    mechanism (an angle or a point's coordinate, ``position_quantities``), so it may be the output
+    of a control comparison. ``replace``: replace a quantity registered
     before (built-in ones cannot be replaced).
 
     Then ``Model.observable(spec)`` makes it, ``mechanisms.simulate`` reports it, ``linearize`` maps
@@ -165,4 +177,4 @@ def register_observable(name: str, function: Callable, *, unit: str, at_point: b
         return RegisteredObservable(spec, unit, kind, model.n_coords, value, gradient,
                                     bool(elastic_only))
 
-    _QUANTITIES[name] = _Quantity(make, function)
+    _QUANTITIES[name] = _Quantity(make, function, bool(position))

@@ -39,7 +39,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from ._kind import kind_named
-from ._mechanism import COUNT_KEYS
+from ._mechanism import count_keys
 from ._problem import SPEED
 
 __all__ = ["Estimate", "estimate", "format_bytes", "format_seconds", "steady_solves"]
@@ -146,8 +146,9 @@ def largest_sizes(problem: Any, axes: Sequence[tuple[str, np.ndarray]]) -> Sizes
         for parameter, grid in axes:
             for value in (float(np.min(grid)), float(np.max(grid))):
                 problem.mechanism({parameter: value})
+    counts = count_keys()
     largest = {parameter: float(np.max(grid)) for parameter, grid in axes
-               if parameter.split(".")[-1] in COUNT_KEYS}
+               if parameter.split(".")[-1] in counts}
     return sizes_at(problem, largest)
 
 

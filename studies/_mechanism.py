@@ -24,12 +24,8 @@ from ._problem import SPEED, Description, Linear, NonlinearRun, resolve_values
 # Units of scene parameters by their last key (docs/scenes.md); others are reported as "SI".
 _UNITS = {"rate": "rad/s", "length": "m", "width": "m", "thickness": "m", "area": "m^2",
           "second_moment": "m^4", "density": "kg/m^3", "youngs_modulus": "Pa", "mass": "kg",
-          "inertia": "kg m^2", "ratio": "1", "alpha": "1/s", "beta": "s", "n_elements": "1",
-          "n_bending": "1", "n_axial": "1", "kp": "N m/rad", "kd": "N m s/rad", "period": "s"}
-#: Scene keys that are counts (whole numbers that change the number of coordinates): a study
-#: parameter on them is rounded, the guard sizes a study at their largest value, an optimisation
-#: refuses them as continuous bounds.
-COUNT_KEYS = ("n_elements", "n_bending", "n_axial", "modes")
+          "inertia": "kg m^2", "ratio": "1", "alpha": "1/s", "beta": "s", "kp": "N m/rad",
+          "kd": "N m s/rad", "period": "s"}
 _CACHE_SIZE = 8
 _mechanisms: OrderedDict = OrderedDict()
 _families: OrderedDict = OrderedDict()
@@ -150,11 +146,12 @@ class MechanismProblem:
 
         base = _cached(_mechanisms, self.text, lambda: _build(self.text, f"scene {self.name!r}"))
         changes = {}
+        counts = count_keys() if values else ()
         for key, value in (values or {}).items():
             if key == SPEED:
                 changes.update(_speed_changes(base, value))
             else:
-                changes[key] = int(round(value)) if key.split(".")[-1] in COUNT_KEYS else value
+                changes[key] = int(round(value)) if key.split(".")[-1] in counts else value
         if not changes:
             return base
         return _cached(_mechanisms, (self.text, tuple(sorted(changes.items()))),
@@ -167,7 +164,9 @@ class MechanismProblem:
 
     @property
     def units(self) -> dict[str, str]:
-        return {name: _UNITS.get(name.split(".")[-1], "rad/s" if name == SPEED else "SI")
+        counts = count_keys()   # a count (of elements, modes) has unit 1
+        return {name: "1" if name.split(".")[-1] in counts
+                else _UNITS.get(name.split(".")[-1], "rad/s" if name == SPEED else "SI")
                 for name in self.parameters}
 
     def resolve(self, values: Mapping[str, float] | None) -> dict[str, float]:
@@ -395,6 +394,83 @@ class _RunRoute:
                 else [None] * len(self.t))
         return np.array([self.model.drive_torques(sk, vk, tk, lk, lag_states=yk)[drive_index]
                          for sk, vk, tk, lk, yk in zip(self.s, self.sdot, self.t, self.lam, lags)])
+
+
+class _ReadsMore(Exception):
+    """An observable's linear map asked ``_PartsRoute`` for more than functions of the coordinates."""
+
+
+@dataclass(frozen=True)
+class _PartMap:
+    """The stand-in linear map ``_PartsRoute`` returns: no nominal part; a magnitude's component maps."""
+
+    nominal: None = None
+    components: tuple = ()
+
+
+class _PartsRoute:
+    """A ``LinearRoute`` (``mechanisms/_protocol.py``) that maps nothing: it records the functions of
+    the coordinates an observable's ``linear_map`` is composed of and refuses every other primitive
+    (multipliers, a torque law, a nominal axial force)."""
+
+    def __init__(self) -> None:
+        self.parts: list[Any] = []
+
+    def coordinates(self, observable: Any, nominal: Any = None) -> _PartMap:
+        if nominal is not None or not observable.of_coordinates:
+            raise _ReadsMore
+        self.parts.append(observable)
+        return _PartMap()
+
+    def magnitude(self, unit: str, components: tuple) -> _PartMap:
+        return _PartMap(components=tuple(components))
+
+    def multipliers(self, weights: np.ndarray, unit: str) -> Any:
+        raise _ReadsMore
+
+    def torque_law(self, drive_index: int, joint: str, unit: str) -> Any:
+        raise _ReadsMore
+
+    def axial_force(self, link: str, x: float) -> Any:
+        raise _ReadsMore
+
+
+def coordinate_parts(observable: Any) -> tuple[tuple, Any] | None:
+    """``(parts, stand_in_map)``: the functions of the coordinates alone that ``observable`` is
+    composed of (itself, or the components of a point's displacement magnitude) and a stand-in for
+    its linear map that its ``along_run`` reads (``deviations_along``); None when it reads more than
+    the coordinates (a joint force or its magnitude, a drive torque, an axially rigid link's stress).
+    Found by building its linear map through a recording route: what the observable declares, not
+    its class."""
+    route = _PartsRoute()
+    try:
+        stand_in = observable.linear_map(route)
+    except _ReadsMore:
+        return None
+    return tuple(route.parts), stand_in
+
+
+def deviations_along(observable: Any, model: Any, nominal_s: np.ndarray, t: np.ndarray, s: np.ndarray,
+                     computed: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The change (K,) of ``observable`` (a function of the coordinates or a composition of such,
+    ``coordinate_parts``) along a run of ``model`` (``t`` (K,), ``s`` (K, n), from a whole period's
+    start) from its values along the nominal motion ``nominal_s`` (N+1, n, the run's grid);
+    ``computed`` {spec: (K,)} the parts' values the integrator evaluated."""
+    _, stand_in = coordinate_parts(observable)
+    run = _RunRoute(nominal_s, 1, model, t, s, None, None, None, computed)
+    return observable.along_run(run, stand_in)
+
+
+def count_keys() -> frozenset[str]:
+    """Scene keys that are counts (whole numbers that change the number of coordinates), as every
+    registered discretisation declares them (``COUNT_KEYS`` of the classes in
+    ``mechanisms.DISCRETISATION_TYPES``): a study parameter on them is rounded, the guard sizes a
+    study at their largest value, an optimisation refuses them as continuous bounds. Read at each
+    call: a discretisation registered later counts too."""
+    import mechanisms
+
+    return frozenset(key for cls in mechanisms.DISCRETISATION_TYPES.values()
+                     for key in getattr(cls, "COUNT_KEYS", ()))
 
 
 def deviation_from_nominal(values: np.ndarray, nominal: np.ndarray, unit: str) -> np.ndarray:

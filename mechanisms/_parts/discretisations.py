@@ -21,6 +21,11 @@ observables and the linear-range measures all follow from the shapes). It declar
   ``False`` for shapes exact by construction;
 * optionally ``breakpoints(link)``: abscissae (m, evenly spaced, the ends included) where the
   shapes' curvature may jump (element nodes), where the linear-range measures look too.
+* optionally a modal reduction: ``modes`` (the reduced model's mode count, ``None`` when unreduced)
+  and ``with_modes(modes)`` (the same discretisation with another mode count, ``None``: unreduced),
+  which ``linearize.reduction_error`` uses to solve the reference with more modes;
+* ``COUNT_KEYS`` (class attribute, optional, default none): the scene-table keys that are counts
+  (elements, modes), which a study sweeping or optimising them rounds to integers.
 
 ``register_discretisation(cls)`` enters a class in ``DISCRETISATION_TYPES``; ``Fem`` (the default
 of a scene), ``Ritz`` and ``UserShapes`` register themselves in their modules (``fem``, ``ritz``).

@@ -43,6 +43,7 @@ class Fem:
 
     TYPE: ClassVar[str] = "fem"
     KEYS: ClassVar[tuple[str, ...]] = ("type", "n_elements", "modes")
+    COUNT_KEYS: ClassVar[tuple[str, ...]] = ("n_elements", "modes")
 
     #: why the element count is bounded (``MAX_ELEMENTS``)
     LIMIT: ClassVar[str] = "each element adds 3 coordinates, and the matrices grow as their square"
@@ -81,6 +82,11 @@ class Fem:
 
     def values(self, link, x: np.ndarray, basis: np.ndarray | None = None) -> ShapeValues:
         return _fem_values(link, self, x, basis)
+
+    def with_modes(self, modes: int | None) -> "Fem":
+        """The same element model reduced to ``modes`` modes (``None``: unreduced), the optional
+        modal reduction of the interface (``linearize.reduction_error``'s reference)."""
+        return Fem(self.n_elements, modes)
 
     def breakpoints(self, link) -> np.ndarray:
         """The nodes (m), where the elements' curvature jumps (the optional ``breakpoints`` of the

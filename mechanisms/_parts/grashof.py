@@ -8,11 +8,10 @@ import numpy as np
 
 from .checks import GROUND, MechanismError
 from .drives import _drive_angle
-from .joints import Revolute
 from .links import Link, _pin_position
 
 
-def check_four_bar(mech, links: dict, joints: dict) -> None:
+def check_four_bar(mech, links: dict) -> None:
     """Grashof for a driven four-bar: the crank must pass every angle it is driven through.
 
     With crank pin O, coupler pin A, rocker pivot C and lengths l_coupler, l_rocker, the loop closes
@@ -21,32 +20,33 @@ def check_four_bar(mech, links: dict, joints: dict) -> None:
     Grashof one whose crank is not the shortest link); touching the bound is a toggle, where the
     constraint Jacobian is singular (a change-point linkage, s + l = p + q).
     """
-    revolutes = [j for j in mech.joints if isinstance(j, Revolute)]
-    if len(mech.links) != 3 or len(revolutes) != 4 or len(mech.drives) != 1:
+    pins = _pins(mech)
+    if len(mech.links) != 3 or len(pins) != 4 or len(mech.drives) != 1:
         return
-    ground_joints = [j for j in revolutes if j.link_a == GROUND]
-    drive_joint = joints[mech.drives[0].joint]
-    if len(ground_joints) != 2 or drive_joint.link_a != GROUND:
+    ground_joints = [name for name, sides in pins.items() if sides[0][0] == GROUND]
+    drive_joint = mech.drives[0].joint
+    if len(ground_joints) != 2 or drive_joint not in ground_joints:
         return
-    crank = links[drive_joint.link_b]
-    rocker_joint = next(j for j in ground_joints if j is not drive_joint)
-    rocker = links[rocker_joint.link_b]
+    crank = links[pins[drive_joint][1][0]]
+    rocker_joint = next(name for name in ground_joints if name != drive_joint)
+    rocker = links[pins[rocker_joint][1][0]]
     if rocker is crank:
         return
     coupler = next(link for link in mech.links if link is not crank and link is not rocker)
-    inner = [j for j in revolutes if j.link_a != GROUND]
+    inner = [name for name, sides in pins.items() if sides[0][0] != GROUND]
 
-    def pin(link: Link, joint: Revolute) -> tuple[float, float]:
-        point = joint.point_a if joint.link_a == link.name else joint.point_b
-        return _pin_position(link, point, f"joint {joint.name!r}")
+    def pin(link: Link, joint: str) -> tuple[float, float]:
+        point = next(point for owner, point in pins[joint] if owner == link.name)
+        return _pin_position(link, point, f"joint {joint!r}")
 
-    def side(link_a: Link, link_b: Link) -> Revolute | None:
-        return next((j for j in inner if {j.link_a, j.link_b} == {link_a.name, link_b.name}), None)
+    def side(link_a: Link, link_b: Link) -> str | None:
+        return next((name for name in inner if {owner for owner, _ in pins[name]} == {link_a.name, link_b.name}),
+                    None)
 
     crank_coupler, coupler_rocker = side(crank, coupler), side(coupler, rocker)
     if crank_coupler is None or coupler_rocker is None:
         return
-    o, c = drive_joint.point_a, rocker_joint.point_a
+    o, c = pins[drive_joint][0][1], pins[rocker_joint][0][1]
     crank_vec = [b - a for a, b in zip(pin(crank, drive_joint), pin(crank, crank_coupler))]
     l_coupler = math.dist(pin(coupler, crank_coupler), pin(coupler, coupler_rocker))
     l_rocker = math.dist(pin(rocker, rocker_joint), pin(rocker, coupler_rocker))
@@ -109,7 +109,7 @@ def check_four_bar(mech, links: dict, joints: dict) -> None:
         if not toggles:
             return
         kind = ("toggle: the constraint Jacobian of joints "
-                f"{crank_coupler.name!r}, {coupler_rocker.name!r} is singular there")
+                f"{crank_coupler!r}, {coupler_rocker!r} is singular there")
         t_high = toggles[0]
     angle = drive.angle(t_high, period)[0]
     raise MechanismError(
@@ -118,3 +118,14 @@ def check_four_bar(mech, links: dict, joints: dict) -> None:
         f"with the crank the shortest link (or the ground shortest), strictly for no toggle; "
         f"{grashof}")
 
+
+def _pins(mech) -> dict[str, tuple]:
+    """``{joint: ((link, point), (link, point))}`` of the joints that pin two points together (those
+    whose ``coincident_points()`` name them: a revolute joint, a registered pin), a ground side first
+    (its point a ground position ``(x, y)``)."""
+    pins = {}
+    for joint in mech.joints:
+        sides = tuple(joint.coincident_points())
+        if sides:
+            pins[joint.name] = sides[::-1] if sides[1][0] == GROUND else sides
+    return pins

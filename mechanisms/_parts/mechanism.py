@@ -246,6 +246,6 @@ def _validate(mech: Mechanism) -> None:
     object.__setattr__(mech, "period", float(period))
     object.__setattr__(mech, "period_is_default", is_default)
 
-    check_four_bar(mech, links, joints)
+    check_four_bar(mech, links)
 
 

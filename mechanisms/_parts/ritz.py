@@ -43,6 +43,7 @@ class Ritz:
 
     TYPE: ClassVar[str] = "ritz"
     KEYS: ClassVar[tuple[str, ...]] = ("type", "n_bending", "n_axial")
+    COUNT_KEYS: ClassVar[tuple[str, ...]] = ("n_bending", "n_axial")
     check_boundary: ClassVar[bool] = False    # the modes satisfy the boundary conditions exactly
 
     #: why the mode counts are bounded (``MAX_MODES``)

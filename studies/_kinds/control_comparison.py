@@ -19,7 +19,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .._kind import StudyKind, register_kind
-from .._mechanism import deviation_from_nominal
+from .._mechanism import coordinate_parts, deviations_along
 from .._plots import Plot, axes_for, drawn, headline, label, plain
 from .._result import DerivedPeaks, StudyResult, peaks_of
 from .._toolkit import (
@@ -55,8 +55,6 @@ MIN_STEPS = 32
 INACCURATE_FRACTION = 0.1
 #: Richardson's divisor for the error of a second-order method from runs at h and 2h: 2^2 - 1.
 RICHARDSON = 3.0
-#: The observables an ``output`` may be: positions (an angle, a point's displacement or coordinate).
-OUTPUT_KINDS = ("angle", "point_error", "point_error_x", "point_error_y")
 #: The saturation record of each case (``ControlComparison.saturation``).
 SATURATION_KEYS = ("peak_demanded_torque", "peak_command", "clipped_fraction", "clipped_until")
 
@@ -320,7 +318,8 @@ def control_comparison(problem: Any, values: Mapping[str, float] | None = None, 
 @dataclass(frozen=True)
 class _Plan:
     """What each run reports: ``units`` and ``roles`` by quantity (in report order), the controlled
-    ``drive_index`` and its joint's links (``driven``, ``reference``: None for the ground), the
+    ``drive_index``, the link it turns (``driven``) and the relative angle it turns (``turns``:
+    ``(link, coefficient)`` of its joint's ``drive_terms``, frame angles, the ground left out), the
     ``output`` spec and the coordinate observables' specs to evaluate (``direct``); the drive's
     ``joint``, ``torque_limit`` and ``command_limit`` (N m, inf where none) and the motor's
     back-EMF damping ``back_emf`` (N m s/rad at the joint, 0 without a motor)."""
@@ -329,7 +328,7 @@ class _Plan:
     roles: dict[str, str]
     drive_index: int
     driven: str
-    reference: str | None
+    turns: tuple[tuple[str, float], ...]
     output: str
     direct: tuple[str, ...]
     joint: str
@@ -350,7 +349,7 @@ def _quantities(problem: Any, mechanism: Any, without: Any, output: str | None) 
     drive_index = changed[0] if changed else 0
     drive = mechanism.drives[drive_index]
     joint = mechanism.joint(drive.joint)
-    reference = None if joint.link_a == mechanisms.GROUND else joint.link_a
+    turns = tuple((term.link, float(term.coefficient)) for term in joint.drive_terms())   # driven first
     output = _default_output(mechanism, joint) if output is None else output
     model = mechanisms.assemble(mechanism)
     specs = getattr(problem, "observable_specs", None) or mechanisms.default_observables(mechanism)
@@ -361,42 +360,50 @@ def _quantities(problem: Any, mechanism: Any, without: Any, output: str | None) 
         logger.info("control comparison: %s not reported (not functions of the coordinates)", ", ".join(skipped))
     _check_output("output", output)
     observer = model.observable(output)   # an unknown link or fraction raises naming the spec
-    components = getattr(observer, "components", None) or ()
+    found = coordinate_parts(observer)
+    if found is None:   # a registered position quantity that reads more than the coordinates
+        raise StudiesError(f"output: expected the observable spec of a position, a function of the "
+                           f"coordinates; {output!r} is not one")
     speed, torque = f"drive.{drive.joint}.rate", f"drive.{drive.joint}.torque"
     units = {spec: model.observable(spec).unit for spec in elastic}
     units.update({speed: "rad/s", output: observer.unit, torque: "N m"})
     roles = {spec: "elastic" for spec in elastic}
     roles.update({speed: "speed", output: "output", torque: "torque"})
-    direct = tuple(dict.fromkeys(elastic + ([c.spec for c in components] if components else [output])))
+    direct = tuple(dict.fromkeys(elastic + [part.spec for part in found[0]]))
     motor = getattr(drive, "motor", None)
-    return _Plan(units=units, roles=roles, drive_index=drive_index, driven=joint.link_b,
-                 reference=reference, output=output, direct=direct, joint=drive.joint,
+    return _Plan(units=units, roles=roles, drive_index=drive_index, driven=turns[0][0],
+                 turns=turns, output=output, direct=direct, joint=drive.joint,
                  torque_limit=float(getattr(drive, "torque_limit", math.inf)),
                  command_limit=motor.peak_command if motor is not None else math.inf,
                  back_emf=motor.back_emf_damping if motor is not None else 0.0)
 
 
 def _check_output(where: str, output: Any) -> None:
-    """An ``output`` must be the spec of a position: ``<link>.angle`` or a point's displacement
-    (``OUTPUT_KINDS``); its deviation from the nominal motion is the output error."""
+    """An ``output`` must be the spec of a position, ``<link>.<quantity>`` with a quantity that
+    declares itself one (``mechanisms.position_quantities()``: ``angle``, a point's displacement,
+    registered ones); its deviation from the nominal motion is the output error."""
+    import mechanisms
+
+    positions = mechanisms.position_quantities()
     kind = output.partition("@")[0].rpartition(".")[2] if isinstance(output, str) else None
-    if kind not in OUTPUT_KINDS or output.startswith(("drive.", "joint.")):
-        raise StudiesError(f"{where}: expected the observable spec of a position, '<link>.angle' or "
-                           f"'<link>.point_error@p' (also point_error_x, point_error_y), e.g. 'rocker.angle', "
-                           f"got {output!r}")
+    if kind not in positions or output.startswith(("drive.", "joint.")):
+        raise StudiesError(f"{where}: expected the observable spec of a position, '<link>.<quantity>' with "
+                           f"a quantity in {list(positions)} (mechanisms.position_quantities), e.g. "
+                           f"'rocker.angle' or '<link>.point_error@p', got {output!r}")
 
 
 def _default_output(mechanism: Any, drive_joint: Any) -> str:
-    """The angle of the last link pivoted on the ground by a revolute joint other than the driven
-    one (a four-bar's rocker), else the displacement of the last link's end (a slider's pin, an
-    arm's tip)."""
+    """The angle of the last link pinned to the ground (a joint whose ``coincident_points`` hold a
+    point of it to a ground point) by a joint other than the driven one (a four-bar's rocker), else
+    the displacement of the last link's end (a slider's pin, an arm's tip)."""
     import mechanisms
 
-    driven = drive_joint.link_b
-    pivoted = [joint.link_b if joint.link_a == mechanisms.GROUND else joint.link_a
-               for joint in mechanism.joints
-               if isinstance(joint, mechanisms.Revolute) and joint.name != drive_joint.name
-               and mechanisms.GROUND in (joint.link_a, joint.link_b)]
+    driven = drive_joint.drive_terms()[0].link
+    pivoted = []
+    for joint in mechanism.joints:
+        sides = [link for link, _ in joint.coincident_points()] if joint.name != drive_joint.name else []
+        if mechanisms.GROUND in sides:
+            pivoted += [link for link in sides if link != mechanisms.GROUND]
     names = [link.name for link in mechanism.links if link.name != driven]
     for name in reversed(names):
         if name in pivoted:
@@ -507,19 +514,12 @@ def _along(run: Any, model: Any, nominal_s: np.ndarray, nominal_sdot: np.ndarray
     n = nominal_s.shape[0] - 1
     phase = np.arange(run.t.size) % n   # the nominal sample of each run sample
 
-    def deviation(spec: str) -> np.ndarray:
-        observer = model.observable(spec)
-        if getattr(observer, "components", None):   # a point's displacement: its magnitude
-            return np.hypot(*(deviation(component.spec) for component in observer.components))
-        nominal = np.array([observer.value(s) for s in nominal_s[:-1]])
-        return deviation_from_nominal(run.observables[spec], nominal[phase], observer.unit)
+    def deviation(spec: str) -> np.ndarray:   # a function of the coordinates or composed of such
+        return deviations_along(model.observable(spec), model, nominal_s, run.t, run.s, run.observables)
 
     labels = list(model.coord_labels)
-    rows = [labels.index(f"{plan.driven}.theta")]
-    signs = [1.0]
-    if plan.reference is not None:
-        rows.append(labels.index(f"{plan.reference}.theta"))
-        signs.append(-1.0)
+    rows = [labels.index(f"{link}.theta") for link, _ in plan.turns]
+    signs = [coefficient for _, coefficient in plan.turns]
 
     def relative_rate(sdot: np.ndarray) -> np.ndarray:
         return sum(sign * sdot[:, row] for sign, row in zip(signs, rows))

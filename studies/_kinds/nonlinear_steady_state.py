@@ -15,7 +15,7 @@ import numpy as np
 import periodic
 
 from .._kind import StudyKind, register_kind
-from .._mechanism import observables_along, of_coordinates
+from .._mechanism import coordinate_parts, observables_along
 from .._numerics import solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
 from .._result import DerivedPeaks, StudyResult, peaks_of
@@ -296,12 +296,9 @@ def orbit_observables(linear: Any, period_map: Any, state: np.ndarray, *, observ
 
 
 def _of_coordinates_only(observable: Any) -> bool:
-    """Whether ``observable`` is a function of the coordinates, or the magnitude of a pair of such
-    (a point's displacement; a joint force's magnitude is not)."""
-    components = getattr(observable, "components", None)
-    if components is not None:
-        return all(_of_coordinates_only(component) for component in components)
-    return of_coordinates(observable)
+    """Whether ``observable`` is a function of the coordinates, or composed of such (a point's
+    displacement; a joint force's magnitude is not): ``studies._mechanism.coordinate_parts``."""
+    return coordinate_parts(observable) is not None
 
 
 def substep_verdict(status: str, message: str, n_substeps: int, n_steps: int) -> tuple[str, str]:

@@ -22,7 +22,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .._kind import StudyKind, register_kind
-from .._mechanism import COUNT_KEYS
+from .._mechanism import count_keys
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
 from .._result import PEAK_FIELDS, StudyResult, unknown_peaks
 from .._toolkit import (
@@ -306,7 +306,7 @@ def _check_bounds(problem: Any, bounds: Any) -> tuple[tuple[str, ...], np.ndarra
     for name, pair in bounds.items():
         if not isinstance(name, str):
             raise StudiesError(f"bounds: expected parameter paths (str) as keys, got {name!r}")
-        if name.split(".")[-1] in COUNT_KEYS:
+        if name.split(".")[-1] in count_keys():
             raise StudiesError(f"bounds: {name!r} is a count (it changes the number of coordinates), not a "
                                f"continuous design parameter; optimise continuous values only")
         try:
