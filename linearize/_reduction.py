@@ -107,14 +107,17 @@ def reference_mechanism(mechanism, reference: str = "next"):
 
 def reduction_error(mechanism, *, n_steps: int = 256, observables=None, reference: str = "next",
                     tolerance: float = REDUCTION_TOL,
-                    response: Mapping[str, np.ndarray] | None = None) -> ReductionCheck:
+                    response: Mapping[str, np.ndarray] | None = None,
+                    scheme: str | object = "trapezoidal") -> ReductionCheck:
     """The reduction error of the steady state of ``mechanism`` (``about(mechanism, n_steps=...,
     observables=...)``, ``periodic.steady_state``) against ``reference`` (``"next"``: modes + 2 on
     every reduced link; ``"full"``: the element models unreduced). A mechanism without reduced links
     has error 0 at once. ``tolerance`` (relative to each observable's peak-to-peak) decides the
     status. ``response`` {spec: (n_steps + 1,)}: the mechanism's own steady response when the caller
     already has it (a study's steady state, same steps and scheme), so only the reference is solved;
-    it must hold every observable the reference reports."""
+    it must hold every observable the reference reports. ``scheme``: the periodic scheme of both
+    steady states (a name in ``periodic.SCHEMES`` or a scheme), the one ``response`` was computed
+    with, so that the difference is the reduction's and not the schemes'."""
     if not (isinstance(tolerance, (int, float)) and np.isfinite(tolerance) and tolerance > 0):
         raise LinearizationError(f"tolerance must be a positive number (relative to the "
                                  f"peak-to-peak); received {tolerance!r}")
@@ -123,8 +126,8 @@ def reduction_error(mechanism, *, n_steps: int = 256, observables=None, referenc
         return ReductionCheck(reference, {}, {}, {}, 0.0, float(tolerance), "ok",
                               "no reduced link", time.perf_counter() - started)
     other, modes = reference_mechanism(mechanism, reference)
-    exact = _steady_response(other, n_steps, observables)
-    reduced = (_steady_response(mechanism, n_steps, observables) if response is None
+    exact = _steady_response(other, n_steps, observables, scheme)
+    reduced = (_steady_response(mechanism, n_steps, observables, scheme) if response is None
                else _checked_response(response, exact))
     difference = {spec: float(np.abs(reduced[spec] - exact[spec]).max()) for spec in exact}
     relative = {spec: difference[spec] / max(float(np.ptp(exact[spec])), np.finfo(float).tiny)
@@ -158,8 +161,8 @@ def _checked_response(response, exact) -> dict[str, np.ndarray]:
     return found
 
 
-def _steady_response(mechanism, n_steps, observables) -> dict[str, np.ndarray]:
+def _steady_response(mechanism, n_steps, observables, scheme) -> dict[str, np.ndarray]:
     """The observables (N+1,) of the steady state of ``mechanism`` over one period."""
     linear = about(mechanism, n_steps=n_steps, observables=observables)
-    state = periodic.steady_state(linear.system, estimate_error=False)
+    state = periodic.steady_state(linear.system, scheme=scheme, estimate_error=False)
     return {spec: np.asarray(values) for spec, values in linear.observe(state.x).items()}

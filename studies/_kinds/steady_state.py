@@ -227,7 +227,7 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
     linear = problem.linearize(values, n_steps=n_steps)
     steady = solve_steady(linear, scheme)
     state = steady.state
-    reduction = _reduction_error(linear, state.x, n_steps)
+    reduction = _reduction_error(linear, state.x, n_steps, scheme)
     status, message = combine([(steady.status, steady.message),
                                (reduction.status, reduction.message)])
     peaks = {name: {spec: float(values[k]) for k, spec in enumerate(linear.observables)}
@@ -252,7 +252,7 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
         reduction_error=reduction.error, reduction_run_time=reduction.run_time, scheme=scheme, **drawing)
 
 
-def _reduction_error(linear: Any, x: np.ndarray, n_steps: int) -> Any:
+def _reduction_error(linear: Any, x: np.ndarray, n_steps: int, scheme: str) -> Any:
     """``linearize.reduction_error`` of a mechanism problem's steady state ``x`` (N+1, m) against the
     next larger mode set (only that reference is solved: the response is this one's); error 0 at
     once for a mechanism without reduced links and for problems without a mechanism."""
@@ -263,7 +263,7 @@ def _reduction_error(linear: Any, x: np.ndarray, n_steps: int) -> Any:
         return linearize.ReductionCheck("next", {}, {}, {}, 0.0, linearize.REDUCTION_TOL, "ok",
                                         "no reduced link", 0.0)
     return linearize.reduction_error(lin.mechanism, n_steps=n_steps, observables=lin.observables,
-                                     response=lin.observe(x))
+                                     response=lin.observe(x), scheme=study_scheme(scheme))
 
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
