@@ -54,6 +54,7 @@ from ._problem import NonlinearRun as NonlinearRun
 from ._problem import PeriodicCoefficients as PeriodicCoefficients
 from ._problem import PeriodicProblem as PeriodicProblem
 from ._problem import mathieu_problem as mathieu_problem
+from ._result import StudyResult as StudyResult
 from ._resultfile import ResultFile as ResultFile
 from ._store import FORMAT_VERSION as FORMAT_VERSION
 from ._store import Result as Result
@@ -68,6 +69,7 @@ __all__ = [
     "FORMAT_VERSION",
     "Headline",
     "Result",
+    "StudyResult",
     "ResultFile",
     "StudyKind",
     "Summary",

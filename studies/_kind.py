@@ -138,6 +138,18 @@ class StudyKind:
 #: Keys of the ``[studies]`` table that are not kinds (a kind may not take their names).
 COMMON_KEYS = ("n_steps", "observables", "scheme")
 
+#: What every study result offers a user and the command (``studies.StudyResult``): a result class
+#: without one of them is refused at registration, not when the command reads it after the run.
+RESULT_FIELDS = ("status", "message", "run_time", "peak", "peak_error", "peak_to_peak", "peak_to_peak_error",
+                 "plot", "to_hdf5")
+
+
+def _has_field(cls: type, name: str) -> bool:
+    """Whether instances of ``cls`` have ``name``: a dataclass field, or a class attribute (a property,
+    a method, a class-level default)."""
+    return name in getattr(cls, "__dataclass_fields__", {}) or hasattr(cls, name)
+
+
 _KINDS: dict[str, StudyKind] = {}
 _BY_RESULT: dict[type, StudyKind] = {}
 
@@ -180,6 +192,11 @@ def register_kind(kind: StudyKind) -> StudyKind:
     if not (isinstance(kind.result, type) and issubclass(kind.result, Result)):
         raise StudiesError(f"register_kind: {where}: result must be a subclass of studies.Result, got "
                            f"{kind.result!r}")
+    missing = [name for name in RESULT_FIELDS if not _has_field(kind.result, name)]
+    if missing:
+        raise StudiesError(f"register_kind: {where}: result class {kind.result.__name__} lacks "
+                           f"{', '.join(missing)}: every result has {', '.join(RESULT_FIELDS)} (derive it "
+                           f"from studies.StudyResult, whose docstring says their shapes)")
     if kind.result in _BY_RESULT:
         raise StudiesError(f"register_kind: {where}: result class {kind.result.__name__} is already the "
                            f"result of kind {_BY_RESULT[kind.result].name!r}")
