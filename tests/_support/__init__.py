@@ -1,0 +1,1 @@
+"""Helpers of the test modules (not tests themselves)."""
