@@ -6,42 +6,10 @@ equivalent model: the same torque and derivatives)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import ClassVar
-
 import numpy as np
 
 import mechanisms as mc
-
-
-@mc.register_controller
-@dataclass(frozen=True)
-class GaugedPD:
-    """Adds ``kp (angle_nominal - angle) + kd (rate_nominal - rate) - gain o``, ``o`` the strain at
-    the coupler's midspan."""
-
-    name: str
-    joint: str
-    kp: float = 0.0
-    kd: float = 0.0
-    gain: float = 0.0
-    lag: float = 0.0
-
-    TYPE: ClassVar[str] = "gauged_pd"
-    KEYS: ClassVar[tuple[str, ...]] = ("type", "joint", "kp", "kd", "gain")
-
-    @classmethod
-    def from_table(cls, name, table):
-        return cls(name, table.string("joint"), table.number("kp", "N m/rad", 0.0),
-                   table.number("kd", "N m s/rad", 0.0), table.number("gain", "N m", 0.0))
-
-    def to_table(self):
-        return {"type": self.TYPE, "joint": self.joint, "kp": self.kp, "kd": self.kd,
-                "gain": self.gain}
-
-    def law(self):
-        return mc.ControllerLaw(kp=self.kp, kd=self.kd, observable="coupler.strain@0.5",
-                                gain=self.gain)
+from tests._support.extensions import GaugedPD
 
 
 def test_a_registered_controller_acts_as_its_built_in_equivalent():

@@ -1,5 +1,6 @@
 """A new link discretisation defined outside the packages with public API only: a Ritz basis of
-Legendre polynomials, registered with ``mechanisms.register_discretisation``.
+Legendre polynomials, registered with ``mechanisms.register_discretisation`` (defined in
+``tests/_support/extensions.py``).
 
 On ``xi = 2 x / L - 1`` in [-1, 1], bending ``P_{k+2}(xi) - P_k(xi)`` (zero at both pins, since
 ``P_n(+-1) = (+-1)^n``) and axial ``P_{j+1}(xi) + P_j(xi)`` (zero at the start). Checked against
@@ -16,90 +17,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
-from typing import ClassVar
 
 import numpy as np
 import pytest
 import scipy.linalg
-from numpy.polynomial import legendre
 
 import mechanisms
 import studies
-
-
-def _legendre_shape(coefficients, x, length):
-    """Value, d/dx, d2/dx2 of the Legendre series ``coefficients`` in ``xi = 2 x / L - 1``."""
-    h = 2.0 / length
-    xi = h * np.asarray(x, dtype=float) - 1.0
-    return (legendre.legval(xi, coefficients), h * legendre.legval(xi, legendre.legder(coefficients)),
-            h * h * legendre.legval(xi, legendre.legder(coefficients, 2)))
-
-
-def _bending_coefficients(k):
-    c = np.zeros(k + 3)
-    c[k + 2], c[k] = 1.0, -1.0
-    return c
-
-
-def _axial_coefficients(j):
-    c = np.zeros(j + 2)
-    c[j + 1] = c[j] = 1.0
-    return c
-
-
-@mechanisms.register_discretisation
-@dataclass(frozen=True)
-class Legendre:
-    """Legendre Ritz basis of a pinned-pinned link: ``n_bending`` bending and ``n_axial`` axial
-    shapes."""
-
-    n_bending: int = 4
-    n_axial: int = 1
-
-    TYPE: ClassVar[str] = "legendre"
-    KEYS: ClassVar[tuple[str, ...]] = ("type", "n_bending", "n_axial")
-    check_boundary: ClassVar[bool] = True
-
-    @classmethod
-    def from_table(cls, table):
-        return cls(table.integer("n_bending", 4, minimum=1, maximum=40, why="Legendre test basis"),
-                   table.integer("n_axial", 1, minimum=0, maximum=40, why="Legendre test basis"))
-
-    def to_table(self):
-        return {"type": self.TYPE, "n_bending": self.n_bending, "n_axial": self.n_axial}
-
-    def layout(self, link, attachments=None):
-        if link.boundary != "pinned-pinned":
-            raise mechanisms.MechanismError(f"link {link.name!r}: the Legendre basis is for "
-                                            f"pinned-pinned links, got {link.boundary!r}")
-        n_axial = self.n_axial if link.axial else 0
-        return mechanisms.ShapeLayout(tuple(f"b{i + 1}" for i in range(self.n_bending))
-                                      + tuple(f"a{j + 1}" for j in range(n_axial)))
-
-    def values(self, link, x, basis=None):
-        m, nb = len(x), self.n_bending
-        na = self.n_axial if link.axial else 0
-        u, du, w, dw, ddw = (np.zeros((m, nb + na)) for _ in range(5))
-        for k in range(nb):
-            w[:, k], dw[:, k], ddw[:, k] = _legendre_shape(_bending_coefficients(k), x, link.length)
-        for j in range(na):
-            u[:, nb + j], du[:, nb + j], _ = _legendre_shape(_axial_coefficients(j), x, link.length)
-        return mechanisms.ShapeValues(u, du, w, dw, ddw)
-
-
-# the same shapes as module-level functions, for UserShapes (a scene names them module:qualname)
-def bending_1(x, length):
-    return _legendre_shape(_bending_coefficients(0), x, length)
-
-
-def bending_2(x, length):
-    return _legendre_shape(_bending_coefficients(1), x, length)
-
-
-def axial_1(x, length):
-    return _legendre_shape(_axial_coefficients(0), x, length)
-
+from tests._support import extensions
+from tests._support.extensions import Legendre, axial_1, bending_1, bending_2
 
 BASE = mechanisms.load("four_bar_ritz")
 SPEC = "coupler.deflection@0.5"
@@ -184,8 +110,9 @@ def test_user_shapes_of_module_functions_reach_the_studies_and_lambdas_are_refus
     user = mechanisms.UserShapes((bending_1, bending_2), (axial_1,))
     mech = _with_coupler(user)
     table = mech.to_spec()["links"]["coupler"]["discretisation"]
-    assert table == {"type": "user", "bending": [f"{__name__}:bending_1", f"{__name__}:bending_2"],
-                     "axial": [f"{__name__}:axial_1"]}
+    where = extensions.__name__       # the module that defines the functions
+    assert table == {"type": "user", "bending": [f"{where}:bending_1", f"{where}:bending_2"],
+                     "axial": [f"{where}:axial_1"]}
     assert mechanisms.loads(mech.to_toml()) == mech
     # the same space as the registered class: the same answer
     assert _peak_to_peak(mech, 64) == pytest.approx(_peak_to_peak(_with_coupler(Legendre(2, 1)), 64),

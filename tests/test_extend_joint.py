@@ -2,7 +2,8 @@
 
 The gear holds a fixed ratio between the material angles of two links,
 ``theta_b = offset - ratio * theta_a``: one ``mechanisms.AngleRow`` (a linear row, no new kernel),
-registered with ``mechanisms.register_joint``. It is checked against what does not know of it:
+registered with ``mechanisms.register_joint`` (defined in ``tests/_support/extensions.py``). It is
+checked against what does not know of it:
 
 * the rigid kinematics and inverse dynamics in closed form (a wheel pinned at its centroid and
   geared to the crank of the thesis four-bar turns at ``-ratio`` times the crank; the gear's torque
@@ -19,68 +20,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
-from typing import Any, ClassVar
 
 import numpy as np
 import pytest
 
 import mechanisms
 import studies
-
-
-@mechanisms.register_joint
-@dataclass(frozen=True)
-class Gear:
-    """A gear pair: ``theta_b + ratio theta_a - offset = 0`` between the material angles of two
-    links at their points; its force is the torque (N m) on ``link_b``."""
-
-    name: str
-    link_a: str
-    point_a: Any
-    link_b: str
-    point_b: Any
-    ratio: float
-    offset: float = 0.0
-
-    TYPE: ClassVar[str] = "gear"
-    KEYS: ClassVar[tuple[str, ...]] = ("type", "link_a", "point_a", "link_b", "point_b", "ratio",
-                                       "offset")
-    n_equations: ClassVar[int] = 1
-    point_force: ClassVar[bool] = False     # it transmits a moment
-    force_unit: ClassVar[str] = "N m"
-
-    @classmethod
-    def from_table(cls, name, table):
-        return cls(name, table.string("link_a"), table.point("point_a"), table.string("link_b"),
-                   table.point("point_b"), table.number("ratio", "1"),
-                   table.number("offset", "rad", 0.0))
-
-    def to_table(self):
-        return {"type": self.TYPE, "link_a": self.link_a, "point_a": self.point_a,
-                "link_b": self.link_b, "point_b": self.point_b, "ratio": self.ratio,
-                "offset": self.offset}
-
-    @property
-    def ends(self):
-        return ((self.link_a, self.point_a), (self.link_b, self.point_b))
-
-    def constraint_rows(self):
-        return (mechanisms.AngleRow("ratio", (mechanisms.AngleTerm(self.link_b, self.point_b, 1.0),
-                                              mechanisms.AngleTerm(self.link_a, self.point_a,
-                                                                   self.ratio)),
-                                    -self.offset),)
-
-    def force_components(self):
-        # the generalized force of the row on theta_b is -dPhi/dtheta_b lam = -lam
-        return {"torque": (-1.0,)}
-
-    def drive_terms(self):
-        return None
-
-    def coincident_points(self):
-        return ()
-
+from tests._support.extensions import Gear
 
 RATIO, OFFSET = 2.0, 0.3        # a whole ratio: the wheel returns after one period
 WHEEL_INERTIA = 4e-5        # kg m^2 about its centroid, the pivot

@@ -1,134 +1,22 @@
-"""A new study kind defined here, outside the packages, with public API only (``studies.StudyKind``,
-``studies.register_kind``, ``studies.Result``, ``studies.steady_solves``, ``studies.Summary``):
-"peak_table", the steady state's peak to peak of each observable at a few speeds. Registered, it runs
-through the ``flexvib`` entry point in-process (on a scene file declaring it, and in the built-in
-mathieu scene through its demo table), its file loads back with ``studies.load``, and its numbers
-are held to the closed form of the forced oscillator and to ``studies.steady_state`` itself."""
+"""A new study kind defined outside the packages (in ``tests/_support/extensions.py``), with public API
+only (``studies.StudyKind``, ``studies.register_kind``, ``studies.Result``,
+``studies.steady_solves``, ``studies.Summary``): "peak_table", the steady state's peak to peak of
+each observable at a few speeds. Registered, it runs through the ``flexvib`` entry point in-process
+(on a scene file declaring it, and in the built-in mathieu scene through its demo table), its file
+loads back with ``studies.load``, and its numbers are held to the closed form of the forced
+oscillator and to ``studies.steady_state`` itself."""
 
 from __future__ import annotations
 
 import math
-import time
-from dataclasses import dataclass
-from typing import Any, Mapping
 
 import h5py
-import numpy as np
 import pytest
 
 import mechanisms
 import studies
 from studies.cli import main
-
-
-# ---------------------------------------------------------------------------------------------------
-# the new kind: its result class, table check, run, cost model, summary and headlines
-# ---------------------------------------------------------------------------------------------------
-@dataclass(frozen=True, eq=False)
-class PeakTable(studies.Result):
-    """Peak to peak of each observable of the steady state at each speed.
-
-    Attributes
-    ----------
-    problem : str
-        The problem's name.
-    speeds : ndarray, shape (n_speeds,)
-        Crank speeds, rad/s.
-    units : mapping of str to str
-        Unit of each observable.
-    peak_to_peak : mapping of str to ndarray, shape (n_speeds,)
-        Peak to peak of each observable at each speed, in its unit.
-    peak_to_peak_error : mapping of str to ndarray, shape (n_speeds,)
-        Their estimated errors (N against N/2 steps).
-    n_steps : int
-        Steps per period.
-    status, message : str
-        The worst of the steady states' verdicts and its reason.
-    run_time : float
-        Seconds.
-    """
-
-    problem: str
-    speeds: np.ndarray
-    units: Mapping[str, str]
-    peak_to_peak: Mapping[str, np.ndarray]
-    peak_to_peak_error: Mapping[str, np.ndarray]
-    n_steps: int
-    status: str
-    message: str
-    run_time: float
-
-    _units = {"speeds": "rad/s", "peak_to_peak": "@observables", "peak_to_peak_error": "@observables"}
-
-    def plot(self, *, axes: Any = None) -> studies.Plot:
-        import matplotlib.pyplot as plt
-
-        if axes is None:
-            _, axes = plt.subplots(len(self.peak_to_peak), 1, squeeze=False)
-            axes = list(axes[:, 0])
-        artists = {}
-        for ax, (spec, values) in zip(axes, self.peak_to_peak.items()):
-            artists[spec] = ax.plot(self.speeds, values, "o-")
-            ax.set_xlabel("speed (rad/s)")
-            ax.set_ylabel(f"{spec} peak to peak ({self.units[spec]})")
-            ax.set_title(f"{self.problem}: peak to peak, {self.status}", fontsize="small")
-        return studies.Plot(figure=axes[0].figure, axes=list(axes), artists=artists)
-
-
-def peak_table(problem: Any, speeds, *, n_steps: int = 64) -> PeakTable:
-    started = time.perf_counter()
-    steadies = [studies.steady_state(problem, {"speed": float(speed)}, n_steps=n_steps) for speed in speeds]
-    specs = list(steadies[0].peak_to_peak)
-    worst = max(steadies, key=lambda steady: steady.status != "ok")
-    return PeakTable(problem=problem.name, speeds=np.asarray(speeds, dtype=float), units=dict(steadies[0].units),
-                     peak_to_peak={s: np.array([steady.peak_to_peak[s] for steady in steadies]) for s in specs},
-                     peak_to_peak_error={s: np.array([steady.peak_to_peak_error[s] for steady in steadies])
-                                         for s in specs},
-                     n_steps=n_steps, status=worst.status, message=worst.message,
-                     run_time=time.perf_counter() - started)
-
-
-def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
-    speeds = table.get("speeds")
-    if not isinstance(speeds, list) or not speeds or not all(
-            isinstance(s, (int, float)) and not isinstance(s, bool) and s > 0 for s in speeds):
-        raise studies.StudiesError(f"[{where}] speeds: expected a list of positive speeds (rad/s), got {speeds!r}")
-    steps = table.get("n_steps", n_steps)
-    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 16 or steps % 4:
-        raise studies.StudiesError(f"[{where}] n_steps: expected a multiple of 4, at least 16, got {steps!r}")
-    return {"speeds": [float(s) for s in speeds], "n_steps": steps}
-
-
-def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> PeakTable:
-    return peak_table(problem, options["speeds"], n_steps=options["n_steps"])
-
-
-def _cost(name: str, problem: Any, options: Mapping[str, Any], workers: int) -> studies.Estimate:
-    return studies.steady_solves(name, problem, [{"speed": s} for s in options["speeds"]], options["n_steps"])
-
-
-def _summary(result: PeakTable) -> str:
-    return f"{len(result.speeds)} speeds, {result.status}; {result.run_time:.3g} s"
-
-
-def _headlines(result: PeakTable) -> studies.Summary:
-    rows = [studies.Headline(f"{spec} peak to peak at {speed:g} rad/s", float(value), result.units[spec],
-                             float(error))
-            for spec, values in result.peak_to_peak.items()
-            for speed, value, error in zip(result.speeds, values, result.peak_to_peak_error[spec])]
-    return studies.Summary(status=result.status, run_time=result.run_time, rows=rows)
-
-
-DEMO_SPEEDS = [0.5, 0.9, 1.4]
-
-KIND = studies.StudyKind(name="peak_table", result=PeakTable, keys=("speeds", "n_steps"), check=_check, run=_run,
-                         summary=_summary, headlines=_headlines, cost=_cost,
-                         demo={"speeds": DEMO_SPEEDS, "n_steps": 64})
-
-
-@pytest.fixture(scope="module", autouse=True)
-def registered():
-    return studies.register_kind(KIND)
+from tests._support.extensions import DEMO_SPEEDS, KIND, PeakTable
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -141,8 +29,8 @@ def _oscillator_peak_to_peak(speed: float, *, natural_frequency=1.0, damping_rat
 def test_the_kind_is_registered_with_its_pieces():
     assert studies.kinds()["peak_table"] is KIND and studies.register_kind(KIND) is KIND  # idempotent
     with pytest.raises(studies.StudiesError, match="already registered"):
-        studies.register_kind(studies.StudyKind(name="peak_table", result=PeakTable, keys=(), check=_check,
-                                                run=_run, summary=_summary, cost=_cost))
+        studies.register_kind(studies.StudyKind(name="peak_table", result=PeakTable, keys=(), check=KIND.check,
+                                                run=KIND.run, summary=KIND.summary, cost=KIND.cost))
     estimate = studies.estimate(studies.mathieu_problem(), "peak_table", {"speeds": DEMO_SPEEDS, "n_steps": 64})
     single = studies.estimate(studies.mathieu_problem(), "steady_state", {"values": {}, "n_steps": 64})
     # three solves one after the other: more time than one, the same peak memory

@@ -1,10 +1,11 @@
-"""A new observable from outside the packages, with public API only: the bending curvature w'' and
-the slope w' at a point of an elastic link, and the global angle of a link's chord, registered with
-``mechanisms.register_observable``. Each is checked against an independent computation (central
-differences of its value; the built-in moment and stress it must relate to; the built-in
-transverse displacement along the link; the built-in point positions of the chord's ends), then
-reported by the linearisation, a nonlinear run, ``studies.steady_state`` and a sweep (in this
-process and in a pool's workers), through the HDF5 round trip and a resumed run."""
+"""A new observable from outside the packages, with public API only: the bending curvature w'' and the
+slope w' at a point of an elastic link, and the global angle of a link's chord, registered with
+``mechanisms.register_observable`` (defined in ``tests/_support/extensions.py``). Each is checked
+against an independent computation (central differences of its value; the built-in moment and stress
+it must relate to; the built-in transverse displacement along the link; the built-in point positions
+of the chord's ends), then reported by the linearisation, a nonlinear run, ``studies.steady_state``
+and a sweep (in this process and in a pool's workers), through the HDF5 round trip and a resumed
+run."""
 
 import math
 from concurrent.futures import ProcessPoolExecutor
@@ -15,69 +16,9 @@ import pytest
 import linearize
 import mechanisms
 import studies
+from tests._support.extensions import curvature, slope
 
 SPECS = ("coupler.curvature@0.5", "coupler.moment@0.5", "coupler.slope@0.25", "coupler.chord_angle")
-
-
-def _section(model, link, fraction):
-    """The link's layout and its shape functions at ``fraction`` of its length; a rigid link is
-    refused (the message reaches the user with the spec)."""
-    layout = model.layouts[link]
-    if layout.shapes is None:
-        raise ValueError(f"link {link!r} is rigid: it does not bend")
-    return layout, layout.shapes.evaluate([fraction * layout.link.length])
-
-
-def _linear_in_q(model, layout, rows):
-    """value = rows . q (q the link's elastic coordinates), gradient constant."""
-    def value(s):
-        return float(rows @ s[layout.elastic])
-
-    def gradient(s):
-        out = np.zeros(model.n_coords)
-        out[layout.elastic] = rows
-        return out
-
-    return value, gradient
-
-
-def curvature(model, link, fraction):
-    """w''(x) (1/m) in the link's frame, x = fraction L."""
-    layout, shapes = _section(model, link, fraction)
-    return _linear_in_q(model, layout, shapes.ddw[0])
-
-
-def slope(model, link, fraction):
-    """w'(x) (1) in the link's frame, x = fraction L."""
-    layout, shapes = _section(model, link, fraction)
-    return _linear_in_q(model, layout, shapes.dw[0])
-
-
-def chord_angle(model, link, fraction):
-    """The global angle (rad) of the chord from the link's start to its deformed tip:
-    theta + atan2(w(L), L + u(L)), nonlinear in the elastic coordinates."""
-    layout, tip = _section(model, link, 1.0)
-    length, u, w = layout.link.length, tip.u[0], tip.w[0]
-    theta = layout.coords.start + 2
-
-    def value(s):
-        q = s[layout.elastic]
-        return float(s[theta] + math.atan2(w @ q, length + u @ q))
-
-    def gradient(s):
-        q = s[layout.elastic]
-        cx, cy = length + u @ q, w @ q
-        out = np.zeros(model.n_coords)
-        out[theta] = 1.0
-        out[layout.elastic] = (cx * w - cy * u) / (cx * cx + cy * cy)
-        return out
-
-    return value, gradient
-
-
-mechanisms.register_observable("curvature", curvature, unit="1/m", elastic_only=True)
-mechanisms.register_observable("slope", slope, unit="1", elastic_only=True)
-mechanisms.register_observable("chord_angle", chord_angle, unit="rad", at_point=False)
 
 
 def _four_bar(rate=100.0):

@@ -5,8 +5,8 @@ constant-coefficient system: the multipliers against ``scipy.linalg.expm`` of th
 period, the steady state against the closed-form harmonic response, both at the declared order, and the state
 against the built-in trapezoidal scheme at a fine grid.
 
-The registrations happen at import, so ``tests/test_periodic_numerics.py`` (which imports this module) runs its
-convergence test over these schemes too.
+The scheme is defined, and registered at import, in ``tests/_support/extensions.py``, which
+``tests/test_periodic_numerics.py`` imports too: its convergence test runs over these schemes.
 """
 
 from __future__ import annotations
@@ -16,64 +16,7 @@ import pytest
 import scipy.linalg
 
 import periodic
-
-
-class ThetaMethod:
-    """The theta-method on ``z = (x, v)``, ``z' = F(t, z) = (v, a)`` with ``M a = f - C v - K x``:
-    ``z_{k+1} = z_k + h ((1 - theta) F_k + theta F_{k+1})``.  A-stable for ``theta >= 1/2``; order 2 and
-    time-symmetric at ``theta = 1/2`` (the trapezoidal rule), order 1 otherwise.  Not a member of Newmark's
-    family for ``theta != 1/2`` (the a_k weight of the position update differs)."""
-
-    def __init__(self, theta: float):
-        self.theta = float(theta)
-        self.symmetric = self.theta == 0.5
-        self.order = 2 if self.symmetric else 1
-        self.error_factor = 1.0 / (2.0**self.order - 1.0)
-        self.unconditionally_stable = self.theta >= 0.5
-
-    def __repr__(self):
-        return f"ThetaMethod({self.theta})"
-
-    def march(self, system, forced, x, v, a, x_hist, v_hist, a_hist):
-        """``periodic.Scheme.march``.  Per step, the unknown a_{k+1} solves
-        ``(M + theta h C + theta^2 h^2 K) a_{k+1} = forced f - C v~ - K x~`` with the known parts
-        ``v~ = v_k + h (1 - theta) a_k`` and ``x~ = x_k + h v_k + h^2 theta (1 - theta) a_k``; then
-        ``v_{k+1} = v~ + h theta a_{k+1}`` and ``x_{k+1} = x~ + h^2 theta^2 a_{k+1}``."""
-        if system.n_first_order:
-            raise periodic.PeriodicError(f"scheme: {self!r} does not integrate first-order coordinates "
-                                         f"{system.first_order.tolist()}")
-        h, theta = system.step, self.theta
-        M, C, K, f = system.M, system.C, system.K, system.f
-        store = len(x_hist) > 0
-
-        def solve(k, matrix, x_known, v_known):
-            rhs = np.outer(f[k], forced) - C[k] @ v_known - K[k] @ x_known
-            return np.linalg.solve(matrix, rhs)
-
-        try:
-            a[:] = solve(0, M[0], x, v)
-        except np.linalg.LinAlgError:
-            return 0
-        for k in range(system.n_steps + 1):
-            if store:
-                x_hist[k], v_hist[k], a_hist[k] = x, v, a
-            if k == system.n_steps:
-                break
-            v_known = v + h * (1.0 - theta) * a
-            x_known = x + h * v + h * h * theta * (1.0 - theta) * a
-            matrix = M[k + 1] + theta * h * C[k + 1] + theta**2 * h * h * K[k + 1]
-            try:
-                a[:] = solve(k + 1, matrix, x_known, v_known)
-            except np.linalg.LinAlgError:
-                return k + 1
-            v[:] = v_known + h * theta * a
-            x[:] = x_known + h * h * theta**2 * a
-        return -1
-
-
-THETA_SCHEMES = {"theta-0.6": ThetaMethod(0.6), "theta-0.5": ThetaMethod(0.5)}
-for _name, _scheme in THETA_SCHEMES.items():
-    periodic.register_scheme(_name, _scheme)
+from tests._support.extensions import THETA_SCHEMES, ThetaMethod
 
 # a constant-coefficient system: two coupled, lightly damped oscillators under a harmonic force of period T
 PERIOD = 1.0

@@ -155,7 +155,7 @@ def test_scheme_by_name_or_object():
     system = PeriodicSystem(1.0, *arrays())
     by_name = periodic.floquet(system, scheme="damped")
     assert by_name.scheme == periodic.Newmark(beta=0.3025, gamma=0.6)
-    with pytest.raises(  # registered schemes (tests/test_extend_scheme.py) may follow the built-in ones
+    with pytest.raises(  # registered schemes (tests/_support/extensions.py) may follow the built-in ones
         PeriodicError,
         match=r"scheme: expected a name in periodic.SCHEMES \('trapezoidal', 'damped'.*\) or a periodic.Scheme, "
         r"got 'trapezium'",

@@ -14,7 +14,7 @@ import scipy.linalg
 import scipy.special
 
 import periodic
-import tests.test_extend_scheme  # noqa: F401  (registers schemes from outside: the convergence test covers them)
+import tests._support.extensions  # noqa: F401  (registers schemes from outside: the convergence test covers them)
 from periodic import NearResonanceWarning, PeriodicSystem
 from tests._support.paths import PATHS, kernel_path
 
@@ -403,7 +403,7 @@ def test_every_registered_scheme_has_its_declared_order_and_an_honest_estimate(n
     ``scheme.error_factor``) within 20 % of the true error at the finest N; a symmetric scheme gains
     two orders by Richardson extrapolation.  E.g. "damped" (gamma = 0.6, beta = (gamma + 1/2)^2 / 4)
     is first order and its estimate uses 2^1 - 1.  A newly registered scheme is checked here (those of
-    tests/test_extend_scheme.py, registered at its import, too)."""
+    tests/_support/extensions.py, registered at its import, too)."""
     scheme = periodic.SCHEMES[name]
     # the shooting integrates every mode over a whole period (a scheme that declares its stability must
     # declare it unconditional; test_every_registered_scheme_damps_an_unresolved_mode measures it for all)
