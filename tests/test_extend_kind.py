@@ -95,6 +95,8 @@ def test_it_runs_on_a_scene_file_declaring_it(tmp_path, capsys):
     ({"name": "peak_table_2"}, "result class PeakTable is already the result of kind 'peak_table'"),
     ({"name": "peak_table_2", "grid": True}, "a grid study without a point function"),
     ({"name": "peak_table_2", "demo": [1.0]}, "demo must be a table"),
+    ({"name": "peak_table_2", "result": studies.Result},
+     "result class Result lacks status, message, run_time, peak, peak_error, peak_to_peak, peak_to_peak_error"),
 ])
 def test_a_kind_missing_a_piece_is_refused_at_registration(change, message):
     import dataclasses

@@ -238,7 +238,7 @@ mechanisms.register_observable("chord_angle", chord_angle, unit="rad", at_point=
 # a study kind: the peak table
 # ---------------------------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
-class PeakTable(studies.Result):
+class PeakTable(studies.StudyResult):
     """Peak to peak of each observable of the steady state at each speed.
 
     Attributes
@@ -249,9 +249,9 @@ class PeakTable(studies.Result):
         Crank speeds, rad/s.
     units : mapping of str to str
         Unit of each observable.
-    peak_to_peak : mapping of str to ndarray, shape (n_speeds,)
-        Peak to peak of each observable at each speed, in its unit.
-    peak_to_peak_error : mapping of str to ndarray, shape (n_speeds,)
+    peak, peak_to_peak : mapping of str to ndarray, shape (n_speeds,)
+        Largest magnitude and peak to peak of each observable at each speed, in its unit.
+    peak_error, peak_to_peak_error : mapping of str to ndarray, shape (n_speeds,)
         Their estimated errors (N against N/2 steps).
     n_steps : int
         Steps per period.
@@ -266,6 +266,8 @@ class PeakTable(studies.Result):
     problem: str
     speeds: np.ndarray
     units: Mapping[str, str]
+    peak: Mapping[str, np.ndarray]
+    peak_error: Mapping[str, np.ndarray]
     peak_to_peak: Mapping[str, np.ndarray]
     peak_to_peak_error: Mapping[str, np.ndarray]
     n_steps: int
@@ -274,7 +276,8 @@ class PeakTable(studies.Result):
     message: str
     run_time: float
 
-    _units = {"speeds": "rad/s", "peak_to_peak": "@observables", "peak_to_peak_error": "@observables"}
+    _units = {"speeds": "rad/s", "peak": "@observables", "peak_error": "@observables",
+              "peak_to_peak": "@observables", "peak_to_peak_error": "@observables"}
 
     def plot(self, *, axes: Any = None) -> studies.Plot:
         import matplotlib.pyplot as plt
@@ -299,10 +302,12 @@ def peak_table(problem: Any, speeds, *, n_steps: int = 64, scheme: str = TRAPEZO
                 for speed in speeds]
     specs = list(steadies[0].peak_to_peak)
     worst = max(steadies, key=lambda steady: steady.status != "ok")
+    def over_speeds(name: str) -> dict[str, np.ndarray]:   # a steady state's {spec: float} field, per speed
+        return {spec: np.array([getattr(steady, name)[spec] for steady in steadies]) for spec in specs}
+
     return PeakTable(problem=problem.name, speeds=np.asarray(speeds, dtype=float), units=dict(steadies[0].units),
-                     peak_to_peak={s: np.array([steady.peak_to_peak[s] for steady in steadies]) for s in specs},
-                     peak_to_peak_error={s: np.array([steady.peak_to_peak_error[s] for steady in steadies])
-                                         for s in specs},
+                     peak=over_speeds("peak"), peak_error=over_speeds("peak_error"),
+                     peak_to_peak=over_speeds("peak_to_peak"), peak_to_peak_error=over_speeds("peak_to_peak_error"),
                      n_steps=n_steps, scheme=scheme, status=worst.status, message=worst.message,
                      run_time=time.perf_counter() - started)
 
