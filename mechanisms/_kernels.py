@@ -428,16 +428,25 @@ def _term_direction(s, frame, dx, dy):
 
 
 @numba.njit(cache=True)
+def _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols):
+    """Constraint term ``i`` at ``s``: its row, link offset, active elastic count and frame offset
+    (-1: fixed in the plane), ``A p`` (the point's offset from its link's origin, eq. 1) with its
+    rows ``lx, ly`` on ``cols`` filled, and the term's direction ``e`` (``_term_direction``)."""
+    row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
+    ptr, iptr, frame = ct_int[i, 3], ct_int[i, 4], ct_int[i, 5]
+    dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
+    apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
+    ex, ey = _term_direction(s, frame, dx, dy)
+    return row, off, nnz, frame, apx, apy, ex, ey
+
+
+@numba.njit(cache=True)
 def constraints(s, ct_int, ct_real, shp, idx, out):
     """Phi[row] += d . (R + A p), or e . (R + A p - R_f) in a frame, over the constraint terms;
     out (r,) holds the constant parts."""
     lx, ly, cols = _scratch(ct_int[:, 2])
     for i in range(ct_int.shape[0]):
-        row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
-        ptr, iptr, frame = ct_int[i, 3], ct_int[i, 4], ct_int[i, 5]
-        dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
-        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
-        ex, ey = _term_direction(s, frame, dx, dy)
+        row, off, nnz, frame, apx, apy, ex, ey = _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols)
         rx = s[off] + apx
         ry = s[off + 1] + apy
         if frame >= 0:
@@ -452,11 +461,7 @@ def constraint_jacobian(s, ct_int, ct_real, shp, idx, out):
     rows."""
     lx, ly, cols = _scratch(ct_int[:, 2])
     for i in range(ct_int.shape[0]):
-        row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
-        ptr, iptr, frame = ct_int[i, 3], ct_int[i, 4], ct_int[i, 5]
-        dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
-        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
-        ex, ey = _term_direction(s, frame, dx, dy)
+        row, off, nnz, frame, apx, apy, ex, ey = _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols)
         for a in range(3 + nnz):
             out[row, cols[a]] += ex * lx[a] + ey * ly[a]
         if frame >= 0:
@@ -472,11 +477,7 @@ def constraint_gamma(s, sdot, ct_int, ct_real, shp, idx, out):
     eq. (11); out (r,) holds the drive rows' accelerations."""
     lx, ly, cols = _scratch(ct_int[:, 2])
     for i in range(ct_int.shape[0]):
-        row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
-        ptr, iptr, frame = ct_int[i, 3], ct_int[i, 4], ct_int[i, 5]
-        dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
-        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
-        ex, ey = _term_direction(s, frame, dx, dy)
+        row, off, nnz, frame, apx, apy, ex, ey = _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols)
         wt = sdot[off + 2]
         asv_x, asv_y = _elastic_velocity(sdot, nnz, lx, ly, cols)
         cxv = -wt * wt * apx - 2.0 * wt * asv_y
@@ -501,11 +502,7 @@ def constraint_force_jacobian(s, lam, ct_int, ct_real, shp, idx, out):
     zeroed."""
     lx, ly, cols = _scratch(ct_int[:, 2])
     for i in range(ct_int.shape[0]):
-        row, off, nnz = ct_int[i, 0], ct_int[i, 1], ct_int[i, 2]
-        ptr, iptr, frame = ct_int[i, 3], ct_int[i, 4], ct_int[i, 5]
-        dx, dy, cx, cy = ct_real[i, 0], ct_real[i, 1], ct_real[i, 2], ct_real[i, 3]
-        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
-        ex, ey = _term_direction(s, frame, dx, dy)
+        row, off, nnz, frame, apx, apy, ex, ey = _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols)
         scale = lam[row]
         _add_d(out, scale, nnz, apx, apy, lx, ly, cols, ex, ey)
         if frame >= 0:
