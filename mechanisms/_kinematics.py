@@ -440,7 +440,9 @@ def _initial_guess(mech: Mechanism, labels: list[str], n: int, period: float) ->
         origins[name] = np.zeros(2)
         origins[name] = at - world(name, point)
 
-    pins = [pin for pin in (joint.coincident_points() for joint in mech.joints) if pin]
+    # a ground side first, whichever side a joint names it on
+    pins = [tuple(sorted(pin, key=lambda side: side[0] != GROUND))
+            for pin in (joint.coincident_points() for joint in mech.joints) if pin]
     for (link_a, point_a), (link_b, point_b) in pins:
         if link_a == GROUND and link_b not in origins:
             place(link_b, point_b, np.array(point_a, dtype=float))

@@ -237,3 +237,25 @@ def test_the_default_output_of_a_control_comparison_is_the_angle_of_the_pinned_r
     result = studies.control_comparison(studies.MechanismProblem.from_mechanism(mechanism), n_periods=4, n_steps=64)
     assert result.roles["rocker.angle"] == "output"
     assert result.roles["drive.O.rate"] == "speed"
+
+
+@mechanisms.register_joint
+@dataclass(frozen=True)
+class _GroundPinSecond(_GroundPin):
+    """The same pin naming its ground side second."""
+
+    TYPE: ClassVar[str] = "test_ground_pin_second"
+
+    def coincident_points(self):
+        return ((self.link, self.point), (mechanisms.GROUND, tuple(self.at)))
+
+
+def test_the_initial_guess_walks_a_pin_whose_ground_side_is_second():
+    """The nominal motion's initial guess places links from the ground out whichever side of a pin
+    the ground is on (it looked the ground up as a link: KeyError): the same motion either way."""
+    motions = []
+    for kind in ("test_ground_pin", "test_ground_pin_second"):
+        spec = _four_bar_spec(0.254, 0.0508, 0.254, 0.1016, 0.0, pinned=True)
+        spec["joints"]["C"]["type"] = kind
+        motions.append(mechanisms.nominal_motion(mechanisms.build(spec), n_steps=32))
+    np.testing.assert_allclose(motions[1].s, motions[0].s, atol=1e-12)

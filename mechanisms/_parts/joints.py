@@ -19,7 +19,7 @@ nothing else names the kinds of joint:
 * ``drive_terms()``: the relative angle a drive at the joint turns, as ``AngleTerm`` (the driven
   side first), or ``None`` when no drive can act at it;
 * ``coincident_points()``: the two ``(link, point)`` a pin holds together (a ground side as
-  ``(GROUND, (x, y))``), which the nominal motion's initial guess walks, or ``()``.
+  ``(GROUND, (x, y))``, on either side), which the nominal motion's initial guess walks, or ``()``.
 
 ``register_joint(cls)`` enters a class in ``JOINT_TYPES`` (the scene loader, the ``Mechanism``
 checks, the assembler and the observables find it there).
