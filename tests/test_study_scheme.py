@@ -45,6 +45,13 @@ def test_the_scheme_changes_the_numbers_within_their_error_estimates(mathieu):
     assert (trapezoidal.scheme, damped.scheme) == ("trapezoidal", "damped")
 
 
+def test_an_error_cost_study_records_its_scheme_and_refuses_one_it_cannot_extrapolate(mathieu):
+    found = studies.error_cost(mathieu, {"speed": 0.7}, n_steps=(16, 32), scheme="trapezoidal")
+    assert found.settings["scheme"] == "trapezoidal"
+    with pytest.raises(studies.StudiesError, match="scheme 'damped' is not symmetric.*Richardson"):
+        studies.error_cost(mathieu, {"speed": 0.7}, n_steps=(16, 32), scheme="damped")
+
+
 def test_a_steady_state_records_its_scheme_in_its_file(mathieu, tmp_path):
     damped = studies.steady_state(mathieu, {"speed": 0.7}, n_steps=64, scheme="damped")
     damped.save(tmp_path / "s.h5")

@@ -47,7 +47,8 @@ class ErrorCostResult(StudyResult):
     units : dict
         {spec: unit} of each observable.
     settings : dict
-        The study's arguments.
+        The study's arguments (the periodic scheme's name under "scheme"; absent in files written
+        before the studies took a scheme: the trapezoidal rule).
     resolutions : ndarray, (n_r,)
         The values of ``resolution_parameter``.
     n_steps : ndarray of int, (n_s,)
@@ -162,6 +163,10 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
     largest ``n_steps``) with Richardson extrapolation (order 4). Runs in-process so the times are
     comparable. ``scheme`` names the periodic scheme (``periodic.SCHEMES``)."""
     scheme_used = study_scheme(scheme)
+    if not scheme_used.symmetric:   # refused before any work, not by the reference's shooting
+        raise StudiesError(f"error_cost: scheme {scheme!r} is not symmetric, and the reference is a "
+                           f"Richardson extrapolation that gains two orders only for a symmetric scheme; "
+                           f"use a symmetric one (e.g. 'trapezoidal')")
     steps, reference_steps = check_step_counts(n_steps, reference_steps)
     base = steps[0]
     if resolution is None:
@@ -209,7 +214,7 @@ def error_cost(problem: Any, values: Mapping[str, float] | None = None, *,
         problem=problem.name, scene=problem.text, resolution_parameter=name,
         units=dict(zip(specs, reference_linear.units)),
         settings={"values": dict(values or {}), "n_steps": steps, "reference_steps": reference_steps,
-                  "resolution": [name, levels] if name else None},
+                  "resolution": [name, levels] if name else None, "scheme": scheme},
         resolutions=levels, n_steps=np.array(steps), n_dof=n_dof, error=error, error_estimate=estimate,
         point_run_time=run_time, reference_steps=reference_steps, reference_run_time=reference_time,
         run_time=time.perf_counter() - start, status=reference_state.status, message=reference_state.message,
