@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
@@ -110,11 +111,15 @@ def mesh_error(problem: Any, values: Mapping[str, float] | None, *, observables:
             levels.append(_refined_links(levels[0]))
     except ValueError as error:    # a count past its limit (MechanismError)
         return _unknown(specs, f"unknown: the discretisation cannot be refined: {error}", start)
+    others = tuple(sorted((k, v) for k, v in params.items() if k != SPEED))
     try:
         base = (dict(response) if response is not None and all(s in response for s in specs)
-                else _response(mechanism, specs, speed, n_steps, scheme))
+                else _response(_problem_at(problem, others, specs, 0, lambda: mechanism), speed, n_steps,
+                               scheme))
         base = {spec: np.asarray(base[spec], dtype=float) for spec in specs}
-        finer = [_response(_with_links(mechanism, links), specs, speed, n_steps, scheme) for links in levels]
+        finer = [_response(_problem_at(problem, others, specs, level + 1,
+                                       lambda links=links: _with_links(mechanism, links)),
+                           speed, n_steps, scheme) for level, links in enumerate(levels)]
     except (RuntimeError, ValueError) as error:   # a refined model that fails to solve
         return _unknown(specs, f"unknown: a refined model did not solve ({type(error).__name__}: {error})",
                         start)
@@ -200,15 +205,31 @@ def _with_links(mechanism: Any, links: list) -> Any:
     return mechanism.replace(links=tuple(by_name.get(link.name, link) for link in mechanism.links))
 
 
-def _response(mechanism: Any, specs: tuple[str, ...], speed: Mapping[str, float], n_steps: int,
-              scheme: str) -> dict[str, np.ndarray]:
-    """{spec: (N+1,)} the steady response of ``mechanism`` at ``speed`` without error estimates (the
-    time-step error is another term; near-resonance warnings are the user's solve's to give)."""
-    import periodic
-
+def _problem_at(problem: Any, others: tuple, specs: tuple[str, ...], level: int, make: Any) -> Any:
+    """The mechanism problem of ``problem`` at the scene values ``others`` with its elastic links
+    refined ``level`` times (``make()`` builds that mechanism), for ``specs``: cached per process, so
+    that a sweep's points share one refined model (and its speed family) per level."""
     from ._mechanism import MechanismProblem
 
-    problem = MechanismProblem.from_mechanism(mechanism, observables=specs)
+    key = (problem.text, others, specs, level)
+    if key not in _PROBLEMS:
+        _PROBLEMS[key] = MechanismProblem.from_mechanism(make(), observables=specs)
+        if len(_PROBLEMS) > _CACHE_SIZE:
+            _PROBLEMS.popitem(last=False)
+    _PROBLEMS.move_to_end(key)
+    return _PROBLEMS[key]
+
+
+_CACHE_SIZE = 8
+_PROBLEMS: OrderedDict = OrderedDict()
+
+
+def _response(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: str) -> dict[str, np.ndarray]:
+    """{spec: (N+1,)} the steady response of a mechanism ``problem`` at ``speed`` without error
+    estimates (the time-step error is another term; near-resonance warnings are the user's solve's
+    to give)."""
+    import periodic
+
     linear = problem.linearize(speed, n_steps=n_steps, context=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", periodic.NearResonanceWarning)

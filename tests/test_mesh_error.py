@@ -21,7 +21,8 @@ import studies
 # the module's function is the budget's internal interface (not exported); the reference solves
 # use its plain steady response on purpose, the same route the estimate takes, and the studies'
 # refined extremes
-from studies._mesh_error import SAFETY_FACTOR, MeshError, _response, mesh_error
+from studies._mesh_error import SAFETY_FACTOR, MeshError, mesh_error
+from studies._mesh_error import _response as mesh_response
 from studies._numerics import peak, peak_to_peak
 from tests._support.extensions import Legendre, bending_1, bending_2
 
@@ -33,6 +34,12 @@ def _refined_to(mechanism, discretisation):
     links = tuple(dataclasses.replace(link, discretisation=discretisation)
                   if getattr(link, "discretisation", None) is not None else link for link in mechanism.links)
     return mechanism.replace(links=links)
+
+
+def _response(mechanism, specs, speed, n_steps, scheme):
+    """The plain steady response of ``mechanism`` (the route the estimate takes)."""
+    problem = studies.MechanismProblem.from_mechanism(mechanism, observables=specs)
+    return mesh_response(problem, speed, n_steps, scheme)
 
 
 def _truth(mechanism, reference, specs):

@@ -104,7 +104,7 @@ def test_no_resolved_mode_is_not_ok(stiff_coupler):
 def test_four_bar_sweep_headline_is_the_3_to_1_resonance_peak(fem4):
     """The issue's sweep: its largest "ok" value sits at the last ok point (about 120 rad/s, where
     the coupler leaves the linear range); the headline is the 3:1 resonance peak near 98 rad/s."""
-    from studies._kind import kinds   # the registry's headline rows, as the summary table shows them
+    from studies._kind import kinds  # the registry's headline rows, as the summary table shows them
 
     problem = studies.MechanismProblem.from_mechanism(fem4)
     with warnings.catch_warnings():
