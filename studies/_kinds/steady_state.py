@@ -285,8 +285,11 @@ def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> SteadyStateResul
 def _summary(result: SteadyStateResult) -> str:
     errors = ", ".join(f"{k} +- {v:.2g}" for k, v in result.response_error.items())
     words = f"{result.headline}: {result.message}" if result.message else result.headline
+    unresolved = np.abs(np.asarray(result.unresolved_multipliers))
+    apart = (f" of the resolved modes ({unresolved.size} unresolved apart, largest |mu| {unresolved.max():.3g})"
+             if unresolved.size else "")
     return (f"{words}; spectral radius {result.spectral_radius:.6f} +- "
-            f"{result.spectral_radius_error:.2g}; errors {errors}; {result.run_time:.3g} s")
+            f"{result.spectral_radius_error:.2g}{apart}; errors {errors}; {result.run_time:.3g} s")
 
 
 def _headlines(result: SteadyStateResult) -> Summary:
