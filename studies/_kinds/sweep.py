@@ -104,9 +104,12 @@ class SweepResult(GridResult):
         The largest magnitude over the period and its error (``studies._numerics.peak_summary``; for
         joint forces, drive torques and stresses the totals, nominal plus elastic change).
     spectral_radius, spectral_radius_error : ndarray, (n,), 1
-        The monodromy's spectral radius and its estimated error.
+        The monodromy's spectral radius over the resolved modes and its estimated error (format 2
+        and older files: over all modes; the unresolved modes' multipliers are among
+        ``multipliers``).
     is_stable : ndarray of bool, (n,)
-        Each point's stability verdict (unstable only beyond the radius's error bar).
+        Each point's stability verdict: False where unstable beyond the radius's error bar, and
+        wherever the radius has converged above 1 whatever the point's status word.
     multipliers : ndarray of complex, (n, 2m), 1
         The Floquet multipliers.
     error_estimate : ndarray, (n,), SI (see labels)
