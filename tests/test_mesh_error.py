@@ -167,3 +167,23 @@ def test_discretisations_declare_their_refinement():
     assert getattr(mechanisms.Ritz(), "convergence_order", None) is None
     with pytest.raises(mechanisms.MechanismError, match="n_elements"):
         mechanisms.Fem(128).refined()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene, reference", [("four_bar_fem1", mechanisms.Fem(32)),
+                                              ("four_bar_controlled", mechanisms.Ritz(12, 11))])
+def test_other_shipped_scenes_at_their_own_speed(quiet, scene, reference):
+    """One element (50 % low: far from the asymptotic range, still covered within 3x) and a torque
+    drive's Ritz coupler (0.56 %, three levels)."""
+    mechanism = mechanisms.load(scene)
+    problem = studies.MechanismProblem.from_mechanism(mechanism)
+    speed = {"speed": problem.parameters["speed"]}
+    specs = problem.describe().observables
+    estimate = mesh_error(problem, speed, n_steps=128)
+    coarse = mesh_response(studies.MechanismProblem.from_mechanism(mechanism, observables=specs), speed, 128,
+                           "trapezoidal")
+    fine = mesh_response(studies.MechanismProblem.from_mechanism(_refined_to(mechanism, reference),
+                                                                 observables=specs), speed, 128, "trapezoidal")
+    for spec in specs:
+        true = abs(peak_to_peak(coarse[spec])[0] - peak_to_peak(fine[spec])[0])
+        assert true <= estimate.peak_to_peak[spec] <= 3.0 * true, (spec, true, estimate.peak_to_peak[spec])
