@@ -6,7 +6,10 @@ elements, both sides of each node, 33 for Ritz or user shapes): the peak transve
 in the link's frame over its length and over its section height, the peak slope ``w'`` (rad), the
 peak compressive axial force of the nominal motion over the link's Euler load, and the peak bending
 stress ``E h |w''| / 2`` (``M c / I`` with ``M = E I w''``, ``c = h / 2``) over the yield strength.
-The thresholds are ``LINEAR_RANGE_LIMITS`` (docs/methods.md gives their reasons).
+The thresholds are ``LINEAR_RANGE_LIMITS`` (docs/methods.md gives their reasons). A link without
+geometric stiffening has a model-form verdict besides (``LinkRange.model_form``): where its
+compression is a sizeable part of its Euler load or its deflection several section heights, the
+model leaves out what then matters, and the message names the fix (enable geometric_stiffening).
 
 Per torque drive with a torque limit or a motor: the peak torque the unsaturated law demands
 along the solution against ``torque_limit``, and the motor's peak command (torque plus back EMF,
@@ -44,7 +47,19 @@ LINEAR_RANGE_LIMITS = MappingProxyType({
     "compression_over_euler": 0.5,
     # Linear elasticity: the bending stress of the outer fibre against the yield strength.
     "stress_over_yield": 1.0,
+    # Model form of a link without geometric stiffening (seed eq. 2.13): its bending does not feel
+    # the axial force, which shifts the bending frequency as sqrt(1 - P / P_E); measured against
+    # the stiffened model of the same machine (four_bar_thesis against four_bar_ritz, peak
+    # deflection): 3 % at 0.027 of the Euler load (30 rad/s), 11 % at 0.107 (60 rad/s), 93 % at
+    # 0.30 (100 rad/s, where the machine does 14.2 mm against the unstiffened 29.2 mm).
+    "unstiffened_compression_over_euler": 0.1,
+    # ... and it leaves out the membrane stretching of large deflections, which its own nonlinear
+    # runs leave out too (so no nonlinear check can show it): a few section heights.
+    "unstiffened_deflection_over_height": 2.0,
 })
+
+#: The fix a model-form verdict names.
+STIFFENING_FIX = "enable geometric_stiffening (links.<name>.geometric_stiffening = true)"
 
 _MEASURES = (("peak_deflection_over_length", "deflection_over_length", "peak deflection / length"),
              ("peak_deflection_over_height", "deflection_over_height",
@@ -85,7 +100,28 @@ class LinkRange:
                 text += (" (this link has no geometric stiffening: the model cannot see buckling "
                          "there; turn geometric_stiffening on)")
             found.append(text)
-        return found
+        return found + self.model_form()
+
+    def model_form(self) -> list[str]:
+        """What a link without geometric stiffening leaves out, in words, where its compression or
+        deflection passes the ``unstiffened_*`` limits (empty for a stiffened link)."""
+        if self.stiffened:
+            return []
+        parts = []
+        compression, limit = self.peak_compression_over_euler, LINEAR_RANGE_LIMITS[
+            "unstiffened_compression_over_euler"]
+        if compression > limit:
+            parts.append(f"its peak compression is {compression:.3g} of its Euler load (> {limit:g}), "
+                         f"whose effect on its bending it does not see")
+        height, limit = self.peak_deflection_over_height, LINEAR_RANGE_LIMITS[
+            "unstiffened_deflection_over_height"]
+        if height > limit:
+            parts.append(f"its peak deflection is {height:.3g} section heights (> {limit:g}), whose "
+                         f"membrane stretching it leaves out (its own nonlinear runs too)")
+        if not parts:
+            return []
+        return [f"model form: link {self.link!r} has no geometric stiffening: " + "; ".join(parts)
+                + f"; {STIFFENING_FIX.replace('<name>', self.link)}"]
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ coefficients), but they can dominate ``spectral_radius`` at small N.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -35,7 +35,13 @@ from ._system import (
     start_rates,
     state_trace,
 )
-from ._verdict import RESOLVED_STEP_RATE, STABILITY_TOL, stability_verdict
+from ._verdict import (
+    RESOLVED_STEP_RATE,
+    STABILITY_TOL,
+    resolved_radius,
+    stability_verdict,
+    unresolved_multipliers,
+)
 
 #: Default of ``resonance_tol``: a resolved multiplier within this distance of +1 amplifies the
 #: periodic response by more than 1/resonance_tol = 100 relative to the forcing's quasi-static level.
@@ -58,7 +64,9 @@ class FloquetResult:
     multipliers : ndarray (s,) complex
         Eigenvalues of ``Phi``, sorted by decreasing modulus.
     spectral_radius : float
-        ``max |multipliers|`` (all modes, unresolved ones included).
+        The largest ``|multiplier|`` of the resolved modes (``resolved``; the others are
+        ``unresolved_multipliers``), or the critical multiplier's where the verdict is ``unstable``
+        or no mode is resolved (``periodic._verdict.resolved_radius``).
     is_stable : bool
         False only where ``status`` is ``"unstable"``.
     stability_tol : float
@@ -102,6 +110,9 @@ class FloquetResult:
         (with a second call on ``system.coarsened()``).
     run_time : float
         Wall time in s.
+    unresolved_multipliers : ndarray (k,) complex
+        The multipliers of the modes the step does not resolve, decreasing modulus (the scheme's
+        values, not the system's), reported apart from ``spectral_radius``.
     """
 
     monodromy: np.ndarray
@@ -124,6 +135,7 @@ class FloquetResult:
     n_steps: int
     scheme: Scheme
     run_time: float
+    unresolved_multipliers: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=complex))
 
 
 def floquet(
@@ -151,15 +163,16 @@ def floquet(
         coarse = sorted_eigenvalues(monodromy(coarse_system, scheme, particular=False)[0])
         quarter = sorted_eigenvalues(monodromy(every_other_sample(coarse_system), scheme, particular=False)[0])
         errors = multiplier_errors(multipliers, coarse, scheme.error_factor)
+    moduli_errors = None if coarse is None else modulus_errors(multipliers, coarse, scheme.error_factor)
     stability = stability_verdict(
-        multipliers, None if coarse is None else modulus_errors(multipliers, coarse, scheme.error_factor),
+        multipliers, moduli_errors,
         step_rates, stability_tol=stability_tol, coarse=coarse, quarter=quarter, order=scheme.order,
         n_steps=system.n_steps)
     with np.errstate(divide="ignore"):
         exponents = np.log(multipliers.astype(complex)) / system.period
     trace = state_trace(system)
     exact = float(np.sum(trace[1:] + trace[:-1]) * 0.5 * system.step)
-    radius = float(np.abs(multipliers[0]))
+    radius, radius_error = resolved_radius(multipliers, step_rates, stability, moduli_errors)
     return FloquetResult(
         monodromy=phi,
         multipliers=multipliers,
@@ -168,7 +181,7 @@ def floquet(
         stability_tol=stability_tol,
         multiplier_errors=errors,
         multipliers_coarse=coarse,
-        spectral_radius_error=stability.spectral_radius_error if estimate_error else float("nan"),
+        spectral_radius_error=radius_error if estimate_error else float("nan"),
         critical_multiplier=stability.critical_multiplier,
         instability_kind=stability.kind,
         status=stability.status,
@@ -181,6 +194,7 @@ def floquet(
         n_steps=system.n_steps,
         scheme=scheme,
         run_time=time.perf_counter() - start,
+        unresolved_multipliers=unresolved_multipliers(multipliers, step_rates),
     )
 
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -48,7 +48,15 @@ from ._system import (
     check_tol,
     every_other_sample,
 )
-from ._verdict import STABILITY_TOL, STATUSES, error_verdict, stability_verdict, worst_status
+from ._verdict import (
+    STABILITY_TOL,
+    STATUSES,
+    error_verdict,
+    resolved_radius,
+    stability_verdict,
+    unresolved_multipliers,
+    worst_status,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -77,7 +85,9 @@ class SteadyState:
     step_rates : ndarray (2n,)
         ``|lam h|`` estimate of each multiplier's mode; > 1 means unresolved (see ``periodic._floquet``).
     spectral_radius : float
-        ``max |multipliers|`` over all modes, unresolved ones included.
+        The largest ``|multiplier|`` of the resolved modes (``step_rates <= 1``; the unresolved
+        ones are ``unresolved_multipliers``), or of the critical multiplier where the verdict is
+        ``unstable`` or no mode is resolved (``periodic._verdict.resolved_radius``).
     spectral_radius_error : float
         Error bar of ``|critical_multiplier|`` (twice the N/2 error estimate of its modulus, see
         :func:`periodic.stability_verdict`; NaN when
@@ -140,6 +150,9 @@ class SteadyState:
         The scheme used.
     run_time : float
         Wall time in s, including the N/2 and N/4 runs.
+    unresolved_multipliers : ndarray (k,) complex
+        The multipliers of the modes the step does not resolve (step rate > 1), decreasing
+        modulus: the scheme's values, not the system's, reported apart from ``spectral_radius``.
     """
 
     t: np.ndarray
@@ -170,6 +183,7 @@ class SteadyState:
     extrapolated: bool
     scheme: Scheme
     run_time: float
+    unresolved_multipliers: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=complex))
 
 
 @dataclass(frozen=True)
@@ -263,6 +277,7 @@ def steady_state(
         resonance = (STATUS_INACCURATE, f"refine n_steps: possibly {resonance[1]} (the multiplier is "
                      f"farther than resonance_tol = {resonance_tol:g} from +1, but within twice its error)")
     status, message = _combine(stability, resonance, check)
+    radius, radius_error = resolved_radius(multipliers, step_rates, stability, radius_errors)
     if resonance[0] == STATUS_NEAR_RESONANCE:
         warnings.warn(resonance[1], NearResonanceWarning, stacklevel=2)
     elif resonance[0] == STATUS_UNRESOLVED:
@@ -275,8 +290,8 @@ def steady_state(
         monodromy=phi,
         multipliers=multipliers,
         step_rates=step_rates,
-        spectral_radius=float(np.abs(multipliers[0])),
-        spectral_radius_error=float("nan") if multiplier_errors is None else stability.spectral_radius_error,
+        spectral_radius=radius,
+        spectral_radius_error=float("nan") if multiplier_errors is None else radius_error,
         critical_multiplier=stability.critical_multiplier,
         instability_kind=stability.kind,
         is_stable=stability.is_stable,
@@ -296,6 +311,7 @@ def steady_state(
         extrapolated=bool(extrapolate),
         scheme=scheme,
         run_time=time.perf_counter() - start,
+        unresolved_multipliers=unresolved_multipliers(multipliers, step_rates),
     )
 
 

@@ -21,7 +21,11 @@ bar, while the resolved ones are stable or marginal, gives ``inaccurate`` ("refi
 ``unstable``; a real divergence fast enough to be unresolved at a usable step (growth by more than
 e per step) is rare, and refining shows it.  The kind of the critical multiplier: real near +1 a
 fold or divergence, real near -1 period doubling, a complex pair a secondary Hopf
-(Neimark-Sacker) bifurcation.
+(Neimark-Sacker) bifurcation.  A resolved multiplier outside the circle whose modulus does not
+converge like the scheme over N, N/2, N/4 is ``inaccurate``; ``is_stable`` is still False there
+where the three moduli converge geometrically at their own rate to a value above 1 beyond the rest
+of that series (the radius has converged above 1, ``MIN_CONVERGENCE_RATIO``): whatever status word
+a point ends with, ``is_stable`` says what the converged radius says.
 
 Error estimate.  ``|x_N - x_{N/2}| / (2^p - 1)`` estimates the error of ``x_N`` only in the asymptotic
 range, where the error is ``C h^p``.  A third level N/4 tests it: the ratio of successive differences
@@ -88,6 +92,19 @@ MIN_QUARTER_STEPS = 4
 #: are small (1e-4..1e-3 there), while a real divergence fast enough to be unresolved grows by orders
 #: of magnitude (six_bar at 260 rad/s: |mu| = 13 at N = 128, 13.1 converged).  Below, ``inaccurate``.
 UNRESOLVED_GROWTH = 2.0
+#: A modulus whose successive differences over N, N/2, N/4 shrink by at least this ratio converges
+#: geometrically, if not at the scheme's rate: where it is above 1 by far more than the rest of that
+#: series, the radius has converged above 1 and ``is_stable`` is False (status ``inaccurate``).
+#: Measured: four_bar_fem4 at 185 rad/s, N = 64, ratio 72 (1.116; 1.114 converged); undamped,
+#: N = 256, ratio 2.3 (1.362); six_bar at 190 rad/s, N = 16 and 32, ratios 1.03 and 1.16 (2.33 and
+#: 1.44 where the converged value is 0.81): not converged.
+MIN_CONVERGENCE_RATIO = 1.5
+#: Where no mode is resolved and even the slowest changes by more than exp(this) per step, the
+#: largest multiplier is the scheme's alone and a stable verdict is ``unresolved_stiff_mode``, not
+#: ``ok`` (a 1000x stiffer coupler of four_bar_fem4 at 100 rad/s, N = 256: smallest step rate 2.3,
+#: |mu|max 0.98 against a resolved radius below 1e-4). Just past 1 the slowest mode's multiplier is
+#: still about right (four_bar_fem4 at 25 rad/s, N = 64: 1.16), and the radius stands as it is.
+NO_RESOLVED_RATE = 2.0
 #: An estimated error above this fraction of the solution's size is too large, however trustworthy.
 MAX_RELATIVE_ERROR = 0.1
 #: Differences below this fraction of the solution's size are round-off: nothing left to estimate.
@@ -126,7 +143,9 @@ class Stability:
     message : str
         The verdict in words, with the critical multiplier, its error and the tolerance.
     is_stable : bool
-        False only for ``"unstable"``.
+        False for ``"unstable"``, and for ``"inaccurate"`` where the modulus converges over N, N/2,
+        N/4 at an observed rate other than the scheme's to a value above 1 beyond that rate's error
+        (the radius has converged above 1; ``MIN_CONVERGENCE_RATIO``).
     spectral_radius : float
         ``|critical_multiplier|``: the radius over the resolved modes (over the growing unresolved
         one for ``"inaccurate"``).
@@ -177,7 +196,8 @@ def stability_verdict(multipliers, multiplier_errors, step_rates, *, stability_t
                 critical = i
         elif modulus - 1.0 > error + stability_tol and (growing is None or modulus > abs(values[growing])):
             growing = i
-    if critical is None:  # only unresolved modes: the largest stands in
+    none_resolved = critical is None
+    if none_resolved:  # only unresolved modes: the largest stands in
         critical = largest
     # an unresolved growing mode decides only where the resolved modes do not already say unstable
     resolved_unstable = abs(values[critical]) - 1.0 > errors[critical] + stability_tol
@@ -209,21 +229,102 @@ def stability_verdict(multipliers, multiplier_errors, step_rates, *, stability_t
         return Stability("inaccurate", message, True, radius, error, mu, kind)
     if excess > bar and converged is not None and not converged.trusted:
         # a growth that does not converge like the scheme: a coarse step's artefact as often as not
-        # (measured: six_bar at 190 rad/s, N = 16, |mu| = 2.33 where the converged value is 0.81)
+        # (measured: six_bar at 190 rad/s, N = 16, |mu| = 2.33 where the converged value is 0.81).
+        # But where the three levels converge at their own observed rate to a modulus above 1 by
+        # far more than the error that rate implies, the radius has converged above 1: unstable
+        # whatever the status word (four_bar_fem4 at 185 rad/s, N = 64: 1.116, 1.114 converged).
+        above, bound = _converged_above_one(mu, np.asarray(coarse), np.asarray(quarter), order, stability_tol)
+        if above:
+            message = (f"inaccurate: refine n_steps: the multiplier is unstable ({where}) and its modulus "
+                       f"is above 1 beyond the error {bound:.2g} of its observed convergence over N, "
+                       f"N/2, N/4, but that convergence is not the scheme's ({converged.message}): "
+                       f"not stable, its value not accurate")
+            return Stability("inaccurate", message, False, radius, error, mu, kind)
         message = (f"inaccurate: refine n_steps: at this step the multiplier would be unstable ({where}), "
                    f"but its modulus has not converged ({converged.message})")
         return Stability("inaccurate", message, True, radius, error, mu, kind)
+    apart = _unresolved_apart(values, rates, radius)
     if excess < -bar:
         error_text = "no error estimate" if multiplier_errors is None else f"error bar {error:.2g}"
-        return Stability("ok", f"stable: spectral radius {radius:.6g} ({error_text})", True, radius, error, mu, "")
+        if none_resolved and min(rates) > NO_RESOLVED_RATE:
+            # the number is the scheme's, not the system's (a 1000x stiffer coupler at N = 256:
+            # 0.98 where the resolved modes' converged radius is below 1e-4)
+            message = (f"unresolved stiff modes: no Floquet mode is resolved at this step (every step "
+                       f"rate > {RESOLVED_STEP_RATE:g}, the smallest {min(rates):.3g}): the largest "
+                       f"multiplier, |mu| = {radius:.6g}, is the scheme's, not the system's; stable (the "
+                       f"scheme is A-stable), but refine n_steps about {math.ceil(min(rates)):d}x to see "
+                       f"the spectral radius")
+            return Stability("unresolved_stiff_mode", message, True, radius, error, mu, "")
+        return Stability("ok", f"stable: spectral radius {radius:.6g} of the resolved modes ({error_text})"
+                         f"{apart}", True, radius, error, mu, "")
     if excess > bar:
-        message = f"unstable: {_KIND_WORDS[kind]}; {where}: the periodic solution is not reached by the system"
+        message = (f"unstable: {_KIND_WORDS[kind]}; {where}: the periodic solution is not reached by the "
+                   f"system{apart}")
         return Stability("unstable", message, False, radius, error, mu, kind)
     message = (
         f"marginal: the spectral radius is 1 within its error bar ({where}): neutrally stable to this "
-        "accuracy, as an undamped mode is; refine n_steps to shrink the error bar"
+        f"accuracy, as an undamped mode is; refine n_steps to shrink the error bar{apart}"
     )
     return Stability("marginal", message, True, radius, error, mu, kind)
+
+
+def _unresolved_apart(values: list, rates: list, radius: float) -> str:
+    """``"; k multipliers of unresolved modes ... not counted"`` where modes the step does not
+    resolve have multipliers larger than the reported ``radius``, else ``""``."""
+    larger = [abs(value) for value, rate in zip(values, rates)
+              if rate > RESOLVED_STEP_RATE and abs(value) > radius]
+    if not larger:
+        return ""
+    return (f"; {len(larger)} multipliers of modes the step does not resolve (step rate > "
+            f"{RESOLVED_STEP_RATE:g}; largest |mu| = {max(larger):.3g}, the scheme's value, not the "
+            f"system's) are not counted in the radius")
+
+
+def resolved_radius(multipliers, step_rates, stability: Stability, modulus_errors=None) -> tuple[float, float]:
+    """``(spectral_radius, spectral_radius_error)`` a result reports: the largest modulus of the
+    resolved modes (``step_rate <= RESOLVED_STEP_RATE``) and its error bar (``ERROR_BAR_FACTOR``
+    times ``modulus_errors`` there, NaN without them); the critical multiplier's where the verdict
+    is ``unstable`` (an unresolved divergence converged like the scheme) or no mode is resolved
+    (the largest stands in, ``unresolved_stiff_mode``). The unresolved modes' multipliers are
+    named apart (``unresolved_multipliers``)."""
+    multipliers = np.asarray(multipliers)
+    resolved = np.asarray(step_rates) <= RESOLVED_STEP_RATE
+    if stability.status == "unstable" or not resolved.any():
+        return abs(stability.critical_multiplier), stability.spectral_radius_error
+    moduli = np.where(resolved, np.abs(multipliers), -1.0)
+    i = int(np.argmax(moduli))
+    error = float("nan") if modulus_errors is None else ERROR_BAR_FACTOR * float(modulus_errors[i])
+    return float(moduli[i]), error
+
+
+def unresolved_multipliers(multipliers, step_rates) -> np.ndarray:
+    """The multipliers (k,) of the modes the step does not resolve (``step_rate >
+    RESOLVED_STEP_RATE``), decreasing modulus: reported apart from the spectral radius."""
+    multipliers = np.asarray(multipliers)
+    return multipliers[np.asarray(step_rates) > RESOLVED_STEP_RATE]
+
+
+def _converged_above_one(mu: complex, coarse: np.ndarray, quarter: np.ndarray, order: int,
+                         stability_tol: float) -> tuple[bool, float]:
+    """``(above, bound)``: whether the moduli of ``mu`` and of its nearest multipliers on N/2 and
+    N/4 steps converge geometrically (ratio of successive differences ``r >=
+    MIN_CONVERGENCE_RATIO``) to a value above 1, the N and N/2 moduli both more than
+    ``ERROR_BAR_FACTOR`` times the error bound ``d (max(1 / (2^p - 1), 1 / (r - 1)))`` (the rest of a
+    geometric series of differences at the observed or the scheme's rate, whichever is slower) plus
+    ``stability_tol`` above 1."""
+    half = coarse[np.argmin(np.abs(coarse - mu))]
+    fourth = quarter[np.argmin(np.abs(quarter - half))]
+    fine_difference = abs(abs(mu) - abs(half))
+    coarse_difference = abs(abs(half) - abs(fourth))
+    if fine_difference == 0.0:
+        bound = 0.0
+    elif coarse_difference < MIN_CONVERGENCE_RATIO * fine_difference:
+        return False, math.inf
+    else:
+        ratio = coarse_difference / fine_difference
+        bound = fine_difference * max(1.0 / (2.0**order - 1.0), 1.0 / (ratio - 1.0))
+    margin = ERROR_BAR_FACTOR * bound + stability_tol
+    return bool(min(abs(mu), abs(half)) - 1.0 > margin), float(bound)
 
 
 def _modulus_convergence(mu: complex, coarse: np.ndarray, quarter: np.ndarray, order: int, n_steps):

@@ -29,8 +29,11 @@ from ._writes import writing_to
 #: ``format_version``. Format 1 (files without the attribute, flexvib before it was recorded): a
 #: group's ``kind`` is the name of its result class. Format 2: ``kind`` is the registered name of the
 #: study kind (``studies.register_kind``), a stable string, so that moving or renaming a result class
-#: breaks no file. A file or group of a higher format is refused (:func:`check_format`).
-FORMAT_VERSION = 2
+#: breaks no file. Format 3: ``spectral_radius`` (and its error) is that of the resolved modes, the
+#: steady state's unresolved ones stored apart (``unresolved_multipliers``); in older files it is over
+#: all modes, and they are read with that meaning. A file or group of a higher format is refused
+#: (:func:`check_format`).
+FORMAT_VERSION = 3
 
 #: Result classes by the name a file stores them under (the kind's name and its aliases).
 _RESULTS: dict[str, type] = {}

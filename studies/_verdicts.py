@@ -5,7 +5,10 @@ error trust, near resonance, unresolved modes) and ``linearize`` (the linear ran
 The vocabulary, most severe first (``periodic.STATUSES``): ``failed``, ``unstable``, ``outside_linear_range``,
 ``inaccurate``, ``near_resonance``, ``marginal``, ``unresolved_stiff_mode``, ``ok``. A point's
 ``status`` is the worst of its verdicts and its ``message`` joins theirs (most severe first);
-``is_stable`` is False only where the point is ``unstable``.
+``is_stable`` is the stability verdict's (``periodic.stability_verdict``): False where the point is
+``unstable`` and wherever the spectral radius has converged above 1, whatever status word wins
+(an ``inaccurate`` multiplier converging at another rate than the scheme's, a point also outside the
+linear range).
 """
 
 from __future__ import annotations

@@ -121,7 +121,9 @@ def test_linear_steady_state_matches_the_nonlinear_run():
         assert check.relative_difference[spec] < 0.01, spec   # measured 0.07-0.23 %
 
 
-@pytest.mark.parametrize("payload, stable_speed, unstable_speed", [(0.5, 250.0, 290.0),
+# 0.5 kg: 250 rad/s sits in a narrow parametric tongue (|mu| = 1.1165 at N = 512, stable at 240 and
+# 260), which the 128-step verdict called inaccurate and is_stable True before issue 22; 240 is stable
+@pytest.mark.parametrize("payload, stable_speed, unstable_speed", [(0.5, 240.0, 290.0),
                                                                    (2.0, 160.0, 190.0)])
 def test_stability_boundary_of_the_scene_comment(robot, payload, stable_speed, unstable_speed):
     """The linearised motion loses stability between the speeds the scene file names (the inertia

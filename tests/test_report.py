@@ -299,9 +299,10 @@ def test_four_bar_figures_have_clean_text(four_bar_file):
             assert [e for e in entries if e.startswith("mode")] == drawn_modes
 
 
-def test_sweep_headlines_take_the_largest_response_from_ok_points_only(mathieu_file):
-    """At an unstable point the linear periodic solution is not what the machine does: the largest
-    peak to peak is taken over the "ok" points, and the overall largest is named with its status."""
+def test_sweep_headlines_take_the_highest_peak_of_points_the_machine_reaches(mathieu_file):
+    """At an unstable point the linear periodic solution is not what the machine does: the headline
+    is the curve's highest peak (largest local maximum) among the other points, with its status, and
+    the overall largest is named with its status."""
     import dataclasses
 
     sweep = studies.load(mathieu_file)["sweep"]
@@ -312,15 +313,46 @@ def test_sweep_headlines_take_the_largest_response_from_ok_points_only(mathieu_f
     status[worst] = "unstable"
     marked = dataclasses.replace(sweep, point_status=status.astype(str))
     rows = {row.quantity: row for row in kinds()["sweep"].headlines(marked).rows}
-    second = float(np.nanmax(np.delete(values, worst)))
-    assert rows["largest x peak to peak (ok points)"].value == pytest.approx(second)
+    peak = rows["x peak to peak, highest peak"]
+    assert peak.value < values[worst] and peak.where.endswith(": ok")
+    index = int(np.flatnonzero(values == peak.value)[0])
+    assert 0 < index < values.size - 1 and values[index] >= max(values[index - 1], values[index + 1])
     overall = rows["largest x peak to peak, any point"]
     assert overall.value == pytest.approx(values[worst]) and "unstable" in overall.where
     status[worst] = "ok"
     rows = {row.quantity: row for row in kinds()["sweep"].headlines(
         dataclasses.replace(sweep, point_status=status.astype(str))).rows}
-    assert rows["largest x peak to peak (ok points)"].value == pytest.approx(values[worst])
+    assert rows["x peak to peak, highest peak"].value == pytest.approx(values[worst])
     assert "largest x peak to peak, any point" not in rows
+
+
+def test_sweep_headline_peak_is_a_local_maximum_not_the_last_point_before_a_threshold(mathieu_file):
+    """A curve with a resonance bump rising into points outside the linear range: the last "ok" point
+    before them is the largest "ok" value but no peak; the headline is the bump, with its status
+    (issue 22: the four-bar's 3:1 resonance at 98 rad/s, not 17.8 mm at 120 rad/s)."""
+    import dataclasses
+
+    sweep = studies.load(mathieu_file)["sweep"]
+    n = len(sweep.values)
+    x = np.arange(n, dtype=float)
+    bump, edge = n // 4, n // 2
+    curve = 1.0 + 0.8 * np.exp(-((x - bump) / 2.0) ** 2) + np.where(x >= edge - 3, 0.5 * (x - edge + 4), 0.0)
+    assert curve[edge - 1] > curve[bump]               # the last ok point is the largest ok value
+    status = np.array(["ok"] * n, dtype=object)
+    status[edge:] = "outside_linear_range"
+    status[bump] = "near_resonance"                     # a peak's own status is allowed, and shown
+    marked = dataclasses.replace(sweep, point_status=status.astype(str), peak_to_peak={"x": curve},
+                                 peak_to_peak_error={"x": 0.01 * curve}, peak={}, peak_error={})
+    rows = {row.quantity: row for row in kinds()["sweep"].headlines(marked).rows}
+    peak = rows["x peak to peak, highest peak"]
+    assert peak.value == pytest.approx(curve[bump]) and peak.where.endswith(": near_resonance")
+    assert peak.error == pytest.approx(0.01 * curve[bump])
+    # a curve rising to the end of the grid has no interior peak: its largest point, said so
+    status[:] = "ok"
+    rising = dataclasses.replace(marked, point_status=status.astype(str), peak_to_peak={"x": 1.0 + x})
+    rows = {row.quantity: row for row in kinds()["sweep"].headlines(rising).rows}
+    assert rows["x peak to peak, highest peak"].value == n and "no interior peak" in rows[
+        "x peak to peak, highest peak"].where
 
 
 @pytest.mark.parametrize("size", [(3.0, 2.5), (6.4, 4.8)])

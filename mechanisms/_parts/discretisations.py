@@ -25,7 +25,17 @@ observables and the linear-range measures all follow from the shapes). It declar
   and ``with_modes(modes)`` (the same discretisation with another mode count, ``None``: unreduced),
   which ``linearize.reduction_error`` uses to solve the reference with more modes;
 * ``COUNT_KEYS`` (class attribute, optional, default none): the scene-table keys that are counts
-  (elements, modes), which a study sweeping or optimising them rounds to integers.
+  (elements, modes), which a study sweeping or optimising them rounds to integers;
+* optionally a refinement, which the studies' mesh term of the error budget reads
+  (``studies/_mesh_error.py``): ``refined()``, the same discretisation one level finer (``Fem``:
+  twice the elements, the same modes; ``Ritz``: two more bending and two more axial modes; a
+  count past its limit raises ``MechanismError``), and ``convergence_order(quantity)``, the order
+  ``p`` in the element size ``h`` of the error of ``quantity`` when ``refined()`` halves ``h``
+  (``quantity``: the name of an observable's quantity on this link, ``"deflection"``,
+  ``"moment"``, ..., or ``""`` for one elsewhere: a joint force, another link's point), ``None``
+  when not known. Without ``refined`` the mesh term is unknown for the link's mechanism; without
+  ``convergence_order``, or where it says ``None`` (a refinement that adds modes has no ``h``),
+  the mesh term observes the rate from three levels (``refined().refined()``).
 
 ``register_discretisation(cls)`` enters a class in ``DISCRETISATION_TYPES``; ``Fem`` (the default
 of a scene), ``Ritz`` and ``UserShapes`` register themselves in their modules (``fem``, ``ritz``).

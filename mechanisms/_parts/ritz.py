@@ -64,6 +64,12 @@ class Ritz:
     def layout(self, link, attachments=None) -> ShapeLayout:
         return ShapeLayout(bending_and_axial_labels(self.n_bending, self.n_axial if link.axial else 0))
 
+    def refined(self) -> "Ritz":
+        """Two more bending modes and, where the link has axial modes, two more axial ones (the
+        optional refinement of the interface). Adding modes has no element size, so no
+        ``convergence_order`` is declared: the mesh term observes the rate from three levels."""
+        return Ritz(self.n_bending + 2, self.n_axial + 2 if self.n_axial else 0)
+
     def values(self, link, x: np.ndarray, basis=None) -> ShapeValues:
         length = link.length
         if link.boundary == "pinned-pinned":

@@ -64,7 +64,11 @@ class SteadyStateResult(StudyResult):
     multipliers : ndarray of complex, (2m,), 1
         The Floquet multipliers.
     spectral_radius, spectral_radius_error : float, 1
-        Their largest modulus and its estimated error.
+        The largest modulus of the resolved modes and its estimated error (``periodic.SteadyState``;
+        files of format 2 and older: over all modes).
+    unresolved_multipliers : ndarray of complex, (k,), 1
+        The multipliers of the modes the step does not resolve, apart from the radius (the
+        scheme's values, not the system's; empty in files of format 2 and older).
     error_estimate : float, SI
         The max abs error of ``x``.
     status, message : str
@@ -144,6 +148,7 @@ class SteadyStateResult(StudyResult):
     reduction_error: float = 0.0
     reduction_run_time: float = 0.0
     scheme: str = DEFAULT_SCHEME
+    unresolved_multipliers: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=complex))
 
     @property
     def headline(self) -> str:
@@ -151,7 +156,7 @@ class SteadyStateResult(StudyResult):
         return headline(self.status, self.instability_kind)
 
     _units = {"t": "s", "crank_angle": "rad", "x": "SI (see labels)", "response": "@observables",
-              "multipliers": "1", "outlines": "m",
+              "multipliers": "1", "unresolved_multipliers": "1", "outlines": "m",
               "rigid_outlines": "m", "plates": "m", "joints": "m"}
 
     def abscissa(self) -> tuple[np.ndarray, str]:
@@ -186,7 +191,7 @@ class SteadyStateResult(StudyResult):
         """The Floquet multipliers in the complex plane with the unit circle."""
         axes = axes_for(1, axes, width=4.8, height=4.8)
         artists = plot_multipliers(self.multipliers, ax=axes[0],
-                                   title=f"{self.problem}: Floquet multipliers, {self.headline}")
+                                   title=f"{self.problem}: Floquet multipliers,\n{self.headline}")
         return drawn(axes, {"multipliers": artists})
 
     def plot_mechanism(self, *, axes: Any = None, n_frames: int = 8) -> Plot:
@@ -249,7 +254,8 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
         n_steps=n_steps, run_time=time.perf_counter() - start, shooting_run_time=steady.run_time,
         is_stable=steady.is_stable, spectral_radius_error=steady.spectral_radius_error,
         instability_kind=steady.instability_kind, linear_range=steady.linear_range, **peaks,
-        reduction_error=reduction.error, reduction_run_time=reduction.run_time, scheme=scheme, **drawing)
+        reduction_error=reduction.error, reduction_run_time=reduction.run_time, scheme=scheme,
+        unresolved_multipliers=state.unresolved_multipliers, **drawing)
 
 
 def _reduction_error(linear: Any, x: np.ndarray, n_steps: int, scheme: str) -> Any:
@@ -279,8 +285,11 @@ def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> SteadyStateResul
 def _summary(result: SteadyStateResult) -> str:
     errors = ", ".join(f"{k} +- {v:.2g}" for k, v in result.response_error.items())
     words = f"{result.headline}: {result.message}" if result.message else result.headline
+    unresolved = np.abs(np.asarray(result.unresolved_multipliers))
+    apart = (f" of the resolved modes ({unresolved.size} unresolved apart, largest |mu| {unresolved.max():.3g})"
+             if unresolved.size else "")
     return (f"{words}; spectral radius {result.spectral_radius:.6f} +- "
-            f"{result.spectral_radius_error:.2g}; errors {errors}; {result.run_time:.3g} s")
+            f"{result.spectral_radius_error:.2g}{apart}; errors {errors}; {result.run_time:.3g} s")
 
 
 def _headlines(result: SteadyStateResult) -> Summary:

@@ -104,9 +104,12 @@ class SweepResult(GridResult):
         The largest magnitude over the period and its error (``studies._numerics.peak_summary``; for
         joint forces, drive torques and stresses the totals, nominal plus elastic change).
     spectral_radius, spectral_radius_error : ndarray, (n,), 1
-        The monodromy's spectral radius and its estimated error.
+        The monodromy's spectral radius over the resolved modes and its estimated error (format 2
+        and older files: over all modes; the unresolved modes' multipliers are among
+        ``multipliers``).
     is_stable : ndarray of bool, (n,)
-        Each point's stability verdict (unstable only beyond the radius's error bar).
+        Each point's stability verdict: False where unstable beyond the radius's error bar, and
+        wherever the radius has converged above 1 whatever the point's status word.
     multipliers : ndarray of complex, (n, 2m), 1
         The Floquet multipliers.
     error_estimate : ndarray, (n,), SI (see labels)
@@ -344,16 +347,20 @@ def _headlines(result: SweepResult) -> Summary:
     def point(index: tuple) -> str:
         return f"{result.parameter} {plain(result.values[index], 3)}{suffix}"
 
-    # A largest response is a headline only where the point's verdict is "ok": at an unstable point, or
-    # one outside the linear range, the linear periodic solution is not what the machine does. The
-    # largest over all points is shown as well when it sits at such a point, with that point's status.
+    # The headline response is the curve's highest peak (its largest local maximum: a resonance, not
+    # the last point before a threshold), at a point whose linear periodic solution is what the
+    # machine does (not failed, unstable or outside the linear range; a near_resonance or inaccurate
+    # point is a peak's own), with that point's status. The largest over all points is shown as
+    # well when it sits at a point that is not "ok", with that point's status.
     statuses = np.asarray(result.point_status)
-    trusted = np.asarray(result.done, dtype=bool) & (statuses == "ok")
+    done = np.asarray(result.done, dtype=bool)
+    trusted = done & (statuses == "ok")
+    reached = done & ~np.isin(statuses, ("failed", "unstable", "outside_linear_range"))
 
     def largest(name: str, values: Any, errors: Any, unit_of_values: str) -> list[Headline]:
         values = np.asarray(values, dtype=float)
-        rows = [largest_over_grid(f"largest {name} (ok points)", np.where(trusted, values, np.nan), errors,
-                                  unit_of_values, point)]
+        rows = [highest_peak(f"{name}, highest peak", values, errors, unit_of_values, reached, statuses,
+                             point)]
         if np.isfinite(values).any():
             index = np.unravel_index(np.nanargmax(values), values.shape)
             if not trusted[index]:
@@ -377,6 +384,30 @@ def _headlines(result: SweepResult) -> Summary:
         rows.append(largest_over_grid("largest spectral radius", result.spectral_radius,
                                       result.spectral_radius_error, "1", point))
     return Summary(status=grid_status(result), run_time=result.run_time, rows=rows + reduction_headlines(result))
+
+
+def highest_peak(name: str, values: np.ndarray, errors: Any, unit: str, eligible: np.ndarray,
+                 statuses: np.ndarray, point: Any) -> Headline:
+    """The row of the largest local maximum of a sweep's curve ``values`` (n,) among the
+    ``eligible`` points (n,) (a point at least as large as its finite neighbours, every done point
+    counted as a neighbour), with its error and status; where the curve has no such peak (it rises
+    to the end of the grid or to a point that is not eligible), its largest eligible point, said so."""
+    values = np.asarray(values, dtype=float)
+    finite = np.isfinite(values)
+    left = np.concatenate(([-np.inf], np.where(finite[:-1], values[:-1], -np.inf)))
+    right = np.concatenate((np.where(finite[1:], values[1:], -np.inf), [-np.inf]))
+    interior = np.ones(values.shape, dtype=bool)
+    interior[[0, -1]] = False
+    peaks = eligible & finite & interior & (values >= left) & (values >= right)
+    note = ""
+    if not peaks.any():
+        peaks = eligible & finite
+        note = " (no interior peak: the largest point)"
+    if not peaks.any():
+        return Headline(name, math.nan, unit)
+    index = (int(np.nanargmax(np.where(peaks, values, np.nan))),)
+    error = math.nan if errors is None else float(np.asarray(errors, dtype=float)[index])
+    return Headline(name, float(values[index]), unit, error, f"at {point(index)}: {statuses[index]}{note}")
 
 
 def _default(nominal_speed: float) -> dict[str, Any]:

@@ -115,8 +115,10 @@ def many_elements():
     return (fine.status, fine.message,
             f"{len(fine.labels)} independent coordinates; peak to peak {_ptp(fine):.5g} m at 60 rad/s",
             f"Ritz, 2 bending modes: {_ptp(ritz):.5g} m (difference {gap:.2g}, allowed {allowed:.2g})",
-            "ok, unresolved_stiff_mode or inaccurate (the stiff modes spoil the N/4 level), and the Ritz result",
-            fine.status in ("ok", "unresolved_stiff_mode", "inaccurate") and gap <= allowed)
+            "ok, unresolved_stiff_mode or inaccurate (the stiff modes spoil the N/4 level), or the unstiffened "
+            "coupler's model form, and the Ritz result",
+            (fine.status in ("ok", "unresolved_stiff_mode", "inaccurate")
+             or (fine.status == "outside_linear_range" and "model form" in fine.message)) and gap <= allowed)
 
 
 def zero_damping():
@@ -207,8 +209,9 @@ def quasi_static():
     slow, faster = _steady(_scene(), 2.0, n_steps=128), _steady(_scene(), 4.0, n_steps=128)
     ratio = _ptp(faster) / _ptp(slow)
     return (slow.status, slow.message, f"peak to peak {_ptp(slow):.4g} m at 2 rad/s, {_ptp(faster):.4g} m at 4",
-            f"quasi-static scaling: ratio 4 (computed {ratio:.4f})", "ok, ratio 4 within 1 %",
-            slow.status == "ok" and faster.status == "ok" and abs(ratio - 4.0) <= 0.04)
+            f"quasi-static scaling: ratio 4 (computed {ratio:.4f})",
+            "ok or unresolved_stiff_mode (no mode resolved: the radius is the scheme's), ratio 4 within 1 %",
+            {slow.status, faster.status} <= {"ok", "unresolved_stiff_mode"} and abs(ratio - 4.0) <= 0.04)
 
 
 def units():

@@ -156,6 +156,12 @@ class Legendre:
             u[:, nb + j], du[:, nb + j], _ = _legendre_shape(_axial_coefficients(j), x, link.length)
         return mechanisms.ShapeValues(u, du, w, dw, ddw)
 
+    def refined(self):
+        """Two more polynomial degrees of each kind (the optional refinement the studies' mesh
+        term reads); no ``convergence_order``: the polynomial basis converges faster than any
+        power of a size, and the mesh term observes its rate from three levels."""
+        return Legendre(self.n_bending + 2, self.n_axial + 2 if self.n_axial else 0)
+
 
 # the same shapes as module-level functions, for UserShapes (a scene names them module:qualname)
 def bending_1(x, length):

@@ -1,0 +1,272 @@
+"""The mesh term of the error budget: how far a steady response is from the one of a converged
+discretisation of the elastic links.
+
+Every elastic link's discretisation is refined one level (``refined()``: ``Fem`` twice the
+elements, ``Ritz`` two more bending and axial modes; ``mechanisms/_parts/discretisations.py``) and
+the steady state solved again on the same time grid with the same scheme, so that the difference
+of the two responses is the spatial error (their time-step errors nearly cancel). Where every link
+declares the order ``p`` of its error for an observable (``convergence_order``, for refinements
+that halve the element size), the error of the user's response is
+
+    e = SAFETY_FACTOR * |o_0 - o_1| * 2^p / (2^p - 1)
+
+(``o_0`` the response, ``o_1`` the refined one; ``p`` the smallest order among the links). Where a
+link declares none (a refinement that adds modes, a user's discretisation), a second refinement
+gives the observed ratio ``r = |o_0 - o_1| / |o_1 - o_2|`` of successive differences and
+
+    e = SAFETY_FACTOR * |o_0 - o_1| * r / (r - 1)
+
+(a geometric series of differences), trusted for ``r >= MIN_OBSERVED_RATIO``; below it the levels
+do not show a geometric convergence and the response's error is bounded by ``2 (|o_0 - o_1| +
+|o_1 - o_2|)`` instead, its peak's and peak-to-peak's by the response's (``|max f - max g| <=
+max |f - g|``). The safety factor is Roache's of the grid convergence index: at two elements the
+six-bar is not yet in the asymptotic range (error ratio 14.7 against 16 for order 4).
+
+Each of the response (max abs over the period), the peak and the peak-to-peak is estimated from its
+own differences, in the observable's unit. ``applicable`` is False for a problem without elastic
+links (a ``PeriodicProblem``, a mechanism of rigid links): no mesh, not a zero error. An
+elastic link that declares no refinement, a refinement past a limit, or a refined solve that fails
+leaves the term unknown (NaN) with the reason in ``method``.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections import OrderedDict
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ._numerics import DEFAULT_SCHEME, peak, peak_to_peak, study_scheme
+from ._problem import SPEED
+
+#: Roache's safety factor of the grid convergence index for an estimate with a known or observed
+#: order (1.25): the coarse levels a user runs are not always in the asymptotic range.
+SAFETY_FACTOR = 1.25
+#: Below this ratio of successive differences three levels do not show geometric convergence.
+MIN_OBSERVED_RATIO = 2.0
+#: Differences below this fraction of the response's size are round-off.
+_ROUNDOFF = 1e-12
+
+
+@dataclass(frozen=True)
+class MeshError:
+    """The mesh term of one steady state: each a ``{spec: float}`` in the observable's unit, NaN
+    where unknown.
+
+    Attributes
+    ----------
+    response : dict
+        The estimated max abs error of the response samples over the period.
+    peak, peak_to_peak : dict
+        The estimated error of the peak (largest magnitude) and of the peak-to-peak.
+    method : str
+        How it was estimated, in words ("one refinement (...), known order 4, ..." / "observed
+        order from three levels ..." / "not applicable: ..." / "unknown: ...").
+    applicable : bool
+        False for a problem without elastic links (no mesh: not a zero error).
+    run_time : float, s
+        The refined linearisations and solves.
+    """
+
+    response: dict[str, float]
+    peak: dict[str, float]
+    peak_to_peak: dict[str, float]
+    method: str
+    applicable: bool
+    run_time: float
+
+
+def mesh_error(problem: Any, values: Mapping[str, float] | None, *, observables: Sequence[str] | None = None,
+               n_steps: int, scheme: str = DEFAULT_SCHEME,
+               response: Mapping[str, np.ndarray] | None = None) -> MeshError:
+    """The mesh term of the steady state of ``problem`` at ``values`` on ``n_steps`` steps with
+    ``scheme`` (module notes). ``observables``: the specs to estimate (default the problem's);
+    ``response``: {spec: (N+1,)} the steady response the caller already has at these settings (else
+    it is solved here too). A problem is refinable when it has a ``mechanism(values)`` (the
+    mechanism problem); others are "not applicable"."""
+    start = time.perf_counter()
+    study_scheme(scheme)
+    specs = tuple(problem.describe(values).observables if observables is None else observables)
+    make_mechanism = getattr(problem, "mechanism", None)
+    if make_mechanism is None:
+        return _not_applicable(specs, "not applicable: the problem has no elastic links (no mesh)", start)
+    params = problem.resolve(values)
+    nominal = problem.parameters
+    mechanism = make_mechanism({k: v for k, v in params.items() if k != SPEED and v != nominal[k]})
+    elastic = [link for link in mechanism.links if getattr(link, "discretisation", None) is not None]
+    if not elastic:
+        return _not_applicable(specs, "not applicable: the mechanism has no elastic link (no mesh)", start)
+    speed = {SPEED: params[SPEED]}
+    unknown = _unrefinable(elastic)
+    if unknown:
+        return _unknown(specs, f"unknown: {unknown}", start)
+    orders = {spec: _order(elastic, spec) for spec in specs}
+    observed = any(order is None for order in orders.values())
+    try:
+        levels = [_refined_links(elastic)]
+        if observed:
+            levels.append(_refined_links(levels[0]))
+    except ValueError as error:    # a count past its limit (MechanismError)
+        return _unknown(specs, f"unknown: the discretisation cannot be refined: {error}", start)
+    others = tuple(sorted((k, v) for k, v in params.items() if k != SPEED))
+    try:
+        base = (dict(response) if response is not None and all(s in response for s in specs)
+                else _response(_problem_at(problem, others, specs, 0, lambda: mechanism), speed, n_steps,
+                               scheme))
+        base = {spec: np.asarray(base[spec], dtype=float) for spec in specs}
+        finer = [_response(_problem_at(problem, others, specs, level + 1,
+                                       lambda links=links: _with_links(mechanism, links)),
+                           speed, n_steps, scheme) for level, links in enumerate(levels)]
+    except (RuntimeError, ValueError) as error:   # a refined model that fails to solve
+        return _unknown(specs, f"unknown: a refined model did not solve ({type(error).__name__}: {error})",
+                        start)
+    out: dict[str, dict[str, float]] = {"response": {}, "peak": {}, "peak_to_peak": {}}
+    irregular: list[str] = []
+    for spec in specs:
+        series = [base[spec]] + [level[spec] for level in finer]
+        estimates, regular = _estimates(series, orders[spec])
+        for name, value in estimates.items():
+            out[name][spec] = value
+        if not regular:
+            irregular.append(spec)
+    method = _method(mechanism, elastic, levels, orders, irregular)
+    return MeshError(response=out["response"], peak=out["peak"], peak_to_peak=out["peak_to_peak"],
+                     method=method, applicable=True, run_time=time.perf_counter() - start)
+
+
+def _estimates(series: list[np.ndarray], order: float | None) -> tuple[dict[str, float], bool]:
+    """``({"response", "peak", "peak_to_peak"}: error, regular)`` from the responses on the user's
+    and the refined levels (each (N+1,)); ``order`` known (one refinement) or None (three levels);
+    ``regular`` False where three levels did not converge geometrically."""
+    measures = [{"response": s, "peak": peak(s)[0], "peak_to_peak": peak_to_peak(s)[0]} for s in series]
+    scale = max(float(np.abs(series[0]).max()), 1e-300)
+
+    def difference(name: str, i: int) -> float:
+        a, b = measures[i][name], measures[i + 1][name]
+        return float(np.abs(np.asarray(a) - np.asarray(b)).max())
+
+    if order is not None:
+        factor = SAFETY_FACTOR * 2.0**order / (2.0**order - 1.0)
+        return {name: factor * difference(name, 0) for name in measures[0]}, True
+    found, regular = {}, True
+    for name in ("response", "peak", "peak_to_peak"):
+        first, second = difference(name, 0), difference(name, 1)
+        if max(first, second) <= _ROUNDOFF * scale:
+            found[name] = first
+        elif second > 0.0 and first / second >= MIN_OBSERVED_RATIO:
+            ratio = first / second
+            found[name] = SAFETY_FACTOR * first * ratio / (ratio - 1.0)
+        elif name == "response":
+            found[name] = 2.0 * (first + second)
+            regular = False
+        else:  # the extremes of two functions differ by at most the largest difference of the functions
+            found[name] = found["response"] * (2.0 if name == "peak_to_peak" else 1.0)
+            regular = False
+    return found, regular
+
+
+def _order(links: list, spec: str) -> float | None:
+    """The smallest convergence order the links declare for ``spec`` (its quantity on its own link,
+    ``""`` on the others); None where one declares none."""
+    head = spec.partition("@")[0]
+    owner, _, quantity = head.rpartition(".")
+    orders = []
+    for link in links:
+        declared = getattr(link.discretisation, "convergence_order", None)
+        order = None if declared is None else declared(quantity if owner == link.name else "")
+        if order is None:
+            return None
+        orders.append(float(order))
+    return min(orders)
+
+
+def _unrefinable(links: list) -> str:
+    """Words naming the elastic links whose discretisation declares no ``refined()``, or ``""``."""
+    missing = [f"link {link.name!r} ({type(link.discretisation).__name__}, type "
+               f"{getattr(link.discretisation, 'TYPE', '?')!r})" for link in links
+               if getattr(link.discretisation, "refined", None) is None]
+    if not missing:
+        return ""
+    return (f"{', '.join(missing)} declares no refinement (a discretisation's refined(), "
+            f"mechanisms/_parts/discretisations.py), so its mesh error cannot be estimated")
+
+
+def _refined_links(links: list) -> list:
+    import dataclasses
+
+    return [dataclasses.replace(link, discretisation=link.discretisation.refined()) for link in links]
+
+
+def _with_links(mechanism: Any, links: list) -> Any:
+    by_name = {link.name: link for link in links}
+    return mechanism.replace(links=tuple(by_name.get(link.name, link) for link in mechanism.links))
+
+
+def _problem_at(problem: Any, others: tuple, specs: tuple[str, ...], level: int, make: Any) -> Any:
+    """The mechanism problem of ``problem`` at the scene values ``others`` with its elastic links
+    refined ``level`` times (``make()`` builds that mechanism), for ``specs``: cached per process, so
+    that a sweep's points share one refined model (and its speed family) per level."""
+    from ._mechanism import MechanismProblem
+
+    key = (problem.text, others, specs, level)
+    if key not in _PROBLEMS:
+        _PROBLEMS[key] = MechanismProblem.from_mechanism(make(), observables=specs)
+        if len(_PROBLEMS) > _CACHE_SIZE:
+            _PROBLEMS.popitem(last=False)
+    _PROBLEMS.move_to_end(key)
+    return _PROBLEMS[key]
+
+
+_CACHE_SIZE = 8
+_PROBLEMS: OrderedDict = OrderedDict()
+
+
+def _response(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: str) -> dict[str, np.ndarray]:
+    """{spec: (N+1,)} the steady response of a mechanism ``problem`` at ``speed`` without error
+    estimates (the time-step error is another term; near-resonance warnings are the user's solve's
+    to give)."""
+    import periodic
+
+    linear = problem.linearize(speed, n_steps=n_steps, context=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", periodic.NearResonanceWarning)
+        state = periodic.steady_state(linear.system, scheme=study_scheme(scheme), estimate_error=False)
+    observed = linear.observe(state.x)
+    return {spec: observed[:, k] for k, spec in enumerate(linear.observables)}
+
+
+def _method(mechanism: Any, links: list, levels: list, orders: Mapping[str, float | None],
+            irregular: list[str]) -> str:
+    """The method in words: what was refined, with which order or observed rate."""
+    changes = []
+    for k, link in enumerate(links):
+        before = link.discretisation.to_table()
+        after = [level[k].discretisation.to_table() for level in levels]
+        keys = [key for key in before if any(table.get(key) != before[key] for table in after)]
+        steps = ", ".join(f"{key} {' -> '.join(str(t.get(key)) for t in [before] + after)}" for key in keys)
+        changes.append(f"{link.name}: {before.get('type', '?')} {steps}")
+    refined = "; ".join(changes)
+    known = sorted({order for order in orders.values() if order is not None})
+    if len(levels) == 1:
+        text = (f"one refinement ({refined}), known order {', '.join(f'{o:g}' for o in known)}, "
+                f"safety factor {SAFETY_FACTOR:g}")
+    else:
+        text = (f"observed order from three levels ({refined}), safety factor {SAFETY_FACTOR:g}"
+                + (f"; known order {', '.join(f'{o:g}' for o in known)} where declared" if known else ""))
+    if irregular:
+        text += (f"; no geometric convergence over the levels for {', '.join(irregular)}: bounded by "
+                 f"twice the differences instead")
+    return text
+
+
+def _not_applicable(specs: tuple[str, ...], words: str, start: float) -> MeshError:
+    nan = {spec: float("nan") for spec in specs}
+    return MeshError(dict(nan), dict(nan), dict(nan), words, False, time.perf_counter() - start)
+
+
+def _unknown(specs: tuple[str, ...], words: str, start: float) -> MeshError:
+    nan = {spec: float("nan") for spec in specs}
+    return MeshError(dict(nan), dict(nan), dict(nan), words, True, time.perf_counter() - start)
