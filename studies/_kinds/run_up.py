@@ -101,7 +101,8 @@ class RunUp(StudyResult):
         The nonlinear periodic state's peak-to-peak there (NaN where not computed or not found).
     resonance_speed : ndarray, (n_res,), rad/s
         Speeds in the ramp's range where ``k speed`` meets a natural frequency (frozen, mean over the
-        period at ``start``); ``resonance_harmonic``, ``resonance_mode`` (n_res,) their k and 0-based mode.
+        period, at that speed); ``resonance_harmonic``, ``resonance_mode`` (n_res,) their k and 0-based
+        mode.
     natural_frequencies : ndarray, (n_modes,), rad/s
         The mean frozen natural frequencies at ``start`` of the modes that bound the step.
     start_state : str
@@ -112,7 +113,7 @@ class RunUp(StudyResult):
         The run's verdict (``failed``: the run did not reach the end, ``inaccurate``: an error estimate
         above a tenth of the largest peak-to-peak or none) with the start state's.
     run_time : float, s
-        The whole study; ``simulation_run_time`` the fine run, ``error_run_time`` the run at 2 dt,
+        The whole study; ``simulation_run_time`` the fine run, ``error_run_time`` the runs at 2 dt and 4 dt,
         ``curve_run_time`` the steady-state curves.
     """
 
@@ -269,6 +270,15 @@ def _time_step(problem, values, start, stop, n_steps, mode_steps, max_harmonic):
     return by_revolution, f"{n_steps} steps per revolution at the fastest speed {top:.4g} rad/s", relevant
 
 
+def _as_start(status: str, message: str) -> tuple[str, str]:
+    """A start state's verdict as the run-up's: an untrusted error estimate of the start (the state
+    is a start only: what it misses is a transient of the run, which the run's own error estimate
+    covers from the same start) is said, not made the run-up's status; its stability and the rest are."""
+    if status == "inaccurate":
+        return "ok", f"{message} (the start's own error estimate only: the run's numbers carry theirs)"
+    return status, message
+
+
 def _start(problem, values, start, steps_at_start, start_state):
     """(linear at the start speed, s0, sdot0, lag0, words, [(status, message)])."""
     import mechanisms
@@ -289,7 +299,8 @@ def _start(problem, values, start, steps_at_start, start_state):
                                               independent=lin.coefficients.independent, nominal=lin.nominal)
             s0, sdot0 = period_map.start_state(orbit.state)
             lag0 = period_map.lag_states_of(orbit.state) if n_lags else None
-            verdicts.append((orbit.status, f"start: nonlinear periodic state {orbit.status}: {orbit.message}"))
+            verdicts.append(_as_start(orbit.status, f"start: nonlinear periodic state {orbit.status}: "
+                                                    f"{orbit.message}"))
             return linear, s0, sdot0, lag0, "nonlinear periodic state", verdicts
         verdicts.append(("ok", f"the nonlinear periodic state at {start:g} rad/s was not found "
                                f"({orbit.message}); started from the linear steady state instead"))
@@ -297,8 +308,8 @@ def _start(problem, values, start, steps_at_start, start_state):
     x0, v0 = steady.state.x[0], steady.state.v[0]
     s0, sdot0 = lin.start_state(x0, v0)
     lag0 = np.asarray(x0, dtype=float)[-n_lags:] if n_lags else None
-    verdicts.append((steady.status, f"start: linear steady state {steady.status}"
-                     + (f" ({steady.message})" if steady.message else "")))
+    verdicts.append(_as_start(steady.status, f"start: linear steady state {steady.status}"
+                              + (f" ({steady.message})" if steady.message else "")))
     return linear, s0, sdot0, lag0, "linear steady state", verdicts
 
 
@@ -314,14 +325,23 @@ class _Phase:
         self.t = run.t
 
     def revolutions(self):
-        """(bounds (n_rev + 1,) sample indices, mean speeds (n_rev,) rad/s) of the whole revolutions."""
+        """(times (n_rev + 1,) s where each whole revolution begins and the last ends, their mean
+        speeds (n_rev,) rad/s)."""
         n_rev = int(np.floor(self.phase[-1] / (2.0 * math.pi) + 1e-12))
         if n_rev < 1 or np.any(np.diff(self.phase) < 0):
-            return np.zeros(1, dtype=int), np.zeros(0)
+            return np.zeros(1), np.zeros(0)
         marks = 2.0 * math.pi * np.arange(n_rev + 1)
-        times = np.interp(marks, self.phase, self.t)
-        bounds = np.minimum(np.searchsorted(self.phase, marks), self.phase.size - 1)
-        return bounds, 2.0 * math.pi / np.diff(times)
+        # the crossing inside its step from the phase's second-order expansion there (its rate at both
+        # ends known): exact for a speed linear over the step, where linear interpolation is O(h^2)
+        i = np.clip(np.searchsorted(self.phase, marks, side="right") - 1, 0, self.phase.size - 2)
+        h = self.t[i + 1] - self.t[i]
+        w0, acc = self.speed[i], (self.speed[i + 1] - self.speed[i]) / h
+        rest = marks - self.phase[i]
+        tau = np.where(np.abs(acc) * h > 1e-12 * np.abs(w0),
+                       2.0 * rest / (w0 + np.sqrt(np.maximum(w0 * w0 + 2.0 * acc * rest, 0.0))),
+                       rest / np.where(w0 != 0.0, w0, 1.0))
+        times = self.t[i] + tau
+        return times, 2.0 * math.pi / np.diff(times)
 
 
 def _refined(values: np.ndarray, i: np.ndarray, sign: float) -> np.ndarray:
@@ -331,22 +351,42 @@ def _refined(values: np.ndarray, i: np.ndarray, sign: float) -> np.ndarray:
     j = i[inner]
     left, centre, right = values[j - 1], values[j], values[j + 1]
     curvature = left - 2.0 * centre + right
-    ok = sign * curvature < 0.0
+    # a sampled extreme of the whole series (not one cut off at a revolution's end): its vertex lies
+    # within half a step
+    ok = (sign * (centre - left) >= 0.0) & (sign * (centre - right) >= 0.0) & (sign * curvature < 0.0)
     shift = np.where(ok, 0.5 * (left - right) / np.where(ok, curvature, 1.0), 0.0)
     out[inner] = centre - 0.25 * (left - right) * shift
     return out
 
 
-def _per_revolution(values: np.ndarray, bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(peak-to-peak, peak) (n_rev,) of ``values`` (n_t,) over each revolution ``bounds[k] ..
-    bounds[k + 1]`` (samples at both ends included)."""
-    n_rev = bounds.size - 1
+def _at(values: np.ndarray, t: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """``values`` (n_t,) on the uniform grid ``t`` at ``times`` by the parabola through the three
+    nearest samples (error O(h^3), where linear interpolation's O(h^2) would show in a peak-to-peak
+    whose extreme is a revolution's end)."""
+    h = t[1] - t[0]
+    j = np.clip(np.rint((times - t[0]) / h).astype(int), 1, t.size - 2)
+    u = (times - t[j]) / h
+    left, centre, right = values[j - 1], values[j], values[j + 1]
+    return centre + 0.5 * u * (right - left) + 0.5 * u * u * (right - 2.0 * centre + left)
+
+
+def _per_revolution(values: np.ndarray, t: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(peak-to-peak, peak) (n_rev,) of ``values`` (n_t,) on the uniform grid ``t`` over each
+    revolution ``times[k] .. times[k + 1]`` (s): its extremes inside refined by the parabola through
+    their neighbours, and its values at both ends."""
+    n_rev = times.size - 1
+    if n_rev < 1:
+        return np.zeros(0), np.zeros(0)
+    ends = _at(values, t, times)
+    first = np.searchsorted(t, times, side="right")        # the first sample after each end
     high_at, low_at = np.zeros(n_rev, dtype=int), np.zeros(n_rev, dtype=int)
     for k in range(n_rev):
-        part = values[bounds[k]:bounds[k + 1] + 1]
-        high_at[k] = bounds[k] + int(np.argmax(part))
-        low_at[k] = bounds[k] + int(np.argmin(part))
-    high, low = _refined(values, high_at, 1.0), _refined(values, low_at, -1.0)
+        lo, hi = first[k], max(first[k] + 1, int(np.searchsorted(t, times[k + 1], side="left")))
+        part = values[lo:hi]
+        high_at[k] = lo + int(np.argmax(part))
+        low_at[k] = lo + int(np.argmin(part))
+    high = np.maximum(_refined(values, high_at, 1.0), np.maximum(ends[:-1], ends[1:]))
+    low = np.minimum(_refined(values, low_at, -1.0), np.minimum(ends[:-1], ends[1:]))
     return high - low, np.maximum(np.abs(high), np.abs(low))
 
 
@@ -405,9 +445,24 @@ def _steady_curve(problem, values, speeds, specs, n_steps, nonlinear):
     return ptp, error, status.astype(str), nl
 
 
-def _resonances(frequencies, low, high, max_harmonic):
-    found = [(float(w) / k, k, j) for j, w in enumerate(frequencies) for k in range(1, max_harmonic + 1)
-             if low <= float(w) / k <= high]
+def _resonances(problem, values, low, high, n_modes, max_harmonic, n_speeds=17):
+    """(speeds, harmonics k, modes j) (n_res,) where ``k speed`` meets the mean frozen natural
+    frequency of mode j, which changes with the speed (centrifugal and geometric stiffening): found
+    between ``n_speeds`` coarse linearisations over [low, high] by linear interpolation."""
+    speeds = np.linspace(max(low, 0.02 * high), high, n_speeds)
+    table = np.full((n_speeds, n_modes), np.nan)
+    for i, speed in enumerate(speeds):
+        linear = problem.linearize(dict(values, **{SPEED: float(speed)}), n_steps=32, context=False)
+        mean = np.mean(frozen_modes(linear.system, 16)[1], axis=0)
+        mean = np.sort(mean[mean > 0.0])[:n_modes]
+        table[i, :mean.size] = mean
+    found = []
+    for j in range(n_modes):
+        for k in range(1, max_harmonic + 1):
+            gap = table[:, j] - k * speeds
+            for i in np.flatnonzero(np.sign(gap[:-1]) * np.sign(gap[1:]) < 0):
+                u = gap[i] / (gap[i] - gap[i + 1])
+                found.append((float(speeds[i] + u * (speeds[i + 1] - speeds[i])), k, j))
     found.sort()
     return (np.array([f[0] for f in found], dtype=float), np.array([f[1] for f in found], dtype=int),
             np.array([f[2] for f in found], dtype=int))
@@ -448,13 +503,14 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     values = {k: v for k, v in (values or {}).items() if k != SPEED}
     parameters = problem.resolve(dict(values, **{SPEED: start}))
     dt, dt_reason, frequencies = _time_step(problem, values, start, stop, n_steps, mode_steps, max_harmonic)
-    n_run = 2 * int(math.ceil(duration / (2.0 * dt)))
+    n_run = 4 * int(math.ceil(duration / (4.0 * dt)))   # the runs at 2 dt and 4 dt on every other sample
     if n_run > MAX_RUN_STEPS:
         raise StudiesError(f"duration: {duration:g} s at dt = {dt:.3g} s ({dt_reason}) is {n_run} steps; "
                            f"at most {MAX_RUN_STEPS} ({RUN_STEPS_WHY}): shorten the ramp or lower "
                            f"mode_steps / n_steps")
     dt = duration / n_run
-    steps_at_start = max(32, 4 * int(math.ceil(2.0 * math.pi / start / dt / 4.0)))
+    # the start orbit on at least 128 steps: its N/4 check of the error estimate needs 32
+    steps_at_start = max(128, 4 * int(math.ceil(2.0 * math.pi / start / dt / 4.0)))
     linear, s0, sdot0, lag0, start_words, verdicts = _start(problem, values, start, steps_at_start, start_state)
     lin = linear.context
     model = mechanisms.integrated_model(lin.mechanism, lin.nominal)
@@ -471,33 +527,38 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     options = dict(t_end=duration, s0=s0, sdot0=sdot0, observables=specs, estimate_error=False,
                    lag0=lag0, rho_inf=rho_inf, throw=False)
     setup_time = time.perf_counter() - clock
-    run = mechanisms.simulate(ramped, dt=dt, **options)
-    phase = _Phase(ramped, drives[0], start, run)
-    response = _observed(ramped, linear, specs, run, phase.phase)
+    run, phase, response, speed, ptp, peak = _analysed(ramped, linear, drives[0], start, specs, dt, options)
     torque = _torques(ramped, run)
-    bounds, speed = phase.revolutions()
-    ptp, peak = {}, {}
-    for spec in specs:
-        ptp[spec], peak[spec] = _per_revolution(response[spec], bounds)
     n_rev = speed.size
     ptp_error = {spec: np.full(n_rev, np.nan) for spec in specs}
     peak_error = {spec: np.full(n_rev, np.nan) for spec in specs}
     error_time = float("nan")
     reasons = []
     if run.success and estimate_error:
-        coarse = mechanisms.simulate(ramped, dt=2.0 * dt, **options)
-        error_time = coarse.run_time
-        if coarse.success:
-            coarse_phase = _Phase(ramped, drives[0], start, coarse)
-            coarse_response = _observed(ramped, linear, specs, coarse, coarse_phase.phase)
-            coarse_bounds, _ = coarse_phase.revolutions()
-            count = min(n_rev, coarse_bounds.size - 1)
-            for spec in specs:
-                c_ptp, c_peak = _per_revolution(coarse_response[spec], coarse_bounds[:count + 1])
-                ptp_error[spec][:count] = ERROR_FACTOR * np.abs(ptp[spec][:count] - c_ptp)
-                peak_error[spec][:count] = ERROR_FACTOR * np.abs(peak[spec][:count] - c_peak)
-        else:
+        # 2 dt for the Richardson estimate, 4 dt to see that it is in the asymptotic range (the rule of
+        # the steady states: the ratio of successive differences about 2^order)
+        coarse, _, _, _, c_ptp, c_peak = _analysed(ramped, linear, drives[0], start, specs, 2.0 * dt, options)
+        quarter, _, _, _, q_ptp, _ = _analysed(ramped, linear, drives[0], start, specs, 4.0 * dt, options)
+        error_time = coarse.run_time + quarter.run_time
+        if not coarse.success:
             reasons.append(f"no error estimate: the run at 2 dt failed ({coarse.message})")
+        else:
+            for spec in specs:
+                count = min(n_rev, c_ptp[spec].size)
+                ptp_error[spec][:count] = ERROR_FACTOR * np.abs(ptp[spec][:count] - c_ptp[spec][:count])
+                peak_error[spec][:count] = ERROR_FACTOR * np.abs(peak[spec][:count] - c_peak[spec][:count])
+                if not quarter.success:
+                    reasons.append(f"error estimate not checked: the run at 4 dt failed ({quarter.message})")
+                    continue
+                count = min(count, q_ptp[spec].size)
+                if count:
+                    check = periodic.error_verdict(
+                        float(np.max(np.abs(ptp[spec][:count] - c_ptp[spec][:count]))),
+                        float(np.max(np.abs(c_ptp[spec][:count] - q_ptp[spec][:count]))), 2,
+                        scale=float(np.max(ptp[spec])), quantity=f"the peak to peak of {spec} per revolution")
+                    if check.status != "ok":
+                        reasons.append(f"{spec}: {check.message.replace('refine n_steps', 'raise mode_steps')} "
+                                       f"(the runs at dt, 2 dt and 4 dt)")
     elif run.success:
         reasons.append("no error estimate (estimate_error = false)")
     largest, largest_error, at = {}, {}, {}
@@ -517,11 +578,11 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     curve_ptp, curve_error, curve_status, nl_ptp = _steady_curve(problem, values, curve_speed, specs,
                                                                  curve_steps, nonlinear_curve)
     curve_time = time.perf_counter() - curve_clock
-    res_speed, res_k, res_mode = _resonances(frequencies, low, high, max_harmonic)
+    res_speed, res_k, res_mode = _resonances(problem, values, low, high, len(frequencies), max_harmonic)
     if not run.success:
         run_verdict = ("failed", f"the run failed: {run.message}; the results end there. Raise n_steps or "
                                  "mode_steps, or ramp more slowly")
-    elif reasons and any("no error estimate" in r or "estimated error" in r for r in reasons):
+    elif reasons:
         run_verdict = ("inaccurate", "; ".join(reasons))
     else:
         run_verdict = ("ok", "")
@@ -546,6 +607,21 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
         message=f"{message}; {words}" if message else words,
         run_time=time.perf_counter() - clock, simulation_run_time=run.run_time, error_run_time=error_time,
         curve_run_time=curve_time, extra={"setup_run_time": setup_time, "n_rejected": run.n_rejected})
+
+
+def _analysed(model, linear, drive, start, specs, dt, options):
+    """One run of the ramped ``model`` on the step ``dt`` and its analysis: (run, phase, response
+    {spec: (n_t,)}, mean speeds (n_rev,), peak-to-peak and peak {spec: (n_rev,)})."""
+    import mechanisms
+
+    run = mechanisms.simulate(model, dt=dt, **options)
+    phase = _Phase(model, drive, start, run)
+    response = _observed(model, linear, specs, run, phase.phase)
+    times, speed = phase.revolutions()
+    ptp, peak = {}, {}
+    for spec in specs:
+        ptp[spec], peak[spec] = _per_revolution(response[spec], run.t, times)
+    return run, phase, response, speed, ptp, peak
 
 
 def _torques(model, run) -> np.ndarray:
@@ -622,7 +698,7 @@ def run_up_cost(name, problem, options, workers):
     sizes = cost.sizes_at(problem, values)
     dt, _, _ = _time_step(problem, {}, options["start"], options["stop"], options["n_steps"],
                           options["mode_steps"], options["max_harmonic"])
-    run_steps = options["duration"] / dt * (1.5 if options["estimate_error"] else 1.0)
+    run_steps = options["duration"] / dt * (1.75 if options["estimate_error"] else 1.0)   # dt, 2 dt, 4 dt
     start_steps = max(32, int(2.0 * math.pi / options["start"] / dt))
     seconds = cost.STUDY_SECONDS + cost.nonlinear_period_seconds(int(run_steps), sizes)
     if options["start_state"] == "nonlinear":
