@@ -112,6 +112,7 @@ def arm():
     return studies.MechanismProblem.from_mechanism(mechanisms.load(str(ARM)), observables=[TIP])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("start, stop", [(12.0, 28.0), (28.0, 12.0)])
 def test_fast_ramp_through_resonance_against_the_oscillator(arm, start, stop):
     """Passage through resonance: the peak is lower than the steady one and comes after the
@@ -168,21 +169,27 @@ def four_bar():
     return studies.MechanismProblem.from_scene("four_bar_fem4")
 
 
+@pytest.mark.slow
 def test_very_slow_ramp_reproduces_the_nonlinear_periodic_states(four_bar):
+    """60 -> 64 rad/s over 8 s (78 revolutions, 40 decay times of the coupler's first mode): each
+    revolution's peak to peak is the nonlinear periodic state's at its mean speed, within the error
+    estimates and a quasi-static lag of 0.1 %, and nearer to it than to the linear one (0.6 % apart)."""
     spec = "coupler.deflection@0.5"
-    result = studies.run_up(four_bar, start=60.0, stop=64.0, duration=8.0, curve_points=0)
-    assert result.status in ("ok", "near_resonance"), result.message
+    result = studies.run_up(four_bar, start=60.0, stop=64.0, duration=8.0, curve_points=0, mode_steps=24)
+    assert result.status == "ok", result.message
     assert result.start_state == "nonlinear periodic state"
-    for k in (5, result.speed.size // 2, result.speed.size - 2):
-        orbit = studies.nonlinear_steady_state(four_bar, {"speed": float(result.speed[k])}, n_steps=128)
+    for k in (result.speed.size // 2, result.speed.size - 2):
+        orbit = studies.nonlinear_steady_state(four_bar, {"speed": float(result.speed[k])}, n_steps=256)
         assert orbit.status != "failed"
-        allowed = 3 * (result.peak_to_peak_error[spec][k] + orbit.peak_to_peak_error[spec]) \
-            + 0.005 * orbit.peak_to_peak[spec]
-        assert abs(result.peak_to_peak[spec][k] - orbit.peak_to_peak[spec]) <= allowed, (
-            k, result.speed[k], result.peak_to_peak[spec][k], orbit.peak_to_peak[spec])
+        ramped, steady, linear = (result.peak_to_peak[spec][k], orbit.peak_to_peak[spec],
+                                  orbit.linear_peak_to_peak[spec])
+        allowed = 3 * (result.peak_to_peak_error[spec][k] + orbit.peak_to_peak_error[spec]) + 1e-3 * steady
+        assert abs(ramped - steady) <= allowed, (k, result.speed[k], ramped, steady, allowed)
+        assert abs(ramped - steady) < 0.5 * abs(ramped - linear), (ramped, steady, linear)
 
 
 # --- the scene study ---------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_scene_table_runs_and_round_trips(tmp_path):
     scene = tmp_path / "arm.toml"
     scene.write_text(ARM.read_text() + "\n[studies]\nobservables = [\"arm.transverse@1\"]\n\n"
