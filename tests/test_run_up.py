@@ -214,3 +214,25 @@ def test_scene_table_refuses_bad_keys(tmp_path):
                        duration=1.0, start_state="warm")
     with pytest.raises(studies.StudiesError, match="mechanism"):
         studies.run_up(studies.mathieu_problem(), start=1.0, stop=2.0, duration=1.0)
+
+
+@pytest.mark.slow
+def test_a_stiff_torque_drive_runs_up_as_the_prescribed_one():
+    """Two formulations of one run-up: a torque drive whose ramped reference (PD 3000 N m/rad,
+    30 N m s/rad, feedforward read at the reference's angle) holds the crank on the ramp gives the
+    prescribed drive's per-revolution peak-to-peak, within the two error estimates."""
+    prescribed = mechanisms.four_bar(n_elements=1)
+    spec = prescribed.to_spec()
+    spec["drive"].update(type="torque", kp=3000.0, kd=30.0)
+    torque = mechanisms.build(spec, source="four-bar, stiff PD drive")
+    options = dict(start=100.0, stop=120.0, duration=0.5, start_state="linear", curve_points=0)
+    a, b = (studies.run_up(studies.MechanismProblem.from_mechanism(m), **options) for m in (prescribed, torque))
+    assert a.status == b.status == "ok", (a.message, b.message)
+    ramp = mechanisms.SpeedRamp(100.0, 120.0, 0.5)
+    assert np.abs(b.drive_speed - ramp.law(b.t)[1]).max() < 0.1      # the PD's tracking error, rad/s
+    np.testing.assert_allclose(b.speed, a.speed, rtol=1e-4)
+    for spec_ in a.units:
+        difference = np.abs(a.peak_to_peak[spec_] - b.peak_to_peak[spec_])
+        allowed = 3 * (a.peak_to_peak_error[spec_] + b.peak_to_peak_error[spec_]) + 2e-3 * a.largest[spec_]
+        assert np.all(difference <= allowed), (spec_, difference, allowed)
+        assert not np.array_equal(a.drive_torque, b.drive_torque)   # the torque law, not the multiplier
