@@ -56,6 +56,7 @@ def main() -> None:
     print(f"status {result.status}: largest peak to peak {result.largest[SPEC]:.4g} +- "
           f"{result.largest_error[SPEC]:.2g} m at {result.speed_at_largest[SPEC]:.4g} rad/s; start "
           f"{result.start_state}")
+    print(f"message: {result.message}")
     print(f"study (median of {args.repeats}): {study:.2f} s (runs {result.simulation_run_time:.2f} + "
           f"{result.error_run_time:.2f} s, curve {result.curve_run_time:.2f} s, start and setup "
           f"{result.extra['setup_run_time']:.2f} s); target {TARGET_SECONDS:g} s: "

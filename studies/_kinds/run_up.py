@@ -38,16 +38,18 @@ from ._run_up_revolutions import analysed, torques
 #: Start states: the nonlinear periodic state at ``start`` (shooting; the linear one where Newton does
 #: not find it), the linear steady state, or the nominal rigid motion with the elastic coordinates at rest.
 START_STATES = ("nonlinear", "linear", "rest")
-#: Default steps per revolution at the fastest speed of the ramp.
-STEPS_PER_REVOLUTION = 64
+#: Default steps per revolution at the fastest speed of the ramp: 32 resolve its first harmonics (the
+#: elastic periods bound the step beside it, ``MODE_STEPS``).
+STEPS_PER_REVOLUTION = 32
 #: Default steps per period of the highest elastic mode that matters (``_time_step``).
 MODE_STEPS = 16
 #: Default highest harmonic of the speed whose resonances are marked (and whose modes bound the step).
 MAX_HARMONIC = 4
-#: Default Newton tolerance of the runs (``mechanisms.simulate``'s ``tol``): on four_bar_fem4 through a
-#: ramp 100 -> 150 rad/s 4.0 instead of 4.8 iterations a step, the deflection within 7e-7 of its peak to
-#: peak of the run at 1e-10 (1e-7: 3.6 iterations, 1.4e-5).
-TOL = 1e-8
+#: Default Newton tolerance of the runs (``mechanisms.simulate``'s ``tol``, relative to the configuration's
+#: size): on four_bar_fem4 through a ramp 100 -> 150 rad/s the deflection stays within 1.4e-5 of its peak
+#: to peak of the run at 1e-10 (1e-8: 7e-7), far below the step's error, for 3.6 (at 200 steps a period
+#: 2.2) instead of 4.8 (4.2) Newton iterations a step; benchmarks/bench_simulate.py found the same value.
+TOL = 1e-7
 #: Default speeds of the steady-state curve.
 CURVE_POINTS = 25
 #: A per-revolution peak-to-peak whose estimated error exceeds this fraction of the largest one is
