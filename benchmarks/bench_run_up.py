@@ -61,6 +61,11 @@ def main() -> None:
           f"{result.error_run_time:.2f} s, curve {result.curve_run_time:.2f} s, start and setup "
           f"{result.extra['setup_run_time']:.2f} s); target {TARGET_SECONDS:g} s: "
           f"{'met' if study <= TARGET_SECONDS else 'NOT met'}")
+    table = {"start": args.start, "stop": args.stop, "duration": duration}
+    options = studies.kinds()["run_up"].check("studies.run_up", table, 128)
+    guess = studies.estimate(problem, "run_up", options)
+    print(f"the resource guard's estimate: {guess.time:.3g} s, {guess.memory / 1e6:.3g} MB ({guess.sizes}); "
+          f"measured / estimated = {study / guess.time:.2f}")
     print(f"baseline mechanisms.simulate at constant speed, same steps and error estimate: {baseline:.2f} s; "
           f"study / baseline = {study / baseline:.2f}")
 
