@@ -38,9 +38,10 @@ from ._run_up_revolutions import analysed, torques
 #: Start states: the nonlinear periodic state at ``start`` (shooting; the linear one where Newton does
 #: not find it), the linear steady state, or the nominal rigid motion with the elastic coordinates at rest.
 START_STATES = ("nonlinear", "linear", "rest")
-#: Default steps per revolution at the fastest speed of the ramp: 32 resolve its first harmonics (the
-#: elastic periods bound the step beside it, ``MODE_STEPS``).
-STEPS_PER_REVOLUTION = 32
+#: Default steps per revolution at the fastest speed of the ramp: 16 per period of its 4th harmonic (the
+#: elastic periods bound the step beside it, ``MODE_STEPS``). At 32 the four-bar's run-up through its
+#: 2x resonance (benchmarks/bench_run_up.py) had an estimated error of 21 % of its largest peak to peak.
+STEPS_PER_REVOLUTION = 64
 #: Default steps per period of the highest elastic mode that matters (``_time_step``).
 MODE_STEPS = 16
 #: Default highest harmonic of the speed whose resonances are marked (and whose modes bound the step).
@@ -447,13 +448,15 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
         error_time = coarse.run_time + quarter.run_time
         if not coarse.success:
             reasons.append(f"no error estimate: the run at 2 dt failed ({coarse.message})")
+        elif not quarter.success:
+            reasons.append(f"error estimate not checked: the run at 4 dt failed ({quarter.message}); raise "
+                           "mode_steps or n_steps")
         else:
             for spec in specs:
                 count = min(n_rev, c_ptp[spec].size)
                 ptp_error[spec][:count] = ERROR_FACTOR * np.abs(ptp[spec][:count] - c_ptp[spec][:count])
                 peak_error[spec][:count] = ERROR_FACTOR * np.abs(peak[spec][:count] - c_peak[spec][:count])
                 if not quarter.success:
-                    reasons.append(f"error estimate not checked: the run at 4 dt failed ({quarter.message})")
                     continue
                 count = min(count, q_ptp[spec].size)
                 if count:
