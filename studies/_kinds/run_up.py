@@ -463,10 +463,11 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
                     check = periodic.error_verdict(
                         float(np.max(np.abs(ptp[spec][:count] - c_ptp[spec][:count]))),
                         float(np.max(np.abs(c_ptp[spec][:count] - q_ptp[spec][:count]))), 2,
-                        scale=float(np.max(ptp[spec])), quantity=f"the peak to peak of {spec} per revolution")
+                        scale=float(np.max(ptp[spec])), quantity="p2p")
                     if check.status != "ok":
-                        reasons.append(f"{spec}: {check.message.replace('refine n_steps', 'raise mode_steps')} "
-                                       f"(the runs at dt, 2 dt and 4 dt)")
+                        words = check.message.replace("refine n_steps", "raise mode_steps or n_steps")
+                        reasons.append(f"{spec}: {words} (p2p: the peak to peak per revolution; N, N/2, N/4: "
+                                       "the runs at dt, 2 dt, 4 dt)")
     elif run.success:
         reasons.append("no error estimate (estimate_error = false)")
     largest, largest_error, at = {}, {}, {}
@@ -595,7 +596,8 @@ def run_up_cost(name, problem, options, workers):
     if options["nonlinear_curve"]:
         curve += options["curve_points"] * cost.SHOOTING_PERIODS * cost.nonlinear_period_seconds(
             options["curve_steps"], sizes)
-    memory = max(build_bytes, 8.0 * cost.NONLINEAR_DOUBLES * run_steps * sizes.n)
+    # a run keeps s, s', s'' and lam (r < n) at every step, and an observable or two: about 6 n doubles
+    memory = max(build_bytes, 8.0 * 6.0 * run_steps * sizes.n)
     return cost.Estimate(name, memory, seconds + curve,
                          f"{int(run_steps)} steps of dt = {dt:.3g} s x {sizes.n} coordinates, "
                          f"{options['curve_points']} steady states")
