@@ -552,9 +552,18 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
                                     maximum=100, why="harmonics of the speed"),
             "curve_points": integer(where, "curve_points", table.get("curve_points", CURVE_POINTS), 0,
                                     maximum=10_000, why="steady states on the curve"),
-            "curve_steps": steps(where, {"n_steps": table.get("curve_steps", n_steps)}, n_steps, minimum=32),
+            "curve_steps": _curve_steps(where, table.get("curve_steps", max(32, n_steps))),
             "nonlinear_curve": boolean(where, "nonlinear_curve", table.get("nonlinear_curve", False)),
             "estimate_error": boolean(where, "estimate_error", table.get("estimate_error", True))}
+
+
+def _curve_steps(where: str, value: Any) -> int:
+    """The steady curve's steps per period: a multiple of 4, at least 32 (its N/4 check)."""
+    value = integer(where, "curve_steps", value, 32, maximum=65536, why="steps per period of a steady state")
+    if value % 4:
+        raise StudiesError(f"[{where}] curve_steps: expected a multiple of 4 (the steady states' N/2 and N/4 "
+                           f"runs), got {value!r}")
+    return value
 
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> RunUp:
@@ -608,7 +617,7 @@ def _warm_up(problem: Any) -> None:
     if getattr(problem, "supports_nonlinear", False) and hasattr(problem, "mechanism"):
         speed = problem.parameters[SPEED]
         run_up(problem, start=speed, stop=1.1 * speed, duration=4.0 * math.pi / speed, n_steps=WARM_UP_STEPS,
-               mode_steps=4, start_state="linear", curve_points=0)
+               mode_steps=8, start_state="linear", curve_points=0, estimate_error=False)
 
 
 KIND = register_kind(StudyKind(
