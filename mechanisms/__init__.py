@@ -28,6 +28,7 @@ from ._parts import DAMPING_TYPES as DAMPING_TYPES
 from ._parts import DISCRETISATION_TYPES as DISCRETISATION_TYPES
 from ._parts import GROUND as GROUND
 from ._parts import JOINT_TYPES as JOINT_TYPES
+from ._parts import RAMP_SHAPES as RAMP_SHAPES
 from ._parts import AngleRow as AngleRow
 from ._parts import AngleTerm as AngleTerm
 from ._parts import ArgumentError as ArgumentError
@@ -45,6 +46,7 @@ from ._parts import PointMass as PointMass
 from ._parts import PointRow as PointRow
 from ._parts import PointTerm as PointTerm
 from ._parts import PrescribedDrive as PrescribedDrive
+from ._parts import RampShape as RampShape
 from ._parts import Rayleigh as Rayleigh
 from ._parts import Revolute as Revolute
 from ._parts import RigidLink as RigidLink
@@ -53,12 +55,14 @@ from ._parts import ShapeLayout as ShapeLayout
 from ._parts import ShapeValues as ShapeValues
 from ._parts import Slider as Slider
 from ._parts import Slot as Slot
+from ._parts import SpeedRamp as SpeedRamp
 from ._parts import TorqueDrive as TorqueDrive
 from ._parts import UserShapes as UserShapes
 from ._parts import drive_law as drive_law
 from ._parts import register_controller as register_controller
 from ._parts import register_discretisation as register_discretisation
 from ._parts import register_joint as register_joint
+from ._parts import register_ramp_shape as register_ramp_shape
 from ._protocol import ConstrainedModel as ConstrainedModel
 from ._protocol import LinearRoute as LinearRoute
 from ._protocol import Observable as Observable

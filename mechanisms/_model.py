@@ -8,6 +8,7 @@ strain points, constraint rows) is in ``_assemble``, which builds a ``Model``; t
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 from dataclasses import dataclass
@@ -357,6 +358,30 @@ class Model:
                 return info.gradient.copy()
         raise ArgumentError(f"joint: expected a driven joint {[i.drive.joint for i in self._drives]}; "
                             f"received {joint!r}")
+
+    def with_drive_profiles(self, profile_of: Callable[[Any], Any]) -> "Model":
+        """A copy of this model whose drives follow ``offset + profile.law(t)`` with ``profile =
+        profile_of(drive)`` (a ``SpeedRamp``: a run-up or run-down) instead of ``offset + rate t``. A
+        torque drive's reference angle and rate follow the profile; its feedforward (the nominal
+        torque at its own rate, periodic in t) is read where the nominal motion has the reference's
+        angle, at time ``profile angle(t) / rate``."""
+        ramped = copy.copy(self)
+
+        def follow(info: _DriveInfo) -> _DriveInfo:
+            drive = info.drive
+            profile = profile_of(drive)
+            feedforward = info.feedforward
+            if feedforward is not None and drive.rate:
+                def feedforward(t, nominal=info.feedforward, law=profile.law, rate=drive.rate):
+                    return nominal(law(t)[0] / rate)
+            return dataclasses.replace(info, drive=dataclasses.replace(drive, profile=profile),
+                                       feedforward=feedforward)
+
+        ramped._drives = tuple(follow(info) for info in self._drives)
+        ramped._torque_drives = tuple(d for d in ramped._drives if d.row < 0)
+        ramped._prescribed = tuple(d for d in ramped._drives if d.row >= 0)
+        ramped._lags = tuple(dataclasses.replace(lag, law=follow(lag.law)) for lag in self._lags)
+        return ramped
 
     def _torque_terms(self, info, t, s, sdot, *, value=True, derivatives=True, saturate=True):
         """``(tau, dtau/ds, dtau/ds')`` of torque drive ``info`` along ``t`` (N,), ``s``, ``sdot``

@@ -40,6 +40,8 @@ from ._kinds.optimize import OptimizeResult as OptimizeResult
 from ._kinds.optimize import StabilityMargin as StabilityMargin
 from ._kinds.optimize import TorqueLimit as TorqueLimit
 from ._kinds.optimize import optimize as optimize
+from ._kinds.run_up import RunUp as RunUp
+from ._kinds.run_up import run_up as run_up
 from ._kinds.stability_chart import StabilityChart as StabilityChart
 from ._kinds.stability_chart import stability_chart as stability_chart
 from ._kinds.steady_state import SteadyStateResult as SteadyStateResult
@@ -114,6 +116,8 @@ __all__ = [
     "load",
     "mathieu_problem",
     "nonlinear_check",
+    "run_up",
+    "RunUp",
     "nonlinear_steady_state",
     "nonlinear_sweep",
     "open_file",

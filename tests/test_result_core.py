@@ -73,7 +73,12 @@ BUILDERS = {
                                           objective="peak_to_peak:x", speeds=[0.9, 1.1], n_steps=16,
                                           max_evaluations=4, check=False),
                  lambda result: result.speeds.shape),
+    "run_up": (lambda: studies.run_up(_four_bar(), start=90.0, stop=100.0, duration=0.4, n_steps=32,
+                                      start_state="linear", curve_points=3, curve_steps=32),
+               lambda result: result.speed.shape),
 }
+#: kinds added after tests/data/results_before_core.h5 was written (the file has no group of theirs)
+NEWER_KINDS = {"run_up"}
 
 
 def write_small_results(path) -> None:
@@ -152,7 +157,7 @@ def test_peaks_are_those_of_the_response():
 @pytest.mark.slow
 def test_a_file_written_before_the_core_still_loads():
     found = studies.load(OLD_FILE)
-    assert set(found) == set(BUILDERS)
+    assert set(found) == set(BUILDERS) - NEWER_KINDS
     for name, result in found.items():
         _assert_core(result, BUILDERS[name][1])
     cost = found["error_cost"]   # no status then: "ok", and the message says it was not judged

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Union
+from typing import Any, Callable, Union
 
 import numpy as np
 
@@ -14,6 +14,9 @@ from .checks import MAX_HARMONIC_ORDER, MAX_HARMONICS, MechanismError, _check_co
 def _check_drive(drive: "PrescribedDrive | TorqueDrive") -> None:
     owner = f"drive at joint {drive.joint!r}"
     _check_number(owner, "rate", drive.rate, "rad/s")
+    if drive.profile is not None and drive.harmonics:
+        raise MechanismError(f"{owner}: a speed profile replaces offset + rate t; harmonics of the "
+                             f"period (got {len(drive.harmonics)}) have no meaning along it: drop them")
     _check_number(owner, "offset", drive.offset, "rad")
     if len(drive.harmonics) > MAX_HARMONICS:
         raise MechanismError(f"{owner}: harmonics has {len(drive.harmonics)} entries; at most "
@@ -28,11 +31,100 @@ def _check_drive(drive: "PrescribedDrive | TorqueDrive") -> None:
         _check_number(owner, f"harmonics[{i}] sin_k", harmonic[2], "rad")
 
 
+@dataclass(frozen=True)
+class RampShape:
+    """How a speed ramp goes from its start to its stop speed: ``fraction(u)`` of the change done at
+    the ramp's fraction of time ``u`` in [0, 1], as ``(F, f, f')`` with ``f(0) = 0``, ``f(1) = 1``,
+    ``F(u)`` the integral of ``f`` from 0 and ``f'`` its derivative (arrays of ``u``'s shape)."""
+
+    name: str
+    fraction: Callable[[Any], tuple[Any, Any, Any]]
+
+
+#: The registered ramp shapes by name (``register_ramp_shape``): a run-up's ``profile``.
+RAMP_SHAPES: dict[str, RampShape] = {}
+
+
+def register_ramp_shape(shape: RampShape) -> RampShape:
+    """Add ``shape`` to ``RAMP_SHAPES`` under its name (a name taken raises ``MechanismError``)."""
+    if shape.name in RAMP_SHAPES and RAMP_SHAPES[shape.name] is not shape:
+        raise MechanismError(f"ramp shape {shape.name!r} is already registered "
+                             f"({', '.join(RAMP_SHAPES)})")
+    RAMP_SHAPES[shape.name] = shape
+    return shape
+
+
+def _linear_fraction(u):
+    return 0.5 * u * u, u, 1.0 + 0.0 * u
+
+
+def _smooth_fraction(u):
+    # half a cosine: the acceleration starts and ends at zero, no jerk at the ramp's ends
+    sin, cos = (math.sin, math.cos) if isinstance(u, float) else (np.sin, np.cos)
+    return (0.5 * u - sin(math.pi * u) / (2.0 * math.pi), 0.5 * (1.0 - cos(math.pi * u)),
+            0.5 * math.pi * sin(math.pi * u))
+
+
+register_ramp_shape(RampShape("linear", _linear_fraction))
+register_ramp_shape(RampShape("smooth", _smooth_fraction))
+
+
+@dataclass(frozen=True)
+class SpeedRamp:
+    """A drive rate (rad/s) going from ``start`` at t = 0 to ``stop`` at ``duration`` (s) along the
+    ramp shape ``shape`` (a name of ``RAMP_SHAPES``: ``"linear"``, ``"smooth"``), held at ``stop``
+    after it and at ``start`` before t = 0. ``law(t)`` is the angle turned since t = 0 (rad), the
+    rate and its derivative (rad/s^2): a drive carrying it as its ``profile`` follows
+    ``offset + angle(t)`` instead of ``offset + rate t`` (a run-up or run-down, ``start > stop``)."""
+
+    start: float
+    stop: float
+    duration: float
+    shape: str = "linear"
+
+    def __post_init__(self) -> None:
+        for name in ("start", "stop"):
+            _check_number("speed ramp", name, getattr(self, name), "rad/s")
+        _check_number("speed ramp", "duration", self.duration, "s", positive=True)
+        if self.shape not in RAMP_SHAPES:
+            raise MechanismError(f"speed ramp: shape must be one of {sorted(RAMP_SHAPES)}, got "
+                                 f"{self.shape!r}")
+
+    def law(self, t):
+        """``(angle, rate, acceleration)`` at ``t`` (s, a float or an array of floats)."""
+        change, duration = self.stop - self.start, self.duration
+        fraction = RAMP_SHAPES[self.shape].fraction
+        if isinstance(t, float):   # one time, as the integrator asks: plain floats, no arrays
+            if t <= 0.0:
+                return self.start * t, self.start, 0.0
+            if t >= duration:
+                return (self.start * duration + change * duration * float(fraction(1.0)[0])
+                        + self.stop * (t - duration), self.stop, 0.0)
+            big_f, f, df = fraction(t / duration)
+            return (self.start * t + change * duration * float(big_f), self.start + change * float(f),
+                    change / duration * float(df))
+        t = np.asarray(t, dtype=float)
+        big_f, f, df = fraction(np.clip(t / duration, 0.0, 1.0))
+        inside = (t > 0.0) & (t < duration)
+        angle = (self.start * np.minimum(t, duration) + change * duration * big_f
+                 + self.stop * np.maximum(t - duration, 0.0))
+        angle = np.where(t < 0.0, self.start * t, angle)
+        rate = self.start + change * f
+        acc = np.where(inside, change / duration * df, 0.0)
+        if angle.ndim == 0:
+            return float(angle), float(rate), float(acc)
+        return angle, rate, acc
+
+
 def drive_law(drive: "PrescribedDrive | TorqueDrive", period: float | None, t
               ) -> tuple[float, float, float]:
     """Nominal relative angle of a drive at time ``t`` (s) with its first and second derivatives:
-    ``offset + rate t + sum_k cos_k cos(k w t) + sin_k sin(k w t)``, ``w = 2 pi / period``.
+    ``offset + rate t + sum_k cos_k cos(k w t) + sin_k sin(k w t)``, ``w = 2 pi / period``, or with
+    a ``profile`` (a ``SpeedRamp``: an object with ``law(t)``) ``offset + profile.law(t)``.
     ``t`` may also be an array: the three results are then arrays of its shape."""
+    if drive.profile is not None:
+        angle, rate, acc = drive.profile.law(t)
+        return drive.offset + angle, rate, acc
     angle = drive.offset + drive.rate * t
     rate = drive.rate + 0.0 * t
     acc = 0.0 * t
@@ -70,6 +162,7 @@ class PrescribedDrive:
     offset: float = 0.0
     harmonics: tuple[tuple[int, float, float], ...] = ()
     inertia: float = 0.0
+    profile: Any = None
 
     def __post_init__(self) -> None:
         _check_drive(self)
@@ -161,6 +254,7 @@ class TorqueDrive:
     flywheel: float = 0.0
     torque_limit: float = math.inf
     feedforward: bool = True
+    profile: Any = None
 
     def __post_init__(self) -> None:
         _check_drive(self)

@@ -22,6 +22,7 @@ from . import (  # noqa: F401
     nonlinear_sweep,
     error_cost,
     control_comparison,
+    run_up,
     optimize,
 )
 # isort: on
