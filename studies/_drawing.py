@@ -113,3 +113,34 @@ def draw_mechanism(ax: Any, result: Any, k: int, *, magnification: float | None 
         style = GROUND_STYLE if name in ground else JOINT_STYLE
         artists[f"joint {name}"] = ax.plot(position[0], position[1], alpha=alpha, **style)
     return artists
+
+
+def draw_names(ax: Any, drawing: dict[str, Any], k: int = 0) -> dict[str, list]:
+    """Draw the rigid mechanism of ``drawing`` (``mechanism_drawing``) at sample ``k`` with the name
+    of each link (at its middle) and joint (beside it), for ``flexvib show --out``; equal axes in m.
+    Returns the artists {name: [Artist, ...]}."""
+    artists: dict[str, list] = {}
+    plates = drawing["plates"]
+    ground = set(drawing["ground_joints"])
+    for j, (name, points) in enumerate(drawing["rigid_outlines"].items()):
+        colour = f"C{j % 10}"
+        if name in plates:
+            corners = plates[name][k]
+            artists[name] = [ax.fill(corners[:, 0], corners[:, 1], color=colour, alpha=0.35, ec=colour, lw=1.5)[0]]
+            middle = corners.mean(axis=0)
+        else:
+            line = points[k]
+            artists[name] = ax.plot(line[:, 0], line[:, 1], color=colour, lw=2.5)
+            middle = line[len(line) // 2]
+        artists[name].append(ax.annotate(name, middle, xytext=(0, 6), textcoords="offset points", ha="center",
+                                         va="bottom", fontsize="small", color=colour, fontweight="bold"))
+    for name, position in drawing["joints"].items():
+        style = GROUND_STYLE if name in ground else JOINT_STYLE
+        artists[f"joint {name}"] = ax.plot(position[k][0], position[k][1], **style)
+        artists[f"joint {name}"].append(ax.annotate(name, position[k], xytext=(5, -11), textcoords="offset points",
+                                                    fontsize="small"))
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.12)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    return artists

@@ -119,6 +119,7 @@ class CampbellResult(NoObservables, GridResult):
     mode_labels: tuple = ()
     harmonics: tuple = ()
 
+    _axes = {"speeds": "speed"}
     _units = {"speeds": "rad/s", "crank_angle": "rad", "frozen": "rad/s", "shapes": "1",
               "multipliers": "1", "multipliers_coarse": "1", "period": "s", "order": "1",
               "tracking_mac": "1", "characteristic_error": "rad/s", "band_min": "rad/s",

@@ -104,6 +104,7 @@ class ErrorCostResult(StudyResult):
 
     # before results shared their field names, the points' run times were "run_time"
     _stored_as = {"point_run_time": ("point_run_time", "run_time")}
+    _axes = {"resolutions": "@resolution_parameter", "n_steps": "n_steps"}
     _units = {"resolutions": "1", "n_steps": "1", "n_dof": "1", "error": "1", "error_estimate": "1",
               "point_run_time": "s", "point_status": "1", "point_message": "1", "peak": "@observables",
               "peak_error": "@observables", "peak_to_peak": "@observables", "peak_to_peak_error": "@observables"}

@@ -148,6 +148,7 @@ class NonlinearSweep(StudyResult):
 
     # written as "statuses" (a tuple) before the results shared their field names
     _stored_as = {"point_status": ("point_status", "statuses")}
+    _axes = {"values": "@parameter"}
     _units = {"values": "@parameter_unit", "peak_to_peak": "@observables",
               "peak_to_peak_error": "@observables", "linear_at_branch": "@observables",
               "linear_values": "@parameter_unit", "linear_peak_to_peak": "@observables", "stable": "1",

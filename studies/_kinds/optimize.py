@@ -211,6 +211,7 @@ class OptimizeResult(StudyResult):
     peak_to_peak: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak_to_peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
 
+    _axes = {"speeds": "speed"}
     _units = {"bounds": "see parameter_units", "x": "see parameter_units", "x_start": "see parameter_units",
               "history_x": "see parameter_units", "speeds": "rad/s", "per_speed": "@objective_unit",
               "history_objective": "@objective_unit", "history_feasible": "1", "history_worst_speed": "rad/s",

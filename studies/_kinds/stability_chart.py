@@ -77,6 +77,7 @@ class StabilityChart(NoObservables, GridResult):
     stability_tol: float = 1e-6
     is_stable: np.ndarray | None = None
 
+    _axes = {"first": "@parameters[0]", "second": "@parameters[1]"}
     _units = {"spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1", **GridResult._units}
 
     def _unit(self, name: str, key: str | None = None) -> str:

@@ -143,6 +143,7 @@ class SweepResult(GridResult):
     peak: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
 
+    _axes = {"values": "@parameter"}
     _units = {
         "peak": "@observables",
         "peak_error": "@observables",
