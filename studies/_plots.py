@@ -233,3 +233,37 @@ def radius_norm(radius: Any):
         return 10.0 ** np.where(f < 0, f * below, f * above)
 
     return FuncNorm((forward, inverse), vmin=low, vmax=high)
+
+
+def quantity(value: float, unit: str, digits: int = 2) -> str:
+    """A number with its unit as a title shows it: "4.8×10⁻⁵ m", "0.69" (unit "1" or "" shows none)."""
+    shown = plain(value, digits)
+    return f"{shown} {unit}" if unit and unit != "1" and math.isfinite(float(value)) else shown
+
+
+def point_words(parameters: Mapping[str, float] | None, *, digits: int = 4) -> str:
+    """A study's point in words: "speed 100 rad/s, links.coupler.thickness 0.002 m" (the units of the
+    scene values by their key, as ``MechanismProblem.units`` gives them); "" without parameters."""
+    from ._mechanism import _UNITS
+
+    words = []
+    for name, value in (parameters or {}).items():
+        unit = "rad/s" if name == "speed" else _UNITS.get(str(name).rsplit(".", 1)[-1], "")
+        words.append(f"{name} {quantity(float(value), unit, digits)}")
+    return ", ".join(words)
+
+
+def scene_and_point(result: Any) -> str:
+    """"four_bar_ritz at speed 100 rad/s": the problem a one-point result is of, and its point."""
+    where = point_words(getattr(result, "parameters", None))
+    return f"{result.problem} at {where}" if where else str(result.problem)
+
+
+#: Where a legend goes: outside the axes, on their right, so that it never covers data (the figure's
+#: constrained layout makes room for it).
+LEGEND_OUTSIDE = {"loc": "upper left", "bbox_to_anchor": (1.01, 1.0), "borderaxespad": 0.0}
+
+
+def legend_outside(ax: Any, **options: Any) -> Any:
+    """``ax.legend(...)`` to the right of the axes, never over the data (``LEGEND_OUTSIDE``)."""
+    return ax.legend(**{"fontsize": "x-small", **LEGEND_OUTSIDE, **options})

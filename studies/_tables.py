@@ -150,7 +150,7 @@ def to_dataframe(result: Any, rows: str | None = None) -> Any:
     columns: dict[str, np.ndarray] = {name: g.reshape(-1) for (_, name, _, _), g in zip(axes, grid)}
     units = {name: unit for _, name, _, unit in axes}
     blocks, scalars, left_out = _blocks(result, shape, {field for field, *_ in axes})
-    for label, name, array, unit in blocks:
+    for label, _name, array, unit in blocks:
         if label in columns:   # a field that repeats an axis (a speed sweep's "speed")
             if _same(columns[label], array.reshape(-1)):
                 continue

@@ -20,7 +20,7 @@ import numpy as np
 
 from .._kind import StudyKind, register_kind
 from .._mechanism import coordinate_parts, deviations_along
-from .._plots import Plot, axes_for, drawn, headline, label, plain
+from .._plots import Plot, axes_for, drawn, headline, label, legend_outside, plain, scene_and_point
 from .._result import DerivedPeaks, StudyResult, peaks_of
 from .._toolkit import (
     MAX_PERIODS,
@@ -252,9 +252,10 @@ class ControlComparison(DerivedPeaks, StudyResult):
                      f"{plain(self.steady_peak[case].get(name, float('nan')))}, "
                      f"settles {_settle_words(self, case, name)}" for case in CASES]
             ax.set_title(f"{name}\n" + "; ".join(words), fontsize="small")
-            ax.legend(fontsize="x-small")
+            legend_outside(ax)
             artists[name] = lines
-        axes[0].figure.suptitle(f"with and without feedback: {headline(self.status)}", fontsize="small")
+        axes[0].figure.suptitle(f"{scene_and_point(self)}: with and without feedback: {headline(self.status)}",
+                                fontsize="small")
         return drawn(axes, artists)
 
 

@@ -32,6 +32,7 @@ from .._plots import (
     label,
     label_positions,
     largest,
+    legend_outside,
     mark_statuses,
     plain,
 )
@@ -188,7 +189,7 @@ class SweepResult(GridResult):
             if y is not None:
                 artists["status"] += mark_statuses(ax, x, y, self.point_status)
         if artists["status"]:
-            axes[-1].legend(fontsize="x-small", loc="best")
+            legend_outside(axes[-1])
         for ax in axes:
             ax.set_xlabel(xlabel)
             for start, end in self.instabilities:
@@ -204,7 +205,7 @@ class SweepResult(GridResult):
         relative = [np.asarray(self.peak_to_peak_error.get(spec), dtype=float)
                     / np.asarray(self.peak_to_peak[spec], dtype=float)
                     for spec in specs if self.peak_to_peak_error.get(spec) is not None]
-        axes[0].set_title(cost_line(f"{len(x)} points, largest estimated error "
+        axes[0].set_title(cost_line(f"{self.problem}: {len(x)} points over {self.parameter}, largest estimated error "
                                     f"{plain(100 * largest(relative))} % of peak to peak", self.run_time)
                           + self.reduction_note()
                           + ("\nresonances: harmonic k : mode (k x speed = mode frequency)" if rows else ""),
