@@ -241,16 +241,29 @@ def quantity(value: float, unit: str, digits: int = 2) -> str:
     return f"{shown} {unit}" if unit and unit != "1" and math.isfinite(float(value)) else shown
 
 
+#: A point named in a title at most this long: beyond it the speed alone (a problem that reports all
+#: its parameters, such as the Mathieu equation's, says how many it leaves out).
+POINT_WORDS_WIDTH = 50
+
+
 def point_words(parameters: Mapping[str, float] | None, *, digits: int = 4) -> str:
     """A study's point in words: "speed 100 rad/s, links.coupler.thickness 0.002 m" (the units of the
     scene values by their key, as ``MechanismProblem.units`` gives them); "" without parameters."""
     from ._mechanism import _UNITS
 
+    parameters = dict(parameters or {})
+    if "speed" in parameters:   # the speed first: what a title of a mechanism's point names
+        parameters = {"speed": parameters.pop("speed"), **parameters}
     words = []
-    for name, value in (parameters or {}).items():
+    for name, value in parameters.items():
         unit = "rad/s" if name == "speed" else _UNITS.get(str(name).rsplit(".", 1)[-1], "")
-        words.append(f"{name} {quantity(float(value), unit, digits)}")
-    return ", ".join(words)
+        shown = f"{float(value):.{digits}g}"   # 100, not 99.99999999999999 nor 100.0
+        shown = plain(float(value), digits) if "e" in shown else shown
+        words.append(f"{name} {shown} {unit}".rstrip() if unit != "1" else f"{name} {shown}")
+    text = ", ".join(words)
+    if len(text) > POINT_WORDS_WIDTH and len(words) > 1:
+        text = f"{words[0]} (and {len(words) - 1} more parameters)"
+    return text
 
 
 def scene_and_point(result: Any) -> str:

@@ -165,8 +165,9 @@ class CampbellResult(NoObservables, GridResult):
         if self.characteristic_error is not None:
             shown = np.asarray(self.characteristic) <= ax.get_ylim()[1]
             error = largest(np.where(shown, self.characteristic_error, np.nan))
-        above = f" ({', '.join(hidden)} above the range shown)" if hidden else ""
-        ax.set_title(f"{self.problem}: Campbell diagram, speeds {plain(speeds[0], 3)}–{plain(speeds[-1], 3)} "
+        above = "" if not hidden else f" ({', '.join(hidden)} above the range shown)" if len(hidden) < 3 \
+            else f" ({hidden[0]} to {hidden[-1].removeprefix('mode ')} above the range shown)"
+        ax.set_title(f"{self.problem}: Campbell diagram, speeds {speeds[0]:.4g}–{speeds[-1]:.4g} "
                      f"rad/s{above}\n" + cost_line(
                          f"Floquet characteristic frequencies drawn: error up to {plain(error)} rad/s",
                          self.run_time) + self.reduction_note(), fontsize="small")

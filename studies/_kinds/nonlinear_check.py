@@ -178,8 +178,7 @@ class NonlinearCheck(DerivedPeaks, StudyResult):
             ax.set_xlabel("time (s)")
             ax.set_ylabel(label(spec, self.units[spec]))
             unit = self.units[spec]
-            ax.set_title(f"{scene_and_point(self)}, {spec}: {self.verdict.upper().replace('_', ' ')} "
-                         f"(linear: {headline(self.status)})\n"
+            ax.set_title(f"{spec}: {self.verdict.upper().replace('_', ' ')} (linear: {headline(self.status)})\n"
                          f"max difference {quantity(self.difference.get(spec, float('nan')), unit)} "
                          f"({plain(100 * self.relative_difference.get(spec, float('nan')))} % of peak to peak)\n"
                          f"estimated errors: linear {quantity(self.linear_error.get(spec, float('nan')), unit)}, "
@@ -188,6 +187,8 @@ class NonlinearCheck(DerivedPeaks, StudyResult):
                          fontsize="small")
             legend_outside(ax)
             artists[spec] = lines
+        axes[0].figure.suptitle(f"{scene_and_point(self)}: full nonlinear model against the linear steady state",
+                                fontsize="medium")
         return drawn(axes, artists)
 
 

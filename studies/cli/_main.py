@@ -227,8 +227,13 @@ def _check(args: argparse.Namespace) -> int:
     unknown = [name for name in args.cases or () if name not in CASES]
     if unknown:
         raise UsageError(f"--case: unknown case {unknown[0]!r} (cases: {', '.join(CASES)})")
-    outcomes = run_check(args.cases)
+    from ._console import collected_warnings, console
+
+    with console():     # a warning of the cases (a log record each time a model is assembled) once each
+        outcomes = run_check(args.cases)
     print(table(outcomes))
+    for warning in collected_warnings():
+        print(warning, file=sys.stderr)
     failed = [o.case for o in outcomes if not o.passed]
     print(f"{len(outcomes) - len(failed)} of {len(outcomes)} cases as expected"
           + (f"; not as expected: {', '.join(failed)}" if failed else ""))
@@ -461,6 +466,8 @@ def _info(args: argparse.Namespace) -> int:
 
     from .._store import check_format, format_of, study_attrs
     from .._studies import status_counts
+    from ._info import dataset as dataset_line
+    from ._info import formatted
 
     if not args.file.is_file():
         raise UsageError(f"result file {str(args.file)!r} does not exist")
@@ -474,7 +481,7 @@ def _info(args: argparse.Namespace) -> int:
         print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, result format "
               f"{format_of(handle)}, created {handle.attrs.get('created', '?')}")
         print(f"  versions: {handle.attrs.get('versions', '?')}")
-        if "compile_time" in handle.attrs:   # numba compilation of the last run, outside its run times
+        if "compile_time" in handle.attrs:   # numba compilation of the file's runs, outside their run times
             print(f"  compile_time: {float(handle.attrs['compile_time']):.3g} s")
         if "scene_hash" in handle.attrs:
             print(f"  scene: sha256 {handle.attrs['scene_hash']}")
@@ -499,14 +506,15 @@ def _info(args: argparse.Namespace) -> int:
                     print(f"  statuses: {status_counts(statuses)}")
             # every headline attribute the study wrote (a new kind's too); the bulky or internal ones
             # (the scene text, the request it was run for) are left out
+            units = attrs.get("units") if isinstance(attrs.get("units"), dict) else {}
             for key, value in attrs.items():
                 if key == "settings" and isinstance(value, dict):  # the scene text is in the file
                     value = {k: v for k, v in value.items() if k != "scene"}
-                if key not in _INFO_HIDDEN:
-                    print(f"  {key}: {value}")
+                if key not in _INFO_HIDDEN and value not in ("", None, {}, []):
+                    print(f"  {key}: {formatted(key, value, units)}")
             for key, dataset in item.items():
                 if hasattr(dataset, "shape"):
-                    print(f"  {key}: {dataset.shape} {dataset.attrs.get('units', '')}")
+                    print(f"  {key}: {dataset_line(dataset.shape, str(dataset.attrs.get('units', '')))}")
                 else:
                     print(f"  {key}/: {', '.join(dataset.keys())}")
     if corrupt:
