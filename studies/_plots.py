@@ -104,7 +104,7 @@ def plot_multipliers(multipliers: np.ndarray, *, ax: Any, title: str = "") -> li
     ax.set_xlabel("Re mu")
     ax.set_ylabel("Im mu")
     if title:
-        ax.set_title(title)
+        ax.set_title(title, fontsize="small")
     return [circle, points]
 
 

@@ -73,7 +73,7 @@ def four_bar_check():
 @pytest.mark.slow
 def test_nonlinear_check_title_names_scene_speed_and_units(four_bar_check):
     plot = four_bar_check.plot()
-    assert plot.figure._suptitle.get_text().startswith("four_bar_thesis at speed 60 rad/s:")
+    assert plot.figure._suptitle.get_text() == "four_bar_thesis at speed 60 rad/s: nonlinear model against linear"
     title = plot.axes[0].get_title()
     assert title.startswith("coupler.deflection@0.5:")
     difference = studies._plots.plain(four_bar_check.difference["coupler.deflection@0.5"])

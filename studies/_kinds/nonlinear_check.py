@@ -187,8 +187,7 @@ class NonlinearCheck(DerivedPeaks, StudyResult):
                          fontsize="small")
             legend_outside(ax)
             artists[spec] = lines
-        axes[0].figure.suptitle(f"{scene_and_point(self)}: full nonlinear model against the linear steady state",
-                                fontsize="medium")
+        axes[0].figure.suptitle(f"{scene_and_point(self)}: nonlinear model against linear", fontsize="small")
         return drawn(axes, artists)
 
 

@@ -179,7 +179,7 @@ class SteadyStateResult(StudyResult):
         artists["multipliers"] = plot_multipliers(
             self.multipliers, ax=axes[-1],
             title=f"spectral radius {self.spectral_radius:.6f} ± {plain(self.spectral_radius_error)}\n" + cost_line(
-                f"max coordinate error {plain(self.error_estimate)} (SI: m, rad; N against N/2)",
+                f"max coordinate error {plain(self.error_estimate)} m or rad (N against N/2)",
                 self.run_time))
         return drawn(axes, artists)
 

@@ -189,7 +189,8 @@ class SweepResult(GridResult):
             if y is not None:
                 artists["status"] += mark_statuses(ax, x, y, self.point_status)
         if artists["status"]:
-            legend_outside(axes[-1])
+            # below the lowest axes, under its label: all axes keep the full width
+            legend_outside(axes[-1], loc="upper center", bbox_to_anchor=(0.5, -0.3), ncols=4)
         for ax in axes:
             ax.set_xlabel(xlabel)
             for start, end in self.instabilities:
@@ -205,7 +206,7 @@ class SweepResult(GridResult):
         relative = [np.asarray(self.peak_to_peak_error.get(spec), dtype=float)
                     / np.asarray(self.peak_to_peak[spec], dtype=float)
                     for spec in specs if self.peak_to_peak_error.get(spec) is not None]
-        axes[0].set_title(cost_line(f"{self.problem}: {len(x)} points over {self.parameter}, largest estimated error "
+        axes[0].set_title(cost_line(f"{self.problem}: {len(x)} points over {self.parameter}\nlargest estimated error "
                                     f"{plain(100 * largest(relative))} % of peak to peak", self.run_time)
                           + self.reduction_note()
                           + ("\nresonances: harmonic k : mode (k x speed = mode frequency)" if rows else ""),
