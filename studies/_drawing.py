@@ -30,13 +30,25 @@ def _place(context: Any, link: Any, local: np.ndarray) -> np.ndarray:
 
 
 def plate_corners(link: Any) -> np.ndarray:
-    """The corners (k, 2) m in the link frame of a rigid link with named points (a plate): its pins
-    and its points, in order around their mean (a convex outline for a convex plate)."""
-    corners = np.array([(0.0, 0.0), (float(link.length), 0.0)]
-                       + [tuple(map(float, p)) for p in link.points.values()])
-    centre = corners.mean(axis=0)
-    order = np.argsort(np.arctan2(corners[:, 1] - centre[1], corners[:, 0] - centre[0]))
-    return corners[order]
+    """The corners (k, 2) m in the link frame of a rigid link with named points (a plate): the convex
+    hull of its pins and its points, counter-clockwise (a point inside, such as a platform's centre,
+    or one on an edge, is no corner)."""
+    points = sorted({(0.0, 0.0), (float(link.length), 0.0)}
+                    | {tuple(map(float, p)) for p in link.points.values()})
+
+    def turn(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    # Andrew's monotone chain: the lower and the upper hull, each without its last point
+    hull: list = []
+    for sweep in (points, points[::-1]):
+        chain: list = []
+        for point in sweep:
+            while len(chain) >= 2 and turn(chain[-2], chain[-1], point) <= 0:
+                chain.pop()
+            chain.append(point)
+        hull += chain[:-1]
+    return np.array(hull if len(hull) >= 3 else points)
 
 
 def mechanism_drawing(context: Any, *, n_points: int = 21) -> dict[str, Any]:

@@ -122,3 +122,16 @@ def test_show_refuses_what_is_not_a_mechanism(tmp_path, capsys):
     assert main(["show", str(tmp_path / "nosuch.toml")]) == 2
     assert main(["show", "four_bar_ritz", "--out", str(tmp_path)]) == 2
     assert "is a folder" in capsys.readouterr().err
+
+
+def test_a_plate_is_drawn_as_the_hull_of_its_points():
+    import numpy as np
+
+    from studies._drawing import plate_corners  # the drawings' geometry: no public face
+
+    platform = mechanisms.load("parallel_robot").link("platform")   # three pins and a centre point
+    corners = plate_corners(platform)
+    expected = {tuple(np.round(platform.points[name], 12)) for name in ("A1", "A2", "A3")}
+    assert {tuple(np.round(c, 12)) for c in corners} == expected     # the centre is inside: no corner
+    x, y = corners.T
+    assert 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0  # counter-clockwise

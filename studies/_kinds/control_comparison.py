@@ -20,7 +20,7 @@ import numpy as np
 
 from .._kind import StudyKind, register_kind
 from .._mechanism import coordinate_parts, deviations_along
-from .._plots import Plot, axes_for, drawn, headline, label, legend_outside, plain, scene_and_point
+from .._plots import Plot, axes_for, drawn, headline, label, legend_outside, plain, quantity, scene_and_point
 from .._result import DerivedPeaks, StudyResult, peaks_of
 from .._toolkit import (
     MAX_PERIODS,
@@ -249,7 +249,7 @@ class ControlComparison(DerivedPeaks, StudyResult):
             ax.set_xlabel("time (s)")
             ax.set_ylabel(label(name, self.units[name]))
             words = [f"{case} {'control' if case == 'with' else 'feedback'}: peak "
-                     f"{plain(self.steady_peak[case].get(name, float('nan')))}, "
+                     f"{quantity(self.steady_peak[case].get(name, float('nan')), self.units[name])}, "
                      f"settles {_settle_words(self, case, name)}" for case in CASES]
             ax.set_title(f"{name}\n" + "; ".join(words), fontsize="small")
             legend_outside(ax)
