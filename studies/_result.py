@@ -65,6 +65,9 @@ class StudyResult(Result):
     #: from the result, e.g. a sweep's ``"@parameter"``): a grid's swept values; by default the time
     #: samples (``studies._tables``).
     _axes: ClassVar[Mapping[str, str]] = {"t": "t"}
+    #: The fields every result has, which a kind may give as properties: its tables include them.
+    _shared_fields: ClassVar[tuple[str, ...]] = (*PEAK_FIELDS, "point_status", "point_message", "point_run_time",
+                                                 "status", "message", "run_time")
 
     def to_dataframe(self, rows: str | None = None) -> Any:
         """A pandas DataFrame: one row per grid point (or time sample), one column per field (an

@@ -50,12 +50,10 @@ def require(module: str) -> Any:
 
 
 def _field_names(result: Any) -> list[str]:
-    """The dataclass fields of ``result`` and the shared properties (peaks, a grid's verdicts)."""
-    from ._result import PEAK_FIELDS
-
+    """The dataclass fields of ``result`` and the shared properties (``result._shared_fields``: the
+    peaks, a grid's verdicts, its status, message and run time, where they are properties)."""
     names = [f.name for f in dataclasses.fields(result)]
-    return names + [name for name in (*PEAK_FIELDS, *POINT_COLUMNS, "status", "message", "run_time")
-                    if name not in names and hasattr(type(result), name)]
+    return names + [name for name in result._shared_fields if name not in names and hasattr(type(result), name)]
 
 
 def _unit(result: Any, name: str, key: str | None = None) -> str:

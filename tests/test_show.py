@@ -36,6 +36,8 @@ def test_show_lists_the_parts_observables_and_values(scene, capsys):
         assert f"  at {drive.joint}: " in out
     for controller in mechanism.controllers:
         assert f"  {controller.name}: {controller.to_table()['type']}: " in out
+    for mass in mechanism.point_masses:
+        assert f"  on {mass.link} at " in out and f"mass {mass.mass:.6g} kg" in out
     # every force component a joint declares, and each drive's torque, by the name a spec takes
     for joint in mechanism.joints:
         for component in joint.force_components():

@@ -7,11 +7,15 @@ from __future__ import annotations
 
 import csv
 import json
+import logging
 from pathlib import Path
 from typing import Any, Mapping
 
+from .._errors import StudiesError
 from .._identity import plain
 from .._tables import require
+
+logger = logging.getLogger("flexvib")
 
 
 def write_csv(results: Mapping[str, Any], folder: Path) -> list[Path]:
@@ -20,7 +24,11 @@ def write_csv(results: Mapping[str, Any], folder: Path) -> list[Path]:
     require("pandas")
     written = []
     for name, result in results.items():
-        frame = result.to_dataframe()
+        try:
+            frame = result.to_dataframe()
+        except StudiesError as error:   # a kind that declares no rows (written outside the package)
+            logger.warning("flexvib export: %s not written: %s", name, error)
+            continue
         table = folder / f"{_file_name(name)}.csv"
         frame.to_csv(table, index=False)
         info = folder / f"{_file_name(name)}_info.csv"

@@ -160,6 +160,10 @@ def describe(mechanism: Any) -> str:
         lines.append(f"  {controller.name}: {table.get('type', '')}: {_part(table, _UNITS, skip=('type',))}")
     if not mechanism.controllers:
         lines.append("  none")
+    if mechanism.point_masses:
+        lines += ["", f"point masses ({len(mechanism.point_masses)})"]
+        lines += [f"  on {pm.link} at {_value(pm.point)}: mass {pm.mass:.6g} kg, inertia {pm.inertia:.6g} kg m^2"
+                  for pm in mechanism.point_masses]
     lines += ["", *_observables_text(offered_observables(mechanism))]
     studies = spec.get("studies") or {}
     declared = [key for key, value in studies.items() if isinstance(value, Mapping)]
