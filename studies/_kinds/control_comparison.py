@@ -232,7 +232,7 @@ class ControlComparison(DerivedPeaks, StudyResult):
         """One axes per quantity, the run with control over the one without, each settling time a
         dashed line and the steady peaks and settling times in the title."""
         quantities = list(self.quantities)
-        axes = axes_for(len(quantities), axes, height=2.8)
+        axes = axes_for(len(quantities), axes, height=3.1)
         styles = {"with": dict(color="C0", lw=0.9, label="with control"),
                   "without": dict(color="C3", lw=0.7, alpha=0.8, label="without feedback")}
         artists: dict[str, list] = {}
@@ -251,7 +251,8 @@ class ControlComparison(DerivedPeaks, StudyResult):
             words = [f"{case} {'control' if case == 'with' else 'feedback'}: peak "
                      f"{quantity(self.steady_peak[case].get(name, float('nan')), self.units[name])}, "
                      f"settles {_settle_words(self, case, name)}" for case in CASES]
-            ax.set_title(f"{name}\n" + "; ".join(words), fontsize="small")
+            # one line per case: the legend on the right narrows the axes, and the title with them
+            ax.set_title(f"{name}\n" + "\n".join(words), fontsize="small")
             legend_outside(ax)
             artists[name] = lines
         axes[0].figure.suptitle(f"{scene_and_point(self)}: with and without feedback: {headline(self.status)}",
