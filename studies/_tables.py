@@ -7,7 +7,8 @@ shape becomes columns:
 
 - an array of the rows' shape: one column named after the field (``speed``, ``spectral_radius``);
 - a dict of such arrays (one per observable): one column per key, ``peak_to_peak[coupler.deflection@0.5]``;
-- one trailing dimension: one column per index, ``multipliers[0]``, ``joints[B][1]``;
+- one trailing dimension: one column per index, ``multipliers[0]``, ``joints[B][1]`` (per coordinate
+  where the field's unit says its entries are the coordinates: ``x[coupler.b1]``);
 - more trailing dimensions (a Campbell diagram's frozen frequencies over the crank angle): left out of
   the data frame (``attrs["left_out"]`` names them), kept in the xarray Dataset with dimensions of
   their own.
@@ -157,8 +158,8 @@ def to_dataframe(result: Any, rows: str | None = None) -> Any:
         if flat.ndim == 1:
             columns[label], units[label] = flat, unit
         elif flat.ndim == 2:
-            for j in range(flat.shape[1]):
-                columns[f"{label}[{j}]"], units[f"{label}[{j}]"] = flat[:, j], unit
+            for j, entry in enumerate(_entries(result, unit, flat.shape[1])):
+                columns[f"{label}[{entry}]"], units[f"{label}[{entry}]"] = flat[:, j], unit
         else:
             left_out.append(label)
     frame = pandas.DataFrame(columns)
@@ -183,11 +184,24 @@ def to_xarray(result: Any, rows: str | None = None) -> Any:
                 continue
             label = f"{label} (field)"
         trailing = [f"{label}_{k}" for k in range(array.ndim - len(shape))]
+        if len(trailing) == 1 and not isinstance(_entries(result, unit, array.shape[-1])[0], int):
+            # the coordinates, by their labels: one dimension shared by the fields that hold them
+            trailing = ["coordinate"]
+            coords.setdefault("coordinate", ("coordinate", list(_entries(result, unit, array.shape[-1]))))
         variables[label] = (dims + trailing, array, {"units": unit})
     dataset = xarray.Dataset(variables, coords=coords)
     dataset.attrs.update({key: value for key, value in
                           _attrs(result, scalars, {}, left_out).items() if key != "units"})
     return dataset
+
+
+def _entries(result: Any, unit: str, count: int) -> list:
+    """The names of a trailing dimension's entries: the coordinates' labels where the field's unit
+    says its entries are the coordinates (``"SI (see labels)"``: ``x[coupler.b1]``), else 0, 1, ..."""
+    labels = tuple(getattr(result, "labels", ()) or ())
+    if unit.startswith("SI (see labels") and len(labels) == count:
+        return list(labels)
+    return list(range(count))
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> bool:

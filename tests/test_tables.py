@@ -70,7 +70,10 @@ def test_every_column_is_the_file_s_array_and_unit(written, study, axes):
         if array.shape[:len(grid)] != grid or array.ndim > len(grid) + 1:
             continue
         flat = array.reshape((len(frame),) + array.shape[len(grid):])
-        columns = [_column(name)] if flat.ndim == 1 else [f"{_column(name)}[{j}]" for j in range(flat.shape[1])]
+        entries = range(flat.shape[1]) if flat.ndim > 1 else ()
+        if unit == "SI (see labels)":      # the coordinates, by their labels
+            entries = results[study].labels
+        columns = [_column(name)] if flat.ndim == 1 else [f"{_column(name)}[{j}]" for j in entries]
         for j, column in enumerate(columns):
             if column not in frame:     # an axis (or a field equal to it) is the axis column
                 assert name in ("values", "first", "second", "speeds", "t", "speed"), name
@@ -161,3 +164,14 @@ def test_export_csv_writes_each_study_and_its_units(written, tmp_path, capsys):
         assert all(info[f"unit:{c}"] == u for c, u in frame.attrs["units"].items())
     assert main(["export", str(tmp_path / "nosuch.h5"), "--csv", str(tmp_path / "never")]) == 2
     assert not (tmp_path / "never").exists()
+
+
+def test_the_coordinates_are_named_by_their_labels(written):
+    path, results = written
+    steady = results["steady_state"]
+    frame, dataset = steady.to_dataframe(), steady.to_xarray()
+    with h5py.File(path, "r") as handle:
+        x = handle["steady_state"]["x"][()]
+    for j, name in enumerate(steady.labels):
+        np.testing.assert_array_equal(frame[f"x[{name}]"], x[:, j])
+    assert dataset["x"].dims == ("t", "coordinate") and list(dataset["coordinate"].values) == list(steady.labels)
