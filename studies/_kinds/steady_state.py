@@ -187,7 +187,7 @@ class SteadyStateResult(StudyResult):
         """The Floquet multipliers in the complex plane with the unit circle."""
         axes = axes_for(1, axes, width=4.8, height=4.8)
         artists = plot_multipliers(self.multipliers, ax=axes[0],
-                                   title=f"{scene_and_point(self)}: Floquet multipliers, {self.headline}\n"
+                                   title=f"{scene_and_point(self)}\nFloquet multipliers, {self.headline}\n"
                                          f"spectral radius {self.spectral_radius:.6f} ± "
                                          f"{plain(self.spectral_radius_error)}")
         return drawn(axes, {"multipliers": artists})
