@@ -68,6 +68,7 @@ from ._protocol import LinearRoute as LinearRoute
 from ._protocol import Observable as Observable
 from ._protocol import RunRoute as RunRoute
 from ._quantities import position_quantities as position_quantities
+from ._quantities import quantity_names as quantity_names
 from ._quantities import register_observable as register_observable
 from ._scenes import four_bar as four_bar
 from ._scenes import parallel_robot as parallel_robot

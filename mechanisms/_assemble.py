@@ -345,7 +345,7 @@ def _layout(mechanism):
         if link.geometric_stiffening and membrane is None:
             logger.warning("link %r: geometric stiffening needs axial coordinates to carry the "
                            "membrane strain (axial=%s, none kept); its strain energy falls back "
-                           "to seed eq. 2.13", link.name, link.axial)
+                           "to the thesis's, without stiffening (eq. 2.13)", link.name, link.axial)
         labels += [f"{link.name}.{label}" for label in shapes.labels]
         layouts[link.name] = LinkLayout(link, offset, shapes.n_elastic, shapes,
                                         membrane is not None, membrane)

@@ -19,7 +19,7 @@ import numpy as np
 
 from ._parts import ArgumentError
 
-__all__ = ["position_quantities", "register_observable"]
+__all__ = ["position_quantities", "quantity_names", "register_observable"]
 
 
 class OfCoordinates:
@@ -56,6 +56,13 @@ _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 def add_quantity(name: str, make: Callable, *, position: bool = False) -> None:
     """Register a built-in quantity (package-internal: ``_observables``)."""
     _QUANTITIES[name] = _Quantity(make, position=position)
+
+
+def quantity_names() -> tuple[str, ...]:
+    """The names of every quantity of a link an observable spec may name, built-in and registered
+    (``"<link>.<name>@<fraction>"``, or without ``@`` for those that take none); which links offer
+    which one is the model's to say (``Model.observable`` refuses a rigid link's deflection)."""
+    return tuple(_QUANTITIES)
 
 
 def position_quantities() -> tuple[str, ...]:

@@ -30,13 +30,25 @@ def _place(context: Any, link: Any, local: np.ndarray) -> np.ndarray:
 
 
 def plate_corners(link: Any) -> np.ndarray:
-    """The corners (k, 2) m in the link frame of a rigid link with named points (a plate): its pins
-    and its points, in order around their mean (a convex outline for a convex plate)."""
-    corners = np.array([(0.0, 0.0), (float(link.length), 0.0)]
-                       + [tuple(map(float, p)) for p in link.points.values()])
-    centre = corners.mean(axis=0)
-    order = np.argsort(np.arctan2(corners[:, 1] - centre[1], corners[:, 0] - centre[0]))
-    return corners[order]
+    """The corners (k, 2) m in the link frame of a rigid link with named points (a plate): the convex
+    hull of its pins and its points, counter-clockwise (a point inside, such as a platform's centre,
+    or one on an edge, is no corner)."""
+    points = sorted({(0.0, 0.0), (float(link.length), 0.0)}
+                    | {tuple(map(float, p)) for p in link.points.values()})
+
+    def turn(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    # Andrew's monotone chain: the lower and the upper hull, each without its last point
+    hull: list = []
+    for sweep in (points, points[::-1]):
+        chain: list = []
+        for point in sweep:
+            while len(chain) >= 2 and turn(chain[-2], chain[-1], point) <= 0:
+                chain.pop()
+            chain.append(point)
+        hull += chain[:-1]
+    return np.array(hull if len(hull) >= 3 else points)
 
 
 def mechanism_drawing(context: Any, *, n_points: int = 21) -> dict[str, Any]:
@@ -112,4 +124,35 @@ def draw_mechanism(ax: Any, result: Any, k: int, *, magnification: float | None 
     for name, position in joints.items():
         style = GROUND_STYLE if name in ground else JOINT_STYLE
         artists[f"joint {name}"] = ax.plot(position[0], position[1], alpha=alpha, **style)
+    return artists
+
+
+def draw_names(ax: Any, drawing: dict[str, Any], k: int = 0) -> dict[str, list]:
+    """Draw the rigid mechanism of ``drawing`` (``mechanism_drawing``) at sample ``k`` with the name
+    of each link (at its middle) and joint (beside it), for ``flexvib show --out``; equal axes in m.
+    Returns the artists {name: [Artist, ...]}."""
+    artists: dict[str, list] = {}
+    plates = drawing["plates"]
+    ground = set(drawing["ground_joints"])
+    for j, (name, points) in enumerate(drawing["rigid_outlines"].items()):
+        colour = f"C{j % 10}"
+        if name in plates:
+            corners = plates[name][k]
+            artists[name] = [ax.fill(corners[:, 0], corners[:, 1], color=colour, alpha=0.35, ec=colour, lw=1.5)[0]]
+            middle = corners.mean(axis=0)
+        else:
+            line = points[k]
+            artists[name] = ax.plot(line[:, 0], line[:, 1], color=colour, lw=2.5)
+            middle = line[len(line) // 2]
+        artists[name].append(ax.annotate(name, middle, xytext=(0, 6), textcoords="offset points", ha="center",
+                                         va="bottom", fontsize="small", color=colour, fontweight="bold"))
+    for name, position in drawing["joints"].items():
+        style = GROUND_STYLE if name in ground else JOINT_STYLE
+        artists[f"joint {name}"] = ax.plot(position[k][0], position[k][1], **style)
+        artists[f"joint {name}"].append(ax.annotate(name, position[k], xytext=(5, -11), textcoords="offset points",
+                                                    fontsize="small"))
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.12)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
     return artists

@@ -104,7 +104,7 @@ def plot_multipliers(multipliers: np.ndarray, *, ax: Any, title: str = "") -> li
     ax.set_xlabel("Re mu")
     ax.set_ylabel("Im mu")
     if title:
-        ax.set_title(title)
+        ax.set_title(title, fontsize="small")
     return [circle, points]
 
 
@@ -233,3 +233,50 @@ def radius_norm(radius: Any):
         return 10.0 ** np.where(f < 0, f * below, f * above)
 
     return FuncNorm((forward, inverse), vmin=low, vmax=high)
+
+
+def quantity(value: float, unit: str, digits: int = 2) -> str:
+    """A number with its unit as a title shows it: "4.8×10⁻⁵ m", "0.69" (unit "1" or "" shows none)."""
+    shown = plain(value, digits)
+    return f"{shown} {unit}" if unit and unit != "1" and math.isfinite(float(value)) else shown
+
+
+#: A point named in a title at most this long: beyond it the speed alone (a problem that reports all
+#: its parameters, such as the Mathieu equation's, says how many it leaves out).
+POINT_WORDS_WIDTH = 50
+
+
+def point_words(parameters: Mapping[str, float] | None, *, digits: int = 4) -> str:
+    """A study's point in words: "speed 100 rad/s, links.coupler.thickness 0.002 m" (the units of the
+    scene values by their key, as ``MechanismProblem.units`` gives them); "" without parameters."""
+    from ._mechanism import _UNITS
+
+    parameters = dict(parameters or {})
+    if "speed" in parameters:   # the speed first: what a title of a mechanism's point names
+        parameters = {"speed": parameters.pop("speed"), **parameters}
+    words = []
+    for name, value in parameters.items():
+        unit = "rad/s" if name == "speed" else _UNITS.get(str(name).rsplit(".", 1)[-1], "")
+        shown = f"{float(value):.{digits}g}"   # 100, not 99.99999999999999 nor 100.0
+        shown = plain(float(value), digits) if "e" in shown else shown
+        words.append(f"{name} {shown} {unit}".rstrip() if unit != "1" else f"{name} {shown}")
+    text = ", ".join(words)
+    if len(text) > POINT_WORDS_WIDTH and len(words) > 1:
+        text = f"{words[0]} (and {len(words) - 1} more parameters)"
+    return text
+
+
+def scene_and_point(result: Any) -> str:
+    """"four_bar_ritz at speed 100 rad/s": the problem a one-point result is of, and its point."""
+    where = point_words(getattr(result, "parameters", None))
+    return f"{result.problem} at {where}" if where else str(result.problem)
+
+
+#: Where a legend goes: outside the axes, on their right, so that it never covers data (the figure's
+#: constrained layout makes room for it).
+LEGEND_OUTSIDE = {"loc": "upper left", "bbox_to_anchor": (1.01, 1.0), "borderaxespad": 0.0}
+
+
+def legend_outside(ax: Any, **options: Any) -> Any:
+    """``ax.legend(...)`` to the right of the axes, never over the data (``LEGEND_OUTSIDE``)."""
+    return ax.legend(**{"fontsize": "x-small", **LEGEND_OUTSIDE, **options})

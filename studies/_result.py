@@ -26,6 +26,11 @@ Each study kind's result (``studies._kinds``) is a frozen dataclass deriving fro
     the result's figure, a ``studies.Plot``.
 ``to_hdf5(group)``
     writes the result (``studies._store.Result``); ``studies.load`` reads it back with the same fields.
+``to_dataframe(rows=None)``, ``to_xarray(rows=None)``
+    the result as a pandas DataFrame (one row per grid point or time sample, columns named after the
+    fields, units in ``attrs``) or an xarray Dataset (coordinates the swept parameters), generic over
+    the fields (``studies._tables``; ``pip install 'flexvib[tables]'``). The rows are the fields named
+    in ``_axes`` (default the time samples ``t``).
 
 Derived fields are properties (never written), so a file written before a field existed still
 loads; a field stored under another name (or under an older name in older files) is declared in
@@ -56,6 +61,30 @@ class StudyResult(Result):
     #: field name -> the names it is stored under in a result file, the current one first and
     #: older ones after it (read from the first the file holds).
     _stored_as: ClassVar[Mapping[str, tuple[str, ...]]] = {}
+    #: The fields that are the rows of its tables, in axis order -> the axis's name (``"@attr"``: read
+    #: from the result, e.g. a sweep's ``"@parameter"``): a grid's swept values; by default the time
+    #: samples (``studies._tables``).
+    _axes: ClassVar[Mapping[str, str]] = {"t": "t"}
+    #: The fields every result has, which a kind may give as properties: its tables include them.
+    _shared_fields: ClassVar[tuple[str, ...]] = (*PEAK_FIELDS, "point_status", "point_message", "point_run_time",
+                                                 "status", "message", "run_time")
+
+    def to_dataframe(self, rows: str | None = None) -> Any:
+        """A pandas DataFrame: one row per grid point (or time sample), one column per field (an
+        observable's entry as ``peak_to_peak[<spec>]``, a grid's point verdicts as ``status``,
+        ``message``, ``run_time``), ``attrs["units"]`` {column: unit}, the scalar fields (the study's
+        ``status``, ``message``, ``run_time``, ...) in ``attrs``. ``rows``: a field to table against
+        instead (e.g. ``"t_linear"`` of a nonlinear check). Needs pandas (``flexvib[tables]``)."""
+        from ._tables import to_dataframe
+
+        return to_dataframe(self, rows)
+
+    def to_xarray(self, rows: str | None = None) -> Any:
+        """An xarray Dataset of the same data: the grid's swept parameters (or ``t``) as dimensions
+        and coordinates with their units, one variable per field. Needs xarray (``flexvib[tables]``)."""
+        from ._tables import to_xarray
+
+        return to_xarray(self, rows)
 
     def _write(self, group: Any) -> None:
         super()._write(_Stored(group, self._stored_as, reading=False))

@@ -395,7 +395,7 @@ def test_stiffening_without_axial_coordinates_falls_back_and_dependent_axial_sha
     axial shapes span one dimension: the projection uses that span and the rank loss is logged."""
     with caplog.at_level(logging.WARNING, logger="mechanisms"):
         model = pinned_model(beam(Ritz(2, 0)))
-    assert "falls back to seed eq. 2.13" in caplog.text
+    assert "falls back to the thesis's, without stiffening (eq. 2.13)" in caplog.text
     lay = model.layouts["beam"]
     assert not lay.stiffening
     s = bent_state(model, 0)

@@ -125,6 +125,10 @@ def test_result_file_figure_summary_and_headlines(comparison, tmp_path, assert_s
     drawing = loaded.plot()
     assert list(drawing.artists) == list(comparison.quantities) and len(drawing.axes) == 4
     assert "with control" in drawing.axes[0].get_legend_handles_labels()[1]
+    from tests._support.figure_text import legend_problems, text_problems
+
+    assert legend_problems(drawing.figure) == [] and text_problems(drawing.figure) == []
+    assert drawing.figure._suptitle.get_text().startswith(f"{comparison.problem} at speed ")
     kind = kinds()["control_comparison"]
     assert "without feedback" in kind.summary(comparison)
     summary = kind.headlines(comparison)

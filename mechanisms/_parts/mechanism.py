@@ -182,8 +182,11 @@ def _validate(mech: Mechanism) -> None:
             raise MechanismError(f"joint {drive.joint!r} is driven twice")
         driven.add(drive.joint)
     if not mech.drives:
-        raise MechanismError(f"mechanism {mech.name!r} has no drive; add a PrescribedDrive or "
-                             f"TorqueDrive at the crank joint")
+        drivable = [j.name for j in mech.joints if j.drive_terms() is not None]
+        raise MechanismError(f"mechanism {mech.name!r} has no drive: a scene needs a [drive] table, e.g. "
+                             f"type = \"prescribed\", joint = \"{drivable[0] if drivable else 'O'}\", "
+                             f"rate = 100.0 (rad/s) (or one [drives.<joint>] table per drive; docs/scenes.md); "
+                             f"joints a drive can act at: {drivable}")
 
     torque_joints = [d.joint for d in mech.drives if isinstance(d, TorqueDrive)]
     _by_name(mech.controllers, tuple(CONTROLLER_TYPES.values()), "controller")

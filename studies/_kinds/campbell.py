@@ -22,7 +22,7 @@ from .._numerics import (
     track_modes,
     unstable_intervals,
 )
-from .._plots import Plot, axes_for, cost_line, drawn, largest, mark_statuses, plain
+from .._plots import Plot, axes_for, cost_line, drawn, largest, legend_outside, mark_statuses, plain
 from .._result import NoObservables
 from .._toolkit import (
     HARMONIC_WHY,
@@ -119,6 +119,7 @@ class CampbellResult(NoObservables, GridResult):
     mode_labels: tuple = ()
     harmonics: tuple = ()
 
+    _axes = {"speeds": "speed"}
     _units = {"speeds": "rad/s", "crank_angle": "rad", "frozen": "rad/s", "shapes": "1",
               "multipliers": "1", "multipliers_coarse": "1", "period": "s", "order": "1",
               "tracking_mac": "1", "characteristic_error": "rad/s", "band_min": "rad/s",
@@ -155,7 +156,7 @@ class CampbellResult(NoObservables, GridResult):
             ax.set_ylim(0.0, top)
             # the speeds whose verdict is not ok (unstable, marginal, ...) marked along the axis
             artists["status"] = mark_statuses(ax, speeds, np.full(speeds.shape, 0.02 * top), self.point_status)
-            ax.legend(fontsize="x-small", loc="upper left")
+            legend_outside(ax)
         ax.set_xlabel("speed (rad/s)")  # 2 pi / period: the crank speed of a four-bar
         ax.set_ylabel("frequency (rad/s)")
         # The error of the characteristic frequencies drawn (an unresolved axial mode far above the
@@ -164,10 +165,12 @@ class CampbellResult(NoObservables, GridResult):
         if self.characteristic_error is not None:
             shown = np.asarray(self.characteristic) <= ax.get_ylim()[1]
             error = largest(np.where(shown, self.characteristic_error, np.nan))
-        above = f" ({', '.join(hidden)} above the range shown)" if hidden else ""
-        ax.set_title(f"{self.problem}: Campbell diagram{above}\n" + cost_line(
-            f"characteristic frequencies shown to {plain(error)} rad/s", self.run_time) + self.reduction_note(),
-            fontsize="small")
+        above = "" if not hidden else f" ({', '.join(hidden)} above the range shown)" if len(hidden) < 3 \
+            else f" ({hidden[0]} to {hidden[-1].removeprefix('mode ')} above the range shown)"
+        ax.set_title(f"{self.problem}: Campbell diagram, speeds {speeds[0]:.4g}–{speeds[-1]:.4g} "
+                     f"rad/s{above}\n" + cost_line(
+                         f"Floquet characteristic frequencies drawn: error up to {plain(error)} rad/s",
+                         self.run_time) + self.reduction_note(), fontsize="small")
         return drawn(axes, artists)
 
 
@@ -240,9 +243,7 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
                                                   if np.isfinite(f) else np.nan for f in fine]))
         characteristic, characteristic_error = np.array(characteristic), np.array(characteristic_error)
         first = fields["shapes"][0]
-        mode_labels = tuple(f"mode {j + 1} ({labels[int(np.argmax(np.abs(first[:, j])))]})"
-                            if np.isfinite(first[:, j]).all() else f"mode {j + 1}"
-                            for j in range(first.shape[1]))
+        mode_labels = _mode_labels(first, labels)
         extra.update(order=order, tracking_mac=confidence, band_min=band_min, band_max=band_max,
                      band_mean=band_mean, characteristic=characteristic,
                      characteristic_error=characteristic_error, mode_labels=mode_labels,
@@ -282,6 +283,30 @@ def _summary(result: CampbellResult) -> str:
     return grid_summary(result, point=lambda index: f"speed {result.speeds[index]:.4g} rad/s")
 
 
+def _mode_labels(shapes: np.ndarray, labels: Sequence[str]) -> tuple[str, ...]:
+    """A name per mode (columns of ``shapes`` (m, m) at crank angle 0): "mode 1 (coupler.b1)", its
+    largest coordinate; where several modes share their largest coordinate (the end slope of
+    finite elements), "mode 2 (coupler, 2nd)": the link of that coordinate and the mode's rank on it,
+    so no two modes carry the same name."""
+    dominant = [labels[int(np.argmax(np.abs(shapes[:, j])))] if np.isfinite(shapes[:, j]).all() else ""
+                for j in range(shapes.shape[1])]
+    names, rank = [], {}
+    for j, coordinate in enumerate(dominant):
+        if not coordinate:
+            names.append(f"mode {j + 1}")
+        elif dominant.count(coordinate) == 1:
+            names.append(f"mode {j + 1} ({coordinate})")
+        else:
+            link = coordinate.rpartition(".")[0] or coordinate
+            rank[link] = rank.get(link, 0) + 1
+            names.append(f"mode {j + 1} ({link}, {_ordinal(rank[link])})")
+    return tuple(names)
+
+
+def _ordinal(n: int) -> str:
+    return f"{n}{'th' if 10 <= n % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(n % 10, 'th')}"
+
+
 def _headlines(result: CampbellResult) -> Summary:
     rows = []
     if result.band_mean is not None:
@@ -290,10 +315,12 @@ def _headlines(result: CampbellResult) -> Summary:
             low = np.nanmin(result.band_min[:, j])
             # a negative frozen frequency is sign(lam) sqrt(|lam|): the frozen stiffness is not
             # positive at some instant (statically unstable frozen system), say so in words
+            # (no negative band: its magnitude is a growth rate, named as one)
+            high = plain(np.nanmax(result.band_max[:, j]), 3)
             rows.append(Headline(f"{name} frozen frequency band",
-                                 f"{plain(low, 3)}–{plain(np.nanmax(result.band_max[:, j]), 3)} rad/s",
-                                 where="(negative: the frozen system is statically unstable at some "
-                                       "instant)" if low < 0 else ""))
+                                 f"{plain(low, 3)}–{high} rad/s" if low >= 0 else f"0–{high} rad/s",
+                                 where=f"(frozen stiffness negative at some instant: statically unstable "
+                                       f"there, growth rate up to {plain(-low, 3)} 1/s)" if low < 0 else ""))
         found = sorted((value, k, j) for j in range(result.band_mean.shape[1]) for k in result.harmonics
                        for _, value in crossings(speeds, k * speeds - result.band_mean[:, j]))
         rows.append(Headline("resonances, harmonic:mode at speed (rad/s)",

@@ -20,7 +20,7 @@ import numpy as np
 
 from .._kind import StudyKind, register_kind
 from .._mechanism import coordinate_parts, deviations_along
-from .._plots import Plot, axes_for, drawn, headline, label, plain
+from .._plots import Plot, axes_for, drawn, headline, label, legend_outside, plain, quantity, scene_and_point
 from .._result import DerivedPeaks, StudyResult, peaks_of
 from .._toolkit import (
     MAX_PERIODS,
@@ -232,7 +232,7 @@ class ControlComparison(DerivedPeaks, StudyResult):
         """One axes per quantity, the run with control over the one without, each settling time a
         dashed line and the steady peaks and settling times in the title."""
         quantities = list(self.quantities)
-        axes = axes_for(len(quantities), axes, height=2.8)
+        axes = axes_for(len(quantities), axes, height=3.1)
         styles = {"with": dict(color="C0", lw=0.9, label="with control"),
                   "without": dict(color="C3", lw=0.7, alpha=0.8, label="without feedback")}
         artists: dict[str, list] = {}
@@ -249,12 +249,14 @@ class ControlComparison(DerivedPeaks, StudyResult):
             ax.set_xlabel("time (s)")
             ax.set_ylabel(label(name, self.units[name]))
             words = [f"{case} {'control' if case == 'with' else 'feedback'}: peak "
-                     f"{plain(self.steady_peak[case].get(name, float('nan')))}, "
+                     f"{quantity(self.steady_peak[case].get(name, float('nan')), self.units[name])}, "
                      f"settles {_settle_words(self, case, name)}" for case in CASES]
-            ax.set_title(f"{name}\n" + "; ".join(words), fontsize="small")
-            ax.legend(fontsize="x-small")
+            # one line per case: the legend on the right narrows the axes, and the title with them
+            ax.set_title(f"{name}\n" + "\n".join(words), fontsize="small")
+            legend_outside(ax)
             artists[name] = lines
-        axes[0].figure.suptitle(f"with and without feedback: {headline(self.status)}", fontsize="small")
+        axes[0].figure.suptitle(f"{scene_and_point(self)}: with and without feedback: {headline(self.status)}",
+                                fontsize="small")
         return drawn(axes, artists)
 
 

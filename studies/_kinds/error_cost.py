@@ -13,7 +13,7 @@ import periodic
 
 from .._kind import StudyKind, register_kind
 from .._numerics import DEFAULT_SCHEME, peak_summary, solve_steady, study_scheme
-from .._plots import Plot, axes_for, drawn, plain, tidy_log_axes
+from .._plots import Plot, axes_for, drawn, legend_outside, plain, tidy_log_axes
 from .._result import PEAK_FIELDS, StudyResult, unknown_peaks
 from .._toolkit import (
     MAX_STEPS,
@@ -104,6 +104,7 @@ class ErrorCostResult(StudyResult):
 
     # before results shared their field names, the points' run times were "run_time"
     _stored_as = {"point_run_time": ("point_run_time", "run_time")}
+    _axes = {"resolutions": "@resolution_parameter", "n_steps": "n_steps"}
     _units = {"resolutions": "1", "n_steps": "1", "n_dof": "1", "error": "1", "error_estimate": "1",
               "point_run_time": "s", "point_status": "1", "point_message": "1", "peak": "@observables",
               "peak_error": "@observables", "peak_to_peak": "@observables", "peak_to_peak_error": "@observables"}
@@ -133,7 +134,9 @@ class ErrorCostResult(StudyResult):
         ax.set_xlabel("run time (s)")
         ax.set_ylabel("relative error (1)")
         tidy_log_axes(ax)
-        ax.legend(fontsize="x-small")
+        legend_outside(ax)
+        ax.set_title(f"{self.problem}: error against run time; reference {self.reference_steps} steps per period "
+                     f"(run time {plain(self.reference_run_time)} s), {self.status}", fontsize="small")
         return drawn(axes, artists)
 
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from .._kind import StudyKind, register_kind
 from .._numerics import solve_steady
-from .._plots import Plot, axes_for, drawn, headline, label, plain
+from .._plots import Plot, axes_for, drawn, headline, label, legend_outside, plain, quantity, scene_and_point
 from .._result import DerivedPeaks, StudyResult, peaks_of
 from .._toolkit import (
     MAX_AXIS_POINTS,
@@ -177,15 +177,17 @@ class NonlinearCheck(DerivedPeaks, StudyResult):
                 lines += ax.plot(self.t_rest, self.rest[spec], color="0.6", lw=0.6, label="nonlinear from rest")
             ax.set_xlabel("time (s)")
             ax.set_ylabel(label(spec, self.units[spec]))
+            unit = self.units[spec]
             ax.set_title(f"{spec}: {self.verdict.upper().replace('_', ' ')} (linear: {headline(self.status)})\n"
-                         f"max difference {plain(self.difference.get(spec, float('nan')))} "
+                         f"max difference {quantity(self.difference.get(spec, float('nan')), unit)} "
                          f"({plain(100 * self.relative_difference.get(spec, float('nan')))} % of peak to peak)\n"
-                         f"estimated errors: linear {plain(self.linear_error.get(spec, float('nan')))}, "
-                         f"nonlinear {plain(self.nonlinear_error.get(spec, float('nan')))}\nrun time linear "
+                         f"estimated errors: linear {quantity(self.linear_error.get(spec, float('nan')), unit)}, "
+                         f"nonlinear {quantity(self.nonlinear_error.get(spec, float('nan')), unit)}\nrun time linear "
                          f"{plain(self.linear_run_time)} s, nonlinear {plain(self.nonlinear_run_time)} s",
                          fontsize="small")
-            ax.legend(fontsize="x-small")
+            legend_outside(ax)
             artists[spec] = lines
+        axes[0].figure.suptitle(f"{scene_and_point(self)}: nonlinear model against linear", fontsize="small")
         return drawn(axes, artists)
 
 

@@ -17,7 +17,19 @@ import periodic
 from .._kind import StudyKind, register_kind
 from .._mechanism import coordinate_parts, observables_along
 from .._numerics import solve_steady
-from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
+from .._plots import (
+    Plot,
+    axes_for,
+    cost_line,
+    drawn,
+    headline,
+    label,
+    legend_outside,
+    plain,
+    plot_multipliers,
+    quantity,
+    scene_and_point,
+)
 from .._result import DerivedPeaks, StudyResult, peaks_of
 from .._toolkit import (
     WARM_UP_STEPS,
@@ -180,20 +192,28 @@ class NonlinearSteadyState(DerivedPeaks, StudyResult):
         artists: dict[str, list] = {}
         for ax, spec in zip(axes, specs):
             nonlinear, linear = self.peak_to_peak[spec], self.linear_peak_to_peak[spec]
-            artists[spec] = (ax.plot(angle, self.response[spec], color="C0", label="nonlinear periodic")
+            error = float(self.response_error.get(spec, float("nan")))
+            response = np.asarray(self.response[spec], dtype=float)
+            # the error bar of the nonlinear curve (N against N/2), a band about it
+            band = [ax.fill_between(angle, response - error, response + error, color="C0", alpha=0.25, lw=0,
+                                    label="± error estimate")] if np.isfinite(error) else []
+            artists[spec] = (ax.plot(angle, response, color="C0", label="nonlinear periodic") + band
                              + ax.plot(angle, self.linear_response[spec], "--", color="C1",
                                        label="linear periodic"))
             ax.set_xlabel("drive angle (deg)")
             ax.set_ylabel(label(spec, self.units[spec]))
             ax.set_title(f"{spec}: peak to peak nonlinear / linear = {nonlinear / linear:.4g}; error "
-                         f"estimate {self.response_error[spec]:.2g} {self.units[spec]}", fontsize="small")
-            ax.legend(fontsize="x-small")
-        axes[0].figure.suptitle(f"{self.problem}: nonlinear periodic state, {self.headline}",
+                         f"estimate {quantity(error, self.units[spec])}", fontsize="small")
+            legend_outside(ax)
+        axes[0].figure.suptitle(f"{scene_and_point(self)}: nonlinear periodic state, {self.headline}",
                                 fontsize="medium", color="C3" if self.status != "ok" else "k")
+        # the radius's error bar: the error estimate of the largest multiplier's modulus
+        errors = np.asarray(self.multiplier_errors, dtype=float)
+        radius_error = float(errors[int(np.argmax(np.abs(self.multipliers)))]) if errors.size else float("nan")
         artists["multipliers"] = plot_multipliers(
             self.multipliers, ax=axes[-1],
-            title=f"spectral radius {self.spectral_radius:.6f}\n" + cost_line(
-                f"{self.iterations} Newton steps, state error {self.error_estimate:.2g}", self.shooting_run_time))
+            title=f"spectral radius {self.spectral_radius:.6f} ± {plain(radius_error)}\n" + cost_line(
+                f"{self.iterations} Newton steps, relative residual {plain(self.residual)}", self.shooting_run_time))
         return drawn(axes, artists)
 
 

@@ -17,7 +17,7 @@ import periodic
 from .._kind import StudyKind, register_kind
 from .._mechanism import observables_along
 from .._numerics import peak, peak_to_peak, solve_steady
-from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
+from .._plots import Plot, axes_for, cost_line, drawn, headline, label, legend_outside, plain
 from .._result import StudyResult, unknown_peaks
 from .._toolkit import (
     MAX_PERIODS,
@@ -148,6 +148,7 @@ class NonlinearSweep(StudyResult):
 
     # written as "statuses" (a tuple) before the results shared their field names
     _stored_as = {"point_status": ("point_status", "statuses")}
+    _axes = {"values": "@parameter"}
     _units = {"values": "@parameter_unit", "peak_to_peak": "@observables",
               "peak_to_peak_error": "@observables", "linear_at_branch": "@observables",
               "linear_values": "@parameter_unit", "linear_peak_to_peak": "@observables", "stable": "1",
@@ -184,7 +185,7 @@ class NonlinearSweep(StudyResult):
             ax.set_ylabel(label(f"{spec} peak to peak", self.units[spec]))
             ax.set_title(cost_line(f"{self.status}: {self.after_instability or 'stable throughout'}",
                                    self.run_time), fontsize="small")
-            ax.legend(fontsize="x-small")
+            legend_outside(ax)
             artists[spec] = lines
         axes[0].figure.suptitle(f"{self.problem}: linear and nonlinear response", fontsize="medium")
         return drawn(axes, artists)

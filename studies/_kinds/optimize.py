@@ -23,7 +23,7 @@ import numpy as np
 
 from .._kind import StudyKind, register_kind
 from .._mechanism import count_keys
-from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain
+from .._plots import Plot, axes_for, cost_line, drawn, headline, label, legend_outside, plain
 from .._result import PEAK_FIELDS, StudyResult, unknown_peaks
 from .._toolkit import (
     MAX_AXIS_POINTS,
@@ -211,6 +211,7 @@ class OptimizeResult(StudyResult):
     peak_to_peak: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak_to_peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
 
+    _axes = {"speeds": "speed"}
     _units = {"bounds": "see parameter_units", "x": "see parameter_units", "x_start": "see parameter_units",
               "history_x": "see parameter_units", "speeds": "rad/s", "per_speed": "@objective_unit",
               "history_objective": "@objective_unit", "history_feasible": "1", "history_worst_speed": "rad/s",
@@ -259,7 +260,7 @@ class OptimizeResult(StudyResult):
             ax.set_yscale("log")
         ax.set_xlabel("evaluation (one steady state per speed)")
         ax.set_ylabel(label(self.objective, self.objective_unit))
-        ax.legend(fontsize="x-small")
+        legend_outside(ax)
         ax.set_title(f"{self.problem}: {headline(self.status)}; {plain(self.objective_start, 3)} -> "
                      f"{plain(self.objective_value, 3)} ± {plain(self.objective_error)} {self.objective_unit} "
                      f"at {plain(self.worst_speed, 3)} rad/s\n"
@@ -290,7 +291,8 @@ class OptimizeResult(StudyResult):
         ax.set_ylim(*self.bounds[1])
         ax.set_xlabel(label(self.names[0], self.parameter_units[self.names[0]]))
         ax.set_ylabel(label(self.names[1], self.parameter_units[self.names[1]]))
-        ax.legend(fontsize="x-small")
+        # below the axes: the colour bar takes their right
+        legend_outside(ax, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncols=2)
         return artists
 
 

@@ -14,7 +14,7 @@ import periodic
 
 from .._kind import StudyKind, register_kind
 from .._numerics import DEFAULT_SCHEME, study_scheme
-from .._plots import Plot, axes_for, cost_line, drawn, label, largest, mark_statuses, plain, radius_norm
+from .._plots import Plot, axes_for, cost_line, drawn, label, largest, legend_outside, mark_statuses, plain, radius_norm
 from .._result import NoObservables
 from .._toolkit import (
     SPEED,
@@ -77,6 +77,7 @@ class StabilityChart(NoObservables, GridResult):
     stability_tol: float = 1e-6
     is_stable: np.ndarray | None = None
 
+    _axes = {"first": "@parameters[0]", "second": "@parameters[1]"}
     _units = {"spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1", **GridResult._units}
 
     def _unit(self, name: str, key: str | None = None) -> str:
@@ -108,7 +109,8 @@ class StabilityChart(NoObservables, GridResult):
         first, second = np.meshgrid(self.first, self.second, indexing="ij")
         artists["status"] = mark_statuses(ax, first, second, self.point_status)
         if artists["status"]:
-            ax.legend(fontsize="x-small", loc="upper left", framealpha=0.6)
+            # below the axes: the colour bar takes their right
+            legend_outside(ax, loc="upper center", bbox_to_anchor=(0.5, -0.18), ncols=4)
         ax.set_xlabel(label(self.parameters[0], self.parameter_units[0]))
         ax.set_ylabel(label(self.parameters[1], self.parameter_units[1]))
         ax.set_title(

@@ -12,7 +12,7 @@ import numpy as np
 from .._drawing import draw_mechanism, mechanism_drawing
 from .._kind import StudyKind, register_kind
 from .._numerics import DEFAULT_SCHEME, peak_summary, solve_steady, study_scheme
-from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain, plot_multipliers
+from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plain, plot_multipliers, scene_and_point
 from .._result import StudyResult
 from .._toolkit import (
     Headline,
@@ -179,19 +179,22 @@ class SteadyStateResult(StudyResult):
             ax.set_ylabel(label(spec, self.units[spec]))
             ax.set_title(f"{spec}: error estimate {plain(self.response_error[spec])} {self.units[spec]}",
                          fontsize="small")
-        axes[0].figure.suptitle(f"{self.problem}: {self.headline}", fontsize="medium",
+        axes[0].figure.suptitle(f"{scene_and_point(self)}: {self.headline}", fontsize="medium",
                                 color="C3" if self.status != "ok" else "k")
         artists["multipliers"] = plot_multipliers(
             self.multipliers, ax=axes[-1],
             title=f"spectral radius {self.spectral_radius:.6f} ± {plain(self.spectral_radius_error)}\n" + cost_line(
-                f"max coordinate error {plain(self.error_estimate)} (N against N/2)", self.run_time))
+                f"max coordinate error {plain(self.error_estimate)} m or rad (N against N/2)",
+                self.run_time))
         return drawn(axes, artists)
 
     def plot_multipliers(self, *, axes: Any = None) -> Plot:
         """The Floquet multipliers in the complex plane with the unit circle."""
         axes = axes_for(1, axes, width=4.8, height=4.8)
         artists = plot_multipliers(self.multipliers, ax=axes[0],
-                                   title=f"{self.problem}: Floquet multipliers,\n{self.headline}")
+                                   title=f"{scene_and_point(self)}\nFloquet multipliers, {self.headline}\n"
+                                         f"spectral radius {self.spectral_radius:.6f} ± "
+                                         f"{plain(self.spectral_radius_error)}")
         return drawn(axes, {"multipliers": artists})
 
     def plot_mechanism(self, *, axes: Any = None, n_frames: int = 8) -> Plot:
@@ -216,7 +219,7 @@ class SteadyStateResult(StudyResult):
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
-        ax.set_title(f"{self.problem}: deformed mechanism over one period\n(deflection x "
+        ax.set_title(f"{scene_and_point(self)}: deformed mechanism over one period\n(deflection x "
                      f"{plain(self.magnification)}), {self.headline}", fontsize="small")
         return drawn(axes, artists)
 

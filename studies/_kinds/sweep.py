@@ -32,6 +32,7 @@ from .._plots import (
     label,
     label_positions,
     largest,
+    legend_outside,
     mark_statuses,
     plain,
 )
@@ -146,6 +147,7 @@ class SweepResult(GridResult):
     peak: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
 
+    _axes = {"values": "@parameter"}
     _units = {
         "peak": "@observables",
         "peak_error": "@observables",
@@ -190,7 +192,8 @@ class SweepResult(GridResult):
             if y is not None:
                 artists["status"] += mark_statuses(ax, x, y, self.point_status)
         if artists["status"]:
-            axes[-1].legend(fontsize="x-small", loc="best")
+            # below the lowest axes, under its label: all axes keep the full width
+            legend_outside(axes[-1], loc="upper center", bbox_to_anchor=(0.5, -0.3), ncols=4)
         for ax in axes:
             ax.set_xlabel(xlabel)
             for start, end in self.instabilities:
@@ -206,7 +209,7 @@ class SweepResult(GridResult):
         relative = [np.asarray(self.peak_to_peak_error.get(spec), dtype=float)
                     / np.asarray(self.peak_to_peak[spec], dtype=float)
                     for spec in specs if self.peak_to_peak_error.get(spec) is not None]
-        axes[0].set_title(cost_line(f"{len(x)} points, largest estimated error "
+        axes[0].set_title(cost_line(f"{self.problem}: {len(x)} points over {self.parameter}\nlargest estimated error "
                                     f"{plain(100 * largest(relative))} % of peak to peak", self.run_time)
                           + self.reduction_note()
                           + ("\nresonances: harmonic k : mode (k x speed = mode frequency)" if rows else ""),

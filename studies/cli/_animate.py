@@ -11,7 +11,7 @@ import numpy as np
 
 from .._drawing import draw_mechanism, frame_points
 from .._errors import StudiesError
-from .._plots import _pyplot, headline, plain
+from .._plots import _pyplot, headline, plain, scene_and_point
 
 #: An animation shows at most this many frames (every k-th sample of the period beyond it), so a
 #: GIF stays a few MB; 10 frames per second: a period lasts a few seconds on screen.
@@ -112,7 +112,7 @@ def animate(result: Any, path: str | Path, *, magnification: float | None = None
             artists[f"joint {name}"][0].set_data([position[0]], [position[1]])
         where = f"{what.split(' (')[0]} {abscissa[k]:.0f} deg" if what.endswith("(deg)") \
             else f"t = {abscissa[k]:.3g} s of {period:.3g} s"
-        title.set_text(f"{result.problem}: deflection magnified x {plain(shown)}, {headline(result.status)}\n"
+        title.set_text(f"{scene_and_point(result)}: deflection magnified x {plain(shown)}, {headline(result.status)}\n"
                        f"{where}")
         return []
 

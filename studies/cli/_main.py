@@ -1,4 +1,5 @@
-"""The ``flexvib`` command line: ``scenes``, ``run``, ``plot``, ``animate``, ``report``, ``info``, ``check``, ``demo``
+"""The ``flexvib`` command line: ``scenes``, ``show``, ``run``, ``plot``, ``animate``, ``report``, ``info``,
+``export``, ``check``, ``demo``
 (see ``flexvib --help``)."""
 
 from __future__ import annotations
@@ -34,6 +35,16 @@ def _parser() -> argparse.ArgumentParser:
     scenes = commands.add_parser("scenes", help="list the built-in scenes",
                                  description="List the built-in scenes (names for 'flexvib run').")
     scenes.set_defaults(handler=_scenes)
+    show = commands.add_parser(
+        "show", help="what a scene holds: links, joints, drives, observables, values --set changes",
+        description="Describe a scene without running it: links (kind, length, section, discretisation), "
+                    "joints, drives, controllers, the observables it offers with the names they take, "
+                    "the studies it declares and every value --set PATH=VALUE may change; --out draws "
+                    "the mechanism at t = 0 with its names.")
+    show.add_argument("scene", nargs="?", default=DEFAULT_SCENE,
+                      help=f"built-in scene name or .toml file (default: {DEFAULT_SCENE})")
+    show.add_argument("--out", type=Path, help="also draw the mechanism at t = 0 into this file (.png, .svg)")
+    show.set_defaults(handler=_show)
     run = commands.add_parser(
         "run", help="run the studies a scene declares into one HDF5 file",
         description="Run every study declared in the scene's [studies] table (a default set when it has "
@@ -100,6 +111,14 @@ def _parser() -> argparse.ArgumentParser:
                                            "error estimates and run times.")
     info.add_argument("file", type=Path, help="result file written by 'flexvib run'")
     info.set_defaults(handler=_info)
+    export = commands.add_parser(
+        "export", help="write each study of a result file as a CSV table (needs flexvib[tables])",
+        description="Write each study of a result file as DIR/STUDY.csv (one row per grid point or time "
+                    "sample, a column per field, as StudyResult.to_dataframe()) and DIR/STUDY_info.csv "
+                    "(the study's status, message, run time, scalar fields and each column's unit).")
+    export.add_argument("file", type=Path, help="result file written by 'flexvib run'")
+    export.add_argument("--csv", type=Path, required=True, metavar="DIR", help="folder of the CSV files")
+    export.set_defaults(handler=_export)
     check = commands.add_parser(
         "check", help="run the table of extreme cases and say what the tool did with each",
         description="Run extreme cases (very stiff axial mode, 64 elements, zero damping, exact resonance, "
@@ -208,12 +227,45 @@ def _check(args: argparse.Namespace) -> int:
     unknown = [name for name in args.cases or () if name not in CASES]
     if unknown:
         raise UsageError(f"--case: unknown case {unknown[0]!r} (cases: {', '.join(CASES)})")
-    outcomes = run_check(args.cases)
+    from ._console import collected_warnings, console
+
+    with console():     # a warning of the cases (a log record each time a model is assembled) once each
+        outcomes = run_check(args.cases)
     print(table(outcomes))
+    for warning in collected_warnings():
+        print(warning, file=sys.stderr)
     failed = [o.case for o in outcomes if not o.passed]
     print(f"{len(outcomes) - len(failed)} of {len(outcomes)} cases as expected"
           + (f"; not as expected: {', '.join(failed)}" if failed else ""))
     return 1 if failed else 0
+
+
+def _show(args: argparse.Namespace) -> int:
+    from ._show import describe, draw
+
+    plan_mechanism = ScenePlan.read(args.scene).problem
+    if not hasattr(plan_mechanism, "mechanism"):
+        raise UsageError(f"show: {args.scene!r} is not a mechanism (the {MATHIEU} scene is a periodic "
+                         f"equation; 'flexvib scenes' lists the mechanisms)")
+    mechanism = plan_mechanism.mechanism()
+    if args.out is not None:   # a bad path is refused before the text is printed
+        if args.out.is_dir():
+            raise UsageError(f"--out {str(args.out)!r}: is a folder, expected the path of a .png or .svg file")
+        _output_folder(args.out.parent, "--out", args.out)
+    print(describe(mechanism))
+    if args.out is not None:
+        print(f"wrote {draw(mechanism, args.out)}")
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from ._export import write_csv
+
+    results = _load_results(args.file)
+    folder = _output_folder(args.csv, "--csv")
+    for path in write_csv(results, folder):
+        print(path)
+    return 0
 
 
 def _scenes(args: argparse.Namespace) -> int:
@@ -395,8 +447,9 @@ def _output_folder(folder: Path, option: str, target: Path | None = None) -> Pat
 def _report_command(args: argparse.Namespace) -> int:
     from ._report import write_report
 
+    results = _load_results(args.file)   # a missing file is refused before any folder is made
     outdir = _output_folder(args.out or args.file.with_name(args.file.stem + "_report"), "--out")
-    for path in write_report(_load_results(args.file), outdir, source=args.file):
+    for path in write_report(results, outdir, source=args.file):
         print(path)
     return 0
 
@@ -413,6 +466,8 @@ def _info(args: argparse.Namespace) -> int:
 
     from .._store import check_format, format_of, study_attrs
     from .._studies import status_counts
+    from ._info import dataset as dataset_line
+    from ._info import formatted
 
     if not args.file.is_file():
         raise UsageError(f"result file {str(args.file)!r} does not exist")
@@ -426,7 +481,7 @@ def _info(args: argparse.Namespace) -> int:
         print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, result format "
               f"{format_of(handle)}, created {handle.attrs.get('created', '?')}")
         print(f"  versions: {handle.attrs.get('versions', '?')}")
-        if "compile_time" in handle.attrs:   # numba compilation of the last run, outside its run times
+        if "compile_time" in handle.attrs:   # numba compilation of the file's runs, outside their run times
             print(f"  compile_time: {float(handle.attrs['compile_time']):.3g} s")
         if "scene_hash" in handle.attrs:
             print(f"  scene: sha256 {handle.attrs['scene_hash']}")
@@ -451,14 +506,15 @@ def _info(args: argparse.Namespace) -> int:
                     print(f"  statuses: {status_counts(statuses)}")
             # every headline attribute the study wrote (a new kind's too); the bulky or internal ones
             # (the scene text, the request it was run for) are left out
+            units = attrs.get("units") if isinstance(attrs.get("units"), dict) else {}
             for key, value in attrs.items():
                 if key == "settings" and isinstance(value, dict):  # the scene text is in the file
                     value = {k: v for k, v in value.items() if k != "scene"}
-                if key not in _INFO_HIDDEN:
-                    print(f"  {key}: {value}")
+                if key not in _INFO_HIDDEN and value not in ("", None, {}, []):
+                    print(f"  {key}: {formatted(key, value, units)}")
             for key, dataset in item.items():
                 if hasattr(dataset, "shape"):
-                    print(f"  {key}: {dataset.shape} {dataset.attrs.get('units', '')}")
+                    print(f"  {key}: {dataset_line(dataset.shape, str(dataset.attrs.get('units', '')))}")
                 else:
                     print(f"  {key}/: {', '.join(dataset.keys())}")
     if corrupt:

@@ -48,7 +48,8 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
 
     ``warm_up``: once the file is accepted, compile the numba kernels the studies need before any
     study starts its clock (``studies.cli._jit.warm_up``), and record the compile time of the run as the
-    file attribute ``compile_time`` (s; 0 when every kernel came from the disk cache).
+    file attribute ``compile_time`` (s; 0 when every kernel came from the disk cache), added to what the
+    file's earlier runs recorded when it resumes one.
     """
     runs = [(name + suffix, kind_named(name), each) for name, options in studies.items()
             for suffix, each in kind_named(name).runs(options).items()]
@@ -62,7 +63,10 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
                 compile_time = clock.stop() if clock is not None else None  # no listener left behind
             if compile_time is not None:
                 with file.writing():
-                    file.handle.attrs["compile_time"] = compile_time
+                    # a resumed file keeps what its earlier runs compiled: the attribute is their sum
+                    # (a warm resume adds 0 instead of replacing the first run's compile time)
+                    earlier = float(file.handle.attrs.get("compile_time", 0.0))
+                    file.handle.attrs["compile_time"] = earlier + compile_time
             return outcome
     except KeyboardInterrupt:
         raise RunInterrupted(*_points_saved(path, runs), str(path)) from None

@@ -45,3 +45,45 @@ def text_problems(figure, *, tolerance: float = 1.0) -> list[str]:
         if width > -tolerance and height > -tolerance:
             problems.append(f"{a!r} overlaps {b!r}")
     return problems
+
+
+def legend_problems(figure, *, samples: int = 8) -> list[str]:
+    """Every legend of ``figure`` (of an axes or of the figure) that covers drawn data: a point of a
+    line (its vertices and ``samples`` points along each segment, so a line crossing the legend
+    between two vertices counts), a marker or a scatter point of any axes, inside the axes' box and
+    the legend's; [] when no legend covers data."""
+    import numpy as np
+
+    figure.canvas.draw()
+    renderer = figure.canvas.get_renderer()
+    legends = [ax.get_legend() for ax in figure.axes if ax.get_legend() is not None] + list(figure.legends)
+    problems = []
+    for legend in legends:
+        box = legend.get_window_extent(renderer)
+        for ax in figure.axes:
+            inside_axes = ax.get_window_extent(renderer)
+            clipped = [box.x0 >= inside_axes.x1, box.x1 <= inside_axes.x0, box.y0 >= inside_axes.y1,
+                       box.y1 <= inside_axes.y0]
+            if any(clipped):
+                continue  # the legend is beside this axes, not over it
+            points = []
+            for line in ax.get_lines():
+                xy = np.asarray(line.get_transform().transform(np.asarray(line.get_xydata(), dtype=float)))
+                if len(xy) > 1 and line.get_linestyle() not in ("None", "none", " ", ""):
+                    fractions = np.linspace(0.0, 1.0, samples, endpoint=False)
+                    along = xy[:-1, None, :] + fractions[None, :, None] * np.diff(xy, axis=0)[:, None, :]
+                    xy = np.concatenate([along.reshape(-1, 2), xy[-1:]])
+                points.append((line.get_label(), xy))
+            for collection in ax.collections:
+                offsets = np.asarray(collection.get_offsets(), dtype=float)
+                if offsets.size and collection.get_offset_transform() is not None:
+                    points.append((collection.get_label(), collection.get_offset_transform().transform(offsets)))
+            for name, xy in points:
+                xy = xy[np.isfinite(xy).all(axis=1)]
+                within = ((xy[:, 0] > box.x0) & (xy[:, 0] < box.x1) & (xy[:, 1] > box.y0) & (xy[:, 1] < box.y1)
+                          & (xy[:, 0] >= inside_axes.x0) & (xy[:, 0] <= inside_axes.x1)
+                          & (xy[:, 1] >= inside_axes.y0) & (xy[:, 1] <= inside_axes.y1))
+                if within.any():
+                    problems.append(f"legend {[t.get_text() for t in legend.get_texts()]} covers {name!r} "
+                                    f"({int(within.sum())} points)")
+    return problems
