@@ -337,8 +337,8 @@ def untrusted_verdict(status: str, message: str, reasons: list[str]) -> tuple[st
 
 
 def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z: np.ndarray,
-                     coarse_state: np.ndarray, speed: float, *, tol: float, max_iterations: int
-                     ) -> tuple[dict[str, float], list[str]]:
+                     coarse_state: np.ndarray, speed: float, *, tol: float, max_iterations: int,
+                     monodromy: np.ndarray | None = None) -> tuple[dict[str, float], list[str]]:
     """({spec: estimated max abs error of the N-step response} from the N/2 orbit ``coarse_state``,
     the reasons the estimate is not trusted): the N/2 run must not split steps, the orbit found again
     on N/4 steps must give a ratio of successive differences of z in the asymptotic range
@@ -352,7 +352,9 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
               for spec in response}
     reasons = [substep_reason(coarse_substeps, n_steps, "the N/2 run's")]
     quarter_map = setup.period_map(n_steps // 4)
-    quarter = periodic.find_orbit(quarter_map, coarse_state, speed, tol=tol, max_iterations=max_iterations)
+    # chord iterations with the N-step orbit's ``monodromy`` (periods without their own)
+    quarter = periodic.find_orbit(quarter_map, coarse_state, speed, tol=tol, max_iterations=max_iterations,
+                                  monodromy=monodromy)
     if quarter.converged:
         _, z_quarter, quarter_substeps = orbit_observables(linear, quarter_map, quarter.state,
                                                            observables=False)
@@ -405,7 +407,7 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
         reasons.append(substep_reason(n_substeps, n_steps))
         if coarse.last is not None and np.isfinite(orbit.state_error):
             errors, trust = _error_estimates(setup, response, z, coarse.last, speed, tol=tol,
-                                             max_iterations=max_iterations)
+                                             max_iterations=max_iterations, monodromy=orbit.monodromy)
             reasons += trust
     else:
         response = {spec: np.full(n_steps + 1, np.nan) for spec in specs}
