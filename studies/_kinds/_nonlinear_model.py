@@ -101,7 +101,8 @@ def choose_model(problem: Any, values: Mapping[str, float] | None, modes: Any) -
         if check.status == "ok" or modes != AUTO:
             break
         count += MODES_STEP
-    reduced = type(problem).from_mechanism(candidate, observables=problem.observable_specs)
+    reduced = type(problem).from_mechanism(candidate, parameter_paths=getattr(problem, "parameter_paths", ()),
+                                           observables=problem.observable_specs)
     error = {spec: SAFETY * value for spec, value in check.difference.items()}
     return ModelChoice(reduced, {"speed": parameters["speed"]} if "speed" in parameters else None, chosen,
                        error, SAFETY * float(check.error),

@@ -218,6 +218,15 @@ class _Recording:
         self.last = np.array(state, dtype=float)
         return self.period_map(state, parameter)
 
+    def end_state(self, state: np.ndarray, parameter: float) -> np.ndarray:
+        """A period without its monodromy (``periodic.find_orbit``'s chord iterations)."""
+        self.last = np.array(state, dtype=float)
+        return self.period_map.end_state(state, parameter)
+
+    @property
+    def resolution(self) -> np.ndarray:
+        return self.period_map.resolution
+
 
 @dataclass(frozen=True)
 class ShootingSetup:
@@ -348,7 +357,8 @@ def untrusted_verdict(status: str, message: str, reasons: list[str]) -> tuple[st
 
 def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z: np.ndarray,
                      coarse_state: np.ndarray, speed: float, *, tol: float, max_iterations: int,
-                     monodromy: np.ndarray | None = None) -> tuple[dict[str, float], list[str]]:
+                     monodromy: np.ndarray | None = None, state: np.ndarray | None = None
+                     ) -> tuple[dict[str, float], list[str]]:
     """({spec: estimated max abs error of the N-step response} from the N/2 orbit ``coarse_state``,
     the reasons the estimate is not trusted): the N/2 run must not split steps, the orbit found again
     on N/4 steps must give a ratio of successive differences of z in the asymptotic range
@@ -362,9 +372,15 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
               for spec in response}
     reasons = [substep_reason(coarse_substeps, n_steps, "the N/2 run's")]
     quarter_map = setup.period_map(n_steps // 4)
-    # chord iterations with the N-step orbit's ``monodromy`` (periods without their own)
-    quarter = periodic.find_orbit(quarter_map, coarse_state, speed, tol=tol, max_iterations=max_iterations,
+    # started from the N and N/2 orbits extrapolated with the order (where the step's error is in its
+    # asymptotic range, which this level checks, x_{N/4} - x_{N/2} = 2^p (x_{N/2} - x_N)), by chord
+    # iterations with the N-step orbit's ``monodromy`` (periods without their own)
+    guess = coarse_state if state is None else coarse_state + 2**ORDER * (coarse_state - state)
+    quarter = periodic.find_orbit(quarter_map, guess, speed, tol=tol, max_iterations=max_iterations,
                                   monodromy=monodromy)
+    if not quarter.converged:    # the extrapolation failed (e.g. a state outside the linkage): from N/2
+        quarter = periodic.find_orbit(quarter_map, coarse_state, speed, tol=tol, max_iterations=max_iterations,
+                                      monodromy=monodromy)
     if quarter.converged:
         _, z_quarter, quarter_substeps = orbit_observables(linear, quarter_map, quarter.state,
                                                            observables=False)
@@ -427,7 +443,8 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
         reasons.append(substep_reason(n_substeps, n_steps))
         if coarse.last is not None and np.isfinite(orbit.state_error):
             errors, trust = _error_estimates(setup, response, z, coarse.last, speed, tol=tol,
-                                             max_iterations=max_iterations, monodromy=orbit.monodromy)
+                                             max_iterations=max_iterations, monodromy=orbit.monodromy,
+                                             state=orbit.state)
             reasons += trust
     else:
         response = {spec: np.full(n_steps + 1, np.nan) for spec in specs}
