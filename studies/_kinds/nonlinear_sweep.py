@@ -251,7 +251,7 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
 
     ``modes`` as for ``studies.nonlinear_steady_state`` (default ``"auto"``: the elastic links reduced to
     the fewest modes the reduction check accepts at ``start``; the linear curves are of the same
-    model; ``"full"``: the element models).
+    model; ``"full"``: the element models)."""
     check_parameter(problem, parameter)
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a nonlinear sweep")
     check_integer("max_points", max_points, 2)
