@@ -91,13 +91,27 @@ def choose_model(problem: Any, values: Mapping[str, float] | None, modes: Any) -
         return unchanged
     count = START_MODES if modes == AUTO else modes
     while True:
-        chosen = {name: count for name, size in sizes.items() if count + MODES_STEP < size}
+        # a link is reduced where the reduced model (modes and static corrections) is smaller than its
+        # element model, and checked against two more modes where that set is smaller still (else
+        # against the full model: a basis as large as the element model is rank-deficient)
+        chosen = {name: count for name, size in sizes.items() if _reduced_size(mechanism, name, count) < size}
         if not chosen:
             return dataclasses.replace(unchanged, run_time=time.perf_counter() - started, message=(
-                f"full element models: {count} modes would leave too few of their coordinates out"))
+                f"full element models: {count} modes and their static corrections are as many coordinates"))
+        reference = ("next" if all(_reduced_size(mechanism, name, count + MODES_STEP) < sizes[name]
+                                   for name in chosen) else "full")
         candidate = _reduced(mechanism, chosen)
-        check = linearize.reduction_error(candidate, n_steps=CHECK_STEPS, reference="next",
-                                          observables=problem.observable_specs, tolerance=REDUCTION_TOL)
+        check = None
+        for against in dict.fromkeys((reference, "full")):
+            try:
+                check = linearize.reduction_error(candidate, n_steps=CHECK_STEPS, reference=against,
+                                                  observables=problem.observable_specs, tolerance=REDUCTION_TOL)
+                break
+            except (ValueError, RuntimeError) as error:  # a degenerate reference (or candidate): the full one
+                failure = error
+        if check is None:
+            return dataclasses.replace(unchanged, run_time=time.perf_counter() - started, message=(
+                f"full element models: the reduction check of {count} modes failed ({failure})"))
         if check.status == "ok" or modes != AUTO:
             break
         count += MODES_STEP
@@ -121,6 +135,15 @@ def _reducible(mechanism: Any) -> dict[str, int]:
         if callable(getattr(disc, "with_modes", None)) and getattr(disc, "modes", 0) is None:
             sizes[link.name] = int(mechanisms.beam_shapes(link).n_elastic)
     return sizes
+
+
+def _reduced_size(mechanism: Any, name: str, modes: int) -> int:
+    """The elastic coordinates of link ``name`` reduced to ``modes`` modes (with its static corrections)."""
+    import mechanisms
+
+    link = mechanism.link(name)
+    return int(mechanisms.beam_shapes(dataclasses.replace(
+        link, discretisation=link.discretisation.with_modes(modes))).n_elastic)
 
 
 def _reduced(mechanism: Any, modes: Mapping[str, int]) -> Any:
