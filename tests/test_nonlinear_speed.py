@@ -11,7 +11,7 @@ the full element models.
   1e12 there, the old refusal), and ``two_link_arm``'s N/4 level, whose raw condition number 1.96e12
   made its estimate fail although its multipliers are all below 0.92, is found.
 - A residual stalled at the period map's round-off is converged: ``two_link_arm`` at N = 512.
-- ``modes="auto"`` against ``modes="full"`` on the six-bar with 4 elements per link: the same
+- ``modes="auto"`` against ``modes="full"`` on the six-bar with 5 elements per link: the same
   orbit within the stated reduction error plus both time-step errors.
 """
 
@@ -121,7 +121,7 @@ def test_two_link_arm_at_512_steps_converges_at_round_off(arm):
 def test_default_reduction_against_the_full_model_within_its_stated_error():
     paths = ["links.link2.discretisation.n_elements", "links.link4.discretisation.n_elements"]
     problem = studies.MechanismProblem.from_scene("six_bar", parameter_paths=paths)
-    values = {"speed": 100.0, paths[0]: 4, paths[1]: 4}
+    values = {"speed": 100.0, paths[0]: 5, paths[1]: 5}   # 4 elements: a degenerate reduced basis (full)
     reduced = studies.nonlinear_steady_state(problem, values, n_steps=128)
     full = studies.nonlinear_steady_state(problem, values, n_steps=128, modes="full")
     assert reduced.reduced_modes == {"link2": 4, "link4": 4} and full.reduced_modes == {}
@@ -138,3 +138,15 @@ def test_modes_option_is_checked(arm):
         studies.nonlinear_steady_state(arm, modes="some")
     with pytest.raises(studies.StudiesError, match="modes"):
         studies.nonlinear_steady_state(arm, modes=0)
+
+
+def test_modes_key_of_the_scene_tables():
+    from studies import kinds
+
+    for kind, table in (("nonlinear_steady_state", {}), ("nonlinear_sweep", {"start": 90.0, "stop": 100.0})):
+        check = kinds()[kind].check
+        assert check(f"studies.{kind}", table, 128)["modes"] == "auto"
+        assert check(f"studies.{kind}", dict(table, modes="full"), 128)["modes"] == "full"
+        assert check(f"studies.{kind}", dict(table, modes=6), 128)["modes"] == 6
+        with pytest.raises(studies.StudiesError, match=f"studies.{kind}: modes"):
+            check(f"studies.{kind}", dict(table, modes="some"), 128)
