@@ -138,12 +138,16 @@ def _reducible(mechanism: Any) -> dict[str, int]:
 
 
 def _reduced_size(mechanism: Any, name: str, modes: int) -> int:
-    """The elastic coordinates of link ``name`` reduced to ``modes`` modes (with its static corrections)."""
+    """The elastic coordinates of link ``name`` reduced to ``modes`` modes (with its static corrections;
+    its element model's where it has fewer than ``modes``)."""
     import mechanisms
 
     link = mechanism.link(name)
-    return int(mechanisms.beam_shapes(dataclasses.replace(
-        link, discretisation=link.discretisation.with_modes(modes))).n_elastic)
+    try:
+        return int(mechanisms.beam_shapes(dataclasses.replace(
+            link, discretisation=link.discretisation.with_modes(modes))).n_elastic)
+    except ValueError:      # more modes than the element model has (MechanismError): no reduction
+        return int(mechanisms.beam_shapes(link).n_elastic)
 
 
 def _reduced(mechanism: Any, modes: Mapping[str, int]) -> Any:
