@@ -223,6 +223,10 @@ class _ParameterMap:
         end, monodromy = self.at(float(value))(y * self.scale)
         return end / self.scale, monodromy * self.scale[None, :] / self.scale[:, None]
 
+    def end_state(self, y: np.ndarray, value: float) -> np.ndarray:
+        """A period without its monodromy (``periodic``'s chord iterations), scaled as ``__call__``."""
+        return self.at(float(value)).end_state(y * self.scale) / self.scale
+
 
 class _CoarseOrbits:
     """The period map on N/2 steps given to ``periodic.continue_orbits`` as ``estimate``; it keeps, for
@@ -235,6 +239,10 @@ class _CoarseOrbits:
     def __call__(self, y: np.ndarray, value: float):
         self.states[float(value)] = np.array(y, dtype=float)
         return self.period_map(y, value)
+
+    def end_state(self, y: np.ndarray, value: float) -> np.ndarray:
+        self.states[float(value)] = np.array(y, dtype=float)
+        return self.period_map.end_state(y, value)
 
 
 def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop: float,
