@@ -10,7 +10,8 @@ the full element models.
   state is expressed in units 1e6 apart is solved as the unscaled one (the raw condition number was
   1e12 there, the old refusal), and ``two_link_arm``'s N/4 level, whose raw condition number 1.96e12
   made its estimate fail although its multipliers are all below 0.92, is found.
-- A residual stalled at the period map's round-off is converged: ``two_link_arm`` at N = 512.
+- A residual stalled at the period map's round-off is converged: a Duffing map with a declared round-off
+  (and without the declaration, failed as before), ``two_link_arm`` at N = 512.
 - ``modes="auto"`` against ``modes="full"`` on the six-bar with 5 elements per link: the same
   orbit within the stated reduction error plus both time-step errors.
 """
@@ -150,3 +151,29 @@ def test_modes_key_of_the_scene_tables():
         assert check(f"studies.{kind}", dict(table, modes=6), 128)["modes"] == 6
         with pytest.raises(studies.StudiesError, match=f"studies.{kind}: modes"):
             check(f"studies.{kind}", dict(table, modes="some"), 128)
+
+
+class _Noisy:
+    """A period map whose end state carries a deterministic round-off of about ``noise`` (a stand-in for
+    an integrator's Newton tolerance), declaring ``resolution`` when given."""
+
+    def __init__(self, period_map, noise, resolution=None):
+        self.period_map, self.noise = period_map, noise
+        if resolution is not None:
+            self.resolution = resolution
+
+    def __call__(self, x, parameter):
+        end, monodromy = self.period_map(x, parameter)
+        return end + self.noise * np.sin(1e9 * x + np.arange(x.size)), monodromy
+
+
+def test_a_residual_stalled_at_the_declared_round_off_is_converged_not_failed():
+    clean = periodic.find_orbit(_duffing(), np.zeros(2), 1.1, tol=1e-13)
+    declared = periodic.find_orbit(_Noisy(_duffing(), 1e-9, resolution=1e-8), np.zeros(2), 1.1, tol=1e-14)
+    assert declared.converged and declared.status == "ok", declared.message
+    assert "round-off" in declared.message
+    # the orbit to the noise's level (the monodromy - I here is of order 1)
+    np.testing.assert_allclose(declared.state, clean.state, rtol=0, atol=1e-7)
+    # without the declaration the same stall is a failure, as before
+    undeclared = periodic.find_orbit(_Noisy(_duffing(), 1e-9), np.zeros(2), 1.1, tol=1e-14)
+    assert not undeclared.converged and undeclared.status == "failed"
