@@ -3,9 +3,9 @@ routes of the shooting against the Newton shooting they replace, and the default
 the full element models.
 
 - Chord iterations (a nearby orbit's monodromy kept, periods without their own) find the orbit Newton
-  finds, to the tolerance, with the same multipliers (Duffing reference map, the arm's mechanism).
+  finds, to the tolerance, with the same multipliers (Duffing reference map).
 - The N/2 error level solved by chord from the N orbit gives the same state error and multiplier
-  errors as a Newton solve of the N/2 map from scratch.
+  errors as a Newton solve of the N/2 map (Duffing; ``four_bar_fem4``'s mechanism).
 - ``monodromy - I`` is judged singular by its equilibrated condition number: a Duffing map whose
   state is expressed in units 1e6 apart is solved as the unscaled one (the raw condition number was
   1e12 there, the old refusal), and ``two_link_arm``'s N/4 level, whose raw condition number 1.96e12
@@ -177,3 +177,23 @@ def test_a_residual_stalled_at_the_declared_round_off_is_converged_not_failed():
     # without the declaration the same stall is a failure, as before
     undeclared = periodic.find_orbit(_Noisy(_duffing(), 1e-9), np.zeros(2), 1.1, tol=1e-14)
     assert not undeclared.converged and undeclared.status == "failed"
+
+
+def test_the_n_over_2_chord_level_on_the_four_bar_equals_a_newton_solve():
+    import mechanisms
+
+    problem = studies.MechanismProblem.from_scene("four_bar_fem4")
+    linear = problem.linearize(None, n_steps=64)
+    lin = linear.context
+    fine = mechanisms.PeriodMap(lin.mechanism, n_steps=64, independent=lin.coefficients.independent,
+                                nominal=lin.nominal)
+    coarse = mechanisms.PeriodMap(lin.mechanism, n_steps=32, independent=fine.independent, nominal=lin.nominal)
+    orbit = periodic.find_orbit(fine, np.zeros(fine.n_state), 100.0, tol=1e-9, estimate=coarse, error_factor=1 / 3)
+    alone = periodic.find_orbit(coarse, orbit.state, 100.0, tol=1e-9)     # Newton, every step its monodromy
+    assert orbit.converged and alone.converged, (orbit.message, alone.message)
+    expected = np.abs(orbit.state - alone.state).max() / 3
+    assert orbit.state_error == pytest.approx(expected, rel=1e-3)
+    # each multiplier against the nearest of the N/2 orbit's (the estimate's pairing)
+    nearest = alone.multipliers[np.abs(orbit.multipliers[:, None] - alone.multipliers[None, :]).argmin(axis=1)]
+    np.testing.assert_allclose(orbit.multiplier_errors, np.abs(np.abs(orbit.multipliers) - np.abs(nearest)) / 3,
+                               rtol=0, atol=1e-6)
