@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from ._alpha_run import _consistent_accelerations, _integrate, _lag_force
+from ._alpha_step import _generalized_alpha_parameters
 from ._alpha_tangent import _propagate_tangent
 from ._kinematics import ConvergenceError
 from ._parts import ArgumentError
@@ -314,6 +315,26 @@ class PeriodMap:
     def __call__(self, x: np.ndarray, parameter: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         period = self.run(x)
         return period.end_state, period.monodromy
+
+    def end_state(self, x: np.ndarray, parameter: float | None = None) -> np.ndarray:
+        """The end state (2m + L,) of one period from ``x`` without its monodromy (the chord
+        iterations of ``periodic.find_orbit``); the period is kept, so that asking for the monodromy
+        at the same state next (``__call__``) does not run it again."""
+        return self.run(x, tangent=False).end_state
+
+    @property
+    def resolution(self) -> np.ndarray:
+        """(2m + L,) the round-off of the end state that the integrator's Newton tolerance leaves
+        (``periodic.find_orbit``: a residual at this level that Newton no longer reduces is converged):
+        a step accepts positions to ``tol`` (``abs_tol``, m), which a period of N steps accumulates
+        to about ``abs_tol sqrt(N)``, and the rates follow from the last step's positions through
+        ``v = vhat + gamma' sddot``, ``q = qhat + beta' sddot``: ``abs_tol gamma' / beta' = abs_tol
+        gamma / (beta h)``. Measured on ``two_link_arm`` at N = 512 (tol 1e-10): Newton stalls at
+        3.2e-9 m and 8.5e-8 m/s, this model 2.3e-9 and 1.0e-7. The lag states: 0 (not relaxed)."""
+        abs_tol, m = self._options[1], self.independent.size
+        _, _, beta, gamma = _generalized_alpha_parameters(self.rho_inf)
+        return np.concatenate([np.full(m, abs_tol * np.sqrt(self.n_steps)),
+                               np.full(m, abs_tol * gamma / (beta * self.h)), np.zeros(self.n_lags)])
 
 
 def _free_coordinates(model: Any, s: np.ndarray) -> np.ndarray:

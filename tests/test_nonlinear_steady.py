@@ -283,7 +283,8 @@ def test_scene_tables_are_checked():
     from studies import kinds
 
     steady = kinds()["nonlinear_steady_state"].check("studies.nonlinear_steady_state", {"speed": 90.0}, 128)
-    assert steady == {"values": {"speed": 90.0}, "n_steps": 128, "tol": 1e-8, "max_iterations": 12}
+    assert steady == {"values": {"speed": 90.0}, "n_steps": 128, "tol": 1e-8, "max_iterations": 12,
+                      "modes": "auto"}
     sweep = kinds()["nonlinear_sweep"]
     options = sweep.check("studies.nonlinear_sweep", {"parameter": "links.crank.length", "start": 0.05,
                                                       "stop": 0.04, "method": "arclength"}, 256)

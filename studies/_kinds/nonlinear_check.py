@@ -297,7 +297,7 @@ def _against_periodic_state(problem, values, n_steps, common, lin, scale, linear
     """The check against the nonlinear periodic state, or None when Newton does not find it."""
     from .nonlinear_steady_state import nonlinear_steady_state
 
-    orbit = nonlinear_steady_state(problem, values, n_steps=n_steps)
+    orbit = nonlinear_steady_state(problem, values, n_steps=n_steps, modes="full")  # the linear route's model
     if orbit.status == "failed":
         return None
     specs = list(lin)

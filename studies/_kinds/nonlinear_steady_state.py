@@ -45,6 +45,7 @@ from .._toolkit import (
     speed_values,
     steps,
 )
+from ._nonlinear_model import AUTO, check_modes, choose_model
 
 #: The fewest steps per period (docs/studies.md): N/2 = 16 steps must still carry the integrator.
 MIN_STEPS = 32
@@ -126,6 +127,13 @@ class NonlinearSteadyState(DerivedPeaks, StudyResult):
         The shooting (N and N/2, JIT compilation excluded).
     settings : dict
         The study's arguments.
+    reduced_modes : dict, {link: int}
+        The modes of each elastic link the study reduced (``modes`` option; {} on the full element
+        models, and in files written before the option).
+    reduction_error : dict, {spec: float}, units[spec]
+        The reduction check's error of each observable (the linear steady state against the next
+        larger mode set, ``studies._kinds._nonlinear_model``); {} without a reduction. Not part of
+        ``response_error`` (the time step's).
     peak, peak_error, peak_to_peak, peak_to_peak_error : dict, {spec: float}, units[spec]
         Properties: of ``response`` with ``response_error`` (``studies._numerics.peak_summary``).
     linear_peak_to_peak : dict, {spec: float}, units[spec]
@@ -160,6 +168,8 @@ class NonlinearSteadyState(DerivedPeaks, StudyResult):
     linear_run_time: float
     settings: Mapping[str, Any] = field(default_factory=dict)
     shooting_run_time: float = float("nan")
+    reduced_modes: Mapping[str, int] = field(default_factory=dict)
+    reduction_error: Mapping[str, float] = field(default_factory=dict)
 
     _units = {"t": "s", "crank_angle": "rad", "x": "SI (see labels)", "response": "@observables",
               "linear_response": "@observables", "state": "SI (see labels: coordinates, rates, lags)",
@@ -227,6 +237,15 @@ class _Recording:
     def __call__(self, state: np.ndarray, parameter: float):
         self.last = np.array(state, dtype=float)
         return self.period_map(state, parameter)
+
+    def end_state(self, state: np.ndarray, parameter: float) -> np.ndarray:
+        """A period without its monodromy (``periodic.find_orbit``'s chord iterations)."""
+        self.last = np.array(state, dtype=float)
+        return self.period_map.end_state(state, parameter)
+
+    @property
+    def resolution(self) -> np.ndarray:
+        return self.period_map.resolution
 
 
 @dataclass(frozen=True)
@@ -357,7 +376,8 @@ def untrusted_verdict(status: str, message: str, reasons: list[str]) -> tuple[st
 
 
 def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z: np.ndarray,
-                     coarse_state: np.ndarray, speed: float, *, tol: float, max_iterations: int
+                     coarse_state: np.ndarray, speed: float, *, tol: float, max_iterations: int,
+                     monodromy: np.ndarray | None = None, state: np.ndarray | None = None
                      ) -> tuple[dict[str, float], list[str]]:
     """({spec: estimated max abs error of the N-step response} from the N/2 orbit ``coarse_state``,
     the reasons the estimate is not trusted): the N/2 run must not split steps, the orbit found again
@@ -372,7 +392,15 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
               for spec in response}
     reasons = [substep_reason(coarse_substeps, n_steps, "the N/2 run's")]
     quarter_map = setup.period_map(n_steps // 4)
-    quarter = periodic.find_orbit(quarter_map, coarse_state, speed, tol=tol, max_iterations=max_iterations)
+    # started from the N and N/2 orbits extrapolated with the order (where the step's error is in its
+    # asymptotic range, which this level checks, x_{N/4} - x_{N/2} = 2^p (x_{N/2} - x_N)), by chord
+    # iterations with the N-step orbit's ``monodromy`` (periods without their own)
+    guess = coarse_state if state is None else coarse_state + 2**ORDER * (coarse_state - state)
+    quarter = periodic.find_orbit(quarter_map, guess, speed, tol=tol, max_iterations=max_iterations,
+                                  monodromy=monodromy)
+    if not quarter.converged:    # the extrapolation failed (e.g. a state outside the linkage): from N/2
+        quarter = periodic.find_orbit(quarter_map, coarse_state, speed, tol=tol, max_iterations=max_iterations,
+                                      monodromy=monodromy)
     if quarter.converged:
         _, z_quarter, quarter_substeps = orbit_observables(linear, quarter_map, quarter.state,
                                                            observables=False)
@@ -396,23 +424,33 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
 
 
 def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_steps: int = 256,
-                           tol: float = TOL, max_iterations: int = MAX_ITERATIONS) -> NonlinearSteadyState:
+                           tol: float = TOL, max_iterations: int = MAX_ITERATIONS,
+                           modes: Any = AUTO) -> NonlinearSteadyState:
     """The periodic solution of the full nonlinear constrained equations at ``values`` by shooting:
     Newton on the independent coordinates and rates at t = 0 (``mechanisms.PeriodMap``: one period of
     ``mechanisms.simulate``'s integrator on ``n_steps`` steps, the monodromy from its iteration
     matrices), started from the linear periodic state (``studies.steady_state``'s). The orbit is found
     again on ``n_steps / 2`` steps for the error estimates. A Newton that does not converge gives
-    status ``failed`` with the reason, not an exception."""
+    status ``failed`` with the reason, not an exception.
+
+    ``modes``: ``"auto"`` (default) the elastic element-model links reduced to the fewest modes whose
+    reduction check (against two more modes) stays within 0.1 % of each peak-to-peak, its error in
+    ``reduction_error``; ``"full"`` (or None) the element models as the scene has them; a count: every
+    such link reduced to it (``studies._kinds._nonlinear_model``)."""
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a nonlinear steady state")
     check_integer("max_iterations", max_iterations, 1)
     if not (isinstance(tol, (int, float)) and 0.0 < tol < 1.0):
         raise StudiesError(f"tol: expected a relative residual in (0, 1), got {tol!r}")
+    given, given_values, modes = problem, values, check_modes(modes)
+    choice = choose_model(problem, values, modes) if getattr(problem, "supports_nonlinear", False) else None
+    if choice is not None:
+        problem, values = choice.problem, choice.values
     setup = shooting_setup(problem, values, n_steps)
     linear, fine = setup.linear, setup.fine
     fine.warm_up()
     started = time.perf_counter()
     coarse = _Recording(setup.coarse)
-    parameters = problem.resolve(values)
+    parameters = given.resolve(given_values)
     speed = float(parameters.get("speed", 0.0))
     orbit = periodic.find_orbit(fine, setup.guess, speed, tol=tol, max_iterations=max_iterations,
                                 estimate=coarse, error_factor=ERROR_FACTOR)
@@ -425,20 +463,26 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
         reasons.append(substep_reason(n_substeps, n_steps))
         if coarse.last is not None and np.isfinite(orbit.state_error):
             errors, trust = _error_estimates(setup, response, z, coarse.last, speed, tol=tol,
-                                             max_iterations=max_iterations)
+                                             max_iterations=max_iterations, monodromy=orbit.monodromy,
+                                             state=orbit.state)
             reasons += trust
     else:
         response = {spec: np.full(n_steps + 1, np.nan) for spec in specs}
         z = np.full((n_steps + 1, fine.independent.size + fine.n_lags), np.nan)
+    if choice is not None and choice.modes and choice.relative > MAX_RELATIVE_ERROR:
+        reasons.append(f"raise modes (or modes = 'full'): {choice.message}")
     status, message = untrusted_verdict(orbit.status, orbit.message, [r for r in reasons if r])
+    if choice is not None and choice.message:
+        message += f"; {', '.join(f'{k} {v} modes' for k, v in choice.modes.items()) or 'model'}: {choice.message}"
     run_time = time.perf_counter() - started
     if orbit.converged:
         nonlinear_ptp, linear_ptp = (peaks_of(r, {})["peak_to_peak"] for r in (response, linear_response))
         ratios = ", ".join(f"{spec} {nonlinear_ptp[spec] / linear_ptp[spec]:.4g}"
                            for spec in specs if linear_ptp[spec] > 0)
         message += f"; peak to peak nonlinear / linear: {ratios}"
+    linear_time = setup.run_time + (choice.run_time if choice is not None else 0.0)
     return NonlinearSteadyState(
-        problem=problem.name, parameters=parameters, scene=problem.text, labels=tuple(linear.labels),
+        problem=given.name, parameters=parameters, scene=given.text, labels=tuple(linear.labels),
         units=dict(zip(specs, linear.units)), t=np.asarray(linear.system.t, dtype=float),
         crank_angle=np.asarray(linear.crank_angle, dtype=float), x=z, response=response,
         response_error=errors, linear_response=linear_response, state=orbit.state,
@@ -447,8 +491,10 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
         iterations=orbit.iterations, map_calls=orbit.map_calls, residual=orbit.residual,
         status=status, message=message, is_stable=orbit.is_stable,
         instability_kind="" if orbit.bifurcation == "none" else orbit.bifurcation, n_steps=n_steps,
-        run_time=run_time + setup.run_time, linear_run_time=setup.run_time, shooting_run_time=run_time,
-        settings={"n_steps": n_steps, "tol": tol, "max_iterations": max_iterations})
+        run_time=run_time + linear_time, linear_run_time=linear_time, shooting_run_time=run_time,
+        settings={"n_steps": n_steps, "tol": tol, "max_iterations": max_iterations, "modes": modes},
+        reduced_modes=dict(choice.modes) if choice is not None else {},
+        reduction_error=dict(choice.error) if choice is not None and choice.modes else {})
 
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
@@ -456,12 +502,22 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
             "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS),
             "tol": number(where, "tol", table.get("tol", TOL), positive=True),
             "max_iterations": integer(where, "max_iterations", table.get("max_iterations", MAX_ITERATIONS), 1,
-                                      maximum=MAX_NEWTON, why=NEWTON_WHY)}
+                                      maximum=MAX_NEWTON, why=NEWTON_WHY),
+            "modes": modes_option(where, table)}
+
+
+def modes_option(where: str, table: Mapping[str, Any]) -> Any:
+    """The table's ``modes`` ("auto", "full" or a mode count; default "auto"), checked
+    (``StudiesError`` naming the table)."""
+    try:
+        return check_modes(table.get("modes", AUTO))
+    except StudiesError as error:
+        raise StudiesError(f"{where}: {error}") from None
 
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> NonlinearSteadyState:
     return nonlinear_steady_state(problem, options["values"], n_steps=options["n_steps"], tol=options["tol"],
-                                  max_iterations=options["max_iterations"])
+                                  max_iterations=options["max_iterations"], modes=options.get("modes", AUTO))
 
 
 def _summary(result: NonlinearSteadyState) -> str:
@@ -505,6 +561,7 @@ def warm_up_shooting(problem: Any) -> None:
 
 
 KIND = register_kind(StudyKind(
-    name="nonlinear_steady_state", result=NonlinearSteadyState, keys=("speed", "n_steps", "tol", "max_iterations"),
+    name="nonlinear_steady_state", result=NonlinearSteadyState,
+    keys=("speed", "n_steps", "tol", "max_iterations", "modes"),
     check=_check, run=_run, summary=_summary, headlines=_headlines, cost=_cost, warm_up=warm_up_shooting,
     aliases=("NonlinearSteadyState",)))

@@ -37,10 +37,12 @@ from .._toolkit import (
     largest_over_grid,
     number,
 )
+from ._nonlinear_model import AUTO, check_modes, choose_model
 from .nonlinear_steady_state import (
     ERROR_FACTOR,
     MIN_STEPS,
     TOL,
+    modes_option,
     orbit_observables,
     shooting_setup,
     substep_verdict,
@@ -145,6 +147,8 @@ class NonlinearSweep(StudyResult):
     settings: Mapping[str, Any] = field(default_factory=dict)
     peak: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
+    reduced_modes: Mapping[str, int] = field(default_factory=dict)
+    reduction_error: Mapping[str, float] = field(default_factory=dict)
 
     # written as "statuses" (a tuple) before the results shared their field names
     _stored_as = {"point_status": ("point_status", "statuses")}
@@ -220,6 +224,10 @@ class _ParameterMap:
         end, monodromy = self.at(float(value))(y * self.scale)
         return end / self.scale, monodromy * self.scale[None, :] / self.scale[:, None]
 
+    def end_state(self, y: np.ndarray, value: float) -> np.ndarray:
+        """A period without its monodromy (``periodic``'s chord iterations), scaled as ``__call__``."""
+        return self.at(float(value)).end_state(y * self.scale) / self.scale
+
 
 class _CoarseOrbits:
     """The period map on N/2 steps given to ``periodic.continue_orbits`` as ``estimate``; it keeps, for
@@ -233,18 +241,26 @@ class _CoarseOrbits:
         self.states[float(value)] = np.array(y, dtype=float)
         return self.period_map(y, value)
 
+    def end_state(self, y: np.ndarray, value: float) -> np.ndarray:
+        self.states[float(value)] = np.array(y, dtype=float)
+        return self.period_map.end_state(y, value)
+
 
 def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop: float,
                     values: Mapping[str, float] | None = None, n_steps: int = 128, step: float | None = None,
                     method: str = "natural", tol: float = TOL, max_points: int = 100,
-                    stop_at_instability: bool = True, transient_periods: int = TRANSIENT_PERIODS
-                    ) -> NonlinearSweep:
+                    stop_at_instability: bool = True, transient_periods: int = TRANSIENT_PERIODS,
+                    modes: Any = AUTO) -> NonlinearSweep:
     """Follow the nonlinear periodic orbit (``studies.nonlinear_steady_state``'s, ``n_steps`` per
     period) from ``parameter = start`` (started from the linear periodic state there) to ``stop`` with
     ``periodic.continue_orbits`` (``method`` "natural" or "arclength" through folds, ``step`` in units
     of the parameter). Where the orbit loses stability (with ``stop_at_instability`` the branch ends
     there), a transient of ``transient_periods`` periods from the last stable orbit, just past that
-    point, says what the machine does instead. The linear response over the range is computed too."""
+    point, says what the machine does instead. The linear response over the range is computed too.
+
+    ``modes`` as for ``studies.nonlinear_steady_state`` (default ``"auto"``: the elastic links reduced to
+    the fewest modes the reduction check accepts at ``start``; the linear curves are of the same
+    model; ``"full"``: the element models)."""
     check_parameter(problem, parameter)
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a nonlinear sweep")
     check_integer("max_points", max_points, 2)
@@ -262,6 +278,12 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
                            f"removes the controller's state from the orbit), got {start!r} .. {stop!r}")
     started = time.perf_counter()
     fixed = {k: v for k, v in (values or {}).items() if k != parameter}
+    given, modes = problem, check_modes(modes)
+    choice = (choose_model(problem, dict(fixed, **{parameter: start}), modes)
+              if getattr(problem, "supports_nonlinear", False) else None)
+    if choice is not None and choice.modes:
+        # the reduced mechanism carries the fixed values; the speed stays a value of each point
+        problem, fixed = choice.problem, {k: v for k, v in fixed.items() if k == SPEED}
     first = shooting_setup(problem, dict(fixed, **{parameter: start}), n_steps)
     m = first.fine.independent.size
     guess = first.guess
@@ -308,6 +330,9 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
     after, transient_value, transient_t, transient = _after_instability(
         problem, period_map, branch, fixed, parameter, n_steps, transient_periods, specs)
     message = branch.message + (f"; {after}" if after else "")
+    if choice is not None and choice.message:
+        reduced = ", ".join(f"{k} {v} modes" for k, v in choice.modes.items()) or "model"
+        message += f"; {reduced} (checked at {parameter} = {start:g}): {choice.message}"
     status = branch.status
     if split:
         # the bifurcations were detected on these monodromies too: they are as approximate
@@ -315,7 +340,7 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
         message += f" (at {parameter} = {', '.join(split)})"
     unit = problem.units.get(parameter, "SI")
     return NonlinearSweep(
-        problem=problem.name, scene=problem.text, parameter=parameter, parameter_unit=unit,
+        problem=given.name, scene=given.text, parameter=parameter, parameter_unit=unit,
         units=dict(zip(specs, first.linear.units)), values=np.asarray(branch.parameters, dtype=float),
         peak_to_peak={s: np.array(v, dtype=float) for s, v in nonlinear.items()},
         peak_to_peak_error={s: np.array(v, dtype=float) for s, v in nonlinear_error.items()},
@@ -332,7 +357,9 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
         status=status, message=message, run_time=time.perf_counter() - started,
         settings={"parameter": parameter, "start": start, "stop": stop, "n_steps": n_steps, "method": method,
                   "tol": tol, "max_points": max_points, "stop_at_instability": stop_at_instability,
-                  "transient_periods": transient_periods})
+                  "transient_periods": transient_periods, "modes": modes},
+        reduced_modes=dict(choice.modes) if choice is not None else {},
+        reduction_error=dict(choice.error) if choice is not None and choice.modes else {})
 
 
 def _coarse_response(linear: Any, coarse: _CoarseOrbits, orbit: Any, value: float) -> tuple[dict, int]:
@@ -420,7 +447,8 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
             "stop_at_instability": boolean(where, "stop_at_instability", table.get("stop_at_instability", True)),
             "transient_periods": integer(where, "transient_periods",
                                          table.get("transient_periods", TRANSIENT_PERIODS), 4,
-                                         maximum=MAX_PERIODS, why=PERIODS_WHY)}
+                                         maximum=MAX_PERIODS, why=PERIODS_WHY),
+            "modes": modes_option(where, table)}
 
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> NonlinearSweep:
@@ -479,6 +507,6 @@ def _cost(name, problem, options, workers):
 KIND = register_kind(StudyKind(
     name="nonlinear_sweep", result=NonlinearSweep,
     keys=("parameter", "start", "stop", "step", "method", "n_steps", "tol", "max_points", "stop_at_instability",
-          "transient_periods"),
+          "transient_periods", "modes"),
     check=_check, run=_run, summary=_summary, varies=lambda options: (options["parameter"],),
     headlines=_headlines, cost=_cost, warm_up=warm_up_shooting, aliases=("NonlinearSweep",)))

@@ -1,0 +1,262 @@
+"""Nonlinear periodic state of the six-bar (8 elements per elastic link, 100 rad/s): flexvib's shooting
+against the Exudyn transient at matched accuracy (issue 24), side by side in one process.
+
+- flexvib: ``studies.nonlinear_steady_state`` with its defaults (256 steps, the links reduced by the
+  reduction check, ``modes="auto"``), and the full element models (``modes="full"``); the wall time of
+  the call (the reduction check, the linear start, the shooting on N, N/2, N/4 with the multipliers
+  and the error estimates; JIT compiled before, by a warm-up call).
+- Exudyn (``pip install exudyn``, not a flexvib dependency): the same mechanism, the crank, the plate
+  and the output rocker as ``ObjectRigidBody2D``, links 2 and 4 as 8 ``ObjectANCFCable2D`` elements each
+  (axial and bending strain, stiffness-proportional damping, the scene's Rayleigh beta), revolute
+  joints, the crank speed imposed at velocity level; generalised-alpha (spectral radius 0.8) with
+  ``--exudyn-steps`` (720) steps per revolution from the nominal rigid motion. Its periodic answer is
+  the last revolution of a ``--long`` (60) revolution run; the timed run stops at the fewest
+  revolutions whose last one is within ``--accuracy`` (0.05 %) of that answer's peak-to-peak, for
+  every observable.
+- Without Exudyn the baseline is flexvib's own transient (``mechanisms.simulate`` from the rigid
+  start, 256 steps per revolution, the same stopping rule against flexvib's orbit), and the issue's
+  Exudyn figure (3.2 s) is printed as given.
+
+The machine is shared: medians of ``--repeats`` interleaved runs; compare ratios, not seconds.
+
+Usage: ``.venv/bin/python benchmarks/bench_nonlinear_exudyn.py [--repeats 3] [--quick]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import time
+
+import numpy as np
+
+import mechanisms
+import studies
+
+SCENE = "six_bar"
+ELEMENTS = 8
+LINKS = ("link2", "link4")
+SPECS = tuple(f"{name}.deflection@0.5" for name in LINKS)
+PATHS = tuple(f"links.{name}.discretisation.n_elements" for name in LINKS)
+#: The issue's figure of the Exudyn run (one run on this machine, session 6).
+ISSUE_EXUDYN_SECONDS = 3.2
+
+
+def problem_and_values():
+    problem = studies.MechanismProblem.from_scene(SCENE, parameter_paths=PATHS)
+    return problem, {"speed": 100.0, **{path: ELEMENTS for path in PATHS}}
+
+
+def flexvib(problem, values, modes):
+    """(wall s, result) of the nonlinear periodic state."""
+    started = time.perf_counter()
+    result = studies.nonlinear_steady_state(problem, values, modes=modes)
+    return time.perf_counter() - started, result
+
+
+def exudyn_run(mechanism, n_revolutions: int, steps: int):
+    """Exudyn from the nominal rigid motion: (midspan deflections {spec: (k,)} relative to each link's
+    chord, sampled at every step, m; run time s)."""
+    import exudyn as exu
+    from exudyn.itemInterface import (
+        MarkerBodyPosition,
+        MarkerNodeCoordinate,
+        NodePoint2DSlope1,
+        NodePointGround,
+        NodeRigidBody2D,
+        ObjectANCFCable2D,
+        ObjectConnectorCoordinate,
+        ObjectGround,
+        ObjectJointRevolute2D,
+        ObjectRigidBody2D,
+        SensorNode,
+    )
+
+    nominal = mechanisms.nominal_motion(mechanism, n_steps=64)
+    labels = list(nominal.model.coord_labels)
+    s0, v0 = nominal.s[0], nominal.sdot[0]
+
+    def frame(name):
+        i = labels.index(f"{name}.x")
+        return s0[i:i + 3], v0[i:i + 3]
+
+    SC = exu.SystemContainer()
+    mbs = SC.AddSystem()
+    ground = mbs.AddObject(ObjectGround(referencePosition=[0, 0, 0]))
+    markers = {}     # (link, point name) -> marker
+
+    def rotate(theta, p):
+        c, s = math.cos(theta), math.sin(theta)
+        return np.array([c * p[0] - s * p[1], s * p[0] + c * p[1]])
+
+    def rigid(link, named):
+        (x, y, theta), (vx, vy, omega) = frame(link.name)
+        centroid = np.array(link.centroid if link.centroid is not None else (0.5 * link.length, 0.0))
+        arm = rotate(theta, centroid)
+        node = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[x + arm[0], y + arm[1], theta],
+                                           initialVelocities=[vx - omega * arm[1], vy + omega * arm[0], omega]))
+        body = mbs.AddObject(ObjectRigidBody2D(nodeNumber=node, mass=link.mass, inertia=link.inertia))
+        points = {"start": (0.0, 0.0), "end": (link.length, 0.0), **dict(link.points or {})}
+        for name in named:
+            local = np.array(points[name]) - centroid
+            markers[link.name, name] = mbs.AddMarker(MarkerBodyPosition(bodyNumber=body,
+                                                                        localPosition=[*local, 0.0]))
+        return node
+
+    sensors = {}
+
+    def elastic(link):
+        (x, y, theta), (vx, vy, omega) = frame(link.name)
+        e = np.array([math.cos(theta), math.sin(theta)])
+        normal = np.array([-e[1], e[0]])
+        element = link.length / ELEMENTS
+        nodes = []
+        for k in range(ELEMENTS + 1):
+            xi = k * element
+            position = np.array([x, y]) + xi * e
+            velocity = np.array([vx, vy]) + omega * xi * normal
+            nodes.append(mbs.AddNode(NodePoint2DSlope1(referenceCoordinates=[*position, *e],
+                                                       initialVelocities=[*velocity, *(omega * normal)])))
+        EA, EI = link.youngs_modulus * link.area, link.youngs_modulus * link.second_moment
+        beta = link.damping.beta
+        cables = [mbs.AddObject(ObjectANCFCable2D(
+            nodeNumbers=[nodes[k], nodes[k + 1]], length=element, massPerLength=link.density * link.area,
+            bendingStiffness=EI, axialStiffness=EA, bendingDamping=beta * EI, axialDamping=beta * EA))
+            for k in range(ELEMENTS)]
+        markers[link.name, "start"] = mbs.AddMarker(MarkerBodyPosition(bodyNumber=cables[0],
+                                                                       localPosition=[0, 0, 0]))
+        markers[link.name, "end"] = mbs.AddMarker(MarkerBodyPosition(bodyNumber=cables[-1],
+                                                                     localPosition=[element, 0, 0]))
+        sensors[link.name] = [mbs.AddSensor(SensorNode(nodeNumber=nodes[k], storeInternal=True,
+                                                       outputVariableType=exu.OutputVariableType.Position))
+                              for k in (0, ELEMENTS // 2, ELEMENTS)]
+
+    link = mechanism.link
+    crank = rigid(link("crank"), ("start", "end"))
+    rigid(link("plate"), ("start", "end", "C"))
+    rigid(link("output"), ("start", "end"))
+    for name in LINKS:
+        elastic(link(name))
+
+    def ground_point(x, y):
+        return mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground, localPosition=[x, y, 0]))
+
+    pairs = [(ground_point(0.0, 0.0), markers["crank", "start"]),
+             (markers["crank", "end"], markers["link2", "start"]),
+             (markers["link2", "end"], markers["plate", "end"]),
+             (ground_point(0.30, 0.0), markers["plate", "start"]),
+             (markers["plate", "C"], markers["link4", "start"]),
+             (markers["link4", "end"], markers["output", "end"]),
+             (ground_point(0.60, 0.0), markers["output", "start"])]
+    for a, b in pairs:
+        mbs.AddObject(ObjectJointRevolute2D(markerNumbers=[a, b]))
+    speed = mechanism.drives[0].rate
+    fixed = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=mbs.AddNode(NodePointGround()), coordinate=0))
+    crank_angle = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=crank, coordinate=2))
+    mbs.AddObject(ObjectConnectorCoordinate(markerNumbers=[fixed, crank_angle], offset=speed, velocityLevel=True))
+    mbs.Assemble()
+
+    period = 2.0 * math.pi / abs(speed)
+    settings = exu.SimulationSettings()
+    settings.timeIntegration.numberOfSteps = n_revolutions * steps
+    settings.timeIntegration.endTime = n_revolutions * period
+    settings.timeIntegration.generalizedAlpha.spectralRadius = 0.8
+    settings.timeIntegration.verboseMode = 0
+    settings.solutionSettings.writeSolutionToFile = False
+    settings.solutionSettings.sensorsWritePeriod = period / steps
+    started = time.perf_counter()
+    mbs.SolveDynamic(settings)
+    run_time = time.perf_counter() - started
+    deflections = {}
+    for name, spec in zip(LINKS, SPECS):
+        a, m, b = (mbs.GetSensorStoredData(s) for s in sensors[name])
+        chord = b[:, 1:3] - a[:, 1:3]
+        chord /= np.linalg.norm(chord, axis=1)[:, None]
+        offset = m[:, 1:3] - a[:, 1:3]
+        deflections[spec] = chord[:, 0] * offset[:, 1] - chord[:, 1] * offset[:, 0]
+    return deflections, run_time
+
+
+def revolutions_to(series: dict, steps: int, limit: dict, accuracy: float) -> int | None:
+    """The fewest revolutions k whose k-th is within ``accuracy`` of ``limit``'s peak-to-peak for every
+    spec (``series`` sampled ``steps`` per revolution from t = 0, ``limit`` one revolution)."""
+    n_revolutions = (min(v.size for v in series.values()) - 1) // steps
+    for k in range(1, n_revolutions + 1):
+        if all(np.abs(series[spec][(k - 1) * steps:k * steps + 1][:limit[spec].size] - limit[spec]).max()
+               <= accuracy * np.ptp(limit[spec]) for spec in limit):
+            return k
+    return None
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--accuracy", type=float, default=5e-4)
+    parser.add_argument("--exudyn-steps", type=int, default=720)
+    parser.add_argument("--long", type=int, default=60, help="revolutions of the runs giving the limits")
+    parser.add_argument("--quick", action="store_true", help="one repeat")
+    args = parser.parse_args()
+    repeats = 1 if args.quick else args.repeats
+    problem, values = problem_and_values()
+    mechanism = problem.mechanism({path: ELEMENTS for path in PATHS})
+    for modes in ("auto", "full"):      # JIT compilation and the caches of the scene's models
+        studies.nonlinear_steady_state(problem, values, n_steps=32, max_iterations=1, modes=modes)
+    try:
+        import exudyn  # noqa: F401
+        have_exudyn = True
+    except ImportError:
+        have_exudyn = False
+
+    _, orbit = flexvib(problem, values, "full")
+    if have_exudyn:
+        steps = args.exudyn_steps
+        long_run, _ = exudyn_run(mechanism, args.long, steps)
+        limit = {spec: v[-steps - 1:] for spec, v in long_run.items()}
+        baseline = "Exudyn"
+    else:
+        steps = orbit.n_steps
+        run = mechanisms.simulate(mechanism, n_periods=args.long, steps_per_period=steps, estimate_error=False,
+                                  observables=list(SPECS))
+        long_run = {spec: np.asarray(run.observables[spec]) for spec in SPECS}
+        limit = {spec: np.asarray(orbit.response[spec]) for spec in SPECS}
+        baseline = "flexvib transient"
+    revolutions = revolutions_to(long_run, steps, limit, args.accuracy)
+    if revolutions is None:
+        raise SystemExit(f"{baseline} did not settle within {args.accuracy:g} in {args.long} revolutions")
+
+    times: dict[str, list[float]] = {"auto": [], "full": [], "baseline": []}
+    results = {}
+    for _ in range(repeats):
+        for modes in ("auto", "full"):
+            seconds, results[modes] = flexvib(problem, values, modes)
+            times[modes].append(seconds)
+        if have_exudyn:
+            times["baseline"].append(exudyn_run(mechanism, revolutions, steps)[1])
+        else:
+            started = time.perf_counter()
+            mechanisms.simulate(mechanism, n_periods=revolutions, steps_per_period=steps, estimate_error=False,
+                                observables=list(SPECS))
+            times["baseline"].append(time.perf_counter() - started)
+    median = {key: statistics.median(value) for key, value in times.items()}
+    print(f"{SCENE}, {ELEMENTS} elements per elastic link, 100 rad/s; accuracy {args.accuracy:g} of the "
+          f"peak-to-peak; medians of {repeats} interleaved runs (shared machine)")
+    print(f"{baseline}: {steps} steps per revolution x {revolutions} revolutions: {median['baseline']:.3f} s"
+          + ("" if have_exudyn else f" (Exudyn not installed; the issue's Exudyn figure: {ISSUE_EXUDYN_SECONDS} s)"))
+    for modes in ("auto", "full"):
+        result = results[modes]
+        words = ", ".join(
+            f"{spec} p2p {result.peak_to_peak[spec] * 1e3:.4f} mm +- {result.response_error[spec] * 1e3:.2g} "
+            f"(time step) +- {result.reduction_error.get(spec, 0.0) * 1e3:.2g} (reduction) mm"
+            for spec in SPECS)
+        print(f"flexvib nonlinear_steady_state modes={modes} {result.reduced_modes or ''}: "
+              f"{median[modes]:.3f} s, {result.status}, {result.map_calls} period maps; {words}; "
+              f"ratio {baseline} / flexvib {median['baseline'] / median[modes]:.1f}")
+    for spec in SPECS:
+        print(f"{spec}: {baseline} limit p2p {np.ptp(limit[spec]) * 1e3:.4f} mm, flexvib full / {baseline} "
+              f"{results['full'].peak_to_peak[spec] / np.ptp(limit[spec]):.4f}, reduced / full "
+              f"{results['auto'].peak_to_peak[spec] / results['full'].peak_to_peak[spec]:.6f}")
+
+
+if __name__ == "__main__":
+    main()
