@@ -140,6 +140,10 @@ class SteadyState:
         The scheme used.
     run_time : float
         Wall time in s, including the N/2 and N/4 runs.
+    coarse_monodromy : ndarray (s, s) or None
+        ``Phi`` of the N/2-step run (None when skipped), and ``v_coarse``, ``a_coarse`` (N/2+1, n) its
+        periodic rates and accelerations: what ``periodic.response_derivative`` differentiates for
+        its error estimate without a second shooting.
     """
 
     t: np.ndarray
@@ -170,6 +174,9 @@ class SteadyState:
     extrapolated: bool
     scheme: Scheme
     run_time: float
+    coarse_monodromy: np.ndarray | None = None
+    v_coarse: np.ndarray | None = None
+    a_coarse: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -220,6 +227,7 @@ def steady_state(
     phi, x, v, a = fine.phi, fine.x, fine.v, fine.a
     error_estimate = error_factor = error_ratio = float("nan")
     x_coarse = x_quarter = multiplier_errors = radius_errors = check = None
+    coarse = None
     coarse_multipliers = quarter_multipliers = None
     multipliers, step_rates = analyse_multipliers(phi, system)
     if estimate_error or extrapolate:
@@ -296,6 +304,9 @@ def steady_state(
         extrapolated=bool(extrapolate),
         scheme=scheme,
         run_time=time.perf_counter() - start,
+        coarse_monodromy=None if coarse is None else coarse.phi,
+        v_coarse=None if coarse is None else coarse.v,
+        a_coarse=None if coarse is None else coarse.a,
     )
 
 
