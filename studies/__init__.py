@@ -40,6 +40,8 @@ from ._kinds.optimize import OptimizeResult as OptimizeResult
 from ._kinds.optimize import StabilityMargin as StabilityMargin
 from ._kinds.optimize import TorqueLimit as TorqueLimit
 from ._kinds.optimize import optimize as optimize
+from ._kinds.sensitivity import SensitivityResult as SensitivityResult
+from ._kinds.sensitivity import sensitivity as sensitivity
 from ._kinds.stability_chart import StabilityChart as StabilityChart
 from ._kinds.stability_chart import stability_chart as stability_chart
 from ._kinds.steady_state import SteadyStateResult as SteadyStateResult
@@ -84,9 +86,11 @@ __all__ = [
     "FrequencySeparation",
     "MassBudget",
     "OptimizeResult",
+    "SensitivityResult",
     "StabilityMargin",
     "TorqueLimit",
     "optimize",
+    "sensitivity",
     "Description",
     "Estimate",
     "ResourceError",

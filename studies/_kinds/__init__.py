@@ -23,5 +23,6 @@ from . import (  # noqa: F401
     error_cost,
     control_comparison,
     optimize,
+    sensitivity,
 )
 # isort: on
