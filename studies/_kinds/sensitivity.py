@@ -64,8 +64,8 @@ class SensitivityResult(StudyResult):
     peak_derivative, peak_derivative_error, rms_derivative, rms_derivative_error : dict, {spec: {name: float}}
         The same for each observable's peak (largest magnitude) and RMS.
     radius_derivative, radius_derivative_error : dict, {name: float}, 1 / parameter_units[name]
-        d |mu| / d parameter of the critical multiplier (the one that decides stability; NaN when it is
-        repeated) and its error.
+        d |mu| / d parameter of the critical multiplier mu (the one that decides stability, whose modulus
+        is ``critical_modulus``; NaN when it is repeated) and its error.
     normalised : dict, {headline: {spec: {name: float}}}, 1
         ``d ln y / d ln p = (p / y) dy/dp`` for headline "peak_to_peak", "peak", "rms" (and
         "spectral_radius" with the one spec "critical multiplier"); NaN where y or p is 0.
@@ -79,8 +79,12 @@ class SensitivityResult(StudyResult):
         Each observable's RMS over the period and its error.
     peak, peak_error, peak_to_peak, peak_to_peak_error : dict, {spec: float}, units[spec]
         The headlines themselves with their errors (not differentiated).
+    critical_modulus : float, 1
+        |critical multiplier|: the spectral radius over the resolved modes (``spectral_radius``, the
+        largest modulus of all, also counts modes the step does not resolve; the message says when
+        they differ).
     spectral_radius, spectral_radius_error : float, 1
-        |critical multiplier| and its error.
+        The steady state's spectral radius and its error (as ``steady_state`` reports them).
     methods : dict, {name: str}
         How each parameter's coefficient derivative was taken: "forward" (the kinematics do not move) or
         "central" difference of the linearisation's coefficients.
@@ -117,6 +121,7 @@ class SensitivityResult(StudyResult):
     run_time: float
     spectral_radius: float = float("nan")
     spectral_radius_error: float = float("nan")
+    critical_modulus: float = float("nan")
     tolerances: Mapping[str, float] = field(default_factory=dict)
     input_band: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     rms: Mapping[str, float] = field(default_factory=dict)
@@ -148,7 +153,7 @@ class SensitivityResult(StudyResult):
         artists: dict[str, list] = {}
         rows = [(spec, "peak_to_peak", self.derivative_error[spec], self.peak_to_peak.get(spec, math.nan))
                 for spec in specs]
-        rows.append(("critical multiplier", "spectral_radius", self.radius_derivative_error, self.spectral_radius))
+        rows.append(("critical multiplier", "spectral_radius", self.radius_derivative_error, self.critical_modulus))
         for ax, (spec, headline, errors, value) in zip(axes, rows):
             ranked = self.ranked(spec, headline)
             names = [name for name, _ in ranked][::-1]
@@ -278,6 +283,10 @@ def sensitivity(problem: Any, values: Mapping[str, float] | None = None, *, para
     if point.repeated:
         parts.append(("inaccurate", point.radius_message))
     status, message = combine(parts)
+    if not math.isclose(critical, state.spectral_radius, rel_tol=1e-12):
+        note = (f"the radius derivative is that of the critical multiplier (|mu| = {critical:.6g}); the spectral "
+                f"radius {state.spectral_radius:.6g} is that of a mode the step does not resolve")
+        message = f"{message}; {note}" if message else note
     units = dict(zip(specs, linear.units))
     return SensitivityResult(
         problem=problem.name, parameters=point.values, scene=problem.text, names=names,
@@ -287,7 +296,8 @@ def sensitivity(problem: Any, values: Mapping[str, float] | None = None, *, para
         rms_derivative=tables["rms"], rms_derivative_error=error_tables["rms"],
         radius_derivative=radius, radius_derivative_error=radius_error, normalised=normalised,
         status=status, message=message, n_steps=n_steps, run_time=time.perf_counter() - started,
-        spectral_radius=float(critical), spectral_radius_error=float(steady.spectral_radius_error),
+        spectral_radius=float(state.spectral_radius), spectral_radius_error=float(steady.spectral_radius_error),
+        critical_modulus=float(critical),
         tolerances=tolerances, input_band=band, rms=rms,
         rms_error={spec: float(steady.response_error[k]) for k, spec in enumerate(specs)},
         peak={spec: float(summary["peak"][k]) for k, spec in enumerate(specs)},
