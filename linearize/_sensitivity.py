@@ -20,7 +20,8 @@ import numpy as np
 
 import periodic
 
-__all__ = ["CENTRAL_STEP", "FORWARD_STEP", "coefficient_derivative", "same_configuration", "parameter_step"]
+__all__ = ["CENTRAL_STEP", "FORWARD_STEP", "coefficient_derivative", "keeps_configuration", "same_configuration",
+           "parameter_step"]
 
 #: Relative step of a forward difference (parameters that leave the kinematics alone).
 FORWARD_STEP = 1e-6
@@ -42,6 +43,21 @@ def same_configuration(a, b) -> bool:
         return False
     scale = max(float(np.abs(s_a).max()), 1.0)
     return float(np.abs(s_a - s_b).max()) <= 1e-13 * scale
+
+
+def keeps_configuration(mechanism, nominal, *, n_samples: int = 4) -> bool:
+    """Whether the nominal motion ``nominal`` (of a nearby mechanism) still meets ``mechanism``'s
+    constraints, at ``n_samples`` samples over the period, to ten times its own residual (and 1e-11): the
+    kinematics have not moved, without computing ``mechanism``'s nominal motion (a parameter change that
+    moves a pin by 1e-6 of a link's length leaves a residual of that size)."""
+    import mechanisms
+
+    model = mechanisms.assemble(mechanism)
+    if model.n_coords != nominal.s.shape[1]:
+        return False
+    tol = 10.0 * float(nominal.constraint_residual) + 1e-11
+    picks = np.linspace(0, len(nominal.t) - 1, n_samples, endpoint=False).astype(int)
+    return all(float(np.abs(model.constraints(nominal.s[k], nominal.t[k])).max(initial=0.0)) <= tol for k in picks)
 
 
 def coefficient_derivative(plus: periodic.PeriodicSystem, minus: periodic.PeriodicSystem,

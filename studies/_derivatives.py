@@ -66,12 +66,17 @@ class PointDerivatives:
     run_time: float
 
 
-def _same_configuration(a, b) -> bool:
-    """Whether the linearisations' contexts (``linearize`` results) share the nominal configuration;
-    False when there is none to compare (problems written down directly: a central difference)."""
-    if getattr(a.context, "nominal", None) is None or getattr(b.context, "nominal", None) is None:
+def _keeps_configuration(problem, params, name, linear) -> bool:
+    """Whether a forward step of parameter ``name`` leaves the point's nominal configuration alone
+    (``linearize.keeps_configuration`` on the mechanism at the step; a problem without a mechanism and a
+    nominal motion: False, a central difference)."""
+    nominal = getattr(linear.context, "nominal", None)
+    if nominal is None or not callable(getattr(problem, "mechanism", None)):
         return False
-    return linearize.same_configuration(a.context, b.context)
+    step = linearize.parameter_step(params[name], linearize.FORWARD_STEP)
+    changed = {key: value for key, value in params.items() if value != problem.parameters.get(key)}
+    changed[name] = params[name] + step
+    return linearize.keeps_configuration(problem.mechanism(changed), nominal)
 
 
 def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, linear=None,
@@ -82,6 +87,20 @@ def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, line
     started = time.perf_counter()
     params = problem.resolve(values)
     base_values = dict(values or {})
+    derivatives, neighbours, methods, steps = [], [], {}, {}
+    names = tuple(names)
+    # the speed first: its neighbours build the speed family (prescribed drives), whose base is then the
+    # point's own linearisation (not a second one)
+    order = sorted(range(len(names)), key=lambda j: names[j] != SPEED)
+    pending = {}
+    for j in order:
+        name = names[j]
+        if name != SPEED:
+            continue
+        step = linearize.parameter_step(params[name], linearize.CENTRAL_STEP)
+        pending[name] = (problem.linearize(dict(base_values, **{name: params[name] + step}), n_steps=n_steps),
+                         problem.linearize(dict(base_values, **{name: params[name] - step}), n_steps=n_steps),
+                         step, "central")
     if linear is None:
         linear = problem.linearize(base_values, n_steps=n_steps)
     linear_run_time = time.perf_counter() - started
@@ -89,24 +108,19 @@ def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, line
         steady = solve_steady(linear, scheme)
     started = time.perf_counter()
     system = linear.system
-    derivatives, neighbours, methods, steps = [], [], {}, {}
     for name in names:
-        nominal = params[name]
-        if name == SPEED:
-            step = linearize.parameter_step(nominal, linearize.CENTRAL_STEP)
-            plus = problem.linearize(dict(base_values, **{name: nominal + step}), n_steps=n_steps)
-            minus = problem.linearize(dict(base_values, **{name: nominal - step}), n_steps=n_steps)
-            methods[name], divisor = "central", 2.0 * step
+        if name in pending:
+            plus, minus, step, methods[name] = pending[name]
+            divisor = 2.0 * step
+        elif _keeps_configuration(problem, params, name, linear):
+            step = linearize.parameter_step(params[name], linearize.FORWARD_STEP)
+            plus = problem.linearize(dict(base_values, **{name: params[name] + step}), n_steps=n_steps)
+            minus, methods[name], divisor = linear, "forward", step
         else:
-            step = linearize.parameter_step(nominal, linearize.FORWARD_STEP)
-            plus = problem.linearize(dict(base_values, **{name: nominal + step}), n_steps=n_steps)
-            if _same_configuration(plus, linear):
-                minus, methods[name], divisor = linear, "forward", step
-            else:
-                step = linearize.parameter_step(nominal, linearize.CENTRAL_STEP)
-                plus = problem.linearize(dict(base_values, **{name: nominal + step}), n_steps=n_steps)
-                minus = problem.linearize(dict(base_values, **{name: nominal - step}), n_steps=n_steps)
-                methods[name], divisor = "central", 2.0 * step
+            step = linearize.parameter_step(params[name], linearize.CENTRAL_STEP)
+            plus = problem.linearize(dict(base_values, **{name: params[name] + step}), n_steps=n_steps)
+            minus = problem.linearize(dict(base_values, **{name: params[name] - step}), n_steps=n_steps)
+            methods[name], divisor = "central", 2.0 * step
         if plus.system.n_dof != system.n_dof or tuple(plus.labels) != tuple(linear.labels):
             raise StudiesError(f"parameter {name!r}: a change of {step:g} changes the coordinates "
                                f"({len(linear.labels)} -> {len(plus.labels)}): not a continuous parameter")
