@@ -225,12 +225,13 @@ def _radius(mu: complex, dmu: np.ndarray) -> np.ndarray:
 
 
 def response_derivative(system: PeriodicSystem, state, derivatives, *, scheme: Scheme | str = DEFAULT_SCHEME,
-                        estimate_error: bool = True) -> ResponseDerivative:
+                        estimate_error: bool = True, multiplier: bool = True) -> ResponseDerivative:
     """Derivatives of the periodic steady state ``state`` (a :class:`SteadyState` of ``system`` by
     ``scheme``, not extrapolated) and of its critical multiplier's modulus with respect to each
     :class:`SystemDerivative` in ``derivatives`` (P of them), by direct differentiation (module notes).
     ``estimate_error`` repeats the computation on the N/2 grid (the N/2 monodromy and solution that
-    ``steady_state`` kept) for the error estimates.  Costs two marches of P columns (four with the
+    ``steady_state`` kept) for the error estimates; ``multiplier=False`` skips the multiplier's derivative
+    (``radius`` NaN).  Costs two marches of P columns (four with the
     multiplier) per grid, against the shooting's march of 2n + 1 columns."""
     started = time.perf_counter()
     check_system(system)
@@ -250,8 +251,11 @@ def response_derivative(system: PeriodicSystem, state, derivatives, *, scheme: S
         raise PeriodicError("state: expected the N-step steady state of this system, not extrapolated "
                             "(periodic.steady_state(system, extrapolate=False))")
     dx, dv, da = _response(system, scheme, state.monodromy, state.x, state.v, state.a, derivatives)
-    dmu, repeated, why = _multiplier(system, scheme, state.monodromy, state.critical_multiplier, derivatives)
     n_p = len(derivatives)
+    if multiplier:
+        dmu, repeated, why = _multiplier(system, scheme, state.monodromy, state.critical_multiplier, derivatives)
+    else:
+        dmu, repeated, why = np.full(n_p, np.nan + 0j), False, "the multiplier's derivative was not asked for"
     x_coarse, factor = None, float("nan")
     error, radius_error = np.full(n_p, np.nan), np.full(n_p, np.nan)
     radius = _radius(state.critical_multiplier, dmu)
@@ -266,7 +270,7 @@ def response_derivative(system: PeriodicSystem, state, derivatives, *, scheme: S
                                    state.a_coarse, coarse_d)
         factor = scheme.error_factor
         error = factor * np.abs(dx[:, ::2] - x_coarse).max(axis=(1, 2))
-        if not repeated:
+        if multiplier and not repeated:
             coarse_values = np.linalg.eigvals(state.coarse_monodromy)
             coarse_mu = coarse_values[np.argmin(np.abs(coarse_values - state.critical_multiplier))]
             dmu_coarse, coarse_repeated, _ = _multiplier(coarse, scheme, state.coarse_monodromy, coarse_mu,

@@ -68,10 +68,13 @@ class PointDerivatives:
 
 def _keeps_configuration(problem, params, name, linear) -> bool:
     """Whether a forward step of parameter ``name`` leaves the point's nominal configuration alone
-    (``linearize.keeps_configuration`` on the mechanism at the step; a problem without a mechanism and a
-    nominal motion: False, a central difference)."""
+    (``linearize.keeps_configuration`` on the mechanism at the step); a problem without a mechanism has
+    no nominal motion whose Newton tolerance would enter the difference (its coefficients are closed
+    forms): True."""
+    if not callable(getattr(problem, "mechanism", None)):
+        return True
     nominal = getattr(linear.context, "nominal", None)
-    if nominal is None or not callable(getattr(problem, "mechanism", None)):
+    if nominal is None:
         return False
     step = linearize.parameter_step(params[name], linearize.FORWARD_STEP)
     changed = {key: value for key, value in params.items() if value != problem.parameters.get(key)}
@@ -80,10 +83,12 @@ def _keeps_configuration(problem, params, name, linear) -> bool:
 
 
 def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, linear=None,
-                      steady: Steady | None = None) -> PointDerivatives:
+                      steady: Steady | None = None, estimate_error: bool = True,
+                      multiplier: bool = True) -> PointDerivatives:
     """The derivatives of the steady state of ``problem`` at ``values`` with respect to ``names``
     (parameters of the problem), on ``n_steps`` steps with the scheme named ``scheme``; ``linear`` and
-    ``steady`` when already computed at that point."""
+    ``steady`` when already computed at that point; ``estimate_error=False`` skips the N/2 derivatives
+    (``coarse_*`` None, errors NaN), ``multiplier=False`` the radius's (NaN)."""
     started = time.perf_counter()
     params = problem.resolve(values)
     base_values = dict(values or {})
@@ -127,18 +132,23 @@ def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, line
         steps[name] = step
         derivatives.append(linearize.coefficient_derivative(plus.system, minus.system, divisor))
         neighbours.append((plus, minus, divisor, minus is linear))
-    found = periodic.response_derivative(system, steady.state, derivatives, scheme=study_scheme(scheme))
+    found = periodic.response_derivative(system, steady.state, derivatives, scheme=study_scheme(scheme),
+                                         estimate_error=estimate_error, multiplier=multiplier)
     state = steady.state
     response = steady.response
-    coarse_response = linear.observe(state.x_coarse, stride=2)
     dz, dz_coarse = found.x, found.x_coarse
     derivative = np.empty((len(names),) + response.shape)
-    coarse_derivative = np.empty((len(names),) + coarse_response.shape)
+    coarse_response = coarse_derivative = None
+    levels = [(derivative, state.x, dz, 1)]
+    if estimate_error:
+        coarse_response = linear.observe(state.x_coarse, stride=2)
+        coarse_derivative = np.empty((len(names),) + coarse_response.shape)
+        levels.append((coarse_derivative, state.x_coarse, dz_coarse, 2))
     for j, (plus, minus, divisor, forward) in enumerate(neighbours):
         # h dz moves z to first order as the parameter's step does; the maps' own change is differenced
         h = steps[names[j]]
-        for out, z, dzj, stride in ((derivative, state.x, dz[j], 1), (coarse_derivative, state.x_coarse,
-                                                                       dz_coarse[j], 2)):
+        for out, z, dz_level, stride in levels:
+            dzj = dz_level[j]
             upper = plus.observe(z + h * dzj, stride=stride)
             lower = minus.observe(z, stride=stride) if forward else minus.observe(z - h * dzj, stride=stride)
             out[j] = (upper - lower) / divisor
