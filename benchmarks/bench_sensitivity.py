@@ -8,7 +8,12 @@ Side by side in one process on ``four_bar_fem4`` (the thesis four-bar, 4-element
 N = 256 steps; each repeat at a slightly different point (a fresh thickness), so that neither side reuses
 the other's cached speed family or mechanisms.
 
-    PYTHONPATH=. python benchmarks/bench_sensitivity.py [--repeats 5]
+With ``--optimize``: ``benchmarks/bench_optimize.py``'s optimisation (two strain-feedback gains of
+``four_bar_controlled`` over 10 speeds, stability margin 0.05) with the sensitivities' gradients against
+the same with forward differences of whole sweeps (``gradient="differences"``, the method before issue 20),
+side by side, medians of ``--repeats``.
+
+    PYTHONPATH=. python benchmarks/bench_sensitivity.py [--repeats 5] [--optimize]
 """
 
 from __future__ import annotations
@@ -51,11 +56,37 @@ def central_differences(scene, names, point) -> float:
     return time.perf_counter() - start
 
 
+def optimise_both(repeats: int) -> None:
+    import bench_optimize as bench
+
+    scene = bench.problem()
+    runs = {}
+    for gradient in ("sensitivities", "differences"):
+        run = lambda: studies.optimize(scene, bench.BOUNDS, objective=bench.OBJECTIVE,  # noqa: E731
+                                       speeds=bench.SPEEDS, n_steps=bench.N_STEPS,
+                                       constraints=[studies.StabilityMargin(0.05)], gradient=gradient)
+        run()   # warm
+        times, found = [], None
+        for _ in range(repeats):
+            start = time.perf_counter()
+            found = run()
+            times.append(time.perf_counter() - start)
+        runs[gradient] = (statistics.median(times), found)
+        print(f"optimize, gradient = {gradient!r}: median {statistics.median(times):.1f} s of {repeats} "
+              f"({', '.join(f'{t:.1f}' for t in times)}); {found.n_evaluations} evaluations; x = "
+              f"{found.x[0]:.6g}, {found.x[1]:.6g}; objective {found.objective_value:.6g} m; {found.gradients}")
+    print(f"ratio sensitivities / differences: {runs['sensitivities'][0] / runs['differences'][0]:.2f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--optimize", action="store_true")
     args = parser.parse_args()
     warnings.simplefilter("ignore")
+    if args.optimize:
+        optimise_both(args.repeats)
+        return
     scene = problem()
     sensitivities(scene, PARAMETERS[2], {})   # warm: JIT compilation
     central_differences(scene, PARAMETERS[2], {})

@@ -346,8 +346,8 @@ def best_feasible(evaluator: Evaluator) -> tuple[np.ndarray, Evaluation]:
 def gradient_words(evaluator: Evaluator) -> str:
     """How the local method's gradients were taken, for the result's message."""
     if not evaluator.can_differentiate:
-        return f"gradients: {evaluator.gradient_words}"
-    words = f"gradients: {evaluator.gradient_words} at {evaluator.gradient_evaluations} points"
+        return evaluator.gradient_words
+    words = f"{evaluator.gradient_words} at {evaluator.gradient_evaluations} points"
     if evaluator.fallbacks:
         words += (f", forward differences of sweeps at {evaluator.fallbacks} where a derivative was not defined "
                   f"(a repeated multiplier, or an unresolved mode holding the spectral radius)")
