@@ -82,13 +82,25 @@ def _keeps_configuration(problem, params, name, linear) -> bool:
     return linearize.keeps_configuration(problem.mechanism(changed), nominal)
 
 
+def _forward(known: dict | None, name: str, decide) -> bool:
+    """Whether ``name`` takes a forward difference: ``known[name]``, else ``decide()`` (remembered)."""
+    if known is not None and name in known:
+        return known[name]
+    found = decide()
+    if known is not None:
+        known[name] = found
+    return found
+
+
 def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, linear=None,
                       steady: Steady | None = None, estimate_error: bool = True,
-                      multiplier: bool = True) -> PointDerivatives:
+                      multiplier: bool = True, forward: dict | None = None) -> PointDerivatives:
     """The derivatives of the steady state of ``problem`` at ``values`` with respect to ``names``
     (parameters of the problem), on ``n_steps`` steps with the scheme named ``scheme``; ``linear`` and
     ``steady`` when already computed at that point; ``estimate_error=False`` skips the N/2 derivatives
-    (``coarse_*`` None, errors NaN), ``multiplier=False`` the radius's (NaN)."""
+    (``coarse_*`` None, errors NaN), ``multiplier=False`` the radius's (NaN); ``forward`` {name: bool}
+    whether a parameter's forward difference is accurate (it leaves the kinematics alone), known from an
+    earlier point (filled in here for the others)."""
     started = time.perf_counter()
     params = problem.resolve(values)
     base_values = dict(values or {})
@@ -117,7 +129,7 @@ def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, line
         if name in pending:
             plus, minus, step, methods[name] = pending[name]
             divisor = 2.0 * step
-        elif _keeps_configuration(problem, params, name, linear):
+        elif _forward(forward, name, lambda name=name: _keeps_configuration(problem, params, name, linear)):
             step = linearize.parameter_step(params[name], linearize.FORWARD_STEP)
             plus = problem.linearize(dict(base_values, **{name: params[name] + step}), n_steps=n_steps)
             minus, methods[name], divisor = linear, "forward", step

@@ -116,6 +116,8 @@ class Evaluator:
         self.gradient_words = ("forward differences of whole sweeps (constraints without gradients: "
                                f"{', '.join(lacking)})") if lacking else "sensitivities (direct differentiation)"
         self.can_differentiate = not lacking
+        #: {parameter: whether it leaves the kinematics alone}, decided at the first point
+        self.forward: dict = {}
         self.needs_radius = any(getattr(c, "needs_radius", False) for c in constraints)
 
     def values(self, u: np.ndarray) -> dict[str, float]:
@@ -205,7 +207,7 @@ class Evaluator:
         for i, (at, linear, steady) in enumerate(points):
             point = point_derivatives(self.problem, at, self.names, n_steps=self.n_steps, scheme=DEFAULT_SCHEME,
                                       linear=linear, steady=steady, estimate_error=False,
-                                      multiplier=self.needs_radius)
+                                      multiplier=self.needs_radius, forward=self.forward)
             k = linear.observables.index(self.objective.spec)
             gradient[i] = self.objective.gradient(point.response[:, k], point.derivative[:, :, k])
             for constraint in self.constraints:

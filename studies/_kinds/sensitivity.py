@@ -164,7 +164,9 @@ class SensitivityResult(StudyResult):
                                      capsize=3)]
             ax.axvline(0.0, color="0.4", lw=0.8)
             ax.set_xlabel(f"d ln({HEADLINE_WORDS[headline]}) / d ln(parameter)")
-            ax.set_title(f"{spec}: {HEADLINE_WORDS[headline]} {plain(value, 4)}", fontsize="small")
+            unit = self.units.get(spec, "1")
+            ax.set_title(f"{spec}: {HEADLINE_WORDS[headline]} {plain(value, 4)}{'' if unit == '1' else ' ' + unit}",
+                         fontsize="small")
         axes[0].figure.suptitle(
             f"{self.problem}: sensitivities ({self.status})\n" + cost_line(
                 "bars: normalised derivative, whiskers its error (N against N/2)", self.run_time),
