@@ -36,7 +36,7 @@ import scipy.linalg
 
 from ._floquet import raise_on_singular
 from ._scheme import DEFAULT_SCHEME, Scheme, get_scheme
-from ._system import PeriodicError, PeriodicSystem, check_coarsenable, check_system, every_other_sample
+from ._system import PeriodicError, PeriodicSystem, _set, check_coarsenable, check_system, every_other_sample
 
 __all__ = ["SystemDerivative", "ResponseDerivative", "response_derivative"]
 
@@ -133,7 +133,12 @@ def march_forcings(system: PeriodicSystem, scheme: Scheme, forcings: np.ndarray,
         raise_on_singular(system, own(system, forcings, x, v, a, x_hist, v_hist, a_hist))
     else:
         for j in range(m):
-            column = PeriodicSystem(system.period, system.M, system.C, system.K, forcings[:, :, j])
+            # the forcing of a homogeneous solution's derivative is not periodic: the system is the
+            # validated one with another force history, not re-validated
+            column = object.__new__(PeriodicSystem)
+            force = np.ascontiguousarray(forcings[:, :, j])
+            force.flags.writeable = False
+            _set(column, system.period, system.M, system.C, system.K, force)
             xj, vj, aj = x[:, j:j + 1].copy(), v[:, j:j + 1].copy(), np.empty((n, 1))
             hist = [np.empty(shape[:2] + (1,)) for _ in range(3)]
             raise_on_singular(system, scheme.march(column, np.ones(1), xj, vj, aj, *hist))

@@ -264,3 +264,25 @@ def test_optimize_says_when_it_falls_back_to_differences():
                              objective="peak_to_peak:coupler.deflection@0.5", n_steps=32, max_evaluations=3,
                              check=False, constraints=[studies.MassBudget(10.0)])
     assert "forward differences" in found.gradients and "mass" in found.gradients
+
+
+def test_a_scheme_without_march_forcings_marches_column_by_column():
+    """A registered scheme of another family (the theta-method of tests/_support/extensions.py, which
+    has no ``march_forcings``): the derivative is still its own discrete solution's (central
+    differences of its fresh shootings)."""
+    from tests._support import extensions
+
+    scheme = extensions.THETA_SCHEMES["theta-0.6"]
+    point, n_steps = POINT.copy(), 64
+    system = _system(*point, n_steps)
+    state = periodic.steady_state(system, scheme=scheme)
+    found = periodic.response_derivative(system, state, _derivatives(*point, system.t)[:3], scheme=scheme)
+    for j in range(3):
+        h = 1e-4 * point[j]
+        up, down = point.copy(), point.copy()
+        up[j] += h
+        down[j] -= h
+        a = periodic.steady_state(_system(*up, n_steps), scheme=scheme)
+        b = periodic.steady_state(_system(*down, n_steps), scheme=scheme)
+        difference = (a.x - b.x)[:, 0] / (2.0 * h)
+        assert np.abs(found.x[j, :, 0] - difference).max() <= 1e-6 * np.abs(difference).max()
