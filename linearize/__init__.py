@@ -26,4 +26,3 @@ from ._sensitivity import FORWARD_STEP as FORWARD_STEP
 from ._sensitivity import coefficient_derivative as coefficient_derivative
 from ._sensitivity import keeps_configuration as keeps_configuration
 from ._sensitivity import parameter_step as parameter_step
-from ._sensitivity import same_configuration as same_configuration

@@ -20,8 +20,7 @@ import numpy as np
 
 import periodic
 
-__all__ = ["CENTRAL_STEP", "FORWARD_STEP", "coefficient_derivative", "keeps_configuration", "same_configuration",
-           "parameter_step"]
+__all__ = ["CENTRAL_STEP", "FORWARD_STEP", "coefficient_derivative", "keeps_configuration", "parameter_step"]
 
 #: Relative step of a forward difference (parameters that leave the kinematics alone).
 FORWARD_STEP = 1e-6
@@ -33,16 +32,6 @@ def parameter_step(value: float, relative: float) -> float:
     """The absolute step for a parameter of nominal ``value``: ``relative * |value|`` (``relative`` for a
     parameter whose nominal value is 0, in its SI unit)."""
     return relative * abs(value) if value != 0.0 else relative
-
-
-def same_configuration(a, b) -> bool:
-    """Whether two ``LinearizedMechanism`` s share their nominal configuration (coordinates at every
-    sample to rounding): a parameter change between them did not move the kinematics."""
-    s_a, s_b = a.nominal.s, b.nominal.s
-    if s_a.shape != s_b.shape:
-        return False
-    scale = max(float(np.abs(s_a).max()), 1.0)
-    return float(np.abs(s_a - s_b).max()) <= 1e-13 * scale
 
 
 def keeps_configuration(mechanism, nominal, *, n_samples: int = 4) -> bool:
