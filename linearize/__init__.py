@@ -21,3 +21,8 @@ from ._reduction import ReductionCheck as ReductionCheck
 from ._reduction import reduced_links as reduced_links
 from ._reduction import reduction_error as reduction_error
 from ._reduction import reference_mechanism as reference_mechanism
+from ._sensitivity import CENTRAL_STEP as CENTRAL_STEP
+from ._sensitivity import FORWARD_STEP as FORWARD_STEP
+from ._sensitivity import coefficient_derivative as coefficient_derivative
+from ._sensitivity import keeps_configuration as keeps_configuration
+from ._sensitivity import parameter_step as parameter_step

@@ -25,6 +25,9 @@ from ._scheme import Newmark as Newmark
 from ._scheme import Scheme as Scheme
 from ._scheme import get_scheme as get_scheme
 from ._scheme import register_scheme as register_scheme
+from ._sensitivity import ResponseDerivative as ResponseDerivative
+from ._sensitivity import SystemDerivative as SystemDerivative
+from ._sensitivity import response_derivative as response_derivative
 from ._shooting import SteadyState as SteadyState
 from ._shooting import steady_state as steady_state
 from ._system import PeriodicError as PeriodicError
@@ -56,9 +59,11 @@ __all__ = [
     "PeriodicOrbit",
     "PeriodicSystem",
     "PeriodMap",
+    "ResponseDerivative",
     "ShootingError",
     "Stability",
     "SteadyState",
+    "SystemDerivative",
     "continue_orbits",
     "demo_system",
     "duffing_period_map",
@@ -67,6 +72,7 @@ __all__ = [
     "floquet",
     "get_scheme",
     "register_scheme",
+    "response_derivative",
     "stability_verdict",
     "steady_state",
     "worst_status",

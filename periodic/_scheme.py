@@ -20,6 +20,9 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Protocol, runtime_checkable
 
+import numpy as np
+
+from ._forcings import newmark_march_forcings
 from ._newmark import march
 from ._system import PeriodicError, check_real
 
@@ -94,6 +97,15 @@ class Newmark:
         # the kernel by size: hand-written LU for small n, LAPACK for large (periodic._newmark.choose_solver)
         return march(system.M, system.C, system.K, system.f, system.step, self.beta, self.gamma,
                      forced, x, v, a, x_hist, v_hist, a_hist, first_order=system.first_order_mask)
+
+    def march_forcings(self, system, forcings, x, v, a, x_hist, v_hist, a_hist) -> int:
+        """``march`` with column j driven by ``forcings[:, :, j]`` (N+1, n, m) instead of ``forced[j] * f``,
+        all columns with one factorisation per step (the kernel of ``periodic._forcings``; the parameter
+        derivatives of ``periodic._sensitivity``)."""
+        if system.n_first_order and 2.0 * self.beta != self.gamma:
+            self.march(system, np.zeros(x.shape[1]), x, v, a, x_hist, v_hist, a_hist)  # raises, naming them
+        return newmark_march_forcings(system.M, system.C, system.K, forcings, system.first_order_mask,
+                                      system.step, self.beta, self.gamma, x, v, a, x_hist, v_hist, a_hist)
 
 
 @runtime_checkable

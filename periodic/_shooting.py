@@ -153,6 +153,11 @@ class SteadyState:
     unresolved_multipliers : ndarray (k,) complex
         The multipliers of the modes the step does not resolve (step rate > 1), decreasing
         modulus: the scheme's values, not the system's, reported apart from ``spectral_radius``.
+
+    coarse_monodromy : ndarray (s, s) or None
+        ``Phi`` of the N/2-step run (None when skipped), and ``v_coarse``, ``a_coarse`` (N/2+1, n) its
+        periodic rates and accelerations: what ``periodic.response_derivative`` differentiates for
+        its error estimate without a second shooting.
     """
 
     t: np.ndarray
@@ -184,6 +189,10 @@ class SteadyState:
     scheme: Scheme
     run_time: float
     unresolved_multipliers: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=complex))
+
+    coarse_monodromy: np.ndarray | None = None
+    v_coarse: np.ndarray | None = None
+    a_coarse: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -234,6 +243,7 @@ def steady_state(
     phi, x, v, a = fine.phi, fine.x, fine.v, fine.a
     error_estimate = error_factor = error_ratio = float("nan")
     x_coarse = x_quarter = multiplier_errors = radius_errors = check = None
+    coarse = None
     coarse_multipliers = quarter_multipliers = None
     multipliers, step_rates = analyse_multipliers(phi, system)
     if estimate_error or extrapolate:
@@ -312,6 +322,10 @@ def steady_state(
         scheme=scheme,
         run_time=time.perf_counter() - start,
         unresolved_multipliers=unresolved_multipliers(multipliers, step_rates),
+
+        coarse_monodromy=None if coarse is None else coarse.phi,
+        v_coarse=None if coarse is None else coarse.v,
+        a_coarse=None if coarse is None else coarse.a,
     )
 
 

@@ -42,6 +42,9 @@ from ._kinds.optimize import TorqueLimit as TorqueLimit
 from ._kinds.optimize import optimize as optimize
 from ._kinds.run_up import RunUp as RunUp
 from ._kinds.run_up import run_up as run_up
+
+from ._kinds.sensitivity import SensitivityResult as SensitivityResult
+from ._kinds.sensitivity import sensitivity as sensitivity
 from ._kinds.stability_chart import StabilityChart as StabilityChart
 from ._kinds.stability_chart import stability_chart as stability_chart
 from ._kinds.steady_state import SteadyStateResult as SteadyStateResult
@@ -86,9 +89,11 @@ __all__ = [
     "FrequencySeparation",
     "MassBudget",
     "OptimizeResult",
+    "SensitivityResult",
     "StabilityMargin",
     "TorqueLimit",
     "optimize",
+    "sensitivity",
     "Description",
     "Estimate",
     "ResourceError",

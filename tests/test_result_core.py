@@ -76,9 +76,12 @@ BUILDERS = {
     "run_up": (lambda: studies.run_up(_four_bar(), start=90.0, stop=100.0, duration=0.4, n_steps=32,
                                       start_state="linear", curve_points=3, curve_steps=32),
                lambda result: result.speed.shape),
+
+    "sensitivity": (lambda: studies.sensitivity(studies.mathieu_problem(), parameters=["speed", "epsilon"],
+                                                n_steps=32), None),
 }
 #: kinds added after tests/data/results_before_core.h5 was written (the file has no group of theirs)
-NEWER_KINDS = {"run_up"}
+NEWER_KINDS = {"run_up", "sensitivity"}
 
 
 def write_small_results(path) -> None:

@@ -24,5 +24,6 @@ from . import (  # noqa: F401
     control_comparison,
     run_up,
     optimize,
+    sensitivity,
 )
 # isort: on

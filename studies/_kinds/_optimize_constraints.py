@@ -5,7 +5,9 @@ meeting it (scaled values >= 0 where met); the evaluator (``_optimize_search``) 
 A new constraint: a frozen dataclass with ``name``, ``bound()``, ``needs(problem)`` (the observables
 it reads; it raises for a problem it cannot judge), ``at_speed(evaluator, linear, steady)`` and
 ``judged(values, evaluator, parameters)``, and its entry in ``CONSTRAINT_TYPES`` (and a key of the
-scene table in ``constraints_from_table``).
+scene table in ``constraints_from_table``); optionally ``gradient_at_speed(evaluator, linear, steady,
+point)`` (d at_speed / d parameters from the point's sensitivities, ``studies._derivatives``) and
+``judged_gradient(gradients, evaluator)``, without which the local method takes forward differences.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .._derivatives import headline_derivatives
 from .._errors import StudiesError
 from .._kind import HARMONIC_WHY, MAX_HARMONIC, fraction, integer, number, reject_unknown
 from .._numerics import frozen_modes, peak_summary
@@ -33,6 +36,8 @@ class StabilityMargin:
 
     margin: float = 0.0
     name = "stability"
+    #: its gradient reads the critical multiplier's derivative
+    needs_radius = True
 
     def limit(self) -> float:
         return 1.0 - self.margin
@@ -47,9 +52,21 @@ class StabilityMargin:
     def at_speed(self, evaluator: Any, linear: Any, steady: Any) -> float:
         return steady.state.spectral_radius
 
+    def gradient_at_speed(self, evaluator: Any, linear: Any, steady: Any, point: Any) -> np.ndarray:
+        """d spectral radius / d parameters (P,): the critical multiplier's (``studies._derivatives``); NaN
+        where the radius is another mode's (one the step does not resolve) or the multiplier is repeated."""
+        state = steady.state
+        if not math.isclose(abs(state.critical_multiplier), state.spectral_radius, rel_tol=1e-12):
+            return np.full(len(point.names), np.nan)
+        return point.radius
+
     def judged(self, values: np.ndarray, evaluator: Any, parameters: Mapping[str, float]) -> tuple[np.ndarray, float]:
         """(scaled (n_s,), >= 0 where met; the value reported: the largest spectral radius)."""
         return self.limit() - values, float(values.max())
+
+    def judged_gradient(self, gradients: np.ndarray, evaluator: Any) -> np.ndarray:
+        """d scaled / d parameters (n_s, P) from ``gradient_at_speed``'s rows."""
+        return -gradients
 
 
 @dataclass(frozen=True)
@@ -76,9 +93,21 @@ class TorqueLimit:
         rows = [linear.observables.index(spec) for spec in evaluator.specs[self.name]]
         return max(peak_summary(steady.response[:, rows], steady.response_error[rows])["peak"])
 
+    def gradient_at_speed(self, evaluator: Any, linear: Any, steady: Any, point: Any) -> np.ndarray:
+        """d peak / d parameters (P,) of the drive torque with the largest peak (envelope rule)."""
+        rows = [linear.observables.index(spec) for spec in evaluator.specs[self.name]]
+        peaks = peak_summary(steady.response[:, rows], steady.response_error[rows])["peak"]
+        k = rows[int(np.argmax(peaks))]
+        found, _ = headline_derivatives(point.response[:, [k]], point.derivative[:, :, [k]])
+        return found["peak"][:, 0]
+
     def judged(self, values: np.ndarray, evaluator: Any, parameters: Mapping[str, float]) -> tuple[np.ndarray, float]:
         """(scaled (n_s,); the largest peak drive torque, N m)."""
         return 1.0 - values / self.limit, float(values.max())
+
+    def judged_gradient(self, gradients: np.ndarray, evaluator: Any) -> np.ndarray:
+        """d scaled / d parameters (n_s, P)."""
+        return -gradients / self.limit
 
 
 @dataclass(frozen=True)

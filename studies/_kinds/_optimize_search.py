@@ -1,6 +1,13 @@
 """The search of ``studies.optimize``: the objective, one evaluation (a sweep over the speeds at one
 set of parameter values, cached, with the history of every sweep) and the optimisers driving it
-(SLSQP on the epigraph of the worst value; differential evolution polished by it)."""
+(SLSQP on the epigraph of the worst value; differential evolution polished by it).
+
+Gradients of the local method: the sensitivities of each speed's steady state (``studies._derivatives``:
+direct differentiation of the periodic problem, reusing the sweep's own linearisation and shooting) where
+the objective and every constraint offer them (a constraint's ``gradient_at_speed`` and
+``judged_gradient``), else forward differences of whole sweeps (``FD_STEP``); ``Evaluator.gradient_words``
+says which.
+"""
 
 from __future__ import annotations
 
@@ -9,8 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from .._derivatives import headline_derivatives, point_derivatives
 from .._errors import StudiesError, is_numerical_failure
-from .._numerics import peak_summary, solve_steady
+from .._numerics import DEFAULT_SCHEME, peak_summary, solve_steady
 from .._problem import SPEED
 
 #: The measures an objective may name, ``"<measure>:<observable spec>"``.
@@ -19,6 +27,9 @@ MEASURES = ("peak_to_peak", "peak", "rms")
 FD_STEP = 1e-6
 #: A constraint (scaled by its limit) counts as met down to this violation.
 FEASIBILITY_TOL = 1e-6
+#: The sweeps whose linearisations and steady states are kept for their gradients (SLSQP asks for the
+#: gradient at the point it has just evaluated).
+KEPT_POINTS = 3
 
 
 @dataclass(frozen=True)
@@ -44,6 +55,11 @@ class Objective:
             return float(np.sqrt(np.mean(samples[:-1] ** 2))), float(error)
         return float(peaks[self.measure][0]), float(peaks[f"{self.measure}_error"][0])
 
+    def gradient(self, samples: np.ndarray, derivative: np.ndarray) -> np.ndarray:
+        """d measure / d p (P,) of the periodic signal (N+1,) with derivatives (P, N+1), by the envelope rule."""
+        found, _ = headline_derivatives(samples[:, None], derivative[:, :, None])
+        return found[self.measure][:, 0]
+
 
 @dataclass
 class Evaluation:
@@ -59,6 +75,11 @@ class Evaluation:
     verdicts: list = field(default_factory=list)
     failed: str = ""
     peaks: dict = field(default_factory=dict)
+    #: per speed (linear, steady) while the gradient may still be asked for (dropped after)
+    points: list = field(default_factory=list)
+    #: d measure / d u (n_s, P) and each constraint's d scaled / d u, once computed
+    gradient: np.ndarray | None = None
+    constraint_gradients: dict | None = None
 
     @property
     def worst(self) -> int:
@@ -87,6 +108,17 @@ class Evaluator:
         #: the observables each constraint reads, by its name
         self.specs = {constraint.name: constraint.needs(problem) for constraint in constraints}
         self.scale = 1.0
+        #: the sensitivities' gradients in the local method (False: forward differences of sweeps)
+        self.gradients = False
+        self.gradient_evaluations = 0
+        self.fallbacks = 0
+        lacking = [c.name for c in constraints if not hasattr(c, "judged_gradient")]
+        self.gradient_words = ("forward differences of whole sweeps (constraints without gradients: "
+                               f"{', '.join(lacking)})") if lacking else "sensitivities (direct differentiation)"
+        self.can_differentiate = not lacking
+        #: {parameter: whether it leaves the kinematics alone}, decided at the first point
+        self.forward: dict = {}
+        self.needs_radius = any(getattr(c, "needs_radius", False) for c in constraints)
 
     def values(self, u: np.ndarray) -> dict[str, float]:
         x = self.bounds[:, 0] + np.clip(u, 0.0, 1.0) * (self.bounds[:, 1] - self.bounds[:, 0])
@@ -100,6 +132,8 @@ class Evaluator:
                 raise BudgetSpent()
             self.cache[key] = found = self._sweep(self.values(u))
             self.history.append((u.copy(), found))
+            if len(self.history) > KEPT_POINTS:   # keep the linearisations of the last few sweeps only
+                self.history[-1 - KEPT_POINTS][1].points = []
         return self.cache[key]
 
     def _sweep(self, values: dict[str, float]) -> Evaluation:
@@ -110,8 +144,11 @@ class Evaluator:
         try:
             for i, speed in enumerate(self.speeds):
                 at = dict(values) if np.isnan(speed) else dict(values, **{SPEED: float(speed)})
-                linear = self.problem.linearize(at, n_steps=self.n_steps, context=False)
+                # the sensitivities need the linearisation's nominal motion (does a parameter move it?)
+                linear = self.problem.linearize(at, n_steps=self.n_steps, context=self.gradients)
                 steady = solve_steady(linear)
+                if self.gradients:
+                    found.points.append((at, linear, steady))
                 k = linear.observables.index(self.objective.spec)
                 found.measure[i], found.error[i] = self.objective.of(steady.response[:, k],
                                                                      steady.response_error[k])
@@ -154,6 +191,55 @@ class Evaluator:
         found = self(u)
         return np.full(self.speeds.size, self._penalty()) if found.failed else found.measure / self.scale
 
+    def _differentiate(self, u: np.ndarray) -> Evaluation:
+        """The evaluation at ``u`` with its gradients (d/du of the scaled measures and constraints)."""
+        found = self(u)
+        if found.gradient is not None or found.failed:
+            return found
+        points = found.points
+        if not points:   # evicted, or evaluated before the gradients were on: the sweep again (not counted)
+            was, self.gradients = self.gradients, True
+            points = self._sweep(self.values(np.clip(u, 0.0, 1.0))).points
+            self.gradients = was
+        width = self.bounds[:, 1] - self.bounds[:, 0]
+        gradient = np.empty((self.speeds.size, len(self.names)))
+        per_speed = {c.name: np.empty((self.speeds.size, len(self.names))) for c in self.constraints}
+        for i, (at, linear, steady) in enumerate(points):
+            point = point_derivatives(self.problem, at, self.names, n_steps=self.n_steps, scheme=DEFAULT_SCHEME,
+                                      linear=linear, steady=steady, estimate_error=False,
+                                      multiplier=self.needs_radius, forward=self.forward)
+            k = linear.observables.index(self.objective.spec)
+            gradient[i] = self.objective.gradient(point.response[:, k], point.derivative[:, :, k])
+            for constraint in self.constraints:
+                per_speed[constraint.name][i] = constraint.gradient_at_speed(self, linear, steady, point)
+        found.points = []
+        constraint_gradients = {
+            c.name: np.atleast_2d(c.judged_gradient(per_speed[c.name], self)) * width for c in self.constraints}
+        if not (np.isfinite(gradient).all() and all(np.isfinite(g).all() for g in constraint_gradients.values())):
+            # a derivative not defined here (a repeated multiplier, an unresolved mode holding the radius)
+            self.fallbacks += 1
+            return found
+        found.gradient = gradient * width / self.scale
+        found.constraint_gradients = constraint_gradients
+        self.gradient_evaluations += 1
+        return found
+
+    def measure_jacobian(self, u: np.ndarray) -> np.ndarray:
+        """d measures / du (n_s, P): the sensitivities' where on, else forward differences."""
+        if self.gradients:
+            found = self._differentiate(u)
+            if found.gradient is not None:
+                return found.gradient
+        return self.jacobian(self.measures, u)
+
+    def constraint_jacobian(self, u: np.ndarray) -> np.ndarray:
+        if self.gradients:
+            found = self._differentiate(u)
+            if found.gradient is not None:
+                rows = [found.constraint_gradients[c.name] for c in self.constraints]
+                return np.vstack(rows) if rows else np.empty((0, u.size))
+        return self.jacobian(self.constraint_vector, u)
+
     def jacobian(self, function, u: np.ndarray) -> np.ndarray:
         """Forward differences of ``function`` (u -> (k,)) at ``u``, backward at the upper bound."""
         base = np.atleast_1d(function(u))
@@ -177,7 +263,16 @@ class Evaluator:
 
 def local_search(evaluator: Evaluator, u0: np.ndarray, tol: float) -> tuple[str, str]:
     """SLSQP on the epigraph: minimise t over (u, t) with t >= measure_i(u) at every speed and the
-    constraints >= 0. Returns ``(status, message)`` of the optimiser."""
+    constraints >= 0, with the sensitivities' gradients where every constraint offers one (else forward
+    differences of sweeps). Returns ``(status, message)`` of the optimiser."""
+    evaluator.gradients = evaluator.can_differentiate
+    try:
+        return _slsqp(evaluator, u0, tol)
+    finally:
+        evaluator.gradients = False
+
+
+def _slsqp(evaluator: Evaluator, u0: np.ndarray, tol: float) -> tuple[str, str]:
     from scipy.optimize import minimize
 
     n = u0.size
@@ -188,12 +283,12 @@ def local_search(evaluator: Evaluator, u0: np.ndarray, tol: float) -> tuple[str,
         return v[n] - evaluator.measures(v[:n])
 
     def epigraph_jacobian(v):
-        return np.hstack([-evaluator.jacobian(evaluator.measures, v[:n]), np.ones((evaluator.speeds.size, 1))])
+        return np.hstack([-evaluator.measure_jacobian(v[:n]), np.ones((evaluator.speeds.size, 1))])
 
     constraints = [{"type": "ineq", "fun": epigraph, "jac": epigraph_jacobian}]
     if evaluator.constraints:
         constraints.append({"type": "ineq", "fun": lambda v: evaluator.constraint_vector(v[:n]),
-                            "jac": lambda v: np.hstack([evaluator.jacobian(evaluator.constraint_vector, v[:n]),
+                            "jac": lambda v: np.hstack([evaluator.constraint_jacobian(v[:n]),
                                                         np.zeros((evaluator.constraint_vector(v[:n]).size, 1))])})
     objective_gradient = np.zeros(n + 1)
     objective_gradient[n] = 1.0
@@ -248,6 +343,17 @@ def best_feasible(evaluator: Evaluator) -> tuple[np.ndarray, Evaluation]:
         return None, None
     return min(feasible, key=lambda item: float(item[1].measure.max()))
 
+
+
+def gradient_words(evaluator: Evaluator) -> str:
+    """How the local method's gradients were taken, for the result's message."""
+    if not evaluator.can_differentiate:
+        return evaluator.gradient_words
+    words = f"{evaluator.gradient_words} at {evaluator.gradient_evaluations} points"
+    if evaluator.fallbacks:
+        words += (f", forward differences of sweeps at {evaluator.fallbacks} where a derivative was not defined "
+                  f"(a repeated multiplier, or an unresolved mode holding the spectral radius)")
+    return words
 
 
 def default_evaluations(method: str, n: int) -> int:

@@ -6,7 +6,9 @@ Each evaluation is a sweep over ``speeds`` at one set of parameter values (``pro
 ``context=False``: a mechanism with a constant-rate prescribed drive reuses one speed family per
 parameter set). The local method minimises the worst value in epigraph form (minimise ``t`` subject
 to ``t >= m_i(x)`` at every speed ``i``: smooth pieces instead of the kinked ``max``) with scipy's
-SLSQP and forward-difference gradients of the whole sweep; the global method runs scipy's
+SLSQP and the gradients of each speed's sensitivities (``studies._derivatives``: direct
+differentiation, reusing the sweep's linearisation and shooting; forward differences of the whole
+sweep where a constraint offers no gradient, said in ``gradients``); the global method runs scipy's
 differential evolution and polishes its best point with the local method. Parameters are scaled to
 ``[0, 1]`` between their bounds and the objective by its value at the start, so that one tolerance
 serves any units.
@@ -55,7 +57,15 @@ from ._optimize_constraints import (
     constraints_from_table,
     describe,
 )
-from ._optimize_search import Evaluator, Objective, best_feasible, default_evaluations, global_search, local_search
+from ._optimize_search import (
+    Evaluator,
+    Objective,
+    best_feasible,
+    default_evaluations,
+    global_search,
+    gradient_words,
+    local_search,
+)
 
 __all__ = ["OptimizeResult", "optimize", "StabilityMargin", "TorqueLimit", "MassBudget", "FrequencySeparation",
            "CONSTRAINT_KEYS", "default_evaluations"]
@@ -63,6 +73,9 @@ __all__ = ["OptimizeResult", "optimize", "StabilityMargin", "TorqueLimit", "Mass
 #: The fewest steps per period an optimisation accepts (its steady states' error check uses N/4).
 MIN_STEPS = 16
 METHODS = ("local", "global")
+#: How the local method takes its gradients: the sensitivities (direct differentiation, where every
+#: constraint offers one) or forward differences of whole sweeps.
+GRADIENTS = ("sensitivities", "differences")
 #: Default relative tolerance of the objective (SLSQP's ``ftol`` on the objective scaled by its start value).
 TOL = 1e-8
 #: Most sweeps (evaluations) an optimisation may do (docs/studies.md, "Limits").
@@ -135,6 +148,11 @@ class OptimizeResult(StudyResult):
         The evaluations done.
     optimizer_message : str
         The optimiser's own words.
+    gradients : str
+        How the local method's gradients were taken: the sensitivities of each speed's steady state
+        (direct differentiation, ``studies.sensitivity``'s numerics) at how many points, or forward
+        differences of whole sweeps where a constraint offers no gradient (named) or a derivative was not
+        defined ("" in files written before the gradients).
     status, message : str
         See above.
     run_time : float, s
@@ -198,6 +216,7 @@ class OptimizeResult(StudyResult):
     map_objective: np.ndarray | None = None
     check_verdict: str = ""
     check_message: str = ""
+    gradients: str = ""
     check_speed: float = float("nan")
     check_t: np.ndarray | None = None
     check_linear: Mapping[str, np.ndarray] = field(default_factory=dict)
@@ -349,7 +368,7 @@ def optimize(problem: Any, bounds: Mapping[str, tuple[float, float]], *, objecti
              speeds: Sequence[float] | None = None, constraints: Any = (), method: str = "local",
              n_steps: int = 256, start: Mapping[str, float] | None = None, tol: float = TOL,
              max_evaluations: int | None = None, map_points: int = 0, check: bool = True,
-             check_periods: int = 5, seed: int = 0) -> OptimizeResult:
+             check_periods: int = 5, seed: int = 0, gradient: str = "sensitivities") -> OptimizeResult:
     """Minimise ``objective`` over the parameters of ``bounds`` ({path: (low, high)}: scene paths
     such as ``"links.coupler.thickness"`` or ``"drive.kp"``, or a ``PeriodicProblem``'s parameters).
 
@@ -359,17 +378,21 @@ def optimize(problem: Any, bounds: Mapping[str, tuple[float, float]], *, objecti
     ``constraints``: :class:`StabilityMargin`, :class:`TorqueLimit`, :class:`MassBudget`,
     :class:`FrequencySeparation` objects, or a table with keys ``stability_margin``,
     ``torque_limit``, ``mass_budget``, ``frequency_separation``, ``max_harmonic``; each holds at
-    every speed. ``method``: "local" (SLSQP on the epigraph of the worst value, forward-difference
-    gradients) or "global" (differential evolution, then the local method). ``start``: the start
+    every speed. ``method``: "local" (SLSQP on the epigraph of the worst value, gradients from the
+    sensitivities) or "global" (differential evolution, then the local method). ``start``: the start
     values (default: the problem's values, clipped into the bounds); ``tol``: relative tolerance of
     the objective; ``max_evaluations``: most sweeps (default 40 + 40 n local, 300 n global);
     ``map_points``: a grid of this many values per axis of the first two parameters for the figure
     (0: none); ``check``: the nonlinear check at the worst speed of the optimum with
     ``check_periods`` periods (where the problem has a nonlinear model); ``seed`` of the global
-    method. See :class:`OptimizeResult`."""
+    method; ``gradient``: "sensitivities" (default: each speed's steady state differentiated directly, forward
+    differences of sweeps only where a constraint offers no gradient) or "differences" (forward differences
+    of whole sweeps throughout). See :class:`OptimizeResult`."""
     started = time.perf_counter()
     goal = Objective.parse(objective)
     names, box = _check_bounds(problem, bounds)
+    if gradient not in GRADIENTS:
+        raise StudiesError(f"gradient: expected one of {', '.join(map(repr, GRADIENTS))}, got {gradient!r}")
     if method not in METHODS:
         raise StudiesError(f"method: expected one of {', '.join(map(repr, METHODS))}, got {method!r}")
     if speeds is not None and SPEED in names:
@@ -393,6 +416,10 @@ def optimize(problem: Any, bounds: Mapping[str, tuple[float, float]], *, objecti
     x_start = np.clip([nominal[name] for name in names], box[:, 0], box[:, 1])
     u_start = (x_start - box[:, 0]) / (box[:, 1] - box[:, 0])
     evaluator = Evaluator(problem, names, box, grid, goal, chosen, n_steps, max_evaluations)
+    if gradient == "differences":
+        evaluator.can_differentiate = False
+        evaluator.gradient_words = "forward differences of whole sweeps (gradient = 'differences')"
+    evaluator.gradients = method == "local" and evaluator.can_differentiate   # the start keeps what they need
     first = evaluator(u_start)
     if first.failed:
         raise StudiesError(f"the start {evaluator.values(u_start)} cannot be evaluated ({first.failed}); "
@@ -447,7 +474,7 @@ def optimize(problem: Any, bounds: Mapping[str, tuple[float, float]], *, objecti
         history_worst_speed=np.array([np.nan if f.failed or speeds is None else float(grid[f.worst])
                                       for _, f in evaluator.history]),
         path=np.array(evaluator.path, dtype=np.int64), n_evaluations=len(evaluator.history),
-        optimizer_message=optimiser_message, status=status, message=message,
+        optimizer_message=optimiser_message, status=status, message=message, gradients=gradient_words(evaluator),
         run_time=time.perf_counter() - started, **mapped, **checked, **_optimum_peaks(best, grid.shape))
 
 
