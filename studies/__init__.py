@@ -42,7 +42,6 @@ from ._kinds.optimize import TorqueLimit as TorqueLimit
 from ._kinds.optimize import optimize as optimize
 from ._kinds.run_up import RunUp as RunUp
 from ._kinds.run_up import run_up as run_up
-
 from ._kinds.sensitivity import SensitivityResult as SensitivityResult
 from ._kinds.sensitivity import sensitivity as sensitivity
 from ._kinds.stability_chart import StabilityChart as StabilityChart
