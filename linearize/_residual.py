@@ -26,6 +26,7 @@ error runs), so a step costs about half the steady state it checks.
 
 from __future__ import annotations
 
+import copy
 import time
 import warnings
 from dataclasses import dataclass
@@ -48,9 +49,10 @@ MAX_CONTRACTION = 0.25
 #: The iteration stops once a step changes the observables by at most this fraction of the
 #: correction so far.
 SETTLED = 0.05
-#: The fewest steps per period the chord steps run on (``_stride``): the full grid by default (on
-#: half of it the estimate moved by up to 25 % on four_bar_fem4).
-COARSEST_STEPS = 1 << 30
+#: The fewest samples per period the residual is evaluated on (``_stride``; it is interpolated
+#: spectrally to the N samples the chord steps solve on: the residual is smooth, and its evaluation
+#: is the chord step's main cost).
+COARSEST_STEPS = 64
 #: Chord steps at most (each a residual and a periodic solve).
 MAX_STEPS = 5
 #: A second chord step is taken where the first changes an observable by more than this fraction
@@ -240,6 +242,17 @@ def periodic_solve(system: Any, scheme: Any, monodromy: np.ndarray | None = None
     return xs[:, :, 0]
 
 
+def _forced(system: Any, force: np.ndarray) -> Any:
+    """``system`` with the forcing ``force`` (N+1, n): a copy sharing its checked M, C, K (building a
+    ``PeriodicSystem`` checks every mass sample again, which cost more than the chord step's march)."""
+    forced = copy.copy(system)
+    force = np.array(force, dtype=float)
+    force[-1] = force[0]
+    force.flags.writeable = False
+    object.__setattr__(forced, "f", force)
+    return forced
+
+
 def _raise_on_singular(status: int) -> None:
     if status >= 0:
         raise periodic.ShootingError(f"a step matrix of the chord step is singular at sample {status}")
@@ -268,10 +281,10 @@ def linearisation_error(lin: Any, z: np.ndarray, *, system: Any = None,
     correction; trusted where the last step is at most ``MAX_CONTRACTION`` of it (module docstring).
     ``system``: the periodic system ``z`` solves (default ``lin.system``); ``observe(z) -> (N+1,
     n_obs)``: the observables (default ``lin.observe``); ``scheme``: the periodic scheme ``z`` was
-    solved with; ``stride``: the chord steps run on every ``stride``-th sample (default: the
-    coarsest power of two leaving ``COARSEST_STEPS`` steps) and their correction is interpolated
-    spectrally to the N samples; ``monodromy``: the monodromy of ``system`` with ``scheme`` if known
-    and ``stride`` is 1 (else one march computes it). Raises ``LinearizationError`` for a ``z`` of the
+    solved with; ``stride``: the residual is evaluated on every ``stride``-th sample (default: the
+    coarsest power of two leaving ``COARSEST_STEPS`` samples) and interpolated spectrally to the N
+    samples the chord steps solve on; ``monodromy``: the monodromy of ``system`` with ``scheme`` if
+    known (else one march computes it). Raises ``LinearizationError`` for a ``z`` of the
     wrong shape."""
     started = time.perf_counter()
     system = lin.system if system is None else system
@@ -284,34 +297,34 @@ def linearisation_error(lin: Any, z: np.ndarray, *, system: Any = None,
         raise LinearizationError(f"stride must be a whole divisor of n_steps ({n_steps}); received "
                                  f"{stride}")
     grid = _grid(lin, system, stride)
-    if stride > 1 or monodromy is None:
-        monodromy = monodromy_of(grid.system, scheme)
-    coarse_z = z[::stride]
-    residual, violation = _residual(grid, coarse_z)
+    if monodromy is None:
+        monodromy = monodromy_of(system, scheme)
+
+    def residual_at(x: np.ndarray) -> tuple[np.ndarray, float]:
+        """N(x) (N+1, m), evaluated on every stride-th sample and interpolated spectrally."""
+        r, found = _residual(grid, x[::stride])
+        return (interpolate_periodic(r, n_steps) if stride > 1 else r), found
+
+    residual, violation = residual_at(z)
     base = observe(z)
     scale = np.maximum(np.ptp(base, axis=0), 1e-300)
-    weight = 1.0 / np.maximum(np.abs(coarse_z).max(axis=0), 1e-300)   # each coordinate on its scale
+    weight = 1.0 / np.maximum(np.abs(z).max(axis=0), 1e-300)   # each coordinate on its own scale
 
     def chord(x: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
-        """G(x) = z - L^-1 N(x) on the coarse samples: a chord step from the linear state."""
+        """G(x) = z - L^-1 N(x): one chord step from the linear state with the residual at x."""
         if r is None:
-            r, _ = _residual(grid, x)
-        c = grid.system
-        forced = periodic.PeriodicSystem(c.period, c.M, c.C, c.K, -r)
-        return coarse_z + periodic_solve(forced, scheme, monodromy)
+            r, _ = residual_at(x)
+        return z + periodic_solve(_forced(system, -r), scheme, monodromy)
 
     def observed(x: np.ndarray) -> np.ndarray:
-        """The observables' change from the linear state of the coarse state ``x``."""
-        correction = x - coarse_z
-        if stride > 1:
-            correction = interpolate_periodic(correction, n_steps)
-        return observe(z + correction) - base
+        """The observables' change from the linear state."""
+        return observe(x) - base
 
-    estimate = chord(coarse_z, residual)
+    estimate = chord(z, residual)
     change = observed(estimate)
     steps, contraction, reason = 1, float("nan"), ""
     if np.any(np.abs(change).max(axis=0) > second_step_above * scale):
-        x_prev, g_prev, x = coarse_z, estimate, estimate
+        x_prev, g_prev, x = z, estimate, estimate
         first = np.abs(change).max(axis=0)
         previous = change
         try:
@@ -340,15 +353,13 @@ def linearisation_error(lin: Any, z: np.ndarray, *, system: Any = None,
         except (mechanisms.ConvergenceError, np.linalg.LinAlgError, periodic.ShootingError) as error:
             reason = f"a chord step failed ({error})"
     trusted = not reason
-    correction = estimate - coarse_z
-    if stride > 1:
-        correction = interpolate_periodic(correction, n_steps)
+    correction = estimate - z
     if not trusted:
         correction = np.full_like(z, np.nan)
         change = np.full_like(change, np.nan)
     method = (f"chord step{'s' if steps > 1 else ''} of the nonlinear periodic problem from the linear "
               f"state ({steps}" + (f", Anderson-accelerated, last step {contraction:.2g} of the first)"
-                                   if steps > 1 else ")") + f" on {n_steps // stride} steps")
+                                   if steps > 1 else ")") + f", the residual on {n_steps // stride} samples")
     return LinearisationError(correction=correction, change=change, steps=steps,
                               contraction=contraction, trusted=trusted, reason=reason,
                               constraint_violation=violation, residual=float(np.abs(residual).max()),
