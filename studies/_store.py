@@ -29,8 +29,12 @@ from ._writes import writing_to
 #: ``format_version``. Format 1 (files without the attribute, flexvib before it was recorded): a
 #: group's ``kind`` is the name of its result class. Format 2: ``kind`` is the registered name of the
 #: study kind (``studies.register_kind``), a stable string, so that moving or renaming a result class
-#: breaks no file. A file or group of a higher format is refused (:func:`check_format`).
-FORMAT_VERSION = 2
+#: breaks no file. Format 3: results carry their error budget (``studies._budget``: time step, mesh,
+#: linearisation, reduction) and their errors (``peak_to_peak_error``, ...) are its totals; in files
+#: of formats 1 and 2 the errors were the time step's alone, and they read so (a budget of the time
+#: step with the other terms unknown). A file or group of a higher format is refused
+#: (:func:`check_format`).
+FORMAT_VERSION = 3
 
 #: Result classes by the name a file stores them under (the kind's name and its aliases).
 _RESULTS: dict[str, type] = {}

@@ -14,9 +14,10 @@ import numpy as np
 
 import periodic
 
+from .._budget import NOT_APPLICABLE, mesh_terms
 from .._kind import StudyKind, register_kind
 from .._mechanism import coordinate_parts, observables_along
-from .._numerics import solve_steady
+from .._numerics import DEFAULT_SCHEME, solve_steady
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, plot_multipliers
 from .._result import DerivedPeaks, StudyResult, peaks_of
 from .._toolkit import (
@@ -148,6 +149,8 @@ class NonlinearSteadyState(DerivedPeaks, StudyResult):
     linear_run_time: float
     settings: Mapping[str, Any] = field(default_factory=dict)
     shooting_run_time: float = float("nan")
+    mesh_error: Mapping[str, float] = field(default_factory=dict)
+    error_methods: Mapping[str, str] = field(default_factory=dict)
 
     _units = {"t": "s", "crank_angle": "rad", "x": "SI (see labels)", "response": "@observables",
               "linear_response": "@observables", "state": "SI (see labels: coordinates, rates, lags)",
@@ -158,7 +161,19 @@ class NonlinearSteadyState(DerivedPeaks, StudyResult):
         return headline(self.status, self.instability_kind)
 
     def _peaks(self) -> dict[str, dict[str, float]]:
-        return peaks_of(self.response, self.response_error)
+        # the errors are the budget's totals: the time step's and the mesh's (studies._budget)
+        return peaks_of(self.response, {spec: e + abs(self.mesh_error.get(spec, 0.0))
+                                        for spec, e in self.response_error.items()})
+
+    @property
+    def error_budget(self) -> dict[str, dict[str, Any]]:
+        """{spec: {term: float or "not applicable"}}: the peak-to-peak's error budget
+        (``studies._budget``): the time step (N against N/2), the mesh (the linear state's, where
+        it applies); the linearisation does not apply to the nonlinear state."""
+        time_step = peaks_of(self.response, self.response_error)["peak_to_peak_error"]
+        return {spec: {"time_step": time_step[spec],
+                       "mesh": 2.0 * abs(self.mesh_error[spec]) if spec in self.mesh_error else NOT_APPLICABLE,
+                       "linearisation": NOT_APPLICABLE} for spec in self.response}
 
     @property
     def linear_peak_to_peak(self) -> dict[str, float]:
@@ -397,6 +412,7 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
     orbit = periodic.find_orbit(fine, setup.guess, speed, tol=tol, max_iterations=max_iterations,
                                 estimate=coarse, error_factor=ERROR_FACTOR)
     specs = linear.observables
+    mesh, mesh_method, _ = mesh_terms(problem, values, specs, n_steps, DEFAULT_SCHEME)
     linear_response = {spec: setup.steady.response[:, k] for k, spec in enumerate(specs)}
     errors = {spec: math.nan for spec in specs}
     reasons: list[str] = []
@@ -428,7 +444,10 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
         status=status, message=message, is_stable=orbit.is_stable,
         instability_kind="" if orbit.bifurcation == "none" else orbit.bifurcation, n_steps=n_steps,
         run_time=run_time + setup.run_time, linear_run_time=setup.run_time, shooting_run_time=run_time,
-        settings={"n_steps": n_steps, "tol": tol, "max_iterations": max_iterations})
+        settings={"n_steps": n_steps, "tol": tol, "max_iterations": max_iterations},
+        mesh_error={} if mesh == NOT_APPLICABLE else dict(mesh["response"]),
+        error_methods={"time_step": f"N = {n_steps} against N/2 steps", "mesh": mesh_method,
+                       "linearisation": "not applicable: the full nonlinear equations"})
 
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
