@@ -121,15 +121,14 @@ def test_linearisation_estimate_against_the_nonlinear_periodic_state(scene, spee
                                           observe=linear.observe, monodromy=steady.state.monodromy)
     assert found.trusted, found.reason
     nonlinear = studies.nonlinear_steady_state(problem, {"speed": speed}, n_steps=N_STEPS)
-    checked = 0
     for k, spec in enumerate(linear.observables):
         linear_ptp = peak_to_peak(steady.response[:, k])[0]
         true = nonlinear.peak_to_peak[spec] - linear_ptp
         estimate = peak_to_peak(steady.response[:, k] + found.change[:, k])[0] - linear_ptp
         if abs(true) > 0.005 * linear_ptp:
-            checked += 1
             assert 0.5 <= estimate / true <= 2.0, (spec, estimate, true)
-    assert checked or scene == "six_bar", "no observable above 0.5 % checks the estimate here"
+        else:  # a small difference (0.1-0.5 %) is not reported as a large one
+            assert abs(estimate) <= 0.01 * linear_ptp, (spec, estimate, true)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -199,3 +198,44 @@ def test_sweep_points_carry_their_budget():
     assert len(set(np.round(terms["linearisation"], 12))) == 3
     plain = studies.sweep(problem, "speed", speeds, n_steps=N_STEPS, budget=False)
     np.testing.assert_allclose(plain.peak_to_peak_error[spec], terms["time_step"])
+
+
+# ---------------------------------------------------------------------------------------------------
+# the property of the bar: random stable scenes from the shipped ones
+# ---------------------------------------------------------------------------------------------------
+# Until the mesh term lands (studies._mesh_error is a stub saying "not applicable"), the reference is
+# the converged (N = 512) nonlinear state on the scene's own mesh, which the time-step and
+# linearisation terms must cover. With the mesh term: take the nonlinear state on the mesh refined
+# to 16-32 elements as the reference (the "converged nonlinear response"), and add
+# six_bar (2 elements per link as shipped) to PROPERTY_SCENES.
+PROPERTY_SCENES = ("four_bar_fem4", "four_bar_ritz", "slider_crank")
+THICKNESS = "links.{}.thickness"
+DAMPING = "links.{}.damping.ratio"
+ELASTIC = {"four_bar_fem4": "coupler", "four_bar_ritz": "coupler", "slider_crank": "rod"}
+
+
+def _random_case(rng):
+    scene = PROPERTY_SCENES[rng.integers(len(PROPERTY_SCENES))]
+    link = ELASTIC[scene]
+    paths = (THICKNESS.format(link), DAMPING.format(link))
+    problem = studies.MechanismProblem.from_scene(scene, parameter_paths=paths)
+    values = {"speed": float(rng.uniform(0.5, 1.3) * problem.parameters["speed"]),
+              paths[0]: float(rng.uniform(0.9, 1.2) * problem.parameters[paths[0]]),
+              paths[1]: float(rng.uniform(0.01, 0.05))}
+    return scene, problem, values
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(6))
+def test_the_nonlinear_state_lies_inside_the_bar_and_the_bar_is_not_loose(seed):
+    scene, problem, values = _random_case(np.random.default_rng(seed))
+    linear = studies.steady_state(problem, values, n_steps=N_STEPS, error_tolerance=0.5)
+    if not linear.is_stable or any(math.isnan(e) for e in linear.peak_to_peak_error.values()):
+        pytest.skip(f"{scene} at {values}: {linear.status} (the bar is for stable, estimable points)")
+    reference = studies.nonlinear_steady_state(problem, values, n_steps=2 * N_STEPS)
+    assert reference.status == "ok", reference.message
+    for spec, value in linear.peak_to_peak.items():
+        true = abs(reference.peak_to_peak[spec] - value)
+        bar = linear.peak_to_peak_error[spec]
+        assert true <= bar, (scene, values, spec, true, linear.error_budget[spec])
+        assert bar <= max(3.0 * true, 0.05 * value), (scene, values, spec, true, linear.error_budget[spec])

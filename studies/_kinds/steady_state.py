@@ -13,6 +13,7 @@ from .._budget import (
     ERROR_TOLERANCE,
     FORMAT2_METHODS,
     NOT_APPLICABLE,
+    QUANTITIES,
     ErrorBudget,
     check_tolerance,
     describe,
@@ -262,11 +263,13 @@ class SteadyStateResult(StudyResult):
 
 
 def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_steps: int = 256,
-                 scheme: str = DEFAULT_SCHEME, error_tolerance: float = ERROR_TOLERANCE) -> SteadyStateResult:
+                 scheme: str = DEFAULT_SCHEME, error_tolerance: float = ERROR_TOLERANCE,
+                 budget: bool = True) -> SteadyStateResult:
     """Periodic response of the problem's observables over one period, Floquet multipliers, the
     error budget (time step: N against N/2 steps; mesh; linearisation; modal reduction:
     ``studies._budget``) and run time; ``scheme`` names the periodic scheme (``periodic.SCHEMES``);
-    a total error above ``error_tolerance`` of a peak-to-peak makes the result ``inaccurate``."""
+    a total error above ``error_tolerance`` of a peak-to-peak makes the result ``inaccurate``.
+    ``budget=False``: the time step's term alone (mesh and linearisation unknown, not judged)."""
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a steady state")
     study_scheme(scheme)
     error_tolerance = check_tolerance(error_tolerance)
@@ -278,8 +281,13 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
     specs = linear.observables
     time_step = {name: {spec: float(v[k]) for k, spec in enumerate(specs)}
                  for name, v in peak_summary(steady.response, steady.response_error).items()}
-    linearisation, lin_method, lin_time, found = linearisation_terms(linear, steady, scheme)
-    mesh, mesh_method, mesh_time = mesh_terms(problem, values, specs, n_steps, scheme)
+    if budget:
+        linearisation, lin_method, lin_time, found = linearisation_terms(linear, steady, scheme)
+        mesh, mesh_method, mesh_time = mesh_terms(problem, values, specs, n_steps, scheme)
+    else:
+        skipped = "not estimated: budget=False"
+        linearisation, lin_method, lin_time, found = {n: {} for n in QUANTITIES}, skipped, 0.0, None
+        mesh, mesh_method, mesh_time = {n: {} for n in QUANTITIES}, skipped, 0.0
     reduced, reduction_method = reduction_terms(reduction, specs)
     methods = {"time_step": f"N = {n_steps} against N/2 steps ({scheme})", "mesh": mesh_method,
                "linearisation": lin_method, "reduction": reduction_method}
@@ -296,7 +304,10 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
              "peak_error": point.totals("peak"), "peak_to_peak_error": point.totals("peak_to_peak")}
     status, message = combine([(steady.status, steady.message),
                                (reduction.status, reduction.message),
-                               verdict(point.budgets["peak_to_peak"], peaks["peak_to_peak"], error_tolerance)])
+                               verdict(point.budgets["peak_to_peak"], peaks["peak_to_peak"], error_tolerance)
+                               if budget else ("ok", "")])
+    if not budget:
+        peaks["peak_error"], peaks["peak_to_peak_error"] = time_step["peak_error"], time_step["peak_to_peak_error"]
     drawing = {}
     if hasattr(problem, "outlines"):
         outlines, magnification = problem.outlines(linear, state.x)
@@ -307,7 +318,7 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
         labels=tuple(linear.labels), units=dict(zip(linear.observables, linear.units)),
         t=state.t, crank_angle=np.asarray(linear.crank_angle, dtype=float), x=state.x,
         response={spec: steady.response[:, k] for k, spec in enumerate(linear.observables)},
-        response_error=point.totals("response"),
+        response_error=point.totals("response") if budget else dict(zip(specs, map(float, steady.response_error))),
         multipliers=state.multipliers, spectral_radius=state.spectral_radius,
         error_estimate=steady.error_estimate, status=status, message=message,
         n_steps=n_steps, run_time=time.perf_counter() - start, shooting_run_time=steady.run_time,
