@@ -63,6 +63,8 @@ SECOND_STEP_ABOVE = 0.005
 PROJECTION_STEPS = 6
 #: Largest constraint violation (m, rad) left by the projection: far below any deflection.
 PROJECTION_TOL = 1e-11
+#: A violation below which one more Newton step is the last (it leaves about its square).
+PROJECTION_LAST = 1e-6
 
 
 @dataclass(frozen=True)
@@ -161,7 +163,10 @@ def _motion(grid: _Grid, z: np.ndarray) -> tuple[np.ndarray, ...]:
         if worst < PROJECTION_TOL:
             break
         s[:, dependent] -= np.linalg.solve(terms.jacobian[:, :, dependent], phi[:, :, None])[..., 0]
-    # the Jacobian of the last evaluation: the step after it moved s by round-off of the residual
+        if worst < PROJECTION_LAST:
+            # Newton converges quadratically: this step leaves ~worst^2, far below PROJECTION_TOL
+            break
+    # the Jacobian of the last evaluation: the step after it moved s by at most PROJECTION_LAST
     deviation = s - grid.s0
     ddev, dddev, _ = spectral_derivatives(deviation, grid.system.period)
     return s, grid.sdot0 + ddev, grid.sddot0 + dddev, terms.jacobian, violation
@@ -337,8 +342,8 @@ def linearisation_error(lin: Any, z: np.ndarray, *, system: Any = None,
                 total = np.maximum(np.abs(change).max(axis=0), 1e-300)
                 contraction = float(np.max(last / np.maximum(first, 1e-300)))
                 estimate = g
-                if np.all(last <= SETTLED * total):
-                    break
+                if np.all(last <= SETTLED * total) or np.any(last > first):
+                    break   # settled, or growing: then it will not settle (reason below)
                 # Anderson acceleration of depth one on the residuals f = G(x) - x
                 f, f_prev = (g - x) * weight, (g_prev - x_prev) * weight
                 df = f - f_prev

@@ -216,6 +216,11 @@ def linearisation_terms(linear: Any, steady: Any, scheme: Any, *, max_steps: int
     lin = linear.context
     if getattr(lin, "coefficients", None) is None:
         return NOT_APPLICABLE, "not applicable: the problem is linear as written", 0.0, None
+    if not steady.is_stable:
+        # the system does not reach the periodic solution: there is no nonlinear state near it to
+        # estimate (the term is unknown, the point unstable)
+        unknown = {name: {spec: math.nan for spec in linear.observables} for name in QUANTITIES}
+        return unknown, "unknown: the periodic state is unstable", 0.0, None
     options = {} if max_steps is None else {"max_steps": max_steps}
     found = linearize.linearisation_error(lin, steady.state.x, system=linear.system,
                                           observe=linear.observe, scheme=study_scheme(scheme),
