@@ -339,11 +339,12 @@ def linearisation_error(lin: Any, z: np.ndarray, *, system: Any = None,
                 change = observed(g)
                 last = np.abs(change - previous).max(axis=0)
                 previous = change
-                total = np.maximum(np.abs(change).max(axis=0), 1e-300)
+                # the correction so far, or the size below which an estimate cannot matter
+                total = np.maximum(np.abs(change).max(axis=0), second_step_above * scale)
                 contraction = float(np.max(last / np.maximum(first, 1e-300)))
                 estimate = g
-                if np.all(last <= SETTLED * total) or np.any(last > first):
-                    break   # settled, or growing: then it will not settle (reason below)
+                if np.all(last <= SETTLED * total) or (steps >= 3 and np.any(last > first)):
+                    break   # settled, or still growing: then it will not settle (reason below)
                 # Anderson acceleration of depth one on the residuals f = G(x) - x
                 f, f_prev = (g - x) * weight, (g_prev - x_prev) * weight
                 df = f - f_prev
