@@ -12,6 +12,7 @@ import numpy as np
 from .._budget import (
     ERROR_TOLERANCE,
     FORMAT2_METHODS,
+    LINEARISATION_MARGIN,
     NOT_APPLICABLE,
     QUANTITIES,
     ErrorBudget,
@@ -366,6 +367,12 @@ def _summary(result: SteadyStateResult) -> str:
 def _headlines(result: SteadyStateResult) -> Summary:
     rows = response_rows(result.response, result.response_error, result.units,
                          budget=result.budget if result.error_budget else None)
+    for spec, terms in result.error_budget.items():
+        # what the nonlinear periodic state gives, by the chord steps of the linearisation term
+        shift = terms.get("linearisation")
+        if isinstance(shift, float) and np.isfinite(shift) and spec in result.peak_to_peak:
+            rows.append(Headline(f"{spec} peak to peak, nonlinear state (chord estimate)",
+                                 result.peak_to_peak[spec] + shift / LINEARISATION_MARGIN, result.units[spec]))
     rows.append(Headline("spectral radius", float(result.spectral_radius), "1",
                          float(result.spectral_radius_error)))
     return Summary(status=result.headline, run_time=result.run_time, rows=rows)

@@ -204,6 +204,17 @@ class SweepResult(GridResult):
         **GridResult._units,
     }
 
+    def _dominant_words(self) -> str:
+        """" (mostly linearisation)": the budget term that dominates the most points' total error."""
+        if not self.budget_time_step:
+            return " (time step only)"
+        found = self.budget
+        names = [str(name) for spec in found for name in np.atleast_1d(found.dominant(spec))]
+        if not names:
+            return ""
+        most = max(set(names), key=names.count)
+        return f" (mostly {most.replace('_', ' ')})"
+
     def plot(self, *, axes: Any = None) -> Plot:
         """Peak-to-peak of each observable and the spectral radius against the swept parameter, with
         resonances (dotted lines, labelled k:mode) and parametric instabilities (shaded)."""
@@ -246,7 +257,8 @@ class SweepResult(GridResult):
                     / np.asarray(self.peak_to_peak[spec], dtype=float)
                     for spec in specs if self.peak_to_peak_error.get(spec) is not None]
         axes[0].set_title(cost_line(f"{len(x)} points, largest estimated error "
-                                    f"{plain(100 * largest(relative))} % of peak to peak", self.run_time)
+                                    f"{plain(100 * largest(relative))} % of peak to peak"
+                                    + self._dominant_words(), self.run_time)
                           + self.reduction_note()
                           + ("\nresonances: harmonic k : mode (k x speed = mode frequency)" if rows else ""),
                           fontsize="small", pad=4 + rows * LABEL_ROW_HEIGHT)
@@ -475,6 +487,8 @@ def _headlines(result: SweepResult) -> Summary:
     rows = [row for spec, values in result.peak_to_peak.items()
             for row in largest(f"{spec} peak to peak", values, result.peak_to_peak_error.get(spec),
                                result.units[spec])]
+    if result.budget_time_step:
+        rows.append(Headline("error budget", f"total of time step, mesh, linearisation{result._dominant_words()}"))
     # the peak force or stress over the sweep, where the result holds peaks (see PEAK_UNITS)
     peaks = getattr(result, "peak", None) or {}
     peak_errors = getattr(result, "peak_error", None) or {}
