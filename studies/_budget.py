@@ -152,6 +152,16 @@ def verdict(budget: ErrorBudget, values: Mapping[str, float], tolerance: float,
     return ("inaccurate", "; ".join(messages)) if messages else ("ok", "")
 
 
+def beside(status: str, found: tuple[str, str]) -> tuple[str, str]:
+    """The budget's verdict ``found`` beside a point's own ``status``: near a resonance (where the
+    periodic verdict already says the numbers are sensitive, and refining the step does not remove
+    the cause) an ``inaccurate`` budget is reported in the message and the word stays
+    ``near_resonance``, as ``periodic.steady_state`` does with its own untrusted error."""
+    if status == "near_resonance" and found[0] == "inaccurate":
+        return "near_resonance", found[1]
+    return found
+
+
 def describe(budget: ErrorBudget, spec: str, unit: str = "") -> str:
     """"total 1.4 mm (linearisation 1.36, time step 0.01, mesh not applicable)" of one-point results."""
     from ._summary import DISPLAY_UNITS
@@ -213,7 +223,10 @@ def linearisation_terms(linear: Any, steady: Any, scheme: Any, *, max_steps: int
 
     from ._numerics import peak, peak_to_peak, study_scheme
 
-    lin = linear.context
+    # the linearised mechanism at the point (a MechanismLinear's member; a periodic problem's
+    # context is its parameters: nothing linearised)
+    member = getattr(linear, "member", None)
+    lin = member() if member is not None else linear.context
     if getattr(lin, "coefficients", None) is None:
         return NOT_APPLICABLE, "not applicable: the problem is linear as written", 0.0, None
     if not steady.is_stable:

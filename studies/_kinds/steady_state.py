@@ -16,6 +16,7 @@ from .._budget import (
     NOT_APPLICABLE,
     QUANTITIES,
     ErrorBudget,
+    beside,
     check_tolerance,
     describe,
     format2_budget,
@@ -305,7 +306,8 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
              "peak_error": point.totals("peak"), "peak_to_peak_error": point.totals("peak_to_peak")}
     status, message = combine([(steady.status, steady.message),
                                (reduction.status, reduction.message),
-                               verdict(point.budgets["peak_to_peak"], peaks["peak_to_peak"], error_tolerance)
+                               beside(steady.status, verdict(point.budgets["peak_to_peak"],
+                                                             peaks["peak_to_peak"], error_tolerance))
                                if budget else ("ok", "")])
     if not budget:
         peaks["peak_error"], peaks["peak_to_peak_error"] = time_step["peak_error"], time_step["peak_to_peak_error"]

@@ -19,6 +19,7 @@ from .._budget import (
     GRID_CHORD_STEPS,
     NOT_APPLICABLE,
     ErrorBudget,
+    beside,
     check_tolerance,
     linearisation_terms,
     mesh_terms,
@@ -273,8 +274,7 @@ def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, froz
     {spec: relative error of the headline point} times the value: ``studies._budget``) (a top-level
     function so that process pools and Dask can pickle it). ``budget=False``: the time step's term
     alone (the others unknown), without the linearisation's cost."""
-    # the linearisation term needs the linearised mechanism at this point (context)
-    linear = problem.linearize(values, n_steps=n_steps, context=budget)
+    linear = problem.linearize(values, n_steps=n_steps, context=False)
     steady = solve_steady(linear, scheme)
     _, frozen, _ = frozen_modes(linear.system, frozen_samples)
     response = steady.response
@@ -324,8 +324,8 @@ def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, froz
                              f"{spec}: peak-to-peak error estimate {error:.3g} exceeds {INACCURATE:.0%} of "
                              f"the value {value:.3g}; refine n_steps (typically near a resonance)"))
     if budget:
-        verdicts.append(verdict(ptp_budget, dict(zip(specs, map(float, peaks["peak_to_peak"]))),
-                                error_tolerance))
+        verdicts.append(beside(steady.status, verdict(
+            ptp_budget, dict(zip(specs, map(float, peaks["peak_to_peak"]))), error_tolerance)))
     status, message = combine(verdicts)
     return data, status, message
 
