@@ -1,5 +1,5 @@
 """``linearize.linearisation_error``: how far the linear periodic answer is from the periodic state of
-the full nonlinear equations, by one or two chord steps of the nonlinear periodic problem.
+the full nonlinear equations, by chord steps of the nonlinear periodic problem.
 
 The full equations reduced to the independent coordinates ``z`` along a motion ``s(z)`` are
 
@@ -14,14 +14,18 @@ the same spectral derivatives of the sampled periodic ``z``, so their difference
 
     N(z) = g(z) - (M z'' + C z' + K z - f)
 
-holds the second- and higher-order terms only (no time-step error: the integrator's own residual
-cancels). The nonlinear periodic state solves ``L z = f - N(z)``; the chord (fixed-point) iteration
-``z_(k+1) = z_lin - L^-1 N(z_k)`` starts from the linear answer ``z_lin``; its first step is the
-estimate, and a second step measures the contraction ``|z_2 - z_1| / |z_1 - z_lin|``: below
-``MAX_CONTRACTION`` the estimate is trusted (and the second step taken as the better one), above it
-(near an instability or an exact resonance, or far outside the linear range) the term is unknown.
-``L^-1`` is one periodic solve of the same linear system (``periodic.steady_state`` without its
-error runs), so a step costs about half the steady state it checks.
+holds no time-step error (the integrator's own residual cancels) and, but for the geometric
+stiffness (which the linear system takes from the nominal axial force and the full model from the
+axial coordinates), only terms of second and higher order. The nonlinear periodic state solves
+``L z = f - N(z)``: the chord (fixed-point) iteration ``z_(k+1) = z_lin - L^-1 N(z_k)`` from the
+linear answer ``z_lin``. Its first step is the estimate where it moves every observable by less than
+``SECOND_STEP_ABOVE`` of its peak-to-peak; elsewhere further steps, Anderson-accelerated (depth
+one), run until one moves the observables by at most ``SETTLED`` of the correction (or of that
+floor), at most ``MAX_STEPS``; a last step above ``MAX_CONTRACTION`` of it means the iteration does
+not settle (near an instability or an exact resonance, or far outside the linear range), and the
+term is unknown. ``N`` is evaluated on every stride-th sample (at least ``COARSEST_STEPS``) and
+interpolated spectrally; ``L^-1`` is two single-column marches with the steady state's monodromy.
+Checked against ``studies.nonlinear_steady_state`` in tests/test_budget.py.
 """
 
 from __future__ import annotations
@@ -43,8 +47,8 @@ from ._core import LinearizationError, interpolate_periodic, spectral_derivative
 __all__ = ["LinearisationError", "linearisation_error", "nonlinear_residual", "periodic_solve",
            "MAX_CONTRACTION", "SECOND_STEP_ABOVE"]
 
-#: A chord iteration whose second step is more than this fraction of its first does not contract
-#: fast enough for its first step to estimate the nonlinear correction within a factor of two.
+#: A chord iteration whose last step moves the observables by more than this fraction of the
+#: correction has not settled: its estimate is not trusted (the term is unknown).
 MAX_CONTRACTION = 0.25
 #: The iteration stops once a step changes the observables by at most this fraction of the
 #: correction so far.
