@@ -241,3 +241,16 @@ def test_the_nonlinear_state_lies_inside_the_bar_and_the_bar_is_not_loose(seed):
         slack = np.nan_to_num(reference.peak_to_peak_error[spec])
         assert true <= bar + slack, (scene, values, spec, true, linear.error_budget[spec])
         assert bar <= max(3.0 * true, 0.05 * value), (scene, values, spec, true, linear.error_budget[spec])
+
+
+def test_files_written_before_the_budget_read_as_time_step_only():
+    """tests/data/results_before_core.h5 (format 1): the errors were the time step's alone."""
+    from pathlib import Path
+
+    results = studies.load(Path(__file__).parent / "data" / "results_before_core.h5")
+    for name in ("steady_state", "sweep", "nonlinear_steady_state"):
+        for spec, terms in results[name].error_budget.items():
+            np.testing.assert_array_equal(terms["time_step"], results[name].peak_to_peak_error[spec])
+            assert np.isnan(np.asarray(terms["mesh"], dtype=float)).all()
+            if name != "nonlinear_steady_state":
+                assert np.isnan(np.asarray(terms["linearisation"], dtype=float)).all()

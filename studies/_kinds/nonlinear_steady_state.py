@@ -171,8 +171,10 @@ class NonlinearSteadyState(DerivedPeaks, StudyResult):
         (``studies._budget``): the time step (N against N/2), the mesh (the linear state's, where
         it applies); the linearisation does not apply to the nonlinear state."""
         time_step = peaks_of(self.response, self.response_error)["peak_to_peak_error"]
+        # a file written before the budget (no error_methods) did not estimate the mesh: unknown
+        unmeshed = NOT_APPLICABLE if self.error_methods else math.nan
         return {spec: {"time_step": time_step[spec],
-                       "mesh": 2.0 * abs(self.mesh_error[spec]) if spec in self.mesh_error else NOT_APPLICABLE,
+                       "mesh": 2.0 * abs(self.mesh_error[spec]) if spec in self.mesh_error else unmeshed,
                        "linearisation": NOT_APPLICABLE} for spec in self.response}
 
     @property
