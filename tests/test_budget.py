@@ -254,3 +254,15 @@ def test_files_written_before_the_budget_read_as_time_step_only():
             assert np.isnan(np.asarray(terms["mesh"], dtype=float)).all()
             if name != "nonlinear_steady_state":
                 assert np.isnan(np.asarray(terms["linearisation"], dtype=float)).all()
+
+
+def test_the_studies_table_takes_error_tolerance():
+    from studies.cli import _scene  # the [studies] table's reading is the command's machinery
+
+    _, declared = _scene.plan({"error_tolerance": 0.05, "steady_state": {}, "sweep": {}})
+    assert declared["steady_state"]["error_tolerance"] == 0.05
+    assert declared["sweep"]["error_tolerance"] == 0.05
+    _, plain = _scene.plan({"steady_state": {}})
+    assert "error_tolerance" not in plain["steady_state"]   # the request of older files is unchanged
+    with pytest.raises(studies.StudiesError, match=r"\[studies\] error_tolerance"):
+        _scene.plan({"error_tolerance": 5, "steady_state": {}})
