@@ -259,7 +259,8 @@ def test_files_written_before_the_budget_read_as_time_step_only():
 def test_the_studies_table_takes_error_tolerance():
     from studies.cli import _scene  # the [studies] table's reading is the command's machinery
 
-    _, declared = _scene.plan({"error_tolerance": 0.05, "steady_state": {}, "sweep": {}})
+    sweep = {"parameter": "speed", "start": 50.0, "stop": 150.0, "count": 3}
+    _, declared = _scene.plan({"error_tolerance": 0.05, "steady_state": {}, "sweep": sweep})
     assert declared["steady_state"]["error_tolerance"] == 0.05
     assert declared["sweep"]["error_tolerance"] == 0.05
     _, plain = _scene.plan({"steady_state": {}})
