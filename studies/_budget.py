@@ -27,6 +27,9 @@ import numpy as np
 TERMS = ("time_step", "mesh", "linearisation", "reduction")
 #: The value of a term that does not apply to a result.
 NOT_APPLICABLE = "not applicable"
+#: The value of a term that applies but that no estimator covers for the quantity (the mesh term of a
+#: spectral radius or of a frequency): outside the total, said in words, not judged.
+NOT_ESTIMATED = "not estimated"
 #: The default relative tolerance of the total error (``[studies] error_tolerance``, a study keyword).
 ERROR_TOLERANCE = 0.02
 #: The fix of each term, for the message of an inaccurate result.
@@ -181,6 +184,31 @@ def describe(budget: ErrorBudget, spec: str, unit: str = "") -> str:
     return f"total {total_words}, mostly {WORDS.get(budget.dominant(spec), '-')} ({', '.join(parts)})"
 
 
+#: The terms of a spectral radius (a stability chart's cell, a Campbell diagram's speed) besides its
+#: time step (N against N/2), and their words (``error_methods``).
+RADIUS_TERMS = {"mesh": NOT_ESTIMATED, "linearisation": NOT_APPLICABLE}
+RADIUS_METHODS = {
+    "time_step": "N against N/2 steps (periodic.floquet)",
+    "mesh": "not estimated: the mesh estimate (studies._mesh_error) covers the response observables, not the "
+            "multipliers; refine the elastic links to check",
+    "linearisation": "not applicable: the multipliers are those of the linearised system, the stability of "
+                     "small vibrations about the nominal motion"}
+
+
+def radius_verdict(radius: float, error: float, tolerance: float) -> tuple[str, str]:
+    """``(status, message)`` of one spectral radius by its budget (time step ``error``; mesh not
+    estimated, linearisation not applicable): ``inaccurate`` where the error exceeds ``tolerance *
+    radius`` or is unknown."""
+    budget = ErrorBudget({"spectral_radius": {"time_step": float(error), **RADIUS_TERMS}})
+    return verdict(budget, {"spectral_radius": float(radius)}, tolerance, quantity="spectral radius")
+
+
+def radius_budget(error: Any) -> dict[str, dict[str, Any]]:
+    """{"spectral_radius": {term: value}}: the budget of a grid's spectral radius from its time-step
+    error (an array of the grid's shape)."""
+    return {"spectral_radius": {"time_step": error, **RADIUS_TERMS}}
+
+
 # ---------------------------------------------------------------------------------------------------
 # the budget of a linear steady state at one point
 # ---------------------------------------------------------------------------------------------------
@@ -313,3 +341,30 @@ def format2_budget(errors: Mapping[str, float]) -> dict[str, dict[str, Any]]:
 FORMAT2_METHODS = {"time_step": "N against N/2 steps",
                    "mesh": "unknown: the file was written before the error budget (format 2)",
                    "linearisation": "unknown: the file was written before the error budget (format 2)"}
+
+
+# ---------------------------------------------------------------------------------------------------
+# the budget of a nonlinear run's steady peaks (a control comparison)
+# ---------------------------------------------------------------------------------------------------
+def nonlinear_run_budget(problem: Any, values: Mapping[str, float] | None, peaks: Mapping[str, float],
+                         time_step: Mapping[str, float], meshed: Any, *, n_steps: int,
+                         tolerance: float, scheme: str = "trapezoidal", quantity: str = "steady peak"
+                         ) -> tuple[dict[str, dict[str, Any]], dict[str, str], tuple[str, str]]:
+    """The budget of the steady peaks ``peaks`` {spec: value} of a run of the full nonlinear
+    equations: ``(terms {spec: {term: value}}, methods, (status, message))``. Time step:
+    ``time_step`` {spec: error}; mesh: the linear steady state's peak error at ``values``
+    (``studies._mesh_error``) for the specs in ``meshed`` (observables of the scene's links), not
+    estimated for the others; linearisation: not applicable (nothing is linearised)."""
+    mesh, mesh_method, _ = mesh_terms(problem, values, tuple(meshed), n_steps, scheme)
+    mesh_peaks = {} if mesh == NOT_APPLICABLE else mesh["peak"]
+    terms = {spec: {"time_step": float(time_step.get(spec, math.nan)),
+                    "mesh": (NOT_APPLICABLE if mesh == NOT_APPLICABLE
+                             else float(mesh_peaks.get(spec, math.nan)) if spec in meshed else NOT_ESTIMATED),
+                    "linearisation": NOT_APPLICABLE} for spec in peaks}
+    methods = {"time_step": "N against N/2 steps (Richardson), over the last period",
+               "mesh": (mesh_method if mesh == NOT_APPLICABLE else
+                        f"{mesh_method}, of the linear steady state's peak at the point (the elastic "
+                        f"quantities; the others not estimated)"),
+               "linearisation": "not applicable: the runs integrate the full nonlinear equations"}
+    budget = ErrorBudget(terms, methods)
+    return terms, methods, verdict(budget, peaks, tolerance, quantity=quantity)

@@ -493,8 +493,9 @@ def _cost(name, problem, options, workers):
     seconds = (cost.STUDY_SECONDS + build_seconds + cost.solve_seconds(n_steps, sizes)
                + cost.SHOOTING_PERIODS * cost.nonlinear_period_seconds(n_steps, sizes))
     memory = max(build_bytes, cost.tangent_bytes(n_steps, sizes))
-    return cost.Estimate(name, memory, seconds, f"{cost.SHOOTING_PERIODS:g} periods x {n_steps} steps x {sizes.n} "
-                                                "coordinates")
+    found = cost.Estimate(name, memory, seconds, f"{cost.SHOOTING_PERIODS:g} periods x {n_steps} steps x {sizes.n} "
+                                                 "coordinates")
+    return cost.with_mesh_term(found, problem, options["values"], n_steps)  # the error budget's
 
 
 

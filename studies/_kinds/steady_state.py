@@ -388,8 +388,9 @@ def _figures(result: SteadyStateResult) -> dict[str, Any]:
 
 
 def _cost(name, problem, options, workers):
-    """A linearisation and a periodic solve, and the modal reduction's check where a link is reduced."""
-    found = cost.steady_solves(name, problem, [options["values"]], options["n_steps"])
+    """A linearisation and a periodic solve with its error budget, and the modal reduction's check
+    where a link is reduced."""
+    found = cost.steady_solves(name, problem, [options["values"]], options["n_steps"], budget=True)
     return cost.with_reduction_check(found, problem, options["values"], options["n_steps"], extra_solve=False)
 
 

@@ -510,10 +510,12 @@ def _default(nominal_speed: float) -> dict[str, Any]:
 
 
 def _cost(name, problem, options, workers, done=None):
-    """A periodic solve and 32 frozen-time eigenproblems per point (``studies._cost.grid_cost``)."""
+    """A periodic solve, its error budget and 32 frozen-time eigenproblems per point
+    (``studies._cost.grid_cost``), the mesh term at the scene's point."""
     axis = (options["parameter"], np.asarray(options["values"]))
     found = cost.grid_cost(name, problem, [axis], options["n_steps"], workers=workers, frozen=32, done=done,
-                      point_doubles=lambda s: 8.0 * s.m + 4.0, words=[cost.axis_words(*axis)])
+                      point_doubles=lambda s: 8.0 * s.m + 4.0, words=[cost.axis_words(*axis)], budget=True)
+    found = cost.with_mesh_term(found, problem, {}, options["n_steps"], relative=True)
     return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 

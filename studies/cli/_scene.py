@@ -194,10 +194,11 @@ def plan(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, 
             raise StudiesError(f"[{where}]: expected a table, got {options!r}")
         reject_unknown(where, options, kind.keys)
         studies[name] = kind.check(where, options, n_steps)
+        if tolerance is not None and (kind.schemes or "error_tolerance" in kind.keys):
+            # the error budget's status rule (studies._budget); a kind's own table key wins
+            studies[name].setdefault("error_tolerance", tolerance)
         if kind.schemes:  # part of the request, so a run with another scheme is another study
             studies[name]["scheme"] = scheme
-            if tolerance is not None:  # the error budget's status rule (studies._budget)
-                studies[name]["error_tolerance"] = tolerance
         elif scheme != DEFAULT_SCHEME:
             logger.warning("[studies] scheme = %r: %s does not take the option; its linear solutions (a "
                            "shooting's start, a linear reference) use the default %r scheme", scheme, name,
