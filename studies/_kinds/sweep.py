@@ -515,7 +515,7 @@ def _cost(name, problem, options, workers, done=None):
     axis = (options["parameter"], np.asarray(options["values"]))
     found = cost.grid_cost(name, problem, [axis], options["n_steps"], workers=workers, frozen=32, done=done,
                       point_doubles=lambda s: 8.0 * s.m + 4.0, words=[cost.axis_words(*axis)], budget=True)
-    found = cost.with_mesh_term(found, problem, {}, options["n_steps"], relative=True)
+    found = cost.with_mesh_term(found, problem, {}, options["n_steps"], relative=True, held=found.memory)
     return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 
