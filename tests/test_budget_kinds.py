@@ -14,7 +14,7 @@ import pytest
 import mechanisms
 import studies
 from studies import _budget as budget  # the budget's words are internal to the studies (tested here)
-from studies import _cost as cost      # the guard's cost model's parts (tested here)
+from studies import _cost as cost  # the guard's cost model's parts (tested here)
 
 TOLERANCE = 0.02
 
@@ -142,7 +142,7 @@ def test_the_optimum_carries_the_budget_of_the_steady_state_at_its_worst_speed()
 
 
 def test_a_periodic_problem_optimum_has_the_time_step_alone():
-    from studies._kinds.optimize import optimize   # the kind's function is the public studies.optimize
+    from studies._kinds.optimize import optimize  # the kind's function is the public studies.optimize
 
     problem = studies.mathieu_problem(damping_ratio=0.05)
     found = optimize(problem, {"damping_ratio": (0.05, 0.2)}, objective="rms:x", n_steps=64, max_evaluations=3,
