@@ -258,7 +258,9 @@ class ControlComparison(DerivedPeaks, StudyResult):
             words = [f"{case} {'control' if case == 'with' else 'feedback'}: peak "
                      f"{plain(self.steady_peak[case].get(name, float('nan')))}, "
                      f"settles {_settle_words(self, case, name)}" for case in CASES]
-            ax.set_title(f"{name}\n" + "; ".join(words), fontsize="small")
+            words += [f"error with control {describe(ErrorBudget(self.error_budget), name, self.units[name])}"
+                      ] if name in self.error_budget else []
+            ax.set_title(f"{name}\n" + "; ".join(words), fontsize="small", wrap=True)
             ax.legend(fontsize="x-small")
             artists[name] = lines
         axes[0].figure.suptitle(f"with and without feedback: {headline(self.status)}", fontsize="small")

@@ -244,6 +244,12 @@ class OptimizeResult(StudyResult):
             return dict(self.check_units).get(key, "1")
         return super()._unit(name, key)
 
+    def _dominant_words(self) -> str:
+        """" (error mostly linearisation)": the objective's largest budget term ("" without a budget)."""
+        spec = Objective.parse(self.objective).spec
+        dominant = ErrorBudget(self.error_budget).dominant(spec) if spec in self.error_budget else ""
+        return f" (error mostly {WORDS.get(dominant, dominant)})" if dominant else ""
+
     @property
     def values(self) -> dict[str, float]:
         """The optimum as ``{path: value}``."""
@@ -276,7 +282,7 @@ class OptimizeResult(StudyResult):
         ax.legend(fontsize="x-small")
         ax.set_title(f"{self.problem}: {headline(self.status)}; {plain(self.objective_start, 3)} -> "
                      f"{plain(self.objective_value, 3)} ± {plain(self.objective_error)} {self.objective_unit} "
-                     f"at {plain(self.worst_speed, 3)} rad/s\n"
+                     f"at {plain(self.worst_speed, 3)} rad/s{self._dominant_words()}\n"
                      + cost_line(f"{self.n_evaluations} evaluations; nonlinear check: "
                                  f"{self.check_verdict.replace('_', ' ') or 'not run'}", self.run_time),
                      fontsize="small")
@@ -627,9 +633,7 @@ def _summary(result: OptimizeResult) -> str:
 
 def _headlines(result: OptimizeResult) -> Summary:
     at = f"at speed {plain(result.worst_speed, 3)} rad/s" if math.isfinite(result.worst_speed) else ""
-    spec = Objective.parse(result.objective).spec
-    dominant = ErrorBudget(result.error_budget).dominant(spec) if spec in result.error_budget else ""
-    at += f" (error mostly {WORDS.get(dominant, dominant)})" if dominant else ""
+    at += result._dominant_words()
     rows = [Headline(f"{result.objective} at the optimum (worst speed)", result.objective_value,
                      result.objective_unit, result.objective_error, at.strip()),
             Headline(f"{result.objective} at the start", result.objective_start, result.objective_unit)]
