@@ -315,11 +315,12 @@ def control_comparison(problem: Any, values: Mapping[str, float] | None = None, 
     t = np.arange(n_periods * n_steps + 1) * (mechanism.period / n_steps)
     status, message = _verdict(results, plan, n_periods)
     budget: dict[str, Any] = {}
-    if not results["with"]["failed"]:
+    if not results["with"]["failed"]:   # by severity; beside an ok, the notes of _verdict's message kept
         budget["error_budget"], budget["error_methods"], found = nonlinear_run_budget(
             problem, values, results["with"]["steady_peak"], results["with"]["steady_peak_error"],
             [q for q in plan.units if plan.roles[q] == "elastic"], n_steps=n_steps, tolerance=error_tolerance)
-        status, message = combine([(status, message), found])
+        status, message = (combine([(status, message), found]) if status != "ok" else
+                           (found[0], "; ".join(m for m in (found[1], message) if m)))
     per_case = {key: {case: results[case][key] for case in CASES}
                 for key in ("steady_peak", "steady_peak_error", "settling_time", "settling_time_error", "settled",
                             "saturation")}
@@ -694,7 +695,6 @@ def _cost(name, problem, options, workers):
 
 
 KIND = register_kind(StudyKind(
-    name="control_comparison", result=ControlComparison, keys=("speed", "n_periods", "n_steps", "band", "output",
-                                                           "error_tolerance"),
-    check=_check, run=_run_kind, summary=_summary, headlines=_headlines, cost=_cost,
-    aliases=("ControlComparison",)))
+    name="control_comparison", result=ControlComparison, check=_check, run=_run_kind, summary=_summary,
+    keys=("speed", "n_periods", "n_steps", "band", "output", "error_tolerance"), headlines=_headlines,
+    cost=_cost, aliases=("ControlComparison",)))
