@@ -141,15 +141,25 @@ def test_the_optimum_carries_the_budget_of_the_steady_state_at_its_worst_speed()
         assert found.status != "ok" and "peak-to-peak error" in found.message
 
 
-def test_a_periodic_problem_optimum_has_the_time_step_alone():
-    from studies._kinds.optimize import optimize  # the kind's function is the public studies.optimize
-
+def test_a_periodic_problem_optimum_has_the_time_step_alone(tmp_path):
     problem = studies.mathieu_problem(damping_ratio=0.05)
-    found = optimize(problem, {"damping_ratio": (0.05, 0.2)}, objective="rms:x", n_steps=64, max_evaluations=3,
-                     check=False)
+    found = studies.optimize(problem, {"damping_ratio": (0.05, 0.2)}, objective="rms:x", n_steps=64,
+                             max_evaluations=3, check=False)
     terms = found.error_budget["x"]
     assert terms["mesh"] == budget.NOT_APPLICABLE and terms["linearisation"] == budget.NOT_APPLICABLE
-    assert found.objective_error == pytest.approx(terms["time_step"])
+    # independent: the response error of the steady state at the optimum, run apart
+    steady = studies.steady_state(problem, found.values, n_steps=64)
+    assert found.objective_error == pytest.approx(steady.response_error["x"], rel=1e-12)
+    path = tmp_path / "optimum.h5"
+    found.save(path)
+    back = studies.load(path)["optimize"]
+    assert dict(back.error_budget["x"]) == dict(terms) and back.objective_error == found.objective_error
+    with h5py.File(path, "a") as handle:   # as a file written before the budget
+        for name in ("error_budget", "error_methods"):
+            del handle["optimize"].attrs[name]
+    old = studies.load(path)["optimize"]
+    assert old.error_budget["x"]["time_step"] == found.objective_error
+    assert math.isnan(old.error_budget["x"]["linearisation"]) and "format 2" in old.error_methods["mesh"]
 
 
 # ---------------------------------------------------------------------------------------------------
