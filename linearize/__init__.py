@@ -21,6 +21,9 @@ from ._reduction import ReductionCheck as ReductionCheck
 from ._reduction import reduced_links as reduced_links
 from ._reduction import reduction_error as reduction_error
 from ._reduction import reference_mechanism as reference_mechanism
+from ._residual import LinearisationError as LinearisationError
+from ._residual import linearisation_error as linearisation_error
+from ._residual import nonlinear_residual as nonlinear_residual
 from ._sensitivity import CENTRAL_STEP as CENTRAL_STEP
 from ._sensitivity import FORWARD_STEP as FORWARD_STEP
 from ._sensitivity import coefficient_derivative as coefficient_derivative

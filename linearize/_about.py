@@ -477,8 +477,11 @@ class SpeedFamily:
                                        self.K0 + w * self.K1 + w**2 * self.K2,
                                        self.f0 + w**2 * self.f2)
 
-    def at_speed(self, rate: float) -> LinearizedMechanism:
-        """The linearised mechanism at speed ``rate`` (rad/s, same sign as the base)."""
+    def at_speed(self, rate: float, *, rebuild: bool = True) -> LinearizedMechanism:
+        """The linearised mechanism at speed ``rate`` (rad/s, same sign as the base).
+        ``rebuild=False`` keeps the base's ``mechanism`` (not rebuilt at ``rate``): enough for the
+        residual of the full equations (``linearize.linearisation_error``), whose prescribed drives
+        enter only through the motion, not for a nonlinear run."""
         started = time.perf_counter()
         system = self.system_at(rate)
         scale = rate / self.rate
@@ -491,7 +494,7 @@ class SpeedFamily:
         coeffs = dataclasses.replace(
             base.coefficients, t=nominal.t, C=system.C, K=system.K, f=system.f,
             Vdot=base.coefficients.Vdot * scale, Vddot=base.coefficients.Vddot * scale**2)
-        mechanism = _at_speed(self.mechanism, self.rate, rate)
+        mechanism = _at_speed(self.mechanism, self.rate, rate) if rebuild else self.mechanism
         return dataclasses.replace(base, mechanism=mechanism, nominal=nominal, system=system,
                                    coefficients=coeffs,
                                    observable_maps=self.observable_maps_at(rate),

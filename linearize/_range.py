@@ -38,9 +38,10 @@ LINEAR_RANGE_LIMITS = MappingProxyType({
     "deflection_over_length": 0.1,
     "slope": 0.3,
     # Stiffened links linearise the membrane strain u' + P[w'^2/2]; the stretching that neglects
-    # grows with (deflection / section height)^2. Measured peak differences, nonlinear against
-    # linear: six_bar 0.2-1.8 % at 2.3-2.9, four_bar_fem4 3 % at 5.1 (100 rad/s), 24 % at 13.5
-    # (150 rad/s).
+    # grows with (deflection / section height)^2. Measured peak-to-peak differences, nonlinear
+    # periodic state against linear (256 steps, docs/methods.md): six_bar 1.5-1.8 % at 100 rad/s,
+    # four_bar_fem4 -8.9 % at 5.1 (100 rad/s), -9.5 % at 13.5 (150 rad/s). The error budget's
+    # linearisation term (linearize.linearisation_error) estimates the difference at every point.
     "deflection_over_height": 6.0,
     # Compression against the Euler load: the bending frequency falls as sqrt(1 - P / P_E), at
     # half the Euler load by 29 %. A link without geometric stiffening does not see this drop.

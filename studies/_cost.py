@@ -21,7 +21,11 @@ The cost models are deliberately simple, each a sum of terms with one calibrated
   the observables' runs) and keeps ``TANGENT_DOUBLES (n + r)^2`` doubles per step for the monodromy's
   iteration matrices; a nonlinear sweep runs ``SWEEP_POINT_PERIODS`` periods per orbit of its
   branch (corrector, tangent, observables; ``|stop - start| / step`` orbits, at most ``max_points``)
-  plus two linearisations per orbit and ``LINEAR_POINTS`` for the linear curve, and its transient.
+  plus two linearisations per orbit and ``LINEAR_POINTS`` for the linear curve, and its transient;
+- the error budget (``studies._budget``) adds, at each point of a linearised mechanism, its
+  linearisation term, ``BUDGET_SOLVES`` periodic solves (:func:`budget_seconds`), and at each
+  headline point its mesh term, a linearisation and a solve with every elastic link refined once,
+  sized at twice the coordinates (:func:`with_mesh_term`).
 
 The constants were measured on the development machine (2 cores, 2024) with
 ``benchmarks/bench_guard.py``, which prints measured over estimated memory and time for a range of
@@ -62,8 +66,10 @@ NONLINEAR_STEP_N2_SECONDS = 3.0e-7
 NONLINEAR_DOUBLES = 40.0
 #: Seconds per step of a period map, besides the n^2 term of a nonlinear run: the integrator alone,
 #: without ``mechanisms.simulate``'s error estimate and observables (1.9e-4 s per step measured on
-#: four_bar_fem4, n = 21).
-PERIOD_STEP_SECONDS = 6.0e-5
+#: four_bar_fem4, n = 21, in 2024; raised from 6e-5 with the error budget (issue 22): the nonlinear
+#: steady state of four_bar_fem4 at 128 steps took 1.42 s against 0.52 s estimated, while the linear
+#: steady state took 0.135 s against 0.2 s, on the loaded machine; now 0.91 s estimated).
+PERIOD_STEP_SECONDS = 3.0e-4
 #: A period map with its monodromy costs this many plain periods (benchmarks/bench_nonlinear_steady.py:
 #: 0.08 s against 0.05 s on four_bar_fem4 at N = 256).
 TANGENT_FACTOR = 1.6
@@ -77,6 +83,14 @@ SHOOTING_PERIODS = (4 * 1.5 + 3 * 0.25) * TANGENT_FACTOR + 2.25
 SWEEP_POINT_PERIODS = 4 * TANGENT_FACTOR + 3 * 0.5 * TANGENT_FACTOR + 1.5
 #: Doubles per step and (n + r)^2 kept while a monodromy is built (iteration matrices, their inverse).
 TANGENT_DOUBLES = 3.0
+#: The error budget's linearisation term at a point, in periodic solves (``solve_seconds``): 1-5
+#: residuals of the full equations on 64+ samples and two single-column marches per chord step
+#: (benchmarks/bench_guard.py with the budget; benchmarks/bench_budget.py: a point costs 1.2-2.2x
+#: its solve without the budget).
+BUDGET_SOLVES = 1.0
+#: The mesh term's refined model against the scene's, in coordinates (n and m): every elastic link's
+#: elements doubled (or two more modes): four_bar_fem4 21 -> 33 coordinates (8 elements on the coupler).
+MESH_REFINEMENT = 1.5
 
 
 @dataclass(frozen=True)
@@ -167,10 +181,12 @@ def solve_seconds(n_steps: int, sizes: Sizes, frozen: int = 0) -> float:
     return POINT_SECONDS + n_steps * per_step + EIGEN_SECONDS * frozen * sizes.m**3
 
 
-def steady_solves(name: str, problem: Any, points: Sequence[Mapping[str, float]], n_steps: int) -> Estimate:
+def steady_solves(name: str, problem: Any, points: Sequence[Mapping[str, float]], n_steps: int, *,
+                  budget: bool = False) -> Estimate:
     """One study of a linearisation and a periodic solve (shooting at N, N/2 and N/4, multipliers) at
     each parameter values of ``points`` ({parameter: value}; ``{}`` the scene's), one after the
-    other: a steady state, or a kind that computes a few (a public helper for a new kind's cost)."""
+    other: a steady state, or a kind that computes a few (a public helper for a new kind's cost);
+    ``budget``: each with its error budget (linearisation term and mesh term, ``with_mesh_term``)."""
     if not points:
         raise ValueError("steady_solves: expected at least one point")
     memory, seconds, largest = 0.0, STUDY_SECONDS, Sizes(0, 0)
@@ -180,16 +196,22 @@ def steady_solves(name: str, problem: Any, points: Sequence[Mapping[str, float]]
         build_bytes, build_seconds = linearisation(n_steps, sizes)
         memory = max(memory, build_bytes)
         seconds += build_seconds + solve_seconds(n_steps, sizes)
+        if budget:
+            seconds += budget_seconds(problem, n_steps, sizes)
+            meshed = with_mesh_term(Estimate(name, memory, 0.0, ""), problem, values, n_steps, held=build_bytes)
+            memory, seconds = meshed.memory, seconds + meshed.time
     count = f"{len(points)} steady states x " if len(points) > 1 else ""
     return Estimate(name, memory, seconds, f"{count}{n_steps} steps x {largest.m} coordinates")
 
 
 def grid_cost(name: str, problem: Any, axes: Sequence[tuple[str, np.ndarray]], n_steps: int, *,
           frozen: int = 0, point_doubles: Callable[[Sizes], float] = lambda s: 4.0 * s.m,
-          workers: int = 1, words: Sequence[str], done: np.ndarray | None = None) -> Estimate:
+          workers: int = 1, words: Sequence[str], done: np.ndarray | None = None,
+          budget: bool = False) -> Estimate:
     """A grid study over ``axes``: one periodic solve per point; one speed family per combination of
     the other parameters' values when the speed is an axis, else one linearisation per combination.
-    ``done``: the points already saved (bool, grid shape), neither solved nor linearised again."""
+    ``done``: the points already saved (bool, grid shape), neither solved nor linearised again;
+    ``budget``: each point also estimates its error budget's linearisation term (``budget_seconds``)."""
     sizes = largest_sizes(problem, axes)
     total = math.prod(len(grid) for _, grid in axes)
     shape = tuple(len(grid) for _, grid in axes)
@@ -212,11 +234,38 @@ def grid_cost(name: str, problem: Any, axes: Sequence[tuple[str, np.ndarray]], n
     results = 8.0 * total * point_doubles(sizes)
     # each worker process builds the linearisations its points need (a speed family once per process)
     seconds = (STUDY_SECONDS + variants * family * build_seconds / max(1, min(parallel, variants))
-               + points * solve_seconds(n_steps, sizes, frozen) / parallel)
+               + points * solve_seconds(n_steps, sizes, frozen) / parallel
+               + (budget_seconds(problem, n_steps, sizes, points) / parallel if budget else 0.0))
     memory = per_process * parallel + results
     return Estimate(name, memory, seconds, " x ".join(list(words) + [f"{n_steps} steps",
                                                                       f"{sizes.m} coordinates"])
                     + "".join(f" ({note})" for note in left))
+
+
+def budget_seconds(problem: Any, n_steps: int, sizes: Sizes, points: int = 1) -> float:
+    """Seconds of the error budget's linearisation term at ``points`` points (0 for a problem that
+    is linear as written, a ``PeriodicProblem``: the term does not apply)."""
+    if not hasattr(problem, "mechanism"):
+        return 0.0
+    return points * BUDGET_SOLVES * solve_seconds(n_steps, sizes)
+
+
+def with_mesh_term(found: Estimate, problem: Any, values: Mapping[str, float], n_steps: int, *,
+                   held: float = 0.0, relative: bool = False) -> Estimate:
+    """``found`` plus the error budget's mesh term at ``values`` (``studies._mesh_error``: a
+    linearisation and a solve of the model with every elastic link refined once, sized at
+    ``MESH_REFINEMENT`` times the coordinates), its memory on top of ``held`` bytes still held (the
+    point's own linearisation); ``relative``: and the steady state at ``values`` it is taken relative
+    to (a sweep's). A problem without elastic links (no mechanism) has none."""
+    if not hasattr(problem, "mechanism"):
+        return found
+    sizes = sizes_at(problem, values)
+    refined = Sizes(n=MESH_REFINEMENT * sizes.n, m=MESH_REFINEMENT * sizes.m)
+    refined_bytes, refined_seconds = linearisation(n_steps, refined)
+    seconds = refined_seconds + solve_seconds(n_steps, refined)
+    if relative:
+        seconds += linearisation(n_steps, sizes)[1] + solve_seconds(n_steps, sizes)
+    return Estimate(found.study, max(found.memory, held + refined_bytes), found.time + seconds, found.sizes)
 
 
 def grid_variants(axes: Sequence[tuple[str, np.ndarray]], todo: np.ndarray) -> int:

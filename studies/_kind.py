@@ -136,7 +136,7 @@ class StudyKind:
 # the registry of study kinds
 # ---------------------------------------------------------------------------------------------------
 #: Keys of the ``[studies]`` table that are not kinds (a kind may not take their names).
-COMMON_KEYS = ("n_steps", "observables", "scheme")
+COMMON_KEYS = ("n_steps", "observables", "scheme", "error_tolerance")
 
 #: What every study result offers a user and the command (``studies.StudyResult``): a result class
 #: without one of them is refused at registration, not when the command reads it after the run.

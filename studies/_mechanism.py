@@ -10,6 +10,7 @@ torque drives, and any other change, are linearised afresh at each point.
 
 from __future__ import annotations
 
+import functools
 import math
 import tomllib
 from collections import OrderedDict
@@ -247,7 +248,8 @@ class MechanismProblem:
                 # torques and stresses change with the speed.
                 return _linear(family.base, family.system_at(speed), None,
                                linear_range=_family_range(family, speed),
-                               maps=family.observable_maps_at(speed))
+                               maps=family.observable_maps_at(speed),
+                               member=functools.partial(family.at_speed, speed, rebuild=False))
             lin = family.at_speed(speed)
         else:
             lin = linearize.about(self.mechanism(dict(others, speed=speed)), n_steps=n_steps,
@@ -549,6 +551,10 @@ class MechanismLinear(Linear):
     magnitudes (``hypot`` of two such)."""
 
     maps: tuple = ()
+    #: The ``linearize.LinearizedMechanism`` at this point whose full equations the error budget's
+    #: linearisation term evaluates (``context``; with ``context=False`` the speed family's member,
+    #: its mechanism not rebuilt at the speed).
+    member: Any = None
 
     def observe(self, z: np.ndarray, *, stride: int = 1) -> np.ndarray:
         """Observables of the periodic ``z`` (N/stride + 1, m) sampled every ``stride`` samples:
@@ -564,8 +570,12 @@ class MechanismLinear(Linear):
         return np.stack([m.evaluate(z, zdot, zddot, stride=stride) for m in self.maps], axis=1)
 
 
+def _given(value: Any) -> Any:
+    return value
+
+
 def _linear(lin: Any, system: Any, context: Any, *, linear_range: Any = None,
-            maps: Mapping[str, Any] | None = None) -> Linear:
+            maps: Mapping[str, Any] | None = None, member: Any = None) -> Linear:
     """A study's ``Linear`` from a ``linearize`` result (maps, gains and units of its observables;
     ``maps`` instead of ``lin``'s at another speed). The crank angle is the phase ``2 pi t / T``
     (the drive angle less its offset for a crank turning once per period; the phase of an
@@ -581,4 +591,5 @@ def _linear(lin: Any, system: Any, context: Any, *, linear_range: Any = None,
     return MechanismLinear(system=system, crank_angle=phase,
                            labels=tuple(lin.labels), observables=tuple(lin.observables),
                            units=tuple(observable_map.unit for observable_map in ordered),
-                           gains=gains, context=context, linear_range=linear_range, maps=ordered)
+                           gains=gains, context=context, linear_range=linear_range, maps=ordered,
+                           member=member if member is not None else functools.partial(_given, context))

@@ -31,7 +31,11 @@ from ._writes import writing_to
 #: study kind (``studies.register_kind``), a stable string, so that moving or renaming a result class
 #: breaks no file. Format 3: ``spectral_radius`` (and its error) is that of the resolved modes, the
 #: steady state's unresolved ones stored apart (``unresolved_multipliers``); in older files it is over
-#: all modes, and they are read with that meaning. A file or group of a higher format is refused
+#: all modes, and they are read with that meaning. Format 3 results also carry their error budget
+#: (``studies._budget``: time step, mesh, linearisation, reduction) and their errors
+#: (``peak_to_peak_error``, ...) are its totals; in files of formats 1 and 2 the errors were the time
+#: step's alone, and they read so (a budget of the time step with the other terms unknown). A file or
+#: group of a higher format is refused
 #: (:func:`check_format`).
 FORMAT_VERSION = 3
 

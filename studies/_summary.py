@@ -107,15 +107,22 @@ def markdown_table(summaries: Mapping[str, Summary]) -> str:
 # helpers the kinds' headline hooks share
 # ---------------------------------------------------------------------------------------------------
 def response_rows(response: Mapping[str, np.ndarray], error: Mapping[str, float],
-                  units: Mapping[str, str]) -> list[Headline]:
+                  units: Mapping[str, str], *, budget: Any = None) -> list[Headline]:
     """Rows of a response over one period: each observable's peak to peak (error: twice the
-    response's error estimate, as the extremes of two curves each within e differ by at most 2 e)
-    and, for forces, moments and stresses, its peak (largest magnitude)."""
+    response's error estimate, as the extremes of two curves each within e differ by at most 2 e;
+    with the peak-to-peak's error ``budget``, a ``studies._budget.ErrorBudget``, its total and its
+    dominant term named) and, for forces, moments and stresses, its peak (largest magnitude)."""
     rows = []
     for spec, values in response.items():
         values = np.asarray(values, dtype=float)
         e = float(error.get(spec, math.nan))
-        rows.append(Headline(f"{spec} peak to peak", float(np.ptp(values)), units[spec], 2.0 * e))
+        if budget is not None and spec in budget.terms:
+            dominant = budget.dominant(spec)
+            rows.append(Headline(f"{spec} peak to peak", float(np.ptp(values)), units[spec],
+                                 float(budget.total(spec)),
+                                 f"(error mostly {dominant.replace('_', ' ')})" if dominant else ""))
+        else:
+            rows.append(Headline(f"{spec} peak to peak", float(np.ptp(values)), units[spec], 2.0 * e))
         if units[spec] in PEAK_UNITS:
             rows.append(Headline(f"{spec} peak", float(np.abs(values).max()), units[spec], e))
     return rows

@@ -218,7 +218,12 @@ def test_four_bar_controlled_with_and_without_its_controllers():
 
     problem = studies.MechanismProblem.from_scene("four_bar_controlled")
     result = studies.control_comparison(problem, n_periods=8, n_steps=256)
-    assert result.status == "ok", result.message
+    # the error budget (issue 22): the crank speed's steady peak has a time-step error of 3.6 %,
+    # above the default error_tolerance of 2 %, and nothing else is wrong with the run
+    assert result.status == "inaccurate", result.message
+    assert "drive.O.rate: steady peak error" in result.message and "mostly time step" in result.message
+    assert "does not settle within" not in result.message and "over 10 %" not in result.message
+    assert result.error_budget["drive.O.rate"]["time_step"] > 0.02 * result.steady_peak["with"]["drive.O.rate"]
     assert result.failed == {"with": "", "without": ""}
     assert result.roles["drive.O.rate"] == "speed" and result.roles["rocker.angle"] == "output"
     peaks = result.steady_peak

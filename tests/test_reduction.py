@@ -191,11 +191,14 @@ def test_reduction_error_estimates_the_difference_from_the_full_model():
 # --- the reduction's error in the studies' verdict -----------------------------------------------
 @pytest.fixture(scope="module")
 def reduced_steady_states():
-    """The steady-state study of the four-bar with a 16-element coupler at 1 and at 6 modes."""
+    """The steady-state study of the four-bar with a 16-element coupler at 1 and at 6 modes. Its
+    linearisation error (about 9 % of the peak to peak at 100 rad/s, the error budget's largest term)
+    would make both ``inaccurate`` at the default ``error_tolerance``: a tolerance above it leaves the
+    reduction's own verdict to be tested here."""
     import studies
 
     return {modes: studies.steady_state(studies.MechanismProblem.from_mechanism(_coupler(16, modes)),
-                                        n_steps=256)
+                                        n_steps=256, error_tolerance=0.5)
             for modes in (1, 6)}
 
 

@@ -5,13 +5,22 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 import periodic
 
+from .._budget import (
+    ERROR_TOLERANCE,
+    NOT_APPLICABLE,
+    NOT_ESTIMATED,
+    RADIUS_METHODS,
+    check_tolerance,
+    radius_budget,
+    radius_verdict,
+)
 from .._kind import StudyKind, register_kind
 from .._numerics import (
     DEFAULT_SCHEME,
@@ -96,6 +105,8 @@ class CampbellResult(NoObservables, GridResult):
         The tracked modes' names.
     harmonics : tuple of int
         The k of the lines ``k * speed``.
+    error_methods : dict, {term: str}
+        How each term of the error budget (``error_budget``) was estimated, in words.
     """
 
     labels: tuple[str, ...]
@@ -118,6 +129,17 @@ class CampbellResult(NoObservables, GridResult):
     characteristic_error: np.ndarray | None = None
     mode_labels: tuple = ()
     harmonics: tuple = ()
+    error_methods: Mapping[str, str] = field(default_factory=lambda: dict(CAMPBELL_METHODS))
+
+    @property
+    def error_budget(self) -> dict[str, dict[str, Any]]:
+        """{quantity: {term: array or words}} (``studies._budget``): "spectral_radius" (n,) and
+        "characteristic" (n, 2m), each of its time step (N against N/2), the mesh not estimated and
+        the linearisation not applicable (small vibrations about the nominal motion are the linear
+        system's); the totals are ``spectral_radius_error`` and ``characteristic_error``."""
+        return {**radius_budget(self.spectral_radius_error),
+                "characteristic": {"time_step": self.characteristic_error, "mesh": NOT_ESTIMATED,
+                                   "linearisation": NOT_APPLICABLE}}
 
     _axes = {"speeds": "speed"}
     _units = {"speeds": "rad/s", "crank_angle": "rad", "frozen": "rad/s", "shapes": "1",
@@ -169,15 +191,22 @@ class CampbellResult(NoObservables, GridResult):
             else f" ({hidden[0]} to {hidden[-1].removeprefix('mode ')} above the range shown)"
         ax.set_title(f"{self.problem}: Campbell diagram, speeds {speeds[0]:.4g}–{speeds[-1]:.4g} "
                      f"rad/s{above}\n" + cost_line(
-                         f"Floquet characteristic frequencies drawn: error up to {plain(error)} rad/s",
+                         f"Floquet characteristic frequencies drawn: error up to {plain(error)} rad/s "
+                         "(time step; mesh not estimated)",
                          self.run_time) + self.reduction_note(), fontsize="small")
         return drawn(axes, artists)
 
 
+#: How the terms of a Campbell diagram's budget are estimated (its spectral radius's, its frequencies').
+CAMPBELL_METHODS = {**RADIUS_METHODS,
+                    "time_step": "N against N/2 steps (periodic.floquet; the frequencies unfolded from both)"}
+
+
 def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, frozen_samples: int,
-                   scheme: str = DEFAULT_SCHEME):
+                   scheme: str = DEFAULT_SCHEME, error_tolerance: float = ERROR_TOLERANCE):
     """One speed of a Campbell diagram: frozen frequencies over the crank angle, mode shapes at crank
-    angle 0, Floquet multipliers."""
+    angle 0, Floquet multipliers; a spectral radius error above ``error_tolerance`` of the radius is
+    ``inaccurate`` (``studies._budget``)."""
     linear = problem.linearize(values, n_steps=n_steps, context=False)
     index, frozen, shapes = frozen_modes(linear.system, frozen_samples)
     result = periodic.floquet(linear.system, scheme=study_scheme(scheme), estimate_error=True)
@@ -186,7 +215,8 @@ def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, f
         (result.status, result.message),
         ("unresolved_stiff_mode" if unresolved else "ok",
          f"{unresolved} multipliers belong to modes the {n_steps} steps do not resolve (stiff modes; "
-         f"refine n_steps to see their characteristic frequencies)" if unresolved else "")])
+         f"refine n_steps to see their characteristic frequencies)" if unresolved else ""),
+        radius_verdict(result.spectral_radius, result.spectral_radius_error, error_tolerance)])
     return ({"frozen": frozen, "shapes": shapes, "multipliers": result.multipliers,
              "multipliers_coarse": result.multipliers_coarse, "spectral_radius": result.spectral_radius,
              "spectral_radius_error": result.spectral_radius_error, "is_stable": float(result.is_stable),
@@ -196,13 +226,17 @@ def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, f
 
 def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, frozen_samples: int = FROZEN_SAMPLES,
              max_harmonic: int = 6, executor: Executor | None = None, out: Any = None,
-             name: str = "campbell", progress: bool = False, scheme: str = DEFAULT_SCHEME) -> CampbellResult:
+             name: str = "campbell", progress: bool = False, scheme: str = DEFAULT_SCHEME,
+             error_tolerance: float = ERROR_TOLERANCE) -> CampbellResult:
     """Campbell diagram over crank ``speeds`` (rad/s): frozen-time natural frequency bands over the
     crank angle, Floquet characteristic frequencies, lines ``k * speed`` (k <= ``max_harmonic``),
     modes tracked across speeds by MAC of their shapes at crank angle 0 and labelled. The frozen
     samples are taken among the steps: ``min(frozen_samples, n_steps)`` of them, the number recorded
-    in ``settings``. ``scheme`` names the periodic scheme (``periodic.SCHEMES``)."""
+    in ``settings``. ``scheme`` names the periodic scheme (``periodic.SCHEMES``). The error budget
+    (``error_budget``): a speed whose spectral radius error exceeds ``error_tolerance`` of the radius
+    is ``inaccurate``; the frequencies' time-step term is reported (``characteristic_error``)."""
     start = time.perf_counter()
+    error_tolerance = check_tolerance(error_tolerance)
     error_factor = study_scheme(scheme).error_factor
     grid = check_grid("speeds", speeds)
     if (grid <= 0).any() or (np.diff(grid) <= 0).any():
@@ -211,7 +245,7 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
     frozen_samples = min(check_integer("frozen_samples", frozen_samples, 2), n_steps)
     labels = problem.describe({SPEED: float(grid[0])}).labels
     settings = {"speeds": grid, "n_steps": n_steps, "frozen_samples": frozen_samples,
-                "scene": problem.text, "scheme": scheme}
+                "scene": problem.text, "scheme": scheme, "error_tolerance": error_tolerance}
     units = {"frozen": "rad/s", "shapes": "1", "multipliers": "1", "multipliers_coarse": "1", "period": "s",
              "crank_angle": "rad", "spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1"}
     header = dict(problem=problem.name, scene=problem.text, labels=labels)
@@ -219,7 +253,8 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
                        {"speeds": (grid, "rad/s")})
     points = [((i,), {SPEED: float(v)}) for i, v in enumerate(grid)]
     outcomes = run_grid(campbell_point, problem, points,
-                        {"n_steps": n_steps, "frozen_samples": frozen_samples, "scheme": scheme}, executor=executor,
+                        {"n_steps": n_steps, "frozen_samples": frozen_samples, "scheme": scheme,
+                         "error_tolerance": error_tolerance}, executor=executor,
                         store=store, progress=progress, description=f"{name} over speed")
     fields = collect(outcomes, grid.shape)
     if "is_stable" in fields:
@@ -276,7 +311,8 @@ def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, p
     return campbell(problem, options["speeds"], n_steps=options["n_steps"],
                     frozen_samples=options["frozen_samples"], max_harmonic=options["max_harmonic"],
                     executor=executor, out=out, name=KIND.name, progress=progress,
-                    scheme=options.get("scheme", DEFAULT_SCHEME))
+                    scheme=options.get("scheme", DEFAULT_SCHEME),
+                    error_tolerance=options.get("error_tolerance", ERROR_TOLERANCE))
 
 
 def _summary(result: CampbellResult) -> str:
@@ -329,6 +365,8 @@ def _headlines(result: CampbellResult) -> Summary:
         lower = result.spectral_radius - np.nan_to_num(result.spectral_radius_error)
         rows.append(Headline("unstable speeds",
                              ranges(unstable_intervals(result.speeds, lower, tol=periodic.STABILITY_TOL), "rad/s")))
+        rows.append(Headline("error budget", "time step (mesh not estimated, linearisation not applicable: "
+                                             "frequencies of small vibrations)"))
     return Summary(status=grid_status(result), run_time=result.run_time, rows=rows + reduction_headlines(result))
 
 

@@ -18,6 +18,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .._budget import ERROR_TOLERANCE, ErrorBudget, check_tolerance, describe, nonlinear_run_budget
 from .._kind import StudyKind, register_kind
 from .._mechanism import coordinate_parts, deviations_along
 from .._plots import Plot, axes_for, drawn, headline, label, legend_outside, plain, quantity, scene_and_point
@@ -203,13 +204,19 @@ class ControlComparison(DerivedPeaks, StudyResult):
     status: str = "ok"
     message: str = ""
     case_run_time: Mapping[str, float] = field(default_factory=dict)
+    #: {quantity: {term: ...}} the steady peaks' budget with control (``studies._budget``; format 2: {})
+    error_budget: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    error_methods: Mapping[str, str] = field(default_factory=dict)
+    error_tolerance: float = ERROR_TOLERANCE
 
     _units = {"t": "s", "with_control": "@observables", "without_control": "@observables"}
 
     def _peaks(self) -> dict[str, dict[str, float]]:
         steps = int(self.settings.get("n_steps", 0)) or max(np.size(self.t) - 1, 2)
         last = {name: np.asarray(self.with_control[name])[-(steps + 1):] for name in self.quantities}
-        return peaks_of(last, self.steady_peak_error.get("with", {}))
+        # the samples' error: the budget's total (a file of format 2: the time step's alone)
+        budget = ErrorBudget(self.error_budget)
+        return peaks_of(last, {q: budget.total(q) for q in budget} or self.steady_peak_error.get("with", {}))
 
     def _filled(self, group: Any) -> dict[str, Any]:
         if "case_run_time" in group.attrs:
@@ -251,6 +258,8 @@ class ControlComparison(DerivedPeaks, StudyResult):
             words = [f"{case} {'control' if case == 'with' else 'feedback'}: peak "
                      f"{quantity(self.steady_peak[case].get(name, float('nan')), self.units[name])}, "
                      f"settles {_settle_words(self, case, name)}" for case in CASES]
+            words += [f"error with control {describe(ErrorBudget(self.error_budget), name, self.units[name])}"
+                      ] if name in self.error_budget else []
             # one line per case: the legend on the right narrows the axes, and the title with them
             ax.set_title(f"{name}\n" + "\n".join(words), fontsize="small")
             legend_outside(ax)
@@ -271,7 +280,8 @@ def _settle_words(result: ControlComparison, case: str, name: str) -> str:
 # the study
 # ---------------------------------------------------------------------------------------------------
 def control_comparison(problem: Any, values: Mapping[str, float] | None = None, *, n_periods: int = 20,
-                       n_steps: int = 256, band: float = BAND, output: str | None = None) -> ControlComparison:
+                       n_steps: int = 256, band: float = BAND, output: str | None = None,
+                       error_tolerance: float = ERROR_TOLERANCE) -> ControlComparison:
     """Run the machine of ``problem`` (a ``studies.MechanismProblem``) at ``values`` from the start-up
     (the rigid nominal state at t = 0) for ``n_periods`` periods of ``n_steps`` steps, with its
     controller and without its feedback, and compare (see :class:`ControlComparison`).
@@ -280,13 +290,16 @@ def control_comparison(problem: Any, values: Mapping[str, float] | None = None, 
     observable spec of the output whose deviation from the nominal motion is reported (default: the
     angle of the last link pivoted on the ground other than the driven one, e.g. ``"rocker.angle"``,
     else the displacement of the last link's end, ``"<link>.point_error@1.0"``). A run that fails
-    numerically gives status ``failed`` with the reason, not an exception; the other run is kept."""
+    numerically gives status ``failed`` with the reason, not an exception; the other run is kept. The
+    steady peaks with control carry an error budget (``error_budget``); a total above
+    ``error_tolerance`` of a peak is ``inaccurate``."""
     started = time.perf_counter()
     if not hasattr(problem, "mechanism"):
         raise StudiesError(f"problem {getattr(problem, 'name', problem)!r}: a control comparison needs a "
                            f"mechanism (studies.MechanismProblem) whose drive has a controller")
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a control comparison")
     check_integer("n_periods", n_periods, 3)
+    error_tolerance = check_tolerance(error_tolerance)
     if isinstance(band, bool) or not isinstance(band, (int, float)) or not 0.0 < band < 1.0:
         raise StudiesError(f"band: expected a fraction of the steady peak in (0, 1), got {band!r}")
     params = problem.resolve(values)
@@ -303,6 +316,13 @@ def control_comparison(problem: Any, values: Mapping[str, float] | None = None, 
                for case, machine in zip(CASES, (mechanism, without))}
     t = np.arange(n_periods * n_steps + 1) * (mechanism.period / n_steps)
     status, message = _verdict(results, plan, n_periods)
+    budget: dict[str, Any] = {}
+    if not results["with"]["failed"]:   # by severity; beside an ok, the notes of _verdict's message kept
+        budget["error_budget"], budget["error_methods"], found = nonlinear_run_budget(
+            problem, values, results["with"]["steady_peak"], results["with"]["steady_peak_error"],
+            [q for q in plan.units if plan.roles[q] == "elastic"], n_steps=n_steps, tolerance=error_tolerance)
+        status, message = (combine([(status, message), found]) if status != "ok" else
+                           (found[0], "; ".join(m for m in (found[1], message) if m)))
     per_case = {key: {case: results[case][key] for case in CASES}
                 for key in ("steady_peak", "steady_peak_error", "settling_time", "settling_time_error", "settled",
                             "saturation")}
@@ -314,7 +334,8 @@ def control_comparison(problem: Any, values: Mapping[str, float] | None = None, 
         **per_case, run_time=time.perf_counter() - started,
         case_run_time={case: results[case]["run_time"] for case in CASES},
         failed={case: results[case]["failed"] for case in CASES}, torque_limit=plan.torque_limit,
-        command_limit=plan.command_limit, status=status, message=message)
+        command_limit=plan.command_limit, status=status, message=message, error_tolerance=error_tolerance,
+        **budget)
 
 
 @dataclass(frozen=True)
@@ -614,7 +635,9 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
             "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS),
             "n_periods": integer(where, "n_periods", table.get("n_periods", 20), 3, maximum=MAX_PERIODS,
                                  why=PERIODS_WHY),
-            "band": band, "output": output}
+            "band": band, "output": output,
+            **({"error_tolerance": check_tolerance(table["error_tolerance"], f"[{where}] error_tolerance")}
+               if "error_tolerance" in table else {})}
 
 
 def _run_kind(problem: Any, options: Mapping[str, Any], **_: Any) -> ControlComparison:
@@ -644,19 +667,16 @@ def _headlines(result: ControlComparison) -> Summary:
     for name in result.quantities:
         unit = result.units[name]
         without = Headline("", result.steady_peak["without"][name], unit).shown()[0]
+        budget = ErrorBudget(result.error_budget)
+        error = budget.total(name) if name in budget.terms else result.steady_peak_error["with"][name]
+        words = f"; error {describe(budget, name, unit)}" if name in budget.terms else ""
         rows.append(Headline(f"{name} steady peak with control", result.steady_peak["with"][name], unit,
-                             result.steady_peak_error["with"][name], f"(without feedback: {without})"))
+                             error, f"(without feedback: {without}{words})"))
     for name in result.quantity("elastic"):
         without = result.settling_time["without"][name]
-        rows.append(
-            Headline(
-                f"{name} settling time with control",
-                result.settling_time["with"][name],
-                "s",
-                result.settling_time_error["with"][name],
-                f"(without feedback: {plain(without, 3) + ' s' if math.isfinite(without) else 'not settled'})",
-            )
-        )
+        rows.append(Headline(f"{name} settling time with control", result.settling_time["with"][name], "s",
+                             result.settling_time_error["with"][name], "(without feedback: "
+                             f"{plain(without, 3) + ' s' if math.isfinite(without) else 'not settled'})"))
     speed = result.parameters.get(SPEED, float("nan"))
     return Summary(status=f"{headline(result.status)} at speed {plain(speed, 3)} rad/s",
                    run_time=float(result.run_time), rows=rows)
@@ -665,17 +685,18 @@ def _headlines(result: ControlComparison) -> Summary:
 def _cost(name, problem, options, workers):
     """Two cases (with and without feedback), each a run of ``n_periods`` periods at N steps and its
     twin at N/2 for the error estimate (together what one ``simulate`` with its error estimate costs),
-    one after the other."""
+    one after the other; the error budget's mesh term at the point."""
     sizes = cost.sizes_at(problem, options["values"])
     steps = options["n_periods"] * options["n_steps"]
     seconds = cost.STUDY_SECONDS + len(("with", "without")) * steps * (cost.NONLINEAR_STEP_SECONDS
                                                                   + cost.NONLINEAR_STEP_N2_SECONDS * sizes.n**2)
     memory = 8.0 * cost.NONLINEAR_DOUBLES * steps * sizes.n
-    return cost.Estimate(name, memory, seconds, f"2 runs x {options['n_periods']} periods x {options['n_steps']} "
-                                                f"steps x {sizes.n} coordinates")
+    found = cost.Estimate(name, memory, seconds, f"2 runs x {options['n_periods']} periods x {options['n_steps']} "
+                                                 f"steps x {sizes.n} coordinates")
+    return cost.with_mesh_term(found, problem, options["values"], options["n_steps"])
 
 
 KIND = register_kind(StudyKind(
-    name="control_comparison", result=ControlComparison, keys=("speed", "n_periods", "n_steps", "band", "output"),
-    check=_check, run=_run_kind, summary=_summary, headlines=_headlines, cost=_cost,
-    aliases=("ControlComparison",)))
+    name="control_comparison", result=ControlComparison, check=_check, run=_run_kind, summary=_summary,
+    keys=("speed", "n_periods", "n_steps", "band", "output", "error_tolerance"), headlines=_headlines,
+    cost=_cost, aliases=("ControlComparison",)))

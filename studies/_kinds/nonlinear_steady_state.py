@@ -14,9 +14,10 @@ import numpy as np
 
 import periodic
 
+from .._budget import NOT_APPLICABLE, mesh_terms
 from .._kind import StudyKind, register_kind
 from .._mechanism import coordinate_parts, observables_along
-from .._numerics import solve_steady
+from .._numerics import DEFAULT_SCHEME, solve_steady
 from .._plots import (
     Plot,
     axes_for,
@@ -170,6 +171,8 @@ class NonlinearSteadyState(DerivedPeaks, StudyResult):
     shooting_run_time: float = float("nan")
     reduced_modes: Mapping[str, int] = field(default_factory=dict)
     reduction_error: Mapping[str, float] = field(default_factory=dict)
+    mesh_error: Mapping[str, float] = field(default_factory=dict)
+    error_methods: Mapping[str, str] = field(default_factory=dict)
 
     _units = {"t": "s", "crank_angle": "rad", "x": "SI (see labels)", "response": "@observables",
               "linear_response": "@observables", "state": "SI (see labels: coordinates, rates, lags)",
@@ -180,7 +183,28 @@ class NonlinearSteadyState(DerivedPeaks, StudyResult):
         return headline(self.status, self.instability_kind)
 
     def _peaks(self) -> dict[str, dict[str, float]]:
-        return peaks_of(self.response, self.response_error)
+        # the errors are the budget's totals: the time step's and the mesh's (studies._budget)
+        return peaks_of(self.response, {spec: e + abs(self.mesh_error.get(spec, 0.0))
+                                        for spec, e in self.response_error.items()})
+
+    @property
+    def error_budget(self) -> dict[str, dict[str, Any]]:
+        """{spec: {term: float or "not applicable"}}: the peak-to-peak's error budget
+        (``studies._budget``): the time step (N against N/2), the mesh (the linear state's, where
+        it applies), the reduction where links were reduced (``reduction_error``); the linearisation
+        does not apply to the nonlinear state."""
+        time_step = peaks_of(self.response, self.response_error)["peak_to_peak_error"]
+        # a file written before the budget (no error_methods) did not estimate the mesh: unknown
+        unmeshed = NOT_APPLICABLE if self.error_methods else math.nan
+        budget = {spec: {"time_step": time_step[spec],
+                         "mesh": 2.0 * abs(self.mesh_error[spec]) if spec in self.mesh_error else unmeshed,
+                         "linearisation": NOT_APPLICABLE} for spec in self.response}
+        # links reduced by default (``modes``): the reduction check's difference (max abs over the
+        # period) bounds the peak-to-peak's change by twice itself
+        for spec in budget:
+            if spec in self.reduction_error:
+                budget[spec]["reduction"] = 2.0 * abs(self.reduction_error[spec])
+        return budget
 
     @property
     def linear_peak_to_peak(self) -> dict[str, float]:
@@ -455,6 +479,7 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
     orbit = periodic.find_orbit(fine, setup.guess, speed, tol=tol, max_iterations=max_iterations,
                                 estimate=coarse, error_factor=ERROR_FACTOR)
     specs = linear.observables
+    mesh, mesh_method, _ = mesh_terms(problem, values, specs, n_steps, DEFAULT_SCHEME)
     linear_response = {spec: setup.steady.response[:, k] for k, spec in enumerate(specs)}
     errors = {spec: math.nan for spec in specs}
     reasons: list[str] = []
@@ -494,7 +519,12 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
         run_time=run_time + linear_time, linear_run_time=linear_time, shooting_run_time=run_time,
         settings={"n_steps": n_steps, "tol": tol, "max_iterations": max_iterations, "modes": modes},
         reduced_modes=dict(choice.modes) if choice is not None else {},
-        reduction_error=dict(choice.error) if choice is not None and choice.modes else {})
+        reduction_error=dict(choice.error) if choice is not None and choice.modes else {},
+        mesh_error={} if mesh == NOT_APPLICABLE else dict(mesh["response"]),
+        error_methods={"time_step": f"N = {n_steps} against N/2 steps", "mesh": mesh_method,
+                       "linearisation": "not applicable: the full nonlinear equations",
+                       **({"reduction": f"reduced links checked against the next larger mode set or the full "
+                                        f"model: {choice.message}"} if choice is not None and choice.modes else {})})
 
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
@@ -548,8 +578,9 @@ def _cost(name, problem, options, workers):
     seconds = (cost.STUDY_SECONDS + build_seconds + cost.solve_seconds(n_steps, sizes)
                + cost.SHOOTING_PERIODS * cost.nonlinear_period_seconds(n_steps, sizes))
     memory = max(build_bytes, cost.tangent_bytes(n_steps, sizes))
-    return cost.Estimate(name, memory, seconds, f"{cost.SHOOTING_PERIODS:g} periods x {n_steps} steps x {sizes.n} "
-                                                "coordinates")
+    found = cost.Estimate(name, memory, seconds, f"{cost.SHOOTING_PERIODS:g} periods x {n_steps} steps x {sizes.n} "
+                                                 "coordinates")
+    return cost.with_mesh_term(found, problem, options["values"], n_steps)  # the error budget's
 
 
 

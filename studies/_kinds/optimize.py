@@ -23,6 +23,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from .._budget import ERROR_TOLERANCE, FORMAT2_METHODS, WORDS, ErrorBudget, check_tolerance, format2_budget, verdict
 from .._kind import StudyKind, register_kind
 from .._mechanism import count_keys
 from .._plots import Plot, axes_for, cost_line, drawn, headline, label, legend_outside, plain
@@ -82,7 +83,7 @@ TOL = 1e-8
 MAX_EVALUATIONS = 100_000
 EVALUATIONS_WHY = "evaluations, each a steady state at every speed"
 TABLE_KEYS = ("objective", "bounds", "speeds", "start", "constraints", "method", "n_steps", "tol",
-              "max_evaluations", "map_points", "check", "check_periods", "seed")
+              "max_evaluations", "map_points", "check", "check_periods", "seed", "error_tolerance")
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -120,8 +121,8 @@ class OptimizeResult(StudyResult):
     objective_value : float, objective_unit
         Its worst value over ``speeds`` at ``x``, at ``worst_speed``.
     objective_error : float, objective_unit
-        The estimated error there (``studies._numerics.peak_summary``; an RMS is within the
-        response's error).
+        The estimated error there: the total of ``error_budget`` (an RMS is within the response's
+        error).
     objective_start : float, objective_unit
         The worst value at ``x_start``.
     worst_speed : float, rad/s
@@ -181,6 +182,13 @@ class OptimizeResult(StudyResult):
     peak, peak_error, peak_to_peak, peak_to_peak_error : dict of ndarray, {spec: (n_s,)}, units
         The observables' summaries of the steady states at ``x``, at each speed (NaN where the
         evaluation failed; in a file written before they were recorded, NaN for the objective's).
+    error_budget : dict, {spec: {term: float or "not applicable"}}, objective_unit
+        The objective's error budget at the optimum's worst speed (``studies._budget``: time step,
+        mesh, linearisation, reduction where a link is reduced), from the steady state there.
+    error_methods : dict, {term: str}
+        How each term was estimated, in words.
+    error_tolerance : float, 1
+        The relative tolerance of the total deciding ``inaccurate``.
     """
 
     problem: str
@@ -229,6 +237,9 @@ class OptimizeResult(StudyResult):
     peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak_to_peak: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak_to_peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
+    error_budget: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    error_methods: Mapping[str, str] = field(default_factory=dict)
+    error_tolerance: float = ERROR_TOLERANCE
 
     _axes = {"speeds": "speed"}
     _units = {"bounds": "see parameter_units", "x": "see parameter_units", "x_start": "see parameter_units",
@@ -240,15 +251,24 @@ class OptimizeResult(StudyResult):
               "peak_to_peak": "@observables", "peak_to_peak_error": "@observables"}
 
     def _filled(self, group: Any) -> dict[str, Any]:
-        if "units" in group.attrs:
-            return {}
         spec = Objective.parse(self.objective).spec
-        return {**unknown_peaks([spec], np.shape(self.speeds)), "units": {spec: self.objective_unit}}
+        # a file of format 2 (before the budget): the objective's error was the time step's alone
+        filled = {} if "error_budget" in group.attrs else {
+            "error_budget": format2_budget({spec: self.objective_error}), "error_methods": dict(FORMAT2_METHODS)}
+        if "units" in group.attrs:
+            return filled
+        return {**filled, **unknown_peaks([spec], np.shape(self.speeds)), "units": {spec: self.objective_unit}}
 
     def _unit(self, name: str, key: str | None = None) -> str:
         if self._units.get(name) == "@check_units":
             return dict(self.check_units).get(key, "1")
         return super()._unit(name, key)
+
+    def _dominant_words(self) -> str:
+        """" (error mostly linearisation)": the objective's largest budget term ("" without a budget)."""
+        spec = Objective.parse(self.objective).spec
+        dominant = ErrorBudget(self.error_budget).dominant(spec) if spec in self.error_budget else ""
+        return f" (error mostly {WORDS.get(dominant, dominant)})" if dominant else ""
 
     @property
     def values(self) -> dict[str, float]:
@@ -282,7 +302,7 @@ class OptimizeResult(StudyResult):
         legend_outside(ax)
         ax.set_title(f"{self.problem}: {headline(self.status)}; {plain(self.objective_start, 3)} -> "
                      f"{plain(self.objective_value, 3)} ± {plain(self.objective_error)} {self.objective_unit} "
-                     f"at {plain(self.worst_speed, 3)} rad/s\n"
+                     f"at {plain(self.worst_speed, 3)} rad/s{self._dominant_words()}\n"
                      + cost_line(f"{self.n_evaluations} evaluations; nonlinear check: "
                                  f"{self.check_verdict.replace('_', ' ') or 'not run'}", self.run_time),
                      fontsize="small")
@@ -368,7 +388,8 @@ def optimize(problem: Any, bounds: Mapping[str, tuple[float, float]], *, objecti
              speeds: Sequence[float] | None = None, constraints: Any = (), method: str = "local",
              n_steps: int = 256, start: Mapping[str, float] | None = None, tol: float = TOL,
              max_evaluations: int | None = None, map_points: int = 0, check: bool = True,
-             check_periods: int = 5, seed: int = 0, gradient: str = "sensitivities") -> OptimizeResult:
+             check_periods: int = 5, seed: int = 0, gradient: str = "sensitivities",
+             error_tolerance: float = ERROR_TOLERANCE) -> OptimizeResult:
     """Minimise ``objective`` over the parameters of ``bounds`` ({path: (low, high)}: scene paths
     such as ``"links.coupler.thickness"`` or ``"drive.kp"``, or a ``PeriodicProblem``'s parameters).
 
@@ -387,7 +408,9 @@ def optimize(problem: Any, bounds: Mapping[str, tuple[float, float]], *, objecti
     ``check_periods`` periods (where the problem has a nonlinear model); ``seed`` of the global
     method; ``gradient``: "sensitivities" (default: each speed's steady state differentiated directly, forward
     differences of sweeps only where a constraint offers no gradient) or "differences" (forward differences
-    of whole sweeps throughout). See :class:`OptimizeResult`."""
+    of whole sweeps throughout). The objective's error at the optimum is the total of its error budget (the
+    steady state at the worst speed, ``studies._budget``), above ``error_tolerance`` of the value
+    ``inaccurate``. See :class:`OptimizeResult`."""
     started = time.perf_counter()
     goal = Objective.parse(objective)
     names, box = _check_bounds(problem, bounds)
@@ -407,6 +430,7 @@ def optimize(problem: Any, bounds: Mapping[str, tuple[float, float]], *, objecti
     check_integer("max_evaluations", max_evaluations, 2)
     check_integer("map_points", map_points, 0)
     check_integer("check_periods", check_periods, 2)
+    error_tolerance = check_tolerance(error_tolerance)
     needs = [goal.spec] + [spec for constraint in chosen for spec in constraint.needs(problem)]
     problem = _with_needs(problem, names, needs)
     grid = np.array([np.nan]) if speeds is None else np.asarray(speeds, dtype=float).reshape(-1)
@@ -448,6 +472,11 @@ def optimize(problem: Any, bounds: Mapping[str, tuple[float, float]], *, objecti
         verdicts.append(("failed", f"the nonlinear check at the optimum: {checked['check_verdict']}: "
                                    f"{checked['check_message']}"))
     mapped = _map(evaluator, map_points) if map_points and n >= 2 else {}
+    budgeted = {} if best.failed else _optimum_budget(
+        problem, {**values, **({SPEED: worst_speed} if speeds is not None else {})}, goal, n_steps, error_tolerance,
+        float(best.measure[worst]))
+    if budgeted:
+        verdicts.append(budgeted.pop("verdict"))
     status, message = combine(verdicts)
     described = problem.describe()
     units = dict(zip(described.observables, described.units))
@@ -463,7 +492,7 @@ def optimize(problem: Any, bounds: Mapping[str, tuple[float, float]], *, objecti
         x=np.array([values[name] for name in names]), x_start=x_start, objective=objective,
         objective_unit=units[goal.spec], units=units,
         objective_value=float(best.measure[worst]) if not best.failed else float("nan"),
-        objective_error=float(best.error[worst]) if not best.failed else float("nan"),
+        objective_error=budgeted.pop("objective_error", float("nan")),
         objective_start=float(first.measure.max()), worst_speed=worst_speed,
         speeds=grid, per_speed=best.measure if not best.failed else np.full(grid.shape, np.nan),
         constraint_values=dict(best.reported),
@@ -475,7 +504,24 @@ def optimize(problem: Any, bounds: Mapping[str, tuple[float, float]], *, objecti
                                       for _, f in evaluator.history]),
         path=np.array(evaluator.path, dtype=np.int64), n_evaluations=len(evaluator.history),
         optimizer_message=optimiser_message, status=status, message=message, gradients=gradient_words(evaluator),
-        run_time=time.perf_counter() - started, **mapped, **checked, **_optimum_peaks(best, grid.shape))
+        run_time=time.perf_counter() - started, **mapped, **checked, **_optimum_peaks(best, grid.shape),
+        error_tolerance=error_tolerance, **budgeted)
+
+
+def _optimum_budget(problem: Any, values: Mapping[str, float], goal: Any, n_steps: int, tolerance: float,
+                    value: float) -> dict[str, Any]:
+    """The objective's error budget at the optimum's worst speed ``values``, from the steady state
+    there with its budget (``studies._budget``; the RMS takes the response samples'): the fields
+    ``error_budget``, ``error_methods``, ``objective_error`` (the total) and the ``verdict``."""
+    from .steady_state import steady_state
+
+    found = steady_state(problem, values, n_steps=n_steps, error_tolerance=tolerance)
+    terms = {"peak_to_peak": found.error_budget, "peak": found.peak_error_budget,
+             "rms": found.response_error_budget}[goal.measure][goal.spec]
+    budget = ErrorBudget({goal.spec: dict(terms)}, dict(found.error_methods))
+    return {"error_budget": budget.terms, "error_methods": budget.methods,
+            "objective_error": float(budget.total(goal.spec)),
+            "verdict": verdict(budget, {goal.spec: value}, tolerance, quantity=goal.measure.replace("_", "-"))}
 
 
 def _optimum_peaks(best: Any, shape: tuple[int, ...]) -> dict[str, dict[str, np.ndarray]]:
@@ -596,7 +642,10 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
             "check": boolean(where, "check", table.get("check", True)),
             "check_periods": integer(where, "check_periods", table.get("check_periods", 5), 2,
                                      maximum=MAX_PERIODS, why=PERIODS_WHY),
-            "seed": integer(where, "seed", table.get("seed", 0), 0)}
+            "seed": integer(where, "seed", table.get("seed", 0), 0),
+            # the [studies] error_tolerance where the table does not set its own (studies.cli._scene)
+            **({"error_tolerance": check_tolerance(table["error_tolerance"], f"[{where}] error_tolerance")}
+               if "error_tolerance" in table else {})}
 
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> OptimizeResult:
@@ -614,8 +663,9 @@ def _summary(result: OptimizeResult) -> str:
 
 def _headlines(result: OptimizeResult) -> Summary:
     at = f"at speed {plain(result.worst_speed, 3)} rad/s" if math.isfinite(result.worst_speed) else ""
+    at += result._dominant_words()
     rows = [Headline(f"{result.objective} at the optimum (worst speed)", result.objective_value,
-                     result.objective_unit, result.objective_error, at),
+                     result.objective_unit, result.objective_error, at.strip()),
             Headline(f"{result.objective} at the start", result.objective_start, result.objective_unit)]
     rows += [Headline(f"optimum {name}", float(value), result.parameter_units[name])
              for name, value in zip(result.names, result.x)]
@@ -639,8 +689,8 @@ def _varies(options: Mapping[str, Any]) -> tuple[str, ...]:
 
 def _cost(name, problem, options, workers):
     """At most ``max_evaluations`` sweeps over the speeds, each a linearisation and a periodic solve
-    per speed (an upper bound: a speed family makes the linearisations cheaper), the map's sweeps and
-    the nonlinear check at the optimum."""
+    per speed (an upper bound: a speed family makes the linearisations cheaper), the map's sweeps, the
+    steady state with its error budget and the nonlinear check at the optimum."""
     from .nonlinear_check import nonlinear_check_cost
 
     bounds = options["bounds"]
@@ -654,6 +704,8 @@ def _cost(name, problem, options, workers):
     solve = cost.solve_seconds(options["n_steps"], sizes, frozen)
     seconds = cost.STUDY_SECONDS + sweeps * speeds * (build_seconds + solve)
     memory = cost.FAMILY_DOUBLES / cost.LINEARISATION_DOUBLES * build_bytes
+    budget = cost.steady_solves(name, problem, [{}], options["n_steps"], budget=True)   # at the optimum
+    seconds, memory = seconds + budget.time, max(memory, budget.memory)
     if options["check"]:
         check = nonlinear_check_cost(name, problem, {"values": {}, "n_steps": options["n_steps"],
                                                      "n_periods": options["check_periods"], "from_rest": False,

@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 import periodic
 
+from .._budget import ERROR_TOLERANCE, RADIUS_METHODS, check_tolerance, radius_budget, radius_verdict
 from .._kind import StudyKind, register_kind
 from .._numerics import DEFAULT_SCHEME, study_scheme
 from .._plots import Plot, axes_for, cost_line, drawn, label, largest, legend_outside, mark_statuses, plain, radius_norm
@@ -66,6 +67,8 @@ class StabilityChart(NoObservables, GridResult):
         Each cell's stability (unstable only beyond the radius's error bar, marginal within it).
     stability_tol : float, 1
         The tolerance of ``|mu| = 1``.
+    error_methods : dict, {term: str}
+        How each term of the radius's error budget (``error_budget``) was estimated, in words.
     """
 
     parameters: tuple[str, str]
@@ -76,6 +79,14 @@ class StabilityChart(NoObservables, GridResult):
     spectral_radius_error: np.ndarray | None = None
     stability_tol: float = 1e-6
     is_stable: np.ndarray | None = None
+    error_methods: Mapping[str, str] = field(default_factory=lambda: dict(RADIUS_METHODS))
+
+    @property
+    def error_budget(self) -> dict[str, dict[str, Any]]:
+        """{"spectral_radius": {term: (n1, n2) or words}}: the radius's error budget (``studies._budget``:
+        its time step, the mesh not estimated, the linearisation not applicable); the total is the
+        time step's ``spectral_radius_error``."""
+        return radius_budget(self.spectral_radius_error)
 
     _axes = {"first": "@parameters[0]", "second": "@parameters[1]"}
     _units = {"spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1", **GridResult._units}
@@ -115,7 +126,8 @@ class StabilityChart(NoObservables, GridResult):
         ax.set_ylabel(label(self.parameters[1], self.parameter_units[1]))
         ax.set_title(
             f"{self.problem}: stability chart (black: |mu| = 1; colours on a log scale each side of 1)\n"
-            + cost_line(f"spectral radius to {plain(largest(self.spectral_radius_error))}", self.run_time)
+            + cost_line(f"spectral radius to {plain(largest(self.spectral_radius_error))} (time step; mesh "
+                        f"not estimated)", self.run_time)
             + self.reduction_note(),
             fontsize="small",
         )
@@ -136,8 +148,10 @@ def radius_ticks(norm: Any, *, spacing: float = 0.08) -> list[float]:
     return sorted(taken)
 
 
-def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int, scheme: str = DEFAULT_SCHEME):
-    """Spectral radius of the monodromy at one point of a stability chart, with its error estimate."""
+def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int, scheme: str = DEFAULT_SCHEME,
+                error_tolerance: float = ERROR_TOLERANCE):
+    """Spectral radius of the monodromy at one point of a stability chart, with its error estimate;
+    an error above ``error_tolerance`` of the radius is ``inaccurate`` (``studies._budget``)."""
     linear = problem.linearize(values, n_steps=n_steps, context=False)
     result = periodic.floquet(linear.system, scheme=study_scheme(scheme), estimate_error=True)
     unresolved = ~result.resolved & (np.abs(result.multipliers) > 1.0 + result.stability_tol)
@@ -145,7 +159,8 @@ def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int, sche
         (result.status, result.message),
         ("unresolved_stiff_mode" if unresolved.any() else "ok",
          "an unstable multiplier belongs to a mode the step does not resolve: refine n_steps"
-         if unresolved.any() else "")])
+         if unresolved.any() else ""),
+        radius_verdict(result.spectral_radius, result.spectral_radius_error, error_tolerance)])
     return {"spectral_radius": result.spectral_radius,
             "spectral_radius_error": result.spectral_radius_error,
             "is_stable": float(result.is_stable)}, status, message
@@ -154,12 +169,14 @@ def chart_point(problem: Any, values: Mapping[str, float], *, n_steps: int, sche
 def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tuple[str, Sequence[float]],
                     *, n_steps: int = 128, executor: Executor | None = None, out: Any = None,
                     name: str = "stability_chart", progress: bool = False,
-                    scheme: str = DEFAULT_SCHEME) -> StabilityChart:
+                    scheme: str = DEFAULT_SCHEME, error_tolerance: float = ERROR_TOLERANCE) -> StabilityChart:
     """Spectral radius of the monodromy, and its error estimate (N against N/2 steps), over a grid of
     two parameters ``(name, values)``; the boundary ``|mu| = 1`` is drawn by ``plot``. ``scheme``
-    names the periodic scheme (``periodic.SCHEMES``)."""
+    names the periodic scheme (``periodic.SCHEMES``); a cell whose radius error (its budget,
+    ``error_budget``) exceeds ``error_tolerance`` of the radius is ``inaccurate``."""
     start = time.perf_counter()
     study_scheme(scheme)
+    error_tolerance = check_tolerance(error_tolerance)
     if not (isinstance(first, tuple) and len(first) == 2 and isinstance(second, tuple) and len(second) == 2):
         raise TypeError(f"first, second: expected (parameter name, values) pairs, got {first!r}, {second!r}")
     names = (check_parameter(problem, first[0]), check_parameter(problem, second[0]))
@@ -169,7 +186,7 @@ def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tu
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a stability chart")
     shape = (axes[0].size, axes[1].size)
     settings = {"parameters": names, "first": axes[0], "second": axes[1], "n_steps": int(n_steps),
-                "scene": problem.text, "scheme": scheme}
+                "scene": problem.text, "scheme": scheme, "error_tolerance": error_tolerance}
     units = (problem.units[names[0]], problem.units[names[1]])
     header = dict(problem=problem.name, scene=problem.text, parameters=names, parameter_units=units,
                   stability_tol=periodic.STABILITY_TOL)
@@ -183,7 +200,8 @@ def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tu
               for outer in range(shape[1 if speed_first else 0])
               for inner in range(shape[0 if speed_first else 1])
               for i, j in [(inner, outer) if speed_first else (outer, inner)]]
-    outcomes = run_grid(chart_point, problem, points, {"n_steps": int(n_steps), "scheme": scheme}, executor=executor,
+    outcomes = run_grid(chart_point, problem, points, {"n_steps": int(n_steps), "scheme": scheme,
+                                                       "error_tolerance": error_tolerance}, executor=executor,
                         store=store, progress=progress, description=f"{name}")
     fields = collect(outcomes, shape)
     if "is_stable" in fields:
@@ -218,6 +236,8 @@ def _headlines(result: StabilityChart) -> Summary:
     if result.spectral_radius is not None:
         rows.append(largest_over_grid("largest spectral radius", result.spectral_radius,
                                       result.spectral_radius_error, "1", point))
+        rows.append(Headline("spectral radius error budget", "time step (mesh not estimated, linearisation "
+                                                             "not applicable)"))
     return Summary(status=grid_status(result), run_time=result.run_time, rows=rows + reduction_headlines(result))
 
 
@@ -236,7 +256,8 @@ def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, p
          ) -> StabilityChart:
     return stability_chart(problem, options["first"], options["second"], n_steps=options["n_steps"],
                            executor=executor, out=out, name=KIND.name, progress=progress,
-                           scheme=options.get("scheme", DEFAULT_SCHEME))
+                           scheme=options.get("scheme", DEFAULT_SCHEME),
+                           error_tolerance=options.get("error_tolerance", ERROR_TOLERANCE))
 
 
 def _cost(name, problem, options, workers, done=None):

@@ -9,6 +9,23 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .._budget import (
+    ERROR_TOLERANCE,
+    FORMAT2_METHODS,
+    LINEARISATION_MARGIN,
+    NOT_APPLICABLE,
+    QUANTITIES,
+    ErrorBudget,
+    beside,
+    check_tolerance,
+    describe,
+    format2_budget,
+    linearisation_terms,
+    mesh_terms,
+    point_budget,
+    reduction_terms,
+    verdict,
+)
 from .._drawing import draw_mechanism, mechanism_drawing
 from .._kind import StudyKind, register_kind
 from .._numerics import DEFAULT_SCHEME, peak_summary, solve_steady, study_scheme
@@ -57,10 +74,21 @@ class SteadyStateResult(StudyResult):
         The observables (for joint forces, drive torques and stresses: the totals, nominal plus
         elastic change).
     response_error : dict, {spec: float}, units[spec]
-        The estimated max abs error of each observable (N against N/2).
+        The estimated max abs error of each observable: the total of ``response_error_budget``.
     peak, peak_error, peak_to_peak, peak_to_peak_error : dict, {spec: float}, units[spec]
-        The largest magnitude and the peak-to-peak of each observable over the period and their
-        estimated errors (``studies._numerics.peak_summary``).
+        The largest magnitude and the peak-to-peak of each observable over the period
+        (``studies._numerics.peak_summary``) and their estimated errors: the totals of
+        ``peak_error_budget`` and ``error_budget``.
+    error_budget : dict, {spec: {term: float or "not applicable"}}, units[spec]
+        The peak-to-peak's error budget (``studies._budget``): "time_step" (N against N/2),
+        "mesh", "linearisation" (signed: the nonlinear state's value minus the linear one; NaN
+        unknown), "reduction" where a link is reduced; the total is the sum of the magnitudes.
+    peak_error_budget, response_error_budget : dict, {spec: {term: ...}}, units[spec]
+        The same for the peak and the response samples.
+    error_methods : dict, {term: str}
+        How each term was estimated, in words ("not applicable: ..." where it does not apply).
+    error_tolerance : float, 1
+        The relative tolerance of the totals deciding ``inaccurate``.
     multipliers : ndarray of complex, (2m,), 1
         The Floquet multipliers.
     spectral_radius, spectral_radius_error : float, 1
@@ -149,6 +177,25 @@ class SteadyStateResult(StudyResult):
     reduction_run_time: float = 0.0
     scheme: str = DEFAULT_SCHEME
     unresolved_multipliers: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=complex))
+    error_budget: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    peak_error_budget: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    response_error_budget: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    error_methods: Mapping[str, str] = field(default_factory=dict)
+    error_tolerance: float = ERROR_TOLERANCE
+
+    @property
+    def budget(self) -> ErrorBudget:
+        """The peak-to-peak's ``error_budget`` as a ``studies._budget.ErrorBudget`` (total, dominant)."""
+        return ErrorBudget(self.error_budget, self.error_methods)
+
+    def _filled(self, group: Any) -> dict[str, Any]:
+        """A file of format 2 (before the budget): its errors were the time step's alone."""
+        if "error_budget" in group.attrs:
+            return {}
+        return {"error_budget": format2_budget(self.peak_to_peak_error),
+                "peak_error_budget": format2_budget(self.peak_error),
+                "response_error_budget": format2_budget(self.response_error),
+                "error_methods": dict(FORMAT2_METHODS)}
 
     @property
     def headline(self) -> str:
@@ -177,8 +224,9 @@ class SteadyStateResult(StudyResult):
             artists[spec] = ax.plot(abscissa, self.response[spec], color="C0")
             ax.set_xlabel(xlabel)
             ax.set_ylabel(label(spec, self.units[spec]))
-            ax.set_title(f"{spec}: error estimate {plain(self.response_error[spec])} {self.units[spec]}",
-                         fontsize="small")
+            words = (describe(self.budget, spec, self.units[spec]) if spec in self.error_budget
+                     else f"{plain(self.response_error[spec])} {self.units[spec]}")
+            ax.set_title(f"{spec}: peak-to-peak error {words}", fontsize="small", wrap=True)
         axes[0].figure.suptitle(f"{scene_and_point(self)}: {self.headline}", fontsize="medium",
                                 color="C3" if self.status != "ok" else "k")
         artists["multipliers"] = plot_multipliers(
@@ -225,21 +273,52 @@ class SteadyStateResult(StudyResult):
 
 
 def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_steps: int = 256,
-                 scheme: str = DEFAULT_SCHEME) -> SteadyStateResult:
-    """Periodic response of the problem's observables over one period, Floquet multipliers, error
-    estimates (N against N/2 steps) and run time; ``scheme`` names the periodic scheme
-    (``periodic.SCHEMES``)."""
+                 scheme: str = DEFAULT_SCHEME, error_tolerance: float = ERROR_TOLERANCE,
+                 budget: bool = True) -> SteadyStateResult:
+    """Periodic response of the problem's observables over one period, Floquet multipliers, the
+    error budget (time step: N against N/2 steps; mesh; linearisation; modal reduction:
+    ``studies._budget``) and run time; ``scheme`` names the periodic scheme (``periodic.SCHEMES``);
+    a total error above ``error_tolerance`` of a peak-to-peak makes the result ``inaccurate``.
+    ``budget=False``: the time step's term alone (mesh and linearisation unknown, not judged)."""
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a steady state")
     study_scheme(scheme)
+    error_tolerance = check_tolerance(error_tolerance)
     start = time.perf_counter()
     linear = problem.linearize(values, n_steps=n_steps)
     steady = solve_steady(linear, scheme)
     state = steady.state
     reduction = _reduction_error(linear, state.x, n_steps, scheme)
+    specs = linear.observables
+    time_step = {name: {spec: float(v[k]) for k, spec in enumerate(specs)}
+                 for name, v in peak_summary(steady.response, steady.response_error).items()}
+    if budget:
+        linearisation, lin_method, lin_time, found = linearisation_terms(linear, steady, scheme)
+        mesh, mesh_method, mesh_time = mesh_terms(problem, values, specs, n_steps, scheme)
+    else:
+        skipped = "not estimated: budget=False"
+        linearisation, lin_method, lin_time, found = {n: {} for n in QUANTITIES}, skipped, 0.0, None
+        mesh, mesh_method, mesh_time = {n: {} for n in QUANTITIES}, skipped, 0.0
+    reduced, reduction_method = reduction_terms(reduction, specs)
+    methods = {"time_step": f"N = {n_steps} against N/2 steps ({scheme})", "mesh": mesh_method,
+               "linearisation": lin_method, "reduction": reduction_method}
+    run_times = {"time_step": steady.run_time, "mesh": mesh_time, "linearisation": lin_time,
+                 "reduction": reduction.run_time}
+    point = point_budget(specs, {"response": {s: float(steady.response_error[k]) for k, s in enumerate(specs)},
+                                 "peak": time_step["peak_error"],
+                                 "peak_to_peak": time_step["peak_to_peak_error"]},
+                         mesh=mesh, linearisation=linearisation, reduction=reduced, methods=methods,
+                         run_times=run_times, found=found)
+    if reduced == NOT_APPLICABLE:
+        del methods["reduction"], run_times["reduction"]
+    peaks = {"peak": time_step["peak"], "peak_to_peak": time_step["peak_to_peak"],
+             "peak_error": point.totals("peak"), "peak_to_peak_error": point.totals("peak_to_peak")}
     status, message = combine([(steady.status, steady.message),
-                               (reduction.status, reduction.message)])
-    peaks = {name: {spec: float(values[k]) for k, spec in enumerate(linear.observables)}
-             for name, values in peak_summary(steady.response, steady.response_error).items()}
+                               (reduction.status, reduction.message),
+                               beside(steady.status, verdict(point.budgets["peak_to_peak"],
+                                                             peaks["peak_to_peak"], error_tolerance))
+                               if budget else ("ok", "")])
+    if not budget:
+        peaks["peak_error"], peaks["peak_to_peak_error"] = time_step["peak_error"], time_step["peak_to_peak_error"]
     drawing = {}
     if hasattr(problem, "outlines"):
         outlines, magnification = problem.outlines(linear, state.x)
@@ -250,15 +329,17 @@ def steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_s
         labels=tuple(linear.labels), units=dict(zip(linear.observables, linear.units)),
         t=state.t, crank_angle=np.asarray(linear.crank_angle, dtype=float), x=state.x,
         response={spec: steady.response[:, k] for k, spec in enumerate(linear.observables)},
-        response_error={spec: float(steady.response_error[k])
-                        for k, spec in enumerate(linear.observables)},
+        response_error=point.totals("response") if budget else dict(zip(specs, map(float, steady.response_error))),
         multipliers=state.multipliers, spectral_radius=state.spectral_radius,
         error_estimate=steady.error_estimate, status=status, message=message,
         n_steps=n_steps, run_time=time.perf_counter() - start, shooting_run_time=steady.run_time,
         is_stable=steady.is_stable, spectral_radius_error=steady.spectral_radius_error,
         instability_kind=steady.instability_kind, linear_range=steady.linear_range, **peaks,
         reduction_error=reduction.error, reduction_run_time=reduction.run_time, scheme=scheme,
-        unresolved_multipliers=state.unresolved_multipliers, **drawing)
+        unresolved_multipliers=state.unresolved_multipliers,
+        error_budget=point.budgets["peak_to_peak"].terms, peak_error_budget=point.budgets["peak"].terms,
+        response_error_budget=point.budgets["response"].terms, error_methods=methods,
+        error_tolerance=error_tolerance, **drawing)
 
 
 def _reduction_error(linear: Any, x: np.ndarray, n_steps: int, scheme: str) -> Any:
@@ -282,11 +363,13 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
 
 def _run(problem: Any, options: Mapping[str, Any], **_: Any) -> SteadyStateResult:
     return steady_state(problem, options["values"], n_steps=options["n_steps"],
-                        scheme=options.get("scheme", DEFAULT_SCHEME))
+                        scheme=options.get("scheme", DEFAULT_SCHEME),
+                        error_tolerance=options.get("error_tolerance", ERROR_TOLERANCE))
 
 
 def _summary(result: SteadyStateResult) -> str:
-    errors = ", ".join(f"{k} +- {v:.2g}" for k, v in result.response_error.items())
+    errors = ", ".join(f"{k} peak to peak +- {describe(result.budget, k, result.units[k])}"
+                       for k in result.error_budget)
     words = f"{result.headline}: {result.message}" if result.message else result.headline
     unresolved = np.abs(np.asarray(result.unresolved_multipliers))
     apart = (f" of the resolved modes ({unresolved.size} unresolved apart, largest |mu| {unresolved.max():.3g})"
@@ -296,7 +379,14 @@ def _summary(result: SteadyStateResult) -> str:
 
 
 def _headlines(result: SteadyStateResult) -> Summary:
-    rows = response_rows(result.response, result.response_error, result.units)
+    rows = response_rows(result.response, result.response_error, result.units,
+                         budget=result.budget if result.error_budget else None)
+    for spec, terms in result.error_budget.items():
+        # what the nonlinear periodic state gives, by the chord steps of the linearisation term
+        shift = terms.get("linearisation")
+        if isinstance(shift, float) and np.isfinite(shift) and spec in result.peak_to_peak:
+            rows.append(Headline(f"{spec} peak to peak, nonlinear state (chord estimate)",
+                                 result.peak_to_peak[spec] + shift / LINEARISATION_MARGIN, result.units[spec]))
     rows.append(Headline("spectral radius", float(result.spectral_radius), "1",
                          float(result.spectral_radius_error)))
     return Summary(status=result.headline, run_time=result.run_time, rows=rows)
@@ -310,8 +400,9 @@ def _figures(result: SteadyStateResult) -> dict[str, Any]:
 
 
 def _cost(name, problem, options, workers):
-    """A linearisation and a periodic solve, and the modal reduction's check where a link is reduced."""
-    found = cost.steady_solves(name, problem, [options["values"]], options["n_steps"])
+    """A linearisation and a periodic solve with its error budget, and the modal reduction's check
+    where a link is reduced."""
+    found = cost.steady_solves(name, problem, [options["values"]], options["n_steps"], budget=True)
     return cost.with_reduction_check(found, problem, options["values"], options["n_steps"], extra_solve=False)
 
 

@@ -13,6 +13,19 @@ import numpy as np
 
 import periodic
 
+from .._budget import (
+    ERROR_TOLERANCE,
+    FORMAT2_METHODS,
+    GRID_CHORD_STEPS,
+    NOT_APPLICABLE,
+    ErrorBudget,
+    beside,
+    check_tolerance,
+    linearisation_terms,
+    mesh_terms,
+    point_budget,
+    verdict,
+)
 from .._kind import StudyKind, register_kind
 from .._numerics import (
     DEFAULT_SCHEME,
@@ -77,6 +90,8 @@ STATUS_INACCURATE = "inaccurate"
 #: The fewest steps per period a sweep accepts (docs/studies.md): N/4 = 4 steps is the coarsest level
 #: of the error check.
 MIN_STEPS = 16
+#: The per-point budget terms a sweep stores ({spec: (n,)} each; ``SweepResult.error_budget``).
+BUDGET_FIELDS = ("budget_time_step", "budget_mesh", "budget_linearisation")
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,11 +161,39 @@ class SweepResult(GridResult):
     linear_range: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak_error: Mapping[str, np.ndarray] = field(default_factory=dict)
+    budget_time_step: Mapping[str, np.ndarray] = field(default_factory=dict)
+    budget_mesh: Mapping[str, np.ndarray] = field(default_factory=dict)
+    budget_linearisation: Mapping[str, np.ndarray] = field(default_factory=dict)
+    error_methods: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def error_budget(self) -> dict[str, dict[str, Any]]:
+        """{spec: {term: (n,) or "not applicable"}}: the peak-to-peak's budget at each point
+        (``studies._budget``; a file of format 2 held the time step's error alone, the other terms
+        read as unknown)."""
+        if not self.budget_time_step:
+            return {spec: {"time_step": self.peak_to_peak_error[spec],
+                           "mesh": np.full_like(self.peak_to_peak_error[spec], np.nan),
+                           "linearisation": np.full_like(self.peak_to_peak_error[spec], np.nan)}
+                    for spec in self.peak_to_peak_error}
+        return {spec: {"time_step": self.budget_time_step[spec],
+                       "mesh": self.budget_mesh.get(spec, NOT_APPLICABLE),
+                       "linearisation": self.budget_linearisation.get(spec, NOT_APPLICABLE)}
+                for spec in self.budget_time_step}
+
+    @property
+    def budget(self) -> ErrorBudget:
+        """``error_budget`` as a ``studies._budget.ErrorBudget`` (totals and dominant terms)."""
+        methods = self.error_methods or (FORMAT2_METHODS if not self.budget_time_step else {})
+        return ErrorBudget(self.error_budget, dict(methods))
 
     _axes = {"values": "@parameter"}
     _units = {
         "peak": "@observables",
         "peak_error": "@observables",
+        "budget_time_step": "@observables",
+        "budget_mesh": "@observables",
+        "budget_linearisation": "@observables",
         "spectral_radius_error": "1",
         "is_stable": "1",
         "linear_range": "1",
@@ -166,6 +209,17 @@ class SweepResult(GridResult):
         "frozen_mean": "rad/s",
         **GridResult._units,
     }
+
+    def _dominant_words(self) -> str:
+        """" (mostly linearisation)": the budget term that dominates the most points' total error."""
+        if not self.budget_time_step:
+            return " (time step only)"
+        found = self.budget
+        names = [str(name) for spec in found for name in np.atleast_1d(found.dominant(spec))]
+        if not names:
+            return ""
+        most = max(set(names), key=names.count)
+        return f" (mostly {most.replace('_', ' ')})"
 
     def plot(self, *, axes: Any = None) -> Plot:
         """Peak-to-peak of each observable and the spectral radius against the swept parameter, with
@@ -210,7 +264,8 @@ class SweepResult(GridResult):
                     / np.asarray(self.peak_to_peak[spec], dtype=float)
                     for spec in specs if self.peak_to_peak_error.get(spec) is not None]
         axes[0].set_title(cost_line(f"{self.problem}: {len(x)} points over {self.parameter}\nlargest estimated error "
-                                    f"{plain(100 * largest(relative))} % of peak to peak", self.run_time)
+                                    f"{plain(100 * largest(relative))} % of peak to peak"
+                                    + self._dominant_words(), self.run_time)
                           + self.reduction_note()
                           + ("\nresonances: harmonic k : mode (k x speed = mode frequency)" if rows else ""),
                           fontsize="small", pad=4 + rows * LABEL_ROW_HEIGHT)
@@ -218,9 +273,13 @@ class SweepResult(GridResult):
 
 
 def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, frozen_samples: int,
-                scheme: str = DEFAULT_SCHEME):
-    """One sweep point: steady state, multipliers, frozen frequency bands (a top-level function so
-    that process pools and Dask can pickle it)."""
+                scheme: str = DEFAULT_SCHEME, error_tolerance: float = ERROR_TOLERANCE,
+                mesh_relative: Mapping[str, float] | None = None, budget: bool = True):
+    """One sweep point: steady state, multipliers, frozen frequency bands, the error budget of each
+    peak-to-peak (time step, the point's own linearisation term, the mesh term as ``mesh_relative``
+    {spec: relative error of the headline point} times the value: ``studies._budget``) (a top-level
+    function so that process pools and Dask can pickle it). ``budget=False``: the time step's term
+    alone (the others unknown), without the linearisation's cost."""
     linear = problem.linearize(values, n_steps=n_steps, context=False)
     steady = solve_steady(linear, scheme)
     _, frozen, _ = frozen_modes(linear.system, frozen_samples)
@@ -239,28 +298,60 @@ def sweep_point(problem: Any, values: Mapping[str, float], *, n_steps: int, froz
     data.update({f"linear_range/{name}": value for name, value in steady.linear_range.items()})
     verdicts = [(steady.status, steady.message)]
     peaks = peak_summary(response, steady.response_error)
-    for k, spec in enumerate(linear.observables):
+    specs = linear.observables
+    time_step = {"response": dict(zip(specs, map(float, steady.response_error))),
+                 "peak": dict(zip(specs, map(float, peaks["peak_error"]))),
+                 "peak_to_peak": dict(zip(specs, map(float, peaks["peak_to_peak_error"])))}
+    linearisation: Any = math.nan   # unknown: not estimated
+    if budget:
+        linearisation, _, _, _ = linearisation_terms(linear, steady, scheme, max_steps=GRID_CHORD_STEPS)
+    mesh: Any = NOT_APPLICABLE
+    if mesh_relative:
+        mesh = {name: {spec: abs(float(mesh_relative.get(spec, math.nan))) * float(peaks[name][k])
+                       for k, spec in enumerate(specs)} for name in ("peak", "peak_to_peak")}
+        mesh["response"] = mesh["peak"]
+    point = point_budget(specs, time_step, mesh=mesh, linearisation=(
+        linearisation if budget else {name: {} for name in time_step}))
+    ptp_budget = point.budgets["peak_to_peak"]
+    for k, spec in enumerate(specs):
         for name, values in peaks.items():
             data[f"{name}/{spec}"] = float(values[k])
+        data[f"budget_time_step/{spec}"] = time_step["peak_to_peak"][spec]
+        if isinstance(linearisation, dict):
+            data[f"budget_linearisation/{spec}"] = float(linearisation["peak_to_peak"][spec])
+        if mesh != NOT_APPLICABLE:
+            data[f"budget_mesh/{spec}"] = float(mesh["peak_to_peak"][spec])
+        if budget:
+            data[f"peak_to_peak_error/{spec}"] = float(ptp_budget.total(spec))
+            data[f"peak_error/{spec}"] = float(point.budgets["peak"].total(spec))
         value, error = peaks["peak_to_peak"][k], peaks["peak_to_peak_error"][k]
         if not error <= INACCURATE * value:
             verdicts.append((STATUS_INACCURATE,
                              f"{spec}: peak-to-peak error estimate {error:.3g} exceeds {INACCURATE:.0%} of "
                              f"the value {value:.3g}; refine n_steps (typically near a resonance)"))
+    if budget:
+        verdicts.append(beside(steady.status, verdict(
+            ptp_budget, dict(zip(specs, map(float, peaks["peak_to_peak"]))), error_tolerance)))
     status, message = combine(verdicts)
     return data, status, message
 
 
 def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int = 256,
           max_harmonic: int = 4, executor: Executor | None = None, out: Any = None,
-          name: str = "sweep", progress: bool = False, scheme: str = DEFAULT_SCHEME) -> SweepResult:
+          name: str = "sweep", progress: bool = False, scheme: str = DEFAULT_SCHEME,
+          error_tolerance: float = ERROR_TOLERANCE, budget: bool = True) -> SweepResult:
     """Sweep ``parameter`` (e.g. ``"speed"``) over ``values``: peak-to-peak of each observable and its
     error, spectral radius, multipliers, frozen frequency bands; resonances ``k * speed`` (k = 1 ..
     ``max_harmonic``) crossing a mean frozen frequency and parametric instabilities (spectral radius
     above 1) marked. ``out``: h5py File/Group to write into (resumable). ``scheme`` names the
-    periodic scheme (``periodic.SCHEMES``)."""
+    periodic scheme (``periodic.SCHEMES``). Each point's peak-to-peak error is the total of its
+    budget (``error_budget``: time step, its own linearisation term, the mesh term of the scene's
+    point applied relatively); a total above ``error_tolerance`` of the value is ``inaccurate``.
+    ``budget=False``: the time step's error alone, as before the budget (the other terms
+    unknown: the points are not judged by them)."""
     start = time.perf_counter()
     study_scheme(scheme)
+    error_tolerance = check_tolerance(error_tolerance)
     parameter = check_parameter(problem, parameter)
     grid = check_grid("values", values)
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a sweep")
@@ -270,27 +361,33 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
     # the frozen samples are taken among the steps: at most n_steps of them, and the file records
     # the number used
     frozen_samples = min(FROZEN_SAMPLES, n_steps)
+    mesh_relative, mesh_method = ({}, "") if not budget else _mesh_headline(problem, names.observables,
+                                                                            n_steps, scheme)
     settings = {"parameter": parameter, "values": grid, "n_steps": n_steps, "scene": problem.text,
-                "frozen_samples": frozen_samples, "scheme": scheme}
+                "frozen_samples": frozen_samples, "scheme": scheme, "error_tolerance": error_tolerance,
+                "budget": bool(budget)}
     units = {"speed": "rad/s", "spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1",
              "linear_range": "1", "multipliers": "1",
              "error_estimate": "SI (see labels)", "frozen_min": "rad/s", "frozen_max": "rad/s",
              "frozen_mean": "rad/s"}
     units.update({f"peak_to_peak/{s}": u for s, u in obs_units.items()})
     units.update({f"{name}/{s}": u for s, u in obs_units.items()
-                  for name in ("peak_to_peak_error", "peak", "peak_error")})
+                  for name in ("peak_to_peak_error", "peak", "peak_error") + BUDGET_FIELDS})
     header = dict(problem=problem.name, scene=problem.text, parameter=parameter,
                   parameter_unit=problem.units[parameter], labels=names.labels, units=obs_units)
     store = open_store(out, name, grid.shape, SweepResult, settings, units, header,
                        {"values": (grid, problem.units[parameter])})
     points = [((i,), {parameter: float(v)}) for i, v in enumerate(grid)]
     outcomes = run_grid(sweep_point, problem, points,
-                        {"n_steps": n_steps, "frozen_samples": frozen_samples, "scheme": scheme}, executor=executor,
+                        {"n_steps": n_steps, "frozen_samples": frozen_samples, "scheme": scheme,
+                         "error_tolerance": error_tolerance, "mesh_relative": mesh_relative,
+                         "budget": bool(budget)},
+                        executor=executor,
                         store=store, progress=progress, description=f"{name} over {parameter}")
     fields = collect(outcomes, grid.shape)
     per_observable = {name: {spec: fields.pop(f"{name}/{spec}") for spec in obs_units
                              if f"{name}/{spec}" in fields}
-                      for name in ("peak_to_peak", "peak_to_peak_error", "peak", "peak_error")}
+                      for name in ("peak_to_peak", "peak_to_peak_error", "peak", "peak_error") + BUDGET_FIELDS}
     ranges = {name: fields.pop(f"linear_range/{name}") for name in
               [key.split("/", 1)[1] for key in fields if key.startswith("linear_range/")]}
     reduction = reduction_check(problem, n_steps=n_steps)
@@ -305,10 +402,34 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
     result = SweepResult(**header, settings=settings, values=grid, **per_observable,
                          resonances=resonances, linear_range=ranges,
                          instabilities=instabilities, run_time=time.perf_counter() - start, **fields,
+                         error_methods=_methods(n_steps, scheme, mesh_method,
+                                                bool(per_observable["budget_linearisation"]), budget),
                          **reduction)
     if store is not None:
         result.to_hdf5(store.group)
     return result
+
+
+def _mesh_headline(problem: Any, specs: Any, n_steps: int, scheme: str) -> tuple[dict[str, float], str]:
+    """The mesh term at the scene's own point, relative to its peak-to-peak ({spec: relative}, empty
+    where it does not apply), and its words: the sweep applies it to every point."""
+    mesh, method, _ = mesh_terms(problem, None, specs, n_steps, scheme)
+    if mesh == NOT_APPLICABLE:
+        return {}, method
+    steady = solve_steady(problem.linearize(None, n_steps=n_steps, context=False), scheme)
+    values = peak_summary(steady.response, steady.response_error)["peak_to_peak"]
+    relative = {spec: float(mesh["peak_to_peak"].get(spec, math.nan)) / max(float(values[k]), 1e-300)
+                for k, spec in enumerate(specs)}
+    return relative, f"{method}, at the scene's point, applied to every point relatively"
+
+
+def _methods(n_steps: int, scheme: str, mesh_method: str, linearised: bool, budget: bool) -> dict[str, str]:
+    skipped = "not estimated: the sweep ran with budget=False (the time step's error alone)"
+    return {"time_step": f"N = {n_steps} against N/2 steps ({scheme})",
+            "mesh": mesh_method if budget else skipped,
+            "linearisation": (skipped if not budget else
+                              "chord steps of the nonlinear periodic problem at each point"
+                              if linearised else "not applicable: the problem is linear as written")}
 
 
 def _resonances(grid: np.ndarray, speed: np.ndarray, frozen_mean: np.ndarray, max_harmonic: int):
@@ -331,7 +452,8 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
 def _run(problem: Any, options: Mapping[str, Any], *, out: Any, executor: Any, progress: bool) -> SweepResult:
     return sweep(problem, options["parameter"], options["values"], n_steps=options["n_steps"],
                  max_harmonic=options["max_harmonic"], executor=executor, out=out, name=KIND.name,
-                 progress=progress, scheme=options.get("scheme", DEFAULT_SCHEME))
+                 progress=progress, scheme=options.get("scheme", DEFAULT_SCHEME),
+                 error_tolerance=options.get("error_tolerance", ERROR_TOLERANCE))
 
 
 def _summary(result: SweepResult) -> str:
@@ -375,6 +497,8 @@ def _headlines(result: SweepResult) -> Summary:
     rows = [row for spec, values in result.peak_to_peak.items()
             for row in largest(f"{spec} peak to peak", values, result.peak_to_peak_error.get(spec),
                                result.units[spec])]
+    if result.budget_time_step:
+        rows.append(Headline("error budget", f"total of time step, mesh, linearisation{result._dominant_words()}"))
     # the peak force or stress over the sweep, where the result holds peaks (see PEAK_UNITS)
     peaks = getattr(result, "peak", None) or {}
     peak_errors = getattr(result, "peak_error", None) or {}
@@ -420,10 +544,12 @@ def _default(nominal_speed: float) -> dict[str, Any]:
 
 
 def _cost(name, problem, options, workers, done=None):
-    """A periodic solve and 32 frozen-time eigenproblems per point (``studies._cost.grid_cost``)."""
+    """A periodic solve, its error budget and 32 frozen-time eigenproblems per point
+    (``studies._cost.grid_cost``), the mesh term at the scene's point."""
     axis = (options["parameter"], np.asarray(options["values"]))
     found = cost.grid_cost(name, problem, [axis], options["n_steps"], workers=workers, frozen=32, done=done,
-                      point_doubles=lambda s: 8.0 * s.m + 4.0, words=[cost.axis_words(*axis)])
+                      point_doubles=lambda s: 8.0 * s.m + 4.0, words=[cost.axis_words(*axis)], budget=True)
+    found = cost.with_mesh_term(found, problem, {}, options["n_steps"], relative=True, held=found.memory)
     return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 

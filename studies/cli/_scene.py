@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
+from .._budget import check_tolerance
 from .._errors import StudiesError, UsageError
 from .._kind import COMMON_KEYS, integer, kind_named, kinds, reject_unknown
 from .._numerics import DEFAULT_SCHEME, study_scheme
@@ -178,6 +179,9 @@ def plan(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, 
         study_scheme(scheme)
     except StudiesError as error:
         raise StudiesError(f"[studies] {error}") from None
+    tolerance = table.get("error_tolerance")
+    if tolerance is not None:
+        tolerance = check_tolerance(tolerance, "[studies] error_tolerance")
     common = {"n_steps": n_steps, "observables": None if observables is None else tuple(observables),
               "scheme": scheme}
     studies: dict[str, dict[str, Any]] = {}
@@ -190,6 +194,9 @@ def plan(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, 
             raise StudiesError(f"[{where}]: expected a table, got {options!r}")
         reject_unknown(where, options, kind.keys)
         studies[name] = kind.check(where, options, n_steps)
+        if tolerance is not None and (kind.schemes or "error_tolerance" in kind.keys):
+            # the error budget's status rule (studies._budget); a kind's own table key wins
+            studies[name].setdefault("error_tolerance", tolerance)
         if kind.schemes:  # part of the request, so a run with another scheme is another study
             studies[name]["scheme"] = scheme
         elif scheme != DEFAULT_SCHEME:

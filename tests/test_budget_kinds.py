@@ -1,0 +1,179 @@
+"""The error budget on the stability chart, the Campbell diagram, the control comparison and the
+optimisation optimum (studies._budget), and the guard's cost of the budget: each against something
+independent (a converged radius, the steady state the optimum's budget comes from, the comparison's
+own N-against-N/2 errors, the cost model's parts)."""
+
+from __future__ import annotations
+
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+import mechanisms
+import studies
+from studies import _budget as budget  # the budget's words are internal to the studies (tested here)
+from studies import _cost as cost  # the guard's cost model's parts (tested here)
+
+TOLERANCE = 0.02
+
+
+# ---------------------------------------------------------------------------------------------------
+# the spectral radius: stability chart and Campbell diagram
+# ---------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def charts():
+    problem = studies.mathieu_problem(damping_ratio=0.02, force=0.0)
+    axes = (("speed", np.linspace(0.15, 0.6, 6)), ("epsilon", [0.1, 0.5]))  # slow: the step matters
+    coarse = studies.stability_chart(problem, *axes, n_steps=32)
+    converged = studies.stability_chart(problem, *axes, n_steps=512)
+    return coarse, converged
+
+
+def test_the_chart_says_which_terms_of_its_radius_apply(charts):
+    coarse, _ = charts
+    terms = coarse.error_budget["spectral_radius"]
+    np.testing.assert_array_equal(terms["time_step"], coarse.spectral_radius_error)
+    assert terms["mesh"] == budget.NOT_ESTIMATED and terms["linearisation"] == budget.NOT_APPLICABLE
+    assert "not applicable" in coarse.error_methods["linearisation"]
+    assert coarse.settings["error_tolerance"] == TOLERANCE
+
+
+def test_a_cell_whose_radius_is_off_by_more_than_the_tolerance_is_not_ok(charts):
+    coarse, converged = charts
+    true_error = np.abs(coarse.spectral_radius - converged.spectral_radius)
+    off = true_error > 2.0 * TOLERANCE * converged.spectral_radius
+    assert off.any(), "the coarse chart should have cells off by more than the tolerance"
+    assert not (coarse.point_status[off] == "ok").any()
+    # the rule itself: a time-step error above the tolerance of the radius is inaccurate
+    over = coarse.spectral_radius_error > TOLERANCE * coarse.spectral_radius
+    assert (coarse.point_status[over] != "ok").all()
+    assert "spectral radius error" in " ".join(coarse.point_message[over])
+
+
+def test_a_looser_tolerance_keeps_the_cells_the_rule_flagged(charts):
+    coarse, _ = charts
+    problem = studies.mathieu_problem(damping_ratio=0.02, force=0.0)
+    loose = studies.stability_chart(problem, ("speed", coarse.first), ("epsilon", coarse.second), n_steps=32,
+                                    error_tolerance=0.9)
+    flagged = (coarse.point_status == "inaccurate") & (loose.point_status != "inaccurate")
+    assert flagged.any()
+    assert not any("spectral radius error" in m for m in loose.point_message.ravel())
+
+
+def test_campbell_carries_the_budget_of_its_radius_and_frequencies():
+    problem = studies.mathieu_problem(damping_ratio=0.02, force=0.0)
+    result = studies.campbell(problem, [0.2, 0.4, 0.8], n_steps=32)
+    found = result.error_budget
+    np.testing.assert_array_equal(found["characteristic"]["time_step"], result.characteristic_error)
+    np.testing.assert_array_equal(found["spectral_radius"]["time_step"], result.spectral_radius_error)
+    for terms in found.values():
+        assert terms["linearisation"] == budget.NOT_APPLICABLE and terms["mesh"] == budget.NOT_ESTIMATED
+    over = result.spectral_radius_error > TOLERANCE * result.spectral_radius
+    assert over.any() and (result.point_status[over] != "ok").all()
+
+
+def test_chart_methods_round_trip(charts, tmp_path):
+    coarse, _ = charts
+    path = tmp_path / "chart.h5"
+    coarse.save(path)
+    back = studies.load(path)["stability_chart"]
+    assert dict(back.error_methods) == dict(coarse.error_methods)
+    np.testing.assert_array_equal(back.error_budget["spectral_radius"]["time_step"], coarse.spectral_radius_error)
+
+
+# ---------------------------------------------------------------------------------------------------
+# the control comparison
+# ---------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def comparison():
+    spec = mechanisms.four_bar(n_elements=1).to_spec()
+    spec["drive"].update(type="torque", kp=20.0, kd=0.5)
+    problem = studies.MechanismProblem.from_mechanism(mechanisms.build(spec, source="torque four-bar"))
+    return studies.control_comparison(problem, n_periods=8, n_steps=64)
+
+
+def test_the_comparison_budget_is_its_time_step_and_mesh_without_linearisation(comparison):
+    for name in comparison.quantities:
+        terms = comparison.error_budget[name]
+        assert terms["time_step"] == comparison.steady_peak_error["with"][name]
+        assert terms["linearisation"] == budget.NOT_APPLICABLE   # the runs are of the full equations
+        if comparison.roles[name] != "elastic" and terms["mesh"] != budget.NOT_APPLICABLE:
+            assert terms["mesh"] == budget.NOT_ESTIMATED
+        total = budget.ErrorBudget(comparison.error_budget).total(name)
+        value = comparison.steady_peak["with"][name]
+        if not total <= TOLERANCE * abs(value):
+            assert comparison.status != "ok" and name in comparison.message
+
+
+def test_the_comparison_budget_round_trips(comparison, tmp_path):
+    path = tmp_path / "comparison.h5"
+    comparison.save(path)
+    back = studies.load(path)["control_comparison"]
+    assert {k: dict(v) for k, v in back.error_budget.items()} == \
+        {k: dict(v) for k, v in comparison.error_budget.items()}
+    with h5py.File(path, "a") as handle:   # as a file written before the budget
+        for name in ("error_budget", "error_methods"):
+            del handle["control_comparison"].attrs[name]
+    old = studies.load(path)["control_comparison"]
+    assert old.error_budget == {}
+
+
+# ---------------------------------------------------------------------------------------------------
+# the optimisation optimum
+# ---------------------------------------------------------------------------------------------------
+def test_the_optimum_carries_the_budget_of_the_steady_state_at_its_worst_speed():
+    problem = studies.MechanismProblem.from_scene("four_bar_thesis", parameter_paths=("links.coupler.thickness",))
+    objective = "peak_to_peak:coupler.deflection@0.5"
+    found = studies.optimize(problem, {"links.coupler.thickness": (4e-3, 6e-3)}, objective=objective,
+                             n_steps=64, max_evaluations=3, check=False)
+    spec = "coupler.deflection@0.5"
+    # independent: the steady state at the optimum, run apart
+    steady = studies.steady_state(problem, found.values, n_steps=64)
+    assert found.objective_value == pytest.approx(steady.peak_to_peak[spec], rel=1e-9)
+    for term, value in steady.error_budget[spec].items():
+        stored = found.error_budget[spec][term]
+        assert stored == value or (isinstance(value, float) and math.isnan(value) and math.isnan(stored))
+    assert found.objective_error == pytest.approx(steady.budget.total(spec), rel=1e-12)
+    assert isinstance(found.error_budget[spec]["linearisation"], float)
+    if not found.objective_error <= TOLERANCE * found.objective_value:
+        assert found.status != "ok" and "peak-to-peak error" in found.message
+
+
+def test_a_periodic_problem_optimum_has_the_time_step_alone(tmp_path):
+    problem = studies.mathieu_problem(damping_ratio=0.05)
+    found = studies.optimize(problem, {"damping_ratio": (0.05, 0.2)}, objective="rms:x", n_steps=64,
+                             max_evaluations=3, check=False)
+    terms = found.error_budget["x"]
+    assert terms["mesh"] == budget.NOT_APPLICABLE and terms["linearisation"] == budget.NOT_APPLICABLE
+    # independent: the response error of the steady state at the optimum, run apart
+    steady = studies.steady_state(problem, found.values, n_steps=64)
+    assert found.objective_error == pytest.approx(steady.response_error["x"], rel=1e-12)
+    path = tmp_path / "optimum.h5"
+    found.save(path)
+    back = studies.load(path)["optimize"]
+    assert dict(back.error_budget["x"]) == dict(terms) and back.objective_error == found.objective_error
+    with h5py.File(path, "a") as handle:   # as a file written before the budget
+        for name in ("error_budget", "error_methods"):
+            del handle["optimize"].attrs[name]
+    old = studies.load(path)["optimize"]
+    assert old.error_budget["x"]["time_step"] == found.objective_error
+    assert math.isnan(old.error_budget["x"]["linearisation"]) and "format 2" in old.error_methods["mesh"]
+
+
+# ---------------------------------------------------------------------------------------------------
+# the guard's cost of the budget
+# ---------------------------------------------------------------------------------------------------
+def test_the_steady_state_estimate_includes_the_budget_terms():
+    problem = studies.MechanismProblem.from_scene("four_bar_fem4")
+    sizes = cost.sizes_at(problem, {})
+    plain = cost.steady_solves("s", problem, [{}], 128)
+    with_budget = cost.steady_solves("s", problem, [{}], 128, budget=True)
+    refined = cost.Sizes(n=cost.MESH_REFINEMENT * sizes.n, m=cost.MESH_REFINEMENT * sizes.m)
+    mesh = cost.linearisation(128, refined)[1] + cost.solve_seconds(128, refined)
+    assert with_budget.time == pytest.approx(plain.time + cost.budget_seconds(problem, 128, sizes) + mesh)
+    # a periodic problem has neither term
+    mathieu = studies.mathieu_problem()
+    assert cost.steady_solves("s", mathieu, [{}], 128, budget=True).time == \
+        cost.steady_solves("s", mathieu, [{}], 128).time
