@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, Iterator, Mapping
 
 from ._identity import canonical, differing_paths, digest
+from ._integrity import check_root, seal_root
 from ._store import FORMAT_VERSION, ResultFileError, StorageError, stamp
 from ._writes import deferred_interrupts, forget_open, interrupts_handled, register_open
 
@@ -90,7 +91,7 @@ class ResultFile:
         self._lock()
         existed = self.path.exists()
         if existed:
-            self._check_existing()
+            existed = self._check_existing()
         self._check_space(2 * (self.path.stat().st_size if existed else 0), at_start=True)
         for stale in (self.work, self.staging):
             stale.unlink(missing_ok=True)  # left by a killed run: scratch, the lock is ours
@@ -168,23 +169,32 @@ class ResultFile:
         os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()}".encode(), 0)
         self._lock_fd = fd
 
-    def _check_existing(self) -> None:
-        """Refuse a file that is not flexvib's or holds another scene (before writing anything)."""
+    def _check_existing(self) -> bool:
+        """Refuse a file that is not flexvib's or holds another scene (before writing anything).
+        A file that cannot be read as a flexvib result (not HDF5, or its own metadata damaged) is
+        refused, or with ``overwrite`` moved aside to ``PATH.damaged-N`` (nothing is destroyed);
+        returns whether the file is still there."""
         import h5py
 
-        if not h5py.is_hdf5(self.path):
-            raise self.refusal("exists and is not an HDF5 file", "remove it or choose another --out")
-        try:
-            with h5py.File(self.path, "r", locking=False) as handle:
-                attrs, names = dict(handle.attrs), list(handle)
-        except OSError as error:
-            raise self.refusal(f"cannot be read ({_describe_os_error(error)})",
-                             "remove it or choose another --out") from None
+        unreadable = self._unreadable()
+        if unreadable and not _looks_like_flexvib(self.path):   # someone else's file: never touched
+            raise self.refusal("exists and is not an HDF5 file" if not h5py.is_hdf5(self.path)
+                               else f"{unreadable.removeprefix('is damaged: ')}",
+                               "remove it or choose another --out")
+        if unreadable:
+            if not self.overwrite:
+                raise self.refusal(f"{unreadable}, so it cannot be resumed",
+                                   "run with --overwrite to move it aside (to PATH.damaged-N) and start "
+                                   "afresh, or choose another --out")
+            self._move_aside(unreadable)
+            return False
+        with h5py.File(self.path, "r", locking=False) as handle:
+            attrs, names = dict(handle.attrs), list(handle)
         if "flexvib_version" not in attrs:
             raise self.refusal("is an HDF5 file not written by flexvib; refusing to change it",
                              "choose another --out")
         if self.overwrite:
-            return
+            return True
         written = int(attrs.get("format_version", 1))
         if written != FORMAT_VERSION and names:
             raise self.refusal(
@@ -194,14 +204,14 @@ class ResultFile:
                 "run with --overwrite to start it afresh, or choose another --out"
                 + (" (studies.load still reads it)" if written < FORMAT_VERSION else ""))
         if self.scene is None:
-            return
+            return True
         if "scene_hash" not in attrs:
             if names:
                 raise self.refusal(
                     f"was written by flexvib {attrs.get('flexvib_version', '?')}, which did not record "
                     f"its scene's identity, so resuming could mix two scenes",
                     "run with --overwrite to start it afresh, or choose another --out")
-            return
+            return True
         if attrs["scene_hash"] != digest(self.scene):
             try:
                 paths = differing_paths(json.loads(attrs.get("scene", "{}")), self.scene)
@@ -209,6 +219,42 @@ class ResultFile:
                 paths = ["(unknown)"]
             raise self.refusal(f"holds the results of another scene (differing: {', '.join(paths)})",
                              "write to another file with --out, or run with --overwrite to start it afresh")
+        return True
+
+    def _unreadable(self) -> str:
+        """Why the existing file cannot be read as a result file ("" if it can): not HDF5, HDF5 that
+        does not open or list its groups, or (format 3) attributes that fail their checksum."""
+        import h5py
+
+        if not h5py.is_hdf5(self.path):
+            return "is damaged: it is not readable as HDF5 (its first bytes are damaged)"
+        try:
+            with h5py.File(self.path, "r", locking=False) as handle:
+                attrs = dict(handle.attrs)
+                list(handle)
+                written = int(attrs.get("format_version", 1)) if "flexvib_version" in attrs else 0
+                root = check_root(handle, written) if written >= 3 else None
+        except (OSError, RuntimeError, KeyError, ValueError, TypeError) as error:
+            cause = _describe_os_error(error) if isinstance(error, OSError) else str(error)
+            return f"is damaged: its HDF5 metadata cannot be read ({cause})"
+        if root is not None and root.damaged and written <= FORMAT_VERSION:
+            return f"is damaged: {root.cause}"
+        return ""
+
+    def _move_aside(self, why: str) -> None:
+        """Rename the unreadable file to the first free ``PATH.damaged-N`` and say so in one line."""
+        number = 1
+        while True:
+            aside = self.path.with_name(f"{self.path.name}.damaged-{number}")
+            if not aside.exists():
+                break
+            number += 1
+        try:
+            os.replace(self.path, aside)
+        except OSError as error:
+            raise self.refusal(f"{why}, and it cannot be moved aside to {str(aside)!r} "
+                               f"({_describe_os_error(error)})", "choose another --out") from None
+        logger.warning("%s %s; moved it aside to %s and started afresh", self.path, why, aside)
 
     # -- writing -------------------------------------------------------------------------------
     @property
@@ -264,6 +310,7 @@ class ResultFile:
         start = time.monotonic()
         with deferred_interrupts():
             self._check_space(self._work_size())
+            seal_root(self._handle)   # the file's own attributes, checked before the next resume
             self._handle.close()
             try:
                 shutil.copyfile(self.work, self.staging)
@@ -319,6 +366,30 @@ class ResultFile:
             self.lock_path.unlink(missing_ok=True)  # while still holding it (see _lock)
             os.close(self._lock_fd)
             self._lock_fd = None
+
+
+#: Bytes every flexvib result file holds in its root group's attribute names (read to tell a
+#: damaged result file from someone else's file), and how much of a file is searched for them.
+_FLEXVIB_MARK = b"flexvib_version"
+_MARK_SEARCH = 64 << 20
+
+
+def _looks_like_flexvib(path: Path) -> bool:
+    """Whether the bytes of ``path`` hold flexvib's mark (a damaged result file rather than another
+    program's file, which ``--overwrite`` must leave alone)."""
+    try:
+        with open(path, "rb") as stream:
+            tail, read = b"", 0
+            while read < _MARK_SEARCH:
+                block = stream.read(1 << 20)
+                if not block:
+                    return False
+                if _FLEXVIB_MARK in tail + block:
+                    return True
+                tail, read = block[-len(_FLEXVIB_MARK):], read + len(block)
+    except OSError:
+        return False
+    return False
 
 
 def _fsync_folder(folder: Path) -> None:

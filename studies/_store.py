@@ -23,14 +23,18 @@ import numpy as np
 
 from ._errors import StudiesError
 from ._identity import plain
+from ._integrity import check_group, check_root, seal, seal_points, seal_root
 from ._writes import writing_to
 
 #: The result format this flexvib writes: the file attribute and each study group's attribute
 #: ``format_version``. Format 1 (files without the attribute, flexvib before it was recorded): a
 #: group's ``kind`` is the name of its result class. Format 2: ``kind`` is the registered name of the
 #: study kind (``studies.register_kind``), a stable string, so that moving or renaming a result class
-#: breaks no file. A file or group of a higher format is refused (:func:`check_format`).
-FORMAT_VERSION = 2
+#: breaks no file. Format 3: checksums (``studies._integrity``): the file's attributes, each study
+#: group and each grid point carry a digest, verified by ``load``, ``flexvib info`` and the resume;
+#: a format-2 file has none and reads as "not verifiable". A file or group of a higher format is
+#: refused (:func:`check_format`).
+FORMAT_VERSION = 3
 
 #: Result classes by the name a file stores them under (the kind's name and its aliases).
 _RESULTS: dict[str, type] = {}
@@ -41,6 +45,11 @@ class ResultFileError(StudiesError):
     """A result file that cannot be used as asked (a folder, an unwritable path, not a flexvib file,
     another scene, written by another live run, a newer result format): exit code 2, the file
     untouched."""
+
+
+class DamagedResultError(ResultFileError):
+    """A result file, or studies in it, whose bytes no longer match their checksums (``load``,
+    ``flexvib plot`` and ``report`` refuse it naming the studies; ``flexvib run`` recomputes them)."""
 
 
 class StorageError(RuntimeError):
@@ -156,6 +165,8 @@ class Result:
         the write is one piece: an interrupt waits for its end, the free space is checked first."""
         with writing_to(group, self.nbytes()):
             self._write(group)
+            seal_points(group)   # a grid study written over its points (none elsewhere)
+            seal(group)
         return group
 
     def nbytes(self) -> int:
@@ -270,7 +281,28 @@ def load(path: str | Path) -> dict[str, Result]:
         raise StudiesError(f"{str(path)!r} is not an HDF5 result file: {error}") from None
     with handle:
         check_format(handle)
+        damaged = damage_report(handle)
+        if damaged:
+            raise DamagedResultError(f"result file {str(path)!r} is damaged: {damaged}; run the same "
+                                     f"`flexvib run` command to recompute what is damaged (or with "
+                                     f"--overwrite to move an unreadable file aside)")
         return {name: read_group(group) for name, group in handle.items()}
+
+
+def damage_report(handle: Any) -> str:
+    """The damage the checksums find in an open result file, in words ("" when none: intact, or a
+    file written before format 3, which is not verifiable)."""
+    version = format_of(handle)
+    found = []
+    root = check_root(handle, version)
+    if root.damaged:
+        found.append(root.cause)
+    for name, group in handle.items():
+        if hasattr(group, "attrs") and hasattr(group, "keys"):
+            check = check_group(group, format_of(group))
+            if check.damaged:
+                found.append(f"study {name!r} {check.describe()}")
+    return "; ".join(found)
 
 
 def read_group(group: Any) -> Result:
@@ -303,3 +335,4 @@ def stamp(handle: Any) -> None:
     handle.attrs["format_version"] = FORMAT_VERSION
     handle.attrs["versions"] = json.dumps(stamp, sort_keys=True)
     handle.attrs["created"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    seal_root(handle)

@@ -403,67 +403,98 @@ def _report_command(args: argparse.Namespace) -> int:
 
 #: Study attributes ``flexvib info`` does not print: shown in its header line, or bulky and internal.
 _INFO_HIDDEN = ("kind", "format_version", "problem", "complete", "request", "request_hash", "settings_hash", "scene",
-                "outlines", "labels", "mode_labels")
+                "outlines", "labels", "mode_labels", "digest", "point_outputs")
 
 
 def _info(args: argparse.Namespace) -> int:
-    """Summarise a result file; every dataset of every study is read, and a study whose data cannot
-    be read is called CORRUPT (exit code 1)."""
+    """Summarise a result file; every dataset of every study is read and checked against its
+    checksum (format 3), and a study whose data cannot be read or do not match is called DAMAGED,
+    a file whose own metadata is damaged unreadable (exit code 1 for either)."""
     import h5py
 
+    from .._integrity import check_group, check_root
     from .._store import check_format, format_of, study_attrs
     from .._studies import status_counts
 
     if not args.file.is_file():
-        raise UsageError(f"result file {str(args.file)!r} does not exist")
+        raise UsageError(f"result file {str(args.file)!r} " + (
+            "does not exist" if not args.file.exists() else "is not a regular file (a folder or a device)"))
+    unreadable = (f"flexvib: error: {args.file}: unreadable: its HDF5 metadata is damaged or it is not a "
+                  f"result file")
+    fix = "`flexvib run ... --out FILE --overwrite` moves a damaged file aside and starts afresh"
     try:
         handle = h5py.File(args.file, "r", locking=False)  # a run never holds the file open
     except OSError as error:
-        raise UsageError(f"{str(args.file)!r} is not an HDF5 result file ({error})") from None
-    corrupt = []
-    with handle:
-        check_format(handle)  # a newer format: refused, naming the flexvib that wrote it
-        print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, result format "
-              f"{format_of(handle)}, created {handle.attrs.get('created', '?')}")
-        print(f"  versions: {handle.attrs.get('versions', '?')}")
-        if "compile_time" in handle.attrs:   # numba compilation of the last run, outside its run times
-            print(f"  compile_time: {float(handle.attrs['compile_time']):.3g} s")
-        if "scene_hash" in handle.attrs:
-            print(f"  scene: sha256 {handle.attrs['scene_hash']}")
-        for name, item in handle.items():
-            if not hasattr(item, "items"):  # a dataset at the root (e.g. a `flexvib demo` file)
-                print(f"{name}: {item.shape} {item.attrs.get('units', '')}")
-                continue
-            problem = _unreadable(item)
-            if problem:
-                corrupt.append(name)
-            attrs = study_attrs(item)
-            state = (f"CORRUPT ({problem})" if problem else
-                     "complete" if attrs.get("complete") else "INCOMPLETE")
-            print(f"[{name}] {attrs.get('kind')} of {attrs.get('problem', '?')}, {state}")
-            if problem:
-                continue
-            if "done" in item:
-                done = item["done"][()]
-                print(f"  points done: {int(done.sum())} of {done.size}")
-                if "status" in item:  # a grid study: its verdicts, most severe first
-                    statuses = item["status"].asstr()[()][done]
-                    print(f"  statuses: {status_counts(statuses)}")
-            # every headline attribute the study wrote (a new kind's too); the bulky or internal ones
-            # (the scene text, the request it was run for) are left out
-            for key, value in attrs.items():
-                if key == "settings" and isinstance(value, dict):  # the scene text is in the file
-                    value = {k: v for k, v in value.items() if k != "scene"}
-                if key not in _INFO_HIDDEN:
-                    print(f"  {key}: {value}")
-            for key, dataset in item.items():
-                if hasattr(dataset, "shape"):
-                    print(f"  {key}: {dataset.shape} {dataset.attrs.get('units', '')}")
-                else:
-                    print(f"  {key}/: {', '.join(dataset.keys())}")
-    if corrupt:
-        print(f"flexvib: error: {args.file}: cannot read {', '.join(corrupt)}", file=sys.stderr)
-    return 1 if corrupt else 0
+        if h5py.is_hdf5(args.file):
+            print(f"{unreadable} ({error}); {fix}", file=sys.stderr)
+            return 1
+        raise UsageError(f"{str(args.file)!r} is not an HDF5 result file ({error}); if it was one, its "
+                         f"first bytes are damaged: {fix}") from None
+    corrupt, damaged = [], []
+    try:
+        with handle:
+            check_format(handle)  # a newer format: refused, naming the flexvib that wrote it
+            root = check_root(handle, format_of(handle))
+            print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, result format "
+                  f"{format_of(handle)}, created {handle.attrs.get('created', '?')}"
+                  + ("" if root.state == "intact" else f"; file attributes {root.describe()}"))
+            if root.damaged:
+                damaged.append("the file's own attributes")
+            print(f"  versions: {handle.attrs.get('versions', '?')}")
+            if "compile_time" in handle.attrs:   # numba compilation of the last run, outside its run times
+                print(f"  compile_time: {float(handle.attrs['compile_time']):.3g} s")
+            if "scene_hash" in handle.attrs:
+                print(f"  scene: sha256 {handle.attrs['scene_hash']}")
+            for name, item in handle.items():
+                if not hasattr(item, "items"):  # a dataset at the root (e.g. a `flexvib demo` file)
+                    print(f"{name}: {item.shape} {item.attrs.get('units', '')}")
+                    continue
+                problem = _unreadable(item)
+                check = check_group(item, format_of(item))
+                if problem:
+                    corrupt.append(name)
+                elif check.damaged:
+                    damaged.append(name)
+                attrs = study_attrs(item)
+                state = (f"CORRUPT ({problem})" if problem else
+                         f"DAMAGED: {check.describe()}" if check.damaged else
+                         "complete" if attrs.get("complete") else "INCOMPLETE")
+                verified = "" if check.damaged or problem else f", {check.describe() or 'checksums match'}"
+                print(f"[{name}] {attrs.get('kind')} of {attrs.get('problem', '?')}, {state}{verified}")
+                if problem or (check.damaged and check.points is None):
+                    continue
+                _print_study(item, attrs, status_counts)
+    except (OSError, RuntimeError, KeyError) as error:  # the file's structure gave way while listing it
+        print(f"{unreadable} ({type(error).__name__}: {error}); {fix}", file=sys.stderr)
+        return 1
+    found = ([f"cannot read {', '.join(corrupt)}"] if corrupt else []) + (
+        [f"damaged (checksums do not match): {', '.join(damaged)}"] if damaged else [])
+    if found:
+        print(f"flexvib: error: {args.file}: {'; '.join(found)}; run the same `flexvib run` command to "
+              f"recompute what is damaged (the intact studies and points are kept)", file=sys.stderr)
+    return 1 if found else 0
+
+
+def _print_study(item: Any, attrs: dict[str, Any], status_counts: Any) -> None:
+    """The points done, statuses, headline attributes and datasets of one study for ``info``."""
+    if "done" in item:
+        done = item["done"][()]
+        print(f"  points done: {int(done.sum())} of {done.size}")
+        if "status" in item:  # a grid study: its verdicts, most severe first
+            statuses = item["status"].asstr()[()][done]
+            print(f"  statuses: {status_counts(statuses)}")
+    # every headline attribute the study wrote (a new kind's too); the bulky or internal ones
+    # (the scene text, the request it was run for) are left out
+    for key, value in attrs.items():
+        if key == "settings" and isinstance(value, dict):  # the scene text is in the file
+            value = {k: v for k, v in value.items() if k != "scene"}
+        if key not in _INFO_HIDDEN:
+            print(f"  {key}: {value}")
+    for key, dataset in item.items():
+        if hasattr(dataset, "shape"):
+            print(f"  {key}: {dataset.shape} {dataset.attrs.get('units', '')}")
+        else:
+            print(f"  {key}/: {', '.join(dataset.keys())}")
 
 
 def _unreadable(group: Any) -> str:

@@ -13,9 +13,10 @@ import numpy as np
 
 from .._errors import is_numerical_failure
 from .._identity import canonical, differing_paths, digest, scene_identity
+from .._integrity import check_group, forget_points, seal
 from .._kind import kind_named
 from .._resultfile import ResultFile
-from .._store import StorageError, read_group, write_attrs
+from .._store import StorageError, format_of, read_group, write_attrs
 from . import _jit
 
 __all__ = ["RunInterrupted", "run_plan", "scene_identity"]
@@ -55,6 +56,7 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
     try:
         with ResultFile(path, scene=scene_identity(problem), overwrite=overwrite) as file:
             _refuse_other_grid_options(file, runs)
+            _set_damage_aside(file, runs)
             clock = _jit.warm_up(problem, studies) if warm_up else None
             try:
                 outcome = _run_studies(problem, runs, file, executor=executor, progress=progress)
@@ -80,6 +82,30 @@ def _refuse_other_grid_options(file: ResultFile, runs: list) -> None:
     if changed:
         raise file.refusal(f"holds {'; '.join(changed)} with other options, which cannot be resumed",
                            "write to another file with --out, or run with --overwrite to start it afresh")
+
+
+def _set_damage_aside(file: ResultFile, runs: list) -> None:
+    """Check the declared studies the file holds against their checksums (``studies._integrity``):
+    a damaged study is removed, so that it is computed again; a grid study whose damage is confined to
+    some points keeps the intact ones and recomputes those (one line each says what was found)."""
+    for name, _kind, _options in runs:
+        group = file.handle.get(name)
+        if group is None:
+            continue
+        check = check_group(group, format_of(group))
+        if not check.damaged:
+            continue
+        with file.writing():
+            if check.points is not None:
+                logger.warning("%s in %s: %s; recomputing those points", name, file.path, check.describe())
+                forget_points(group, check.points)
+            else:
+                logger.warning("%s in %s: %s; recomputing it", name, file.path, check.describe())
+                try:
+                    del file.handle[name]
+                except (KeyError, OSError, RuntimeError, ValueError) as error:
+                    raise file.refusal(f"study {name!r} is damaged beyond removal ({error})",
+                                       "run with --overwrite to start the file afresh") from None
 
 
 def _run_studies(problem: Any, runs: list, file: ResultFile, *, executor: Any, progress: bool
@@ -119,6 +145,7 @@ def _run_studies(problem: Any, runs: list, file: ResultFile, *, executor: Any, p
                 if not kind.grid:
                     result.to_hdf5(file.handle.create_group(name))
                 write_attrs(file.handle[name], asked)
+                seal(file.handle[name])   # its checksum covers what was asked of it too
             file.commit()
             results[name] = result
     return results, failures
