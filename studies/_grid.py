@@ -28,7 +28,7 @@ import numpy as np
 
 from ._errors import StudiesError
 from ._identity import differing_paths, digest, scene_numbers
-from ._integrity import DIGEST, POINT_DIGEST, POINT_OUTPUTS, point_digest, seal
+from ._integrity import DIGEST, POINT_DIGEST, POINT_MARK, POINT_OUTPUTS, dataset_layout, point_digest, seal
 from ._store import FORMAT_VERSION, encode, stored_name, write_attrs
 from ._writes import deferred_interrupts, owner_of
 
@@ -172,20 +172,21 @@ class GridStore:
 
     def write(self, index: tuple[int, ...], outcome: PointOutcome) -> None:
         extra = sum(np.asarray(value).nbytes for value in outcome.data.values())
-        stored = {}
+        stored, datasets = {}, {}
         with self._writing(extra):
             for key, value in outcome.data.items():
-                dataset = self._dataset(key, np.asarray(value))
+                dataset = datasets[key] = self._dataset(key, np.asarray(value))
                 dataset[index] = value
                 stored[key] = np.asarray(value, dtype=dataset.dtype)
-            self._dataset("status")[index] = outcome.status
-            self._dataset("message")[index] = outcome.message
-            self._dataset("point_run_time")[index] = outcome.run_time
+            for key, value in (("status", outcome.status), ("message", outcome.message),
+                               ("point_run_time", outcome.run_time)):
+                dataset = datasets[key] = self._dataset(key)
+                dataset[index] = value
             if self._point_digests is None:   # a group of format 3 (an older one is resumed without)
                 self._point_digests = POINT_DIGEST in self.group
             if self._point_digests:
-                self._dataset(POINT_DIGEST)[index] = point_digest(outcome.status, outcome.message,
-                                                                  float(outcome.run_time), stored)
+                self._dataset(POINT_DIGEST)[index] = point_digest(
+                    outcome.status, outcome.message, float(outcome.run_time), stored, dataset_layout(datasets))
             self._dataset("done")[index] = True
         if self._owner is not None:
             self._owner.maybe_commit()
@@ -210,6 +211,7 @@ class GridStore:
                 else:
                     dataset = group.create_dataset(key, shape=shape, dtype=float, fillvalue=np.nan)
                 dataset.attrs["units"] = self.unit(key)
+                dataset.attrs[POINT_MARK] = True
             self._datasets[key] = dataset
         return dataset
 

@@ -9,9 +9,10 @@ What is checksummed, and when:
   (``Result.to_hdf5``, a run's request attributes after it) and when a grid study's group is made;
 * a grid study's points: the point datasets (``done``, ``status``, ``message``,
   ``point_run_time`` and the outputs the group lists in its attribute ``point_outputs``) are left
-  out of the group's digest, and each point has its own digest in the dataset ``point_digest``
-  (grid shape, uint64; 0 for a point not written), written with the point, so a point-by-point run
-  never re-hashes a whole study and a damaged point can be told from the intact ones.
+  out of the group's digest (but for their shapes and types once the study is complete), and each
+  point has its own digest in the dataset ``point_digest`` (grid shape, uint64; 0 for a point not
+  written), written with the point, so a point-by-point run never re-hashes a whole study and a
+  damaged point can be told from the intact ones.
 
 A check (:func:`check_group`, :func:`check_root`) reads everything it covers and recomputes the
 digests: a study is ``intact``, ``damaged`` (with the damaged points of a grid, or the whole study),
@@ -28,8 +29,9 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
-__all__ = ["DIGEST", "POINT_DIGEST", "POINT_OUTPUTS", "Check", "check_group", "check_root",
-           "forget_points", "point_digest", "seal", "seal_points", "seal_root"]
+__all__ = ["DIGEST", "POINT_DIGEST", "POINT_MARK", "POINT_OUTPUTS", "Check", "check_group", "check_root",
+           "dataset_layout", "forget_points", "open_study", "point_digest", "points_resumable", "seal", "seal_points",
+           "seal_root"]
 
 #: The attribute of a group (and of the file) holding its digest.
 DIGEST = "digest"
@@ -38,6 +40,9 @@ POINT_DIGEST = "point_digest"
 POINT_OUTPUTS = "point_outputs"
 #: The datasets every grid study writes point by point (``studies._grid.GridStore``).
 POINT_FIXED = ("done", "status", "message", "point_run_time", POINT_DIGEST)
+#: The attribute marking an output dataset made point by point (``studies._grid.GridStore``); a
+#: finished study's result may write a field of the same name over it in another layout.
+POINT_MARK = "grid_points"
 #: The first result format whose files carry checksums.
 CHECKSUMMED_FORMAT = 3
 
@@ -124,10 +129,14 @@ def group_digest(group: Any) -> str:
     """The digest of a study group: its attributes and every dataset but a grid study's point
     datasets (those have their own digests)."""
     outputs = point_outputs(group)
+    complete = bool(group.attrs.get("complete", False))
     hasher = _hasher()
     _attrs_into(hasher, group.attrs)
     for name in _datasets(group):
         if outputs is not None and _is_point_dataset(name, outputs):
+            if complete:   # a finished grid's point datasets are all made: their shapes and types too
+                dataset = group[name]
+                hasher.update(f"{name}:{tuple(dataset.shape)}:{dataset.dtype.str}".encode() + b"\0")
             continue
         dataset = group[name]
         hasher.update(name.encode() + b"\0")
@@ -151,20 +160,34 @@ def seal_root(handle: Any) -> None:
 # ---------------------------------------------------------------------------------------------------
 # per-point digests
 # ---------------------------------------------------------------------------------------------------
-def point_digest(status: str, message: str, run_time: float, values: Mapping[str, np.ndarray]) -> int:
+def point_digest(status: str, message: str, run_time: float, values: Mapping[str, np.ndarray],
+                 layout: Mapping[str, tuple[tuple[int, ...], str]]) -> int:
     """The digest (a nonzero uint64) of one grid point as stored: its status, message, run time and
-    its output values (``values``: name -> the value cast to its dataset's type); an output entirely
-    NaN (not computed at this point: the datasets are NaN-filled) is left out, so that the digest
-    reads the same from the outcome written and from the datasets."""
+    its output values (``values``: name -> the value cast to its dataset's type), with the shape and
+    type of each dataset they are in (``layout``: name -> (shape, dtype.str), the point datasets
+    ``status``, ``message``, ``point_run_time`` and the outputs), so that a dataset whose header is
+    damaged fails every point. An output entirely NaN (not computed at this point: the datasets are
+    NaN-filled) is left out, so that the digest reads the same from the outcome written and from the
+    datasets."""
     hasher = hashlib.blake2b(digest_size=8)
     hasher.update(_value_bytes(str(status)) + b"\0" + _value_bytes(str(message)) + b"\0")
     hasher.update(np.float64(run_time).tobytes())
+    names = ["status", "message", "point_run_time"]
     for name in sorted(values):
         value = np.asarray(values[name])
         if value.dtype.kind in "fc" and np.all(np.isnan(value)):
             continue
+        names.append(name)
         hasher.update(name.encode() + b"\0" + _value_bytes(value) + b"\0")
+    for name in names:
+        shape, dtype = layout[name]
+        hasher.update(f"{name}:{tuple(int(n) for n in shape)}:{dtype}".encode() + b"\0")
     return int.from_bytes(hasher.digest(), "little") or 1
+
+
+def dataset_layout(datasets: Mapping[str, Any]) -> dict[str, tuple[tuple[int, ...], str]]:
+    """``{name: (shape, dtype.str)}`` of h5py datasets (what :func:`point_digest` covers of them)."""
+    return {name: (tuple(dataset.shape), dataset.dtype.str) for name, dataset in datasets.items()}
 
 
 def _text(value: Any) -> str:
@@ -198,26 +221,33 @@ def _stored_digests(group: Any, outputs: tuple[str, ...]) -> tuple[np.ndarray, n
     status = _read_points(group["status"], shape, broken)
     message = _read_points(group["message"], shape, broken)
     run_time = _read_points(group["point_run_time"], shape, broken)
-    values = {name: _read_points(group[name], shape, broken)
-              for name in _datasets(group) if name not in POINT_FIXED and _is_point_dataset(name, outputs)}
+    names = [name for name in _datasets(group) if name not in POINT_FIXED and _is_point_dataset(name, outputs)]
+    values = {name: _read_points(group[name], shape, broken) for name in names}
+    layout = dataset_layout({name: group[name] for name in ["status", "message", "point_run_time", *names]})
     digests = np.zeros(shape, dtype=np.uint64)
     for index in zip(*np.nonzero((done | (stored != 0)) & ~broken)):
         try:
             digests[index] = point_digest(_text(status[index]), _text(message[index]), float(run_time[index]),
-                                          {name: np.asarray(value[index]) for name, value in values.items()})
+                                          {name: np.asarray(value[index]) for name, value in values.items()},
+                                          layout)
         except Exception:  # a value that cannot be read back is damage
             broken[index] = True
     return done, digests, broken
 
 
-def _check_points(group: Any, outputs: tuple[str, ...]) -> tuple[np.ndarray, str]:
-    """The damaged points of a grid study (bool, grid shape) and what was found."""
+def _check_points(group: Any, outputs: tuple[str, ...]) -> tuple[np.ndarray | None, str]:
+    """The damaged points of a grid study (bool, grid shape; None: the whole study) and what was
+    found."""
     if POINT_DIGEST not in group:
-        return np.ones(group["done"].shape, dtype=bool), f"no {POINT_DIGEST} dataset"
+        return None, f"no {POINT_DIGEST} dataset"
     stored = np.asarray(group[POINT_DIGEST][()], dtype=np.uint64)
     done, digests, broken = _stored_digests(group, outputs)
     written = done | (stored != 0)
-    return written & (broken | ~done | (digests != stored)), "their data do not match their checksums"
+    damaged = written & (broken | ~done | (digests != stored))
+    if damaged.any() and damaged.sum() == written.sum():
+        # every point: the layout itself (a dataset's header) is damaged, not points one by one
+        return None, "every point fails its checksum"
+    return damaged, "their data do not match their checksums"
 
 
 def seal_points(group: Any) -> None:
@@ -247,6 +277,8 @@ def check_group(group: Any, format_version: int) -> Check:
         points, cause = _check_points(group, outputs)
     except Exception as error:  # whatever h5py raises on damaged bytes is the finding
         return Check(DAMAGED, f"unreadable: {type(error).__name__}: {str(error)[:200]}")
+    if points is None:
+        return Check(DAMAGED, cause)
     if points.any():
         return Check(DAMAGED, cause, points)
     return Check(INTACT)
@@ -256,8 +288,9 @@ def check_root(handle: Any, format_version: int) -> Check:
     """Check the file's own attributes against their digest."""
     try:
         if DIGEST not in handle.attrs:
-            return Check(NOT_VERIFIABLE if format_version < CHECKSUMMED_FORMAT else DAMAGED,
-                         "the file's attributes have no checksum")
+            if format_version < CHECKSUMMED_FORMAT:
+                return Check(NOT_VERIFIABLE, f"result format {format_version}: written without checksums")
+            return Check(DAMAGED, "the file's attributes have no checksum")
         hasher = _hasher()
         _attrs_into(hasher, handle.attrs)
         if _text(handle.attrs[DIGEST]) != hasher.hexdigest():
@@ -265,6 +298,31 @@ def check_root(handle: Any, format_version: int) -> Check:
     except Exception as error:
         return Check(DAMAGED, f"the file's attributes are unreadable: {type(error).__name__}: {error}")
     return Check(INTACT)
+
+
+def points_resumable(group: Any) -> bool:
+    """Whether a grid study's points can be recomputed one by one into its datasets: every output
+    dataset is still the one made point by point (a finished result may have written one of its
+    fields over an output of the same name, e.g. a Campbell diagram's crank angle)."""
+    outputs = point_outputs(group) or ()
+    return all(group[name].attrs.get(POINT_MARK, False) for name in _datasets(group)
+               if name not in POINT_FIXED and _is_point_dataset(name, outputs))
+
+
+def open_study(handle: Any, name: str) -> tuple[Any, Check | None]:
+    """``(group, None)`` for the study ``name`` of an open file, ``(None, None)`` when there is none,
+    ``(None, damaged Check)`` when its link is there but the object does not open (h5py's ``get``
+    would call that absent)."""
+    try:
+        return handle[name], None
+    except (KeyError, OSError, RuntimeError, ValueError) as error:
+        try:
+            present = name in handle
+        except (KeyError, OSError, RuntimeError, ValueError):
+            present = True
+        if not present:
+            return None, None
+        return None, Check(DAMAGED, f"unreadable: {type(error).__name__}: {str(error)[:200]}")
 
 
 def forget_points(group: Any, points: np.ndarray) -> None:

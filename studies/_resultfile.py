@@ -331,6 +331,33 @@ class ResultFile:
         self._last_commit = time.monotonic()
         self._interval = max(self.commit_interval, spent / _COMMIT_SHARE)
 
+    def rebuild_without(self, damaged: list[str]) -> None:
+        """Make the working copy afresh from the last commit: the file's attributes and every study
+        but those named in ``damaged``, copied object by object into a new file, so that no damaged
+        HDF5 metadata of theirs (an object header, a heap) is carried into the run's writes."""
+        import h5py
+
+        fresh = self.work.with_name(self.work.name + ".new")
+        forget_open(self.work)
+        self._handle.close()
+        try:
+            with h5py.File(self.path, "r", locking=False) as source, \
+                    h5py.File(fresh, "w", locking=False) as target:
+                for key, value in source.attrs.items():
+                    target.attrs[key] = value
+                for name in source:
+                    if name not in damaged:
+                        _copy_if_intact(source, target, name)
+            os.replace(fresh, self.work)
+        except (OSError, RuntimeError, KeyError, ValueError) as error:
+            fresh.unlink(missing_ok=True)
+            raise self.refusal(f"is damaged beyond repair ({type(error).__name__}: {error})",
+                               "run with --overwrite to start it afresh, or choose another --out") from None
+        finally:
+            self._handle = h5py.File(self.work, "a", locking=False)
+            register_open(self.work, self)
+        self._dirty = True
+
     def maybe_commit(self) -> None:
         """Commit when the last commit is older than the commit interval (grids batch their points)."""
         if time.monotonic() - self._last_commit >= self._interval:
@@ -366,6 +393,24 @@ class ResultFile:
             self.lock_path.unlink(missing_ok=True)  # while still holding it (see _lock)
             os.close(self._lock_fd)
             self._lock_fd = None
+
+
+def _copy_if_intact(source: Any, target: Any, name: str) -> None:
+    """Copy the study ``name`` from ``source`` into ``target`` unless it (or its copy) does not read
+    back: damaged metadata surfaces when an object is opened or copied; it is then computed again."""
+    from ._integrity import check_group
+    from ._store import format_of
+
+    try:
+        source.copy(source[name], target, name=name)
+        check = check_group(target[name], format_of(target[name]))
+        broken = check.damaged and check.points is None
+    except (KeyError, OSError, RuntimeError, ValueError):
+        broken = True
+    if broken:
+        logger.warning("%s: damaged (it does not read back); recomputing it", name)
+        if name in target:
+            del target[name]
 
 
 #: Bytes every flexvib result file holds in its root group's attribute names (read to tell a

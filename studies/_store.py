@@ -23,7 +23,7 @@ import numpy as np
 
 from ._errors import StudiesError
 from ._identity import plain
-from ._integrity import check_group, check_root, seal, seal_points, seal_root
+from ._integrity import POINT_MARK, check_group, check_root, open_study, seal, seal_points, seal_root
 from ._writes import writing_to
 
 #: The result format this flexvib writes: the file attribute and each study group's attribute
@@ -240,13 +240,30 @@ def write_array(group: Any, name: str, array: np.ndarray, unit: str) -> None:
     import h5py
 
     if name in group:
+        existing = group[name]
+        same_strings = array.dtype.kind in "USO" and getattr(existing, "dtype", None) is not None \
+            and existing.dtype.kind == "O"
+        if getattr(existing, "shape", None) == array.shape and (
+                same_strings or getattr(existing, "dtype", None) == array.dtype):
+            # the same layout (a grid study's points, written over by its result): in place, keeping
+            # the dataset's attributes (studies._integrity.POINT_MARK)
+            existing[...] = np.asarray(array, dtype=object) if same_strings else array
+            existing.attrs["units"] = unit
+            return
+        # another type in the same shape (a grid's 0/1 flag as bool) still holds one entry per point
+        keep = {POINT_MARK: True} if (getattr(existing, "shape", None) == array.shape
+                                      and existing.attrs.get(POINT_MARK, False)) else {}
         del group[name]
+    else:
+        keep = {}
     if array.dtype.kind in "USO":
         dataset = group.create_dataset(name, data=np.asarray(array, dtype=object),
                                        dtype=h5py.string_dtype())
     else:
         dataset = group.create_dataset(name, data=array)
     dataset.attrs["units"] = unit
+    for key, value in keep.items():
+        dataset.attrs[key] = value
 
 
 def _read_array(dataset: Any) -> np.ndarray:
@@ -297,11 +314,12 @@ def damage_report(handle: Any) -> str:
     root = check_root(handle, version)
     if root.damaged:
         found.append(root.cause)
-    for name, group in handle.items():
-        if hasattr(group, "attrs") and hasattr(group, "keys"):
+    for name in handle:
+        group, check = open_study(handle, name)
+        if check is None and hasattr(group, "keys"):
             check = check_group(group, format_of(group))
-            if check.damaged:
-                found.append(f"study {name!r} {check.describe()}")
+        if check is not None and check.damaged:
+            found.append(f"study {name!r} {check.describe()}")
     return "; ".join(found)
 
 

@@ -145,6 +145,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
     previous = _terminate_like_ctrl_c()
+    hook = sys.unraisablehook
+    sys.unraisablehook = _quiet_about_damaged_objects(hook)
     try:
         return args.handler(args)
     except KeyboardInterrupt as interrupt:
@@ -158,8 +160,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as error:
         return _report(error)
     finally:
+        sys.unraisablehook = hook
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _quiet_about_damaged_objects(hook):
+    """``sys.unraisablehook`` that logs (debug) instead of printing a traceback for an h5py object
+    whose release fails: the objects of a damaged file, which the command has already reported."""
+    def quiet(unraisable) -> None:
+        where = getattr(unraisable.object, "__qualname__", "") or repr(unraisable.object)
+        if "ObjectID" in where or "h5py" in str(getattr(unraisable.object, "__module__", "")):
+            logger.debug("h5py could not release an object of a damaged file: %s", unraisable.exc_value)
+            return
+        hook(unraisable)
+
+    return quiet
 
 
 def _terminate_like_ctrl_c():
@@ -412,7 +428,7 @@ def _info(args: argparse.Namespace) -> int:
     a file whose own metadata is damaged unreadable (exit code 1 for either)."""
     import h5py
 
-    from .._integrity import check_group, check_root
+    from .._integrity import check_group, check_root, open_study
     from .._store import check_format, format_of, study_attrs
     from .._studies import status_counts
 
@@ -437,7 +453,7 @@ def _info(args: argparse.Namespace) -> int:
             root = check_root(handle, format_of(handle))
             print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, result format "
                   f"{format_of(handle)}, created {handle.attrs.get('created', '?')}"
-                  + ("" if root.state == "intact" else f"; file attributes {root.describe()}"))
+                  + ("" if root.state == "intact" else f"; {root.describe()}"))
             if root.damaged:
                 damaged.append("the file's own attributes")
             print(f"  versions: {handle.attrs.get('versions', '?')}")
@@ -445,7 +461,12 @@ def _info(args: argparse.Namespace) -> int:
                 print(f"  compile_time: {float(handle.attrs['compile_time']):.3g} s")
             if "scene_hash" in handle.attrs:
                 print(f"  scene: sha256 {handle.attrs['scene_hash']}")
-            for name, item in handle.items():
+            for name in handle:
+                item, unopened = open_study(handle, name)
+                if unopened is not None:   # its link is there, the object does not open
+                    damaged.append(name)
+                    print(f"[{name}] DAMAGED: {unopened.describe()}")
+                    continue
                 if not hasattr(item, "items"):  # a dataset at the root (e.g. a `flexvib demo` file)
                     print(f"{name}: {item.shape} {item.attrs.get('units', '')}")
                     continue
@@ -464,6 +485,8 @@ def _info(args: argparse.Namespace) -> int:
                 if problem or (check.damaged and check.points is None):
                     continue
                 _print_study(item, attrs, status_counts)
+    except BrokenPipeError:
+        raise  # the reader went away (main() stops quietly)
     except (OSError, RuntimeError, KeyError) as error:  # the file's structure gave way while listing it
         print(f"{unreadable} ({type(error).__name__}: {error}); {fix}", file=sys.stderr)
         return 1

@@ -13,7 +13,7 @@ import numpy as np
 
 from .._errors import is_numerical_failure
 from .._identity import canonical, differing_paths, digest, scene_identity
-from .._integrity import check_group, forget_points, seal
+from .._integrity import check_group, forget_points, open_study, points_resumable, seal
 from .._kind import kind_named
 from .._resultfile import ResultFile
 from .._store import StorageError, format_of, read_group, write_attrs
@@ -86,26 +86,29 @@ def _refuse_other_grid_options(file: ResultFile, runs: list) -> None:
 
 def _set_damage_aside(file: ResultFile, runs: list) -> None:
     """Check the declared studies the file holds against their checksums (``studies._integrity``):
-    a damaged study is removed, so that it is computed again; a grid study whose damage is confined to
-    some points keeps the intact ones and recomputes those (one line each says what was found)."""
+    a damaged study is left out of the working copy (rebuilt from the intact ones), so that it is
+    computed again; a grid study whose damage is confined to some points keeps the intact ones and
+    recomputes those (one line each says what was found)."""
+    whole, points = [], {}
     for name, _kind, _options in runs:
-        group = file.handle.get(name)
-        if group is None:
+        group, check = open_study(file.handle, name)
+        if group is None and check is None:
             continue
-        check = check_group(group, format_of(group))
+        check = check or check_group(group, format_of(group))
         if not check.damaged:
             continue
-        with file.writing():
-            if check.points is not None:
-                logger.warning("%s in %s: %s; recomputing those points", name, file.path, check.describe())
-                forget_points(group, check.points)
-            else:
-                logger.warning("%s in %s: %s; recomputing it", name, file.path, check.describe())
-                try:
-                    del file.handle[name]
-                except (KeyError, OSError, RuntimeError, ValueError) as error:
-                    raise file.refusal(f"study {name!r} is damaged beyond removal ({error})",
-                                       "run with --overwrite to start the file afresh") from None
+        if check.points is not None and points_resumable(group):
+            logger.warning("%s in %s: %s; recomputing those points", name, file.path, check.describe())
+            points[name] = check.points
+        else:
+            logger.warning("%s in %s: %s; recomputing it", name, file.path, check.describe())
+            whole.append(name)
+    if not whole and not points:
+        return
+    with file.writing():
+        file.rebuild_without(whole)
+        for name, damaged in points.items():
+            forget_points(file.handle[name], damaged)
 
 
 def _run_studies(problem: Any, runs: list, file: ResultFile, *, executor: Any, progress: bool
