@@ -67,6 +67,7 @@ class ResultFile:
         self._last_commit = time.monotonic()
         self._interval = commit_interval
         self._broken = False
+        self._root_damage = ""   # the file's own attributes fail their checksum (found on opening)
         self._dirty = False  # written since the last commit (a run that wrote nothing commits nothing)
         self._signals = contextlib.ExitStack()
         #: attributes a study group gets when it is created (``studies.cli._run``: what was asked of it)
@@ -193,6 +194,9 @@ class ResultFile:
         if "flexvib_version" not in attrs:
             raise self.refusal("is an HDF5 file not written by flexvib; refusing to change it",
                              "choose another --out")
+        if self.overwrite and self._root_damage:   # its own metadata damaged: kept aside, not replaced
+            self._move_aside(f"is damaged: {self._root_damage}")
+            return False
         if self.overwrite:
             return True
         written = int(attrs.get("format_version", 1))
@@ -203,15 +207,22 @@ class ResultFile:
                 + ("cannot read it" if written > FORMAT_VERSION else "does not add to an older file"),
                 "run with --overwrite to start it afresh, or choose another --out"
                 + (" (studies.load still reads it)" if written < FORMAT_VERSION else ""))
-        if self.scene is None:
-            return True
+        if self.scene is not None:
+            self._check_scene(attrs, names)
+        if self._root_damage:   # after the checks above, which name what they find in words
+            raise self.refusal(f"is damaged: {self._root_damage}, so it cannot be resumed",
+                               "run with --overwrite to start it afresh, or choose another --out")
+        return True
+
+    def _check_scene(self, attrs: Mapping[str, Any], names: list) -> None:
+        """Refuse a file of another scene, or one that did not record its scene's identity."""
         if "scene_hash" not in attrs:
             if names:
                 raise self.refusal(
                     f"was written by flexvib {attrs.get('flexvib_version', '?')}, which did not record "
                     f"its scene's identity, so resuming could mix two scenes",
                     "run with --overwrite to start it afresh, or choose another --out")
-            return True
+            return
         if attrs["scene_hash"] != digest(self.scene):
             try:
                 paths = differing_paths(json.loads(attrs.get("scene", "{}")), self.scene)
@@ -219,7 +230,6 @@ class ResultFile:
                 paths = ["(unknown)"]
             raise self.refusal(f"holds the results of another scene (differing: {', '.join(paths)})",
                              "write to another file with --out, or run with --overwrite to start it afresh")
-        return True
 
     def _unreadable(self) -> str:
         """Why the existing file cannot be read as a result file ("" if it can): not HDF5, HDF5 that
@@ -237,8 +247,7 @@ class ResultFile:
         except (OSError, RuntimeError, KeyError, ValueError, TypeError) as error:
             cause = _describe_os_error(error) if isinstance(error, OSError) else str(error)
             return f"is damaged: its HDF5 metadata cannot be read ({cause})"
-        if root is not None and root.damaged and written <= FORMAT_VERSION:
-            return f"is damaged: {root.cause}"
+        self._root_damage = root.cause if root is not None and root.damaged else ""
         return ""
 
     def _move_aside(self, why: str) -> None:

@@ -151,7 +151,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return args.handler(args)
     except KeyboardInterrupt as interrupt:
         # Ctrl-C or SIGTERM: a run has saved what it finished (studies.cli._run.RunInterrupted says what)
-        print(getattr(interrupt, "line", "interrupted"), file=sys.stderr)
+        print(getattr(interrupt, "line", "interrupted: nothing was saved"), file=sys.stderr)
         return 130
     except BrokenPipeError:
         # The reader went away (`flexvib info FILE | head`): stop quietly, as command-line tools do.
