@@ -5,7 +5,7 @@ SIGINT (Ctrl-C) and SIGTERM raise ``KeyboardInterrupt`` from the first line of t
 Python runs of flexvib, before numpy, scipy and numba are imported (``studies/__init__.py`` is light,
 ``studies._face`` the heavy face), so a signal at any moment of a run ends it with exit code 130 and
 one line: what was saved (``studies.cli._run.RunInterrupted``) or that nothing was. After the command
-has returned, a signal during the interpreter's shutdown ends the process at once with 130 too.
+has returned, the process ends at once (``os._exit``), and a signal before that with 130 too.
 Only the interpreter's own start-up (before this module runs, some tens of milliseconds) keeps the
 default handlers."""
 
@@ -35,9 +35,9 @@ def _exit_now(signum: int, frame) -> None:
     os._exit(INTERRUPTED)
 
 
-def main(argv=None) -> int:
+def run(argv=None) -> int:
     """Run ``flexvib`` (``studies.cli.main``) with SIGINT and SIGTERM handled from the start; returns
-    the exit code (130 when interrupted)."""
+    the exit code (130 when interrupted). From its return on, a signal ends the process at once."""
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, _interrupt)
     try:
@@ -56,5 +56,20 @@ def main(argv=None) -> int:
     return code
 
 
+def main() -> None:
+    """The console script: :func:`run`, then the process ends with its code at once. The interpreter's
+    own shutdown is skipped: it restores the default signal handlers first, so a signal in it ended
+    the process with the signal's code (143, -2) and no line; and after an import cut by a signal it
+    may itself end with -2. What a run writes is committed before ``run`` returns (the result file's
+    commits; a pool's workers die with this process), so only the standard streams need flushing."""
+    code = run()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -298,6 +298,9 @@ def load(path: str | Path) -> dict[str, Result]:
         raise StudiesError(f"{str(path)!r} is not an HDF5 result file: {error}") from None
     with handle:
         check_format(handle)
+        for group in handle.values():   # a newer format is refused as such before any checksum
+            if hasattr(group, "keys"):
+                check_format(group)
         damaged = damage_report(handle)
         if damaged:
             raise DamagedResultError(f"result file {str(path)!r} is damaged: {damaged}; run the same "

@@ -3,9 +3,11 @@ numpy, scipy, numba, the study kinds) to its end, ends it with exit code 130 and
 line (what was saved, or that nothing was), never a traceback or the signal's own code.
 
 The command runs as the console script does (``studies._entry:main``, here ``python -m
-studies._entry``) in a session of its own: SIGINT goes to its whole process group as a terminal's
-Ctrl-C does, SIGTERM to the process as ``kill`` does, at 12 moments spread over an uninterrupted
-run's duration. The file each interrupted run leaves is then resumed to completion."""
+studies._entry``) in a session of its own; the moments are counted from when its entry module has
+run (before it, the interpreter's own start-up, some tens of milliseconds, keeps the default
+handlers). SIGINT goes to its whole process group as a terminal's Ctrl-C does, SIGTERM to the
+process as ``kill`` does, at 12 moments spread over an uninterrupted run's duration. The file each
+interrupted run leaves is then resumed to completion."""
 
 import os
 import signal
@@ -27,6 +29,17 @@ def _start(out: Path) -> subprocess.Popen:
                             text=True, start_new_session=True)
 
 
+def _handlers_installed(pid: int) -> bool:
+    """Whether the process catches SIGTERM (``/proc/PID/status``, SigCgt): ``studies._entry`` has run.
+    Before it only the interpreter's own start-up runs (importing ``site``), where no Python code of
+    flexvib can handle a signal: the moments are counted from there."""
+    try:
+        fields = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines())
+    except (OSError, ValueError):
+        return False
+    return bool(int(fields.get("SigCgt", "0").strip(), 16) >> (signal.SIGTERM - 1) & 1)
+
+
 @pytest.fixture(scope="module")
 def duration(tmp_path_factory) -> float:
     out = tmp_path_factory.mktemp("whole") / "run.h5"
@@ -44,7 +57,10 @@ def test_a_signal_at_any_moment_ends_the_run_with_130_and_one_line(moment, durat
     number = signal.SIGINT if moment % 2 == 0 else signal.SIGTERM
     out = tmp_path / "run.h5"
     process = _start(out)
-    time.sleep(fraction * duration)
+    start = time.perf_counter()
+    while not _handlers_installed(process.pid) and process.poll() is None:
+        time.sleep(0.005)
+    time.sleep(max(0.0, fraction * duration - (time.perf_counter() - start)))
     if process.poll() is None:
         if number == signal.SIGINT:
             os.killpg(process.pid, number)   # a terminal's Ctrl-C: the whole foreground group
