@@ -48,9 +48,10 @@ def _parser() -> argparse.ArgumentParser:
                      help="'process' (local pool of --jobs workers) or 'dask' (a Dask distributed "
                           "cluster at --scheduler)")
     run.add_argument("--scheduler", help="address of the Dask scheduler, e.g. tcp://10.0.0.5:8786")
-    run.add_argument("--quiet", action="store_true",
-                     help="print errors only on stderr: no progress bars, log messages or warnings")
-    run.add_argument("--verbose", action="store_true", help="also the debug messages (one per point)")
+    talk = run.add_mutually_exclusive_group()   # --quiet --verbose together is a contradiction (exit 2)
+    talk.add_argument("--quiet", action="store_true",
+                      help="print errors only on stderr: no progress bars, log messages or warnings")
+    talk.add_argument("--verbose", action="store_true", help="also the debug messages (one per point)")
     run.add_argument("--set", action="append", dest="sets", type=parse_set, default=[],
                      metavar="PATH=VALUE",
                      help="override a scene value (repeatable): PATH is a dotted key path such as "
@@ -316,6 +317,8 @@ def _run(args: argparse.Namespace) -> int:
 def _run_studies(args: argparse.Namespace) -> int:
     from .._kind import kind_of
 
+    if args.out is not None and not args.out.name:   # --out "" (Path('.')) or a bare folder
+        raise UsageError(f"--out {str(args.out)!r}: expected the path of a result file, e.g. --out run.h5")
     out = args.out or Path(f"{Path(args.scene).stem}.h5")
     plan = ScenePlan.read(args.scene, args.sets, only=args.only)
     # a run started with --force resumes without it: what the file holds complete is not estimated
