@@ -60,6 +60,8 @@ def _saved(path: str | os.PathLike | None, problem: Any, runs: Sequence[tuple[st
     import h5py
 
     from ._identity import digest, scene_identity
+    from ._integrity import check_group
+    from ._store import format_of
 
     complete, done = set(), {}
     try:
@@ -70,8 +72,8 @@ def _saved(path: str | os.PathLike | None, problem: Any, runs: Sequence[tuple[st
                 group = handle.get(name)
                 if group is None or group.attrs.get("request_hash") != digest(options):
                     continue
-                if group.attrs.get("complete"):
-                    complete.add(name)
+                if group.attrs.get("complete") and not check_group(group, format_of(group)).damaged:
+                    complete.add(name)   # a damaged study is recomputed by the run: estimated
                 elif kind.grid and "done" in group:
                     done[name] = np.asarray(group["done"][()], dtype=bool)
     except OSError:  # not HDF5, unreadable: the result file's own checks say so

@@ -69,10 +69,10 @@ MAX_MODES = 64
 MAX_TURNS = 100
 #: Physical sense, judged relative to the mechanism itself: no link shorter than this fraction of its
 #: longest (a 1e-12 m crank on a 0.3 m four-bar), no period shorter than this fraction of its elastic
-#: links' shortest first natural period (a drive a thousand times faster than the links' lowest
+#: links' shortest first natural period (a drive a million times faster than the links' lowest
 #: vibration is outside what the model of slowly moving elastic links describes).
 MIN_LENGTH_FRACTION = 1e-6
-MIN_PERIOD_FRACTION = 1e-3
+MIN_PERIOD_FRACTION = 1e-6
 #: Characters of free text in a scene (its name and description): documentation, kept in the spec
 #: and written to every result file.
 MAX_TEXT = 10_000
