@@ -244,7 +244,7 @@ def _validate(mech: Mechanism) -> None:
     for drive in mech.drives:
         turns = drive.rate * period / (2.0 * math.pi)
         travel = harmonic_travel(drive)
-        if not abs(turns) + travel / (2.0 * math.pi) <= MAX_TURNS:   # also inf or nan
+        if abs(turns) <= MAX_TURNS and not abs(turns) + travel / (2.0 * math.pi) <= MAX_TURNS:  # also nan
             raise MechanismError(
                 f"drive at joint {drive.joint!r}: its harmonics move the joint through {travel:.3g} rad per "
                 f"period (each harmonic (k, cos_k, sin_k) travels 4 k sqrt(cos_k^2 + sin_k^2) rad), with "
