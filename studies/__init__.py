@@ -27,6 +27,7 @@ def __dir__() -> list[str]:
 
 __all__ = [
     "FORMAT_VERSION",
+    "DamagedResultError",
     "Headline",
     "Result",
     "StudyResult",

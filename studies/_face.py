@@ -52,6 +52,7 @@ from ._problem import mathieu_problem as mathieu_problem
 from ._result import StudyResult as StudyResult
 from ._resultfile import ResultFile as ResultFile
 from ._store import FORMAT_VERSION as FORMAT_VERSION
+from ._store import DamagedResultError as DamagedResultError
 from ._store import Result as Result
 from ._store import ResultFileError as ResultFileError
 from ._store import StorageError as StorageError
