@@ -108,7 +108,8 @@ def _set_damage_aside(file: ResultFile, runs: list) -> None:
     with file.writing():
         file.rebuild_without(whole)
         for name, damaged in points.items():
-            forget_points(file.handle[name], damaged)
+            if name in file.handle:   # else its copy did not read back: it is recomputed whole
+                forget_points(file.handle[name], damaged)
 
 
 def _run_studies(problem: Any, runs: list, file: ResultFile, *, executor: Any, progress: bool
