@@ -55,8 +55,8 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
             for suffix, each in kind_named(name).runs(options).items()]
     try:
         with ResultFile(path, scene=scene_identity(problem), overwrite=overwrite) as file:
+            _set_damage_aside(file, runs)   # first: what follows reads the studies' attributes
             _refuse_other_grid_options(file, runs)
-            _set_damage_aside(file, runs)
             clock = _jit.warm_up(problem, studies) if warm_up else None
             try:
                 outcome = _run_studies(problem, runs, file, executor=executor, progress=progress)
