@@ -1,12 +1,13 @@
 """Issue 23: result files that detect damage (result format 3, ``studies._integrity``).
 
 64 bytes flipped at 16 offsets of a finished file (12 spread evenly over it, 4 on a grid study's
-point data, a single study's data, the file's own attributes and the global heap of its text): ``flexvib info`` either names the
-damaged study or the file (exit 1, or 2 for a file no longer recognisable as HDF5) or the bytes were
-unused (the file loads to the undamaged numbers); running the same command again (with
-``--overwrite`` where the run says the file cannot be resumed) ends with the undamaged run's numbers
-to the last bit. A damaged grid point is recomputed alone; a file whose metadata is damaged is moved
-aside, never deleted; a format-2 file (no checksums) reads as "not verifiable"."""
+point data, a single study's data, the file's own attributes and the global heap of its text):
+``flexvib info`` either names the damaged study or the file (exit 1, or 2 for a file no longer
+recognisable as HDF5) or the bytes were unused (the file loads to the undamaged numbers); running
+the same command again (with ``--overwrite`` where the run says the file cannot be resumed) ends
+with the undamaged run's numbers to the last bit. A damaged grid point is recomputed alone; a file
+whose metadata is damaged is moved aside, never deleted; a format-2 file (no checksums) reads as
+"not verifiable"."""
 
 import contextlib
 import io
