@@ -69,4 +69,6 @@ def loads(text: str, *, source: str = "scene") -> Mechanism:
         spec = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise MechanismError(f"{source}: not valid TOML: {error}") from None
+    except RecursionError:   # arrays or tables nested thousands deep
+        raise MechanismError(f"{source}: not valid TOML: nested deeper than the parser follows") from None
     return build(spec, source=source)

@@ -20,8 +20,12 @@ observables, linear-range measures) follows from the shapes unchanged. ``T`` hol
   made mass- and stiffness-orthogonal to the eigenmodes and to each other (Rayleigh-Ritz on the
   correction space); labels ``c1 ..``.
 
-Every column is normalised to a largest nodal displacement of 1, so a coordinate is a displacement
-amplitude in metres.
+Every column is normalised to a largest displacement of 1 along the link (sampled at the nodes and at
+the element model's Gauss points), so a coordinate is a displacement amplitude in metres. The nodes
+alone do not do: an eigenmode of a pinned-pinned link of n elements whose wave number is a multiple
+of n (the n-th bending mode, ``sin(n pi x / L)``) has every nodal displacement zero to round-off,
+and dividing by that round-off scaled its column by ~1e16, which made the reduced mass matrix
+numerically singular (issue 23: 4 elements with 2 or more modes, 8 with 8).
 
 Equivalent points. A reduced link's shape rows are dense (every mode is nonzero along the whole
 link), so its 4 n_elements Gauss points would each cost ``n^2`` in the kernels. They are replaced by
@@ -73,11 +77,12 @@ class Reduction:
 
 
 def reduction_basis(mass, stiffness, axial: np.ndarray, n_modes: int, loads: np.ndarray,
-                    displacement_rows: np.ndarray) -> Reduction:
+                    displacements: np.ndarray) -> Reduction:
     """The reduction basis of an element model with ``mass``, ``stiffness`` (n_full, n_full), sparse
     or dense, ``axial`` (n_full,) bool marking its axial coordinates, keeping ``n_modes`` eigenmodes
-    plus the static corrections of ``loads`` (n_full, k) load vectors; ``displacement_rows``
-    (n_full,) bool marks the nodal displacements (``u``, ``w``) used to normalise each column.
+    plus the static corrections of ``loads`` (n_full, k) load vectors; ``displacements``
+    (p, n_full) maps the coordinates to displacements (m) at p samples along the link (nodes and
+    Gauss points, axial and transverse), whose largest magnitude normalises each column.
 
     Axial and transverse coordinates are uncoupled in ``mass`` and ``stiffness`` (the frame is held
     fixed), so each block is solved on its own: one sparse factorisation of its stiffness serves
@@ -105,10 +110,11 @@ def reduction_basis(mass, stiffness, axial: np.ndarray, n_modes: int, loads: np.
         corrections.append(_orthogonal_complement(part, phi, mass, stiffness))
     psi = np.hstack(corrections)
     basis = np.hstack([phi, psi])
-    # each column's largest nodal displacement becomes +1 (the sign too: the eigensolver's is arbitrary)
-    displacements = basis[displacement_rows]
-    peak = np.argmax(np.abs(displacements), axis=0)
-    basis = basis / displacements[peak, np.arange(basis.shape[1])]
+    # each column's largest displacement along the link becomes +1 (the sign too: the eigensolver's is
+    # arbitrary); every column moves the link (the stiffness is definite), so the peak is not round-off
+    sampled = displacements @ basis
+    peak = np.argmax(np.abs(sampled), axis=0)
+    basis = basis / sampled[peak, np.arange(basis.shape[1])]
     labels = tuple(f"m{i + 1}" for i in range(phi.shape[1])) + tuple(
         f"c{i + 1}" for i in range(psi.shape[1]))
     frequencies = np.sqrt(np.einsum("ij,ij->j", basis, stiffness @ basis)
@@ -144,22 +150,30 @@ def _lowest_modes(stiffness, mass, count):
 def _orthogonal_complement(vectors, phi, mass, stiffness):
     """The part of span(``vectors``) mass-orthogonal to ``phi``, as Rayleigh-Ritz vectors of
     (stiffness, mass) on it (mass- and stiffness-orthogonal), lowest first; dependent directions
-    (residual mass norm below ``sqrt(_SPAN_TOL)`` of the vector's) are dropped."""
+    (residual mass norm squared below ``_SPAN_TOL`` of the vector's) are dropped.
+
+    Gram-Schmidt in the mass inner product, each vector projected twice (away from the eigenmodes
+    and the directions kept before it), so a dependent vector leaves a residual of round-off size
+    (~1e-16 of its norm, 1e-32 squared). An eigendecomposition of the residuals' Gram matrix cannot
+    tell them apart: its eigenvalues carry an absolute error of ~1e-16 of the largest, so two equal
+    load vectors (the axial load at the far end and the uniform axial inertia of a 1-element link:
+    one axial coordinate) were both kept, and the reduced mass matrix was singular (issue 23)."""
     vectors = vectors[:, np.linalg.norm(vectors, axis=0) > 0.0]
-    if vectors.shape[1] == 0:
-        return np.zeros((mass.shape[0], 0))
-    vectors = vectors / np.sqrt(np.einsum("ij,ij->j", vectors, mass @ vectors))
     mass_phi = mass @ phi
     modal_mass = np.einsum("ij,ij->j", phi, mass_phi)       # phi^T M phi is diagonal
-    residual = vectors
-    for _ in range(2):   # M-orthogonal projection away from the eigenmodes, twice for round-off
-        residual = residual - phi @ ((mass_phi.T @ residual) / modal_mass[:, None])
-    values, directions = np.linalg.eigh(residual.T @ (mass @ residual))
-    keep = values > _SPAN_TOL
-    if not np.any(keep):
+    kept: list[np.ndarray] = []
+    for column in vectors.T:
+        residual = column / np.sqrt(column @ (mass @ column))
+        for _ in range(2):   # twice: the second pass removes what round-off left of the first
+            residual = residual - phi @ ((mass_phi.T @ residual) / modal_mass)
+            for direction in kept:
+                residual = residual - direction * (direction @ (mass @ residual))
+        norm2 = residual @ (mass @ residual)
+        if norm2 > _SPAN_TOL:
+            kept.append(residual / np.sqrt(norm2))
+    if not kept:
         return np.zeros((mass.shape[0], 0))
-    span = residual @ (directions[:, keep] / np.sqrt(values[keep]))   # mass-orthonormal
-    span = span - phi @ ((mass_phi.T @ span) / modal_mass[:, None])
+    span = np.column_stack(kept)                              # mass-orthonormal
     _, ritz = eigh(span.T @ (stiffness @ span), span.T @ (mass @ span))
     return span @ ritz
 

@@ -28,6 +28,7 @@ import numpy as np
 
 from ._errors import StudiesError
 from ._identity import differing_paths, digest, scene_numbers
+from ._integrity import DIGEST, POINT_DIGEST, POINT_MARK, POINT_OUTPUTS, dataset_layout, point_digest, seal
 from ._store import FORMAT_VERSION, encode, stored_name, write_attrs
 from ._writes import deferred_interrupts, owner_of
 
@@ -100,6 +101,7 @@ class GridStore:
         # once per point (a commit reopens the working copy, which empties this cache)
         self._datasets: dict[str, Any] = {}
         self._datasets_of: Any = None
+        self._point_digests: bool | None = None   # whether the group has them (format 3), looked up once
 
     @property
     def group(self) -> Any:
@@ -152,7 +154,17 @@ class GridStore:
             run_time = group.create_dataset("point_run_time", shape=shape, dtype=float,
                                             fillvalue=np.nan)
             run_time.attrs["units"] = "s"
+            # each point's checksum (studies._integrity), and the outputs it covers
+            group.create_dataset(POINT_DIGEST, shape=shape, dtype=np.uint64, fillvalue=0)
+            group.attrs[POINT_OUTPUTS] = json.dumps(sorted(units))
         return cls(group, shape, units)
+
+    def seal(self) -> None:
+        """Checksum the group's attributes and its datasets other than the points' (its axes), once,
+        when it is made (``studies._studies.open_store`` after writing the axes)."""
+        if DIGEST not in self.group.attrs:
+            with self._writing():
+                seal(self.group)
 
     @property
     def done(self) -> np.ndarray:
@@ -160,12 +172,21 @@ class GridStore:
 
     def write(self, index: tuple[int, ...], outcome: PointOutcome) -> None:
         extra = sum(np.asarray(value).nbytes for value in outcome.data.values())
+        stored, datasets = {}, {}
         with self._writing(extra):
             for key, value in outcome.data.items():
-                self._dataset(key, np.asarray(value))[index] = value
-            self._dataset("status")[index] = outcome.status
-            self._dataset("message")[index] = outcome.message
-            self._dataset("point_run_time")[index] = outcome.run_time
+                dataset = datasets[key] = self._dataset(key, np.asarray(value))
+                dataset[index] = value
+                stored[key] = np.asarray(value, dtype=dataset.dtype)
+            for key, value in (("status", outcome.status), ("message", outcome.message),
+                               ("point_run_time", outcome.run_time)):
+                dataset = datasets[key] = self._dataset(key)
+                dataset[index] = value
+            if self._point_digests is None:   # a group of format 3 (an older one is resumed without)
+                self._point_digests = POINT_DIGEST in self.group
+            if self._point_digests:
+                self._dataset(POINT_DIGEST)[index] = point_digest(
+                    outcome.status, outcome.message, float(outcome.run_time), stored, dataset_layout(datasets))
             self._dataset("done")[index] = True
         if self._owner is not None:
             self._owner.maybe_commit()
@@ -190,6 +211,7 @@ class GridStore:
                 else:
                     dataset = group.create_dataset(key, shape=shape, dtype=float, fillvalue=np.nan)
                 dataset.attrs["units"] = self.unit(key)
+                dataset.attrs[POINT_MARK] = True
             self._datasets[key] = dataset
         return dataset
 

@@ -60,6 +60,8 @@ def _saved(path: str | os.PathLike | None, problem: Any, runs: Sequence[tuple[st
     import h5py
 
     from ._identity import digest, scene_identity
+    from ._integrity import check_group
+    from ._store import format_of
 
     complete, done = set(), {}
     try:
@@ -70,8 +72,8 @@ def _saved(path: str | os.PathLike | None, problem: Any, runs: Sequence[tuple[st
                 group = handle.get(name)
                 if group is None or group.attrs.get("request_hash") != digest(options):
                     continue
-                if group.attrs.get("complete"):
-                    complete.add(name)
+                if group.attrs.get("complete") and not check_group(group, format_of(group)).damaged:
+                    complete.add(name)   # a damaged study is recomputed by the run: estimated
                 elif kind.grid and "done" in group:
                     done[name] = np.asarray(group["done"][()], dtype=bool)
     except OSError:  # not HDF5, unreadable: the result file's own checks say so
@@ -84,6 +86,8 @@ def guard(problem: Any, studies: Mapping[str, Mapping[str, Any]], *, force: bool
     """Estimate every declared study (``{kind: options}`` as ``plan`` returns them, each of the runs
     it declares) and raise :class:`ResourceError` for the first above the memory or time limit, or
     when all together exceed the time limit; ``force=True`` logs the estimates and raises nothing.
+    First each kind's ``validate(problem, options)`` (``StudyKind.validate``) is run for every
+    declared study, so that an option the problem cannot take is refused before anything is written.
     Also builds the scene at the ends of every axis, so that a value it cannot take is refused (a
     ``MechanismError``) before anything is written. Returns the estimates.
 
@@ -96,6 +100,10 @@ def guard(problem: Any, studies: Mapping[str, Mapping[str, Any]], *, force: bool
     advice = "pass --force (force=True from Python) to run anyway"
     runs = [(kind + suffix, kind_named(kind), each) for kind, options in studies.items()
             for suffix, each in kind_named(kind).runs(options).items()]
+    # every declared study's options against the problem, before any study is estimated or written
+    for _name, study_kind, each in runs:
+        if study_kind.validate is not None:
+            study_kind.validate(problem, each)
     saved = _saved(result_file, problem, runs)
     estimates = []
     for name, study_kind, each in runs:

@@ -110,6 +110,10 @@ class StudyKind:
     its hash) and ``run`` passes it to the study function.
     ``aliases``: other names files store this kind under (result format 1 wrote the result class's
     name), read by ``studies.load``.
+    ``validate(problem, options) -> None``: the checks of options against the problem (a control
+    comparison needs a drive with feedback; an optimisation's bounds must be continuous parameters
+    of it), raising a ``ValueError`` subclass; the resource guard runs it for every declared study
+    before the first is written (None: ``check`` says all).
     """
 
     name: str
@@ -130,6 +134,7 @@ class StudyKind:
     warm_up: Callable[[Any], None] | None = None
     schemes: bool = False
     aliases: tuple[str, ...] = ()
+    validate: Callable[[Any, Mapping[str, Any]], None] | None = None
 
 
 # ---------------------------------------------------------------------------------------------------

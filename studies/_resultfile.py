@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, Iterator, Mapping
 
 from ._identity import canonical, differing_paths, digest
+from ._integrity import check_root, seal_root
 from ._store import FORMAT_VERSION, ResultFileError, StorageError, stamp
 from ._writes import deferred_interrupts, forget_open, interrupts_handled, register_open
 
@@ -66,6 +67,7 @@ class ResultFile:
         self._last_commit = time.monotonic()
         self._interval = commit_interval
         self._broken = False
+        self._root_damage = ""   # the file's own attributes fail their checksum (found on opening)
         self._dirty = False  # written since the last commit (a run that wrote nothing commits nothing)
         self._signals = contextlib.ExitStack()
         #: attributes a study group gets when it is created (``studies.cli._run``: what was asked of it)
@@ -90,7 +92,7 @@ class ResultFile:
         self._lock()
         existed = self.path.exists()
         if existed:
-            self._check_existing()
+            existed = self._check_existing()
         self._check_space(2 * (self.path.stat().st_size if existed else 0), at_start=True)
         for stale in (self.work, self.staging):
             stale.unlink(missing_ok=True)  # left by a killed run: scratch, the lock is ours
@@ -168,23 +170,35 @@ class ResultFile:
         os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()}".encode(), 0)
         self._lock_fd = fd
 
-    def _check_existing(self) -> None:
-        """Refuse a file that is not flexvib's or holds another scene (before writing anything)."""
+    def _check_existing(self) -> bool:
+        """Refuse a file that is not flexvib's or holds another scene (before writing anything).
+        A file that cannot be read as a flexvib result (not HDF5, or its own metadata damaged) is
+        refused, or with ``overwrite`` moved aside to ``PATH.damaged-N`` (nothing is destroyed);
+        returns whether the file is still there."""
         import h5py
 
-        if not h5py.is_hdf5(self.path):
-            raise self.refusal("exists and is not an HDF5 file", "remove it or choose another --out")
-        try:
-            with h5py.File(self.path, "r", locking=False) as handle:
-                attrs, names = dict(handle.attrs), list(handle)
-        except OSError as error:
-            raise self.refusal(f"cannot be read ({_describe_os_error(error)})",
-                             "remove it or choose another --out") from None
+        unreadable = self._unreadable()
+        if unreadable and not _looks_like_flexvib(self.path):   # someone else's file: never touched
+            raise self.refusal("exists and is not an HDF5 file" if not h5py.is_hdf5(self.path)
+                               else f"{unreadable.removeprefix('is damaged: ')}",
+                               "remove it or choose another --out")
+        if unreadable:
+            if not self.overwrite:
+                raise self.refusal(f"{unreadable}, so it cannot be resumed",
+                                   "run with --overwrite to move it aside (to PATH.damaged-N) and start "
+                                   "afresh, or choose another --out")
+            self._move_aside(unreadable)
+            return False
+        with h5py.File(self.path, "r", locking=False) as handle:
+            attrs, names = dict(handle.attrs), list(handle)
         if "flexvib_version" not in attrs:
             raise self.refusal("is an HDF5 file not written by flexvib; refusing to change it",
                              "choose another --out")
+        if self.overwrite and self._root_damage:   # its own metadata damaged: kept aside, not replaced
+            self._move_aside(f"is damaged: {self._root_damage}")
+            return False
         if self.overwrite:
-            return
+            return True
         written = int(attrs.get("format_version", 1))
         if written != FORMAT_VERSION and names:
             raise self.refusal(
@@ -193,8 +207,15 @@ class ResultFile:
                 + ("cannot read it" if written > FORMAT_VERSION else "does not add to an older file"),
                 "run with --overwrite to start it afresh, or choose another --out"
                 + (" (studies.load still reads it)" if written < FORMAT_VERSION else ""))
-        if self.scene is None:
-            return
+        if self.scene is not None:
+            self._check_scene(attrs, names)
+        if self._root_damage:   # after the checks above, which name what they find in words
+            raise self.refusal(f"is damaged: {self._root_damage}, so it cannot be resumed",
+                               "run with --overwrite to start it afresh, or choose another --out")
+        return True
+
+    def _check_scene(self, attrs: Mapping[str, Any], names: list) -> None:
+        """Refuse a file of another scene, or one that did not record its scene's identity."""
         if "scene_hash" not in attrs:
             if names:
                 raise self.refusal(
@@ -209,6 +230,40 @@ class ResultFile:
                 paths = ["(unknown)"]
             raise self.refusal(f"holds the results of another scene (differing: {', '.join(paths)})",
                              "write to another file with --out, or run with --overwrite to start it afresh")
+
+    def _unreadable(self) -> str:
+        """Why the existing file cannot be read as a result file ("" if it can): not HDF5, HDF5 that
+        does not open or list its groups, or (format 3) attributes that fail their checksum."""
+        import h5py
+
+        if not h5py.is_hdf5(self.path):
+            return "is damaged: it is not readable as HDF5 (its first bytes are damaged)"
+        try:
+            with h5py.File(self.path, "r", locking=False) as handle:
+                attrs = dict(handle.attrs)
+                list(handle)
+                written = int(attrs.get("format_version", 1)) if "flexvib_version" in attrs else 0
+                root = check_root(handle, written) if written >= 3 else None
+        except (OSError, RuntimeError, KeyError, ValueError, TypeError) as error:
+            cause = _describe_os_error(error) if isinstance(error, OSError) else str(error)
+            return f"is damaged: its HDF5 metadata cannot be read ({cause})"
+        self._root_damage = root.cause if root is not None and root.damaged else ""
+        return ""
+
+    def _move_aside(self, why: str) -> None:
+        """Rename the unreadable file to the first free ``PATH.damaged-N`` and say so in one line."""
+        number = 1
+        while True:
+            aside = self.path.with_name(f"{self.path.name}.damaged-{number}")
+            if not aside.exists():
+                break
+            number += 1
+        try:
+            os.replace(self.path, aside)
+        except OSError as error:
+            raise self.refusal(f"{why}, and it cannot be moved aside to {str(aside)!r} "
+                               f"({_describe_os_error(error)})", "choose another --out") from None
+        logger.warning("%s %s; moved it aside to %s and started afresh", self.path, why, aside)
 
     # -- writing -------------------------------------------------------------------------------
     @property
@@ -264,6 +319,7 @@ class ResultFile:
         start = time.monotonic()
         with deferred_interrupts():
             self._check_space(self._work_size())
+            seal_root(self._handle)   # the file's own attributes, checked before the next resume
             self._handle.close()
             try:
                 shutil.copyfile(self.work, self.staging)
@@ -283,6 +339,33 @@ class ResultFile:
         spent = time.monotonic() - start
         self._last_commit = time.monotonic()
         self._interval = max(self.commit_interval, spent / _COMMIT_SHARE)
+
+    def rebuild_without(self, damaged: list[str]) -> None:
+        """Make the working copy afresh from the last commit: the file's attributes and every study
+        but those named in ``damaged``, copied object by object into a new file, so that no damaged
+        HDF5 metadata of theirs (an object header, a heap) is carried into the run's writes."""
+        import h5py
+
+        fresh = self.work.with_name(self.work.name + ".new")
+        forget_open(self.work)
+        self._handle.close()
+        try:
+            with h5py.File(self.path, "r", locking=False) as source, \
+                    h5py.File(fresh, "w", locking=False) as target:
+                for key, value in source.attrs.items():
+                    target.attrs[key] = value
+                for name in source:
+                    if name not in damaged:
+                        _copy_if_intact(source, target, name)
+            os.replace(fresh, self.work)
+        except (OSError, RuntimeError, KeyError, ValueError) as error:
+            fresh.unlink(missing_ok=True)
+            raise self.refusal(f"is damaged beyond repair ({type(error).__name__}: {error})",
+                               "run with --overwrite to start it afresh, or choose another --out") from None
+        finally:
+            self._handle = h5py.File(self.work, "a", locking=False)
+            register_open(self.work, self)
+        self._dirty = True
 
     def maybe_commit(self) -> None:
         """Commit when the last commit is older than the commit interval (grids batch their points)."""
@@ -319,6 +402,48 @@ class ResultFile:
             self.lock_path.unlink(missing_ok=True)  # while still holding it (see _lock)
             os.close(self._lock_fd)
             self._lock_fd = None
+
+
+def _copy_if_intact(source: Any, target: Any, name: str) -> None:
+    """Copy the study ``name`` from ``source`` into ``target`` unless it (or its copy) does not read
+    back: damaged metadata surfaces when an object is opened or copied; it is then computed again."""
+    from ._integrity import check_group
+    from ._store import format_of
+
+    try:
+        source.copy(source[name], target, name=name)
+        check = check_group(target[name], format_of(target[name]))
+        broken = check.damaged and check.points is None
+    except (KeyError, OSError, RuntimeError, ValueError):
+        broken = True
+    if broken:
+        logger.warning("%s: damaged (it does not read back); recomputing it", name)
+        if name in target:
+            del target[name]
+
+
+#: Bytes every flexvib result file holds in its root group's attribute names (read to tell a
+#: damaged result file from someone else's file), and how much of a file is searched for them.
+_FLEXVIB_MARK = b"flexvib_version"
+_MARK_SEARCH = 64 << 20
+
+
+def _looks_like_flexvib(path: Path) -> bool:
+    """Whether the bytes of ``path`` hold flexvib's mark (a damaged result file rather than another
+    program's file, which ``--overwrite`` must leave alone)."""
+    try:
+        with open(path, "rb") as stream:
+            tail, read = b"", 0
+            while read < _MARK_SEARCH:
+                block = stream.read(1 << 20)
+                if not block:
+                    return False
+                if _FLEXVIB_MARK in tail + block:
+                    return True
+                tail, read = block[-len(_FLEXVIB_MARK):], read + len(block)
+    except OSError:
+        return False
+    return False
 
 
 def _fsync_folder(folder: Path) -> None:

@@ -23,6 +23,7 @@ import numpy as np
 
 from ._errors import StudiesError
 from ._identity import plain
+from ._integrity import POINT_MARK, check_group, check_root, open_study, seal, seal_points, seal_root
 from ._writes import writing_to
 
 #: The result format this flexvib writes: the file attribute and each study group's attribute
@@ -34,8 +35,10 @@ from ._writes import writing_to
 #: all modes, and they are read with that meaning. Format 3 results also carry their error budget
 #: (``studies._budget``: time step, mesh, linearisation, reduction) and their errors
 #: (``peak_to_peak_error``, ...) are its totals; in files of formats 1 and 2 the errors were the time
-#: step's alone, and they read so (a budget of the time step with the other terms unknown). A file or
-#: group of a higher format is refused
+#: step's alone, and they read so (a budget of the time step with the other terms unknown). And
+#: format 3 carries checksums (``studies._integrity``): the file's attributes, each study group and
+#: each grid point carry a digest, verified by ``load``, ``flexvib info`` and the resume; a format-2
+#: file has none and reads as "not verifiable". A file or group of a higher format is refused
 #: (:func:`check_format`).
 FORMAT_VERSION = 3
 
@@ -48,6 +51,11 @@ class ResultFileError(StudiesError):
     """A result file that cannot be used as asked (a folder, an unwritable path, not a flexvib file,
     another scene, written by another live run, a newer result format): exit code 2, the file
     untouched."""
+
+
+class DamagedResultError(ResultFileError):
+    """A result file, or studies in it, whose bytes no longer match their checksums (``load``,
+    ``flexvib plot`` and ``report`` refuse it naming the studies; ``flexvib run`` recomputes them)."""
 
 
 class StorageError(RuntimeError):
@@ -163,6 +171,8 @@ class Result:
         the write is one piece: an interrupt waits for its end, the free space is checked first."""
         with writing_to(group, self.nbytes()):
             self._write(group)
+            seal_points(group)   # a grid study written over its points (none elsewhere)
+            seal(group)
         return group
 
     def nbytes(self) -> int:
@@ -236,13 +246,30 @@ def write_array(group: Any, name: str, array: np.ndarray, unit: str) -> None:
     import h5py
 
     if name in group:
+        existing = group[name]
+        same_strings = array.dtype.kind in "USO" and getattr(existing, "dtype", None) is not None \
+            and existing.dtype.kind == "O"
+        if getattr(existing, "shape", None) == array.shape and (
+                same_strings or getattr(existing, "dtype", None) == array.dtype):
+            # the same layout (a grid study's points, written over by its result): in place, keeping
+            # the dataset's attributes (studies._integrity.POINT_MARK)
+            existing[...] = np.asarray(array, dtype=object) if same_strings else array
+            existing.attrs["units"] = unit
+            return
+        # another type in the same shape (a grid's 0/1 flag as bool) still holds one entry per point
+        keep = {POINT_MARK: True} if (getattr(existing, "shape", None) == array.shape
+                                      and existing.attrs.get(POINT_MARK, False)) else {}
         del group[name]
+    else:
+        keep = {}
     if array.dtype.kind in "USO":
         dataset = group.create_dataset(name, data=np.asarray(array, dtype=object),
                                        dtype=h5py.string_dtype())
     else:
         dataset = group.create_dataset(name, data=array)
     dataset.attrs["units"] = unit
+    for key, value in keep.items():
+        dataset.attrs[key] = value
 
 
 def _read_array(dataset: Any) -> np.ndarray:
@@ -277,7 +304,32 @@ def load(path: str | Path) -> dict[str, Result]:
         raise StudiesError(f"{str(path)!r} is not an HDF5 result file: {error}") from None
     with handle:
         check_format(handle)
+        for group in handle.values():   # a newer format is refused as such before any checksum
+            if hasattr(group, "keys"):
+                check_format(group)
+        damaged = damage_report(handle)
+        if damaged:
+            raise DamagedResultError(f"result file {str(path)!r} is damaged: {damaged}; run the same "
+                                     f"`flexvib run` command to recompute what is damaged (or with "
+                                     f"--overwrite to move an unreadable file aside)")
         return {name: read_group(group) for name, group in handle.items()}
+
+
+def damage_report(handle: Any) -> str:
+    """The damage the checksums find in an open result file, in words ("" when none: intact, or a
+    file written before format 3, which is not verifiable)."""
+    version = format_of(handle)
+    found = []
+    root = check_root(handle, version)
+    if root.damaged:
+        found.append(root.cause)
+    for name in handle:
+        group, check = open_study(handle, name)
+        if check is None and hasattr(group, "keys"):
+            check = check_group(group, format_of(group))
+        if check is not None and check.damaged:
+            found.append(f"study {name!r} {check.describe()}")
+    return "; ".join(found)
 
 
 def read_group(group: Any) -> Result:
@@ -310,3 +362,4 @@ def stamp(handle: Any) -> None:
     handle.attrs["format_version"] = FORMAT_VERSION
     handle.attrs["versions"] = json.dumps(stamp, sort_keys=True)
     handle.attrs["created"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    seal_root(handle)

@@ -80,6 +80,7 @@ def open_store(out: Any, name: str, shape: tuple[int, ...], kind: type, settings
         for axis, (values, unit) in axes.items():
             if axis not in store.group:
                 store.group.create_dataset(axis, data=values).attrs["units"] = unit
+        store.seal()   # its checksum, with the axes (studies._integrity)
     return store
 
 

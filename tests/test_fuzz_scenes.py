@@ -5,7 +5,10 @@ Each example mutates a shipped scene (mechanisms/scenes/*.toml, with a small [st
 declaring every kind) so that it is invalid by construction: malformed TOML, a value of the wrong
 type, a negative, zero or non-finite number where a positive one is required, an unknown or
 misspelt key, a required key removed, an absurd size (elements, modes, steps, points, harmonics,
-periods, a drive turning a million times per period), or bytes that are not UTF-8. The command's
+periods, a drive turning a million times per period), or bytes that are not UTF-8; and the input
+classes of issue 23: TOML nested 50000 deep, a link or a period below physical sense (relative to the
+mechanism), a drive harmonic of absurd amplitude, free text past its limit, empty observables, and a
+later study whose option the problem cannot take (refused before the first study is written). The command's
 ``run_plan`` is replaced by one that fails the test: an invalid scene must be refused before any
 study starts (by the loader, the table checks or the resource guard). Hypothesis runs derandomized
 (the same examples on every run) with a deadline per example.
@@ -30,6 +33,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 import mechanisms
+from mechanisms._parts.checks import MAX_TEXT  # the free-text limit itself: not exported
 from studies.cli import _run as _plan  # patched: the run the command starts (internal)
 from studies.cli import main
 
@@ -248,17 +252,64 @@ def costly_study(data, spec):
         studies[choice].pop("frozen_samples", None)
 
 
+def _drives(spec) -> list[dict]:
+    return [spec["drive"]] if "drive" in spec else list(spec["drives"].values())
+
+
+def tiny_length(data, spec):
+    """A link far shorter than the mechanism's longest (issue 23: a 1e-12 m crank ran ``ok``)."""
+    link = data.draw(st.sampled_from(sorted(spec["links"])))
+    spec["links"][link]["length"] = data.draw(st.sampled_from([1e-9, 1e-12, 1e-15]))
+
+
+def tiny_period(data, spec):
+    """A period far below the elastic links' natural periods (issue 23: 1e-12 s was accepted)."""
+    period = data.draw(st.sampled_from([1e-9, 1e-12]))
+    spec["period"] = period
+    for drive in _drives(spec):
+        if drive.get("rate", 0.0):
+            drive["rate"] = 2.0 * math.pi / period
+
+
+def huge_harmonic(data, spec):
+    """A drive harmonic of absurd amplitude (issue 23: 1e6 rad passed and hung)."""
+    drive = data.draw(st.sampled_from(_drives(spec)))
+    drive["harmonics"] = [[data.draw(st.sampled_from([1, 3, 1000])), data.draw(st.sampled_from([1e4, 1e6, 1e300])),
+                           0.0]]
+
+
+def long_text(data, spec):
+    """Free text past its limit (issue 23: a 50 MB description made a run take 48 s)."""
+    spec[data.draw(st.sampled_from(["description", "name"]))] = "x" * (MAX_TEXT + 1)
+
+
+def empty_observables(data, spec):
+    spec["studies"]["observables"] = []
+
+
+def bad_later_study(data, spec):
+    """A study whose option the problem cannot take, declared after valid ones: refused before the
+    first study is written (an optimisation bound on a count)."""
+    link = data.draw(st.sampled_from(sorted(spec["links"])))
+    spec["studies"]["optimize"] = {"objective": f"peak_to_peak:{link}.angle",
+                                   "bounds": {f"links.{link}.discretisation.n_elements": [1.0, 4.0]}}
+
+
 MUTATIONS = (wrong_type, bad_number, unknown_key, misspelt_key, missing_key, absurd_size, fast_drive,
-             costly_study)
+             costly_study, tiny_length, tiny_period, huge_harmonic, long_text, empty_observables,
+             bad_later_study)
 
 
 @st.composite
 def bad_scenes(draw) -> tuple[str, bytes]:
     """``(what was done, file bytes)`` of an invalid scene."""
     spec = copy.deepcopy(draw(st.sampled_from(BASES)))
-    kind = draw(st.sampled_from(("malformed", "not_utf8") + tuple(m.__name__ for m in MUTATIONS)))
+    kind = draw(st.sampled_from(("malformed", "not_utf8", "nested") + tuple(m.__name__ for m in MUTATIONS)))
     if kind == "not_utf8":
         return kind, b"\xff\xfe" + to_toml(spec).encode()
+    if kind == "nested":   # arrays within arrays deeper than the parser follows (issue 23)
+        depth = draw(st.sampled_from([5000, 50000]))
+        return kind, (to_toml(spec) + "\nzz = " + "[" * depth + "]" * depth + "\n").encode()
     if kind == "malformed":
         lines = to_toml(spec).splitlines()
         at = draw(st.integers(0, len(lines)))

@@ -67,6 +67,15 @@ MAX_MODES = 64
 #: Whole turns of a drive per period: the studies resolve one period with n_steps steps, and the
 #: loader's Grashof scan samples 4096 crank angles per turn.
 MAX_TURNS = 100
+#: Physical sense, judged relative to the mechanism itself: no link shorter than this fraction of its
+#: longest (a 1e-12 m crank on a 0.3 m four-bar), no period shorter than this fraction of its elastic
+#: links' shortest first natural period (a drive a million times faster than the links' lowest
+#: vibration is outside what the model of slowly moving elastic links describes).
+MIN_LENGTH_FRACTION = 1e-6
+MIN_PERIOD_FRACTION = 1e-6
+#: Characters of free text in a scene (its name and description): documentation, kept in the spec
+#: and written to every result file.
+MAX_TEXT = 10_000
 #: Order k of a drive harmonic, and how many a drive may have: the motion is sampled n_steps times
 #: per period, and the studies' n_steps is at most 65536.
 MAX_HARMONIC_ORDER = 1000

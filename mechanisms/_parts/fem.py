@@ -146,10 +146,12 @@ def _reduced(link, attachments: tuple[tuple[float, bool], ...]) -> tuple[tuple[s
     for xa, moment in attachments:
         v = _fem_values(link, disc, np.array([xa]))
         loads += [v.u[0], v.w[0]] + ([v.dw[0]] if moment else [])
-    u = _fem_values(link, disc, x).u
-    loads += [weights @ u, (weights * x) @ u]
-    reduction = reduction_basis(mass, stiffness, kinds == "u", modes,
-                                np.array(loads).T, kinds != "r")
+    along = _fem_values(link, disc, x)
+    loads += [weights @ along.u, (weights * x) @ along.u]
+    # displacements at the nodes and the Gauss points normalise the columns (_reduce.reduction_basis)
+    nodal = np.eye(len(labels))[kinds != "r"]
+    reduction = reduction_basis(mass, stiffness, kinds == "u", modes, np.array(loads).T,
+                                np.vstack([nodal, along.u, along.w]))
     reduction.basis.setflags(write=False)
     return reduction.labels, reduction.basis
 

@@ -9,7 +9,15 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 from . import spec as _spec
-from .checks import GROUND, MAX_TURNS, MechanismError, _check_number, _check_pair
+from .checks import (
+    GROUND,
+    MAX_TURNS,
+    MIN_LENGTH_FRACTION,
+    MIN_PERIOD_FRACTION,
+    MechanismError,
+    _check_number,
+    _check_pair,
+)
 from .controllers import CONTROLLER_TYPES, Controller
 from .drives import Drive, PrescribedDrive, TorqueDrive
 from .grashof import check_four_bar
@@ -235,8 +243,17 @@ def _validate(mech: Mechanism) -> None:
                                  f"period of its motion explicitly (period = ... s)")
         period = 2.0 * math.pi / abs(rate)
     _check_number(f"mechanism {mech.name!r}", "period", period, "s", positive=True)
+    _check_physical_sense(mech, period)
     for drive in mech.drives:
         turns = drive.rate * period / (2.0 * math.pi)
+        travel = harmonic_travel(drive)
+        if abs(turns) <= MAX_TURNS and not abs(turns) + travel / (2.0 * math.pi) <= MAX_TURNS:  # also nan
+            raise MechanismError(
+                f"drive at joint {drive.joint!r}: its harmonics move the joint through {travel:.3g} rad per "
+                f"period (each harmonic (k, cos_k, sin_k) travels 4 k sqrt(cos_k^2 + sin_k^2) rad), with "
+                f"its rate {abs(turns):.3g} turns; at most {MAX_TURNS} turns in all (one period is resolved "
+                f"by the studies' n_steps, and the accelerations grow as k^2 times the amplitude): give "
+                f"harmonics of a few radians")
         if not abs(turns) <= MAX_TURNS:  # also inf from an overflowing product
             raise MechanismError(f"drive at joint {drive.joint!r}: rate {drive.rate} rad/s with period "
                                  f"{period:.6g} s turns {abs(turns):.3g} times per period; at most "
@@ -251,4 +268,33 @@ def _validate(mech: Mechanism) -> None:
 
     check_four_bar(mech, links)
 
+
+def harmonic_travel(drive) -> float:
+    """The angle (rad) a drive's harmonics move its joint through in one period: a harmonic
+    ``cos_k cos(k w t) + sin_k sin(k w t)`` of amplitude ``A = sqrt(cos_k^2 + sin_k^2)`` swings k
+    times over ``2 A`` and back, ``4 k A`` in all (its acceleration peaks at ``k^2 w^2 A``)."""
+    return float(sum(4.0 * abs(k) * math.hypot(c, s) for k, c, s in getattr(drive, "harmonics", ())))
+
+
+def _check_physical_sense(mech, period: float) -> None:
+    """Refuse a link far shorter than the mechanism's longest, and a period far shorter than its
+    elastic links' natural periods (docs/scenes.md, "Limits"): both are judged relative to the
+    mechanism itself, so a millimetre-scale machine is as valid as a metre-scale one."""
+    longest = max(link.length for link in mech.links)
+    for link in mech.links:
+        if link.length < MIN_LENGTH_FRACTION * longest:
+            raise MechanismError(
+                f"links.{link.name}.length: {link.length:.3g} m is below {MIN_LENGTH_FRACTION:g} of the "
+                f"mechanism's longest link ({longest:.3g} m), limit {MIN_LENGTH_FRACTION * longest:.3g} m: "
+                f"no joint or deflection is resolved at that scale; check the unit (metres)")
+    elastic = [link for link in mech.links if hasattr(link, "first_bending_frequency")]
+    if not elastic:
+        return
+    shortest = min(2.0 * math.pi / link.first_bending_frequency() for link in elastic)
+    if period < MIN_PERIOD_FRACTION * shortest:
+        raise MechanismError(
+            f"mechanism {mech.name!r}: period {period:.3g} s is below {MIN_PERIOD_FRACTION:g} of its "
+            f"elastic links' shortest natural period ({shortest:.3g} s, the first bending mode), limit "
+            f"{MIN_PERIOD_FRACTION * shortest:.3g} s: the drive would turn {shortest / period:.3g} times "
+            f"per elastic oscillation; check the unit (seconds) or the drive's rate")
 

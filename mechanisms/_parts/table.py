@@ -10,7 +10,7 @@ import difflib
 import math
 from typing import Any, Mapping
 
-from .checks import MechanismError, _is_number
+from .checks import MAX_TEXT, MechanismError, _is_number
 
 _REQUIRED = object()
 
@@ -70,7 +70,10 @@ class _Table:
     def string(self, key: str, default: Any = _REQUIRED, choices: tuple[str, ...] = ()) -> str:
         value = self.raw(key, default)
         if not isinstance(value, str):
-            raise MechanismError(f"{self._at(key)} must be a string, got {value!r}")
+            raise MechanismError(f"{self._at(key)} must be a string, got {value!r}"[:500])
+        if len(value) > MAX_TEXT:
+            raise MechanismError(f"{self._at(key)} must be at most {MAX_TEXT} characters (free text is "
+                                 f"kept in every result file), got {len(value)}; shorten it")
         if choices and value not in choices:
             close = difflib.get_close_matches(value, choices, n=1, cutoff=0.5)
             hint = f"; did you mean {close[0]!r}?" if close else ""

@@ -255,12 +255,7 @@ def control_comparison(problem: Any, values: Mapping[str, float] | None = None, 
     params = problem.resolve(values)
     nominal_values = problem.parameters
     mechanism = problem.mechanism({k: v for k, v in params.items() if v != nominal_values[k]})
-    without = mechanism.without_feedback()
-    if without == mechanism:
-        raise StudiesError(f"scene {problem.name!r}: its drives have no feedback to remove (a prescribed "
-                           f"drive, or a torque drive with kp = kd = 0 and no [controllers]): nothing to "
-                           f"compare; declare the drive with type = \"torque\" and a [controllers.<name>] "
-                           f"table or kp, kd (docs/scenes.md)")
+    without = _without_feedback(problem, mechanism)
     plan = _quantities(problem, mechanism, without, output)
     results = {case: _case(machine, plan, n_periods, n_steps, band)
                for case, machine in zip(CASES, (mechanism, without))}
@@ -590,6 +585,25 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
                if "error_tolerance" in table else {})}
 
 
+def _without_feedback(problem: Any, mechanism: Any) -> Any:
+    """``mechanism.without_feedback()``, refused when there is no feedback to remove."""
+    without = mechanism.without_feedback()
+    if without == mechanism:
+        raise StudiesError(f"scene {problem.name!r}: its drives have no feedback to remove (a prescribed "
+                           f"drive, or a torque drive with kp = kd = 0 and no [controllers]): nothing to "
+                           f"compare; declare the drive with type = \"torque\" and a [controllers.<name>] "
+                           f"table or kp, kd (docs/scenes.md)")
+    return without
+
+
+def _validate(problem: Any, options: Mapping[str, Any]) -> None:
+    """Before any study is written: the problem must be a mechanism whose drives have feedback."""
+    if not hasattr(problem, "mechanism"):
+        raise StudiesError(f"[studies.control_comparison]: problem {getattr(problem, 'name', problem)!r} has "
+                           f"no mechanism; a control comparison needs a scene whose drive has a controller")
+    _without_feedback(problem, problem.mechanism())
+
+
 def _run_kind(problem: Any, options: Mapping[str, Any], **_: Any) -> ControlComparison:
     return control_comparison(problem, **options)
 
@@ -649,4 +663,4 @@ def _cost(name, problem, options, workers):
 KIND = register_kind(StudyKind(
     name="control_comparison", result=ControlComparison, check=_check, run=_run_kind, summary=_summary,
     keys=("speed", "n_periods", "n_steps", "band", "output", "error_tolerance"), headlines=_headlines,
-    cost=_cost, aliases=("ControlComparison",)))
+    cost=_cost, aliases=("ControlComparison",), validate=_validate))

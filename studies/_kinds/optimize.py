@@ -652,9 +652,18 @@ def _cost(name, problem, options, workers):
                                                 f"{options['n_steps']} steps x {sizes.m} coordinates")
 
 
+def _validate(problem: Any, options: Mapping[str, Any]) -> None:
+    """Before any study is written: the bounds are continuous parameters of the problem."""
+    try:
+        names, _ = _check_bounds(problem, options["bounds"])
+        _with_needs(problem, list(names), [])
+    except StudiesError as error:
+        raise StudiesError(f"[studies.optimize] {error}") from None
+
+
 KIND = register_kind(StudyKind(
     name="optimize", result=OptimizeResult, keys=TABLE_KEYS, check=_check, run=_run, summary=_summary,
-    varies=_varies, headlines=_headlines, cost=_cost,
+    varies=_varies, headlines=_headlines, cost=_cost, validate=_validate,
     demo={"objective": "rms:x", "bounds": {"natural_frequency": [1.2, 2.0]}, "speeds": [1.0, 2.0],
           "constraints": {"stability_margin": 0.01}, "n_steps": 64},
     aliases=("OptimizeResult",)))

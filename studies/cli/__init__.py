@@ -6,6 +6,7 @@ what the terminal shows (``_console``), figures and the report (``_report``), ``
 import the library (``studies._*``); no library module imports from here (the package's face,
 ``studies/__init__.py``, re-exports ``guard`` and ``ResourceError``)."""
 
+from .. import _face  # noqa: F401  (the study kinds registered, as importing studies did before it was lazy)
 from .._errors import UsageError as UsageError
 from ._main import DEFAULT_SCENE as DEFAULT_SCENE
 from ._main import load_scene as load_scene

@@ -59,9 +59,10 @@ def _parser() -> argparse.ArgumentParser:
                      help="'process' (local pool of --jobs workers) or 'dask' (a Dask distributed "
                           "cluster at --scheduler)")
     run.add_argument("--scheduler", help="address of the Dask scheduler, e.g. tcp://10.0.0.5:8786")
-    run.add_argument("--quiet", action="store_true",
-                     help="print errors only on stderr: no progress bars, log messages or warnings")
-    run.add_argument("--verbose", action="store_true", help="also the debug messages (one per point)")
+    talk = run.add_mutually_exclusive_group()   # --quiet --verbose together is a contradiction (exit 2)
+    talk.add_argument("--quiet", action="store_true",
+                      help="print errors only on stderr: no progress bars, log messages or warnings")
+    talk.add_argument("--verbose", action="store_true", help="also the debug messages (one per point)")
     run.add_argument("--set", action="append", dest="sets", type=parse_set, default=[],
                      metavar="PATH=VALUE",
                      help="override a scene value (repeatable): PATH is a dotted key path such as "
@@ -164,11 +165,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
     previous = _terminate_like_ctrl_c()
+    hook = sys.unraisablehook
+    sys.unraisablehook = _quiet_about_damaged_objects(hook)
     try:
         return args.handler(args)
     except KeyboardInterrupt as interrupt:
         # Ctrl-C or SIGTERM: a run has saved what it finished (studies.cli._run.RunInterrupted says what)
-        print(getattr(interrupt, "line", "interrupted"), file=sys.stderr)
+        print(getattr(interrupt, "line", "interrupted: nothing was saved"), file=sys.stderr)
         return 130
     except BrokenPipeError:
         # The reader went away (`flexvib info FILE | head`): stop quietly, as command-line tools do.
@@ -177,8 +180,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as error:
         return _report(error)
     finally:
+        sys.unraisablehook = hook
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _quiet_about_damaged_objects(hook):
+    """``sys.unraisablehook`` that logs (debug) instead of printing a traceback for an h5py object
+    whose release fails: the objects of a damaged file, which the command has already reported."""
+    def quiet(unraisable) -> None:
+        where = getattr(unraisable.object, "__qualname__", "") or repr(unraisable.object)
+        if "ObjectID" in where or "h5py" in str(getattr(unraisable.object, "__module__", "")):
+            logger.debug("h5py could not release an object of a damaged file: %s", unraisable.exc_value)
+            return
+        hook(unraisable)
+
+    return quiet
 
 
 def _terminate_like_ctrl_c():
@@ -352,6 +369,8 @@ def _run(args: argparse.Namespace) -> int:
 def _run_studies(args: argparse.Namespace) -> int:
     from .._kind import kind_of
 
+    if args.out is not None and not args.out.name:   # --out "" (Path('.')) or a bare folder
+        raise UsageError(f"--out {str(args.out)!r}: expected the path of a result file, e.g. --out run.h5")
     out = args.out or Path(f"{Path(args.scene).stem}.h5")
     plan = ScenePlan.read(args.scene, args.sets, only=args.only)
     # a run started with --force resumes without it: what the file holds complete is not estimated
@@ -456,70 +475,109 @@ def _report_command(args: argparse.Namespace) -> int:
 
 #: Study attributes ``flexvib info`` does not print: shown in its header line, or bulky and internal.
 _INFO_HIDDEN = ("kind", "format_version", "problem", "complete", "request", "request_hash", "settings_hash", "scene",
-                "outlines", "labels", "mode_labels")
+                "outlines", "labels", "mode_labels", "digest", "point_outputs")
 
 
 def _info(args: argparse.Namespace) -> int:
-    """Summarise a result file; every dataset of every study is read, and a study whose data cannot
-    be read is called CORRUPT (exit code 1)."""
+    """Summarise a result file; every dataset of every study is read and checked against its
+    checksum (format 3), and a study whose data cannot be read or do not match is called DAMAGED,
+    a file whose own metadata is damaged unreadable (exit code 1 for either)."""
     import h5py
 
+    from .._integrity import check_group, check_root, open_study
     from .._store import check_format, format_of, study_attrs
     from .._studies import status_counts
-    from ._info import dataset as dataset_line
-    from ._info import formatted
 
     if not args.file.is_file():
-        raise UsageError(f"result file {str(args.file)!r} does not exist")
+        raise UsageError(f"result file {str(args.file)!r} " + (
+            "does not exist" if not args.file.exists() else "is not a regular file (a folder or a device)"))
+    unreadable = (f"flexvib: error: {args.file}: unreadable: its HDF5 metadata is damaged or it is not a "
+                  f"result file")
+    fix = "`flexvib run ... --out FILE --overwrite` moves a damaged file aside and starts afresh"
     try:
         handle = h5py.File(args.file, "r", locking=False)  # a run never holds the file open
     except OSError as error:
-        raise UsageError(f"{str(args.file)!r} is not an HDF5 result file ({error})") from None
-    corrupt = []
-    with handle:
-        check_format(handle)  # a newer format: refused, naming the flexvib that wrote it
-        print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, result format "
-              f"{format_of(handle)}, created {handle.attrs.get('created', '?')}")
-        print(f"  versions: {handle.attrs.get('versions', '?')}")
-        if "compile_time" in handle.attrs:   # numba compilation of the file's runs, outside their run times
-            print(f"  compile_time: {float(handle.attrs['compile_time']):.3g} s")
-        if "scene_hash" in handle.attrs:
-            print(f"  scene: sha256 {handle.attrs['scene_hash']}")
-        for name, item in handle.items():
-            if not hasattr(item, "items"):  # a dataset at the root (e.g. a `flexvib demo` file)
-                print(f"{name}: {item.shape} {item.attrs.get('units', '')}")
-                continue
-            problem = _unreadable(item)
-            if problem:
-                corrupt.append(name)
-            attrs = study_attrs(item)
-            state = (f"CORRUPT ({problem})" if problem else
-                     "complete" if attrs.get("complete") else "INCOMPLETE")
-            print(f"[{name}] {attrs.get('kind')} of {attrs.get('problem', '?')}, {state}")
-            if problem:
-                continue
-            if "done" in item:
-                done = item["done"][()]
-                print(f"  points done: {int(done.sum())} of {done.size}")
-                if "status" in item:  # a grid study: its verdicts, most severe first
-                    statuses = item["status"].asstr()[()][done]
-                    print(f"  statuses: {status_counts(statuses)}")
-            # every headline attribute the study wrote (a new kind's too); the bulky or internal ones
-            # (the scene text, the request it was run for) are left out
-            units = attrs.get("units") if isinstance(attrs.get("units"), dict) else {}
-            for key, value in attrs.items():
-                if key == "settings" and isinstance(value, dict):  # the scene text is in the file
-                    value = {k: v for k, v in value.items() if k != "scene"}
-                if key not in _INFO_HIDDEN and value not in ("", None, {}, []):
-                    print(f"  {key}: {formatted(key, value, units)}")
-            for key, dataset in item.items():
-                if hasattr(dataset, "shape"):
-                    print(f"  {key}: {dataset_line(dataset.shape, str(dataset.attrs.get('units', '')))}")
-                else:
-                    print(f"  {key}/: {', '.join(dataset.keys())}")
-    if corrupt:
-        print(f"flexvib: error: {args.file}: cannot read {', '.join(corrupt)}", file=sys.stderr)
-    return 1 if corrupt else 0
+        if h5py.is_hdf5(args.file):
+            print(f"{unreadable} ({error}); {fix}", file=sys.stderr)
+            return 1
+        raise UsageError(f"{str(args.file)!r} is not an HDF5 result file ({error}); if it was one, its "
+                         f"first bytes are damaged: {fix}") from None
+    corrupt, damaged = [], []
+    try:
+        with handle:
+            check_format(handle)  # a newer format: refused, naming the flexvib that wrote it
+            root = check_root(handle, format_of(handle))
+            print(f"{args.file}: flexvib {handle.attrs.get('flexvib_version', '?')}, result format "
+                  f"{format_of(handle)}, created {handle.attrs.get('created', '?')}"
+                  + ("" if root.state == "intact" else f"; {root.describe()}"))
+            if root.damaged:
+                damaged.append("the file's own attributes")
+            print(f"  versions: {handle.attrs.get('versions', '?')}")
+            if "compile_time" in handle.attrs:   # numba compilation of the file's runs, outside their run times
+                print(f"  compile_time: {float(handle.attrs['compile_time']):.3g} s")
+            if "scene_hash" in handle.attrs:
+                print(f"  scene: sha256 {handle.attrs['scene_hash']}")
+            for name in handle:
+                item, unopened = open_study(handle, name)
+                if unopened is not None:   # its link is there, the object does not open
+                    damaged.append(name)
+                    print(f"[{name}] DAMAGED: {unopened.describe()}")
+                    continue
+                if not hasattr(item, "items"):  # a dataset at the root (e.g. a `flexvib demo` file)
+                    print(f"{name}: {item.shape} {item.attrs.get('units', '')}")
+                    continue
+                problem = _unreadable(item)
+                check = check_group(item, format_of(item))
+                if problem:
+                    corrupt.append(name)
+                elif check.damaged:
+                    damaged.append(name)
+                attrs = study_attrs(item)
+                state = (f"CORRUPT ({problem})" if problem else
+                         f"DAMAGED: {check.describe()}" if check.damaged else
+                         "complete" if attrs.get("complete") else "INCOMPLETE")
+                verified = "" if check.damaged or problem else f", {check.describe() or 'checksums match'}"
+                print(f"[{name}] {attrs.get('kind')} of {attrs.get('problem', '?')}, {state}{verified}")
+                if problem or (check.damaged and check.points is None):
+                    continue
+                _print_study(item, attrs, status_counts)
+    except BrokenPipeError:
+        raise  # the reader went away (main() stops quietly)
+    except (OSError, RuntimeError, KeyError) as error:  # the file's structure gave way while listing it
+        print(f"{unreadable} ({type(error).__name__}: {error}); {fix}", file=sys.stderr)
+        return 1
+    found = ([f"cannot read {', '.join(corrupt)}"] if corrupt else []) + (
+        [f"damaged (checksums do not match): {', '.join(damaged)}"] if damaged else [])
+    if found:
+        print(f"flexvib: error: {args.file}: {'; '.join(found)}; run the same `flexvib run` command to "
+              f"recompute what is damaged (the intact studies and points are kept)", file=sys.stderr)
+    return 1 if found else 0
+
+
+def _print_study(item: Any, attrs: dict[str, Any], status_counts: Any) -> None:
+    """The points done, statuses, headline attributes and datasets of one study for ``info``."""
+    from ._info import dataset as dataset_line
+    from ._info import formatted
+
+    if "done" in item:
+        done = item["done"][()]
+        print(f"  points done: {int(done.sum())} of {done.size}")
+        if "status" in item:  # a grid study: its verdicts, most severe first
+            statuses = item["status"].asstr()[()][done]
+            print(f"  statuses: {status_counts(statuses)}")
+    # every headline attribute the study wrote (a new kind's too); the bulky or internal ones
+    # (the scene text, the request it was run for) are left out
+    units = attrs.get("units") if isinstance(attrs.get("units"), dict) else {}
+    for key, value in attrs.items():
+        if key == "settings" and isinstance(value, dict):  # the scene text is in the file
+            value = {k: v for k, v in value.items() if k != "scene"}
+        if key not in _INFO_HIDDEN and value not in ("", None, {}, []):
+            print(f"  {key}: {formatted(key, value, units)}")
+    for key, dataset in item.items():
+        if hasattr(dataset, "shape"):
+            print(f"  {key}: {dataset_line(dataset.shape, str(dataset.attrs.get('units', '')))}")
+        else:
+            print(f"  {key}/: {', '.join(dataset.keys())}")
 
 
 def _unreadable(group: Any) -> str:

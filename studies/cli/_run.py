@@ -13,9 +13,10 @@ import numpy as np
 
 from .._errors import is_numerical_failure
 from .._identity import canonical, differing_paths, digest, scene_identity
+from .._integrity import check_group, forget_points, open_study, points_resumable, seal
 from .._kind import kind_named
 from .._resultfile import ResultFile
-from .._store import StorageError, read_group, write_attrs
+from .._store import StorageError, format_of, read_group, write_attrs
 from . import _jit
 
 __all__ = ["RunInterrupted", "run_plan", "scene_identity"]
@@ -55,6 +56,7 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
             for suffix, each in kind_named(name).runs(options).items()]
     try:
         with ResultFile(path, scene=scene_identity(problem), overwrite=overwrite) as file:
+            _set_damage_aside(file, runs)   # first: what follows reads the studies' attributes
             _refuse_other_grid_options(file, runs)
             clock = _jit.warm_up(problem, studies) if warm_up else None
             try:
@@ -84,6 +86,34 @@ def _refuse_other_grid_options(file: ResultFile, runs: list) -> None:
     if changed:
         raise file.refusal(f"holds {'; '.join(changed)} with other options, which cannot be resumed",
                            "write to another file with --out, or run with --overwrite to start it afresh")
+
+
+def _set_damage_aside(file: ResultFile, runs: list) -> None:
+    """Check the declared studies the file holds against their checksums (``studies._integrity``):
+    a damaged study is left out of the working copy (rebuilt from the intact ones), so that it is
+    computed again; a grid study whose damage is confined to some points keeps the intact ones and
+    recomputes those (one line each says what was found)."""
+    whole, points = [], {}
+    for name, _kind, _options in runs:
+        group, check = open_study(file.handle, name)
+        if group is None and check is None:
+            continue
+        check = check or check_group(group, format_of(group))
+        if not check.damaged:
+            continue
+        if check.points is not None and points_resumable(group):
+            logger.warning("%s in %s: %s; recomputing those points", name, file.path, check.describe())
+            points[name] = check.points
+        else:
+            logger.warning("%s in %s: %s; recomputing it", name, file.path, check.describe())
+            whole.append(name)
+    if not whole and not points:
+        return
+    with file.writing():
+        file.rebuild_without(whole)
+        for name, damaged in points.items():
+            if name in file.handle:   # else its copy did not read back: it is recomputed whole
+                forget_points(file.handle[name], damaged)
 
 
 def _run_studies(problem: Any, runs: list, file: ResultFile, *, executor: Any, progress: bool
@@ -123,6 +153,7 @@ def _run_studies(problem: Any, runs: list, file: ResultFile, *, executor: Any, p
                 if not kind.grid:
                     result.to_hdf5(file.handle.create_group(name))
                 write_attrs(file.handle[name], asked)
+                seal(file.handle[name])   # its checksum covers what was asked of it too
             file.commit()
             results[name] = result
     return results, failures

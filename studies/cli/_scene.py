@@ -112,9 +112,10 @@ def _mechanism(scene: str, sets: Sequence[tuple[str, Any]]):
     import mechanisms
 
     path = Path(scene)
-    if path.suffix == ".toml" and not path.is_file():
-        raise UsageError(f"scene file {scene!r} does not exist" if not path.exists()
-                         else f"scene file {scene!r} is not a file")
+    if path.suffix == ".toml" and not path.exists():
+        raise UsageError(f"scene file {scene!r} does not exist")
+    if path.exists():
+        _check_scene_file(path)
     try:
         if not sets:
             return mechanisms.load(scene)
@@ -130,6 +131,33 @@ def _mechanism(scene: str, sets: Sequence[tuple[str, Any]]):
         raise UsageError(f"scene file {scene!r} cannot be read: {error.strerror or error}") from None
     changed = ", ".join(f"{p}={v!r}" for p, v in sets)
     return mechanisms.build(apply_overrides(spec, sets), source=f"{source} with --set {changed}")
+
+
+#: The largest scene file read (bytes): the shipped scenes are a few kB; a scene is data the TOML
+#: parser reads whole and every result file keeps.
+MAX_SCENE_BYTES = 1 << 20
+
+
+def _check_scene_file(path: Path) -> None:
+    """A scene path that exists must be a regular file (not a folder or a device such as /dev/zero),
+    of at most ``MAX_SCENE_BYTES``, and TOML nested no deeper than the parser can follow."""
+    import mechanisms
+
+    if not path.is_file():
+        kind = "a folder" if path.is_dir() else "not a regular file (a device or a pipe)"
+        raise UsageError(f"scene {str(path)!r} is {kind}; give a .toml scene file or a built-in scene name "
+                         f"(flexvib scenes)")
+    size = path.stat().st_size
+    if size > MAX_SCENE_BYTES:
+        raise UsageError(f"scene file {str(path)!r} has {size} bytes; at most {MAX_SCENE_BYTES} (a scene "
+                         f"is a few kB: keep long text out of it)")
+    try:
+        tomllib.loads(path.read_text(encoding="utf-8", errors="replace"))
+    except RecursionError:
+        raise mechanisms.MechanismError(f"{path}: not valid TOML: nested deeper than the parser follows "
+                                        f"(arrays or tables within each other)") from None
+    except (tomllib.TOMLDecodeError, OSError):
+        pass   # the loader reports it in its own words
 
 
 def _only(declared: Mapping[str, Any], only: Sequence[str] | None) -> dict[str, Any]:
@@ -170,10 +198,11 @@ def plan(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, 
     reject_unknown("studies", table, COMMON_KEYS + tuple(kinds()))
     n_steps = integer("studies", "n_steps", table.get("n_steps", 256), 4, even=True)
     observables = table.get("observables")
-    if observables is not None and (not isinstance(observables, list)
+    if observables is not None and (not isinstance(observables, list) or not observables
                                     or not all(isinstance(s, str) for s in observables)):
-        raise StudiesError(f"[studies] observables: expected a list of specs such as "
-                           f"'coupler.deflection@0.5', got {observables!r}")
+        raise StudiesError(f"[studies] observables: expected a non-empty list of specs such as "
+                           f"'coupler.deflection@0.5' (leave the key out for the default observables), "
+                           f"got {observables!r}"[:400])
     scheme = table.get("scheme", DEFAULT_SCHEME)
     try:
         study_scheme(scheme)

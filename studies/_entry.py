@@ -1,0 +1,75 @@
+"""The ``flexvib`` console script's entry point (``studies._entry:main``): signal handlers first,
+then the heavy imports and the command.
+
+SIGINT (Ctrl-C) and SIGTERM raise ``KeyboardInterrupt`` from the first line of the process that
+Python runs of flexvib, before numpy, scipy and numba are imported (``studies/__init__.py`` is light,
+``studies._face`` the heavy face), so a signal at any moment of a run ends it with exit code 130 and
+one line: what was saved (``studies.cli._run.RunInterrupted``) or that nothing was. After the command
+has returned, the process ends at once (``os._exit``), and a signal before that with 130 too.
+Only the interpreter's own start-up (before this module runs, some tens of milliseconds) keeps the
+default handlers."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+
+#: What ``flexvib`` prints when it is interrupted before a run has saved anything.
+NOTHING_SAVED = "interrupted: nothing was saved"
+#: The exit code of an interrupted command (128 + SIGINT, as shells report Ctrl-C).
+INTERRUPTED = 130
+
+
+def _interrupt(signum: int, frame) -> None:
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
+def _exit_now(signum: int, frame) -> None:
+    """After the command returned: end at once, without tracebacks from the shutdown."""
+    try:
+        sys.stdout.flush()
+    except (OSError, ValueError):
+        pass
+    os.write(2, b"interrupted: after the command had finished (its results are saved)\n")
+    os._exit(INTERRUPTED)
+
+
+def run(argv=None) -> int:
+    """Run ``flexvib`` (``studies.cli.main``) with SIGINT and SIGTERM handled from the start; returns
+    the exit code (130 when interrupted). From its return on, a signal ends the process at once."""
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, _interrupt)
+    try:
+        try:
+            from studies.cli import main as command  # numpy, scipy, numba, the study kinds
+
+            code = command(argv)
+        except KeyboardInterrupt as interrupt:
+            # raised during the imports, or during the command outside its own handling
+            print(getattr(interrupt, "line", NOTHING_SAVED), file=sys.stderr)
+            code = INTERRUPTED
+    except KeyboardInterrupt:   # a second signal while the first was being reported
+        code = INTERRUPTED
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, _exit_now)
+    return code
+
+
+def main() -> None:
+    """The console script: :func:`run`, then the process ends with its code at once. The interpreter's
+    own shutdown is skipped: it restores the default signal handlers first, so a signal in it ended
+    the process with the signal's code (143, -2) and no line; and after an import cut by a signal it
+    may itself end with -2. What a run writes is committed before ``run`` returns (the result file's
+    commits; a pool's workers die with this process), so only the standard streams need flushing."""
+    code = run()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
+if __name__ == "__main__":
+    main()

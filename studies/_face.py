@@ -1,0 +1,66 @@
+"""The public face of ``studies``, imported on first use of any of its names (``studies/__init__.py``
+stays light, so that the ``flexvib`` command's entry, ``studies._entry``, has its signal handlers in
+place before these imports, which load numpy, scipy, numba and every study kind). Importing this
+module registers the study kinds."""
+
+from ._cost import Estimate as Estimate
+from ._cost import estimate as estimate
+from ._cost import steady_solves as steady_solves
+from ._errors import ComputationError as ComputationError
+from ._errors import StudiesError as StudiesError
+from ._grid import PointOutcome as PointOutcome
+from ._grid import process_pool as process_pool
+from ._grid import run_grid as run_grid
+from ._guard import ResourceError as ResourceError
+from ._guard import guard as guard
+from ._kind import StudyKind as StudyKind
+from ._kind import kind_of as kind_of
+from ._kind import kinds as kinds
+from ._kind import register_kind as register_kind
+from ._kinds.campbell import CampbellResult as CampbellResult
+from ._kinds.campbell import campbell as campbell
+from ._kinds.control_comparison import ControlComparison as ControlComparison
+from ._kinds.control_comparison import control_comparison as control_comparison
+from ._kinds.error_cost import ErrorCostResult as ErrorCostResult
+from ._kinds.error_cost import error_cost as error_cost
+from ._kinds.nonlinear_check import NonlinearCheck as NonlinearCheck
+from ._kinds.nonlinear_check import nonlinear_check as nonlinear_check
+from ._kinds.nonlinear_steady_state import NonlinearSteadyState as NonlinearSteadyState
+from ._kinds.nonlinear_steady_state import nonlinear_steady_state as nonlinear_steady_state
+from ._kinds.nonlinear_sweep import NonlinearSweep as NonlinearSweep
+from ._kinds.nonlinear_sweep import nonlinear_sweep as nonlinear_sweep
+from ._kinds.optimize import FrequencySeparation as FrequencySeparation
+from ._kinds.optimize import MassBudget as MassBudget
+from ._kinds.optimize import OptimizeResult as OptimizeResult
+from ._kinds.optimize import StabilityMargin as StabilityMargin
+from ._kinds.optimize import TorqueLimit as TorqueLimit
+from ._kinds.optimize import optimize as optimize
+from ._kinds.run_up import RunUp as RunUp
+from ._kinds.run_up import run_up as run_up
+from ._kinds.sensitivity import SensitivityResult as SensitivityResult
+from ._kinds.sensitivity import sensitivity as sensitivity
+from ._kinds.stability_chart import StabilityChart as StabilityChart
+from ._kinds.stability_chart import stability_chart as stability_chart
+from ._kinds.steady_state import SteadyStateResult as SteadyStateResult
+from ._kinds.steady_state import steady_state as steady_state
+from ._kinds.sweep import SweepResult as SweepResult
+from ._kinds.sweep import sweep as sweep
+from ._mechanism import MechanismProblem as MechanismProblem
+from ._plots import Plot as Plot
+from ._problem import Description as Description
+from ._problem import Linear as Linear
+from ._problem import NonlinearRun as NonlinearRun
+from ._problem import PeriodicCoefficients as PeriodicCoefficients
+from ._problem import PeriodicProblem as PeriodicProblem
+from ._problem import mathieu_problem as mathieu_problem
+from ._result import StudyResult as StudyResult
+from ._resultfile import ResultFile as ResultFile
+from ._store import FORMAT_VERSION as FORMAT_VERSION
+from ._store import DamagedResultError as DamagedResultError
+from ._store import Result as Result
+from ._store import ResultFileError as ResultFileError
+from ._store import StorageError as StorageError
+from ._store import load as load
+from ._store import open_file as open_file
+from ._summary import Headline as Headline
+from ._summary import Summary as Summary

@@ -1,0 +1,80 @@
+"""Issue 23: a signal at any moment of ``flexvib run``, from the process's start (the imports of
+numpy, scipy, numba, the study kinds) to its end, ends it with exit code 130 and one "interrupted"
+line (what was saved, or that nothing was), never a traceback or the signal's own code.
+
+The command runs as the console script does (``studies._entry:main``, here ``python -m
+studies._entry``) in a session of its own; the moments are counted from when its entry module has
+run (before it, the interpreter's own start-up, some tens of milliseconds, keeps the default
+handlers). SIGINT goes to its whole process group as a terminal's Ctrl-C does, SIGTERM to the
+process as ``kill`` does, at 12 moments spread over an uninterrupted run's duration. The file each
+interrupted run leaves is then resumed to completion."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+ONLY = ["--only", "steady_state", "--only", "sweep"]
+
+
+def _start(out: Path) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.Popen([sys.executable, "-m", "studies._entry", "run", "mathieu", "--out", str(out), "--quiet",
+                             *ONLY], cwd=out.parent, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+
+
+def _handlers_installed(pid: int) -> bool:
+    """Whether the process catches SIGTERM (``/proc/PID/status``, SigCgt): ``studies._entry`` has run.
+    Before it only the interpreter's own start-up runs (importing ``site``), where no Python code of
+    flexvib can handle a signal: the moments are counted from there."""
+    try:
+        fields = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines())
+    except (OSError, ValueError):
+        return False
+    return bool(int(fields.get("SigCgt", "0").strip(), 16) >> (signal.SIGTERM - 1) & 1)
+
+
+@pytest.fixture(scope="module")
+def duration(tmp_path_factory) -> float:
+    out = tmp_path_factory.mktemp("whole") / "run.h5"
+    start = time.perf_counter()
+    process = _start(out)
+    _, err = process.communicate(timeout=600)
+    assert process.returncode == 0, err
+    return time.perf_counter() - start
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("moment", range(12))
+def test_a_signal_at_any_moment_ends_the_run_with_130_and_one_line(moment, duration, tmp_path):
+    fraction = [0.01, 0.03, 0.06, 0.1, 0.2, 0.3, 0.45, 0.6, 0.75, 0.85, 0.93, 0.98][moment]
+    number = signal.SIGINT if moment % 2 == 0 else signal.SIGTERM
+    out = tmp_path / "run.h5"
+    process = _start(out)
+    start = time.perf_counter()
+    while not _handlers_installed(process.pid) and process.poll() is None:
+        time.sleep(0.005)
+    time.sleep(max(0.0, fraction * duration - (time.perf_counter() - start)))
+    if process.poll() is None:
+        if number == signal.SIGINT:
+            os.killpg(process.pid, number)   # a terminal's Ctrl-C: the whole foreground group
+        else:
+            process.send_signal(number)
+    _, err = process.communicate(timeout=600)
+    assert "Traceback" not in err and "internal error" not in err, err
+    if process.returncode == 0:   # the run had ended before the signal came
+        return
+    assert process.returncode == 130, (fraction, number, process.returncode, err)
+    lines = err.strip().splitlines()
+    assert lines and lines[-1].startswith("interrupted"), (fraction, err)
+    assert len(lines) == 1, err
+    # what it left resumes to a complete file
+    resumed = _start(out)
+    _, err = resumed.communicate(timeout=600)
+    assert resumed.returncode == 0, err
