@@ -473,14 +473,15 @@ def _headlines(result: SweepResult) -> Summary:
         return f"{result.parameter} {plain(result.values[index], 3)}{suffix}"
 
     # The headline response is the curve's highest peak (its largest local maximum: a resonance, not
-    # the last point before a threshold), at a point whose linear periodic solution is what the
-    # machine does (not failed, unstable or outside the linear range; a near_resonance or inaccurate
-    # point is a peak's own), with that point's status. The largest over all points is shown as
+    # the last point before a threshold), at a point with a periodic solution (not failed or
+    # unstable; a near_resonance, inaccurate or outside_linear_range point is a peak's own: a
+    # resonance peak is where the response is largest, and the status word says what it is worth),
+    # with that point's status. The largest over all points is shown as
     # well when it sits at a point that is not "ok", with that point's status.
     statuses = np.asarray(result.point_status)
     done = np.asarray(result.done, dtype=bool)
     trusted = done & (statuses == "ok")
-    reached = done & ~np.isin(statuses, ("failed", "unstable", "outside_linear_range"))
+    reached = done & ~np.isin(statuses, ("failed", "unstable"))
 
     def largest(name: str, values: Any, errors: Any, unit_of_values: str) -> list[Headline]:
         values = np.asarray(values, dtype=float)
