@@ -1,20 +1,23 @@
-"""Cold and warm start of the README's main job: ``flexvib run --out DIR/thesis.h5`` on the default
-scene (four_bar_ritz), each run a fresh process.
+"""Cold and warm start of the README's main job, ``flexvib run --out DIR/thesis.h5`` on the default
+scene (four_bar_ritz: steady state, sweep, Campbell diagram, nonlinear check), and of the same scene
+with its linear studies only (``--only steady_state --only sweep --only campbell``), each run a fresh
+process:
 
 - cold: an empty numba cache (``NUMBA_CACHE_DIR`` a new empty folder): every kernel compiles, as on a
-  fresh install (the issue's target: at most 20 s on the 2-core machine);
+  fresh install (the targets: at most 12 s for the main job, 8 s for the linear studies, on a 2-core
+  machine);
 - warm: the cache the cold run just filled.
 
 Wall times are what a user waits; CPU times (user + system of the job) are steadier on a shared
-machine.
+machine. This measures; no test times the cold start.
 
-With ``--baseline DIR`` (a checkout of the code before, e.g. ``git archive 41ad475 | tar -x -C
+With ``--baseline DIR`` (a checkout of the code before, e.g. ``git archive fe72604 | tar -x -C
 /tmp/base``) the same job of that code runs alternately with this one, round by round, and the
 ratios are printed: the machine is shared and noisy, so compare ratios and medians. Also printed:
 the ``compile_time`` file attribute (s) and the summary's steady-state run time, which must not
 include the compilation. Run:
 
-    .venv/bin/python benchmarks/bench_cold_start.py [--rounds 3] [--baseline /tmp/base]
+    .venv/bin/python benchmarks/bench_cold_start.py [--rounds 3] [--baseline /tmp/base] [--jobs main linear]
 """
 
 from __future__ import annotations
@@ -33,15 +36,19 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent.parent
 
 
-def run_job(source: Path, cache: Path, folder: Path) -> tuple[float, float, str]:
+#: The jobs: extra arguments of ``flexvib run --out DIR/thesis.h5 --quiet``.
+JOBS = {"main": [], "linear": ["--only", "steady_state", "--only", "sweep", "--only", "campbell"]}
+
+
+def run_job(source: Path, cache: Path, folder: Path, job: str = "main") -> tuple[float, float, str]:
     """Wall time (s), CPU time (s, user + system of the job and the processes it waited for) and
-    stdout of the main job with the code in ``source`` and numba cache ``cache``."""
+    stdout of ``job`` (a key of ``JOBS``) with the code in ``source`` and numba cache ``cache``."""
     out = folder / "thesis.h5"
     out.unlink(missing_ok=True)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(source))
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "studies.cli", "run", "--out", str(out), "--quiet"],
+    done = subprocess.run([sys.executable, "-m", "studies.cli", "run", "--out", str(out), "--quiet", *JOBS[job]],
                           cwd=folder, env=env, capture_output=True, text=True)
     elapsed = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -65,11 +72,11 @@ def steady_run_time(stdout: str) -> float:
     return float(found[-1]) if found else float("nan")
 
 
-def one_round(source: Path, scratch: Path) -> dict[str, float]:
+def one_round(source: Path, scratch: Path, job: str) -> dict[str, float]:
     cache = Path(tempfile.mkdtemp(prefix="empty-numba-cache-", dir=scratch))
-    cold, cold_cpu, cold_out = run_job(source, cache, scratch)
+    cold, cold_cpu, cold_out = run_job(source, cache, scratch, job)
     cold_compile = compile_time(scratch)
-    warm, warm_cpu, warm_out = run_job(source, cache, scratch)
+    warm, warm_cpu, warm_out = run_job(source, cache, scratch, job)
     return {"cold": cold, "warm": warm, "cold cpu": cold_cpu, "warm cpu": warm_cpu,
             "compile_time": cold_compile,
             "steady_state (cold)": steady_run_time(cold_out), "steady_state (warm)": steady_run_time(warm_out)}
@@ -79,27 +86,31 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--baseline", type=Path, help="source folder of the code to compare with")
+    parser.add_argument("--jobs", nargs="+", choices=sorted(JOBS), default=sorted(JOBS, reverse=True))
     args = parser.parse_args()
     sources = {"this": HERE} | ({"baseline": args.baseline.resolve()} if args.baseline else {})
-    rounds: dict[str, list[dict[str, float]]] = {name: [] for name in sources}
-    with tempfile.TemporaryDirectory(prefix="flexvib-cold-") as scratch:
-        for k in range(args.rounds):
-            for name, source in sources.items():  # alternately: both see the same load
-                rounds[name].append(one_round(source, Path(scratch)))
-                print(f"round {k + 1} {name}: " + ", ".join(f"{key} {value:.2f} s"
-                                                          for key, value in rounds[name][-1].items()),
-                      flush=True)
-    print()
-    print(f"median of {args.rounds} rounds (s):")
-    medians = {name: {key: statistics.median(r[key] for r in runs) for key in runs[0]}
-               for name, runs in rounds.items()}
-    for name, values in medians.items():
-        print(f"  {name:9s} " + ", ".join(f"{key} {value:.2f}" for key, value in values.items()))
-    for other in [name for name in sources if name != "this"]:
-        for key in ("cold", "warm", "cold cpu", "warm cpu"):
-            ratios = [a[key] / b[key] for a, b in zip(rounds["this"], rounds[other])]
-            print(f"  this / {other}, {key}: {statistics.median(ratios):.2f} "
-                  f"(rounds: {', '.join(f'{r:.2f}' for r in ratios)})")
+    print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the start", flush=True)
+    for job in args.jobs:
+        rounds: dict[str, list[dict[str, float]]] = {name: [] for name in sources}
+        with tempfile.TemporaryDirectory(prefix="flexvib-cold-") as scratch:
+            for k in range(args.rounds):
+                for name, source in sources.items():  # alternately: both see the same load
+                    rounds[name].append(one_round(source, Path(scratch), job))
+                    print(f"{job} round {k + 1} {name}: " + ", ".join(
+                        f"{key} {value:.2f} s" for key, value in rounds[name][-1].items())
+                        + f" (load average {os.getloadavg()[0]:.1f})", flush=True)
+        print()
+        print(f"{job}: median of {args.rounds} rounds (s):")
+        medians = {name: {key: statistics.median(r[key] for r in runs) for key in runs[0]}
+                   for name, runs in rounds.items()}
+        for name, values in medians.items():
+            print(f"  {name:9s} " + ", ".join(f"{key} {value:.2f}" for key, value in values.items()))
+        for other in [name for name in sources if name != "this"]:
+            for key in ("cold", "warm", "cold cpu", "warm cpu", "compile_time"):
+                ratios = [a[key] / b[key] for a, b in zip(rounds["this"], rounds[other])]
+                print(f"  this / {other}, {key}: {statistics.median(ratios):.2f} "
+                      f"(rounds: {', '.join(f'{r:.2f}' for r in ratios)})")
+        print()
 
 
 if __name__ == "__main__":

@@ -109,7 +109,9 @@ def constraint_terms_along(model, t, s, sdot=None, *, values: bool = False) -> C
 # ---------------------------------------------------------------------------------------------------
 # Kernels of the assembled model
 # ---------------------------------------------------------------------------------------------------
-@numba.njit(cache=True)
+# inline="always" on the helpers of a few lines: numba types them inside their callers instead of
+# compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
+@numba.njit(cache=True, inline="always")
 def _copy_matrix(source, target):
     """target[:, :] = source, as a loop: an array assigned to a slice would compile numba's
     shape-mismatch message (string formatting, seconds of the first run's compilation)."""
@@ -187,6 +189,19 @@ def constraint_terms_kernel(S, Sd, ct_int, ct_real, shp, idx, h_lin, J, gamma, p
             _kernels.constraints(S[k], ct_int, ct_real, shp, idx, phi[k])
 
 
+@numba.njit(cache=True, inline="always")
+def _max_abs(values):
+    """max |values| of a 1-D array (0 when empty, NaN when one is NaN: never a converged NaN), as
+    a loop: ``np.abs(values).max()`` compiles a temporary array's ufunc and numba's reduction, a
+    second of the first run's compilation."""
+    worst = 0.0
+    for value in values:
+        size = abs(value)
+        if size > worst or size != size:  # a NaN stays: no comparison passes it
+            worst = size
+    return worst
+
+
 @numba.njit(cache=True)
 def scaled_correction(corrected, predicted, rigid, column_scale):
     """How far Newton moved the rigid coordinates from the predictor:
@@ -212,9 +227,12 @@ def continue_positions_kernel(s, start, drive_rows, drive_angles, rigid, phi0, h
     phi = np.empty(r)
     jac = np.empty((r, n))
     jac_r = np.empty((r, n_rigid))
+    predicted = np.empty(n)
+    q = np.empty(n)
     for k in range(start, n_samples):
-        predicted = 3.0 * s[k - 1] - 3.0 * s[k - 2] + s[k - 3]
-        q = predicted.copy()
+        for j in range(n):  # loops, not array expressions: less to compile on the first run
+            predicted[j] = 3.0 * s[k - 1, j] - 3.0 * s[k - 2, j] + s[k - 3, j]
+            q[j] = predicted[j]
         converged = False
         for _ in range(max_iterations):
             # Phi = phi0 + h_lin s - drive angle (drive rows) + point-constraint terms.
@@ -226,7 +244,7 @@ def continue_positions_kernel(s, start, drive_rows, drive_angles, rigid, phi0, h
             for d in range(drive_rows.shape[0]):
                 phi[drive_rows[d]] -= drive_angles[k, d]
             _kernels.constraints(q, ct_int, ct_real, shp, idx, phi)
-            if np.abs(phi).max() < newton_stop:
+            if _max_abs(phi) < newton_stop:
                 converged = True
                 break
             _copy_matrix(h_lin, jac)

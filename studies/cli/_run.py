@@ -21,6 +21,9 @@ from . import _jit
 
 __all__ = ["RunInterrupted", "run_plan", "scene_identity"]
 
+#: Seconds before the run's bar over its studies appears (no bar for a run that takes less).
+PROGRESS_DELAY = 1.0
+
 logger = logging.getLogger(__name__)
 
 
@@ -123,9 +126,12 @@ def _run_studies(problem: Any, runs: list, file: ResultFile, *, executor: Any, p
     results, failures = {}, {}
     for name, _kind, options in runs:  # a grid group made by this run gets these attributes
         file.study_attrs[name] = {"request": canonical(options), "request_hash": digest(options)}
-    with progress_bar(runs, desc="studies", unit="study", enabled=progress and len(runs) > 1) as bar:
-        # An overall bar, since a study without grid points (steady state, nonlinear check,
-        # error against cost) has no bar of its own; grid studies nest theirs below it.
+    # An overall bar, since a study without grid points (steady state, nonlinear check, error
+    # against cost) has no bar of its own; grid studies nest theirs below it (a lone grid study
+    # needs none). It ticks, so its clock runs through a long study, and shows after a second.
+    overall = progress and (len(runs) > 1 or not any(kind.grid for _, kind, _ in runs))
+    with progress_bar(runs, desc="studies", unit="study", enabled=overall, ticking=True,
+                      delay=PROGRESS_DELAY) as bar:
         for name, kind, options in bar:
             bar.set_postfix_str(name)
             asked = file.study_attrs[name]
