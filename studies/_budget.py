@@ -165,8 +165,9 @@ def beside(status: str, found: tuple[str, str]) -> tuple[str, str]:
     return found
 
 
-def describe(budget: ErrorBudget, spec: str, unit: str = "") -> str:
-    """"total 1.4 mm (linearisation 1.36, time step 0.01, mesh not applicable)" of one-point results."""
+def describe(budget: ErrorBudget, spec: str, unit: str = "", *, terms: bool = True) -> str:
+    """"total 1.4 mm, mostly linearisation (linearisation 1.36, time step 0.01, mesh not applicable)" of
+    one-point results; without the parenthesis where ``terms`` is False (a narrow panel's title)."""
     from ._summary import DISPLAY_UNITS
 
     shown, factor = DISPLAY_UNITS.get(unit, (unit, 1.0))
@@ -181,7 +182,8 @@ def describe(budget: ErrorBudget, spec: str, unit: str = "") -> str:
             parts.append(f"{WORDS[name]} {factor * abs(float(value)):.2g}")
     total = budget.total(spec)
     total_words = "unknown" if not math.isfinite(total) else f"{factor * total:.2g}{suffix}"
-    return f"total {total_words}, mostly {WORDS.get(budget.dominant(spec), '-')} ({', '.join(parts)})"
+    words = f"total {total_words}, mostly {WORDS.get(budget.dominant(spec), '-')}"
+    return f"{words} ({', '.join(parts)})" if terms else words
 
 
 #: The terms of a spectral radius (a stability chart's cell, a Campbell diagram's speed) besides its

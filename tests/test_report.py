@@ -99,7 +99,7 @@ def _headline_numbers(results):
     best = int(np.nanargmax(sweep.peak_to_peak["x"]))
     lower = sweep.spectral_radius - sweep.spectral_radius_error
     assert steady.units["x"] == "m"
-    return [f"{plain(1e3 * ptp, 3)} mm", f"± {plain(2e3 * steady.response_error['x'])} mm",
+    return [f"{plain(1e3 * ptp, 3)} mm", f"± {plain(1e3 * steady.peak_to_peak_error['x'])} mm",
             f"{plain(steady.spectral_radius, 3)}", f"{plain(1e3 * sweep.peak_to_peak['x'][best], 3)} mm at speed "
             f"{plain(sweep.values[best], 3)} rad/s",
             *(f"{plain(a, 3)}–{plain(b, 3)}" for a, b in sweep.instabilities),

@@ -127,6 +127,11 @@ def test_a_sweep_builds_the_scene_once_and_never_rewrites_it(monkeypatch):
     assert [c for c in calls if c != "to_spec"] == ["to_toml"] and calls.count("to_spec") <= 1
     calls.clear()
     studies.sweep(problem, "speed", np.linspace(60.0, 150.0, 10), n_steps=16)
+    # the error budget's mesh term refines the coupler at the scene's point, once a process (the Ritz
+    # coupler declares no order: three levels, two refined scenes), kept for the process
+    assert "loads" not in calls and calls.count("build") == 2, calls
+    calls.clear()
+    studies.sweep(problem, "speed", np.linspace(60.0, 150.0, 20), n_steps=16)
     assert calls == []
     thickness = np.linspace(1.2e-3, 2.0e-3, 5)
     sweep = studies.sweep(problem, "links.coupler.thickness", thickness, n_steps=16)

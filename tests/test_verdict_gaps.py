@@ -115,7 +115,10 @@ def test_four_bar_sweep_headline_is_the_3_to_1_resonance_peak(fem4):
     peak = rows[f"{spec} peak to peak, highest peak"]
     three_to_one = [value for k, mode, value in sweep.resonances if (k, mode) == (3, 0)]
     speed = float(peak.where.split("speed ")[1].split(" rad/s")[0])
-    assert three_to_one and abs(speed - three_to_one[0]) < 5.0 and peak.where.endswith(": ok")
+    assert three_to_one and abs(speed - three_to_one[0]) < 5.0
+    # with that point's own status (the error budget makes this one inaccurate: the linearisation)
+    at = int(np.argmin(np.abs(np.asarray(sweep.values) - speed)))
+    assert peak.where.endswith(f": {sweep.point_status[at]}")
     ok = np.asarray(sweep.point_status) == "ok"
     values = np.asarray(sweep.peak_to_peak[spec])
     assert np.nanmax(np.where(ok, values, np.nan)) > peak.value   # the old headline was larger and wrong

@@ -115,8 +115,14 @@ def choose_model(problem: Any, values: Mapping[str, float] | None, modes: Any) -
         if check.status == "ok" or modes != AUTO:
             break
         count += MODES_STEP
-    reduced = type(problem).from_mechanism(candidate, parameter_paths=getattr(problem, "parameter_paths", ()),
-                                           observables=problem.observable_specs)
+    # the reduced mechanism carries the values already (it is evaluated at the speed alone); the scene's
+    # parameter paths are kept where its written spec still has them (a section written as its
+    # thickness becomes area and second moment, a damping ratio Rayleigh's alpha and beta)
+    paths = tuple(getattr(problem, "parameter_paths", ()))
+    try:
+        reduced = type(problem).from_mechanism(candidate, parameter_paths=paths, observables=problem.observable_specs)
+    except StudiesError:
+        reduced = type(problem).from_mechanism(candidate, observables=problem.observable_specs)
     error = {spec: SAFETY * value for spec, value in check.difference.items()}
     return ModelChoice(reduced, {"speed": parameters["speed"]} if "speed" in parameters else None, chosen,
                        error, SAFETY * float(check.error),

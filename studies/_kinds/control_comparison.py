@@ -208,8 +208,9 @@ class ControlComparison(DerivedPeaks, StudyResult):
             words = [f"{case} {'control' if case == 'with' else 'feedback'}: peak "
                      f"{quantity(self.steady_peak[case].get(name, float('nan')), self.units[name])}, "
                      f"settles {_settle_words(self, case, name)}" for case in CASES]
-            words += [f"error with control {describe(ErrorBudget(self.error_budget), name, self.units[name])}"
-                      ] if name in self.error_budget else []
+            if name in self.error_budget:
+                budget_words = describe(ErrorBudget(self.error_budget), name, self.units[name], terms=False)
+                words.append(f"error with control {budget_words}")
             # one line per case: the legend on the right narrows the axes, and the title with them
             ax.set_title(f"{name}\n" + "\n".join(words), fontsize="small")
             legend_outside(ax)

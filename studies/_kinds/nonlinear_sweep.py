@@ -5,6 +5,7 @@ response curves side by side."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -281,6 +282,11 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
     given, modes = problem, check_modes(modes)
     choice = (choose_model(problem, dict(fixed, **{parameter: start}), modes)
               if getattr(problem, "supports_nonlinear", False) else None)
+    if choice is not None and choice.modes and parameter != SPEED and parameter not in choice.problem.parameters:
+        # the swept value is no parameter of the reduced scene (its spec writes the section, the
+        # damping in other terms): the full element models, said in the message
+        choice = dataclasses.replace(choice, problem=problem, values=values, modes={}, error={}, message=(
+            f"full element models: {parameter!r} is not a parameter of the reduced scene"))
     if choice is not None and choice.modes:
         # the reduced mechanism carries the fixed values; the speed stays a value of each point
         problem, fixed = choice.problem, {k: v for k, v in fixed.items() if k == SPEED}

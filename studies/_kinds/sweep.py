@@ -473,20 +473,25 @@ def _headlines(result: SweepResult) -> Summary:
         return f"{result.parameter} {plain(result.values[index], 3)}{suffix}"
 
     # The headline response is the curve's highest peak (its largest local maximum: a resonance, not
-    # the last point before a threshold), at a point with a periodic solution (not failed or
-    # unstable; a near_resonance, inaccurate or outside_linear_range point is a peak's own: a
-    # resonance peak is where the response is largest, and the status word says what it is worth),
-    # with that point's status. The largest over all points is shown as
-    # well when it sits at a point that is not "ok", with that point's status.
+    # the last point before a threshold), at a point whose linear periodic solution is what the
+    # machine does (not failed, unstable or outside the linear range; a near_resonance or inaccurate
+    # point is a peak's own), with that point's status. A higher peak at a point outside the linear
+    # range (a resonance just past a limit) is shown beside it with its status, and the largest over
+    # all points when it sits at a point that is not "ok".
     statuses = np.asarray(result.point_status)
     done = np.asarray(result.done, dtype=bool)
     trusted = done & (statuses == "ok")
-    reached = done & ~np.isin(statuses, ("failed", "unstable"))
+    reached = done & ~np.isin(statuses, ("failed", "unstable", "outside_linear_range"))
+    periodic = done & ~np.isin(statuses, ("failed", "unstable"))
 
     def largest(name: str, values: Any, errors: Any, unit_of_values: str) -> list[Headline]:
         values = np.asarray(values, dtype=float)
         rows = [highest_peak(f"{name}, highest peak", values, errors, unit_of_values, reached, statuses,
                              point)]
+        beyond = highest_peak(f"{name}, highest peak outside the linear range", values, errors, unit_of_values,
+                              periodic, statuses, point)
+        if np.isfinite(beyond.value) and not beyond.value <= rows[0].value and "no interior" not in beyond.where:
+            rows.append(beyond)
         if np.isfinite(values).any():
             index = np.unravel_index(np.nanargmax(values), values.shape)
             if not trusted[index]:
