@@ -187,11 +187,11 @@ class CampbellResult(NoObservables, GridResult):
         if self.characteristic_error is not None:
             shown = np.asarray(self.characteristic) <= ax.get_ylim()[1]
             error = largest(np.where(shown, self.characteristic_error, np.nan))
-        above = "" if not hidden else f" ({', '.join(hidden)} above the range shown)" if len(hidden) < 3 \
-            else f" ({hidden[0]} to {hidden[-1].removeprefix('mode ')} above the range shown)"
+        above = "" if not hidden else f"\n({', '.join(hidden)} above the range shown)" if len(hidden) < 3 \
+            else f"\n({hidden[0]} to {hidden[-1].removeprefix('mode ')} above the range shown)"
         ax.set_title(f"{self.problem}: Campbell diagram, speeds {speeds[0]:.4g}–{speeds[-1]:.4g} "
-                     f"rad/s{above}\nFloquet characteristic frequencies drawn: error up to {plain(error)} "
-                     f"rad/s\n" + cost_line("time step alone (mesh not estimated)", self.run_time)
+                     f"rad/s{above}\n" + cost_line(f"frequencies' time-step error up to {plain(error)} rad/s "
+                                                 f"(mesh: not estimated)", self.run_time)
                      + self.reduction_note(), fontsize="small")
         return drawn(axes, artists)
 
