@@ -301,7 +301,10 @@ def _start(problem, values, start, steps_at_start, start_state):
         return linear, lin.nominal.s[0], lin.nominal.sdot[0], None, "rest", []
     verdicts = []
     if start_state == "nonlinear":
-        orbit = nonlinear_steady_state(problem, point, n_steps=steps_at_start)
+        # the full element models, the model the run integrates: a state of a reduced model is not
+        # a state of the run's (other coordinates), and the run's reduction error through a range of
+        # speeds and resonances is not what the reduction check at one steady state measures
+        orbit = nonlinear_steady_state(problem, point, n_steps=steps_at_start, modes="full")
         if orbit.status != "failed":
             period_map = mechanisms.PeriodMap(lin.mechanism, n_steps=steps_at_start,
                                               independent=lin.coefficients.independent, nominal=lin.nominal)
@@ -341,8 +344,8 @@ def _steady_curve(problem, values, speeds, specs, n_steps, nonlinear):
         for k, spec in enumerate(specs):
             ptp[spec][i] = float(np.ptp(steady.response[:, k]))
             error[spec][i] = 2.0 * float(steady.response_error[k])
-        if nonlinear:
-            orbit = nonlinear_steady_state(problem, point, n_steps=n_steps)
+        if nonlinear:   # on the run's (full) model, as the start: the curve is the run's steady limit
+            orbit = nonlinear_steady_state(problem, point, n_steps=n_steps, modes="full")
             if orbit.status != "failed":
                 for spec in specs:
                     nl[spec][i] = orbit.peak_to_peak[spec]
@@ -393,6 +396,13 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     checks that it is in the asymptotic range (else ``inaccurate``). ``curve_points`` linear steady
     states (``curve_steps`` steps each) between the speeds give the steady curve
     (``nonlinear_curve``: the nonlinear periodic states too).
+
+    The run, its start and its nonlinear curve are all on the scene's full element models (the
+    nonlinear periodic states with ``modes = "full"``, not ``nonlinear_steady_state``'s default
+    reduction): the start must be a state of the model the run integrates, and the reduction check
+    (linear steady states at one speed) does not bound a reduced model's error along a ramp through
+    resonances. The run dominates the cost (``duration / dt`` steps, three times with the error
+    estimate, against a few periods of shooting), so the full start costs little more.
 
     Observables are those of the problem that are functions of the coordinates (deflections, strains,
     moments, angles); the drive torque is reported as its own time series. A run that fails gives
@@ -497,7 +507,8 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
         run_verdict = ("ok", "")
     status, message = combine([run_verdict] + verdicts)
     words = (f"{'run-up' if stop > start else 'run-down'} {start:g} -> {stop:g} rad/s in {duration:g} s, "
-             f"{n_rev} revolutions, dt = {dt:.3g} s ({dt_reason}), from the {start_words}")
+             f"{n_rev} revolutions, dt = {dt:.3g} s ({dt_reason}), from the {start_words}; on the full "
+             f"element models (modes = 'full', the start and the nonlinear curve too)")
     if left_out:
         words += f"; left out (not functions of the coordinates): {', '.join(left_out)}"
     return RunUp(
