@@ -47,6 +47,7 @@ def test_info_prints_rounded_numbers_with_units(mathieu_file, capsys):
         assert len(digits) <= 4, number                     # no 99.99999999999999
     assert not re.search(r"\(\d+[,)].* 1$", out, re.M)      # no "(45,) 1": dimensionless in words
     assert "dimensionless" in out
+    assert "point_digest" not in out and "point_outputs" not in out   # the checksums: bookkeeping
     assert re.search(r"run_time: [\d.]+ s$", out, re.M)
     assert re.search(r"spectral_radius: \d+(\.\d+)?, dimensionless", out) or "spectral_radius: " in out
 
