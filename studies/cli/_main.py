@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
-from .._errors import UsageError, input_errors, is_numerical_failure
+from .._errors import UsageError, input_errors, interruption, is_numerical_failure
 from ._scene import MATHIEU, ScenePlan, parse_set
 
 __all__ = ["UsageError", "load_scene", "main"]
@@ -181,6 +181,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except Exception as error:
+        interrupt = interruption(error)   # e.g. a lazy import cut by the signal: ImportError from it
+        if interrupt is not None:
+            print(getattr(interrupt, "line", "interrupted: nothing was saved"), file=sys.stderr)
+            return 130
         return _report(error)
     finally:
         sys.unraisablehook = hook
