@@ -4,7 +4,9 @@ then the heavy imports and the command.
 SIGINT (Ctrl-C) and SIGTERM raise ``KeyboardInterrupt`` from the first line of the process that
 Python runs of flexvib, before numpy, scipy and numba are imported (``studies/__init__.py`` is light,
 ``studies._face`` the heavy face), so a signal at any moment of a run ends it with exit code 130 and
-one line: what was saved (``studies.cli._run.RunInterrupted``) or that nothing was. After the command
+one line: what was saved (``studies.cli._run.RunInterrupted``) or that nothing was; an interrupt that
+arrives wrapped (an extension module's import cut by it raises ``ImportError`` from it:
+``studies._errors.interruption``) too. After the command
 has returned, the process ends at once (``os._exit``), and a signal before that with 130 too.
 Only the interpreter's own start-up (before this module runs, some tens of milliseconds) keeps the
 default handlers."""
@@ -15,6 +17,8 @@ import os
 import signal
 import sys
 
+from studies._errors import interruption  # light: no numpy
+
 #: What ``flexvib`` prints when it is interrupted before a run has saved anything.
 NOTHING_SAVED = "interrupted: nothing was saved"
 #: The exit code of an interrupted command (128 + SIGINT, as shells report Ctrl-C).
@@ -23,6 +27,7 @@ INTERRUPTED = 130
 
 def _interrupt(signum: int, frame) -> None:
     raise KeyboardInterrupt(signal.Signals(signum).name)
+
 
 
 def _exit_now(signum: int, frame) -> None:
@@ -38,21 +43,28 @@ def _exit_now(signum: int, frame) -> None:
 def run(argv=None) -> int:
     """Run ``flexvib`` (``studies.cli.main``) with SIGINT and SIGTERM handled from the start; returns
     the exit code (130 when interrupted). From its return on, a signal ends the process at once."""
-    for number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(number, _interrupt)
     try:
         try:
+            for number in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(number, _interrupt)
             from studies.cli import main as command  # numpy, scipy, numba, the study kinds
 
             code = command(argv)
-        except KeyboardInterrupt as interrupt:
-            # raised during the imports, or during the command outside its own handling
+        except BaseException as error:
+            # raised during the imports (an extension module's import cut by a signal raises
+            # ImportError from it), or during the command outside its own handling
+            interrupt = interruption(error)
+            if interrupt is None:
+                raise
             print(getattr(interrupt, "line", NOTHING_SAVED), file=sys.stderr)
             code = INTERRUPTED
     except KeyboardInterrupt:   # a second signal while the first was being reported
         code = INTERRUPTED
-    for number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(number, _exit_now)
+    try:
+        for number in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(number, _exit_now)
+    except KeyboardInterrupt:   # a signal as the command returned, before _exit_now took over
+        _exit_now(signal.SIGINT, None)
     return code
 
 

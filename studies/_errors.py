@@ -46,3 +46,17 @@ def is_numerical_failure(error: BaseException) -> bool:
     subclass ``RuntimeError`` but are bugs."""
     return (isinstance(error, numerical_failures())
             and not isinstance(error, (NotImplementedError, RecursionError)))
+
+
+def interruption(error: BaseException | None) -> KeyboardInterrupt | None:
+    """The ``KeyboardInterrupt`` (a signal) that ``error`` is, or was raised from or while handling
+    (None: not an interrupt). A signal during the initialisation of an extension module does not
+    arrive as itself: pybind11's modules (scipy's HiGHS, imported with ``scipy.optimize``) turn it
+    into ``ImportError("initialization failed")`` raised from it."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, KeyboardInterrupt):
+            return error
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return None

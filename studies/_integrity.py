@@ -29,15 +29,20 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
-__all__ = ["DIGEST", "POINT_DIGEST", "POINT_MARK", "POINT_OUTPUTS", "Check", "check_group", "check_root",
-           "dataset_layout", "forget_points", "open_study", "point_digest", "points_resumable", "seal", "seal_points",
-           "seal_root"]
+__all__ = ["BOOKKEEPING_ATTRS", "BOOKKEEPING_DATASETS", "DIGEST", "POINT_DIGEST", "POINT_MARK", "POINT_OUTPUTS",
+           "Check", "check_group", "check_root", "dataset_layout", "forget_points", "open_study", "point_digest",
+           "points_resumable", "seal", "seal_points", "seal_root"]
 
 #: The attribute of a group (and of the file) holding its digest.
 DIGEST = "digest"
 #: The dataset of a grid study's per-point digests, and the attribute naming its point outputs.
 POINT_DIGEST = "point_digest"
 POINT_OUTPUTS = "point_outputs"
+#: A study group's integrity bookkeeping, not results: the attributes and datasets that ``flexvib
+#: info`` and anything listing a study's fields from its group leave out (tables and ``flexvib
+#: export`` are made from the result's fields, which never include them).
+BOOKKEEPING_ATTRS = (DIGEST, POINT_OUTPUTS)
+BOOKKEEPING_DATASETS = (POINT_DIGEST,)
 #: The datasets every grid study writes point by point (``studies._grid.GridStore``).
 POINT_FIXED = ("done", "status", "message", "point_run_time", POINT_DIGEST)
 #: The attribute marking an output dataset made point by point (``studies._grid.GridStore``); a

@@ -15,6 +15,7 @@ import mechanisms
 import studies
 from studies import _budget as budget  # the budget's words are internal to the studies (tested here)
 from studies import _cost as cost  # the guard's cost model's parts (tested here)
+from tests._support.older_files import as_format_2
 
 TOLERANCE = 0.02
 
@@ -113,9 +114,10 @@ def test_the_comparison_budget_round_trips(comparison, tmp_path):
     back = studies.load(path)["control_comparison"]
     assert {k: dict(v) for k, v in back.error_budget.items()} == \
         {k: dict(v) for k, v in comparison.error_budget.items()}
-    with h5py.File(path, "a") as handle:   # as a file written before the budget
+    with h5py.File(path, "a") as handle:   # as a file written before the budget: format 2, no checksums
         for name in ("error_budget", "error_methods"):
             del handle["control_comparison"].attrs[name]
+        as_format_2(handle, "control_comparison")
     old = studies.load(path)["control_comparison"]
     assert old.error_budget == {}
 
@@ -154,9 +156,10 @@ def test_a_periodic_problem_optimum_has_the_time_step_alone(tmp_path):
     found.save(path)
     back = studies.load(path)["optimize"]
     assert dict(back.error_budget["x"]) == dict(terms) and back.objective_error == found.objective_error
-    with h5py.File(path, "a") as handle:   # as a file written before the budget
+    with h5py.File(path, "a") as handle:   # as a file written before the budget: format 2, no checksums
         for name in ("error_budget", "error_methods"):
             del handle["optimize"].attrs[name]
+        as_format_2(handle, "optimize")
     old = studies.load(path)["optimize"]
     assert old.error_budget["x"]["time_step"] == found.objective_error
     assert math.isnan(old.error_budget["x"]["linearisation"]) and "format 2" in old.error_methods["mesh"]

@@ -78,3 +78,55 @@ def test_a_signal_at_any_moment_ends_the_run_with_130_and_one_line(moment, durat
     resumed = _start(out)
     _, err = resumed.communicate(timeout=600)
     assert resumed.returncode == 0, err
+
+
+# ---------------------------------------------------------------------------------------------------
+# the window the moments above found by chance: a signal inside an extension module's import
+# ---------------------------------------------------------------------------------------------------
+_CUT_IMPORT = """
+import sys
+
+class CutBySignal:
+    '''An import cut by a signal as a pybind11 module's initialisation reports it (scipy's HiGHS,
+    imported with scipy.optimize): ImportError("initialization failed") raised from the interrupt.'''
+    def find_spec(self, name, path=None, target=None):
+        if name == "scipy.optimize":
+            try:
+                raise KeyboardInterrupt("SIGINT")
+            except KeyboardInterrupt as interrupt:
+                raise ImportError("initialization failed") from interrupt
+        return None
+
+sys.meta_path.insert(0, CutBySignal())
+from studies._entry import run
+sys.exit(run(sys.argv[1:]))
+"""
+
+
+def test_a_signal_inside_an_extension_module_s_import_ends_with_130_and_one_line(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    process = subprocess.run([sys.executable, "-c", _CUT_IMPORT, "run", "mathieu", "--out", str(tmp_path / "r.h5"),
+                              "--quiet", *ONLY], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert process.returncode == 130, process.stderr
+    assert process.stderr.strip().splitlines() == ["interrupted: nothing was saved"], process.stderr
+
+
+def _cut_by_signal(*args, **kwargs):
+    try:
+        raise KeyboardInterrupt("SIGTERM")
+    except KeyboardInterrupt as interrupt:
+        raise ImportError("initialization failed") from interrupt
+
+
+def test_a_lazy_import_cut_by_a_signal_in_a_command_or_a_run_ends_with_130_and_one_line(tmp_path, monkeypatch,
+                                                                                         capsys):
+    from studies.cli import _main, _run, main  # the command's handlers and the run's loop: no public face
+
+    monkeypatch.setattr(_main, "_info", _cut_by_signal)
+    assert main(["info", str(tmp_path / "none.h5")]) == 130
+    assert capsys.readouterr().err.strip().splitlines() == ["interrupted: nothing was saved"]
+    monkeypatch.setattr(_run, "_run_studies", _cut_by_signal)
+    out = tmp_path / "run.h5"
+    assert main(["run", "mathieu", "--out", str(out), "--quiet", *ONLY]) == 130
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("interrupted: 0 of ") and str(out) in lines[0], lines

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
-from .._errors import UsageError, input_errors, is_numerical_failure
+from .._errors import UsageError, input_errors, interruption, is_numerical_failure
 from ._scene import MATHIEU, ScenePlan, parse_set
 
 __all__ = ["UsageError", "load_scene", "main"]
@@ -181,6 +181,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except Exception as error:
+        interrupt = interruption(error)   # e.g. a lazy import cut by the signal: ImportError from it
+        if interrupt is not None:
+            print(getattr(interrupt, "line", "interrupted: nothing was saved"), file=sys.stderr)
+            return 130
         return _report(error)
     finally:
         sys.unraisablehook = hook
@@ -476,9 +480,10 @@ def _report_command(args: argparse.Namespace) -> int:
     return 0
 
 
-#: Study attributes ``flexvib info`` does not print: shown in its header line, or bulky and internal.
+#: Study attributes ``flexvib info`` does not print: shown in its header line, or bulky and internal
+#: (and the checksums' bookkeeping, ``studies._integrity.BOOKKEEPING_ATTRS``).
 _INFO_HIDDEN = ("kind", "format_version", "problem", "complete", "request", "request_hash", "settings_hash", "scene",
-                "outlines", "labels", "mode_labels", "digest", "point_outputs")
+                "outlines", "labels", "mode_labels")
 
 
 def _info(args: argparse.Namespace) -> int:
@@ -559,6 +564,7 @@ def _info(args: argparse.Namespace) -> int:
 
 def _print_study(item: Any, attrs: dict[str, Any], status_counts: Any) -> None:
     """The points done, statuses, headline attributes and datasets of one study for ``info``."""
+    from .._integrity import BOOKKEEPING_ATTRS, BOOKKEEPING_DATASETS
     from ._info import dataset as dataset_line
     from ._info import formatted
 
@@ -574,9 +580,11 @@ def _print_study(item: Any, attrs: dict[str, Any], status_counts: Any) -> None:
     for key, value in attrs.items():
         if key == "settings" and isinstance(value, dict):  # the scene text is in the file
             value = {k: v for k, v in value.items() if k != "scene"}
-        if key not in _INFO_HIDDEN and value not in ("", None, {}, []):
+        if key not in _INFO_HIDDEN and key not in BOOKKEEPING_ATTRS and value not in ("", None, {}, []):
             print(f"  {key}: {formatted(key, value, units)}")
     for key, dataset in item.items():
+        if key in BOOKKEEPING_DATASETS:   # the checksums: verified above, not a field of the study
+            continue
         if hasattr(dataset, "shape"):
             print(f"  {key}: {dataset_line(dataset.shape, str(dataset.attrs.get('units', '')))}")
         else:

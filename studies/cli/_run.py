@@ -11,7 +11,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .._errors import is_numerical_failure
+from .._errors import interruption, is_numerical_failure
 from .._identity import canonical, differing_paths, digest, scene_identity
 from .._integrity import check_group, forget_points, open_study, points_resumable, seal
 from .._kind import kind_named
@@ -74,6 +74,10 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
                     file.handle.attrs["compile_time"] = earlier + compile_time
             return outcome
     except KeyboardInterrupt:
+        raise RunInterrupted(*_points_saved(path, runs), str(path)) from None
+    except Exception as error:
+        if interruption(error) is None:   # a lazy import cut by the signal raises ImportError from it
+            raise
         raise RunInterrupted(*_points_saved(path, runs), str(path)) from None
 
 
