@@ -197,18 +197,31 @@ RADIUS_METHODS = {
                      "small vibrations about the nominal motion"}
 
 
-def radius_verdict(radius: float, error: float, tolerance: float) -> tuple[str, str]:
-    """``(status, message)`` of one spectral radius by its budget (time step ``error``; mesh not
-    estimated, linearisation not applicable): ``inaccurate`` where the error exceeds ``tolerance *
-    radius`` or is unknown."""
-    budget = ErrorBudget({"spectral_radius": {"time_step": float(error), **RADIUS_TERMS}})
+def radius_mesh_words(term: Any) -> str:
+    """The mesh term of a radius in a short phrase: its largest value, or its words (None: a result
+    written before the term, not estimated)."""
+    if term is None:
+        return NOT_ESTIMATED
+    if isinstance(term, str):
+        return term
+    finite = np.asarray(term, dtype=float)[np.isfinite(np.asarray(term, dtype=float))]
+    return f"up to {finite.max():.2g}" if finite.size else "unknown"
+
+
+def radius_verdict(radius: float, error: float, tolerance: float, mesh: Any = NOT_ESTIMATED) -> tuple[str, str]:
+    """``(status, message)`` of one spectral radius by its budget (time step ``error``, ``mesh`` its
+    mesh term or words, linearisation not applicable): ``inaccurate`` where the total exceeds
+    ``tolerance * radius`` or is unknown."""
+    terms = {**RADIUS_TERMS, "mesh": mesh if isinstance(mesh, str) else float(mesh)}
+    budget = ErrorBudget({"spectral_radius": {"time_step": float(error), **terms}})
     return verdict(budget, {"spectral_radius": float(radius)}, tolerance, quantity="spectral radius")
 
 
-def radius_budget(error: Any) -> dict[str, dict[str, Any]]:
+def radius_budget(error: Any, mesh: Any = None) -> dict[str, dict[str, Any]]:
     """{"spectral_radius": {term: value}}: the budget of a grid's spectral radius from its time-step
-    error (an array of the grid's shape)."""
-    return {"spectral_radius": {"time_step": error, **RADIUS_TERMS}}
+    error and its mesh term (arrays of the grid's shape; ``mesh`` None: not estimated, a result
+    written before the term)."""
+    return {"spectral_radius": {"time_step": error, **RADIUS_TERMS, **({} if mesh is None else {"mesh": mesh})}}
 
 
 # ---------------------------------------------------------------------------------------------------

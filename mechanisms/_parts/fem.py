@@ -34,7 +34,7 @@ MODES_LIMIT = "more modes than an Euler-Bernoulli beam describes"
 #: 2.0-3.0 for the strain (docs/methods.md, the mesh term).
 ELEMENT_ORDERS = {"": 4, "deflection": 4, "transverse": 4, "angle": 4, "point_error_x": 4,
                   "point_error_y": 4, "point_error": 4, "moment": 2, "strain": 1,
-                  "stress_top": 1, "stress_bottom": 1}
+                  "stress_top": 1, "stress_bottom": 1, "multipliers": 4}
 
 
 @register_discretisation
