@@ -402,8 +402,11 @@ def _cost(name, problem, options, workers, done=None):
                       point_doubles=lambda s: (frozen + s.m + 8.0) * s.m,
                       words=[cost.axis_words(*axis), f"{frozen} frozen samples"])
     # the radius's mesh term at three headline speeds (studies._mesh_error.grid_radius_mesh)
-    for _ in range(3):
-        found = cost.with_mesh_term(found, problem, {}, options["n_steps"], held=found.memory)
+    # (after the grid: its points' linearisations released; none where every point is saved, a
+    # complete study's fixed cost covering the three refined solves)
+    if done is None or np.shape(done) != (len(options["speeds"]),) or not np.asarray(done).all():
+        for _ in range(3):
+            found = cost.with_mesh_term(found, problem, {}, options["n_steps"])
     return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 

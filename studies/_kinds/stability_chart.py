@@ -293,8 +293,12 @@ def _cost(name, problem, options, workers, done=None):
     found = cost.grid_cost(name, problem, axes, options["n_steps"], workers=workers, done=done,
                       point_doubles=lambda s: 4.0 * s.m + 4.0, words=[cost.axis_words(*axis) for axis in axes])
     # the radius's mesh term at three headline points (studies._mesh_error.grid_radius_mesh)
-    for _ in range(3):
-        found = cost.with_mesh_term(found, problem, {}, options["n_steps"], held=found.memory)
+    # (after the grid: its points' linearisations released; none where every point is saved, a
+    # complete study's fixed cost covering the three refined solves)
+    shape = (len(options["first"][1]), len(options["second"][1]))
+    if done is None or np.shape(done) != shape or not np.asarray(done).all():
+        for _ in range(3):
+            found = cost.with_mesh_term(found, problem, {}, options["n_steps"])
     return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 
