@@ -240,7 +240,7 @@ def grid_radius_mesh(problem: Any, fields: dict[str, np.ndarray], points: Sequen
         near = np.unravel_index(int(np.nanargmin(np.abs(flat - 1.0))), flat.shape)
         headline["the largest radius"] = (by_index[tuple(top)], float(radius[top]))
         headline["the radius nearest 1"] = (by_index[tuple(near)], float(radius[near]))
-    relative, found, method = math.nan, [], ""
+    shares, found, method = [], [], ""
     for words, (values, known) in headline.items():
         estimate = radius_mesh_error(problem, values, n_steps=n_steps, scheme=scheme, radius=known)
         if not estimate.applicable:
@@ -248,7 +248,9 @@ def grid_radius_mesh(problem: Any, fields: dict[str, np.ndarray], points: Sequen
         method = estimate.method
         share = estimate.error / max(abs(estimate.radius), 1e-300)
         found.append(f"{words} {100 * share:.2g} %")
-        relative = share if math.isnan(relative) or not share <= relative else relative
+        shares.append(share)
+    # an unknown share leaves the term unknown (its cells inaccurate: not trustworthy), never the others'
+    relative = math.nan if any(math.isnan(share) for share in shares) else max(shares)
     mesh = relative * np.abs(radius)
     # fixed-width str arrays would cut a longer message: judged as objects, stored back as str
     status_of, message_of = (np.asarray(fields[key]).astype(object) for key in ("point_status", "point_message"))
