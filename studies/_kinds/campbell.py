@@ -18,12 +18,12 @@ from .._budget import (
     NOT_ESTIMATED,
     RADIUS_METHODS,
     check_tolerance,
+    grid_radius_mesh,
     radius_budget,
     radius_mesh_words,
     radius_verdict,
 )
 from .._kind import StudyKind, register_kind
-from .._mesh_error import grid_radius_mesh
 from .._numerics import (
     DEFAULT_SCHEME,
     characteristic_frequencies,
@@ -91,7 +91,7 @@ class CampbellResult(NoObservables, GridResult):
     spectral_radius, spectral_radius_error : ndarray, (n,), 1
         The spectral radius at each speed and its estimated error.
     spectral_radius_mesh_error : ndarray, (n,), 1, or None
-        The radius's mesh term (``studies._mesh_error.grid_radius_mesh``: the headline speeds'
+        The radius's mesh term (``studies._budget.grid_radius_mesh``: the headline speeds'
         relative error applied to every speed); None without elastic links, or in a file written
         before the term.
     is_stable : ndarray of bool, (n,)
@@ -401,7 +401,7 @@ def _cost(name, problem, options, workers, done=None):
     found = cost.grid_cost(name, problem, [axis], options["n_steps"], frozen=frozen, workers=workers, done=done,
                       point_doubles=lambda s: (frozen + s.m + 8.0) * s.m,
                       words=[cost.axis_words(*axis), f"{frozen} frozen samples"])
-    # the radius's mesh term at three headline speeds (studies._mesh_error.grid_radius_mesh)
+    # the radius's mesh term at three headline speeds (studies._budget.grid_radius_mesh)
     # (after the grid: its points' linearisations released; none where every point is saved, a
     # complete study's fixed cost covering the three refined solves)
     if done is None or np.shape(done) != (len(options["speeds"]),) or not np.asarray(done).all():

@@ -17,12 +17,12 @@ from .._budget import (
     NOT_APPLICABLE,
     RADIUS_METHODS,
     check_tolerance,
+    grid_radius_mesh,
     radius_budget,
     radius_mesh_words,
     radius_verdict,
 )
 from .._kind import StudyKind, register_kind
-from .._mesh_error import grid_radius_mesh
 from .._numerics import DEFAULT_SCHEME, study_scheme
 from .._plots import Plot, axes_for, cost_line, drawn, label, largest, legend_outside, mark_statuses, plain, radius_norm
 from .._result import NoObservables
@@ -73,7 +73,7 @@ class StabilityChart(NoObservables, GridResult):
     spectral_radius, spectral_radius_error : ndarray, (n1, n2), 1
         The spectral radius of each cell and its estimated error (N against N/2 steps).
     spectral_radius_mesh_error : ndarray, (n1, n2), 1, or None
-        The radius's mesh term (``studies._mesh_error.grid_radius_mesh``: the headline points'
+        The radius's mesh term (``studies._budget.grid_radius_mesh``: the headline points'
         relative error applied to every cell); None without elastic links, or in a file written
         before the term.
     is_stable : ndarray of bool, (n1, n2)
@@ -292,7 +292,7 @@ def _cost(name, problem, options, workers, done=None):
     axes = [(parameter, np.asarray(grid)) for parameter, grid in (options["first"], options["second"])]
     found = cost.grid_cost(name, problem, axes, options["n_steps"], workers=workers, done=done,
                       point_doubles=lambda s: 4.0 * s.m + 4.0, words=[cost.axis_words(*axis) for axis in axes])
-    # the radius's mesh term at three headline points (studies._mesh_error.grid_radius_mesh)
+    # the radius's mesh term at three headline points (studies._budget.grid_radius_mesh)
     # (after the grid: its points' linearisations released; none where every point is saved, a
     # complete study's fixed cost covering the three refined solves)
     shape = (len(options["first"][1]), len(options["second"][1]))
