@@ -228,8 +228,10 @@ def test_budget_round_trips_and_format_2_files_read_as_time_step_only(fem4_stead
         group = handle["steady_state"]
         for name in ("error_budget", "peak_error_budget", "response_error_budget", "error_methods"):
             del group.attrs[name]
-        group.attrs["format_version"] = 2
-        handle.attrs["format_version"] = 2
+        # and as such a file is: result format 2, without the checksums of format 3
+        for item in (handle, group):
+            item.attrs["format_version"] = 2
+            del item.attrs["digest"]
     old = studies.load(path)["steady_state"]
     spec = "coupler.deflection@0.5"
     assert old.error_budget[spec]["time_step"] == old.peak_to_peak_error[spec]
