@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -197,18 +197,85 @@ RADIUS_METHODS = {
                      "small vibrations about the nominal motion"}
 
 
-def radius_verdict(radius: float, error: float, tolerance: float) -> tuple[str, str]:
-    """``(status, message)`` of one spectral radius by its budget (time step ``error``; mesh not
-    estimated, linearisation not applicable): ``inaccurate`` where the error exceeds ``tolerance *
-    radius`` or is unknown."""
-    budget = ErrorBudget({"spectral_radius": {"time_step": float(error), **RADIUS_TERMS}})
+def radius_mesh_words(term: Any) -> str:
+    """The mesh term of a radius in a short phrase: its largest value, or its words (None: a result
+    written before the term, not estimated)."""
+    if term is None:
+        return NOT_ESTIMATED
+    if isinstance(term, str):
+        return term
+    finite = np.asarray(term, dtype=float)[np.isfinite(np.asarray(term, dtype=float))]
+    return f"up to {finite.max():.2g}" if finite.size else "unknown"
+
+
+def radius_verdict(radius: float, error: float, tolerance: float, mesh: Any = NOT_ESTIMATED) -> tuple[str, str]:
+    """``(status, message)`` of one spectral radius by its budget (time step ``error``, ``mesh`` its
+    mesh term or words, linearisation not applicable): ``inaccurate`` where the total exceeds
+    ``tolerance * radius`` or is unknown."""
+    terms = {**RADIUS_TERMS, "mesh": mesh if isinstance(mesh, str) else float(mesh)}
+    budget = ErrorBudget({"spectral_radius": {"time_step": float(error), **terms}})
     return verdict(budget, {"spectral_radius": float(radius)}, tolerance, quantity="spectral radius")
 
 
-def radius_budget(error: Any) -> dict[str, dict[str, Any]]:
+def radius_budget(error: Any, mesh: Any = None) -> dict[str, dict[str, Any]]:
     """{"spectral_radius": {term: value}}: the budget of a grid's spectral radius from its time-step
-    error (an array of the grid's shape)."""
-    return {"spectral_radius": {"time_step": error, **RADIUS_TERMS}}
+    error and its mesh term (arrays of the grid's shape; ``mesh`` None: not estimated, a result
+    written before the term)."""
+    return {"spectral_radius": {"time_step": error, **RADIUS_TERMS, **({} if mesh is None else {"mesh": mesh})}}
+
+
+def grid_radius_mesh(problem: Any, fields: dict[str, np.ndarray], points: Sequence[tuple[tuple, Mapping]], *,
+                     n_steps: int, scheme: str, tolerance: float) -> tuple[np.ndarray | str, str]:
+    """The mesh term of a grid's spectral radius (a stability chart's, a Campbell diagram's):
+    ``studies._mesh_error.radius_mesh_error`` at its headline points (the scene's own point, the cell of the
+    largest radius and the cell nearest radius 1), the largest relative error among them applied
+    to every cell (error / radius times the cell's radius). ``fields``: the grid's collected
+    fields (``spectral_radius``, ``spectral_radius_error``, ``done``, ``point_status``,
+    ``point_message``), whose verdicts are judged again with the term (in place); ``points``:
+    ``[(index, values)]`` of the grid. Returns ``(term of the grid's shape or NOT_APPLICABLE words,
+    method)``."""
+    from ._mesh_error import radius_mesh_error
+    from ._verdicts import combine
+
+    radius = np.asarray(fields.get("spectral_radius", np.full(1, np.nan)), dtype=float)
+    done = np.asarray(fields.get("done", np.zeros(radius.shape, bool)), dtype=bool) & np.isfinite(radius)
+    by_index = {tuple(index): values for index, values in points}
+    headline: dict[str, tuple[Mapping | None, float | None]] = {"the scene's point": (None, None)}
+    if done.any():
+        flat = np.where(done, radius, np.nan)
+        top = np.unravel_index(int(np.nanargmax(flat)), flat.shape)
+        near = np.unravel_index(int(np.nanargmin(np.abs(flat - 1.0))), flat.shape)
+        headline["the largest radius"] = (by_index[tuple(top)], float(radius[top]))
+        headline["the radius nearest 1"] = (by_index[tuple(near)], float(radius[near]))
+    shares, found, method = [], [], ""
+    for words, (values, known) in headline.items():
+        estimate = radius_mesh_error(problem, values, n_steps=n_steps, scheme=scheme, radius=known)
+        if not estimate.applicable:
+            return NOT_APPLICABLE, estimate.method
+        method = estimate.method
+        share = estimate.error / max(abs(estimate.radius), 1e-300)
+        found.append(f"{words} {100 * share:.2g} %")
+        shares.append(share)
+    # an unknown share leaves the term unknown (its cells inaccurate: not trustworthy), never the others'
+    relative = math.nan if any(math.isnan(share) for share in shares) else max(shares)
+    mesh = relative * np.abs(radius)
+    # fixed-width str arrays would cut a longer message: judged as objects, stored back as str
+    status_of, message_of = (np.asarray(fields[key]).astype(object) for key in ("point_status", "point_message"))
+    for index in zip(*np.nonzero(done)):
+        # the point's own verdict judged the time step alone: its message gives way to the total's
+        _, alone = radius_verdict(radius[index], fields["spectral_radius_error"][index], tolerance)
+        status, message = radius_verdict(radius[index], fields["spectral_radius_error"][index], tolerance,
+                                         mesh=mesh[index])
+        words = str(message_of[index])
+        if status == "ok" or message in words:   # ok, or judged already (a resumed grid)
+            continue
+        if alone and alone in words:
+            message_of[index] = words.replace(alone, message)
+        else:
+            status_of[index], message_of[index] = combine([(str(status_of[index]), words), (status, message)])
+    fields["point_status"], fields["point_message"] = status_of.astype(str), message_of.astype(str)
+    return mesh, (f"{method}; at the headline points ({', '.join(found)} of the radius), the largest "
+                  f"applied to every cell relatively")
 
 
 # ---------------------------------------------------------------------------------------------------

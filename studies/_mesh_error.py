@@ -31,6 +31,7 @@ leaves the term unknown (NaN) with the reason in ``method``.
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from collections import OrderedDict
@@ -137,11 +138,101 @@ def mesh_error(problem: Any, values: Mapping[str, float] | None, *, observables:
                      method=method, applicable=True, run_time=time.perf_counter() - start)
 
 
-def _estimates(series: list[np.ndarray], order: float | None) -> tuple[dict[str, float], bool]:
+@dataclass(frozen=True)
+class RadiusMeshError:
+    """The mesh term of a spectral radius at one point: ``error`` (1; NaN where unknown), ``radius``
+    the user's discretisation's and ``refined`` the once-refined one's (the finest level's with
+    three), ``method`` in words, ``applicable`` False without elastic links, ``run_time`` (s)."""
+
+    error: float
+    radius: float
+    refined: float
+    method: str
+    applicable: bool
+    run_time: float
+
+
+#: The quantity whose ``convergence_order`` a discretisation declares for the Floquet multipliers
+#: (and the natural frequencies): Hermite cubics converge in the eigenvalues at order 2(p + 1 - m) = 4
+#: (p = 3 the polynomial degree, m = 2 the order of the bending energy's derivatives).
+MULTIPLIERS = "multipliers"
+
+
+def radius_mesh_error(problem: Any, values: Mapping[str, float] | None, *, n_steps: int,
+                      scheme: str = DEFAULT_SCHEME, radius: float | None = None) -> RadiusMeshError:
+    """The mesh term of the spectral radius of the monodromy of ``problem`` at ``values`` on
+    ``n_steps`` steps with ``scheme``: as :func:`mesh_error` (the same refined models, from the same
+    cache), the multipliers' declared order (``convergence_order("multipliers")``) with one refinement,
+    else an observed rate from three levels. ``radius``: the caller's radius at these settings (else
+    solved here)."""
+    start = time.perf_counter()
+    study_scheme(scheme)
+
+    def answer(error: float, method: str, applicable: bool = True, levels: Sequence[float] = ()) -> RadiusMeshError:
+        levels = list(levels) + [math.nan] * (2 - len(levels))
+        return RadiusMeshError(float(error), float(levels[0]), float(levels[-1] if math.isfinite(levels[-1])
+                                                                   else levels[1]),
+                               method, applicable, time.perf_counter() - start)
+
+    make_mechanism = getattr(problem, "mechanism", None)
+    if make_mechanism is None:
+        return answer(math.nan, "not applicable: the problem has no elastic links (no mesh)", False)
+    params = problem.resolve(values)
+    nominal = problem.parameters
+    mechanism = make_mechanism({k: v for k, v in params.items() if k != SPEED and v != nominal[k]})
+    elastic = [link for link in mechanism.links if getattr(link, "discretisation", None) is not None]
+    if not elastic:
+        return answer(math.nan, "not applicable: the mechanism has no elastic link (no mesh)", False)
+    unknown = _unrefinable(elastic)
+    if unknown:
+        return answer(math.nan, f"unknown: {unknown}")
+    order = _order(elastic, f"{elastic[0].name}.{MULTIPLIERS}", every=MULTIPLIERS)
+    try:
+        levels = [_refined_links(elastic)]
+        if order is None:
+            levels.append(_refined_links(levels[0]))
+    except ValueError as error:
+        return answer(math.nan, f"unknown: the discretisation cannot be refined: {error}")
+    specs = tuple(problem.describe(values).observables)
+    others = tuple(sorted((k, v) for k, v in params.items() if k != SPEED))
+    speed = {SPEED: params[SPEED]}
+    try:
+        radii = [float(radius) if radius is not None else
+                 _radius(_problem_at(problem, others, specs, 0, lambda: mechanism), speed, n_steps, scheme)]
+        radii += [_radius(_problem_at(problem, others, specs, level + 1,
+                                      lambda links=links: _with_links(mechanism, links)), speed, n_steps, scheme)
+                  for level, links in enumerate(levels)]
+    except (RuntimeError, ValueError) as error:
+        return answer(math.nan, f"unknown: a refined model did not solve ({type(error).__name__}: {error})")
+    error, regular = _scalar_estimate(radii, order)
+    method = _method(mechanism, elastic, levels, {"spectral_radius": order},
+                     [] if regular else ["the spectral radius"])
+    return answer(error, method, True, radii)
+
+
+def _scalar_estimate(levels: Sequence[float], order: float | None) -> tuple[float, bool]:
+    """``(error, regular)`` of a scalar on the user's level from its values on the refined levels
+    (one with a known ``order``, two otherwise): the rules of :func:`_estimates` for the response."""
+    found, regular = _estimates([np.full(2, value) for value in levels], order, extremes=False)
+    return found["response"], regular
+
+
+def _radius(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: str) -> float:
+    """The spectral radius of a mechanism ``problem``'s monodromy at ``speed`` (no error estimate)."""
+    import periodic
+
+    linear = problem.linearize(speed, n_steps=n_steps, context=False)
+    return float(periodic.floquet(linear.system, scheme=study_scheme(scheme)).spectral_radius)
+
+
+def _estimates(series: list[np.ndarray], order: float | None, *, extremes: bool = True
+               ) -> tuple[dict[str, float], bool]:
     """``({"response", "peak", "peak_to_peak"}: error, regular)`` from the responses on the user's
     and the refined levels (each (N+1,)); ``order`` known (one refinement) or None (three levels);
-    ``regular`` False where three levels did not converge geometrically."""
-    measures = [{"response": s, "peak": peak(s)[0], "peak_to_peak": peak_to_peak(s)[0]} for s in series]
+    ``regular`` False where three levels did not converge geometrically. ``extremes`` False: the
+    response's alone (a scalar repeated)."""
+    measures = [{"response": s, **({"peak": peak(s)[0], "peak_to_peak": peak_to_peak(s)[0]} if extremes else {})}
+                for s in series]
     scale = max(float(np.abs(series[0]).max()), 1e-300)
 
     def difference(name: str, i: int) -> float:
@@ -152,7 +243,7 @@ def _estimates(series: list[np.ndarray], order: float | None) -> tuple[dict[str,
         factor = SAFETY_FACTOR * 2.0**order / (2.0**order - 1.0)
         return {name: factor * difference(name, 0) for name in measures[0]}, True
     found, regular = {}, True
-    for name in ("response", "peak", "peak_to_peak"):
+    for name in measures[0]:
         first, second = difference(name, 0), difference(name, 1)
         if max(first, second) <= _ROUNDOFF * scale:
             found[name] = first
@@ -168,15 +259,15 @@ def _estimates(series: list[np.ndarray], order: float | None) -> tuple[dict[str,
     return found, regular
 
 
-def _order(links: list, spec: str) -> float | None:
+def _order(links: list, spec: str, every: str = "") -> float | None:
     """The smallest convergence order the links declare for ``spec`` (its quantity on its own link,
-    ``""`` on the others); None where one declares none."""
+    ``every`` on the others: ``""`` a quantity elsewhere); None where one declares none."""
     head = spec.partition("@")[0]
     owner, _, quantity = head.rpartition(".")
     orders = []
     for link in links:
         declared = getattr(link.discretisation, "convergence_order", None)
-        order = None if declared is None else declared(quantity if owner == link.name else "")
+        order = None if declared is None else declared(quantity if owner == link.name else every)
         if order is None:
             return None
         orders.append(float(order))

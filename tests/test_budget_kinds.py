@@ -36,8 +36,10 @@ def test_the_chart_says_which_terms_of_its_radius_apply(charts):
     coarse, _ = charts
     terms = coarse.error_budget["spectral_radius"]
     np.testing.assert_array_equal(terms["time_step"], coarse.spectral_radius_error)
-    assert terms["mesh"] == budget.NOT_ESTIMATED and terms["linearisation"] == budget.NOT_APPLICABLE
+    # a periodic problem has no mesh: not applicable, not a zero error
+    assert terms["mesh"] == budget.NOT_APPLICABLE and terms["linearisation"] == budget.NOT_APPLICABLE
     assert "not applicable" in coarse.error_methods["linearisation"]
+    assert coarse.error_methods["mesh"].startswith("not applicable") and coarse.spectral_radius_mesh_error is None
     assert coarse.settings["error_tolerance"] == TOLERANCE
 
 
@@ -70,7 +72,7 @@ def test_campbell_carries_the_budget_of_its_radius_and_frequencies():
     np.testing.assert_array_equal(found["characteristic"]["time_step"], result.characteristic_error)
     np.testing.assert_array_equal(found["spectral_radius"]["time_step"], result.spectral_radius_error)
     for terms in found.values():
-        assert terms["linearisation"] == budget.NOT_APPLICABLE and terms["mesh"] == budget.NOT_ESTIMATED
+        assert terms["linearisation"] == budget.NOT_APPLICABLE and terms["mesh"] == budget.NOT_APPLICABLE
     over = result.spectral_radius_error > TOLERANCE * result.spectral_radius
     assert over.any() and (result.point_status[over] != "ok").all()
 
@@ -82,6 +84,82 @@ def test_chart_methods_round_trip(charts, tmp_path):
     back = studies.load(path)["stability_chart"]
     assert dict(back.error_methods) == dict(coarse.error_methods)
     np.testing.assert_array_equal(back.error_budget["spectral_radius"]["time_step"], coarse.spectral_radius_error)
+    assert back.error_budget["spectral_radius"]["mesh"] == budget.NOT_APPLICABLE
+
+
+# ---------------------------------------------------------------------------------------------------
+# the mesh term of the radius on a mechanism: against a converged mesh (32 coupler elements)
+# ---------------------------------------------------------------------------------------------------
+RADIUS_SPEEDS = (100.0, 185.0)   # stable, and inside the instability tongue (radius 1.116 at N = 64)
+CHART_TOLERANCE = 2e-4
+
+
+def _fem4_radius(n_elements: int, speed: float) -> float:
+    """The spectral radius of four_bar_fem4 with ``n_elements`` coupler elements at ``speed`` on 64
+    steps, assembled apart from the studies (linearize.about, periodic.floquet)."""
+    import dataclasses
+
+    import linearize
+    import periodic
+
+    mechanism = mechanisms.load("four_bar_fem4").with_parameters({"drive.rate": speed})
+    links = tuple(dataclasses.replace(link, discretisation=mechanisms.Fem(n_elements))
+                  if getattr(link, "discretisation", None) is not None else link for link in mechanism.links)
+    mechanism = mechanism.replace(links=links)
+    return float(periodic.floquet(linearize.about(mechanism, n_steps=64).system).spectral_radius)
+
+
+@pytest.fixture(scope="module")
+def fem4_radii():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        problem = studies.MechanismProblem.from_scene("four_bar_fem4", parameter_paths=("links.coupler.thickness",))
+        thickness = problem.parameters["links.coupler.thickness"]
+        # a time step fine enough that the mesh term dominates, and a tolerance the time step alone passes
+        chart = studies.stability_chart(problem, ("speed", [150.0]), ("links.coupler.thickness", [thickness]),
+                                        n_steps=512, error_tolerance=CHART_TOLERANCE)
+        campbell = studies.campbell(problem, list(RADIUS_SPEEDS), n_steps=64)
+        truth = {speed: {n: _fem4_radius(n, speed) for n in (4, 8, 16, 32)} for speed in RADIUS_SPEEDS}
+    return chart, campbell, truth
+
+
+def test_the_radius_mesh_term_covers_the_32_element_error_and_is_not_loose(fem4_radii):
+    from studies._mesh_error import radius_mesh_error
+
+    _, campbell, truth = fem4_radii
+    problem = studies.MechanismProblem.from_scene("four_bar_fem4")
+    shares = []
+    for k, speed in enumerate(RADIUS_SPEEDS):
+        radii = truth[speed]
+        assert campbell.spectral_radius[k] == pytest.approx(radii[4], rel=1e-9)
+        true = abs(radii[4] - radii[32])
+        found = radius_mesh_error(problem, {"speed": speed}, n_steps=64)
+        assert found.applicable and "known order 4" in found.method
+        assert true <= found.error <= 3.0 * true, (speed, found.error, true)
+        # the declared order against the observed one: successive differences fall by 2^4
+        ratio = abs(radii[4] - radii[8]) / abs(radii[8] - radii[16])
+        assert 12.0 <= ratio <= 20.0, (speed, ratio)
+        shares.append(found.error / found.radius)
+        # the grid's term (the largest relative error of its headline speeds, applied to each) covers it
+        assert campbell.spectral_radius_mesh_error[k] >= true
+    np.testing.assert_allclose(campbell.spectral_radius_mesh_error, max(shares) * campbell.spectral_radius,
+                               rtol=1e-9)
+    assert campbell.spectral_radius[1] > 1.0 and not campbell.is_stable[1]
+
+
+def test_the_grid_term_is_in_the_budget_and_the_verdict(fem4_radii):
+    _, campbell, _ = fem4_radii
+    terms = campbell.error_budget["spectral_radius"]
+    np.testing.assert_array_equal(terms["mesh"], campbell.spectral_radius_mesh_error)
+    assert campbell.error_budget["characteristic"]["mesh"] == budget.NOT_ESTIMATED
+    methods = campbell.error_methods["mesh"]
+    assert "headline points" in methods and "the largest radius" in methods
+    # the rule with the mesh term: a total above the tolerance is inaccurate, naming the mesh where it dominates
+    status, message = budget.radius_verdict(1.0, 1e-4, TOLERANCE, mesh=0.05)
+    assert status == "inaccurate" and "mostly mesh" in message and "add elements" in message
+    assert budget.radius_verdict(1.0, 1e-4, TOLERANCE, mesh=1e-3) == ("ok", "")
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -180,3 +258,14 @@ def test_the_steady_state_estimate_includes_the_budget_terms():
     mathieu = studies.mathieu_problem()
     assert cost.steady_solves("s", mathieu, [{}], 128, budget=True).time == \
         cost.steady_solves("s", mathieu, [{}], 128).time
+
+
+def test_a_chart_cell_judged_on_its_total_with_the_mesh_term(fem4_radii):
+    chart, _, _ = fem4_radii
+    radius, step, mesh = (float(np.ravel(a)[0]) for a in (chart.spectral_radius, chart.spectral_radius_error,
+                                                           chart.spectral_radius_mesh_error))
+    assert mesh > 0.0 and chart.error_budget["spectral_radius"]["mesh"].shape == (1, 1)
+    assert step <= CHART_TOLERANCE * radius < step + mesh and mesh > step, (radius, step, mesh)
+    # the time step alone passes: the mesh term makes the cell inaccurate, and the message says so
+    assert chart.point_status[0, 0] == "inaccurate"
+    assert "mostly mesh" in chart.point_message[0, 0] and "add elements" in chart.point_message[0, 0]

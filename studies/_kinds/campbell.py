@@ -18,7 +18,9 @@ from .._budget import (
     NOT_ESTIMATED,
     RADIUS_METHODS,
     check_tolerance,
+    grid_radius_mesh,
     radius_budget,
+    radius_mesh_words,
     radius_verdict,
 )
 from .._kind import StudyKind, register_kind
@@ -88,6 +90,10 @@ class CampbellResult(NoObservables, GridResult):
         The Floquet multipliers with N and N/2 steps.
     spectral_radius, spectral_radius_error : ndarray, (n,), 1
         The spectral radius at each speed and its estimated error.
+    spectral_radius_mesh_error : ndarray, (n,), 1, or None
+        The radius's mesh term (``studies._budget.grid_radius_mesh``: the headline speeds'
+        relative error applied to every speed); None without elastic links, or in a file written
+        before the term.
     is_stable : ndarray of bool, (n,)
         The stability verdict at each speed.
     period : ndarray, (n,), s
@@ -118,6 +124,7 @@ class CampbellResult(NoObservables, GridResult):
     multipliers_coarse: np.ndarray | None = None
     spectral_radius: np.ndarray | None = None
     spectral_radius_error: np.ndarray | None = None
+    spectral_radius_mesh_error: np.ndarray | None = None
     is_stable: np.ndarray | None = None
     period: np.ndarray | None = None
     order: np.ndarray | None = None
@@ -134,19 +141,26 @@ class CampbellResult(NoObservables, GridResult):
     @property
     def error_budget(self) -> dict[str, dict[str, Any]]:
         """{quantity: {term: array or words}} (``studies._budget``): "spectral_radius" (n,) and
-        "characteristic" (n, 2m), each of its time step (N against N/2), the mesh not estimated and
-        the linearisation not applicable (small vibrations about the nominal motion are the linear
-        system's); the totals are ``spectral_radius_error`` and ``characteristic_error``."""
-        return {**radius_budget(self.spectral_radius_error),
-                "characteristic": {"time_step": self.characteristic_error, "mesh": NOT_ESTIMATED,
+        "characteristic" (n, 2m), each of its time step (N against N/2), the mesh (the radius's
+        estimated at its headline speeds, the frequencies' not estimated) and the linearisation not
+        applicable (small vibrations about the nominal motion are the linear system's); the
+        frequencies' total is ``characteristic_error``."""
+        return {**radius_budget(self.spectral_radius_error, self._mesh_term()),
+                "characteristic": {"time_step": self.characteristic_error,
+                                   "mesh": NOT_APPLICABLE if isinstance(self._mesh_term(), str) else NOT_ESTIMATED,
                                    "linearisation": NOT_APPLICABLE}}
+
+    def _mesh_term(self) -> Any:
+        if self.spectral_radius_mesh_error is not None:
+            return self.spectral_radius_mesh_error
+        return NOT_APPLICABLE if self.error_methods.get("mesh", "").startswith(NOT_APPLICABLE) else None
 
     _axes = {"speeds": "speed"}
     _units = {"speeds": "rad/s", "crank_angle": "rad", "frozen": "rad/s", "shapes": "1",
               "multipliers": "1", "multipliers_coarse": "1", "period": "s", "order": "1",
               "tracking_mac": "1", "characteristic_error": "rad/s", "band_min": "rad/s",
               "band_max": "rad/s", "band_mean": "rad/s", "characteristic": "rad/s", "spectral_radius": "1",
-              "spectral_radius_error": "1", "is_stable": "1", **GridResult._units}
+              "spectral_radius_error": "1", "spectral_radius_mesh_error": "1", "is_stable": "1", **GridResult._units}
 
     def plot(self, *, axes: Any = None) -> Plot:
         """Frozen-frequency bands of the tracked modes (shaded), their mean (line), Floquet
@@ -258,7 +272,12 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
     fields = collect(outcomes, grid.shape)
     if "is_stable" in fields:
         fields["is_stable"] = fields["is_stable"] == 1.0
+    mesh, mesh_method = grid_radius_mesh(problem, fields, points, n_steps=n_steps, scheme=scheme,
+                                         tolerance=error_tolerance)
     extra: dict[str, Any] = reduction_check(problem, n_steps=n_steps)
+    extra.update(spectral_radius_mesh_error=None if isinstance(mesh, str) else mesh,
+                 error_methods={**CAMPBELL_METHODS, "mesh": mesh_method if isinstance(mesh, str) else
+                                f"spectral radius: {mesh_method}; characteristic frequencies: not estimated"})
     if "frozen" in fields:
         fields["crank_angle"] = fields["crank_angle"][np.flatnonzero(fields["done"])[0]]
         order, confidence = track_modes(fields["shapes"])
@@ -364,8 +383,9 @@ def _headlines(result: CampbellResult) -> Summary:
         lower = result.spectral_radius - np.nan_to_num(result.spectral_radius_error)
         rows.append(Headline("unstable speeds",
                              ranges(unstable_intervals(result.speeds, lower, tol=periodic.STABILITY_TOL), "rad/s")))
-        rows.append(Headline("error budget", "time step (mesh not estimated, linearisation not applicable: "
-                                             "frequencies of small vibrations)"))
+        rows.append(Headline("error budget", f"time step, the radius's mesh {radius_mesh_words(result._mesh_term())} "
+                                             f"(the frequencies' not estimated; linearisation not applicable: "
+                                             f"frequencies of small vibrations)"))
     return Summary(status=grid_status(result), run_time=result.run_time, rows=rows + reduction_headlines(result))
 
 
@@ -381,6 +401,12 @@ def _cost(name, problem, options, workers, done=None):
     found = cost.grid_cost(name, problem, [axis], options["n_steps"], frozen=frozen, workers=workers, done=done,
                       point_doubles=lambda s: (frozen + s.m + 8.0) * s.m,
                       words=[cost.axis_words(*axis), f"{frozen} frozen samples"])
+    # the radius's mesh term at three headline speeds (studies._budget.grid_radius_mesh)
+    # (after the grid: its points' linearisations released; none where every point is saved, a
+    # complete study's fixed cost covering the three refined solves)
+    if done is None or np.shape(done) != (len(options["speeds"]),) or not np.asarray(done).all():
+        for _ in range(3):
+            found = cost.with_mesh_term(found, problem, {}, options["n_steps"])
     return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 

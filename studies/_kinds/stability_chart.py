@@ -12,7 +12,16 @@ import numpy as np
 
 import periodic
 
-from .._budget import ERROR_TOLERANCE, RADIUS_METHODS, check_tolerance, radius_budget, radius_verdict
+from .._budget import (
+    ERROR_TOLERANCE,
+    NOT_APPLICABLE,
+    RADIUS_METHODS,
+    check_tolerance,
+    grid_radius_mesh,
+    radius_budget,
+    radius_mesh_words,
+    radius_verdict,
+)
 from .._kind import StudyKind, register_kind
 from .._numerics import DEFAULT_SCHEME, study_scheme
 from .._plots import Plot, axes_for, cost_line, drawn, label, largest, legend_outside, mark_statuses, plain, radius_norm
@@ -63,6 +72,10 @@ class StabilityChart(NoObservables, GridResult):
         The values of ``parameters[1]``.
     spectral_radius, spectral_radius_error : ndarray, (n1, n2), 1
         The spectral radius of each cell and its estimated error (N against N/2 steps).
+    spectral_radius_mesh_error : ndarray, (n1, n2), 1, or None
+        The radius's mesh term (``studies._budget.grid_radius_mesh``: the headline points'
+        relative error applied to every cell); None without elastic links, or in a file written
+        before the term.
     is_stable : ndarray of bool, (n1, n2)
         Each cell's stability (unstable only beyond the radius's error bar, marginal within it).
     stability_tol : float, 1
@@ -77,6 +90,7 @@ class StabilityChart(NoObservables, GridResult):
     second: np.ndarray
     spectral_radius: np.ndarray | None = None
     spectral_radius_error: np.ndarray | None = None
+    spectral_radius_mesh_error: np.ndarray | None = None
     stability_tol: float = 1e-6
     is_stable: np.ndarray | None = None
     error_methods: Mapping[str, str] = field(default_factory=lambda: dict(RADIUS_METHODS))
@@ -84,12 +98,21 @@ class StabilityChart(NoObservables, GridResult):
     @property
     def error_budget(self) -> dict[str, dict[str, Any]]:
         """{"spectral_radius": {term: (n1, n2) or words}}: the radius's error budget (``studies._budget``:
-        its time step, the mesh not estimated, the linearisation not applicable); the total is the
-        time step's ``spectral_radius_error``."""
-        return radius_budget(self.spectral_radius_error)
+        its time step, its mesh term (not applicable without elastic links, not estimated in a file
+        written before the term), the linearisation not applicable)."""
+        return radius_budget(self.spectral_radius_error, self._mesh_term())
+
+    def _mesh_term(self) -> Any:
+        if self.spectral_radius_mesh_error is not None:
+            return self.spectral_radius_mesh_error
+        return NOT_APPLICABLE if self.error_methods.get("mesh", "").startswith(NOT_APPLICABLE) else None
+
+    def _mesh_words(self) -> str:
+        return radius_mesh_words(self._mesh_term())
 
     _axes = {"first": "@parameters[0]", "second": "@parameters[1]"}
-    _units = {"spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1", **GridResult._units}
+    _units = {"spectral_radius": "1", "spectral_radius_error": "1", "spectral_radius_mesh_error": "1",
+              "is_stable": "1", **GridResult._units}
 
     def _unit(self, name: str, key: str | None = None) -> str:
         if name == "first":
@@ -126,8 +149,8 @@ class StabilityChart(NoObservables, GridResult):
         ax.set_ylabel(label(self.parameters[1], self.parameter_units[1]))
         ax.set_title(
             f"{self.problem}: stability chart (black: |mu| = 1; colours on a log scale each side of 1)\n"
-            + cost_line(f"spectral radius to {plain(largest(self.spectral_radius_error))} (time step; mesh "
-                        f"not estimated)", self.run_time)
+            + cost_line(f"spectral radius to {plain(largest(self.spectral_radius_error))} (time step; "
+                        f"mesh {self._mesh_words()})", self.run_time)
             + self.reduction_note(),
             fontsize="small",
         )
@@ -206,9 +229,13 @@ def stability_chart(problem: Any, first: tuple[str, Sequence[float]], second: tu
     fields = collect(outcomes, shape)
     if "is_stable" in fields:
         fields["is_stable"] = fields["is_stable"] == 1.0
+    mesh, mesh_method = grid_radius_mesh(problem, fields, points, n_steps=int(n_steps), scheme=scheme,
+                                         tolerance=error_tolerance)
     reduction = reduction_check(problem, n_steps=int(n_steps))
     result = StabilityChart(**header, settings=settings, first=axes[0], second=axes[1],
-                            run_time=time.perf_counter() - start, **fields, **reduction)
+                            run_time=time.perf_counter() - start, **fields, **reduction,
+                            spectral_radius_mesh_error=None if isinstance(mesh, str) else mesh,
+                            error_methods={**RADIUS_METHODS, "mesh": mesh_method})
     if store is not None:
         result.to_hdf5(store.group)
     return result
@@ -236,8 +263,8 @@ def _headlines(result: StabilityChart) -> Summary:
     if result.spectral_radius is not None:
         rows.append(largest_over_grid("largest spectral radius", result.spectral_radius,
                                       result.spectral_radius_error, "1", point))
-        rows.append(Headline("spectral radius error budget", "time step (mesh not estimated, linearisation "
-                                                             "not applicable)"))
+        rows.append(Headline("spectral radius error budget", f"time step, mesh {result._mesh_words()} "
+                                                             f"(linearisation not applicable)"))
     return Summary(status=grid_status(result), run_time=result.run_time, rows=rows + reduction_headlines(result))
 
 
@@ -265,6 +292,13 @@ def _cost(name, problem, options, workers, done=None):
     axes = [(parameter, np.asarray(grid)) for parameter, grid in (options["first"], options["second"])]
     found = cost.grid_cost(name, problem, axes, options["n_steps"], workers=workers, done=done,
                       point_doubles=lambda s: 4.0 * s.m + 4.0, words=[cost.axis_words(*axis) for axis in axes])
+    # the radius's mesh term at three headline points (studies._budget.grid_radius_mesh)
+    # (after the grid: its points' linearisations released; none where every point is saved, a
+    # complete study's fixed cost covering the three refined solves)
+    shape = (len(options["first"][1]), len(options["second"][1]))
+    if done is None or np.shape(done) != shape or not np.asarray(done).all():
+        for _ in range(3):
+            found = cost.with_mesh_term(found, problem, {}, options["n_steps"])
     return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 
