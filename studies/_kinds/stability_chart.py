@@ -261,8 +261,11 @@ def _headlines(result: StabilityChart) -> Summary:
         rows.append(Headline(f"unstable {a} range", ranges([(result.first[i].min(), result.first[i].max())], ua)))
         rows.append(Headline(f"unstable {b} range", ranges([(result.second[j].min(), result.second[j].max())], ub)))
     if result.spectral_radius is not None:
-        rows.append(largest_over_grid("largest spectral radius", result.spectral_radius,
-                                      result.spectral_radius_error, "1", point))
+        # its error bar the budget's total: the time step's and, where estimated, the mesh term
+        total = np.asarray(result.spectral_radius_error, dtype=float)
+        if result.spectral_radius_mesh_error is not None:
+            total = total + np.abs(np.asarray(result.spectral_radius_mesh_error, dtype=float))
+        rows.append(largest_over_grid("largest spectral radius", result.spectral_radius, total, "1", point))
         rows.append(Headline("spectral radius error budget", f"time step, mesh {result._mesh_words()} "
                                                              f"(linearisation not applicable)"))
     return Summary(status=grid_status(result), run_time=result.run_time, rows=rows + reduction_headlines(result))

@@ -514,8 +514,9 @@ def _headlines(result: SweepResult) -> Summary:
     rows.append(Headline(f"resonances, harmonic:mode at {label(result.parameter, unit)}", listed(resonances)))
     rows.append(Headline(f"unstable {result.parameter} ranges", ranges(result.instabilities, unit)))
     if result.spectral_radius is not None:
-        rows.append(largest_over_grid("largest spectral radius", result.spectral_radius,
-                                      result.spectral_radius_error, "1", point))
+        # its error bar is the time step's (the radius's mesh term is a stability chart's, not a sweep's)
+        rows.append(largest_over_grid("largest spectral radius (time-step error; mesh not estimated)",
+                                      result.spectral_radius, result.spectral_radius_error, "1", point))
     return Summary(status=grid_status(result), run_time=result.run_time, rows=rows + reduction_headlines(result))
 
 
