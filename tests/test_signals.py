@@ -130,3 +130,26 @@ def test_a_lazy_import_cut_by_a_signal_in_a_command_or_a_run_ends_with_130_and_o
     assert main(["run", "mathieu", "--out", str(out), "--quiet", *ONLY]) == 130
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("interrupted: 0 of ") and str(out) in lines[0], lines
+
+
+def _interrupted(*args, **kwargs):
+    raise KeyboardInterrupt("SIGTERM")
+
+
+def test_a_signal_after_the_run_saved_everything_says_all_points_are_saved(tmp_path, monkeypatch, capsys):
+    """The signal lands while the summary is printed: the file is complete, and the line says so
+    (not "nothing was saved"); the same command then only reports the file."""
+    from studies import _summary
+    from studies.cli import main
+
+    out = tmp_path / "run.h5"
+    monkeypatch.setattr(_summary, "text_table", _interrupted)
+    assert main(["run", "mathieu", "--out", str(out), "--quiet", *ONLY]) == 130
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
+    saved, _, rest = lines[0].removeprefix("interrupted: ").partition(" of ")
+    total = rest.split()[0]
+    assert saved == total and int(total) > 1, lines   # a sweep's points and the steady state
+    assert lines[0].endswith(f" points saved in {out}; run the same command to resume"), lines
+    monkeypatch.undo()
+    assert main(["run", "mathieu", "--out", str(out), "--quiet", *ONLY]) == 0

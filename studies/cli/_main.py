@@ -363,23 +363,35 @@ def _check_reachable(address: str, timeout: float = 3.0) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from ._console import collected_warnings, console
-
-    with console(quiet=args.quiet, verbose=args.verbose):
-        code = _run_studies(args)
-        if not args.quiet:
-            # each distinct warning once, after the run (not once per point as it happened)
-            for warning in collected_warnings():
-                print(warning, file=sys.stderr)
-    return code
-
-
-def _run_studies(args: argparse.Namespace) -> int:
-    from .._kind import kind_of
+    from ._run import RunInterrupted, interrupted_run
 
     if args.out is not None and not args.out.name:   # --out "" (Path('.')) or a bare folder
         raise UsageError(f"--out {str(args.out)!r}: expected the path of a result file, e.g. --out run.h5")
     out = args.out or Path(f"{Path(args.scene).stem}.h5")
-    plan = ScenePlan.read(args.scene, args.sets, only=args.only)
+    plan = None
+    try:
+        with console(quiet=args.quiet, verbose=args.verbose):
+            plan = ScenePlan.read(args.scene, args.sets, only=args.only)
+            code = _run_studies(args, plan, out)
+            if not args.quiet:
+                # each distinct warning once, after the run (not once per point as it happened)
+                for warning in collected_warnings():
+                    print(warning, file=sys.stderr)
+    except RunInterrupted:
+        raise
+    except BaseException as error:
+        # outside the run proper (the guard, the summary): the file holds what it holds, and the
+        # line says so (a finished run's file is complete: the same command only reports it);
+        # an import cut by the signal raises ImportError from it (studies._errors.interruption)
+        if plan is None or interruption(error) is None:
+            raise
+        raise interrupted_run(plan.studies, str(out)) from None
+    return code
+
+
+def _run_studies(args: argparse.Namespace, plan: ScenePlan, out: Path) -> int:
+    from .._kind import kind_of
+
     # a run started with --force resumes without it: what the file holds complete is not estimated
     plan.guard(force=args.force, workers=args.jobs, result_file=None if args.overwrite else out)
     executor, client = _executor(args)

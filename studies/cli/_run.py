@@ -19,7 +19,7 @@ from .._resultfile import ResultFile
 from .._store import StorageError, format_of, read_group, write_attrs
 from . import _jit
 
-__all__ = ["RunInterrupted", "run_plan", "scene_identity"]
+__all__ = ["RunInterrupted", "interrupted_run", "run_plan", "scene_identity"]
 
 #: Seconds before the run's bar over its studies appears (no bar for a run that takes less).
 PROGRESS_DELAY = 1.0
@@ -55,8 +55,7 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
     file attribute ``compile_time`` (s; 0 when every kernel came from the disk cache), added to what the
     file's earlier runs recorded when it resumes one.
     """
-    runs = [(name + suffix, kind_named(name), each) for name, options in studies.items()
-            for suffix, each in kind_named(name).runs(options).items()]
+    runs = _runs(studies)
     try:
         with ResultFile(path, scene=scene_identity(problem), overwrite=overwrite) as file:
             _set_damage_aside(file, runs)   # first: what follows reads the studies' attributes
@@ -79,6 +78,20 @@ def run_plan(problem: Any, studies: Mapping[str, Mapping[str, Any]], path: str, 
         if interruption(error) is None:   # a lazy import cut by the signal raises ImportError from it
             raise
         raise RunInterrupted(*_points_saved(path, runs), str(path)) from None
+
+
+def interrupted_run(studies: Mapping[str, Mapping[str, Any]], path: str) -> RunInterrupted:
+    """What an interrupt outside ``run_plan`` (before it opened the file, or after it returned, while
+    the summary is printed) says: the points of ``studies`` that the file at ``path`` holds, which
+    the same command resumes from (or, all saved, only reports)."""
+    runs = _runs(studies)
+    return RunInterrupted(*_points_saved(path, runs), str(path))
+
+
+def _runs(studies: Mapping[str, Mapping[str, Any]]) -> list:
+    """``[(name in the file, kind, options)]`` of the declared studies (a kind may run several)."""
+    return [(name + suffix, kind_named(name), each) for name, options in studies.items()
+            for suffix, each in kind_named(name).runs(options).items()]
 
 
 def _refuse_other_grid_options(file: ResultFile, runs: list) -> None:
