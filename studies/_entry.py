@@ -30,6 +30,21 @@ def _interrupt(signum: int, frame) -> None:
 
 
 
+def _signal_again(previous_hook):
+    """``sys.unraisablehook`` that does not lose an interrupt: a signal whose handler ran inside a
+    callback Python cannot raise from (a weak reference's callback of the import machinery's module
+    locks, a ``__del__``) would be printed there as "Exception ignored ... KeyboardInterrupt", with a
+    traceback, and the run would go on. Instead the same signal is sent again to this process: its
+    handler runs at the next ordinary line and ends the command as any interrupt does."""
+    def hook(unraisable) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt):
+            number = getattr(signal, str(unraisable.exc_value), signal.SIGINT)   # "SIGTERM", "SIGINT"
+            os.kill(os.getpid(), number)
+            return
+        previous_hook(unraisable)
+    return hook
+
+
 def _exit_now(signum: int, frame) -> None:
     """After the command returned: end at once, without tracebacks from the shutdown."""
     try:
@@ -45,6 +60,7 @@ def run(argv=None) -> int:
     the exit code (130 when interrupted). From its return on, a signal ends the process at once."""
     try:
         try:
+            sys.unraisablehook = _signal_again(sys.unraisablehook)
             for number in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(number, _interrupt)
             from studies.cli import main as command  # numpy, scipy, numba, the study kinds

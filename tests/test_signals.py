@@ -153,3 +153,29 @@ def test_a_signal_after_the_run_saved_everything_says_all_points_are_saved(tmp_p
     assert lines[0].endswith(f" points saved in {out}; run the same command to resume"), lines
     monkeypatch.undo()
     assert main(["run", "mathieu", "--out", str(out), "--quiet", *ONLY]) == 0
+
+
+def test_a_signal_inside_a_callback_that_cannot_raise_is_sent_again(monkeypatch):
+    """A handler that ran inside a weak reference's callback (the import locks') raises into
+    ``sys.unraisablehook``: the hook of ``studies._entry`` sends the same signal again, so the interrupt
+    ends the command at the next ordinary line instead of being printed with a traceback and lost."""
+    import types
+
+    from studies import _entry
+
+    received = []
+    previous = signal.signal(signal.SIGTERM, lambda number, frame: received.append(number))
+    try:
+        others = []
+        hook = _entry._signal_again(others.append)
+        hook(types.SimpleNamespace(exc_value=KeyboardInterrupt("SIGTERM"), object=None))
+        for _ in range(1000):   # the handler runs at the next ordinary line of the main thread
+            if received:
+                break
+            time.sleep(0.001)
+        assert received == [signal.SIGTERM] and not others
+        error = types.SimpleNamespace(exc_value=ValueError("other"), object=None)
+        hook(error)
+        assert others == [error] and received == [signal.SIGTERM]   # anything else: the previous hook
+    finally:
+        signal.signal(signal.SIGTERM, previous)
