@@ -65,13 +65,13 @@ def four_bar(*, discretisation: str = "fem", n_elements: int = 4, n_bending: int
              youngs_modulus: float = 2.0e11, damping_ratio: float = 0.02,
              geometric_stiffening: bool = True, axial: bool = True, rotary_inertia: bool = False,
              gravity: tuple[float, float] = (0.0, 0.0), name: str | None = None) -> Mechanism:
-    """The thesis four-bar OABC (seed Fig. 2.5): rigid uniform crank OA and rocker CB, elastic
+    """The thesis four-bar OABC (thesis Fig. 2.5): rigid uniform crank OA and rocker CB, elastic
     coupler AB, all of section ``width x thickness`` (m) bending about the thin direction.
 
     Lengths in m, ``crank_speed`` in rad/s (crank angle ``crank_speed * t`` from the x-axis),
     ``damping_ratio`` of stiffness-proportional damping at the coupler's first pinned-pinned bending
     frequency (beta = 2 zeta / omega_1). ``geometric_stiffening=False`` with ``discretisation="ritz"``
-    is the seed's energy expressions exactly (scene ``four_bar_thesis``).
+    is the thesis's energy expressions exactly (scene ``four_bar_thesis``).
     """
     o, c = (0.0, 0.0), (ground, 0.0)
     a = (crank, 0.0)
@@ -112,7 +112,7 @@ def six_bar(*, crank_speed: float = 100.0, n_elements: int = 2, width: float = 0
             thickness: float = 0.002, density: float = 7800.0, youngs_modulus: float = 2.0e11,
             damping_ratio: float = 0.02, geometric_stiffening: bool = True,
             name: str = "six_bar") -> Mechanism:
-    """The Watt II six-bar of the seed's Fig. 1.2: crank 1 (O1A), elastic link 2 (AB), rigid plate 3
+    """The Watt II six-bar of the thesis's Fig. 1.2: crank 1 (O1A), elastic link 2 (AB), rigid plate 3
     pivoted at O2 carrying B and C, elastic link 4 (CD), rigid output rocker 5 (O3D).
 
     Dimensions (m): O1O2 = 0.30, O1A = 0.06, AB = 0.28, O2B = 0.15 (loop 1); O2O3 = 0.30, O2C = 0.10
@@ -218,7 +218,7 @@ def two_link_arm(*, period: float = 1.0, shoulder_amplitude: float = 0.3,
                  thickness: float = 0.005, payload: float = 0.2, n_elements: int = 2,
                  damping_ratio: float = 0.02, gravity: tuple[float, float] = (0.0, 0.0),
                  name: str = "two_link_arm") -> Mechanism:
-    """A two-link arm (seed Fig. 1.3) moving in a horizontal plane: elastic aluminium links
+    """A two-link arm (thesis Fig. 1.3) moving in a horizontal plane: elastic aluminium links
     clamped at their joints (clamped-free floating frames), a ``payload`` (kg) at the tip, joints
     driven by prescribed periodic motions (rad, period in s):
 
@@ -291,7 +291,7 @@ def parallel_robot(*, period: float = 0.2, base_radius: float = 0.25,
                    proximal_thickness: float = 0.005, payload: float = 0.5, n_elements: int = 2,
                    damping_ratio: float = 0.02, gravity: tuple[float, float] = (0.0, 0.0),
                    name: str = "parallel_robot") -> Mechanism:
-    """A 3-RRR planar parallel robot (seed Fig. 1.5) in a horizontal plane: three base joints O1, O2,
+    """A 3-RRR planar parallel robot (thesis Fig. 1.5) in a horizontal plane: three base joints O1, O2,
     O3 at the corners of an equilateral triangle of circumradius ``base_radius`` (at 90, 210 and 330
     deg), each driving an elastic proximal link (clamped to its motor, aluminium
     ``proximal_width x proximal_thickness``, the thickness in the plane), pinned at the elbow to a

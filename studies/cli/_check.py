@@ -169,7 +169,7 @@ def parametric_instability():
 
 
 def euler_load():
-    """The seed's model without geometric stiffening at 200 rad/s: the coupler's inertial compression
+    """The thesis's model without geometric stiffening at 200 rad/s: the coupler's inertial compression
     reaches its Euler load, which that model cannot see; it must say so."""
     import mechanisms
 
@@ -196,7 +196,7 @@ def near_toggle():
     mechanism = _scene({"links.rocker.length": length})
     result = _steady(mechanism, None, n_steps=128)
     crank, coupler, ground = 0.0508, 0.2794, 0.254
-    # transmission angle at crank angles 0 and pi (law of cosines; seed Fig. 2.5 geometry)
+    # transmission angle at crank angles 0 and pi (law of cosines; thesis Fig. 2.5 geometry)
     angles = [math.degrees(math.acos((coupler ** 2 + length ** 2 - d ** 2) / (2 * coupler * length)))
               for d in (ground - crank, ground + crank)]
     return (result.status, result.message, f"peak to peak {_ptp(result):.3g} m on a 0.2794 m coupler",
