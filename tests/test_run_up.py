@@ -179,7 +179,12 @@ def test_drive_follows_the_ramp_and_run_down_to_standstill(arm):
     """A prescribed drive turns at the ramp's rate; with stop = 0 the arm is brought to rest."""
     result = studies.run_up(arm, start=20.0, stop=0.0, duration=2.0, start_state="rest", curve_points=3,
                             n_steps=64)
-    assert result.status == "ok", result.message
+    # from rest the unstiffened arm swings to tens of section heights: the check along the ramp says
+    # its model form (the run's own verdict adds nothing)
+    assert result.status == "outside_linear_range", result.message
+    assert result.message.startswith("along the ramp: outside the linear range in 3 of 3 revolutions"), \
+        result.message
+    assert "enable geometric_stiffening" in result.message and "estimated error" not in result.message
     ramp = mechanisms.SpeedRamp(20.0, 0.0, 2.0)
     # the rates of an index-3 scheme carry its O(h^2) velocity error (the angles are exact)
     np.testing.assert_allclose(result.drive_speed, ramp.law(result.t)[1], rtol=0.0, atol=1e-4 * 20.0)

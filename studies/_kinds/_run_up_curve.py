@@ -1,0 +1,63 @@
+"""The run-up's steady-state curve (``studies.run_up``): the linear steady states at speeds of the
+ramp's range, their stability and, on request, the nonlinear periodic states; the resonances where a
+harmonic of the speed meets a mean frozen natural frequency."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._numerics import frozen_modes, solve_steady
+from .._toolkit import SPEED, is_numerical_failure
+
+
+def steady_curve(problem, values, speeds, specs, n_steps, nonlinear):
+    """(ptp, error, status, nonlinear ptp, stable: 1, 0 or NaN) of the steady states at ``speeds``."""
+    from .nonlinear_steady_state import nonlinear_steady_state
+
+    ptp = {spec: np.full(speeds.size, np.nan) for spec in specs}
+    error = {spec: np.full(speeds.size, np.nan) for spec in specs}
+    nl = {spec: np.full(speeds.size, np.nan) for spec in specs}
+    status = np.full(speeds.size, "failed", dtype=object)
+    stable = np.full(speeds.size, np.nan)
+    for i, speed in enumerate(speeds):
+        point = dict(values, **{SPEED: float(speed)})
+        try:
+            steady = solve_steady(problem.linearize(point, n_steps=n_steps, context=False))
+        except Exception as failure:
+            if not is_numerical_failure(failure):
+                raise
+            continue
+        status[i] = steady.status
+        stable[i] = 1.0 if steady.is_stable else 0.0
+        for k, spec in enumerate(specs):
+            ptp[spec][i] = float(np.ptp(steady.response[:, k]))
+            error[spec][i] = 2.0 * float(steady.response_error[k])
+        if nonlinear:   # on the run's (full) model, as the start: the curve is the run's steady limit
+            orbit = nonlinear_steady_state(problem, point, n_steps=n_steps, modes="full")
+            if orbit.status != "failed":
+                for spec in specs:
+                    nl[spec][i] = orbit.peak_to_peak[spec]
+    return ptp, error, status.astype(str), nl, stable
+
+
+def resonances(problem, values, low, high, n_modes, max_harmonic, n_speeds=17):
+    """(speeds, harmonics k, modes j) (n_res,) where ``k speed`` meets the mean frozen natural
+    frequency of mode j, which changes with the speed (centrifugal and geometric stiffening): found
+    between ``n_speeds`` coarse linearisations over [low, high] by linear interpolation."""
+    speeds = np.linspace(max(low, 0.02 * high), high, n_speeds)
+    table = np.full((n_speeds, n_modes), np.nan)
+    for i, speed in enumerate(speeds):
+        linear = problem.linearize(dict(values, **{SPEED: float(speed)}), n_steps=32, context=False)
+        mean = np.mean(frozen_modes(linear.system, 16)[1], axis=0)
+        mean = np.sort(mean[mean > 0.0])[:n_modes]
+        table[i, :mean.size] = mean
+    found = []
+    for j in range(n_modes):
+        for k in range(1, max_harmonic + 1):
+            gap = table[:, j] - k * speeds
+            for i in np.flatnonzero(np.sign(gap[:-1]) * np.sign(gap[1:]) < 0):
+                u = gap[i] / (gap[i] - gap[i + 1])
+                found.append((float(speeds[i] + u * (speeds[i + 1] - speeds[i])), k, j))
+    found.sort()
+    return (np.array([f[0] for f in found], dtype=float), np.array([f[1] for f in found], dtype=int),
+            np.array([f[2] for f in found], dtype=int))
