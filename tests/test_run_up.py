@@ -224,6 +224,14 @@ def test_very_slow_ramp_reproduces_the_nonlinear_periodic_states(four_bar):
         allowed = 3 * (result.peak_to_peak_error[spec][k] + orbit.peak_to_peak_error[spec]) + 1e-3 * steady
         assert abs(ramped - steady) <= allowed, (k, result.speed[k], ramped, steady, allowed)
         assert abs(ramped - steady) < 0.5 * abs(ramped - linear), (ramped, steady, linear)
+        # the check along the ramp: the steady states' linear-range measures at that speed (the
+        # deflection within the nonlinear-linear difference, the nominal compression the same formula)
+        from studies._numerics import solve_steady
+
+        check = solve_steady(four_bar.linearize({"speed": float(result.speed[k])}, n_steps=256)).linear_range
+        for name, rel in (("peak_deflection_over_height", 0.02), ("peak_compression_over_euler", 1e-3)):
+            assert result.range_measures[f"coupler.{name}"][k] == pytest.approx(check[f"coupler.{name}"], rel=rel)
+    assert set(result.revolution_status) == {"ok"} and result.is_stable
 
 
 # --- the scene study ---------------------------------------------------------------------------------

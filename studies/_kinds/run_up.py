@@ -65,6 +65,8 @@ MAX_HARMONIC = 4
 #: to peak of the run at 1e-10 (1e-8: 7e-7), far below the step's error, for 3.6 (at 200 steps a period
 #: 2.2) instead of 4.8 (4.2) Newton iterations a step; benchmarks/bench_simulate.py found the same value.
 TOL = 1e-7
+#: Richardson factor of the order-2 generalized-alpha orbit's N/2 error bars.
+ERROR_FACTOR = 1.0 / 3.0
 #: Default speeds of the steady-state curve.
 CURVE_POINTS = 25
 #: A per-revolution peak-to-peak whose estimated error exceeds this fraction of the largest one is
@@ -339,34 +341,40 @@ def _as_start(status: str, message: str) -> tuple[str, str]:
 
 
 def _start(problem, values, start, steps_at_start, start_state):
-    """(linear at the start speed, s0, sdot0, lag0, words, [(status, message)])."""
+    """(linear at the start speed, s0, sdot0, lag0, words, [(status, message)]). The nonlinear start is
+    the shooting of ``nonlinear_steady_state`` (its orbit on N steps, its stability's error bars from
+    N/2) without what that study adds for a result (the N/2 error estimates of its observables, the
+    mesh term of its budget): the run's numbers carry their own estimates from the same start."""
     import mechanisms
 
-    from .nonlinear_steady_state import nonlinear_steady_state
+    from .nonlinear_steady_state import MAX_ITERATIONS, shooting_setup
+    from .nonlinear_steady_state import TOL as ORBIT_TOL
 
     point = dict(values, **{SPEED: start})
-    linear = problem.linearize(point, n_steps=steps_at_start)
-    lin = linear.context
-    n_lags = len(getattr(mechanisms.integrated_model(lin.mechanism, lin.nominal), "lag_names", ()))
-    if start_state == "rest":
-        return linear, lin.nominal.s[0], lin.nominal.sdot[0], None, "rest", []
-    verdicts = []
-    if start_state == "nonlinear":
+    if start_state != "nonlinear":
+        linear = problem.linearize(point, n_steps=steps_at_start)
+        lin = linear.context
+        if start_state == "rest":
+            return linear, lin.nominal.s[0], lin.nominal.sdot[0], None, "rest", []
+        steady, verdicts = solve_steady(linear), []
+    else:
         # the full element models, the model the run integrates: a state of a reduced model is not
         # a state of the run's (other coordinates), and the run's reduction error through a range of
         # speeds and resonances is not what the reduction check at one steady state measures
-        orbit = nonlinear_steady_state(problem, point, n_steps=steps_at_start, modes="full")
-        if orbit.status != "failed":
-            period_map = mechanisms.PeriodMap(lin.mechanism, n_steps=steps_at_start,
-                                              independent=lin.coefficients.independent, nominal=lin.nominal)
-            s0, sdot0 = period_map.start_state(orbit.state)
-            lag0 = period_map.lag_states_of(orbit.state) if n_lags else None
-            verdicts.append(_as_start(orbit.status, f"start: nonlinear periodic state {orbit.status}: "
-                                                    f"{orbit.message}"))
-            return linear, s0, sdot0, lag0, "nonlinear periodic state", verdicts
-        verdicts.append(("ok", f"the nonlinear periodic state at {start:g} rad/s was not found "
-                               f"({orbit.message}); started from the linear steady state instead"))
-    steady = solve_steady(linear)
+        setup = shooting_setup(problem, point, steps_at_start)
+        linear, steady, fine = setup.linear, setup.steady, setup.fine
+        lin = linear.context
+        fine.warm_up()
+        orbit = periodic.find_orbit(fine, setup.guess, start, tol=ORBIT_TOL, max_iterations=MAX_ITERATIONS,
+                                    estimate=setup.coarse, error_factor=ERROR_FACTOR)
+        if orbit.converged:
+            s0, sdot0 = fine.start_state(orbit.state)
+            lag0 = fine.lag_states_of(orbit.state) if fine.n_lags else None
+            return linear, s0, sdot0, lag0, "nonlinear periodic state", [
+                _as_start(orbit.status, f"start: nonlinear periodic state {orbit.status}: {orbit.message}")]
+        verdicts = [("ok", f"the nonlinear periodic state at {start:g} rad/s was not found "
+                           f"({orbit.message}); started from the linear steady state instead")]
+    n_lags = len(getattr(mechanisms.integrated_model(lin.mechanism, lin.nominal), "lag_names", ()))
     x0, v0 = steady.state.x[0], steady.state.v[0]
     s0, sdot0 = lin.start_state(x0, v0)
     lag0 = np.asarray(x0, dtype=float)[-n_lags:] if n_lags else None
