@@ -201,3 +201,25 @@ def test_instability_band_along_the_ramp_is_unstable():
     assert verdicts[0][0] == "unstable" and "11-12 rad/s (2 of 4 curve points)" in verdicts[0][1]
     is_stable, verdicts, words = stability(np.zeros(0), np.zeros(0), [])
     assert is_stable and not verdicts and "not checked (curve_points = 0" in words
+
+
+# --- the reduced model --------------------------------------------------------------------------------
+def test_reduced_model_run_up_against_the_full_one():
+    """modes = "auto": the run on the reduced coupler (its reduction check at the ramp's ends and
+    resonances) gives the full model's per-revolution peak to peak within the two runs' time-step
+    estimates and the stated reduction error."""
+    problem = studies.MechanismProblem.from_scene("four_bar_fem4")
+    options = dict(start=60.0, stop=64.0, duration=1.0, curve_points=0, mode_steps=24)
+    full = studies.run_up(problem, **options)
+    reduced = studies.run_up(problem, modes="auto", **options)
+    assert full.status == reduced.status == "ok", (full.message, reduced.message)
+    assert reduced.reduced_modes == {"coupler": 4} and not full.reduced_modes
+    assert "on the reduced model (coupler 4 modes" in reduced.message and "full element models" in full.message
+    for spec in full.units:
+        stated = reduced.reduction_error[spec]
+        assert 0.0 < stated < 0.01 * reduced.largest[spec]
+        difference = np.abs(full.peak_to_peak[spec] - reduced.peak_to_peak[spec])
+        allowed = 3.0 * (full.peak_to_peak_error[spec] + reduced.peak_to_peak_error[spec]) + stated
+        assert np.all(difference <= allowed), (difference, allowed)
+    with pytest.raises(studies.StudiesError, match="modes: expected 'auto'"):
+        studies.run_up(problem, modes="some", **options)

@@ -4,10 +4,13 @@ harmonic of the speed meets a mean frozen natural frequency."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .._numerics import frozen_modes, solve_steady
 from .._toolkit import SPEED, is_numerical_failure
+from ._nonlinear_model import choose_model
 
 
 def steady_curve(problem, values, speeds, specs, n_steps, nonlinear):
@@ -61,3 +64,37 @@ def resonances(problem, values, low, high, n_modes, max_harmonic, n_speeds=17):
     found.sort()
     return (np.array([f[0] for f in found], dtype=float), np.array([f[1] for f in found], dtype=int),
             np.array([f[2] for f in found], dtype=int))
+
+
+@dataclass(frozen=True)
+class Reduction:
+    """The reduced model a run-up integrates: ``modes`` {link: modes}, ``relative`` the stated
+    reduction error (twice the largest ratio of the reduction check's difference to a peak to peak
+    over the speeds checked), ``words`` what was checked where."""
+
+    modes: dict
+    relative: float
+    words: str
+
+
+def reduced_model(problem, values, speeds, modes):
+    """(problem, values, ``Reduction`` or None) of a run-up on the reduced model ``modes`` asks for
+    (``nonlinear_steady_state``'s choice at ``speeds[0]``, the start), its reduction check repeated at
+    the other ``speeds`` (rad/s: the ramp's other end, its resonances) with the same modes: the check
+    is one of linear steady states, so a ramp through resonances is checked where they are."""
+    speeds = [float(speed) for speed in speeds if speed > 0.0]
+    choice = choose_model(problem, dict(values, **{SPEED: speeds[0]}), modes)
+    if not choice.modes:
+        return problem, values, None
+    count = max(choice.modes.values())
+    relative, worst = choice.relative, speeds[0]
+    for speed in dict.fromkeys(speeds[1:]):
+        again = choose_model(problem, dict(values, **{SPEED: speed}), count)
+        if again.relative > relative:
+            relative, worst = again.relative, speed
+    links = ", ".join(f"{name} {n} modes" for name, n in choice.modes.items())
+    words = (f"on the reduced model ({links} with their static corrections; the start too, the curve on "
+             f"the full models): its reduction check at {len(dict.fromkeys(speeds))} speeds (the ramp's ends "
+             f"and resonances) stated as {relative:.3g} of each peak to peak (twice the largest, at "
+             f"{worst:.4g} rad/s) in reduction_error")
+    return choice.problem, {}, Reduction(dict(choice.modes), float(relative), words)

@@ -32,6 +32,7 @@ from .._toolkit import (
     number,
     steps,
 )
+from ._nonlinear_model import check_modes
 from ._run_up_checks import (
     AxialLoad,
     along_ramp,
@@ -42,7 +43,7 @@ from ._run_up_checks import (
     stability,
     tail_words,
 )
-from ._run_up_curve import resonances, steady_curve
+from ._run_up_curve import reduced_model, resonances, steady_curve
 from ._run_up_revolutions import analysed, torques
 
 #: Start states: the nonlinear periodic state at ``start`` (shooting; the linear one where Newton does
@@ -150,6 +151,10 @@ class RunUp(StudyResult):
         to the run's end (a crank slowing to a stop or swinging back) and its estimate from 2 dt.
     curve_is_stable : ndarray, (n_curve,)
         1 where the curve's linear steady state is stable, 0 where not, NaN where not computed.
+    reduced_modes, reduction_error : dict
+        With ``modes`` other than ``"full"``: {link: modes} of the reduced links the run integrated,
+        and {spec: the stated reduction error of the largest peak to peak, units[spec]} (the
+        reduction check's largest ratio to a peak to peak over the ramp's ends and resonances, twice).
     """
 
     problem: str
@@ -194,6 +199,8 @@ class RunUp(StudyResult):
     tail_peak_to_peak_error: Mapping[str, float] = field(default_factory=dict)
     tail_start: float = float("nan")
     curve_is_stable: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    reduced_modes: Mapping[str, int] = field(default_factory=dict)
+    reduction_error: Mapping[str, float] = field(default_factory=dict)
     extra: Mapping[str, Any] = field(default_factory=dict)
 
     _units = {"t": "s", "response": "@observables", "drive_speed": "rad/s", "drive_torque": "N m",
@@ -387,7 +394,8 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
            duration: float, profile: str = "linear", n_steps: int = STEPS_PER_REVOLUTION,
            mode_steps: int = MODE_STEPS, max_harmonic: int = MAX_HARMONIC, start_state: str = "nonlinear",
            curve_points: int = CURVE_POINTS, curve_steps: int = 128, nonlinear_curve: bool = False,
-           estimate_error: bool = True, rho_inf: float = 0.8, tol: float = TOL, run_down: str = "ramp") -> RunUp:
+           estimate_error: bool = True, rho_inf: float = 0.8, tol: float = TOL, run_down: str = "ramp",
+           modes: Any = "full") -> RunUp:
     """The full nonlinear model (``mechanisms.simulate``) while the speed goes from ``start`` to
     ``stop`` (rad/s, ``start > stop`` runs it down, ``stop = 0`` to a standstill) over ``duration``
     (s) along ``profile`` (a ramp shape of ``mechanisms.RAMP_SHAPES``: ``"linear"``, ``"smooth"``),
@@ -416,12 +424,12 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     states (``curve_steps`` steps each) between the speeds give the steady curve
     (``nonlinear_curve``: the nonlinear periodic states too).
 
-    The run, its start and its nonlinear curve are all on the scene's full element models (the
-    nonlinear periodic states with ``modes = "full"``, not ``nonlinear_steady_state``'s default
-    reduction): the start must be a state of the model the run integrates, and the reduction check
-    (linear steady states at one speed) does not bound a reduced model's error along a ramp through
-    resonances. The run dominates the cost (``duration / dt`` steps, three times with the error
-    estimate, against a few periods of shooting), so the full start costs little more.
+    The run and its start are on the scene's full element models by default (``modes = "full"``);
+    ``modes = "auto"`` (or a count) runs them on the reduced model ``nonlinear_steady_state`` chooses
+    at ``start`` (``studies._kinds._nonlinear_model``), its reduction check repeated at the ramp's
+    other end and at each resonance in its range, the largest twice as the stated reduction error
+    (``reduction_error``; above a tenth of a peak to peak ``inaccurate``). The nonlinear curve stays
+    on the full models.
 
     Observables are those of the problem that are functions of the coordinates (deflections, strains,
     moments, angles); the drive torque is reported as its own time series. A run that fails gives
@@ -429,6 +437,7 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     import mechanisms
 
     _check_arguments(problem, start, stop, duration, profile, start_state, run_down)
+    modes = check_modes(modes)
     n_steps = steps("run_up", {"n_steps": n_steps}, n_steps, minimum=8)
     for name, value, least in (("mode_steps", mode_steps, 4), ("max_harmonic", max_harmonic, 1),
                                ("curve_points", curve_points, 0)):
@@ -446,7 +455,14 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     dt = duration / n_run
     # the start orbit on at least 128 steps: its N/4 check of the error estimate needs 32
     steps_at_start = max(128, 4 * int(math.ceil(2.0 * math.pi / start / dt / 4.0)))
-    linear, s0, sdot0, lag0, start_words, verdicts = _start(problem, values, start, steps_at_start, start_state)
+    low, high = min(start, stop), max(start, stop)
+    res_speed, res_k, res_mode = resonances(problem, values, low, high, len(frequencies), max_harmonic)
+    model_problem, model_values, reduction = problem, values, None
+    if modes != "full":
+        model_problem, model_values, reduction = reduced_model(
+            problem, values, [start, stop] + list(res_speed), modes)
+    linear, s0, sdot0, lag0, start_words, verdicts = _start(model_problem, model_values, start, steps_at_start,
+                                                            start_state)
     lin = linear.context
     drives = lin.mechanism.drives
     if any(drive.rate == 0.0 for drive in drives):
@@ -465,7 +481,8 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     # the nominal axial loads at a second speed on the start's grid: the compression at any speed
     other = stop if stop > 0 else 0.5 * start
     axial = AxialLoad(lin.range_probes, start,
-                      problem.linearize(dict(values, **{SPEED: other}), n_steps=steps_at_start).context.range_probes,
+                      model_problem.linearize(dict(model_values, **{SPEED: other}),
+                                              n_steps=steps_at_start).context.range_probes,
                       other)
     specs = [spec for spec in linear.observables if of_coordinates(ramped.observable(spec))]
     left_out = [spec for spec in linear.observables if spec not in specs]
@@ -500,14 +517,15 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
         if np.isfinite(worst) and worst > MAX_RELATIVE_ERROR * largest[spec]:
             reasons.append(f"{spec}: an estimated error of {worst:.3g} is {worst / largest[spec]:.3g} of the "
                            f"largest peak to peak (> {MAX_RELATIVE_ERROR:g}): raise n_steps or mode_steps")
-    low, high = min(start, stop), max(start, stop)
     curve_clock = time.perf_counter()
     curve_speed = (np.linspace(max(low, 0.02 * high), high, curve_points) if curve_points
                    else np.zeros(0))
     curve_ptp, curve_error, curve_status, nl_ptp, curve_stable = steady_curve(
         problem, values, curve_speed, specs, curve_steps, nonlinear_curve)
     curve_time = time.perf_counter() - curve_clock
-    res_speed, res_k, res_mode = resonances(problem, values, low, high, len(frequencies), max_harmonic)
+    if reduction is not None and reduction.relative > MAX_RELATIVE_ERROR:
+        reasons.append(f"the stated reduction error is {reduction.relative:.3g} of a peak to peak (> "
+                       f"{MAX_RELATIVE_ERROR:g}): raise modes, or modes = 'full'")
     if not run.success:
         run_verdict = ("failed", f"the run failed: {run.message}; the results end there. Raise n_steps or "
                                  "mode_steps, or ramp more slowly")
@@ -521,8 +539,9 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     status, message = combine([run_verdict] + verdicts + range_verdicts + stability_verdicts)
     what = (f"coast from {start:g} rad/s for {duration:g} s" if run_down == "coast" else
             f"{'run-up' if stop > start else 'run-down'} {start:g} -> {stop:g} rad/s in {duration:g} s")
-    words = (f"{what}, {n_rev} revolutions, dt = {dt:.3g} s ({dt_reason}), from the {start_words}; on the full "
-             f"element models (modes = 'full', the start and the nonlinear curve too)")
+    words = (f"{what}, {n_rev} revolutions, dt = {dt:.3g} s ({dt_reason}), from the {start_words}; "
+             + (reduction.words if reduction is not None else
+                "on the full element models (modes = 'full', the start and the nonlinear curve too)"))
     words = "; ".join(part for part in (words, drive_words, check_words, tail_words(fine, run, specs),
                                         growth_words(fine, specs, run.success), range_note,
                                         stability_words) if part)
@@ -534,7 +553,7 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
                   "n_steps": n_steps, "mode_steps": mode_steps, "max_harmonic": max_harmonic,
                   "start_state": start_state, "curve_points": curve_points, "curve_steps": curve_steps,
                   "nonlinear_curve": nonlinear_curve, "estimate_error": estimate_error, "rho_inf": rho_inf,
-                  "tol": tol, "run_down": run_down},
+                  "tol": tol, "run_down": run_down, "modes": modes},
         t=run.t, response=fine.response, drive_speed=fine.phase.speed, drive_torque=torque, speed=speed,
         peak_to_peak=ptp, peak_to_peak_error=ptp_error, peak=peak, peak_error=peak_error, largest=largest,
         largest_error=largest_error, speed_at_largest=at, curve_speed=curve_speed,
@@ -547,6 +566,9 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
         curve_run_time=curve_time, is_stable=bool(is_stable and start_stable), range_measures=measures,
         revolution_status=revolution_status, tail_peak_to_peak=fine.tail_peak_to_peak,
         tail_peak_to_peak_error=tail_error, tail_start=fine.tail_start, curve_is_stable=curve_stable,
+        reduced_modes=dict(reduction.modes) if reduction is not None else {},
+        reduction_error={spec: reduction.relative * largest[spec] for spec in specs} if reduction is not None
+        else {},
         extra={"setup_run_time": setup_time, "n_rejected": run.n_rejected})
 
 
@@ -577,6 +599,7 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
     return {"start": start, "stop": stop,
             "duration": number(where, "duration", table["duration"], positive=True),
             "profile": profile, "start_state": start_state, "run_down": run_down,
+            "modes": _modes_option(where, table),
             "n_steps": integer(where, "n_steps", table.get("n_steps", STEPS_PER_REVOLUTION), 8,
                                maximum=65536, why="steps per revolution at the fastest speed"),
             "mode_steps": integer(where, "mode_steps", table.get("mode_steps", MODE_STEPS), 4, maximum=1024,
@@ -588,6 +611,14 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
             "curve_steps": _curve_steps(where, table.get("curve_steps", max(32, n_steps))),
             "nonlinear_curve": boolean(where, "nonlinear_curve", table.get("nonlinear_curve", False)),
             "estimate_error": boolean(where, "estimate_error", table.get("estimate_error", True))}
+
+
+def _modes_option(where: str, table: Mapping[str, Any]) -> Any:
+    """The table's ``modes`` (default "full": the run-up's, not ``nonlinear_steady_state``'s "auto")."""
+    try:
+        return check_modes(table.get("modes", "full"))
+    except StudiesError as error:
+        raise StudiesError(f"[{where}] {error}") from None
 
 
 def _curve_steps(where: str, value: Any) -> int:
@@ -656,6 +687,6 @@ def _warm_up(problem: Any) -> None:
 KIND = register_kind(StudyKind(
     name="run_up", result=RunUp,
     keys=("start", "stop", "duration", "profile", "start_state", "n_steps", "mode_steps", "max_harmonic",
-          "curve_points", "curve_steps", "nonlinear_curve", "estimate_error", "run_down"),
+          "curve_points", "curve_steps", "nonlinear_curve", "estimate_error", "run_down", "modes"),
     check=_check, run=_run, summary=_summary, headlines=_headlines, figures=_figures, cost=run_up_cost,
     warm_up=_warm_up))
