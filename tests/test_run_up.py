@@ -247,6 +247,13 @@ def test_scene_table_runs_and_round_trips(tmp_path):
     assert isinstance(loaded, studies.RunUp)
     assert loaded.peak_to_peak[TIP].shape == loaded.speed.shape
     assert loaded.settings["stop"] == 20.0
+    # the verdicts along the ramp and the tail round-trip
+    assert loaded.revolution_status.shape == (loaded.speed.size + 1,)
+    assert set(loaded.range_measures) == {f"arm.{name}" for name in (
+        "peak_deflection_over_length", "peak_deflection_over_height", "peak_slope",
+        "peak_compression_over_euler", "peak_stress_over_yield")}
+    assert loaded.tail_peak_to_peak.keys() == {TIP} and np.isfinite(loaded.tail_start)
+    assert loaded.curve_is_stable.shape == (5,) and loaded.is_stable
     assert main(["plot", str(out), "--outdir", str(tmp_path / "figures")]) == 0
     assert any(p.name.startswith("run_up") for p in (tmp_path / "figures").iterdir())
 

@@ -643,8 +643,14 @@ def _summary(result: RunUp) -> str:
 def _headlines(result: RunUp) -> Summary:
     rows = []
     for spec, value in result.largest.items():
+        # the error: the time step's estimate, plus the stated reduction error on a reduced model
+        reduction = result.reduction_error.get(spec, 0.0)
+        words = f"at {plain(result.speed_at_largest[spec], 3)} rad/s"
+        if reduction:
+            words += (f"; error: time step {plain(result.largest_error[spec])} + reduction "
+                      f"{plain(reduction)}")
         rows.append(Headline(f"{spec} largest peak to peak ({result.direction})", value, result.units[spec],
-                             result.largest_error[spec], f"at {plain(result.speed_at_largest[spec], 3)} rad/s"))
+                             result.largest_error[spec] + reduction, words))
     return Summary(status=headline(result.status), run_time=result.run_time, rows=rows)
 
 
