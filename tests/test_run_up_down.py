@@ -223,3 +223,44 @@ def test_reduced_model_run_up_against_the_full_one():
         assert np.all(difference <= allowed), (difference, allowed)
     with pytest.raises(studies.StudiesError, match="modes: expected 'auto'"):
         studies.run_up(problem, modes="some", **options)
+
+
+@pytest.mark.slow
+def test_run_down_through_resonance_to_a_standstill_against_the_oscillator():
+    """The flexible arm run down 28 -> 0 rad/s in 5 s through its resonance (20.2 rad/s) to a stop:
+    each whole revolution's peak to peak is the DOP853 oscillator's within 3x its error estimate, the
+    largest after the resonance in the sweep's direction (below it), and what follows the last whole
+    revolution (a third of a turn to the stop) the oscillator's there."""
+    from tests.test_run_up import _arm_oscillator, _only_the_model_form_verdict
+
+    arm = studies.MechanismProblem.from_mechanism(mechanisms.load(str(ARM)), observables=[TIP])
+    start, duration = 28.0, 5.0
+    result = studies.run_up(arm, start=start, stop=0.0, duration=duration, start_state="linear", n_steps=128,
+                            curve_points=0)
+    verdicts = _only_the_model_form_verdict(result, start)
+    assert "along the ramp: outside the linear range" in verdicts   # the model form, revolution by revolution
+    m, c, k, s, s0, tip = _arm_oscillator()
+    rate = -start / duration
+
+    def rhs(t, y):
+        angle, speed = start * t + 0.5 * rate * t * t, start + rate * t
+        return [y[1], (-c * y[1] - (k - m * speed**2) * y[0] - s * rate - GRAVITY * s0 * math.cos(angle)) / m]
+
+    from tests.test_run_up import _steady_amplitude
+
+    q = _steady_amplitude(start, m, c, k, s0)
+    solution = solve_ivp(rhs, (0.0, duration), [q.real, (1j * start * q).real], method="DOP853", rtol=1e-11,
+                         atol=1e-14, dense_output=True)
+    ends = [(-start + math.sqrt(start**2 + 2.0 * rate * 2 * math.pi * j)) / rate
+            for j in range(result.speed.size + 1)]
+    reference = np.array([np.ptp(tip * solution.sol(np.linspace(a, b, 4001))[0]) for a, b in zip(ends, ends[1:])])
+    np.testing.assert_allclose(result.speed, 2 * math.pi / np.diff(ends), rtol=1e-6)
+    ptp, error = result.peak_to_peak[TIP], result.peak_to_peak_error[TIP]
+    assert np.all(np.abs(ptp - reference) <= 3.0 * error + 1e-3 * reference.max()), np.c_[result.speed, ptp,
+                                                                                          reference, error]
+    assert result.speed_at_largest[TIP] < 20.19 - 0.3
+    tail = np.ptp(tip * solution.sol(np.linspace(ends[-1], duration, 4001))[0])
+    assert result.tail_start == pytest.approx(ends[-1], rel=1e-6)
+    assert result.tail_peak_to_peak[TIP] == pytest.approx(tail, abs=3.0 * result.tail_peak_to_peak_error[TIP]
+                                                          + 1e-3 * reference.max())
+    assert "no whole revolution" in result.message and "final speed" in result.message
