@@ -229,6 +229,11 @@ class RunUp(StudyResult):
                 error = np.asarray(self.peak_to_peak_error.get(spec, np.full(ptp.size, np.nan)), dtype=float)
                 if np.isfinite(error).any():
                     ax.fill_between(self.speed, ptp - error, ptp + error, color="C0", alpha=0.25, lw=0)
+                outside = np.asarray(self.revolution_status[:ptp.size]) != "ok" if np.size(
+                    self.revolution_status) > ptp.size else np.zeros(ptp.size, dtype=bool)
+                if outside.any():   # the checks along the ramp, revolution by revolution
+                    lines += ax.plot(self.speed[outside], ptp[outside], "x", ms=3, color="C3",
+                                     label="outside the linear range")
             if np.size(self.curve_speed):
                 lines += ax.plot(self.curve_speed, self.curve_peak_to_peak[spec], "--", color="C1",
                                  label="steady state, linear")
