@@ -1,9 +1,10 @@
 """The run-up's steady-state curve (``studies.run_up``): the linear steady states at speeds of the
 ramp's range, their stability and, on request, the nonlinear periodic states; the resonances where a
-harmonic of the speed meets a mean frozen natural frequency."""
+harmonic of the speed meets a mean frozen natural frequency; the time step those frequencies bound."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,3 +99,31 @@ def reduced_model(problem, values, speeds, modes):
              f"and resonances) stated as {relative:.3g} of each peak to peak (twice the largest, at "
              f"{worst:.4g} rad/s) in reduction_error")
     return choice.problem, {}, Reduction(dict(choice.modes), float(relative), words)
+
+
+def time_step(problem, values, start, stop, n_steps, mode_steps, max_harmonic):
+    """(dt, reason, natural frequencies (n_modes,) rad/s at ``start`` of the modes that matter): the
+    largest step that takes ``n_steps`` per revolution at the fastest speed and ``mode_steps`` per
+    period of the highest natural frequency that matters (every mode up to ``max_harmonic`` times the
+    fastest speed, and the lowest one always) at both ends of the ramp (the frequencies move with
+    the speed; a run-down to 0 at 2 % of ``start``, near the standstill's), so that slow speeds stay
+    as resolved as fast ones."""
+    top = max(start, stop)
+    highest, at, count, relevant_at_start = 0.0, start, 0, None
+    for speed in (start, max(stop, 0.02 * top)):
+        linear = problem.linearize(dict(values, **{SPEED: speed}), n_steps=32, context=False)
+        _, frequencies, _ = frozen_modes(linear.system, 16)
+        mean = np.mean(frequencies, axis=0)
+        mean = np.sort(mean[mean > 0.0])
+        relevant = mean[: max(1, int(np.searchsorted(mean, max_harmonic * top, side="right")))]
+        if relevant_at_start is None:
+            relevant_at_start = relevant
+        if relevant.size and relevant[-1] > highest:
+            highest, at, count = float(relevant[-1]), speed, relevant.size
+    by_revolution = 2.0 * math.pi / top / n_steps
+    by_mode = 2.0 * math.pi / highest / mode_steps if highest > 0.0 else math.inf
+    if by_mode < by_revolution:
+        reason = (f"{mode_steps} steps per period of mode {count} ({highest:.4g} rad/s at "
+                  f"{at:.4g} rad/s), the highest up to {max_harmonic} x the fastest speed")
+        return by_mode, reason, relevant_at_start
+    return by_revolution, f"{n_steps} steps per revolution at the fastest speed {top:.4g} rad/s", relevant_at_start

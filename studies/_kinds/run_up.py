@@ -16,7 +16,7 @@ import periodic
 
 from .._kind import StudyKind, register_kind
 from .._mechanism import of_coordinates
-from .._numerics import frozen_modes, solve_steady
+from .._numerics import solve_steady
 from .._plots import Plot, axes_for, drawn, headline, label, plain
 from .._result import StudyResult
 from .._toolkit import (
@@ -43,7 +43,7 @@ from ._run_up_checks import (
     stability,
     tail_words,
 )
-from ._run_up_curve import reduced_model, resonances, steady_curve
+from ._run_up_curve import reduced_model, resonances, steady_curve, time_step
 from ._run_up_revolutions import analysed, torques
 
 #: Start states: the nonlinear periodic state at ``start`` (shooting; the linear one where Newton does
@@ -57,7 +57,7 @@ RUN_DOWNS = ("ramp", "coast")
 #: elastic periods bound the step beside it, ``MODE_STEPS``). At 32 the four-bar's run-up through its
 #: 2x resonance (benchmarks/bench_run_up.py) had an estimated error of 21 % of its largest peak to peak.
 STEPS_PER_REVOLUTION = 64
-#: Default steps per period of the highest elastic mode that matters (``_time_step``).
+#: Default steps per period of the highest elastic mode that matters (``_run_up_curve.time_step``).
 MODE_STEPS = 16
 #: Default highest harmonic of the speed whose resonances are marked (and whose modes bound the step).
 MAX_HARMONIC = 4
@@ -315,34 +315,6 @@ def _check_run_down(where, run_down, stop, profile):
                            f"{profile!r}); leave it out")
 
 
-def _time_step(problem, values, start, stop, n_steps, mode_steps, max_harmonic):
-    """(dt, reason, natural frequencies (n_modes,) rad/s at ``start`` of the modes that matter): the
-    largest step that takes ``n_steps`` per revolution at the fastest speed and ``mode_steps`` per
-    period of the highest natural frequency that matters (every mode up to ``max_harmonic`` times the
-    fastest speed, and the lowest one always) at both ends of the ramp (the frequencies move with
-    the speed; a run-down to 0 at 2 % of ``start``, near the standstill's), so that slow speeds stay
-    as resolved as fast ones."""
-    top = max(start, stop)
-    highest, at, count, relevant_at_start = 0.0, start, 0, None
-    for speed in (start, max(stop, 0.02 * top)):
-        linear = problem.linearize(dict(values, **{SPEED: speed}), n_steps=32, context=False)
-        _, frequencies, _ = frozen_modes(linear.system, 16)
-        mean = np.mean(frequencies, axis=0)
-        mean = np.sort(mean[mean > 0.0])
-        relevant = mean[: max(1, int(np.searchsorted(mean, max_harmonic * top, side="right")))]
-        if relevant_at_start is None:
-            relevant_at_start = relevant
-        if relevant.size and relevant[-1] > highest:
-            highest, at, count = float(relevant[-1]), speed, relevant.size
-    by_revolution = 2.0 * math.pi / top / n_steps
-    by_mode = 2.0 * math.pi / highest / mode_steps if highest > 0.0 else math.inf
-    if by_mode < by_revolution:
-        reason = (f"{mode_steps} steps per period of mode {count} ({highest:.4g} rad/s at "
-                  f"{at:.4g} rad/s), the highest up to {max_harmonic} x the fastest speed")
-        return by_mode, reason, relevant_at_start
-    return by_revolution, f"{n_steps} steps per revolution at the fastest speed {top:.4g} rad/s", relevant_at_start
-
-
 def _as_start(status: str, message: str) -> tuple[str, str]:
     """A start state's verdict as the run-up's: an untrusted error estimate of the start (the state
     is a start only: what it misses is a transient of the run, which the run's own error estimate
@@ -451,7 +423,7 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     clock = time.perf_counter()
     values = {k: v for k, v in (values or {}).items() if k != SPEED}
     parameters = problem.resolve(dict(values, **{SPEED: start}))
-    dt, dt_reason, frequencies = _time_step(problem, values, start, stop, n_steps, mode_steps, max_harmonic)
+    dt, dt_reason, frequencies = time_step(problem, values, start, stop, n_steps, mode_steps, max_harmonic)
     n_run = 4 * int(math.ceil(duration / (4.0 * dt)))   # the runs at 2 dt and 4 dt on every other sample
     if n_run > MAX_RUN_STEPS:
         raise StudiesError(f"duration: {duration:g} s at dt = {dt:.3g} s ({dt_reason}) is {n_run} steps; "
@@ -668,7 +640,7 @@ def run_up_cost(name, problem, options, workers):
     the step the elastic periods set, and the steady-state curve."""
     values = {SPEED: options["start"]}
     sizes = cost.sizes_at(problem, values)
-    dt, _, _ = _time_step(problem, {}, options["start"], options["stop"], options["n_steps"],
+    dt, _, _ = time_step(problem, {}, options["start"], options["stop"], options["n_steps"],
                           options["mode_steps"], options["max_harmonic"])
     run_steps = options["duration"] / dt * (1.75 if options["estimate_error"] else 1.0)   # dt, 2 dt, 4 dt
     start_steps = max(32, int(2.0 * math.pi / options["start"] / dt))
