@@ -8,7 +8,9 @@ ramp's mean speed) over the same number of steps of the same ``dt``, with its ow
 (also a run at 2 dt): the ratio says what the ramp, the start orbit, the per-revolution analysis and
 the steady curve add to the integration itself. Medians of ``--repeats`` rounds.
 
-Usage: ``python benchmarks/bench_run_up.py [--revolutions 500] [--repeats 1]``
+Usage: ``python benchmarks/bench_run_up.py [--revolutions 500] [--repeats 1] [--modes full|auto|N]``
+(``--modes auto``: the run-up on the reduced model, its reduction checks included in its time; the
+baseline stays the full model's ``simulate``.)
 """
 
 from __future__ import annotations
@@ -31,7 +33,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--start", type=float, default=50.0)
     parser.add_argument("--stop", type=float, default=150.0)
+    parser.add_argument("--modes", default="full", help="the run-up's model: full, auto or a mode count")
     args = parser.parse_args()
+    modes = int(args.modes) if args.modes.isdigit() else args.modes
     problem = studies.MechanismProblem.from_scene("four_bar_fem4")
     # the mean speed of a linear ramp is the mean of its ends: 2 pi n revolutions take this long
     duration = 2.0 * math.pi * args.revolutions / (0.5 * (args.start + args.stop))
@@ -43,7 +47,7 @@ def main() -> None:
     result = None
     for _ in range(args.repeats):
         started = time.perf_counter()
-        result = studies.run_up(problem, start=args.start, stop=args.stop, duration=duration)
+        result = studies.run_up(problem, start=args.start, stop=args.stop, duration=duration, modes=modes)
         study_times.append(time.perf_counter() - started)
         started = time.perf_counter()
         mechanisms.simulate(model, t_end=duration, dt=result.dt, observables=[SPEC], estimate_error=True)
@@ -57,6 +61,9 @@ def main() -> None:
           f"{result.largest_error[SPEC]:.2g} m at {result.speed_at_largest[SPEC]:.4g} rad/s; start "
           f"{result.start_state}")
     print(f"message: {result.message}")
+    if result.reduced_modes:
+        print(f"reduced model {result.reduced_modes}: stated reduction error "
+              f"{ {k: float(f'{v:.3g}') for k, v in result.reduction_error.items()} }")
     print(f"study (median of {args.repeats}): {study:.2f} s (runs {result.simulation_run_time:.2f} + "
           f"{result.error_run_time:.2f} s, curve {result.curve_run_time:.2f} s, start and setup "
           f"{result.extra['setup_run_time']:.2f} s); target {TARGET_SECONDS:g} s: "

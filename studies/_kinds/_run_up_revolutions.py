@@ -5,6 +5,8 @@ linear route reports them (changes from the rigid motion at the same crank angle
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -22,23 +24,32 @@ class Phase:
         self.speed = (run.sdot @ gradient) / turns
         self.t = run.t
 
+    def reversal(self) -> int:
+        """The index of the last sample before the phase first turns back (a crank that stopped and
+        swings back: a coast under gravity, a braked crank's overshoot), the last sample without one."""
+        scale = max(1.0, float(np.abs(self.phase).max()))
+        back = np.flatnonzero(np.diff(self.phase) < -1e-12 * scale)
+        return int(back[0]) if back.size else self.phase.size - 1
+
     def revolutions(self):
         """(times (n_rev + 1,) s where each whole revolution begins and the last ends, their mean
-        speeds (n_rev,) rad/s)."""
-        n_rev = int(np.floor(self.phase[-1] / (2.0 * math.pi) + 1e-12))
-        if n_rev < 1 or np.any(np.diff(self.phase) < 0):
+        speeds (n_rev,) rad/s): the whole revolutions turned before the phase first turns back."""
+        end = self.reversal() + 1
+        phase, speed, t = self.phase[:end], self.speed[:end], self.t[:end]
+        n_rev = int(np.floor(phase[-1] / (2.0 * math.pi) + 1e-12)) if phase.size > 1 else 0
+        if n_rev < 1:
             return np.zeros(1), np.zeros(0)
         marks = 2.0 * math.pi * np.arange(n_rev + 1)
         # the crossing inside its step from the phase's second-order expansion there (its rate at both
         # ends known): exact for a speed linear over the step, where linear interpolation is O(h^2)
-        i = np.clip(np.searchsorted(self.phase, marks, side="right") - 1, 0, self.phase.size - 2)
-        h = self.t[i + 1] - self.t[i]
-        w0, acc = self.speed[i], (self.speed[i + 1] - self.speed[i]) / h
-        rest = marks - self.phase[i]
+        i = np.clip(np.searchsorted(phase, marks, side="right") - 1, 0, phase.size - 2)
+        h = t[i + 1] - t[i]
+        w0, acc = speed[i], (speed[i + 1] - speed[i]) / h
+        rest = marks - phase[i]
         tau = np.where(np.abs(acc) * h > 1e-12 * np.abs(w0),
                        2.0 * rest / (w0 + np.sqrt(np.maximum(w0 * w0 + 2.0 * acc * rest, 0.0))),
                        rest / np.where(w0 != 0.0, w0, 1.0))
-        times = self.t[i] + tau
+        times = t[i] + tau
         return times, 2.0 * math.pi / np.diff(times)
 
 
@@ -115,19 +126,40 @@ def observed(model, linear, specs, run, phase):
     return out
 
 
-def analysed(model, linear, drive, start, specs, dt, options):
-    """One run of the ramped ``model`` on the step ``dt`` and its analysis: (run, phase, response
-    {spec: (n_t,)}, mean speeds (n_rev,), peak-to-peak and peak {spec: (n_rev,)})."""
+@dataclass(frozen=True)
+class Analysis:
+    """One run of a run-up and its revolutions: ``run`` (``mechanisms.simulate``'s result),
+    ``phase`` (``Phase``), ``response`` {spec: (n_t,)}, ``times`` (n_rev + 1,) s the whole
+    revolutions' ends, ``speed`` (n_rev,) rad/s their mean speeds, ``peak_to_peak`` and ``peak``
+    {spec: (n_rev,)}; ``tail_peak_to_peak`` {spec: float} over what follows the last whole revolution
+    (a crank slowing to a stop or swinging back: no whole revolution), ``tail_start`` (s) its start."""
+
+    run: Any
+    phase: Phase
+    response: dict
+    times: np.ndarray
+    speed: np.ndarray
+    peak_to_peak: dict
+    peak: dict
+    tail_peak_to_peak: dict
+    tail_start: float
+
+
+def analysed(model, linear, drive, start, specs, dt, options) -> Analysis:
+    """One run of the ramped ``model`` on the step ``dt`` and its analysis (``Analysis``)."""
     import mechanisms
 
     run = mechanisms.simulate(model, dt=dt, **options)
     phase = Phase(model, drive, start, run)
     response = observed(model, linear, specs, run, phase.phase)
     times, speed = phase.revolutions()
-    ptp, peak = {}, {}
+    tail_start = float(times[-1]) if speed.size else float(run.t[0])
+    ptp, peak, tail = {}, {}, {}
     for spec in specs:
         ptp[spec], peak[spec] = per_revolution(response[spec], run.t, times)
-    return run, phase, response, speed, ptp, peak
+        rest = response[spec][run.t >= tail_start]
+        tail[spec] = float(np.ptp(rest)) if rest.size > 1 else 0.0
+    return Analysis(run, phase, response, times, speed, ptp, peak, tail, tail_start)
 
 
 def torques(model, run) -> np.ndarray:

@@ -16,7 +16,7 @@ import periodic
 
 from .._kind import StudyKind, register_kind
 from .._mechanism import of_coordinates
-from .._numerics import frozen_modes, solve_steady
+from .._numerics import solve_steady
 from .._plots import Plot, axes_for, drawn, headline, label, plain
 from .._result import StudyResult
 from .._toolkit import (
@@ -29,20 +29,35 @@ from .._toolkit import (
     combine,
     cost,
     integer,
-    is_numerical_failure,
     number,
     steps,
 )
+from ._nonlinear_model import check_modes
+from ._run_up_checks import (
+    AxialLoad,
+    along_ramp,
+    check_follows,
+    error_estimate,
+    growth_words,
+    released,
+    stability,
+    tail_words,
+)
+from ._run_up_curve import reduced_model, resonances, steady_curve, time_step
 from ._run_up_revolutions import analysed, torques
 
 #: Start states: the nonlinear periodic state at ``start`` (shooting; the linear one where Newton does
 #: not find it), the linear steady state, or the nominal rigid motion with the elastic coordinates at rest.
 START_STATES = ("nonlinear", "linear", "rest")
+#: How a run goes down: ``"ramp"``, the drives follow the speed ramp (a prescribed drive's angle, a
+#: torque drive's speed command: braking by the motor); ``"coast"``, the drives released at t = 0
+#: (the motor off), ``stop = 0``.
+RUN_DOWNS = ("ramp", "coast")
 #: Default steps per revolution at the fastest speed of the ramp: 16 per period of its 4th harmonic (the
 #: elastic periods bound the step beside it, ``MODE_STEPS``). At 32 the four-bar's run-up through its
 #: 2x resonance (benchmarks/bench_run_up.py) had an estimated error of 21 % of its largest peak to peak.
 STEPS_PER_REVOLUTION = 64
-#: Default steps per period of the highest elastic mode that matters (``_time_step``).
+#: Default steps per period of the highest elastic mode that matters (``_run_up_curve.time_step``).
 MODE_STEPS = 16
 #: Default highest harmonic of the speed whose resonances are marked (and whose modes bound the step).
 MAX_HARMONIC = 4
@@ -51,13 +66,13 @@ MAX_HARMONIC = 4
 #: to peak of the run at 1e-10 (1e-8: 7e-7), far below the step's error, for 3.6 (at 200 steps a period
 #: 2.2) instead of 4.8 (4.2) Newton iterations a step; benchmarks/bench_simulate.py found the same value.
 TOL = 1e-7
+#: Richardson factor of the order-2 generalized-alpha orbit's N/2 error bars.
+ERROR_FACTOR = 1.0 / 3.0
 #: Default speeds of the steady-state curve.
 CURVE_POINTS = 25
 #: A per-revolution peak-to-peak whose estimated error exceeds this fraction of the largest one is
 #: ``inaccurate`` (the rule of the steady states, docs/methods.md).
 MAX_RELATIVE_ERROR = periodic.MAX_RELATIVE_ERROR
-#: Richardson factor of the order-2 generalized-alpha run: error ~ (o_h - o_2h) / 3.
-ERROR_FACTOR = 1.0 / 3.0
 #: The most steps a run-up may take (the fine run; the coarse one takes half as many).
 MAX_RUN_STEPS = 5_000_000
 RUN_STEPS_WHY = "steps of one run-up (its time step is set by the elastic periods)"
@@ -123,6 +138,23 @@ class RunUp(StudyResult):
     run_time : float, s
         The whole study; ``simulation_run_time`` the fine run, ``error_run_time`` the runs at 2 dt and 4 dt,
         ``curve_run_time`` the steady-state curves.
+    is_stable : bool
+        Every frozen periodic state the ramp passes attracts (the linear steady states of the curve,
+        Floquet with their radius's error bar) and the start's does; with ``curve_points = 0`` the
+        start's only (said in the message). A run through an instability band is ``unstable``.
+    range_measures : dict of ndarray, {"<link>.<measure>": (n_rev + 1,)}, 1
+        The steady states' linear-range measures (``linearize.LinkRange``'s fields) over each
+        revolution, the last entry over what follows the last whole revolution (NaN without one);
+        ``revolution_status`` (n_rev + 1,) ``ok`` or ``outside_linear_range`` for each.
+    tail_peak_to_peak, tail_peak_to_peak_error : dict, {spec: float}, units[spec]
+        Each observable's peak to peak from ``tail_start`` (s), the end of the last whole revolution,
+        to the run's end (a crank slowing to a stop or swinging back) and its estimate from 2 dt.
+    curve_is_stable : ndarray, (n_curve,)
+        1 where the curve's linear steady state is stable, 0 where not, NaN where not computed.
+    reduced_modes, reduction_error : dict
+        With ``modes`` other than ``"full"``: {link: modes} of the reduced links the run integrated,
+        and {spec: the stated reduction error of the largest peak to peak, units[spec]} (the
+        reduction check's largest ratio to a peak to peak over the ramp's ends and resonances, twice).
     """
 
     problem: str
@@ -161,6 +193,14 @@ class RunUp(StudyResult):
     error_run_time: float = float("nan")
     curve_run_time: float = float("nan")
     is_stable: bool = True
+    range_measures: Mapping[str, np.ndarray] = field(default_factory=dict)
+    revolution_status: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
+    tail_peak_to_peak: Mapping[str, float] = field(default_factory=dict)
+    tail_peak_to_peak_error: Mapping[str, float] = field(default_factory=dict)
+    tail_start: float = float("nan")
+    curve_is_stable: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    reduced_modes: Mapping[str, int] = field(default_factory=dict)
+    reduction_error: Mapping[str, float] = field(default_factory=dict)
     extra: Mapping[str, Any] = field(default_factory=dict)
 
     _units = {"t": "s", "response": "@observables", "drive_speed": "rad/s", "drive_torque": "N m",
@@ -168,7 +208,7 @@ class RunUp(StudyResult):
               "peak": "@observables", "peak_error": "@observables", "curve_speed": "rad/s",
               "curve_peak_to_peak": "@observables", "curve_error": "@observables",
               "nonlinear_curve_peak_to_peak": "@observables", "resonance_speed": "rad/s",
-              "natural_frequencies": "rad/s"}
+              "natural_frequencies": "rad/s", "range_measures": "1"}
 
     @property
     def direction(self) -> str:
@@ -189,6 +229,11 @@ class RunUp(StudyResult):
                 error = np.asarray(self.peak_to_peak_error.get(spec, np.full(ptp.size, np.nan)), dtype=float)
                 if np.isfinite(error).any():
                     ax.fill_between(self.speed, ptp - error, ptp + error, color="C0", alpha=0.25, lw=0)
+                outside = np.asarray(self.revolution_status[:ptp.size]) != "ok" if np.size(
+                    self.revolution_status) > ptp.size else np.zeros(ptp.size, dtype=bool)
+                if outside.any():   # the checks along the ramp, revolution by revolution
+                    lines += ax.plot(self.speed[outside], ptp[outside], "x", ms=3, color="C3",
+                                     label="outside the linear range")
             if np.size(self.curve_speed):
                 lines += ax.plot(self.curve_speed, self.curve_peak_to_peak[spec], "--", color="C1",
                                  label="steady state, linear")
@@ -235,7 +280,7 @@ class RunUp(StudyResult):
 # ---------------------------------------------------------------------------------------------------
 # the pieces
 # ---------------------------------------------------------------------------------------------------
-def _check_arguments(problem, start, stop, duration, profile, start_state):
+def _check_arguments(problem, start, stop, duration, profile, start_state, run_down="ramp"):
     import mechanisms
 
     if not (getattr(problem, "supports_nonlinear", False) and hasattr(problem, "mechanism")):
@@ -256,26 +301,18 @@ def _check_arguments(problem, start, stop, duration, profile, start_state):
         raise StudiesError(f"profile: expected one of {sorted(mechanisms.RAMP_SHAPES)}, got {profile!r}")
     if start_state not in START_STATES:
         raise StudiesError(f"start_state: expected one of {START_STATES}, got {start_state!r}")
+    _check_run_down("run_down", run_down, stop, profile)
 
 
-def _time_step(problem, values, start, stop, n_steps, mode_steps, max_harmonic):
-    """(dt, reason, natural frequencies (n_modes,) rad/s of the modes that matter): the largest step
-    that takes ``n_steps`` per revolution at the fastest speed and ``mode_steps`` per period of the
-    highest natural frequency that matters (every mode up to ``max_harmonic`` times the fastest speed,
-    and the lowest one always), so that slow speeds stay as resolved as fast ones."""
-    top = max(start, stop)
-    linear = problem.linearize(dict(values, **{SPEED: start}), n_steps=32, context=False)
-    _, frequencies, _ = frozen_modes(linear.system, 16)
-    mean = np.mean(frequencies, axis=0)
-    mean = np.sort(mean[mean > 0.0])
-    relevant = mean[: max(1, int(np.searchsorted(mean, max_harmonic * top, side="right")))]
-    by_revolution = 2.0 * math.pi / top / n_steps
-    by_mode = 2.0 * math.pi / float(relevant[-1]) / mode_steps if relevant.size else math.inf
-    if by_mode < by_revolution:
-        reason = (f"{mode_steps} steps per period of mode {relevant.size} ({relevant[-1]:.4g} rad/s), "
-                  f"the highest up to {max_harmonic} x the fastest speed")
-        return by_mode, reason, relevant
-    return by_revolution, f"{n_steps} steps per revolution at the fastest speed {top:.4g} rad/s", relevant
+def _check_run_down(where, run_down, stop, profile):
+    if run_down not in RUN_DOWNS:
+        raise StudiesError(f"{where}: expected one of {RUN_DOWNS}, got {run_down!r}")
+    if run_down == "coast" and stop != 0:
+        raise StudiesError(f"{where} = 'coast' releases the drives (the motor off): expected stop = 0, "
+                           f"got stop = {stop!r}; a run to another speed follows a ramp (run_down = 'ramp')")
+    if run_down == "coast" and profile != "linear":
+        raise StudiesError(f"{where} = 'coast' follows no ramp: profile has no meaning there (got "
+                           f"{profile!r}); leave it out")
 
 
 def _as_start(status: str, message: str) -> tuple[str, str]:
@@ -288,34 +325,40 @@ def _as_start(status: str, message: str) -> tuple[str, str]:
 
 
 def _start(problem, values, start, steps_at_start, start_state):
-    """(linear at the start speed, s0, sdot0, lag0, words, [(status, message)])."""
+    """(linear at the start speed, s0, sdot0, lag0, words, [(status, message)]). The nonlinear start is
+    the shooting of ``nonlinear_steady_state`` (its orbit on N steps, its stability's error bars from
+    N/2) without what that study adds for a result (the N/2 error estimates of its observables, the
+    mesh term of its budget): the run's numbers carry their own estimates from the same start."""
     import mechanisms
 
-    from .nonlinear_steady_state import nonlinear_steady_state
+    from .nonlinear_steady_state import MAX_ITERATIONS, shooting_setup
+    from .nonlinear_steady_state import TOL as ORBIT_TOL
 
     point = dict(values, **{SPEED: start})
-    linear = problem.linearize(point, n_steps=steps_at_start)
-    lin = linear.context
-    n_lags = len(getattr(mechanisms.integrated_model(lin.mechanism, lin.nominal), "lag_names", ()))
-    if start_state == "rest":
-        return linear, lin.nominal.s[0], lin.nominal.sdot[0], None, "rest", []
-    verdicts = []
-    if start_state == "nonlinear":
+    if start_state != "nonlinear":
+        linear = problem.linearize(point, n_steps=steps_at_start)
+        lin = linear.context
+        if start_state == "rest":
+            return linear, lin.nominal.s[0], lin.nominal.sdot[0], None, "rest", []
+        steady, verdicts = solve_steady(linear), []
+    else:
         # the full element models, the model the run integrates: a state of a reduced model is not
         # a state of the run's (other coordinates), and the run's reduction error through a range of
         # speeds and resonances is not what the reduction check at one steady state measures
-        orbit = nonlinear_steady_state(problem, point, n_steps=steps_at_start, modes="full")
-        if orbit.status != "failed":
-            period_map = mechanisms.PeriodMap(lin.mechanism, n_steps=steps_at_start,
-                                              independent=lin.coefficients.independent, nominal=lin.nominal)
-            s0, sdot0 = period_map.start_state(orbit.state)
-            lag0 = period_map.lag_states_of(orbit.state) if n_lags else None
-            verdicts.append(_as_start(orbit.status, f"start: nonlinear periodic state {orbit.status}: "
-                                                    f"{orbit.message}"))
-            return linear, s0, sdot0, lag0, "nonlinear periodic state", verdicts
-        verdicts.append(("ok", f"the nonlinear periodic state at {start:g} rad/s was not found "
-                               f"({orbit.message}); started from the linear steady state instead"))
-    steady = solve_steady(linear)
+        setup = shooting_setup(problem, point, steps_at_start)
+        linear, steady, fine = setup.linear, setup.steady, setup.fine
+        lin = linear.context
+        fine.warm_up()
+        orbit = periodic.find_orbit(fine, setup.guess, start, tol=ORBIT_TOL, max_iterations=MAX_ITERATIONS,
+                                    estimate=setup.coarse, error_factor=ERROR_FACTOR)
+        if orbit.converged:
+            s0, sdot0 = fine.start_state(orbit.state)
+            lag0 = fine.lag_states_of(orbit.state) if fine.n_lags else None
+            return linear, s0, sdot0, lag0, "nonlinear periodic state", [
+                _as_start(orbit.status, f"start: nonlinear periodic state {orbit.status}: {orbit.message}")]
+        verdicts = [("ok", f"the nonlinear periodic state at {start:g} rad/s was not found "
+                           f"({orbit.message}); started from the linear steady state instead")]
+    n_lags = len(getattr(mechanisms.integrated_model(lin.mechanism, lin.nominal), "lag_names", ()))
     x0, v0 = steady.state.x[0], steady.state.v[0]
     s0, sdot0 = lin.start_state(x0, v0)
     lag0 = np.asarray(x0, dtype=float)[-n_lags:] if n_lags else None
@@ -324,62 +367,12 @@ def _start(problem, values, start, steps_at_start, start_state):
     return linear, s0, sdot0, lag0, "linear steady state", verdicts
 
 
-def _steady_curve(problem, values, speeds, specs, n_steps, nonlinear):
-    """(ptp, error, status, nonlinear ptp) of the steady states at ``speeds``."""
-    from .nonlinear_steady_state import nonlinear_steady_state
-
-    ptp = {spec: np.full(speeds.size, np.nan) for spec in specs}
-    error = {spec: np.full(speeds.size, np.nan) for spec in specs}
-    nl = {spec: np.full(speeds.size, np.nan) for spec in specs}
-    status = np.full(speeds.size, "failed", dtype=object)
-    for i, speed in enumerate(speeds):
-        point = dict(values, **{SPEED: float(speed)})
-        try:
-            steady = solve_steady(problem.linearize(point, n_steps=n_steps, context=False))
-        except Exception as failure:
-            if not is_numerical_failure(failure):
-                raise
-            continue
-        status[i] = steady.status
-        for k, spec in enumerate(specs):
-            ptp[spec][i] = float(np.ptp(steady.response[:, k]))
-            error[spec][i] = 2.0 * float(steady.response_error[k])
-        if nonlinear:   # on the run's (full) model, as the start: the curve is the run's steady limit
-            orbit = nonlinear_steady_state(problem, point, n_steps=n_steps, modes="full")
-            if orbit.status != "failed":
-                for spec in specs:
-                    nl[spec][i] = orbit.peak_to_peak[spec]
-    return ptp, error, status.astype(str), nl
-
-
-def _resonances(problem, values, low, high, n_modes, max_harmonic, n_speeds=17):
-    """(speeds, harmonics k, modes j) (n_res,) where ``k speed`` meets the mean frozen natural
-    frequency of mode j, which changes with the speed (centrifugal and geometric stiffening): found
-    between ``n_speeds`` coarse linearisations over [low, high] by linear interpolation."""
-    speeds = np.linspace(max(low, 0.02 * high), high, n_speeds)
-    table = np.full((n_speeds, n_modes), np.nan)
-    for i, speed in enumerate(speeds):
-        linear = problem.linearize(dict(values, **{SPEED: float(speed)}), n_steps=32, context=False)
-        mean = np.mean(frozen_modes(linear.system, 16)[1], axis=0)
-        mean = np.sort(mean[mean > 0.0])[:n_modes]
-        table[i, :mean.size] = mean
-    found = []
-    for j in range(n_modes):
-        for k in range(1, max_harmonic + 1):
-            gap = table[:, j] - k * speeds
-            for i in np.flatnonzero(np.sign(gap[:-1]) * np.sign(gap[1:]) < 0):
-                u = gap[i] / (gap[i] - gap[i + 1])
-                found.append((float(speeds[i] + u * (speeds[i + 1] - speeds[i])), k, j))
-    found.sort()
-    return (np.array([f[0] for f in found], dtype=float), np.array([f[1] for f in found], dtype=int),
-            np.array([f[2] for f in found], dtype=int))
-
-
 def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: float, stop: float,
            duration: float, profile: str = "linear", n_steps: int = STEPS_PER_REVOLUTION,
            mode_steps: int = MODE_STEPS, max_harmonic: int = MAX_HARMONIC, start_state: str = "nonlinear",
            curve_points: int = CURVE_POINTS, curve_steps: int = 128, nonlinear_curve: bool = False,
-           estimate_error: bool = True, rho_inf: float = 0.8, tol: float = TOL) -> RunUp:
+           estimate_error: bool = True, rho_inf: float = 0.8, tol: float = TOL, run_down: str = "ramp",
+           modes: Any = "full") -> RunUp:
     """The full nonlinear model (``mechanisms.simulate``) while the speed goes from ``start`` to
     ``stop`` (rad/s, ``start > stop`` runs it down, ``stop = 0`` to a standstill) over ``duration``
     (s) along ``profile`` (a ramp shape of ``mechanisms.RAMP_SHAPES``: ``"linear"``, ``"smooth"``),
@@ -387,7 +380,18 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     by shooting, the linear steady state where Newton does not find it; ``"linear"``; ``"rest"`` the
     rigid motion with the elastic coordinates at rest). Prescribed drives follow the ramp; a torque
     drive's reference (angle, rate: its motor's speed command) follows it, its feedforward read at the
-    reference's crank angle (``mechanisms.Model.with_drive_profiles``).
+    reference's crank angle (``mechanisms.Model.with_drive_profiles``): with ``stop = 0`` the motor
+    brakes the machine to a standstill. ``run_down = "coast"`` (``stop = 0``) releases the drives at
+    t = 0 instead, the motor off (every drive a torque-free crank, its rotor's and flywheel's inertia
+    kept, the controllers off) for ``duration`` s; a torque drive without feedback (no kp, kd, motor
+    or controller) cannot follow a ramp and is refused.
+
+    Along the run each revolution gets the steady states' linear-range measures (``range_measures``,
+    ``revolution_status``: deflection over length and section height, slope, stress, compression
+    over the Euler load, an unstiffened link's model form), and the frozen periodic states of the
+    curve their stability (``is_stable``; a band of unstable ones makes the run ``unstable``). What
+    follows the last whole revolution (a crank slowing to a stop or swinging back) is
+    ``tail_peak_to_peak``.
 
     The step ``dt`` is uniform, the largest that takes ``n_steps`` per revolution at the fastest speed
     and ``mode_steps`` per period of the highest natural frequency up to ``max_harmonic`` times it.
@@ -397,19 +401,20 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     states (``curve_steps`` steps each) between the speeds give the steady curve
     (``nonlinear_curve``: the nonlinear periodic states too).
 
-    The run, its start and its nonlinear curve are all on the scene's full element models (the
-    nonlinear periodic states with ``modes = "full"``, not ``nonlinear_steady_state``'s default
-    reduction): the start must be a state of the model the run integrates, and the reduction check
-    (linear steady states at one speed) does not bound a reduced model's error along a ramp through
-    resonances. The run dominates the cost (``duration / dt`` steps, three times with the error
-    estimate, against a few periods of shooting), so the full start costs little more.
+    The run and its start are on the scene's full element models by default (``modes = "full"``);
+    ``modes = "auto"`` (or a count) runs them on the reduced model ``nonlinear_steady_state`` chooses
+    at ``start`` (``studies._kinds._nonlinear_model``), its reduction check repeated at the ramp's
+    other end and at each resonance in its range, the largest twice as the stated reduction error
+    (``reduction_error``; above a tenth of a peak to peak ``inaccurate``). The nonlinear curve stays
+    on the full models.
 
     Observables are those of the problem that are functions of the coordinates (deflections, strains,
     moments, angles); the drive torque is reported as its own time series. A run that fails gives
     status ``failed`` with what was computed up to the failure, not an exception."""
     import mechanisms
 
-    _check_arguments(problem, start, stop, duration, profile, start_state)
+    _check_arguments(problem, start, stop, duration, profile, start_state, run_down)
+    modes = check_modes(modes)
     n_steps = steps("run_up", {"n_steps": n_steps}, n_steps, minimum=8)
     for name, value, least in (("mode_steps", mode_steps, 4), ("max_harmonic", max_harmonic, 1),
                                ("curve_points", curve_points, 0)):
@@ -418,7 +423,7 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     clock = time.perf_counter()
     values = {k: v for k, v in (values or {}).items() if k != SPEED}
     parameters = problem.resolve(dict(values, **{SPEED: start}))
-    dt, dt_reason, frequencies = _time_step(problem, values, start, stop, n_steps, mode_steps, max_harmonic)
+    dt, dt_reason, frequencies = time_step(problem, values, start, stop, n_steps, mode_steps, max_harmonic)
     n_run = 4 * int(math.ceil(duration / (4.0 * dt)))   # the runs at 2 dt and 4 dt on every other sample
     if n_run > MAX_RUN_STEPS:
         raise StudiesError(f"duration: {duration:g} s at dt = {dt:.3g} s ({dt_reason}) is {n_run} steps; "
@@ -427,59 +432,58 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     dt = duration / n_run
     # the start orbit on at least 128 steps: its N/4 check of the error estimate needs 32
     steps_at_start = max(128, 4 * int(math.ceil(2.0 * math.pi / start / dt / 4.0)))
-    linear, s0, sdot0, lag0, start_words, verdicts = _start(problem, values, start, steps_at_start, start_state)
+    low, high = min(start, stop), max(start, stop)
+    res_speed, res_k, res_mode = resonances(problem, values, low, high, len(frequencies), max_harmonic)
+    model_problem, model_values, reduction = problem, values, None
+    if modes != "full":
+        model_problem, model_values, reduction = reduced_model(
+            problem, values, [start, stop] + list(res_speed), modes)
+    linear, s0, sdot0, lag0, start_words, verdicts = _start(model_problem, model_values, start, steps_at_start,
+                                                            start_state)
     lin = linear.context
-    model = mechanisms.integrated_model(lin.mechanism, lin.nominal)
     drives = lin.mechanism.drives
     if any(drive.rate == 0.0 for drive in drives):
         raise StudiesError(f"problem {problem.name!r}: a run-up ramps turning drives; the drive at "
                            f"{next(d.joint for d in drives if d.rate == 0.0)!r} has rate 0 (an oscillating "
                            "drive has no speed to ramp)")
-    ramped = model.with_drive_profiles(
-        lambda drive: mechanisms.SpeedRamp(drive.rate, drive.rate * stop / start, duration, profile))
-    specs = [spec for spec in linear.observables if of_coordinates(model.observable(spec))]
+    check_follows(lin.mechanism, run_down)
+    drive_words = ""
+    if run_down == "coast":
+        free, drive_words = released(lin.mechanism)
+        ramped, lag0 = mechanisms.integrated_model(free, lin.nominal), None
+    else:
+        model = mechanisms.integrated_model(lin.mechanism, lin.nominal)
+        ramped = model.with_drive_profiles(
+            lambda drive: mechanisms.SpeedRamp(drive.rate, drive.rate * stop / start, duration, profile))
+    # the nominal axial loads at a second speed on the start's grid: the compression at any speed
+    other = stop if stop > 0 else 0.5 * start
+    axial = AxialLoad(lin.range_probes, start,
+                      model_problem.linearize(dict(model_values, **{SPEED: other}),
+                                              n_steps=steps_at_start).context.range_probes,
+                      other)
+    specs = [spec for spec in linear.observables if of_coordinates(ramped.observable(spec))]
     left_out = [spec for spec in linear.observables if spec not in specs]
-    units = {spec: model.observable(spec).unit for spec in specs}
+    units = {spec: ramped.observable(spec).unit for spec in specs}
     options = dict(t_end=duration, s0=s0, sdot0=sdot0, observables=specs, estimate_error=False,
                    lag0=lag0, rho_inf=rho_inf, tol=tol, throw=False)
     setup_time = time.perf_counter() - clock
-    run, phase, response, speed, ptp, peak = analysed(ramped, linear, drives[0], start, specs, dt, options)
+    fine = analysed(ramped, linear, drives[0], start, specs, dt, options)
+    run, speed, ptp, peak = fine.run, fine.speed, fine.peak_to_peak, fine.peak
     torque = torques(ramped, run)
     n_rev = speed.size
     ptp_error = {spec: np.full(n_rev, np.nan) for spec in specs}
     peak_error = {spec: np.full(n_rev, np.nan) for spec in specs}
+    tail_error = {spec: float("nan") for spec in specs}
     error_time = float("nan")
     reasons = []
     if run.success and estimate_error:
-        # 2 dt for the Richardson estimate, 4 dt to see that it is in the asymptotic range (the rule of
-        # the steady states: the ratio of successive differences about 2^order)
-        coarse, _, _, _, c_ptp, c_peak = analysed(ramped, linear, drives[0], start, specs, 2.0 * dt, options)
-        quarter, _, _, _, q_ptp, _ = analysed(ramped, linear, drives[0], start, specs, 4.0 * dt, options)
-        error_time = coarse.run_time + quarter.run_time
-        if not coarse.success:
-            reasons.append(f"no error estimate: the run at 2 dt failed ({coarse.message})")
-        elif not quarter.success:
-            reasons.append(f"error estimate not checked: the run at 4 dt failed ({quarter.message}); raise "
-                           "mode_steps or n_steps")
-        else:
-            for spec in specs:
-                count = min(n_rev, c_ptp[spec].size)
-                ptp_error[spec][:count] = ERROR_FACTOR * np.abs(ptp[spec][:count] - c_ptp[spec][:count])
-                peak_error[spec][:count] = ERROR_FACTOR * np.abs(peak[spec][:count] - c_peak[spec][:count])
-                if not quarter.success:
-                    continue
-                count = min(count, q_ptp[spec].size)
-                if count:
-                    check = periodic.error_verdict(
-                        float(np.max(np.abs(ptp[spec][:count] - c_ptp[spec][:count]))),
-                        float(np.max(np.abs(c_ptp[spec][:count] - q_ptp[spec][:count]))), 2,
-                        scale=float(np.max(ptp[spec])), quantity="p2p")
-                    if check.status != "ok":
-                        words = check.message.replace("refine n_steps", "raise mode_steps or n_steps")
-                        reasons.append(f"{spec}: {words} (p2p: the peak to peak per revolution; N, N/2, N/4: "
-                                       "the runs at dt, 2 dt, 4 dt)")
+        error_time, check_words = error_estimate(ramped, linear, drives[0], start, specs, dt, options, fine,
+                                                  ptp_error, peak_error, tail_error, reasons)
     elif run.success:
         reasons.append("no error estimate (estimate_error = false)")
+        check_words = ""
+    else:
+        check_words = ""
     largest, largest_error, at = {}, {}, {}
     for spec in specs:
         k = int(np.nanargmax(ptp[spec])) if n_rev else -1
@@ -490,14 +494,15 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
         if np.isfinite(worst) and worst > MAX_RELATIVE_ERROR * largest[spec]:
             reasons.append(f"{spec}: an estimated error of {worst:.3g} is {worst / largest[spec]:.3g} of the "
                            f"largest peak to peak (> {MAX_RELATIVE_ERROR:g}): raise n_steps or mode_steps")
-    low, high = min(start, stop), max(start, stop)
     curve_clock = time.perf_counter()
     curve_speed = (np.linspace(max(low, 0.02 * high), high, curve_points) if curve_points
                    else np.zeros(0))
-    curve_ptp, curve_error, curve_status, nl_ptp = _steady_curve(problem, values, curve_speed, specs,
-                                                                 curve_steps, nonlinear_curve)
+    curve_ptp, curve_error, curve_status, nl_ptp, curve_stable = steady_curve(
+        problem, values, curve_speed, specs, curve_steps, nonlinear_curve)
     curve_time = time.perf_counter() - curve_clock
-    res_speed, res_k, res_mode = _resonances(problem, values, low, high, len(frequencies), max_harmonic)
+    if reduction is not None and reduction.relative > MAX_RELATIVE_ERROR:
+        reasons.append(f"the stated reduction error is {reduction.relative:.3g} of a peak to peak (> "
+                       f"{MAX_RELATIVE_ERROR:g}): raise modes, or modes = 'full'")
     if not run.success:
         run_verdict = ("failed", f"the run failed: {run.message}; the results end there. Raise n_steps or "
                                  "mode_steps, or ramp more slowly")
@@ -505,10 +510,18 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
         run_verdict = ("inaccurate", "; ".join(reasons))
     else:
         run_verdict = ("ok", "")
-    status, message = combine([run_verdict] + verdicts)
-    words = (f"{'run-up' if stop > start else 'run-down'} {start:g} -> {stop:g} rad/s in {duration:g} s, "
-             f"{n_rev} revolutions, dt = {dt:.3g} s ({dt_reason}), from the {start_words}; on the full "
-             f"element models (modes = 'full', the start and the nonlinear curve too)")
+    measures, revolution_status, range_verdicts, range_note = along_ramp(lin, axial, fine)
+    start_stable = all(status != "unstable" for status, _ in verdicts)
+    is_stable, stability_verdicts, stability_words = stability(curve_speed, curve_stable, verdicts)
+    status, message = combine([run_verdict] + verdicts + range_verdicts + stability_verdicts)
+    what = (f"coast from {start:g} rad/s for {duration:g} s" if run_down == "coast" else
+            f"{'run-up' if stop > start else 'run-down'} {start:g} -> {stop:g} rad/s in {duration:g} s")
+    words = (f"{what}, {n_rev} revolutions, dt = {dt:.3g} s ({dt_reason}), from the {start_words}; "
+             + (reduction.words if reduction is not None else
+                "on the full element models (modes = 'full', the start and the nonlinear curve too)"))
+    words = "; ".join(part for part in (words, drive_words, check_words, tail_words(fine, run, specs),
+                                        growth_words(fine, specs, run.success), range_note,
+                                        stability_words) if part)
     if left_out:
         words += f"; left out (not functions of the coordinates): {', '.join(left_out)}"
     return RunUp(
@@ -517,8 +530,8 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
                   "n_steps": n_steps, "mode_steps": mode_steps, "max_harmonic": max_harmonic,
                   "start_state": start_state, "curve_points": curve_points, "curve_steps": curve_steps,
                   "nonlinear_curve": nonlinear_curve, "estimate_error": estimate_error, "rho_inf": rho_inf,
-                  "tol": tol},
-        t=run.t, response=response, drive_speed=phase.speed, drive_torque=torque, speed=speed,
+                  "tol": tol, "run_down": run_down, "modes": modes},
+        t=run.t, response=fine.response, drive_speed=fine.phase.speed, drive_torque=torque, speed=speed,
         peak_to_peak=ptp, peak_to_peak_error=ptp_error, peak=peak, peak_error=peak_error, largest=largest,
         largest_error=largest_error, speed_at_largest=at, curve_speed=curve_speed,
         curve_peak_to_peak=curve_ptp, curve_error=curve_error, curve_status=curve_status,
@@ -527,7 +540,13 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
         start_state=start_words, dt=float(dt), dt_reason=dt_reason, status=status,
         message=f"{message}; {words}" if message else words,
         run_time=time.perf_counter() - clock, simulation_run_time=run.run_time, error_run_time=error_time,
-        curve_run_time=curve_time, extra={"setup_run_time": setup_time, "n_rejected": run.n_rejected})
+        curve_run_time=curve_time, is_stable=bool(is_stable and start_stable), range_measures=measures,
+        revolution_status=revolution_status, tail_peak_to_peak=fine.tail_peak_to_peak,
+        tail_peak_to_peak_error=tail_error, tail_start=fine.tail_start, curve_is_stable=curve_stable,
+        reduced_modes=dict(reduction.modes) if reduction is not None else {},
+        reduction_error={spec: reduction.relative * largest[spec] for spec in specs} if reduction is not None
+        else {},
+        extra={"setup_run_time": setup_time, "n_rejected": run.n_rejected})
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -552,9 +571,12 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
     start_state = table.get("start_state", "nonlinear")
     if start_state not in START_STATES:
         raise StudiesError(f"[{where}] start_state: expected one of {START_STATES}, got {start_state!r}")
+    run_down = table.get("run_down", "ramp")
+    _check_run_down(f"[{where}] run_down", run_down, stop, profile)
     return {"start": start, "stop": stop,
             "duration": number(where, "duration", table["duration"], positive=True),
-            "profile": profile, "start_state": start_state,
+            "profile": profile, "start_state": start_state, "run_down": run_down,
+            "modes": _modes_option(where, table),
             "n_steps": integer(where, "n_steps", table.get("n_steps", STEPS_PER_REVOLUTION), 8,
                                maximum=65536, why="steps per revolution at the fastest speed"),
             "mode_steps": integer(where, "mode_steps", table.get("mode_steps", MODE_STEPS), 4, maximum=1024,
@@ -566,6 +588,14 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
             "curve_steps": _curve_steps(where, table.get("curve_steps", max(32, n_steps))),
             "nonlinear_curve": boolean(where, "nonlinear_curve", table.get("nonlinear_curve", False)),
             "estimate_error": boolean(where, "estimate_error", table.get("estimate_error", True))}
+
+
+def _modes_option(where: str, table: Mapping[str, Any]) -> Any:
+    """The table's ``modes`` (default "full": the run-up's, not ``nonlinear_steady_state``'s "auto")."""
+    try:
+        return check_modes(table.get("modes", "full"))
+    except StudiesError as error:
+        raise StudiesError(f"[{where}] {error}") from None
 
 
 def _curve_steps(where: str, value: Any) -> int:
@@ -590,8 +620,14 @@ def _summary(result: RunUp) -> str:
 def _headlines(result: RunUp) -> Summary:
     rows = []
     for spec, value in result.largest.items():
+        # the error: the time step's estimate, plus the stated reduction error on a reduced model
+        reduction = result.reduction_error.get(spec, 0.0)
+        words = f"at {plain(result.speed_at_largest[spec], 3)} rad/s"
+        if reduction:
+            words += (f"; error: time step {plain(result.largest_error[spec])} + reduction "
+                      f"{plain(reduction)}")
         rows.append(Headline(f"{spec} largest peak to peak ({result.direction})", value, result.units[spec],
-                             result.largest_error[spec], f"at {plain(result.speed_at_largest[spec], 3)} rad/s"))
+                             result.largest_error[spec] + reduction, words))
     return Summary(status=headline(result.status), run_time=result.run_time, rows=rows)
 
 
@@ -604,7 +640,7 @@ def run_up_cost(name, problem, options, workers):
     the step the elastic periods set, and the steady-state curve."""
     values = {SPEED: options["start"]}
     sizes = cost.sizes_at(problem, values)
-    dt, _, _ = _time_step(problem, {}, options["start"], options["stop"], options["n_steps"],
+    dt, _, _ = time_step(problem, {}, options["start"], options["stop"], options["n_steps"],
                           options["mode_steps"], options["max_harmonic"])
     run_steps = options["duration"] / dt * (1.75 if options["estimate_error"] else 1.0)   # dt, 2 dt, 4 dt
     start_steps = max(32, int(2.0 * math.pi / options["start"] / dt))
@@ -634,6 +670,6 @@ def _warm_up(problem: Any) -> None:
 KIND = register_kind(StudyKind(
     name="run_up", result=RunUp,
     keys=("start", "stop", "duration", "profile", "start_state", "n_steps", "mode_steps", "max_harmonic",
-          "curve_points", "curve_steps", "nonlinear_curve", "estimate_error"),
+          "curve_points", "curve_steps", "nonlinear_curve", "estimate_error", "run_down", "modes"),
     check=_check, run=_run, summary=_summary, headlines=_headlines, figures=_figures, cost=run_up_cost,
     warm_up=_warm_up))
