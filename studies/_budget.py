@@ -224,8 +224,27 @@ def radius_budget(error: Any, mesh: Any = None) -> dict[str, dict[str, Any]]:
     return {"spectral_radius": {"time_step": error, **RADIUS_TERMS, **({} if mesh is None else {"mesh": mesh})}}
 
 
+def headline_points(fields: Mapping[str, np.ndarray], points: Sequence[tuple[tuple, Mapping]],
+                    scene_radius: float | None = None) -> dict[str, tuple[Mapping | None, float | None]]:
+    """{words: (values or None for the scene's own point, the radius there or None)}: the headline
+    points of a grid's mesh terms (the scene's point, the done cell of the largest radius and the one
+    nearest radius 1; ``fields`` and ``points`` as :func:`grid_radius_mesh`'s)."""
+    radius = np.asarray(fields.get("spectral_radius", np.full(1, np.nan)), dtype=float)
+    done = np.asarray(fields.get("done", np.zeros(radius.shape, bool)), dtype=bool) & np.isfinite(radius)
+    by_index = {tuple(index): values for index, values in points}
+    headline: dict[str, tuple[Mapping | None, float | None]] = {"the scene's point": (None, scene_radius)}
+    if done.any():
+        flat = np.where(done, radius, np.nan)
+        top = np.unravel_index(int(np.nanargmax(flat)), flat.shape)
+        near = np.unravel_index(int(np.nanargmin(np.abs(flat - 1.0))), flat.shape)
+        headline["the largest radius"] = (by_index[tuple(top)], float(radius[top]))
+        headline["the radius nearest 1"] = (by_index[tuple(near)], float(radius[near]))
+    return headline
+
+
 def grid_radius_mesh(problem: Any, fields: dict[str, np.ndarray], points: Sequence[tuple[tuple, Mapping]], *,
-                     n_steps: int, scheme: str, tolerance: float) -> tuple[np.ndarray | str, str]:
+                     n_steps: int, scheme: str, tolerance: float, scene_radius: float | None = None
+                     ) -> tuple[np.ndarray | str, str]:
     """The mesh term of a grid's spectral radius (a stability chart's, a Campbell diagram's):
     ``studies._mesh_error.radius_mesh_error`` at its headline points (the scene's own point, the cell of the
     largest radius and the cell nearest radius 1), the largest relative error among them applied
@@ -233,20 +252,13 @@ def grid_radius_mesh(problem: Any, fields: dict[str, np.ndarray], points: Sequen
     fields (``spectral_radius``, ``spectral_radius_error``, ``done``, ``point_status``,
     ``point_message``), whose verdicts are judged again with the term (in place); ``points``:
     ``[(index, values)]`` of the grid. Returns ``(term of the grid's shape or NOT_APPLICABLE words,
-    method)``."""
+    method)``. ``scene_radius``: the radius at the scene's own point where the caller has it (a sweep's)."""
     from ._mesh_error import radius_mesh_error
     from ._verdicts import combine
 
     radius = np.asarray(fields.get("spectral_radius", np.full(1, np.nan)), dtype=float)
     done = np.asarray(fields.get("done", np.zeros(radius.shape, bool)), dtype=bool) & np.isfinite(radius)
-    by_index = {tuple(index): values for index, values in points}
-    headline: dict[str, tuple[Mapping | None, float | None]] = {"the scene's point": (None, None)}
-    if done.any():
-        flat = np.where(done, radius, np.nan)
-        top = np.unravel_index(int(np.nanargmax(flat)), flat.shape)
-        near = np.unravel_index(int(np.nanargmin(np.abs(flat - 1.0))), flat.shape)
-        headline["the largest radius"] = (by_index[tuple(top)], float(radius[top]))
-        headline["the radius nearest 1"] = (by_index[tuple(near)], float(radius[near]))
+    headline = headline_points(fields, points, scene_radius)
     shares, found, method = [], [], ""
     for words, (values, known) in headline.items():
         estimate = radius_mesh_error(problem, values, n_steps=n_steps, scheme=scheme, radius=known)
@@ -276,6 +288,44 @@ def grid_radius_mesh(problem: Any, fields: dict[str, np.ndarray], points: Sequen
     fields["point_status"], fields["point_message"] = status_of.astype(str), message_of.astype(str)
     return mesh, (f"{method}; at the headline points ({', '.join(found)} of the radius), the largest "
                   f"applied to every cell relatively")
+
+
+def grid_frequency_mesh(problem: Any, fields: Mapping[str, np.ndarray], points: Sequence[tuple[tuple, Mapping]],
+                        characteristic: np.ndarray, band_mean: np.ndarray, *, n_steps: int, scheme: str
+                        ) -> tuple[np.ndarray | str, str]:
+    """The mesh term of a Campbell diagram's characteristic frequencies ``characteristic`` (n, 2m)
+    rad/s: ``studies._mesh_error.frequency_mesh_error`` at the radius's headline points
+    (:func:`headline_points`), each mode's largest relative error among the points where it was
+    matched applied to that mode's frequencies at every speed (a frequency's mode: the ascending rank
+    of the mean frozen frequency ``band_mean`` (n, m) nearest it, the one it was unfolded to). A mode
+    matched at no headline point is unknown (NaN). Returns ``(term (n, 2m) or NOT_APPLICABLE words,
+    method)``."""
+    from ._mesh_error import MATCHING_WORDS, frequency_mesh_error, nearest_rank
+
+    characteristic = np.asarray(characteristic, dtype=float)
+    n_modes = np.shape(band_mean)[1]
+    shares = np.full(n_modes, np.nan)
+    method, found = "", []
+    for words, (values, _) in headline_points(fields, points).items():
+        estimate = frequency_mesh_error(problem, values, n_steps=n_steps, scheme=scheme)
+        if not estimate.applicable:
+            return NOT_APPLICABLE, estimate.method
+        method = estimate.method.split("; modes matched")[0]
+        known = np.isfinite(estimate.error) & (estimate.mode >= 0) & (np.abs(estimate.frequencies) > 0)
+        for mode in np.unique(estimate.mode[known]):
+            pick = known & (estimate.mode == mode)
+            share = float(np.max(estimate.error[pick] / np.abs(estimate.frequencies[pick])))
+            if mode < n_modes:
+                shares[mode] = share if np.isnan(shares[mode]) else max(share, shares[mode])
+        found.append(f"{words} {int(known.sum())} of {estimate.error.size}")
+    term = np.full(characteristic.shape, np.nan)
+    for i in range(characteristic.shape[0]):
+        mode = nearest_rank(characteristic[i], band_mean[i])
+        inside = mode >= 0
+        term[i, inside] = shares[mode[inside]] * np.abs(characteristic[i, inside])
+    return term, (f"{method}; {MATCHING_WORDS}; at the headline points ({', '.join(found)} frequencies matched), "
+                  f"each mode's (by ascending mean frozen frequency) largest relative error applied to its "
+                  f"frequencies at every speed, unknown for a mode matched at none")
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -219,10 +219,215 @@ def _scalar_estimate(levels: Sequence[float], order: float | None) -> tuple[floa
 
 def _radius(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: str) -> float:
     """The spectral radius of a mechanism ``problem``'s monodromy at ``speed`` (no error estimate)."""
+    return _floquet_at(problem, speed, n_steps, scheme).spectral_radius
+
+
+@dataclass(frozen=True)
+class _Floquet:
+    """What the radius's and the frequencies' mesh terms need of one level's monodromy at one speed:
+    ``multipliers`` (2m,) and ``resolved`` (2m,) bool (``periodic.floquet``), ``spectral_radius``,
+    ``period`` (s), ``targets`` (m,) rad/s the mean frozen natural frequencies, ascending."""
+
+    multipliers: np.ndarray
+    resolved: np.ndarray
+    spectral_radius: float
+    period: float
+    targets: np.ndarray
+
+
+#: Frozen-time samples per period of the mean frozen frequencies the characteristic frequencies of
+#: the mesh term are unfolded to (only the nearest mean matters: a coarse mean does).
+_FROZEN_SAMPLES = 16
+
+
+def _floquet_at(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: str) -> _Floquet:
+    """The monodromy's multipliers and the mean frozen frequencies of a mechanism ``problem`` at
+    ``speed``, cached per process beside the refined problems: the radius's and the frequencies'
+    terms of a Campbell diagram share each solve."""
     import periodic
 
+    from ._numerics import frozen_modes
+
+    key = (id(problem), tuple(sorted(speed.items())), int(n_steps), scheme)
+    cached = _FLOQUETS.get(key)
+    if cached is not None and cached[0] is problem:
+        _FLOQUETS.move_to_end(key)
+        return cached[1]
     linear = problem.linearize(speed, n_steps=n_steps, context=False)
-    return float(periodic.floquet(linear.system, scheme=study_scheme(scheme)).spectral_radius)
+    result = periodic.floquet(linear.system, scheme=study_scheme(scheme))
+    _, frozen, _ = frozen_modes(linear.system, _FROZEN_SAMPLES)
+    found = _Floquet(np.asarray(result.multipliers), np.asarray(result.resolved, dtype=bool),
+                     float(result.spectral_radius), float(linear.system.period), np.sort(frozen.mean(axis=0)))
+    _FLOQUETS[key] = (problem, found)   # the problem held: its id cannot be reused while cached
+    if len(_FLOQUETS) > 4 * _CACHE_SIZE:
+        _FLOQUETS.popitem(last=False)
+    return found
+
+
+_FLOQUETS: OrderedDict = OrderedDict()
+
+
+# ---------------------------------------------------------------------------------------------------
+# the characteristic frequencies' mesh term (a Campbell diagram's)
+# ---------------------------------------------------------------------------------------------------
+#: A multiplier is matched to the nearest refined one only where that one is nearer than this
+#: fraction of its distance to the next distinct refined multiplier (else: unmatched).
+MATCH_FRACTION = 0.25
+#: Multipliers closer than this are one (a real multiplier's conjugate).
+_SAME_MULTIPLIER = 1e-12
+
+MATCHING_WORDS = (f"modes matched by their multipliers: each resolved multiplier (of the upper half plane, "
+                  f"a conjugate pair's one) to the nearest resolved refined one, accepted where that one is "
+                  f"nearer than {MATCH_FRACTION:g} of its distance to the next; the frequency's change is the "
+                  f"change of the multiplier's argument over the period (the unfolding kept). A frequency "
+                  f"whose multiplier cannot be matched (two refined ones about as near, an unresolved stiff "
+                  f"mode) or whose term reaches a quarter of the speed (the unfolding ambiguous) is unknown")
+
+
+@dataclass(frozen=True)
+class FrequencyMeshError:
+    """The mesh term of the Floquet characteristic frequencies at one point: ``error`` (2m,) rad/s
+    (NaN where unknown: unmatched or unresolved), ``frequencies`` (2m,) rad/s the user's
+    discretisation's (``studies._numerics.characteristic_frequencies``, unfolded to its mean frozen
+    frequencies), ``refined`` (2m,) the matched once-refined ones (NaN unmatched), ``mode`` (2m,) int
+    the ascending rank of the mean frozen frequency each is unfolded to, ``method`` in words,
+    ``applicable`` False without elastic links, ``run_time`` (s)."""
+
+    error: np.ndarray
+    frequencies: np.ndarray
+    refined: np.ndarray
+    mode: np.ndarray
+    method: str
+    applicable: bool
+    run_time: float
+
+
+def frequency_mesh_error(problem: Any, values: Mapping[str, float] | None, *, n_steps: int,
+                         scheme: str = DEFAULT_SCHEME) -> FrequencyMeshError:
+    """The mesh term of the characteristic frequencies of ``problem`` at ``values`` on ``n_steps``
+    steps with ``scheme``: the refined models of :func:`radius_mesh_error` (the same cache, the
+    same solves), each frequency matched to the refined model's (``MATCHING_WORDS``), the
+    multipliers' declared order (``convergence_order("multipliers")``: natural frequencies converge
+    at the eigenvalues' order) with one refinement, else an observed rate from three levels."""
+    start = time.perf_counter()
+    study_scheme(scheme)
+    empty = np.full(0, np.nan)
+
+    def answer(method: str, applicable: bool = True, found: tuple = ()) -> FrequencyMeshError:
+        error, frequencies, refined, mode = found or (empty, empty, empty, np.full(0, -1))
+        return FrequencyMeshError(error, frequencies, refined, mode, method, applicable,
+                                  time.perf_counter() - start)
+
+    make_mechanism = getattr(problem, "mechanism", None)
+    if make_mechanism is None:
+        return answer("not applicable: the problem has no elastic links (no mesh)", False)
+    params = problem.resolve(values)
+    nominal = problem.parameters
+    mechanism = make_mechanism({k: v for k, v in params.items() if k != SPEED and v != nominal[k]})
+    elastic = [link for link in mechanism.links if getattr(link, "discretisation", None) is not None]
+    if not elastic:
+        return answer("not applicable: the mechanism has no elastic link (no mesh)", False)
+    unknown = _unrefinable(elastic)
+    if unknown:
+        return answer(f"unknown: {unknown}")
+    order = _order(elastic, f"{elastic[0].name}.{MULTIPLIERS}", every=MULTIPLIERS)
+    try:
+        levels = [_refined_links(elastic)]
+        if order is None:
+            levels.append(_refined_links(levels[0]))
+    except ValueError as error:
+        return answer(f"unknown: the discretisation cannot be refined: {error}")
+    specs = tuple(problem.describe(values).observables)
+    others = tuple(sorted((k, v) for k, v in params.items() if k != SPEED))
+    speed = {SPEED: params[SPEED]}
+    try:
+        solved = [_floquet_at(_problem_at(problem, others, specs, 0, lambda: mechanism), speed, n_steps, scheme)]
+        solved += [_floquet_at(_problem_at(problem, others, specs, level + 1,
+                                           lambda links=links: _with_links(mechanism, links)), speed, n_steps, scheme)
+                   for level, links in enumerate(levels)]
+    except (RuntimeError, ValueError) as error:
+        return answer(f"unknown: a refined model did not solve ({type(error).__name__}: {error})")
+    from ._numerics import characteristic_frequencies
+
+    coarse = solved[0]
+    frequencies = characteristic_frequencies(coarse.multipliers, coarse.period, coarse.targets)
+    mode = nearest_rank(frequencies, coarse.targets)
+    upper = [np.where(s.resolved, _upper(s.multipliers), np.nan) for s in solved]
+    matched = [upper[0]]
+    for found in upper[1:]:
+        matched.append(match_multipliers(matched[-1], found))
+    # the argument's change over the period is the frequency's (|arg mu| / T + k Omega, k kept)
+    shifts = [np.angle(level) / coarse.period for level in matched]
+    error = np.full(frequencies.shape, np.nan)
+    irregular = False
+    for k in range(error.size):
+        chain = [float(level[k]) for level in shifts]
+        if all(math.isfinite(value) for value in chain):
+            estimate, regular = _scalar_estimate(chain, order)
+            if estimate < 0.25 * 2.0 * math.pi / coarse.period:
+                error[k] = estimate
+                irregular = irregular or not regular
+    method = _method(mechanism, elastic, levels, {"characteristic frequencies": order},
+                     ["the characteristic frequencies"] if irregular else [])
+    unmatched = int(np.count_nonzero(np.isnan(error)))
+    method += f"; {MATCHING_WORDS}" + (f" ({unmatched} of {error.size} unknown here)" if unmatched else "")
+    refined = np.where(np.isfinite(error), frequencies + (shifts[1] - shifts[0]) * _unfolding_sign(coarse, frequencies),
+                       np.nan)
+    return answer(method, True, (error, frequencies, refined, mode))
+
+
+def _upper(multipliers: np.ndarray) -> np.ndarray:
+    """Each multiplier or its conjugate, whichever lies in the upper half plane (the characteristic
+    frequency takes ``|arg mu|``)."""
+    multipliers = np.asarray(multipliers, dtype=complex)
+    return np.where(multipliers.imag < 0.0, multipliers.conj(), multipliers)
+
+
+def _unfolding_sign(coarse: Any, frequencies: np.ndarray) -> np.ndarray:
+    """+1 where a characteristic frequency is ``|arg mu| / T + k Omega``, -1 where ``-|arg mu| / T + k
+    Omega`` (the sign a change of the argument moves it by)."""
+    omega = 2.0 * math.pi / coarse.period
+    base = np.abs(np.angle(coarse.multipliers)) / coarse.period
+    plus = np.abs(np.remainder(frequencies - base + 0.5 * omega, omega) - 0.5 * omega)
+    minus = np.abs(np.remainder(frequencies + base + 0.5 * omega, omega) - 0.5 * omega)
+    return np.where(plus <= minus, 1.0, -1.0)
+
+
+def match_multipliers(multipliers: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+    """Each of ``multipliers`` (k,) matched to the nearest of ``candidates`` (q,) in the complex plane
+    (NaN left out), accepted where that candidate is nearer than ``MATCH_FRACTION`` of its distance to
+    the next distinct candidate; (k,) complex, the matched candidates, NaN where none is accepted."""
+    finite = np.asarray(candidates, dtype=complex)[np.isfinite(candidates)]
+    distinct: list[complex] = []
+    for value in finite:
+        if all(abs(value - seen) > _SAME_MULTIPLIER for seen in distinct):
+            distinct.append(complex(value))
+    pool = np.asarray(distinct, dtype=complex)
+    out = np.full(np.shape(multipliers), np.nan, dtype=complex)
+    if pool.size == 0:
+        return out
+    for k, value in enumerate(np.asarray(multipliers, dtype=complex)):
+        if not np.isfinite(value):
+            continue
+        best = int(np.argmin(np.abs(pool - value)))
+        others = np.delete(pool, best)
+        gap = float(np.abs(others - pool[best]).min()) if others.size else math.inf
+        if abs(pool[best] - value) < MATCH_FRACTION * gap:
+            out[k] = pool[best]
+    return out
+
+
+def nearest_rank(frequencies: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """(k,) int: the rank among the finite ``targets`` (ascending) of the one nearest each of
+    ``frequencies`` (k,) (the mode a characteristic frequency was unfolded to), -1 where NaN."""
+    ordered = np.sort(np.asarray(targets, dtype=float)[np.isfinite(targets)])
+    out = np.full(np.shape(frequencies), -1, dtype=int)
+    if ordered.size == 0:
+        return out
+    for k, value in enumerate(np.asarray(frequencies, dtype=float)):
+        if math.isfinite(value):
+            out[k] = int(np.argmin(np.abs(ordered - value)))
+    return out
 
 
 def _estimates(series: list[np.ndarray], order: float | None, *, extremes: bool = True

@@ -18,6 +18,7 @@ from .._budget import (
     NOT_ESTIMATED,
     RADIUS_METHODS,
     check_tolerance,
+    grid_frequency_mesh,
     grid_radius_mesh,
     radius_budget,
     radius_mesh_words,
@@ -106,7 +107,12 @@ class CampbellResult(NoObservables, GridResult):
         The band of each tracked mode over the crank angle.
     characteristic, characteristic_error : ndarray, (n, 2m), rad/s
         The Floquet characteristic frequencies unfolded to the nearest frozen mean frequency, and
-        their estimated error (N against N/2).
+        their time-step error (N against N/2).
+    characteristic_mesh_error : ndarray, (n, 2m), rad/s, or None
+        The frequencies' mesh term (``studies._budget.grid_frequency_mesh``: each mode's relative
+        error at the headline speeds, its multipliers matched to the refined model's, applied to its
+        frequencies at every speed; NaN where unknown); None without elastic links, or in a file
+        written before the term (not estimated).
     mode_labels : tuple of str, (m,)
         The tracked modes' names.
     harmonics : tuple of int
@@ -134,6 +140,7 @@ class CampbellResult(NoObservables, GridResult):
     band_mean: np.ndarray | None = None
     characteristic: np.ndarray | None = None
     characteristic_error: np.ndarray | None = None
+    characteristic_mesh_error: np.ndarray | None = None
     mode_labels: tuple = ()
     harmonics: tuple = ()
     error_methods: Mapping[str, str] = field(default_factory=lambda: dict(CAMPBELL_METHODS))
@@ -141,14 +148,35 @@ class CampbellResult(NoObservables, GridResult):
     @property
     def error_budget(self) -> dict[str, dict[str, Any]]:
         """{quantity: {term: array or words}} (``studies._budget``): "spectral_radius" (n,) and
-        "characteristic" (n, 2m), each of its time step (N against N/2), the mesh (the radius's
-        estimated at its headline speeds, the frequencies' not estimated) and the linearisation not
-        applicable (small vibrations about the nominal motion are the linear system's); the
-        frequencies' total is ``characteristic_error``."""
+        "characteristic" (n, 2m), each of its time step (N against N/2), the mesh (each estimated at
+        the headline speeds: ``spectral_radius_mesh_error``, ``characteristic_mesh_error``; not
+        applicable without elastic links, not estimated in a file written before the term) and the
+        linearisation not applicable (small vibrations about the nominal motion are the linear
+        system's)."""
         return {**radius_budget(self.spectral_radius_error, self._mesh_term()),
                 "characteristic": {"time_step": self.characteristic_error,
-                                   "mesh": NOT_APPLICABLE if isinstance(self._mesh_term(), str) else NOT_ESTIMATED,
+                                   "mesh": self._frequency_mesh_term(),
                                    "linearisation": NOT_APPLICABLE}}
+
+    def _frequency_mesh_term(self) -> Any:
+        if self.characteristic_mesh_error is not None:
+            return self.characteristic_mesh_error
+        return NOT_APPLICABLE if isinstance(self._mesh_term(), str) else NOT_ESTIMATED
+
+    def _frequency_words(self, shown: Any = True) -> str:
+        """The characteristic frequencies' error among ``shown`` (bool mask of ``characteristic``) in
+        a phrase: the total's largest, its terms' (the mesh's words where it is not a number)."""
+        time_step = np.where(shown, self.characteristic_error, np.nan)
+        mesh = self._frequency_mesh_term()
+        if isinstance(mesh, str):
+            return f"frequencies' time-step error up to {plain(largest(time_step))} rad/s (mesh: {mesh})"
+        mesh = np.where(shown, mesh, np.nan)
+        total = np.abs(time_step) + np.abs(mesh)
+        unknown = np.isnan(mesh) & np.isfinite(time_step)
+        note = (f"; mesh unknown for {int(unknown.sum())} of {int(np.isfinite(time_step).sum())}"
+                if unknown.any() else "")
+        return (f"frequencies' error up to {plain(largest(total))} rad/s (time step up to "
+                f"{plain(largest(time_step))}, mesh up to {plain(largest(mesh))}{note})")
 
     def _mesh_term(self) -> Any:
         if self.spectral_radius_mesh_error is not None:
@@ -158,7 +186,8 @@ class CampbellResult(NoObservables, GridResult):
     _axes = {"speeds": "speed"}
     _units = {"speeds": "rad/s", "crank_angle": "rad", "frozen": "rad/s", "shapes": "1",
               "multipliers": "1", "multipliers_coarse": "1", "period": "s", "order": "1",
-              "tracking_mac": "1", "characteristic_error": "rad/s", "band_min": "rad/s",
+              "tracking_mac": "1", "characteristic_error": "rad/s", "characteristic_mesh_error": "rad/s",
+              "band_min": "rad/s",
               "band_max": "rad/s", "band_mean": "rad/s", "characteristic": "rad/s", "spectral_radius": "1",
               "spectral_radius_error": "1", "spectral_radius_mesh_error": "1", "is_stable": "1", **GridResult._units}
 
@@ -197,15 +226,13 @@ class CampbellResult(NoObservables, GridResult):
         ax.set_ylabel("frequency (rad/s)")
         # The error of the characteristic frequencies drawn (an unresolved axial mode far above the
         # plotted range would otherwise set it).
-        error = float("nan")
+        words = "frequencies' error: none computed"
         if self.characteristic_error is not None:
-            shown = np.asarray(self.characteristic) <= ax.get_ylim()[1]
-            error = largest(np.where(shown, self.characteristic_error, np.nan))
+            words = self._frequency_words(np.asarray(self.characteristic) <= ax.get_ylim()[1])
         above = "" if not hidden else f"\n({', '.join(hidden)} above the range shown)" if len(hidden) < 3 \
             else f"\n({hidden[0]} to {hidden[-1].removeprefix('mode ')} above the range shown)"
         ax.set_title(f"{self.problem}: Campbell diagram, speeds {speeds[0]:.4g}–{speeds[-1]:.4g} "
-                     f"rad/s{above}\n" + cost_line(f"frequencies' time-step error up to {plain(error)} rad/s "
-                                                 f"(mesh: not estimated)", self.run_time)
+                     f"rad/s{above}\n" + cost_line(words, self.run_time)
                      + self.reduction_note(), fontsize="small")
         return drawn(axes, artists)
 
@@ -276,8 +303,7 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
                                          tolerance=error_tolerance)
     extra: dict[str, Any] = reduction_check(problem, n_steps=n_steps)
     extra.update(spectral_radius_mesh_error=None if isinstance(mesh, str) else mesh,
-                 error_methods={**CAMPBELL_METHODS, "mesh": mesh_method if isinstance(mesh, str) else
-                                f"spectral radius: {mesh_method}; characteristic frequencies: not estimated"})
+                 error_methods={**CAMPBELL_METHODS, "mesh": mesh_method})
     if "frozen" in fields:
         fields["crank_angle"] = fields["crank_angle"][np.flatnonzero(fields["done"])[0]]
         order, confidence = track_modes(fields["shapes"])
@@ -297,6 +323,13 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
         characteristic, characteristic_error = np.array(characteristic), np.array(characteristic_error)
         first = fields["shapes"][0]
         mode_labels = _mode_labels(first, labels)
+        if not isinstance(mesh, str):
+            # the frequencies' mesh term at the radius's headline speeds (the same refined solves)
+            frequency_mesh, frequency_method = grid_frequency_mesh(problem, fields, points, characteristic,
+                                                                   band_mean, n_steps=n_steps, scheme=scheme)
+            extra.update(characteristic_mesh_error=None if isinstance(frequency_mesh, str) else frequency_mesh)
+            extra["error_methods"]["mesh"] = (f"spectral radius: {mesh_method}; characteristic frequencies: "
+                                              f"{frequency_method}")
         extra.update(order=order, tracking_mac=confidence, band_min=band_min, band_max=band_max,
                      band_mean=band_mean, characteristic=characteristic,
                      characteristic_error=characteristic_error, mode_labels=mode_labels,
@@ -384,8 +417,12 @@ def _headlines(result: CampbellResult) -> Summary:
         rows.append(Headline("unstable speeds",
                              ranges(unstable_intervals(result.speeds, lower, tol=periodic.STABILITY_TOL), "rad/s")))
         rows.append(Headline("error budget", f"time step, the radius's mesh {radius_mesh_words(result._mesh_term())} "
-                                             f"(the frequencies' not estimated; linearisation not applicable: "
-                                             f"frequencies of small vibrations)"))
+                                             f"(linearisation not applicable: frequencies of small vibrations)"))
+    if result.characteristic_error is not None and result.band_max is not None:
+        # the frequencies up to the lowest modes' bands (an unresolved stiff mode far above sets no bar)
+        shown = np.asarray(result.characteristic) <= np.nanmax(result.band_max[:, :3])
+        rows.append(Headline("characteristic frequencies of the lowest modes",
+                             result._frequency_words(shown).removeprefix("frequencies' ")))
     return Summary(status=grid_status(result), run_time=result.run_time, rows=rows + reduction_headlines(result))
 
 
@@ -401,12 +438,13 @@ def _cost(name, problem, options, workers, done=None):
     found = cost.grid_cost(name, problem, [axis], options["n_steps"], frozen=frozen, workers=workers, done=done,
                       point_doubles=lambda s: (frozen + s.m + 8.0) * s.m,
                       words=[cost.axis_words(*axis), f"{frozen} frozen samples"])
-    # the radius's mesh term at three headline speeds (studies._budget.grid_radius_mesh)
-    # (after the grid: its points' linearisations released; none where every point is saved, a
-    # complete study's fixed cost covering the three refined solves)
+    # the radius's and the frequencies' mesh terms at three headline speeds (studies._budget.
+    # grid_radius_mesh, grid_frequency_mesh: one refined solve each, shared, and the user's model's
+    # solve there for the frequencies) (after the grid: its points' linearisations released; none
+    # where every point is saved, a complete study's fixed cost covering the three refined solves)
     if done is None or np.shape(done) != (len(options["speeds"]),) or not np.asarray(done).all():
         for _ in range(3):
-            found = cost.with_mesh_term(found, problem, {}, options["n_steps"])
+            found = cost.with_mesh_term(found, problem, {}, options["n_steps"], relative=True)
     return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 
