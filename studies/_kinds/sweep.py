@@ -18,12 +18,15 @@ from .._budget import (
     FORMAT2_METHODS,
     GRID_CHORD_STEPS,
     NOT_APPLICABLE,
+    NOT_ESTIMATED,
     ErrorBudget,
     beside,
     check_tolerance,
+    grid_radius_mesh,
     linearisation_terms,
     mesh_terms,
     point_budget,
+    radius_mesh_words,
     verdict,
 )
 from .._kind import StudyKind, register_kind
@@ -120,9 +123,13 @@ class SweepResult(GridResult):
         The largest magnitude over the period and its error (``studies._numerics.peak_summary``; for
         joint forces, drive torques and stresses the totals, nominal plus elastic change).
     spectral_radius, spectral_radius_error : ndarray, (n,), 1
-        The monodromy's spectral radius over the resolved modes and its estimated error (format 2
+        The monodromy's spectral radius over the resolved modes and its time-step error (format 2
         and older files: over all modes; the unresolved modes' multipliers are among
         ``multipliers``).
+    spectral_radius_mesh_error : ndarray, (n,), 1, or None
+        The radius's mesh term (``studies._budget.grid_radius_mesh``: the headline speeds' largest
+        relative error applied to every point, as a stability chart's); None without elastic links,
+        with ``budget=False``, or in a file written before the term (not estimated).
     is_stable : ndarray of bool, (n,)
         Each point's stability verdict: False where unstable beyond the radius's error bar, and
         wherever the radius has converged above 1 whatever the point's status word.
@@ -157,6 +164,7 @@ class SweepResult(GridResult):
     resonances: tuple = ()
     instabilities: tuple = ()
     spectral_radius_error: np.ndarray | None = None
+    spectral_radius_mesh_error: np.ndarray | None = None
     is_stable: np.ndarray | None = None
     linear_range: Mapping[str, np.ndarray] = field(default_factory=dict)
     peak: Mapping[str, np.ndarray] = field(default_factory=dict)
@@ -195,6 +203,7 @@ class SweepResult(GridResult):
         "budget_mesh": "@observables",
         "budget_linearisation": "@observables",
         "spectral_radius_error": "1",
+        "spectral_radius_mesh_error": "1",
         "is_stable": "1",
         "linear_range": "1",
         "values": "@parameter_unit",
@@ -209,6 +218,13 @@ class SweepResult(GridResult):
         "frozen_mean": "rad/s",
         **GridResult._units,
     }
+
+    def _radius_mesh_words(self) -> str:
+        """The radius's mesh term in words: "up to 0.0012", "not applicable", "not estimated"."""
+        if self.spectral_radius_mesh_error is not None:
+            return radius_mesh_words(self.spectral_radius_mesh_error)
+        words = self.error_methods.get("spectral_radius_mesh", "")
+        return NOT_APPLICABLE if words.startswith(NOT_APPLICABLE) else NOT_ESTIMATED
 
     def _dominant_words(self) -> str:
         """" (mostly linearisation)": the budget term that dominates the most points' total error."""
@@ -361,8 +377,8 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
     # the frozen samples are taken among the steps: at most n_steps of them, and the file records
     # the number used
     frozen_samples = min(FROZEN_SAMPLES, n_steps)
-    mesh_relative, mesh_method = ({}, "") if not budget else _mesh_headline(problem, names.observables,
-                                                                            n_steps, scheme)
+    mesh_relative, mesh_method, scene_radius = (({}, "", None) if not budget else
+                                                _mesh_headline(problem, names.observables, n_steps, scheme))
     settings = {"parameter": parameter, "values": grid, "n_steps": n_steps, "scene": problem.text,
                 "frozen_samples": frozen_samples, "scheme": scheme, "error_tolerance": error_tolerance,
                 "budget": bool(budget)}
@@ -399,28 +415,41 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
         # unstable where the radius exceeds 1 beyond its own error bar (periodic.stability_verdict)
         lower = fields["spectral_radius"] - np.nan_to_num(fields.get("spectral_radius_error", 0.0))
         instabilities = tuple(unstable_intervals(grid, lower, tol=periodic.STABILITY_TOL))
+    # the radius's mesh term at the headline speeds, each point's verdict judged with the total (as a
+    # stability chart's: studies._budget.grid_radius_mesh)
+    radius_mesh: Any = None
+    radius_method = "not estimated: the sweep ran with budget=False (the time step's error alone)"
+    if budget and "spectral_radius" in fields:
+        radius_mesh, radius_method = grid_radius_mesh(problem, fields, points, n_steps=n_steps, scheme=scheme,
+                                                      tolerance=error_tolerance, scene_radius=scene_radius)
+        radius_mesh = None if isinstance(radius_mesh, str) else radius_mesh
     result = SweepResult(**header, settings=settings, values=grid, **per_observable,
                          resonances=resonances, linear_range=ranges,
                          instabilities=instabilities, run_time=time.perf_counter() - start, **fields,
-                         error_methods=_methods(n_steps, scheme, mesh_method,
-                                                bool(per_observable["budget_linearisation"]), budget),
+                         spectral_radius_mesh_error=radius_mesh,
+                         error_methods={**_methods(n_steps, scheme, mesh_method,
+                                                   bool(per_observable["budget_linearisation"]), budget),
+                                        "spectral_radius_mesh": radius_method},
                          **reduction)
     if store is not None:
         result.to_hdf5(store.group)
     return result
 
 
-def _mesh_headline(problem: Any, specs: Any, n_steps: int, scheme: str) -> tuple[dict[str, float], str]:
+def _mesh_headline(problem: Any, specs: Any, n_steps: int, scheme: str
+                   ) -> tuple[dict[str, float], str, float | None]:
     """The mesh term at the scene's own point, relative to its peak-to-peak ({spec: relative}, empty
-    where it does not apply), and its words: the sweep applies it to every point."""
+    where it does not apply), and its words: the sweep applies it to every point; and the spectral
+    radius there (None where the term does not apply), a headline point of the radius's term."""
     mesh, method, _ = mesh_terms(problem, None, specs, n_steps, scheme)
     if mesh == NOT_APPLICABLE:
-        return {}, method
+        return {}, method, None
     steady = solve_steady(problem.linearize(None, n_steps=n_steps, context=False), scheme)
     values = peak_summary(steady.response, steady.response_error)["peak_to_peak"]
     relative = {spec: float(mesh["peak_to_peak"].get(spec, math.nan)) / max(float(values[k]), 1e-300)
                 for k, spec in enumerate(specs)}
-    return relative, f"{method}, at the scene's point, applied to every point relatively"
+    return (relative, f"{method}, at the scene's point, applied to every point relatively",
+            float(steady.state.spectral_radius))
 
 
 def _methods(n_steps: int, scheme: str, mesh_method: str, linearised: bool, budget: bool) -> dict[str, str]:
@@ -514,9 +543,15 @@ def _headlines(result: SweepResult) -> Summary:
     rows.append(Headline(f"resonances, harmonic:mode at {label(result.parameter, unit)}", listed(resonances)))
     rows.append(Headline(f"unstable {result.parameter} ranges", ranges(result.instabilities, unit)))
     if result.spectral_radius is not None:
-        # its error bar is the time step's (the radius's mesh term is a stability chart's, not a sweep's)
-        rows.append(largest_over_grid("largest spectral radius (time-step error; mesh not estimated)",
-                                      result.spectral_radius, result.spectral_radius_error, "1", point))
+        # its error bar the budget's total: the time step's and, where estimated, the mesh term
+        total = np.asarray(result.spectral_radius_error, dtype=float)
+        if result.spectral_radius_mesh_error is not None:
+            total = total + np.abs(np.asarray(result.spectral_radius_mesh_error, dtype=float))
+        mesh = result._radius_mesh_words()
+        rows.append(largest_over_grid("largest spectral radius" + ("" if result.spectral_radius_mesh_error is not None
+                                                                   else f" (time-step error; mesh {mesh})"),
+                                      result.spectral_radius, total, "1", point))
+        rows.append(Headline("spectral radius error budget", f"time step, mesh {mesh} (linearisation not applicable)"))
     return Summary(status=grid_status(result), run_time=result.run_time, rows=rows + reduction_headlines(result))
 
 
@@ -552,11 +587,15 @@ def _default(nominal_speed: float) -> dict[str, Any]:
 
 def _cost(name, problem, options, workers, done=None):
     """A periodic solve, its error budget and 32 frozen-time eigenproblems per point
-    (``studies._cost.grid_cost``), the mesh term at the scene's point."""
+    (``studies._cost.grid_cost``), the mesh term at the scene's point, the radius's mesh term at three
+    headline speeds (a refined monodromy each: ``studies._budget.grid_radius_mesh``)."""
     axis = (options["parameter"], np.asarray(options["values"]))
     found = cost.grid_cost(name, problem, [axis], options["n_steps"], workers=workers, frozen=32, done=done,
                       point_doubles=lambda s: 8.0 * s.m + 4.0, words=[cost.axis_words(*axis)], budget=True)
     found = cost.with_mesh_term(found, problem, {}, options["n_steps"], relative=True, held=found.memory)
+    # (after the grid, as a stability chart's; run again on a resumed sweep: every point re-judged)
+    for _ in range(3):
+        found = cost.with_mesh_term(found, problem, {}, options["n_steps"])
     return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 
