@@ -219,20 +219,21 @@ def _scalar_estimate(levels: Sequence[float], order: float | None) -> tuple[floa
 
 def _radius(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: str) -> float:
     """The spectral radius of a mechanism ``problem``'s monodromy at ``speed`` (no error estimate)."""
-    return _floquet_at(problem, speed, n_steps, scheme).spectral_radius
+    return _floquet_at(problem, speed, n_steps, scheme, frozen=False).spectral_radius
 
 
 @dataclass(frozen=True)
 class _Floquet:
     """What the radius's and the frequencies' mesh terms need of one level's monodromy at one speed:
     ``multipliers`` (2m,) and ``resolved`` (2m,) bool (``periodic.floquet``), ``spectral_radius``,
-    ``period`` (s), ``targets`` (m,) rad/s the mean frozen natural frequencies, ascending."""
+    ``period`` (s), ``targets`` (m,) rad/s the mean frozen natural frequencies, ascending (None where
+    not asked for: the radius's term needs none)."""
 
     multipliers: np.ndarray
     resolved: np.ndarray
     spectral_radius: float
     period: float
-    targets: np.ndarray
+    targets: np.ndarray | None
 
 
 #: Frozen-time samples per period of the mean frozen frequencies the characteristic frequencies of
@@ -240,24 +241,25 @@ class _Floquet:
 _FROZEN_SAMPLES = 16
 
 
-def _floquet_at(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: str) -> _Floquet:
-    """The monodromy's multipliers and the mean frozen frequencies of a mechanism ``problem`` at
-    ``speed``, cached per process beside the refined problems: the radius's and the frequencies'
-    terms of a Campbell diagram share each solve."""
+def _floquet_at(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: str, *,
+                frozen: bool = True) -> _Floquet:
+    """The monodromy's multipliers and (``frozen``) the mean frozen frequencies of a mechanism
+    ``problem`` at ``speed``, cached per process beside the refined problems: the radius's and the
+    frequencies' terms of a Campbell diagram share each solve."""
     import periodic
 
     from ._numerics import frozen_modes
 
     key = (id(problem), tuple(sorted(speed.items())), int(n_steps), scheme)
     cached = _FLOQUETS.get(key)
-    if cached is not None and cached[0] is problem:
+    if cached is not None and cached[0] is problem and (cached[1].targets is not None or not frozen):
         _FLOQUETS.move_to_end(key)
         return cached[1]
     linear = problem.linearize(speed, n_steps=n_steps, context=False)
     result = periodic.floquet(linear.system, scheme=study_scheme(scheme))
-    _, frozen, _ = frozen_modes(linear.system, _FROZEN_SAMPLES)
+    targets = np.sort(frozen_modes(linear.system, _FROZEN_SAMPLES)[1].mean(axis=0)) if frozen else None
     found = _Floquet(np.asarray(result.multipliers), np.asarray(result.resolved, dtype=bool),
-                     float(result.spectral_radius), float(linear.system.period), np.sort(frozen.mean(axis=0)))
+                     float(result.spectral_radius), float(linear.system.period), targets)
     _FLOQUETS[key] = (problem, found)   # the problem held: its id cannot be reused while cached
     if len(_FLOQUETS) > 4 * _CACHE_SIZE:
         _FLOQUETS.popitem(last=False)

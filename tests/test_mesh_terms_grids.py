@@ -255,9 +255,10 @@ def test_the_guard_counts_the_headline_solves_of_the_sweep_and_campbell():
                           words=[cost.axis_words(*axis)], budget=True)
     grid = cost.with_reduction_check(grid, problem, {}, 128)
     # the response's mesh term at the scene's point (refined and user's solve), the radius's at three
-    # headline speeds (a refined solve each)
+    # headline speeds (the refined model's linearisation, a refined solve each)
+    refined_solve = cost.solve_seconds(128, refined)
     found = kinds["sweep"].cost("s", problem, sweep, 1)
-    assert found.time == pytest.approx(grid.time + 4 * one_refined + one_plain, rel=1e-12)
+    assert found.time == pytest.approx(grid.time + 2 * one_refined + 2 * refined_solve + one_plain, rel=1e-12)
     options = kinds["campbell"].check("c", {"values": list(speeds)}, 128)
     axis = ("speed", np.asarray(options["speeds"]))
     frozen = options["frozen_samples"]
