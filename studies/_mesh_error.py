@@ -238,7 +238,7 @@ class _Floquet:
 
 #: Frozen-time samples per period of the mean frozen frequencies the characteristic frequencies of
 #: the mesh term are unfolded to (only the nearest mean matters: a coarse mean does).
-_FROZEN_SAMPLES = 16
+MESH_FROZEN_SAMPLES = 16
 
 
 def _floquet_at(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: str, *,
@@ -257,7 +257,7 @@ def _floquet_at(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: 
         return cached[1]
     linear = problem.linearize(speed, n_steps=n_steps, context=False)
     result = periodic.floquet(linear.system, scheme=study_scheme(scheme))
-    targets = np.sort(frozen_modes(linear.system, _FROZEN_SAMPLES)[1].mean(axis=0)) if frozen else None
+    targets = np.sort(frozen_modes(linear.system, MESH_FROZEN_SAMPLES)[1].mean(axis=0)) if frozen else None
     found = _Floquet(np.asarray(result.multipliers), np.asarray(result.resolved, dtype=bool),
                      float(result.spectral_radius), float(linear.system.period), targets)
     _FLOQUETS[key] = (problem, found)   # the problem held: its id cannot be reused while cached

@@ -3,6 +3,7 @@ frequencies against the crank speed, modes tracked by MAC."""
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
@@ -25,6 +26,7 @@ from .._budget import (
     radius_verdict,
 )
 from .._kind import StudyKind, register_kind
+from .._mesh_error import MESH_FROZEN_SAMPLES
 from .._numerics import (
     DEFAULT_SCHEME,
     characteristic_frequencies,
@@ -299,11 +301,8 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
     fields = collect(outcomes, grid.shape)
     if "is_stable" in fields:
         fields["is_stable"] = fields["is_stable"] == 1.0
-    mesh, mesh_method = grid_radius_mesh(problem, fields, points, n_steps=n_steps, scheme=scheme,
-                                         tolerance=error_tolerance)
     extra: dict[str, Any] = reduction_check(problem, n_steps=n_steps)
-    extra.update(spectral_radius_mesh_error=None if isinstance(mesh, str) else mesh,
-                 error_methods={**CAMPBELL_METHODS, "mesh": mesh_method})
+    frequency_method = ""
     if "frozen" in fields:
         fields["crank_angle"] = fields["crank_angle"][np.flatnonzero(fields["done"])[0]]
         order, confidence = track_modes(fields["shapes"])
@@ -323,17 +322,20 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
         characteristic, characteristic_error = np.array(characteristic), np.array(characteristic_error)
         first = fields["shapes"][0]
         mode_labels = _mode_labels(first, labels)
-        if not isinstance(mesh, str):
-            # the frequencies' mesh term at the radius's headline speeds (the same refined solves)
-            frequency_mesh, frequency_method = grid_frequency_mesh(problem, fields, points, characteristic,
-                                                                   band_mean, n_steps=n_steps, scheme=scheme)
-            extra.update(characteristic_mesh_error=None if isinstance(frequency_mesh, str) else frequency_mesh)
-            extra["error_methods"]["mesh"] = (f"spectral radius: {mesh_method}; characteristic frequencies: "
-                                              f"{frequency_method}")
+        # the frequencies' mesh term at the radius's headline speeds (first: its refined solves, with
+        # their frozen frequencies, serve the radius's term below from the cache)
+        frequency_mesh, frequency_method = grid_frequency_mesh(problem, fields, points, characteristic,
+                                                               band_mean, n_steps=n_steps, scheme=scheme)
+        extra.update(characteristic_mesh_error=None if isinstance(frequency_mesh, str) else frequency_mesh)
         extra.update(order=order, tracking_mac=confidence, band_min=band_min, band_max=band_max,
                      band_mean=band_mean, characteristic=characteristic,
                      characteristic_error=characteristic_error, mode_labels=mode_labels,
                      harmonics=tuple(range(1, max_harmonic + 1)))
+    mesh, mesh_method = grid_radius_mesh(problem, fields, points, n_steps=n_steps, scheme=scheme,
+                                         tolerance=error_tolerance)
+    extra.update(spectral_radius_mesh_error=None if isinstance(mesh, str) else mesh,
+                 error_methods={**CAMPBELL_METHODS, "mesh": mesh_method if isinstance(mesh, str) or not frequency_method
+                                else f"spectral radius: {mesh_method}; characteristic frequencies: {frequency_method}"})
     result = CampbellResult(**header, settings=settings, speeds=grid, run_time=time.perf_counter() - start,
                             **fields, **extra)
     if store is not None:
@@ -439,12 +441,17 @@ def _cost(name, problem, options, workers, done=None):
                       point_doubles=lambda s: (frozen + s.m + 8.0) * s.m,
                       words=[cost.axis_words(*axis), f"{frozen} frozen samples"])
     # the radius's and the frequencies' mesh terms at three headline speeds (studies._budget.
-    # grid_radius_mesh, grid_frequency_mesh: one refined solve each, shared, and the user's model's
-    # solve there for the frequencies) (after the grid: its points' linearisations released; none
-    # where every point is saved, a complete study's fixed cost covering the three refined solves)
+    # grid_radius_mesh, grid_frequency_mesh: one refined solve each, shared, and for the frequencies
+    # a Floquet solve of the user's model there, on the grid's speed family, with its frozen
+    # frequencies) (after the grid: its points' linearisations released; none where every point is
+    # saved, a complete study's fixed cost covering the three refined solves)
     if done is None or np.shape(done) != (len(options["speeds"]),) or not np.asarray(done).all():
         for _ in range(3):
-            found = cost.with_mesh_term(found, problem, {}, options["n_steps"], relative=True)
+            found = cost.with_mesh_term(found, problem, {}, options["n_steps"])
+        if hasattr(problem, "mechanism"):
+            seconds = 3.0 * cost.solve_seconds(options["n_steps"], cost.sizes_at(problem, {}),
+                                               frozen=MESH_FROZEN_SAMPLES)
+            found = dataclasses.replace(found, time=found.time + seconds)
     return cost.with_reduction_check(found, problem, {}, options["n_steps"])
 
 
