@@ -363,7 +363,10 @@ def sweep(problem: Any, parameter: str, values: Sequence[float], *, n_steps: int
     above 1) marked. ``out``: h5py File/Group to write into (resumable). ``scheme`` names the
     periodic scheme (``periodic.SCHEMES``). Each point's peak-to-peak error is the total of its
     budget (``error_budget``: time step, its own linearisation term, the mesh term of the scene's
-    point applied relatively); a total above ``error_tolerance`` of the value is ``inaccurate``.
+    point applied relatively); a total above ``error_tolerance`` of the value is ``inaccurate``. The
+    spectral radius carries its mesh term too (``spectral_radius_mesh_error``, from the headline
+    speeds: ``studies._budget.grid_radius_mesh``), each point's radius judged on its total as a
+    stability chart's cell is.
     ``budget=False``: the time step's error alone, as before the budget (the other terms
     unknown: the points are not judged by them)."""
     start = time.perf_counter()
