@@ -173,12 +173,15 @@ class CampbellResult(NoObservables, GridResult):
         if isinstance(mesh, str):
             return f"frequencies' time-step error up to {plain(largest(time_step))} rad/s (mesh: {mesh})"
         mesh = np.where(shown, mesh, np.nan)
-        total = np.abs(time_step) + np.abs(mesh)
-        unknown = np.isnan(mesh) & np.isfinite(time_step)
-        note = (f"; mesh unknown for {int(unknown.sum())} of {int(np.isfinite(time_step).sum())}"
-                if unknown.any() else "")
-        return (f"frequencies' error up to {plain(largest(total))} rad/s (time step up to "
-                f"{plain(largest(time_step))}, mesh up to {plain(largest(mesh))}{note})")
+        counted = np.isfinite(time_step)
+        unknown = int((np.isnan(mesh) & counted).sum())
+        if unknown == int(counted.sum()):   # no total to state: the time step's, the mesh unknown
+            return f"frequencies' time-step error up to {plain(largest(time_step))} rad/s (mesh unknown)"
+        if unknown:   # a total where the mesh is unknown would read as a bound: the terms apart
+            return (f"frequencies' time-step error up to {plain(largest(time_step))} rad/s, mesh up to "
+                    f"{plain(largest(mesh))} ({unknown} of {int(counted.sum())} unknown)")
+        return (f"frequencies' error up to {plain(largest(np.abs(time_step) + np.abs(mesh)))} rad/s "
+                f"(time step {plain(largest(time_step))}, mesh {plain(largest(mesh))})")
 
     def _mesh_term(self) -> Any:
         if self.spectral_radius_mesh_error is not None:
