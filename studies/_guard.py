@@ -76,8 +76,8 @@ def _saved(path: str | os.PathLike | None, problem: Any, runs: Sequence[tuple[st
                     complete.add(name)   # a damaged study is recomputed by the run: estimated
                 elif kind.grid and "done" in group:
                     done[name] = np.asarray(group["done"][()], dtype=bool)
-    except OSError:  # not HDF5, unreadable: the result file's own checks say so
-        return _Saved()
+    except (KeyError, OSError, RuntimeError, ValueError):  # not HDF5, unreadable, a group's structure
+        return _Saved()                                      # damaged: the result file's own checks say so
     return _Saved(frozenset(complete), done)
 
 
