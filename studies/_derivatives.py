@@ -1,10 +1,11 @@
 """Derivatives of a steady state's headlines with respect to a problem's parameters at one point:
 what ``studies.sensitivity`` reports and ``studies.optimize``'s local method follows.
 
-For each parameter p the coefficients' derivative comes from linearisations at nearby values
-(``linearize.coefficient_derivative``: a forward difference where the nominal configuration does not
-move, else a central one; the speed's central difference on a speed family is exact, its
-coefficients being polynomials in the speed), and the response's from
+For each parameter p the coefficients' derivative is analytic where a part of the mechanism carries it
+(``linearize.analytic_derivative``: a link's damping, with no second linearisation), else it comes from
+linearisations at nearby values (``linearize.coefficient_derivative``: a forward difference where the
+nominal configuration does not move, else a central one; the speed's central difference on a speed
+family is exact, its coefficients being polynomials in the speed), and the response's from
 ``periodic.response_derivative`` (the periodic system with the forcing of those derivatives, on the
 shooting's monodromy).  An observable ``o_p(z)`` depends on p through its map too, so its derivative is
 ``(o_{p+h}(z + h dz) - o_{p-h}(z - h dz)) / 2h`` (or the forward form), a difference of the maps only
@@ -43,8 +44,8 @@ class PointDerivatives:
     ``values`` {name: value}; ``response`` (N+1, n_obs) the observables; ``derivative`` (P, N+1, n_obs) and
     ``coarse_derivative`` (P, N/2+1, n_obs) their derivatives (N and N/2 steps); ``coarse_response``
     (N/2+1, n_obs); ``radius``, ``radius_error`` (P,) d|mu|/dp of the critical multiplier; ``repeated``:
-    the multiplier is repeated (radius NaN); ``methods`` {name: "forward" | "central" | "speed family"};
-    ``steps`` {name: absolute step}; ``error_factor``; ``run_time`` of the derivatives (s, without the
+    the multiplier is repeated (radius NaN); ``methods`` {name: "analytic" | "forward" | "central"};
+    ``steps`` {name: absolute step, 0 for an analytic derivative}; ``error_factor``; ``run_time`` of the derivatives (s, without the
     point's own steady state: ``steady.run_time`` and ``linear_run_time``)."""
 
     linear: object
@@ -126,6 +127,14 @@ def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, line
     started = time.perf_counter()
     system = linear.system
     for name in names:
+        closed = None if name in pending else linearize.analytic_derivative(linear.context, name)
+        if closed is not None:
+            # a part carries the derivative: no linearisation at a neighbouring value, and the
+            # observables' maps do not move (linearize.analytic_derivative)
+            methods[name], steps[name] = "analytic", 0.0
+            derivatives.append(closed)
+            neighbours.append(None)
+            continue
         if name in pending:
             plus, minus, step, methods[name] = pending[name]
             divisor = 2.0 * step
@@ -156,7 +165,16 @@ def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, line
         coarse_response = linear.observe(state.x_coarse, stride=2)
         coarse_derivative = np.empty((len(names),) + coarse_response.shape)
         levels.append((coarse_derivative, state.x_coarse, dz_coarse, 2))
-    for j, (plus, minus, divisor, forward) in enumerate(neighbours):
+    for j, neighbour in enumerate(neighbours):
+        if neighbour is None:
+            # the maps are the point's: a central difference along dz (a force's magnitude is not
+            # linear in z; the step's truncation is (h/p)^2 = 1e-8 of the derivative)
+            h = linearize.parameter_step(params[names[j]], linearize.CENTRAL_STEP)
+            for out, z, dz_level, stride in levels:
+                out[j] = (linear.observe(z + h * dz_level[j], stride=stride)
+                          - linear.observe(z - h * dz_level[j], stride=stride)) / (2.0 * h)
+            continue
+        plus, minus, divisor, forward = neighbour
         # h dz moves z to first order as the parameter's step does; the maps' own change is differenced
         h = steps[names[j]]
         for out, z, dz_level, stride in levels:
