@@ -1,0 +1,111 @@
+"""Analytic coefficient derivatives of the sensitivities (issue 20): a link's damping differentiated by its
+damping kind (``matrix_derivative``) against central differences of the linearisation's coefficients and
+maps, and the headlines' derivatives through that route against central differences of fresh steady
+states (prescribed and torque-driven four-bars, Rayleigh alpha, beta and the ratio)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import linearize
+import mechanisms
+import studies
+
+N_STEPS = 64
+OBSERVABLES = ["coupler.deflection@0.5", "joint.B.force", "drive.O.torque"]
+
+
+def _rayleigh_scene(scene: str, alpha: float, beta: float):
+    """``scene`` with its coupler's damping as Rayleigh alpha and beta (instead of the ratio)."""
+    text = mechanisms.load(scene).to_toml()
+    marker = "[links.coupler.damping]"
+    head, tail = text.split(marker)
+    body, rest = tail.split("\n[", 1) if "\n[" in tail else (tail, "")
+    table = f'{marker}\ntype = "rayleigh"\nalpha = {alpha!r}\nbeta = {beta!r}\n'
+    return mechanisms.build(__import__("tomllib").loads(head + table + ("\n[" + rest if rest else "")),
+                            source=f"{scene} with Rayleigh alpha, beta")
+
+
+@pytest.fixture(scope="module")
+def rayleigh_problem():
+    mechanism = _rayleigh_scene("four_bar_fem4", alpha=3.0, beta=1.2e-4)
+    return studies.MechanismProblem.from_mechanism(
+        mechanism, parameter_paths=["links.coupler.damping.alpha", "links.coupler.damping.beta"],
+        observables=OBSERVABLES)
+
+
+def _central_coefficients(problem, name, relative=1e-4):
+    value = problem.parameters[name]
+    h = relative * value
+    up = problem.linearize({name: value + h}, n_steps=N_STEPS)
+    down = problem.linearize({name: value - h}, n_steps=N_STEPS)
+    return up, down, h
+
+
+@pytest.mark.parametrize("name", ["links.coupler.damping.alpha", "links.coupler.damping.beta"])
+def test_rayleigh_coefficients_against_central_differences(rayleigh_problem, name):
+    """dC (and dK, dM, df, d ln T: zero) of the damping kind's closed form against central differences
+    of two fresh linearisations; the maps of the observables do not move."""
+    problem = rayleigh_problem
+    linear = problem.linearize({}, n_steps=N_STEPS)
+    closed = linearize.analytic_derivative(linear.context, name)
+    assert closed is not None
+    up, down, h = _central_coefficients(problem, name)
+    for field in "MCKf":
+        difference = (getattr(up.system, field) - getattr(down.system, field)) / (2.0 * h)
+        mine = getattr(closed, field)
+        mine = np.zeros_like(difference) if mine is None else mine
+        scale = max(np.abs(difference).max(), np.abs(linear.system.C).max() / problem.parameters[name])
+        assert np.abs(mine - difference).max() <= 1e-7 * scale, field
+    assert np.abs(closed.C).max() > 0.0
+    assert closed.log_period == 0.0 == np.log(up.system.period / down.system.period)
+    z = 1e-4 * np.random.default_rng(1).standard_normal(linear.system.f.shape)
+    z[-1] = z[0]
+    np.testing.assert_allclose(up.observe(z), down.observe(z), rtol=1e-12, atol=0.0)
+
+
+def test_ratio_on_a_torque_drive_against_central_differences():
+    """The ratio on the closed-loop four-bar (the crank angle an independent coordinate, lag states)."""
+    name = "links.coupler.damping.ratio"
+    problem = studies.MechanismProblem.from_scene("four_bar_controlled", parameter_paths=[name],
+                                                  observables=OBSERVABLES)
+    linear = problem.linearize({}, n_steps=N_STEPS)
+    closed = linearize.analytic_derivative(linear.context, name)
+    up, down, h = _central_coefficients(problem, name)
+    for field in "CK":
+        difference = (getattr(up.system, field) - getattr(down.system, field)) / (2.0 * h)
+        assert np.abs(getattr(closed, field) - difference).max() <= 1e-7 * np.abs(difference).max(), field
+    for field in "Mf":
+        assert np.abs(getattr(up.system, field) - getattr(down.system, field)).max() <= 1e-9 * np.abs(
+            getattr(linear.system, field)).max()
+
+
+def test_no_closed_form_falls_back():
+    """A parameter that no part differentiates (a section property, a length) gets None here, and the
+    study differences linearisations for it."""
+    problem = studies.MechanismProblem.from_scene("four_bar_fem4", parameter_paths=["links.coupler.thickness"])
+    linear = problem.linearize({}, n_steps=N_STEPS)
+    assert linearize.analytic_derivative(linear.context, "links.coupler.thickness") is None
+    assert linearize.analytic_derivative(linear.context, "links.crank.damping.ratio") is None  # a rigid link
+
+
+def test_headlines_through_the_analytic_route_against_fresh_steady_states(rayleigh_problem):
+    """Every headline's derivative with respect to alpha and beta (analytic route) against central
+    differences of fresh steady states at the same N, and the result says which route it took.  The step
+    is 1e-3 of the value: alpha's normalised sensitivities are about 1e-3, so at 1e-4 the steady states'
+    own rounding (1e-12 of the value) is 1e-4 of the difference (measured: the differences at steps 1e-2
+    and 1e-3 agree to 2e-5, their truncation)."""
+    problem = rayleigh_problem
+    names = ["links.coupler.damping.alpha", "links.coupler.damping.beta"]
+    result = studies.sensitivity(problem, parameters=names, n_steps=N_STEPS)
+    assert result.methods == {name: "analytic" for name in names}
+    for name in names:
+        value = result.parameters[name]
+        h = 1e-3 * value
+        up = studies.steady_state(problem, {name: value + h}, n_steps=N_STEPS)
+        down = studies.steady_state(problem, {name: value - h}, n_steps=N_STEPS)
+        for spec in result.derivative:
+            for mine, field in ((result.derivative, "peak_to_peak"), (result.peak_derivative, "peak")):
+                difference = (getattr(up, field)[spec] - getattr(down, field)[spec]) / (2.0 * h)
+                assert mine[spec][name] == pytest.approx(difference, rel=1e-4), (name, spec, field)
