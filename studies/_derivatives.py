@@ -83,6 +83,16 @@ def _keeps_configuration(problem, params, name, linear) -> bool:
     return linearize.keeps_configuration(problem.mechanism(changed), nominal)
 
 
+def _neighbour(problem, values, n_steps, linear):
+    """The linearisation at ``values``, a forward step of a parameter that leaves the linkage alone:
+    on the point's own kinematics where the problem reuses them (only the inverse dynamics and the
+    coefficients recomputed), else the problem's own."""
+    nominal = getattr(linear.context, "nominal", None)
+    if nominal is not None and getattr(problem, "reuses_kinematics", False):
+        return problem.linearize(values, n_steps=n_steps, kinematics=nominal)
+    return problem.linearize(values, n_steps=n_steps)
+
+
 def _forward(known: dict | None, name: str, decide) -> bool:
     """Whether ``name`` takes a forward difference: ``known[name]``, else ``decide()`` (remembered)."""
     if known is not None and name in known:
@@ -140,7 +150,7 @@ def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, line
             divisor = 2.0 * step
         elif _forward(forward, name, lambda name=name: _keeps_configuration(problem, params, name, linear)):
             step = linearize.parameter_step(params[name], linearize.FORWARD_STEP)
-            plus = problem.linearize(dict(base_values, **{name: params[name] + step}), n_steps=n_steps)
+            plus = _neighbour(problem, dict(base_values, **{name: params[name] + step}), n_steps, linear)
             minus, methods[name], divisor = linear, "forward", step
         else:
             step = linearize.parameter_step(params[name], linearize.CENTRAL_STEP)

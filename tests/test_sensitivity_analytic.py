@@ -109,3 +109,52 @@ def test_headlines_through_the_analytic_route_against_fresh_steady_states(raylei
             for mine, field in ((result.derivative, "peak_to_peak"), (result.peak_derivative, "peak")):
                 difference = (getattr(up, field)[spec] - getattr(down, field)[spec]) / (2.0 * h)
                 assert mine[spec][name] == pytest.approx(difference, rel=1e-4), (name, spec, field)
+
+
+# ---------------------------------------------------------------------------------------------------
+# neighbours on the point's kinematics
+# ---------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("scene", ["four_bar_fem4", "four_bar_controlled"])
+def test_nominal_dynamics_against_a_fresh_nominal_motion(scene):
+    """The inverse dynamics recomputed on another mechanism's kinematics against that mechanism's own
+    nominal motion (the continuation from scratch), and the linearisation on them against ``about``'s."""
+    problem = studies.MechanismProblem.from_scene(scene, parameter_paths=["links.coupler.thickness"])
+    thicker = problem.mechanism({"links.coupler.thickness": 1.3 * problem.parameters["links.coupler.thickness"]})
+    kinematics = mechanisms.nominal_motion(problem.mechanism(), n_steps=N_STEPS)
+    reused = mechanisms.nominal_dynamics(thicker, kinematics)
+    fresh = mechanisms.nominal_motion(thicker, n_steps=N_STEPS)
+    assert np.abs(reused.lam - fresh.lam).max() <= 1e-8 * np.abs(fresh.lam).max()
+    assert np.abs(reused.drive_torque - fresh.drive_torque).max() <= 1e-8 * np.abs(fresh.drive_torque).max()
+    assert np.abs(reused.lam - kinematics.lam).max() > 1e-3 * np.abs(fresh.lam).max()   # it did change
+    mine = linearize.about(thicker, n_steps=N_STEPS, observables=OBSERVABLES, kinematics=kinematics)
+    theirs = linearize.about(thicker, n_steps=N_STEPS, observables=OBSERVABLES)
+    for field in "MCKf":
+        a, b = getattr(mine.system, field), getattr(theirs.system, field)
+        assert np.abs(a - b).max() <= 1e-7 * np.abs(b).max(), field
+
+
+def test_nominal_dynamics_refuses_a_moved_linkage():
+    problem = studies.MechanismProblem.from_scene("four_bar_fem4", parameter_paths=["links.crank.length"])
+    kinematics = mechanisms.nominal_motion(problem.mechanism(), n_steps=N_STEPS)
+    longer = problem.mechanism({"links.crank.length": 1.001 * problem.parameters["links.crank.length"]})
+    with pytest.raises(mechanisms.ArgumentError, match="linkage moved"):
+        mechanisms.nominal_dynamics(longer, kinematics)
+    with pytest.raises(linearize.LinearizationError, match="kinematics"):
+        linearize.about(problem.mechanism(), n_steps=2 * N_STEPS, kinematics=kinematics)
+
+
+def test_forward_neighbours_off_the_scene_speed_against_fresh_steady_states():
+    """At a speed that is not the scene's (a speed family's member) the forward neighbour reuses that
+    member's kinematics: the derivatives against fresh steady states at the same point."""
+    name = "links.coupler.thickness"
+    problem = studies.MechanismProblem.from_scene("four_bar_fem4", parameter_paths=[name], observables=OBSERVABLES)
+    point = {"speed": 1.1 * problem.parameters["speed"]}
+    result = studies.sensitivity(problem, point, parameters=[name], n_steps=N_STEPS)
+    assert result.methods[name] == "forward"
+    value = result.parameters[name]
+    h = 1e-4 * value
+    up = studies.steady_state(problem, dict(point, **{name: value + h}), n_steps=N_STEPS)
+    down = studies.steady_state(problem, dict(point, **{name: value - h}), n_steps=N_STEPS)
+    for spec in result.derivative:
+        difference = (up.peak_to_peak[spec] - down.peak_to_peak[spec]) / (2.0 * h)
+        assert result.derivative[spec][name] == pytest.approx(difference, rel=1e-4), spec
