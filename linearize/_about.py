@@ -304,7 +304,8 @@ def about(mechanism, *, n_steps: int = 512, observables=None, kinematics=None) -
     ``observables``: specs of ``model.observable`` (e.g. ``"coupler.deflection@0.5"``), default
     ``default_observables``. ``kinematics``: a ``mechanisms.NominalMotion`` on that grid whose
     linkage ``mechanism`` shares (it differs in what does not move it: sections, masses, damping,
-    gains), reused with only the inverse dynamics recomputed (``mechanisms.nominal_dynamics``). Raises ``LinearizationError`` (a ``ValueError``) at a toggle position
+    gains), reused with only the inverse dynamics recomputed (``mechanisms.nominal_dynamics``).
+    Raises ``LinearizationError`` (a ``ValueError``) at a toggle position
     (naming the crank angle), the nominal motion's ``mechanisms.MechanismError`` (a ``ValueError``)
     or ``mechanisms.ConvergenceError`` (a ``RuntimeError``).
     """

@@ -45,8 +45,8 @@ class PointDerivatives:
     ``coarse_derivative`` (P, N/2+1, n_obs) their derivatives (N and N/2 steps); ``coarse_response``
     (N/2+1, n_obs); ``radius``, ``radius_error`` (P,) d|mu|/dp of the critical multiplier; ``repeated``:
     the multiplier is repeated (radius NaN); ``methods`` {name: "analytic" | "forward" | "central"};
-    ``steps`` {name: absolute step, 0 for an analytic derivative}; ``error_factor``; ``run_time`` of the derivatives (s, without the
-    point's own steady state: ``steady.run_time`` and ``linear_run_time``)."""
+    ``steps`` {name: absolute step, 0 for an analytic derivative}; ``error_factor``; ``run_time`` of the
+    derivatives (s, without the point's own steady state: ``steady.run_time`` and ``linear_run_time``)."""
 
     linear: object
     steady: Steady
