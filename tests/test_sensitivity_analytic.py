@@ -5,6 +5,8 @@ states (prescribed and torque-driven four-bars, Rayleigh alpha, beta and the rat
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -158,3 +160,55 @@ def test_forward_neighbours_off_the_scene_speed_against_fresh_steady_states():
     for spec in result.derivative:
         difference = (up.peak_to_peak[spec] - down.peak_to_peak[spec]) / (2.0 * h)
         assert result.derivative[spec][name] == pytest.approx(difference, rel=1e-4), spec
+
+
+# ---------------------------------------------------------------------------------------------------
+# the input term of the error budget (the V&V split)
+# ---------------------------------------------------------------------------------------------------
+def test_input_term_stays_outside_the_numerical_total():
+    """The input term is shown beside the numerical terms and enters neither their total, nor the
+    dominant term, nor the unknown terms, nor the tolerance check."""
+    from studies._budget import INPUT, ErrorBudget, describe, verdict  # the budget object is internal
+
+    numerical = {"x": {"time_step": 1e-5, "mesh": -2e-5, "linearisation": "not applicable"}}
+    with_input = {"x": dict(numerical["x"], **{INPUT: 5e-3})}
+    plain, banded = ErrorBudget(numerical), ErrorBudget(with_input)
+    assert banded.total("x") == plain.total("x") == pytest.approx(3e-5)
+    assert banded.dominant("x") == "mesh"
+    assert banded.input_band("x") == 5e-3 and plain.input_band("x") == "not applicable"
+    assert verdict(banded, {"x": 1e-2}, 0.02) == verdict(plain, {"x": 1e-2}, 0.02) == ("ok", "")
+    assert ErrorBudget({"x": dict(numerical["x"], **{INPUT: float("nan")})}).unknown("x") == []
+    words = describe(banded, "x", "m")
+    assert "input band 5 mm from the tolerances (apart)" in words and words.startswith("total 0.03 mm")
+
+
+def test_sensitivity_budget_carries_the_input_band(tmp_path):
+    """A sensitivity with tolerances: its peak-to-peak and peak budgets hold the time step's term (the
+    numerical total, ``peak_to_peak_error``) and the input term (``input_band``), through the file and
+    the summary; a file written before the budgets reads them from its stored errors and band."""
+    problem = studies.mathieu_problem(speed=0.7)
+    result = studies.sensitivity(problem, parameters=["speed", "damping_ratio"], n_steps=64,
+                                 tolerances={"damping_ratio": 0.002, "speed": 1e-3})
+    for spec in result.derivative:
+        band = math.hypot(result.derivative[spec]["damping_ratio"] * 0.002, result.derivative[spec]["speed"] * 1e-3)
+        assert result.error_budget[spec]["input"] == pytest.approx(band, rel=1e-12)
+        assert result.budget.total(spec) == result.peak_to_peak_error[spec]
+        assert result.peak_error_budget[spec]["input"] == result.input_band["peak"][spec]
+        assert result.error_budget[spec]["mesh"] == "not applicable"    # a periodic problem has no mesh
+    kind = studies.kinds()["sensitivity"]
+    assert "from the tolerances (apart)" in kind.summary(result)
+    assert any(row.quantity.startswith("input band") for row in kind.headlines(result).rows)
+    path = tmp_path / "sensitivity.h5"
+    result.save(path)
+    back = studies.load(path)["sensitivity"]
+    assert back.error_budget == result.error_budget and back.error_methods == result.error_methods
+
+    class Before:        # a group of a file written before the budgets: no error_budget attribute
+        attrs: dict = {}
+
+    filled = result._filled(Before())
+    assert filled["error_budget"] == {spec: dict(terms, mesh="not estimated", linearisation="not estimated")
+                                      for spec, terms in result.error_budget.items()}
+    without = studies.sensitivity(problem, parameters=["speed"], n_steps=64)
+    assert all("input" not in terms for terms in without.error_budget.values())
+    assert "input" not in without.error_methods
