@@ -227,8 +227,11 @@ class MechanismProblem:
         others = {k: v for k, v in params.items() if k != SPEED and v != self._nominal[k]}
         speed = params[SPEED]
         if kinematics is not None:
-            lin = linearize.about(self.mechanism(dict(others, speed=speed)), n_steps=n_steps,
-                                  observables=self.observable_specs, kinematics=kinematics)
+            mechanism = self.mechanism(others)   # the same object as the caller's check (its model cached)
+            if not math.isclose(speed, _speed(mechanism), rel_tol=1e-12):
+                mechanism = self.mechanism(dict(others, speed=speed))
+            lin = linearize.about(mechanism, n_steps=n_steps, observables=self.observable_specs,
+                                  kinematics=kinematics)
             return _linear(lin, lin.system, lin, linear_range=lin.linear_range)
         mechanism = self.mechanism(others)
         # Prescribed drives make the motion a function of the phase 2 pi t / period: a speed
