@@ -217,7 +217,10 @@ def nominal_dynamics(mechanism: Mechanism, kinematics: NominalMotion) -> Nominal
     without the continuation.  Raises ``ArgumentError`` when ``kinematics`` does not meet
     ``mechanism``'s constraints to ten times its own residual (and 1e-11): the linkage moved."""
     started = time.perf_counter()
-    model, _ = _model_of(mechanism)
+    rigid_mechanism = _rigid_mechanism(mechanism)
+    if _same_mechanism(getattr(kinematics.model, "mechanism", None), rigid_mechanism):
+        return kinematics      # the same rigid dynamics (only a controller's gains differ, say)
+    model = assemble(rigid_mechanism)
     rigid = np.asarray(model.rigid_index, dtype=np.int64)
     t, s, sdot, sddot = kinematics.t, kinematics.s, kinematics.sdot, kinematics.sddot
     if model.n_coords != s.shape[1] or model.n_constraints != kinematics.lam.shape[1]:
@@ -237,15 +240,28 @@ def nominal_dynamics(mechanism: Mechanism, kinematics: NominalMotion) -> Nominal
                    constraint_residual=residual, run_time=time.perf_counter() - started)
 
 
+def _rigid_mechanism(mechanism: Mechanism) -> Mechanism:
+    """The mechanism whose model the nominal motion uses: torque drives following their nominal
+    law, prescribed (their inverse-dynamics torque is what the drive's multiplier gives), without
+    controllers; ``mechanism`` itself when every drive is prescribed."""
+    if not any(isinstance(d, TorqueDrive) for d in mechanism.drives):
+        return mechanism
+    return mechanism.replace(drives=tuple(
+        PrescribedDrive(d.joint, d.rate, d.offset, d.harmonics, inertia=d.inertia)
+        if isinstance(d, TorqueDrive) else d for d in mechanism.drives), period=mechanism.period,
+        controllers=())
+
+
+def _same_mechanism(a: Any, b: Any) -> bool:
+    try:
+        return isinstance(a, Mechanism) and bool(a == b)
+    except (TypeError, ValueError):   # a part holding an array compares element-wise
+        return False
+
+
 def _model_of(obj: Any) -> tuple[Any, Mechanism | None]:
     if isinstance(obj, Mechanism):
-        if any(isinstance(d, TorqueDrive) for d in obj.drives):
-            # The nominal motion of a torque drive follows its nominal law; its inverse-dynamics
-            # torque is what the drive's multiplier gives when that law is prescribed.
-            obj = obj.replace(drives=tuple(
-                PrescribedDrive(d.joint, d.rate, d.offset, d.harmonics, inertia=d.inertia)
-                if isinstance(d, TorqueDrive) else d for d in obj.drives), period=obj.period,
-                controllers=())
+        obj = _rigid_mechanism(obj)
         return assemble(obj), obj
     for name in ("n_coords", "n_constraints", "rigid_index", "constraints",
                  "constraint_jacobian", "constraint_rate", "constraint_gamma", "mass_matrix",

@@ -227,9 +227,9 @@ class MechanismProblem:
         others = {k: v for k, v in params.items() if k != SPEED and v != self._nominal[k]}
         speed = params[SPEED]
         if kinematics is not None:
-            mechanism = self.mechanism(others)   # the same object as the caller's check (its model cached)
-            if not math.isclose(speed, _speed(mechanism), rel_tol=1e-12):
-                mechanism = self.mechanism(dict(others, speed=speed))
+            # the same object as the caller's configuration check built (its model cached)
+            at_scene_speed = math.isclose(speed, self._nominal[SPEED], rel_tol=1e-12)
+            mechanism = self.mechanism(others if at_scene_speed else dict(others, speed=speed))
             lin = linearize.about(mechanism, n_steps=n_steps, observables=self.observable_specs,
                                   kinematics=kinematics)
             return _linear(lin, lin.system, lin, linear_range=lin.linear_range)

@@ -212,3 +212,23 @@ def test_sensitivity_budget_carries_the_input_band(tmp_path):
     without = studies.sensitivity(problem, parameters=["speed"], n_steps=64)
     assert all("input" not in terms for terms in without.error_budget.values())
     assert "input" not in without.error_methods
+
+
+def test_gains_keep_the_rigid_dynamics():
+    """A controller's gain leaves the rigid inverse dynamics alone (the nominal motion's model drops
+    the controllers): the kinematics come back as they are, and the linearisation on them equals a
+    fresh one at the new gain."""
+    name = "controllers.strain.gain"
+    problem = studies.MechanismProblem.from_scene("four_bar_controlled", parameter_paths=[name],
+                                                  observables=OBSERVABLES)
+    point = problem.linearize({}, n_steps=N_STEPS)
+    values = {name: 1.7 * problem.parameters[name]}
+    assert mechanisms.nominal_dynamics(problem.mechanism(values), point.context.nominal) is point.context.nominal
+    mine = problem.linearize(values, n_steps=N_STEPS, kinematics=point.context.nominal)
+    theirs = problem.linearize(values, n_steps=N_STEPS)
+    for field in "MCKf":
+        a, b = getattr(mine.system, field), getattr(theirs.system, field)
+        assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max(), field
+    z = 1e-4 * np.random.default_rng(2).standard_normal(point.system.f.shape)
+    z[-1] = z[0]
+    np.testing.assert_allclose(mine.observe(z), theirs.observe(z), rtol=1e-9, atol=1e-12)
