@@ -56,6 +56,13 @@ import numpy as np
 
 from periodic import lapack
 
+from . import _alpha_kernel
+
+#: Whether a model that offers ``step_kernel()`` (``Model``) is stepped by the fused kernel
+#: (``_alpha_kernel``); the Python iteration below stays for any other ``ConstrainedModel`` and for
+#: torque laws the kernel does not evaluate (tests switch it off to compare the two).
+FUSED_STEP = True
+
 
 # The iteration matrix (n + r ~ 20-70) is factorised once and reused over a modified-Newton
 # iteration, and its pivots give ``min_pivot_ratio``. LAPACK's dgetrf / dgetrs (``periodic.lapack``, the
@@ -221,6 +228,10 @@ class _Stepper:
         # lagged controllers' states, integrated with the step (None without lags)
         self.lags = _Lags(model) if len(getattr(model, "lag_names", ())) else None
         self.t = np.nan            # the time of the last step solved
+        make_kernel = getattr(model, "step_kernel", None) if FUSED_STEP else None
+        self.kernel = make_kernel() if make_kernel is not None else None
+        self._kernel_counts = np.zeros(3, dtype=np.int64)
+        self._kernel_info = np.zeros(4)
 
     def drop_tangent(self):
         self.tangent_h = None
@@ -242,10 +253,14 @@ class _Stepper:
         self.t = t
         if self.lags is not None:
             self.lags.begin(h)
+        newton = self._newton
+        if self.kernel is not None:
+            self.kernel.at(t, self.lags)
+            newton = self._fused_newton
         full_newton = full_newton or not self.jacobian_reuse
         failure = ""
         for _attempt in range(2):
-            failure = self._newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev,
+            failure = newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev,
                                    extrapolate, t, h, beta_p, gamma_p, full_newton)
             if not failure:
                 if full_newton:
@@ -256,6 +271,23 @@ class _Stepper:
                 break           # the retry would repeat this attempt exactly
             extrapolate, full_newton = False, True
         return failure
+
+    def _fused_newton(self, q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, t, h,
+                      beta_p, gamma_p, full_newton):
+        """``_newton`` in one call of the model's ``StepKernel`` (its terms at ``t`` set by ``solve``)."""
+        counts, info = self._kernel_counts, self._kernel_info
+        counts[:] = 0
+        code, tangent_valid, iterations = self.kernel.newton(
+            self, q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, beta_p,
+            gamma_p, full_newton, self.tangent_h is not None, counts, info)
+        for key, count in zip(("n_newton", "n_jacobian", "n_factorizations"), counts):
+            self.counts[key] += int(count)
+        self.tangent_h = h if tangent_valid else None
+        if code:
+            return _alpha_kernel.failure_message(code, iterations, info)
+        self.residual = float(info[0])
+        self.min_pivot_ratio = min(self.min_pivot_ratio, float(info[1]))
+        return ""
 
     def _newton(self, q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, t, h,
                 beta_p, gamma_p, full_newton):
