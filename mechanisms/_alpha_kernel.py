@@ -88,8 +88,8 @@ def _constraint_values(q, phi0, h_lin, drive_rows, drive_angles, ct_int, ct_real
 
 
 @numba.njit(cache=True)
-def _newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, alpha_m, alpha_f,
-            beta, gamma, beta_p, gamma_p, full_newton, tangent_valid, abs_tol, max_iterations,
+def _newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, beta_p, gamma_p,
+            full_newton, tangent_valid, alpha_m, alpha_f, beta, gamma, abs_tol, max_iterations,
             max_increment, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, ct_int,
             ct_real, phi0, h_lin, drive_rows, drive_angles, grad, const, pos_gain, rate_gain,
             back_emf, command_limit, torque_limit, q, v, sddot, lam, qhat, vhat, tangent, G, piv,
@@ -347,21 +347,24 @@ class StepKernel:
             self.const[m_d + i] = ((1.0 - ratio[i]) * lags.y[i] + ratio[i] * (lags.u[i] + u0)) / (
                 1.0 + ratio[i])
 
-    def newton(self, stepper, q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h,
-               beta_p, gamma_p, full_newton, tangent_valid, counts, info):
-        """``_newton`` on this model with the buffers of ``stepper`` (``_alpha_step._Stepper``);
-        returns its ``(code, tangent_valid, iterations)``."""
+    def bind(self, stepper):
+        """The arguments of ``_newton`` that stay the same over a run: the method's parameters and
+        tolerances of ``stepper`` (``_alpha_step._Stepper``), this model's arrays, the stepper's
+        buffers and ``counts`` (3,) int64, ``info`` (4,) (built once: a step's call passes only the
+        state)."""
         tb = self.tables
-        return _newton(
-            q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, bool(extrapolate), float(h),
-            stepper.alpha_m, stepper.alpha_f, stepper.beta, stepper.gamma, float(beta_p),
-            float(gamma_p), bool(full_newton), bool(tangent_valid), float(stepper.abs_tol),
-            int(stepper.max_iterations), float(stepper.max_increment), self.gx, self.gy, tb.mp_int,
-            tb.mp_real, tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, tb.ct_int, tb.ct_real,
-            tb.phi0, tb.h_lin, self.drive_rows, self.drive_angles, self.grad, self.const,
-            self.pos_gain, self.rate_gain, self.back_emf, self.command_limit, self.torque_limit,
-            stepper.q, stepper.v, stepper.sddot, stepper.lam, stepper.qhat, stepper.vhat,
-            stepper.tangent, stepper.G, stepper.piv, counts, info)
+        return (stepper.alpha_m, stepper.alpha_f, stepper.beta, stepper.gamma, float(stepper.abs_tol),
+                int(stepper.max_iterations), float(stepper.max_increment), self.gx, self.gy, tb.mp_int,
+                tb.mp_real, tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, tb.ct_int, tb.ct_real,
+                tb.phi0, tb.h_lin, self.drive_rows, self.drive_angles, self.grad, self.const,
+                self.pos_gain, self.rate_gain, self.back_emf, self.command_limit, self.torque_limit,
+                stepper.q, stepper.v, stepper.sddot, stepper.lam, stepper.qhat, stepper.vhat,
+                stepper.tangent, stepper.G, stepper.piv, stepper.kernel_counts, stepper.kernel_info)
+
+
+#: ``_newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, beta_p, gamma_p,
+#: full_newton, tangent_valid, *StepKernel.bind(stepper))``
+newton = _newton
 
 
 def failure_message(code, iterations, info):
