@@ -46,6 +46,10 @@ predictor, and a step that still fails is retried as 2, 4, ..., ``2**max_step_ha
 substeps (the alpha acceleration (GA1) carries over between steps of different sizes unchanged);
 the output stays on the user's uniform grid (``_alpha_run``). ``mechanisms.simulate`` (``_simulate``) checks the
 options and reports; ``_alpha_tangent`` differentiates the step for the monodromy of a run.
+
+A model that offers ``step_kernel()`` (``Model``, with torque laws affine in s, s') runs this Newton
+iteration in one numba call per attempt (``_alpha_kernel``, the same iteration line for line); the
+Python iteration ``_Stepper._newton`` below serves any other ``ConstrainedModel``.
 """
 from __future__ import annotations
 
