@@ -197,13 +197,13 @@ _RECORD_SCRIPT = textwrap.dedent("""
 
 
 @pytest.mark.slow
-def test_the_kernel_list_is_what_the_main_job_warm_up_compiles():
-    """In a fresh process, the warm-up of the main job (default scene, its studies) adds, step by
-    step, exactly the signatures of the shipped list: the list the helper process compiles cannot
-    drift from the kernels."""
+def test_the_kernel_list_is_what_the_main_job_warm_up_compiles(tmp_path):
+    """In a fresh process on an empty numba cache, the warm-up of the main job (default scene, its
+    studies) adds, step by step, exactly the signatures of the shipped list: the list the helper
+    process compiles cannot drift from the kernels. (It compiles every kernel of the main job.)"""
     from studies.cli._kernel_list import KERNEL_LIST
 
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path))
     done = subprocess.run([sys.executable, "-c", _RECORD_SCRIPT], env=env, capture_output=True, text=True,
                           timeout=900)
     assert done.returncode == 0, done.stderr

@@ -121,15 +121,18 @@ class Listed:
 
 def record(steps: Iterable[tuple[str, Any]]) -> list[dict[str, str]]:
     """The list entries of the warm-up ``steps`` (``(name, run)``): run them one after the other in
-    this process and note the signatures each adds. Run it in a fresh process, so that nothing is
-    compiled or loaded before (``studies.cli._kernel_record`` does, for the main job)."""
+    this process and note the signatures each adds. Run it in a fresh process on an empty cache
+    (``NUMBA_CACHE_DIR``), so that nothing is compiled or loaded before and every callee compiles
+    (a kernel loaded from the cache loads none of its callees); ``studies.cli._kernel_record``
+    does, for the main job. Signatures with a literal argument are left out: a kernel calls them
+    with a constant, and they compile with it (compiled apart, they would be a signature more)."""
     entries: list[dict[str, str]] = []
     seen = _snapshot()
     for step, run in steps:
         run()
         now = _snapshot()
         entries += [{"step": step, "kernel": kernel, "signature": signature}
-                    for kernel, signature in sorted(now - seen)]
+                    for kernel, signature in sorted(now - seen) if "Literal[" not in signature]
         seen = now
     return entries
 

@@ -1,6 +1,7 @@
 """Write ``studies/cli/kernel_list.json`` (see :mod:`studies.cli._kernel_list`): the kernels and
 signatures the warm-up of the main job (the default scene with its studies) compiles, step by step.
-Run it in a fresh process after changing a kernel or a code path of the warm-up:
+Run it in a fresh process on an empty numba cache after changing a kernel or a code path of the
+warm-up (the command sets ``NUMBA_CACHE_DIR`` to a new empty folder when it is not set already):
 
     .venv/bin/python -m studies.cli._kernel_record
 
@@ -26,6 +27,15 @@ def main_job_list() -> list[dict[str, str]]:
 
 
 if __name__ == "__main__":
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    if "NUMBA_CACHE_DIR" not in os.environ:   # numba reads it at import: record in a child process
+        with tempfile.TemporaryDirectory(prefix="flexvib-empty-cache-") as empty:
+            sys.exit(subprocess.call([sys.executable, "-m", "studies.cli._kernel_record"],
+                                     env=dict(os.environ, NUMBA_CACHE_DIR=empty)))
     entries = main_job_list()
     KERNEL_LIST.write_text(json.dumps(entries, indent=1) + "\n")
     print(f"{len(entries)} kernel signatures written to {KERNEL_LIST}")
