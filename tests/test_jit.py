@@ -122,7 +122,7 @@ def test_the_kernel_list_resolves_and_orders_callees_before_their_callers():
     import linearize  # noqa: F401 - the packages whose kernels the list names
     import mechanisms  # noqa: F401
     import periodic  # noqa: F401
-    from studies.cli._kernel_list import KERNEL_LIST, load_list
+    from studies.cli._kernel_list import KERNEL_LIST, first_root, load_list
 
     entries = json.loads(KERNEL_LIST.read_text())
     listed = load_list({entry["step"] for entry in entries})
@@ -133,6 +133,10 @@ def test_the_kernel_list_resolves_and_orders_callees_before_their_callers():
     assert position["mechanisms._kernels.forces"] in terms.callees
     assert position["mechanisms._kernels.mass_matrix"] in terms.callees
     assert all(max(entry.callees, default=-1) < k for k, entry in enumerate(listed))
+    # the warm-up's probe of the cache: a kernel no listed kernel calls (the code calls it)
+    probe = first_root(listed)
+    assert not [entry for entry in listed if probe in entry.callees]
+    assert probe < position["mechanisms._batch.linear_terms_kernel"]
     # a step the run does not declare lists nothing
     assert load_list(["no such step"]) == []
 

@@ -37,8 +37,8 @@ from typing import Any, Callable, Iterable
 
 from .._errors import UsageError
 
-__all__ = ["KERNEL_LIST", "STEADY_STATE_STEP", "Helper", "Listed", "compile_listed", "load_list", "record",
-           "use_helper"]
+__all__ = ["KERNEL_LIST", "STEADY_STATE_STEP", "Helper", "Listed", "compile_listed", "first_root", "load_list",
+           "record", "use_helper"]
 
 #: The list: JSON ``[{"step": ..., "kernel": "module.qualname", "signature": "(types, ...)"}, ...]``.
 KERNEL_LIST = Path(__file__).with_name("kernel_list.json")
@@ -210,14 +210,24 @@ def _wait_for(claims: Path, indices: tuple[int, ...], other_alive: Callable[[], 
             time.sleep(0.02)
 
 
-def compile_listed(listed: list[Listed], claims: Path | None, *,
+def first_root(listed: list[Listed]) -> int:
+    """The index of the first listed kernel that no other listed kernel calls (a kernel the code
+    calls from Python; the warm-up's probe of the cache)."""
+    called = {index for entry in listed for index in entry.callees}
+    return next(index for index in range(len(listed)) if index not in called)
+
+
+def compile_listed(listed: list[Listed], claims: Path | None, *, only: Iterable[int] | None = None,
                    other_alive: Callable[[], bool] = lambda: True, timeout: float = WAIT_LIMIT) -> int:
-    """Compile (or load from the disk cache) each listed kernel this process claims in the folder
-    ``claims`` (every one when ``None``), after the callees the other process claimed are saved
-    (a callee compiled in both would be the work done twice); a kernel that fails to compile is
-    left to the warm-up. Returns how many entries this process took."""
+    """Compile (or load from the disk cache) each listed kernel (``only``: those indices) this
+    process claims in the folder ``claims`` (every one when ``None``), after the callees the other
+    process claimed are saved (a callee compiled in both would be the work done twice); a kernel
+    that fails to compile is left to the warm-up. Returns how many entries this process took."""
     taken = 0
+    chosen = None if only is None else set(only)
     for index, entry in enumerate(listed):
+        if chosen is not None and index not in chosen:
+            continue
         if claims is not None:
             if not _claim(claims, index):
                 continue
@@ -281,10 +291,15 @@ class Helper:
                 [sys.executable, "-m", "studies.cli._kernel_list", self._claims.name, *self.steps],
                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
-    def wait(self) -> float:
+    def wait(self, timeout: float = 5 * WAIT_LIMIT) -> float:
+        """Wait for the helper to end (at most ``timeout`` s: then it is stopped, and what it has
+        not saved compiles in the warm-up); the wall time waited, s."""
         started = time.perf_counter()
         if self.process is not None:
-            self.process.wait()
+            try:
+                self.process.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.stop()
         return time.perf_counter() - started
 
     def stop(self) -> None:
