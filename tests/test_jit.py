@@ -163,6 +163,29 @@ def test_compile_listed_takes_only_the_entries_it_claims(tmp_path):
     assert compile_listed(listed, None) == 2 and twice.signatures == [signature]
 
 
+def test_an_unclaimed_callee_is_not_waited_for(tmp_path):
+    """The warm-up's probe compiles one kernel out of the list's order: a callee nobody claimed is
+    compiled with it at once, not waited for (the other process, alive or not yet started, will
+    never mark it done)."""
+    import time
+
+    from studies.cli._kernel_list import Listed, compile_listed
+
+    @numba.njit
+    def inner(x):
+        return x + 1.0
+
+    @numba.njit
+    def outer(x):
+        return inner(x) * 2.0
+
+    signature = (numba.float64,)
+    listed = [Listed("inner", inner, signature, ()), Listed("outer", outer, signature, (0,))]
+    started = time.perf_counter()
+    assert compile_listed(listed, tmp_path, only=[1], other_alive=lambda: True, timeout=60.0) == 1
+    assert time.perf_counter() - started < 30.0 and outer.signatures == [signature]
+
+
 def test_the_helper_process_runs_its_share_of_the_list(monkeypatch):
     """The helper process (``python -m studies.cli._kernel_list CLAIMS STEP...``) starts, takes the
     entries left to it and ends with exit code 0 (the cache is warm here: it loads them)."""

@@ -200,10 +200,13 @@ def _claim(claims: Path, index: int) -> bool:
 
 
 def _wait_for(claims: Path, indices: tuple[int, ...], other_alive: Callable[[], bool], timeout: float) -> None:
-    """Wait until the entries ``indices`` are compiled and saved (their ``.done`` markers), while
-    the other process is alive and at most ``timeout`` s (else the callees compile here)."""
+    """Wait until those of the entries ``indices`` that are claimed are compiled and saved (their
+    ``.done`` markers), while the other process is alive and at most ``timeout`` s (else the
+    callees compile here). An entry claimed and not done is the other process's, at work: this
+    process finishes what it claims before it claims the next; an unclaimed one compiles here,
+    with its caller."""
     deadline = time.monotonic() + timeout
-    pending = [claims / f"{i}.done" for i in indices]
+    pending = [claims / f"{i}.done" for i in indices if (claims / str(i)).exists()]
     while pending and time.monotonic() < deadline and other_alive():
         pending = [marker for marker in pending if not marker.exists()]
         if pending:
