@@ -1,5 +1,6 @@
 """Planar mechanisms with elastic links in redundant generalized coordinates."""
 
+from ._alpha_step import fused_step as fused_step
 from ._assemble import assemble as assemble
 from ._batch import ConstraintTerms as ConstraintTerms
 from ._batch import LinearTerms as LinearTerms

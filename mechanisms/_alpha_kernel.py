@@ -384,3 +384,17 @@ def failure_message(code, iterations, info):
         return (f"Newton's method diverged (position increment {info[2]:.3g} larger than the "
                 f"configuration scale {info[3]:.3g})")
     return f"Newton's method diverged (position increment {info[2]:.3g})"
+
+
+def compiled() -> bool:
+    """Whether ``_newton`` is compiled in this process or saved in numba's disk cache for this source
+    (then loading it costs milliseconds, not its compile). The disk check reads the cache's index
+    through numba's ``FunctionCache`` (not a public API: any change there reads as "not saved", and
+    the caller falls back to the Python iteration or to compiling on a long run)."""
+    if _newton.signatures:
+        return True
+    try:
+        return bool(_newton._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - numba internals moved or the cache is unreadable: not saved
+        return False
+

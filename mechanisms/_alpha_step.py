@@ -53,6 +53,7 @@ Python iteration ``_Stepper._newton`` below serves any other ``ConstrainedModel`
 """
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numba
@@ -61,11 +62,44 @@ import numpy as np
 from periodic import lapack
 
 from . import _alpha_kernel
+from ._parts import ArgumentError
 
 #: Whether a model that offers ``step_kernel()`` (``Model``) is stepped by the fused kernel
-#: (``_alpha_kernel``); the Python iteration below stays for any other ``ConstrainedModel`` and for
-#: torque laws the kernel does not evaluate (tests switch it off to compare the two).
-FUSED_STEP = True
+#: (``_alpha_kernel``): True, False, or "auto" (``fused_step_wanted``: when the kernel is compiled
+#: already, in this process or in numba's disk cache, or the run is long enough to repay its compile).
+#: The Python iteration below stays for any other ``ConstrainedModel`` and for torque laws the kernel
+#: does not evaluate (tests set True and False to compare the two).
+FUSED_STEP = "auto"
+#: Steps of one run from which "auto" compiles the fused kernel on a cold cache: its compile, about
+#: 12-19 s CPU beside the Python iteration's kernels (which every run needs anyway: the start,
+#: the substeps' fallback), is repaid at about 0.5 ms saved a step (docs/benchmarks.md). A shorter
+#: run on a cold cache (the main job's nonlinear check) keeps the Python iteration, so the first
+#: run's compile time does not grow by it; once compiled (a long run, a run-up), every run uses it.
+FUSED_COMPILE_STEPS = 20000
+
+
+@contextlib.contextmanager
+def fused_step(mode: bool | str = True):
+    """``with mechanisms.fused_step(True): ...`` steps the runs inside by the fused kernel (``False``:
+    the Python iteration; ``"auto"``: the default rule, ``FUSED_STEP``), and restores the setting
+    after. The studies whose runs are many (nonlinear states, sweeps, run-ups) compile the kernel in
+    their JIT warm-up this way, so that their runs take it under "auto"."""
+    global FUSED_STEP
+    if mode not in (True, False, "auto"):
+        raise ArgumentError(f"fused_step: expected True, False or 'auto', got {mode!r}")
+    previous, FUSED_STEP = FUSED_STEP, mode
+    try:
+        yield
+    finally:
+        FUSED_STEP = previous
+
+
+def fused_step_wanted(n_steps: int) -> bool:
+    """Whether a run of ``n_steps`` steps takes the fused kernel under ``FUSED_STEP``. The two paths
+    agree to round-off (bitwise without torque drives; tests/test_alpha_kernel.py)."""
+    if FUSED_STEP != "auto":
+        return bool(FUSED_STEP)
+    return n_steps >= FUSED_COMPILE_STEPS or _alpha_kernel.compiled()
 
 
 # The iteration matrix (n + r ~ 20-70) is factorised once and reused over a modified-Newton
@@ -207,7 +241,7 @@ class _Stepper:
     """Newton's method on (NR) for one step of any size from a given state, with the buffers, the
     kept tangent terms and the counts shared by all steps of a run."""
 
-    def __init__(self, model, rho, abs_tol, max_iterations, jacobian_reuse, length_scale):
+    def __init__(self, model, rho, abs_tol, max_iterations, jacobian_reuse, length_scale, fused=True):
         self.model = model
         # a Newton increment larger than the configuration itself is outside the region of
         # convergence: Newton from there found spurious roots of the step equations (positions of
@@ -235,7 +269,7 @@ class _Stepper:
         # the fused step's: its counts (as ``_counts``, added up by the kernel) and its numbers
         self.kernel_counts = np.zeros(3, dtype=np.int64)
         self.kernel_info = np.zeros(4)
-        make_kernel = getattr(model, "step_kernel", None) if FUSED_STEP else None
+        make_kernel = getattr(model, "step_kernel", None) if fused else None
         self.kernel = make_kernel() if make_kernel is not None else None
         self._kernel_arguments = self.kernel.bind(self) if self.kernel is not None else ()
 

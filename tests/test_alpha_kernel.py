@@ -128,3 +128,43 @@ def test_fused_failure_is_worded_as_the_python_iteration(monkeypatch):
     assert not runs[0].success
     assert runs[0].message == runs[1].message
     assert dataclasses.asdict(runs[0]).keys() == dataclasses.asdict(runs[1]).keys()
+
+
+def test_auto_takes_the_fused_step_when_compiled_or_for_a_long_run(monkeypatch):
+    """Under "auto" a run takes the fused kernel when it is compiled (here or in the disk cache) or
+    the run is long enough to repay the compile; a short run on a cold cache keeps the Python
+    iteration, so the main job's first compile does not grow by the kernel."""
+    from mechanisms import _alpha_kernel  # the compiled-or-saved probe: no public face
+
+    monkeypatch.setattr(_alpha_step, "FUSED_STEP", "auto")
+    monkeypatch.setattr(_alpha_kernel, "compiled", lambda: False)
+    long_run = _alpha_step.FUSED_COMPILE_STEPS
+    assert not _alpha_step.fused_step_wanted(long_run - 1) and _alpha_step.fused_step_wanted(long_run)
+    monkeypatch.setattr(_alpha_kernel, "compiled", lambda: True)
+    assert _alpha_step.fused_step_wanted(8)
+    with mechanisms.fused_step(False):
+        assert not _alpha_step.fused_step_wanted(10 * long_run)
+    assert _alpha_step.FUSED_STEP == "auto"   # restored
+    with pytest.raises(mechanisms.ArgumentError, match="fused_step"):
+        with mechanisms.fused_step("yes"):
+            pass
+
+
+def test_the_probe_sees_a_compiled_kernel():
+    """``compiled()`` is True once the kernel has run in this process (the tests above ran it)."""
+    from mechanisms import _alpha_kernel
+
+    system = mechanisms.load("four_bar_fem1")
+    with mechanisms.fused_step(True):
+        mechanisms.simulate(system, t_end=system.period / 8, dt=system.period / 64, estimate_error=False)
+    assert _alpha_kernel.compiled()
+
+
+def test_the_main_job_does_not_compile_the_fused_step():
+    """The default scene's studies (the main job) run short nonlinear runs: its kernel list (what a
+    cold cache compiles, studies/cli/kernel_list.json) leaves the fused step out."""
+    import json
+    from pathlib import Path
+
+    listed = json.loads((Path(__file__).resolve().parents[1] / "studies" / "cli" / "kernel_list.json").read_text())
+    assert listed and not any(entry["kernel"].startswith("mechanisms._alpha_kernel.") for entry in listed)
