@@ -18,6 +18,10 @@ the ``compile_time`` file attribute (s) and the summary's steady-state run time,
 include the compilation. Run:
 
     .venv/bin/python benchmarks/bench_cold_start.py [--rounds 3] [--baseline /tmp/base] [--jobs main linear]
+        [--processes auto|1|2] [--baseline-processes auto|1|2]
+
+The compile helper process (``studies/cli/_kernel_list.py``) starts only when the load average
+leaves a core free; on a loaded machine ``--processes 2`` forces it, to measure it.
 """
 
 from __future__ import annotations
@@ -40,12 +44,18 @@ HERE = Path(__file__).resolve().parent.parent
 JOBS = {"main": [], "linear": ["--only", "steady_state", "--only", "sweep", "--only", "campbell"]}
 
 
-def run_job(source: Path, cache: Path, folder: Path, job: str = "main") -> tuple[float, float, str]:
-    """Wall time (s), CPU time (s, user + system of the job and the processes it waited for) and
-    stdout of ``job`` (a key of ``JOBS``) with the code in ``source`` and numba cache ``cache``."""
+def run_job(source: Path, cache: Path, folder: Path, job: str = "main", processes: str = "auto"
+            ) -> tuple[float, float, str]:
+    """Wall time (s), CPU time (s, user + system of the job and the processes it waited for, the
+    compile helper included) and stdout of ``job`` (a key of ``JOBS``) with the code in ``source``
+    and numba cache ``cache``; ``processes``: ``FLEXVIB_COMPILE_PROCESSES`` (``auto``: unset, the
+    code decides by the free cores)."""
     out = folder / "thesis.h5"
     out.unlink(missing_ok=True)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(source))
+    env.pop("FLEXVIB_COMPILE_PROCESSES", None)
+    if processes != "auto":
+        env["FLEXVIB_COMPILE_PROCESSES"] = processes
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     done = subprocess.run([sys.executable, "-m", "studies.cli", "run", "--out", str(out), "--quiet", *JOBS[job]],
@@ -72,11 +82,11 @@ def steady_run_time(stdout: str) -> float:
     return float(found[-1]) if found else float("nan")
 
 
-def one_round(source: Path, scratch: Path, job: str) -> dict[str, float]:
+def one_round(source: Path, scratch: Path, job: str, processes: str = "auto") -> dict[str, float]:
     cache = Path(tempfile.mkdtemp(prefix="empty-numba-cache-", dir=scratch))
-    cold, cold_cpu, cold_out = run_job(source, cache, scratch, job)
+    cold, cold_cpu, cold_out = run_job(source, cache, scratch, job, processes)
     cold_compile = compile_time(scratch)
-    warm, warm_cpu, warm_out = run_job(source, cache, scratch, job)
+    warm, warm_cpu, warm_out = run_job(source, cache, scratch, job, processes)
     return {"cold": cold, "warm": warm, "cold cpu": cold_cpu, "warm cpu": warm_cpu,
             "compile_time": cold_compile,
             "steady_state (cold)": steady_run_time(cold_out), "steady_state (warm)": steady_run_time(warm_out)}
@@ -87,6 +97,11 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--baseline", type=Path, help="source folder of the code to compare with")
     parser.add_argument("--jobs", nargs="+", choices=sorted(JOBS), default=sorted(JOBS, reverse=True))
+    parser.add_argument("--processes", choices=("auto", "1", "2"), default="auto",
+                        help="FLEXVIB_COMPILE_PROCESSES for this code (auto: unset; 2 forces the compile "
+                             "helper on a loaded machine, 1 turns it off)")
+    parser.add_argument("--baseline-processes", choices=("auto", "1", "2"), default="auto",
+                        help="the same for the baseline (a baseline of this code with 1: the helper's gain)")
     args = parser.parse_args()
     sources = {"this": HERE} | ({"baseline": args.baseline.resolve()} if args.baseline else {})
     print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the start", flush=True)
@@ -95,7 +110,8 @@ def main() -> None:
         with tempfile.TemporaryDirectory(prefix="flexvib-cold-") as scratch:
             for k in range(args.rounds):
                 for name, source in sources.items():  # alternately: both see the same load
-                    rounds[name].append(one_round(source, Path(scratch), job))
+                    processes = args.processes if name == "this" else args.baseline_processes
+                    rounds[name].append(one_round(source, Path(scratch), job, processes))
                     print(f"{job} round {k + 1} {name}: " + ", ".join(
                         f"{key} {value:.2f} s" for key, value in rounds[name][-1].items())
                         + f" (load average {os.getloadavg()[0]:.1f})", flush=True)

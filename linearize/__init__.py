@@ -26,6 +26,7 @@ from ._residual import linearisation_error as linearisation_error
 from ._residual import nonlinear_residual as nonlinear_residual
 from ._sensitivity import CENTRAL_STEP as CENTRAL_STEP
 from ._sensitivity import FORWARD_STEP as FORWARD_STEP
+from ._sensitivity import analytic_derivative as analytic_derivative
 from ._sensitivity import coefficient_derivative as coefficient_derivative
 from ._sensitivity import keeps_configuration as keeps_configuration
 from ._sensitivity import parameter_step as parameter_step

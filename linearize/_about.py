@@ -298,11 +298,14 @@ def _nominal_axial_forces(model, t, s, sdot, sddot, lam, *, stride=1):
             for name, force in coarse.items()}
 
 
-def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMechanism:
+def about(mechanism, *, n_steps: int = 512, observables=None, kinematics=None) -> LinearizedMechanism:
     """Linearise ``mechanism`` about its nominal rigid motion over one period of ``n_steps`` steps.
 
     ``observables``: specs of ``model.observable`` (e.g. ``"coupler.deflection@0.5"``), default
-    ``default_observables``. Raises ``LinearizationError`` (a ``ValueError``) at a toggle position
+    ``default_observables``. ``kinematics``: a ``mechanisms.NominalMotion`` on that grid whose
+    linkage ``mechanism`` shares (it differs in what does not move it: sections, masses, damping,
+    gains), reused with only the inverse dynamics recomputed (``mechanisms.nominal_dynamics``).
+    Raises ``LinearizationError`` (a ``ValueError``) at a toggle position
     (naming the crank angle), the nominal motion's ``mechanisms.MechanismError`` (a ``ValueError``)
     or ``mechanisms.ConvergenceError`` (a ``RuntimeError``).
     """
@@ -311,7 +314,12 @@ def about(mechanism, *, n_steps: int = 512, observables=None) -> LinearizedMecha
         raise TypeError(f"mechanism must be a mechanisms.Mechanism; received "
                         f"{type(mechanism).__name__}")
     specs = default_observables(mechanism) if observables is None else tuple(observables)
-    nominal = _nominal_motion(mechanism, n_steps)
+    if kinematics is None:
+        nominal = _nominal_motion(mechanism, n_steps)
+    elif kinematics.n_steps != n_steps:
+        raise LinearizationError(f"kinematics: a motion of {kinematics.n_steps} steps, but n_steps is {n_steps}")
+    else:
+        nominal = mechanisms.nominal_dynamics(mechanism, kinematics)
     model = _model_with_feedforward(mechanism, nominal)
     independent = _independent_coordinates(model, nominal)
     angle = _crank_angle(mechanism, nominal.t, nominal.period)

@@ -12,6 +12,17 @@ derivative for the coupler's thickness of the thesis four-bar); a parameter that
 carries the nominal motion's Newton tolerance into the difference (3e-5 of the derivative at that step
 for the crank's length), so it takes a central difference of step ``CENTRAL_STEP`` (2e-9 truncation,
 the residual's 1e-12 over the step).
+
+Where a part carries its own derivative the coefficients need no second linearisation at all
+(``analytic_derivative``): a link's damping (``links.<link>.damping.<key>``, the damping kind's
+``matrix_derivative``) changes only the damping ``D`` of the link's elastic coordinates, by ``dD``, and
+with the nominal motion and the basis ``V`` unchanged the projection of ``linearize._core`` gives
+
+    dM = 0,   dC = V^T dD V,   dK = V^T dD V',   df = 0,   d ln T = 0;
+
+the elastic coordinates are independent ones, so ``dD V`` has no dependent rows and the multipliers'
+maps (joint forces, drive torques) do not change either: an observable's derivative is its map applied
+to the response's derivative.
 """
 
 from __future__ import annotations
@@ -20,7 +31,8 @@ import numpy as np
 
 import periodic
 
-__all__ = ["CENTRAL_STEP", "FORWARD_STEP", "coefficient_derivative", "keeps_configuration", "parameter_step"]
+__all__ = ["CENTRAL_STEP", "FORWARD_STEP", "analytic_derivative", "coefficient_derivative", "keeps_configuration",
+           "parameter_step"]
 
 #: Relative step of a forward difference (parameters that leave the kinematics alone).
 FORWARD_STEP = 1e-6
@@ -64,3 +76,28 @@ def coefficient_derivative(plus: periodic.PeriodicSystem, minus: periodic.Period
 
     return periodic.SystemDerivative(M=difference("M"), C=difference("C"), K=difference("K"),
                                      f=difference("f"), log_period=float(np.log(plus.period / minus.period) / step))
+
+
+def analytic_derivative(linearized, path: str) -> periodic.SystemDerivative | None:
+    """The coefficients' derivative of the ``linearize.LinearizedMechanism`` ``linearized`` with respect
+    to the scene parameter ``path`` in closed form, or None where no part carries it (the caller then
+    differences linearisations): ``links.<link>.damping.<key>`` through the link's damping kind's
+    ``matrix_derivative(key, link, M_ee, K_ee)`` (module docstring)."""
+    parts = path.split(".")
+    mechanism = getattr(linearized, "mechanism", None)
+    if len(parts) != 4 or parts[0] != "links" or parts[2] != "damping" or mechanism is None:
+        return None
+    link = next((item for item in mechanism.links if item.name == parts[1]), None)
+    layout = linearized.nominal.model.layouts.get(parts[1]) if link is not None else None
+    if layout is None or layout.shapes is None or getattr(link, "damping", None) is None:
+        return None
+    import mechanisms
+
+    m_ee, k_ee = mechanisms.beam_matrices(layout.shapes)
+    block = link.damping.matrix_derivative(parts[3], link, m_ee, k_ee)
+    if block is None:
+        return None
+    c = linearized.coefficients
+    basis, rate = c.V[:, layout.elastic, :], c.Vdot[:, layout.elastic, :]   # (N+1, n_e, m)
+    projected = np.swapaxes(basis, 1, 2) @ np.asarray(block, dtype=float)   # V^T dD on the link's rows
+    return periodic.SystemDerivative(C=projected @ basis, K=projected @ rate, log_period=0.0)

@@ -1,5 +1,6 @@
 """Planar mechanisms with elastic links in redundant generalized coordinates."""
 
+from ._alpha_step import fused_step as fused_step
 from ._assemble import assemble as assemble
 from ._batch import ConstraintTerms as ConstraintTerms
 from ._batch import LinearTerms as LinearTerms
@@ -12,6 +13,7 @@ from ._beams import beam_shapes as beam_shapes
 from ._kinematics import ConvergenceError as ConvergenceError
 from ._kinematics import NominalMotion as NominalMotion
 from ._kinematics import feedforward_torques as feedforward_torques
+from ._kinematics import nominal_dynamics as nominal_dynamics
 from ._kinematics import nominal_motion as nominal_motion
 from ._load import build as build
 from ._load import load as load

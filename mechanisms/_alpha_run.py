@@ -8,7 +8,7 @@ import logging
 
 import numpy as np
 
-from ._alpha_step import _Stepper
+from ._alpha_step import _Stepper, fused_step_wanted
 from ._parts import ArgumentError
 
 logger = logging.getLogger(__name__)
@@ -51,7 +51,8 @@ def _integrate(model, q0, v0, t0, h, n_steps, rho, abs_tol, max_iterations, jaco
     counts (see ``simulate``)."""
     n = q0.shape[0]
     r = int(model.n_constraints)
-    stepper = _Stepper(model, rho, abs_tol, max_iterations, jacobian_reuse, length_scale)
+    stepper = _Stepper(model, rho, abs_tol, max_iterations, jacobian_reuse, length_scale,
+                       fused=fused_step_wanted(n_steps))
     if stepper.lags is not None:
         stepper.lags.start(q0, v0, t0, lag0)
 

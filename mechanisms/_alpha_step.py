@@ -46,15 +46,60 @@ predictor, and a step that still fails is retried as 2, 4, ..., ``2**max_step_ha
 substeps (the alpha acceleration (GA1) carries over between steps of different sizes unchanged);
 the output stays on the user's uniform grid (``_alpha_run``). ``mechanisms.simulate`` (``_simulate``) checks the
 options and reports; ``_alpha_tangent`` differentiates the step for the monodromy of a run.
+
+A model that offers ``step_kernel()`` (``Model``, with torque laws affine in s, s') runs this Newton
+iteration in one numba call per attempt (``_alpha_kernel``, the same iteration line for line); the
+Python iteration ``_Stepper._newton`` below serves any other ``ConstrainedModel``.
 """
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numba
 import numpy as np
 
 from periodic import lapack
+
+from . import _alpha_kernel
+from ._parts import ArgumentError
+
+#: Whether a model that offers ``step_kernel()`` (``Model``) is stepped by the fused kernel
+#: (``_alpha_kernel``): True, False, or "auto" (``fused_step_wanted``: when the kernel is compiled
+#: already, in this process or in numba's disk cache, or the run is long enough to repay its compile).
+#: The Python iteration below stays for any other ``ConstrainedModel`` and for torque laws the kernel
+#: does not evaluate (tests set True and False to compare the two).
+FUSED_STEP = "auto"
+#: Steps of one run from which "auto" compiles the fused kernel on a cold cache: its compile, about
+#: 12-19 s CPU beside the Python iteration's kernels (which every run needs anyway: the start,
+#: the substeps' fallback), is repaid at about 0.5 ms saved a step (docs/benchmarks.md). A shorter
+#: run on a cold cache (the main job's nonlinear check) keeps the Python iteration, so the first
+#: run's compile time does not grow by it; once compiled (a long run, a run-up), every run uses it.
+FUSED_COMPILE_STEPS = 20000
+
+
+@contextlib.contextmanager
+def fused_step(mode: bool | str = True):
+    """``with mechanisms.fused_step(True): ...`` steps the runs inside by the fused kernel (``False``:
+    the Python iteration; ``"auto"``: the default rule, ``FUSED_STEP``), and restores the setting
+    after. The studies whose runs are many (nonlinear states, sweeps, run-ups) compile the kernel in
+    their JIT warm-up this way, so that their runs take it under "auto"."""
+    global FUSED_STEP
+    if mode not in (True, False, "auto"):
+        raise ArgumentError(f"fused_step: expected True, False or 'auto', got {mode!r}")
+    previous, FUSED_STEP = FUSED_STEP, mode
+    try:
+        yield
+    finally:
+        FUSED_STEP = previous
+
+
+def fused_step_wanted(n_steps: int) -> bool:
+    """Whether a run of ``n_steps`` steps takes the fused kernel under ``FUSED_STEP``. The two paths
+    agree to round-off (bitwise without torque drives; tests/test_alpha_kernel.py)."""
+    if FUSED_STEP != "auto":
+        return bool(FUSED_STEP)
+    return n_steps >= FUSED_COMPILE_STEPS or _alpha_kernel.compiled()
 
 
 # The iteration matrix (n + r ~ 20-70) is factorised once and reused over a modified-Newton
@@ -196,7 +241,7 @@ class _Stepper:
     """Newton's method on (NR) for one step of any size from a given state, with the buffers, the
     kept tangent terms and the counts shared by all steps of a run."""
 
-    def __init__(self, model, rho, abs_tol, max_iterations, jacobian_reuse, length_scale):
+    def __init__(self, model, rho, abs_tol, max_iterations, jacobian_reuse, length_scale, fused=True):
         self.model = model
         # a Newton increment larger than the configuration itself is outside the region of
         # convergence: Newton from there found spurious roots of the step equations (positions of
@@ -216,11 +261,23 @@ class _Stepper:
         self.piv = np.empty(n + r, dtype=np.int32)
         self.tangent_h = None      # the step the kept tangent terms were scaled with, or None
         self.residual = np.nan     # max |Phi| at the last converged solve
-        self.counts = {"n_newton": 0, "n_jacobian": 0, "n_factorizations": 0}
+        self._counts = {"n_newton": 0, "n_jacobian": 0, "n_factorizations": 0}   # Python iteration's
         self.min_pivot_ratio = np.inf
         # lagged controllers' states, integrated with the step (None without lags)
         self.lags = _Lags(model) if len(getattr(model, "lag_names", ())) else None
         self.t = np.nan            # the time of the last step solved
+        # the fused step's: its counts (as ``_counts``, added up by the kernel) and its numbers
+        self.kernel_counts = np.zeros(3, dtype=np.int64)
+        self.kernel_info = np.zeros(4)
+        make_kernel = getattr(model, "step_kernel", None) if fused else None
+        self.kernel = make_kernel() if make_kernel is not None else None
+        self._kernel_arguments = self.kernel.bind(self) if self.kernel is not None else ()
+
+    @property
+    def counts(self):
+        """Newton iterations, Jacobian evaluations and factorisations of all steps so far."""
+        return {key: value + int(self.kernel_counts[k])
+                for k, (key, value) in enumerate(self._counts.items())}
 
     def drop_tangent(self):
         self.tangent_h = None
@@ -242,10 +299,14 @@ class _Stepper:
         self.t = t
         if self.lags is not None:
             self.lags.begin(h)
+        newton = self._newton
+        if self.kernel is not None:
+            self.kernel.at(t, self.lags)
+            newton = self._fused_newton
         full_newton = full_newton or not self.jacobian_reuse
         failure = ""
         for _attempt in range(2):
-            failure = self._newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev,
+            failure = newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev,
                                    extrapolate, t, h, beta_p, gamma_p, full_newton)
             if not failure:
                 if full_newton:
@@ -257,11 +318,24 @@ class _Stepper:
             extrapolate, full_newton = False, True
         return failure
 
+    def _fused_newton(self, q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, t, h,
+                      beta_p, gamma_p, full_newton):
+        """``_newton`` in one call of the model's ``StepKernel`` (its terms at ``t`` set by ``solve``)."""
+        code, tangent_valid, iterations = _alpha_kernel.newton(
+            q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, beta_p, gamma_p,
+            full_newton, self.tangent_h is not None, *self._kernel_arguments)
+        self.tangent_h = h if tangent_valid else None
+        if code:
+            return _alpha_kernel.failure_message(code, iterations, self.kernel_info)
+        self.residual = self.kernel_info[0]
+        self.min_pivot_ratio = min(self.min_pivot_ratio, self.kernel_info[1])
+        return ""
+
     def _newton(self, q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, t, h,
                 beta_p, gamma_p, full_newton):
         model, abs_tol, max_iterations = self.model, self.abs_tol, self.max_iterations
         q, v, sddot, lam, qhat, vhat = self.q, self.v, self.sddot, self.lam, self.qhat, self.vhat
-        G, piv, tangent, counts = self.G, self.piv, self.tangent, self.counts
+        G, piv, tangent, counts = self.G, self.piv, self.tangent, self._counts
         _start_step(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h,
                     self.alpha_m, self.alpha_f, self.beta, self.gamma, beta_p, gamma_p, qhat, vhat,
                     sddot, lam, q, v)

@@ -23,7 +23,7 @@ import logging
 import math
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Callable
 
 import numpy as np
@@ -209,15 +209,59 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
                          run_time=run_time)
 
 
+def nominal_dynamics(mechanism: Mechanism, kinematics: NominalMotion) -> NominalMotion:
+    """The nominal motion of ``mechanism`` when its kinematics are those of ``kinematics`` (the
+    nominal motion of a mechanism that differs from it only in what does not move the linkage:
+    section properties, densities, masses, damping, gains): the same ``t, s, sdot, sddot``, the
+    multipliers and drive torques of ``mechanism``'s rigid inverse dynamics recomputed along them,
+    without the continuation.  Raises ``ArgumentError`` when ``kinematics`` does not meet
+    ``mechanism``'s constraints to ten times its own residual (and 1e-11): the linkage moved."""
+    started = time.perf_counter()
+    rigid_mechanism = _rigid_mechanism(mechanism)
+    if _same_mechanism(getattr(kinematics.model, "mechanism", None), rigid_mechanism):
+        return kinematics      # the same rigid dynamics (only a controller's gains differ, say)
+    model = assemble(rigid_mechanism)
+    rigid = np.asarray(model.rigid_index, dtype=np.int64)
+    t, s, sdot, sddot = kinematics.t, kinematics.s, kinematics.sdot, kinematics.sddot
+    if model.n_coords != s.shape[1] or model.n_constraints != kinematics.lam.shape[1]:
+        raise ArgumentError(f"kinematics: a motion of {s.shape[1]} coordinates and "
+                            f"{kinematics.lam.shape[1]} multipliers, but the mechanism has "
+                            f"{model.n_coords} and {model.n_constraints}")
+    positions = constraint_terms_along(model, t, s, values=True)
+    residual = float(np.abs(positions.values).max())
+    if residual > 10.0 * kinematics.constraint_residual + 1e-11:
+        raise ArgumentError(f"kinematics: the motion leaves a constraint residual {residual:.3g} on "
+                            f"this mechanism (its own {kinematics.constraint_residual:.3g}): the "
+                            f"linkage moved; compute its nominal_motion instead")
+    rigid_jacobians = positions.jacobian[:, :, rigid]
+    inertia = inertia_residual_along(model, t, s, sdot, sddot)      # M s'' - Q, (N+1, n)
+    lam = np.linalg.solve(np.swapaxes(rigid_jacobians, 1, 2), -inertia[:, rigid, None])[..., 0]
+    return replace(kinematics, lam=lam, drive_torque=_drive_torques(model, s, sdot, lam, t), model=model,
+                   constraint_residual=residual, run_time=time.perf_counter() - started)
+
+
+def _rigid_mechanism(mechanism: Mechanism) -> Mechanism:
+    """The mechanism whose model the nominal motion uses: torque drives following their nominal
+    law, prescribed (their inverse-dynamics torque is what the drive's multiplier gives), without
+    controllers; ``mechanism`` itself when every drive is prescribed."""
+    if not any(isinstance(d, TorqueDrive) for d in mechanism.drives):
+        return mechanism
+    return mechanism.replace(drives=tuple(
+        PrescribedDrive(d.joint, d.rate, d.offset, d.harmonics, inertia=d.inertia)
+        if isinstance(d, TorqueDrive) else d for d in mechanism.drives), period=mechanism.period,
+        controllers=())
+
+
+def _same_mechanism(a: Any, b: Any) -> bool:
+    try:
+        return isinstance(a, Mechanism) and bool(a == b)
+    except (TypeError, ValueError):   # a part holding an array compares element-wise
+        return False
+
+
 def _model_of(obj: Any) -> tuple[Any, Mechanism | None]:
     if isinstance(obj, Mechanism):
-        if any(isinstance(d, TorqueDrive) for d in obj.drives):
-            # The nominal motion of a torque drive follows its nominal law; its inverse-dynamics
-            # torque is what the drive's multiplier gives when that law is prescribed.
-            obj = obj.replace(drives=tuple(
-                PrescribedDrive(d.joint, d.rate, d.offset, d.harmonics, inertia=d.inertia)
-                if isinstance(d, TorqueDrive) else d for d in obj.drives), period=obj.period,
-                controllers=())
+        obj = _rigid_mechanism(obj)
         return assemble(obj), obj
     for name in ("n_coords", "n_constraints", "rigid_index", "constraints",
                  "constraint_jacobian", "constraint_rate", "constraint_gamma", "mass_matrix",

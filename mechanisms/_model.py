@@ -17,6 +17,7 @@ from typing import Any, Callable
 import numpy as np
 
 from . import _batch, _kernels
+from ._alpha_kernel import StepKernel
 from ._batch import ConstraintTerms, LinearTerms
 from ._beams import BeamShapes
 from ._observables import make_observable
@@ -278,6 +279,16 @@ class Model:
         out = np.zeros((self.n_coords, self.n_coords))
         _kernels.constraint_force_jacobian(s, lam, tb.ct_int, tb.ct_real, tb.shp, tb.idx, out)
         return out
+
+    def step_kernel(self):
+        """This model's equations for the fused generalized-alpha step (``_alpha_kernel.StepKernel``),
+        or None when a torque law is not affine in ``s, s'`` at fixed t (a controller's feedback of
+        an observable nonlinear in s): the step then calls the methods above."""
+        if any(info.feedback for info in self._torque_drives) or any(
+                lag.law.feedback for lag in self._lags):
+            return None
+        return StepKernel(self._tables, (self._gx, self._gy), self.period, self._prescribed,
+                          self._torque_drives, self._lags, self.n_coords)
 
     # --- energies and drives -------------------------------------------------------------------
     def kinetic_energy(self, s, sdot) -> float:

@@ -10,8 +10,14 @@ value is a float (a study of one point) or an array of the grid's shape; NaN: un
 but its estimate could not be trusted); a term that does not apply (a ``PeriodicProblem`` has no mesh
 and no linearisation, a nonlinear state no linearisation) is the string ``NOT_APPLICABLE``, never 0.
 
-The total is the sum of the magnitudes of the known terms: terms can have opposite signs, and an
-honest bar must not let them cancel. An applicable term that is unknown makes the total unknown
+The input term ``input`` (``INPUT``; the V&V split) is apart from these numerical terms: the
+first-order band of the quantity from the tolerances on its parameters (``studies.sensitivity``), how
+far the answer moves when the inputs do, not how far it is from the model's exact answer. It is shown
+beside them (``input_band``) and enters neither the total, nor the dominant term, nor the tolerance
+check, so a verdict means what it meant without tolerances.
+
+The total is the sum of the magnitudes of the known numerical terms: terms can have opposite signs, and
+an honest bar must not let them cancel. An applicable term that is unknown makes the total unknown
 (NaN) and the status ``inaccurate`` ("the estimate is not trustworthy"), never ``ok``.
 """
 
@@ -25,6 +31,8 @@ import numpy as np
 
 #: The terms of a budget, in the order they are shown.
 TERMS = ("time_step", "mesh", "linearisation", "reduction")
+#: The input term: the first-order band from the parameters' tolerances, outside the numerical total.
+INPUT = "input"
 #: The value of a term that does not apply to a result.
 NOT_APPLICABLE = "not applicable"
 #: The value of a term that applies but that no estimator covers for the quantity (the mesh term of a
@@ -41,7 +49,7 @@ FIXES = {
 }
 #: Words of each term.
 WORDS = {"time_step": "time step", "mesh": "mesh", "linearisation": "linearisation",
-         "reduction": "modal reduction"}
+         "reduction": "modal reduction", INPUT: "input (tolerances)"}
 
 
 def check_tolerance(value: Any, where: str = "error_tolerance") -> float:
@@ -56,6 +64,11 @@ def check_tolerance(value: Any, where: str = "error_tolerance") -> float:
 
 def _applies(value: Any) -> bool:
     return not isinstance(value, str)
+
+
+def _numerical(terms: Mapping[str, Any]) -> dict[str, Any]:
+    """The numerical terms of one quantity (all but the input term)."""
+    return {name: value for name, value in terms.items() if name != INPUT}
 
 
 @dataclass(frozen=True)
@@ -80,8 +93,9 @@ class ErrorBudget:
         return len(self.terms)
 
     def total(self, spec: str) -> Any:
-        """The sum of the magnitudes of the applicable terms (NaN where one is unknown)."""
-        parts = [np.abs(np.asarray(v, dtype=float)) for v in self.terms[spec].values() if _applies(v)]
+        """The sum of the magnitudes of the applicable numerical terms (NaN where one is unknown); the
+        input term stays apart (``input_band``)."""
+        parts = [np.abs(np.asarray(v, dtype=float)) for v in _numerical(self.terms[spec]).values() if _applies(v)]
         if not parts:
             return math.nan
         total = sum(parts)
@@ -90,7 +104,7 @@ class ErrorBudget:
     def dominant(self, spec: str) -> Any:
         """The name of the largest applicable term (an array of names for a grid; "" where none is
         known), an unknown term dominating a known one (it may be anything)."""
-        names = [k for k, v in self.terms[spec].items() if _applies(v)]
+        names = [k for k, v in _numerical(self.terms[spec]).items() if _applies(v)]
         if not names:
             return ""
         values = np.stack([np.asarray(self.terms[spec][k], dtype=float) for k in names])
@@ -101,8 +115,12 @@ class ErrorBudget:
 
     def unknown(self, spec: str) -> list[str]:
         """The applicable terms that are unknown (anywhere on a grid)."""
-        return [k for k, v in self.terms[spec].items()
+        return [k for k, v in _numerical(self.terms[spec]).items()
                 if _applies(v) and np.isnan(np.asarray(v, dtype=float)).any()]
+
+    def input_band(self, spec: str) -> Any:
+        """The input term of ``spec`` (the tolerances' first-order band), ``NOT_APPLICABLE`` without."""
+        return self.terms[spec].get(INPUT, NOT_APPLICABLE)
 
     def as_json(self) -> dict[str, dict[str, Any]]:
         """{spec: {term: value}} as a result file stores a budget of floats (NaN as null)."""
@@ -173,7 +191,7 @@ def describe(budget: ErrorBudget, spec: str, unit: str = "", *, terms: bool = Tr
     shown, factor = DISPLAY_UNITS.get(unit, (unit, 1.0))
     suffix = f" {shown}" if shown and shown != "1" else ""
     parts = []
-    for name, value in budget[spec].items():
+    for name, value in _numerical(budget[spec]).items():
         if isinstance(value, str):
             parts.append(f"{WORDS[name]} {value}")
         elif math.isnan(float(value)):
@@ -183,7 +201,11 @@ def describe(budget: ErrorBudget, spec: str, unit: str = "", *, terms: bool = Tr
     total = budget.total(spec)
     total_words = "unknown" if not math.isfinite(total) else f"{factor * total:.2g}{suffix}"
     words = f"total {total_words}, mostly {WORDS.get(budget.dominant(spec), '-')}"
-    return f"{words} ({', '.join(parts)})" if terms else words
+    words = f"{words} ({', '.join(parts)})" if terms else words
+    band = budget.input_band(spec)
+    if not isinstance(band, str):
+        words += f"; input band {factor * abs(float(band)):.2g}{suffix} from the tolerances (apart)"
+    return words
 
 
 #: The terms of a spectral radius (a stability chart's cell, a Campbell diagram's speed) besides its

@@ -1,10 +1,11 @@
 """Derivatives of a steady state's headlines with respect to a problem's parameters at one point:
 what ``studies.sensitivity`` reports and ``studies.optimize``'s local method follows.
 
-For each parameter p the coefficients' derivative comes from linearisations at nearby values
-(``linearize.coefficient_derivative``: a forward difference where the nominal configuration does not
-move, else a central one; the speed's central difference on a speed family is exact, its
-coefficients being polynomials in the speed), and the response's from
+For each parameter p the coefficients' derivative is analytic where a part of the mechanism carries it
+(``linearize.analytic_derivative``: a link's damping, with no second linearisation), else it comes from
+linearisations at nearby values (``linearize.coefficient_derivative``: a forward difference where the
+nominal configuration does not move, else a central one; the speed's central difference on a speed
+family is exact, its coefficients being polynomials in the speed), and the response's from
 ``periodic.response_derivative`` (the periodic system with the forcing of those derivatives, on the
 shooting's monodromy).  An observable ``o_p(z)`` depends on p through its map too, so its derivative is
 ``(o_{p+h}(z + h dz) - o_{p-h}(z - h dz)) / 2h`` (or the forward form), a difference of the maps only
@@ -43,9 +44,9 @@ class PointDerivatives:
     ``values`` {name: value}; ``response`` (N+1, n_obs) the observables; ``derivative`` (P, N+1, n_obs) and
     ``coarse_derivative`` (P, N/2+1, n_obs) their derivatives (N and N/2 steps); ``coarse_response``
     (N/2+1, n_obs); ``radius``, ``radius_error`` (P,) d|mu|/dp of the critical multiplier; ``repeated``:
-    the multiplier is repeated (radius NaN); ``methods`` {name: "forward" | "central" | "speed family"};
-    ``steps`` {name: absolute step}; ``error_factor``; ``run_time`` of the derivatives (s, without the
-    point's own steady state: ``steady.run_time`` and ``linear_run_time``)."""
+    the multiplier is repeated (radius NaN); ``methods`` {name: "analytic" | "forward" | "central"};
+    ``steps`` {name: absolute step, 0 for an analytic derivative}; ``error_factor``; ``run_time`` of the
+    derivatives (s, without the point's own steady state: ``steady.run_time`` and ``linear_run_time``)."""
 
     linear: object
     steady: Steady
@@ -80,6 +81,16 @@ def _keeps_configuration(problem, params, name, linear) -> bool:
     changed = {key: value for key, value in params.items() if value != problem.parameters.get(key)}
     changed[name] = params[name] + step
     return linearize.keeps_configuration(problem.mechanism(changed), nominal)
+
+
+def _neighbour(problem, values, n_steps, linear):
+    """The linearisation at ``values``, a forward step of a parameter that leaves the linkage alone:
+    on the point's own kinematics where the problem reuses them (only the inverse dynamics and the
+    coefficients recomputed), else the problem's own."""
+    nominal = getattr(linear.context, "nominal", None)
+    if nominal is not None and getattr(problem, "reuses_kinematics", False):
+        return problem.linearize(values, n_steps=n_steps, kinematics=nominal)
+    return problem.linearize(values, n_steps=n_steps)
 
 
 def _forward(known: dict | None, name: str, decide) -> bool:
@@ -126,12 +137,20 @@ def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, line
     started = time.perf_counter()
     system = linear.system
     for name in names:
+        closed = None if name in pending else linearize.analytic_derivative(linear.context, name)
+        if closed is not None:
+            # a part carries the derivative: no linearisation at a neighbouring value, and the
+            # observables' maps do not move (linearize.analytic_derivative)
+            methods[name], steps[name] = "analytic", 0.0
+            derivatives.append(closed)
+            neighbours.append(None)
+            continue
         if name in pending:
             plus, minus, step, methods[name] = pending[name]
             divisor = 2.0 * step
         elif _forward(forward, name, lambda name=name: _keeps_configuration(problem, params, name, linear)):
             step = linearize.parameter_step(params[name], linearize.FORWARD_STEP)
-            plus = problem.linearize(dict(base_values, **{name: params[name] + step}), n_steps=n_steps)
+            plus = _neighbour(problem, dict(base_values, **{name: params[name] + step}), n_steps, linear)
             minus, methods[name], divisor = linear, "forward", step
         else:
             step = linearize.parameter_step(params[name], linearize.CENTRAL_STEP)
@@ -156,7 +175,16 @@ def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, line
         coarse_response = linear.observe(state.x_coarse, stride=2)
         coarse_derivative = np.empty((len(names),) + coarse_response.shape)
         levels.append((coarse_derivative, state.x_coarse, dz_coarse, 2))
-    for j, (plus, minus, divisor, forward) in enumerate(neighbours):
+    for j, neighbour in enumerate(neighbours):
+        if neighbour is None:
+            # the maps are the point's: a central difference along dz (a force's magnitude is not
+            # linear in z; the step's truncation is (h/p)^2 = 1e-8 of the derivative)
+            h = linearize.parameter_step(params[names[j]], linearize.CENTRAL_STEP)
+            for out, z, dz_level, stride in levels:
+                out[j] = (linear.observe(z + h * dz_level[j], stride=stride)
+                          - linear.observe(z - h * dz_level[j], stride=stride)) / (2.0 * h)
+            continue
+        plus, minus, divisor, forward = neighbour
         # h dz moves z to first order as the parameter's step does; the maps' own change is differenced
         h = steps[names[j]]
         for out, z, dz_level, stride in levels:

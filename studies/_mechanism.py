@@ -211,17 +211,29 @@ class MechanismProblem:
         return Description(labels=labels, observables=tuple(specs),
                            units=tuple(model.observable(spec).unit for spec in specs))
 
+    #: ``linearize(..., kinematics=...)`` reuses a nominal motion (the sensitivities' neighbours)
+    reuses_kinematics = True
+
     def linearize(self, values: Mapping[str, float] | None = None, *, n_steps: int,
-                  context: bool = True) -> Linear:
+                  context: bool = True, kinematics: Any = None) -> Linear:
         """The linear periodic system at ``values``. ``context=False`` skips building the
         ``linearize`` result object (mechanism, nominal motion at that speed) that only the nonlinear
-        route and drawings need: grid points take the speed family's polynomials directly."""
+        route and drawings need: grid points take the speed family's polynomials directly.
+        ``kinematics``: the nominal motion (``mechanisms.NominalMotion``, same speed and grid) of a
+        point whose linkage these values do not move, reused (``linearize.about``)."""
         import linearize
 
         params = self.resolve(values)
         others = {k: v for k, v in params.items() if k != SPEED and v != self._nominal[k]}
-        mechanism = self.mechanism(others)
         speed = params[SPEED]
+        if kinematics is not None:
+            # the same object as the caller's configuration check built (its model cached)
+            at_scene_speed = math.isclose(speed, self._nominal[SPEED], rel_tol=1e-12)
+            mechanism = self.mechanism(others if at_scene_speed else dict(others, speed=speed))
+            lin = linearize.about(mechanism, n_steps=n_steps, observables=self.observable_specs,
+                                  kinematics=kinematics)
+            return _linear(lin, lin.system, lin, linear_range=lin.linear_range)
+        mechanism = self.mechanism(others)
         # Prescribed drives make the motion a function of the phase 2 pi t / period: a speed
         # family covers every speed (torque drives are linearised at each speed).
         prescribed = linearize.supports_speed_family(mechanism)

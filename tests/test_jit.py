@@ -111,3 +111,130 @@ def test_the_warm_up_compiles_every_kernel_the_run_calls(tmp_path):
     assert not [name for name, sigs in called.items() if len(sigs) != 1]
     assert not [name for name, sigs in called.items() if any("Literal" in s for s in sigs)]
 
+
+
+# --- the kernel list and the helper process that compiles on the second core ---------------------
+
+def test_the_kernel_list_resolves_and_orders_callees_before_their_callers():
+    """Every entry of the shipped list names a kernel of the loaded packages and a signature this
+    numba reads back; a kernel comes after the kernels it calls (each process compiles callees
+    first, so that the other finds them in the cache), and its ``callees`` point at them."""
+    import linearize  # noqa: F401 - the packages whose kernels the list names
+    import mechanisms  # noqa: F401
+    import periodic  # noqa: F401
+    from studies.cli._kernel_list import KERNEL_LIST, first_root, load_list
+
+    entries = json.loads(KERNEL_LIST.read_text())
+    listed = load_list({entry["step"] for entry in entries})
+    assert len(listed) == len(entries) > 20
+    assert {(e.kernel, repr(tuple(e.signature))) for e in listed} == {(e["kernel"], e["signature"]) for e in entries}
+    position = {entry.kernel: k for k, entry in enumerate(listed)}
+    terms = listed[position["mechanisms._batch.linear_terms_kernel"]]
+    assert position["mechanisms._kernels.forces"] in terms.callees
+    assert position["mechanisms._kernels.mass_matrix"] in terms.callees
+    assert all(max(entry.callees, default=-1) < k for k, entry in enumerate(listed))
+    # the warm-up's probe of the cache: a kernel no listed kernel calls (the code calls it)
+    probe = first_root(listed)
+    assert not [entry for entry in listed if probe in entry.callees]
+    assert probe < position["mechanisms._batch.linear_terms_kernel"]
+    # a step the run does not declare lists nothing
+    assert load_list(["no such step"]) == []
+
+
+def test_compile_listed_takes_only_the_entries_it_claims(tmp_path):
+    """Two processes share the list through claim files: an entry claimed by the other process is
+    left to it (and its callees are waited for only while the other process is alive)."""
+    from studies.cli._kernel_list import Listed, compile_listed
+
+    @numba.njit  # defined here: not in any cache
+    def twice(x):
+        return 2.0 * x
+
+    @numba.njit
+    def thrice(x):
+        return 3.0 * x
+
+    signature = (numba.float64,)
+    listed = [Listed("twice", twice, signature, ()), Listed("thrice", thrice, signature, (0,))]
+    (tmp_path / "0").touch()   # the other process claimed entry 0 and has not finished it
+    assert compile_listed(listed, tmp_path, other_alive=lambda: False) == 1
+    assert not twice.signatures and thrice.signatures == [signature]
+    assert (tmp_path / "1.done").exists() and not (tmp_path / "0.done").exists()
+    assert compile_listed(listed, None) == 2 and twice.signatures == [signature]
+
+
+def test_an_unclaimed_callee_is_not_waited_for(tmp_path):
+    """The warm-up's probe compiles one kernel out of the list's order: a callee nobody claimed is
+    compiled with it at once, not waited for (the other process, alive or not yet started, will
+    never mark it done)."""
+    import time
+
+    from studies.cli._kernel_list import Listed, compile_listed
+
+    @numba.njit
+    def inner(x):
+        return x + 1.0
+
+    @numba.njit
+    def outer(x):
+        return inner(x) * 2.0
+
+    signature = (numba.float64,)
+    listed = [Listed("inner", inner, signature, ()), Listed("outer", outer, signature, (0,))]
+    started = time.perf_counter()
+    assert compile_listed(listed, tmp_path, only=[1], other_alive=lambda: True, timeout=60.0) == 1
+    assert time.perf_counter() - started < 30.0 and outer.signatures == [signature]
+
+
+def test_the_helper_process_runs_its_share_of_the_list(monkeypatch):
+    """The helper process (``python -m studies.cli._kernel_list CLAIMS STEP...``) starts, takes the
+    entries left to it and ends with exit code 0 (the cache is warm here: it loads them)."""
+    from studies.cli._kernel_list import PROCESSES_VARIABLE, Helper
+
+    monkeypatch.setenv(PROCESSES_VARIABLE, "2")
+    monkeypatch.setenv("PYTHONPATH", str(ROOT))
+    helper = Helper(["steady state"])
+    try:
+        helper.start()
+        assert helper.wait() >= 0.0 and helper.process.returncode == 0
+        assert list(helper.folder.glob("*.done"))
+    finally:
+        helper.stop()
+    assert helper.folder is None
+
+
+def test_the_processes_setting_is_checked(monkeypatch):
+    from studies._errors import UsageError
+    from studies.cli._kernel_list import PROCESSES_VARIABLE, use_helper
+
+    monkeypatch.setenv(PROCESSES_VARIABLE, "1")
+    assert not use_helper()
+    monkeypatch.setenv(PROCESSES_VARIABLE, "2")
+    assert use_helper()
+    monkeypatch.setenv(PROCESSES_VARIABLE, "two")
+    with pytest.raises(UsageError, match="FLEXVIB_COMPILE_PROCESSES: expected 1 .* or 2 .* got 'two'"):
+        use_helper()
+
+
+_RECORD_SCRIPT = textwrap.dedent("""
+    import json
+    from studies.cli._kernel_record import main_job_list
+    print(json.dumps(main_job_list()))
+""")
+
+
+@pytest.mark.slow
+def test_the_kernel_list_is_what_the_main_job_warm_up_compiles(tmp_path):
+    """In a fresh process on an empty numba cache, the warm-up of the main job (default scene, its
+    studies) adds, step by step, exactly the signatures of the shipped list: the list the helper
+    process compiles cannot drift from the kernels. (It compiles every kernel of the main job.)"""
+    from studies.cli._kernel_list import KERNEL_LIST
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path))
+    done = subprocess.run([sys.executable, "-c", _RECORD_SCRIPT], env=env, capture_output=True, text=True,
+                          timeout=900)
+    assert done.returncode == 0, done.stderr
+    recorded = json.loads(done.stdout.splitlines()[-1])
+    shipped = json.loads(KERNEL_LIST.read_text())
+    assert recorded == shipped, ("studies/cli/kernel_list.json is out of date: run "
+                                 "`.venv/bin/python -m studies.cli._kernel_record` and commit it")

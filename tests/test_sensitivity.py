@@ -189,6 +189,7 @@ def test_four_bar_against_fresh_steady_states(four_bar):
     problem, result = four_bar
     assert result.methods["links.crank.length"] == "central"        # it moves the kinematics
     assert result.methods["links.coupler.thickness"] == "forward"    # it does not
+    assert result.methods["links.coupler.damping.ratio"] == "analytic"  # its damping kind differentiates it
     for name in result.names:
         value = result.parameters[name]
         h = 1e-4 * value

@@ -7,7 +7,11 @@ else asks which kind a link has: ``TYPE`` and ``KEYS`` (its ``damping`` table in
 eq. 7-9; 0 for none), ``constant_on_stiffened`` (a constant matrix that on a stiffened link also
 damps the chord shortening's axial motion: the assembler warns) and ``constant_matrix(link_name,
 m_ee, k_ee, *, strain_rate_beta)``, the constant damping matrix ``C0`` (N s/m) of the link's elastic
-coordinates. ``DAMPING_TYPES`` lists them by ``TYPE``; a scene's ``type = "none"`` is no damping.
+coordinates, and ``matrix_derivative(key, link, m_ee, k_ee)``, the derivative of the linearised
+damping matrix of the link's elastic coordinates with respect to the scalar scene key ``key`` of its
+``damping`` table (None where the kind has no closed form for that key: the sensitivities then take
+differences of linearisations). ``DAMPING_TYPES`` lists them by ``TYPE``; a scene's ``type = "none"``
+is no damping.
 """
 
 from __future__ import annotations
@@ -69,6 +73,18 @@ class Rayleigh:
             return self.alpha * m_ee
         return self.alpha * m_ee + self.beta * k_ee
 
+    def matrix_derivative(self, key: str, link, m_ee: np.ndarray, k_ee: np.ndarray) -> np.ndarray | None:
+        """d(linearised damping of the elastic coordinates)/d ``key``: ``M_ee`` for ``alpha``, ``K_ee``
+        for ``beta`` (the strain-rate form linearises to ``beta K_ee`` too), ``2 K_ee / omega_1`` for
+        ``ratio`` (``beta = 2 ratio / omega_1``, ``link.first_bending_frequency()``); None for others."""
+        if key == "alpha":
+            return m_ee
+        if key == "beta":
+            return k_ee
+        if key == "ratio":
+            return (2.0 / link.first_bending_frequency()) * k_ee
+        return None
+
 
 @dataclass(frozen=True)
 class ModalDamping:
@@ -96,6 +112,10 @@ class ModalDamping:
 
     def to_table(self) -> dict[str, Any]:
         return {"type": self.TYPE, "ratios": list(self.ratios)}
+
+    def matrix_derivative(self, key: str, link, m_ee: np.ndarray, k_ee: np.ndarray) -> None:
+        """No closed form for a scalar key (its entries are lists): the sensitivities difference."""
+        return None
 
     def constant_matrix(self, link_name: str, m_ee: np.ndarray, k_ee: np.ndarray, *,
                strain_rate_beta: bool) -> np.ndarray:
@@ -142,6 +162,10 @@ class DampingMatrix:
 
     def to_table(self) -> dict[str, Any]:
         return {"type": self.TYPE, "matrix": [list(row) for row in self.matrix]}
+
+    def matrix_derivative(self, key: str, link, m_ee: np.ndarray, k_ee: np.ndarray) -> None:
+        """No closed form for a scalar key (its entries are lists): the sensitivities difference."""
+        return None
 
     def constant_matrix(self, link_name: str, m_ee: np.ndarray, k_ee: np.ndarray, *,
                         strain_rate_beta: bool) -> np.ndarray:

@@ -12,6 +12,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+import mechanisms
 import periodic
 
 from .._budget import NOT_APPLICABLE, mesh_terms
@@ -586,9 +587,11 @@ def _cost(name, problem, options, workers):
 
 def warm_up_shooting(problem: Any) -> None:
     """One Newton step of the nonlinear shooting on the JIT warm-up's tiny grid (a period, its
-    monodromy, a trial period): the integrator's and the monodromy's kernels."""
+    monodromy, a trial period): the integrator's and the monodromy's kernels, the fused step's
+    included (``mechanisms.fused_step``: the shootings' many periods repay its compile)."""
     if getattr(problem, "supports_nonlinear", False):
-        nonlinear_steady_state(problem, n_steps=WARM_UP_STEPS, max_iterations=1)
+        with mechanisms.fused_step(True):
+            nonlinear_steady_state(problem, n_steps=WARM_UP_STEPS, max_iterations=1)
 
 
 KIND = register_kind(StudyKind(

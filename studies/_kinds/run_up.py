@@ -12,6 +12,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+import mechanisms
 import periodic
 
 from .._kind import StudyKind, register_kind
@@ -660,11 +661,13 @@ def run_up_cost(name, problem, options, workers):
 
 
 def _warm_up(problem: Any) -> None:
-    """Two revolutions of a run-up on the warm-up's coarse steps (the ramped drive law's path)."""
+    """Two revolutions of a run-up on the warm-up's coarse steps (the ramped drive law's path), by the
+    fused step (``mechanisms.fused_step``: a run-up's many steps repay its compile)."""
     if getattr(problem, "supports_nonlinear", False) and hasattr(problem, "mechanism"):
         speed = problem.parameters[SPEED]
-        run_up(problem, start=speed, stop=1.1 * speed, duration=4.0 * math.pi / speed, n_steps=WARM_UP_STEPS,
-               mode_steps=8, start_state="linear", curve_points=0, estimate_error=False)
+        with mechanisms.fused_step(True):
+            run_up(problem, start=speed, stop=1.1 * speed, duration=4.0 * math.pi / speed, n_steps=WARM_UP_STEPS,
+                   mode_steps=8, start_state="linear", curve_points=0, estimate_error=False)
 
 
 KIND = register_kind(StudyKind(

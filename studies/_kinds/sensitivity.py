@@ -14,6 +14,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from .._budget import INPUT, NOT_APPLICABLE, NOT_ESTIMATED, ErrorBudget, describe
 from .._derivatives import HEADLINES, headline_errors, point_derivatives
 from .._kind import StudyKind, register_kind
 from .._mechanism import count_keys
@@ -72,9 +73,15 @@ class SensitivityResult(StudyResult):
     tolerances : dict, {name: float}, parameter_units[name]
         The tolerances given (empty without).
     input_band : dict, {headline: {spec: float}}, units[spec]
-        The first-order band of each headline from the tolerances, ``sqrt(sum (dy/dp tol)^2)`` (the input
-        term beside the headline's own numerical error, ``peak_to_peak_error`` etc.; empty without
-        tolerances).
+        The first-order band of each headline from the tolerances, ``sqrt(sum (dy/dp tol)^2)`` (empty
+        without tolerances); the peak-to-peak's and the peak's are the ``input`` term of their budgets.
+    error_budget, peak_error_budget : dict, {spec: {term: float or str}}, units[spec]
+        The error budgets (``studies._budget``) of the peak-to-peak and the peak: "time_step" (N against
+        N/2), "mesh" and "linearisation" "not estimated" here (a mechanism's; "not applicable" for other
+        problems), and with tolerances the input term "input" (the V&V split: reported apart, outside
+        the numerical total, which is ``peak_to_peak_error`` / ``peak_error``).
+    error_methods : dict, {term: str}
+        How each term was estimated, in words.
     rms, rms_error : dict, {spec: float}, units[spec]
         Each observable's RMS over the period and its error.
     peak, peak_error, peak_to_peak, peak_to_peak_error : dict, {spec: float}, units[spec]
@@ -130,11 +137,28 @@ class SensitivityResult(StudyResult):
     peak_error: Mapping[str, float] = field(default_factory=dict)
     peak_to_peak: Mapping[str, float] = field(default_factory=dict)
     peak_to_peak_error: Mapping[str, float] = field(default_factory=dict)
+    error_budget: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    peak_error_budget: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    error_methods: Mapping[str, str] = field(default_factory=dict)
     methods: Mapping[str, str] = field(default_factory=dict)
     steps: Mapping[str, float] = field(default_factory=dict)
     steady_run_time: float = float("nan")
     derivative_run_time: float = float("nan")
     scheme: str = DEFAULT_SCHEME
+
+    @property
+    def budget(self) -> ErrorBudget:
+        """The peak-to-peak's ``error_budget`` as a ``studies._budget.ErrorBudget`` (total, input band)."""
+        return ErrorBudget(self.error_budget, self.error_methods)
+
+    def _filled(self, group: Any) -> dict[str, Any]:
+        """A file written before the budgets: the time step's term and the input band it stored."""
+        if "error_budget" in group.attrs:
+            return {}
+        return {name: _budget_terms(errors, NOT_ESTIMATED, self.input_band.get(headline))
+                for name, errors, headline in (("error_budget", self.peak_to_peak_error, "peak_to_peak"),
+                                               ("peak_error_budget", self.peak_error, "peak"))} | {
+            "error_methods": _budget_methods(NOT_ESTIMATED, bool(self.tolerances))}
 
     def table(self, headline: str = "peak_to_peak") -> Mapping[str, Mapping[str, float]]:
         """{spec: {name: d y / d p}} of ``headline`` ("peak_to_peak", "peak", "rms")."""
@@ -230,6 +254,28 @@ def _check_tolerances(tolerances: Any, names: Sequence[str]) -> dict[str, float]
     return out
 
 
+def _budget_terms(errors: Mapping[str, float], model_terms: str, band: Mapping[str, float] | None
+                  ) -> dict[str, dict[str, Any]]:
+    """{spec: {term: value}}: the time step's ``errors``, the mesh and linearisation ``model_terms``
+    (not estimated, or not applicable), and the input ``band`` {spec: value} where tolerances gave one."""
+    out = {}
+    for spec, error in errors.items():
+        out[spec] = {"time_step": float(error), "mesh": model_terms, "linearisation": model_terms}
+        if band:
+            out[spec][INPUT] = float(band[spec])
+    return out
+
+
+def _budget_methods(model_terms: str, tolerances: bool) -> dict[str, str]:
+    words = ("not estimated at a sensitivity's point (run steady_state there for them)"
+             if model_terms == NOT_ESTIMATED else "not applicable: the problem has no mesh and no linearisation")
+    methods = {"time_step": "N against N/2 steps", "mesh": words, "linearisation": words}
+    if tolerances:
+        methods[INPUT] = ("first-order band sqrt(sum (dy/dp tol)^2) from the tolerances; apart from the "
+                          "numerical total")
+    return methods
+
+
 def _normalised(derivative: float, parameter: float, value: float) -> float:
     return float(derivative * parameter / value) if value and parameter and math.isfinite(derivative) else math.nan
 
@@ -290,6 +336,9 @@ def sensitivity(problem: Any, values: Mapping[str, float] | None = None, *, para
                 f"radius {state.spectral_radius:.6g} is that of a mode the step does not resolve")
         message = f"{message}; {note}" if message else note
     units = dict(zip(specs, linear.units))
+    model_terms = NOT_ESTIMATED if callable(getattr(problem, "mechanism", None)) else NOT_APPLICABLE
+    peak_to_peak_error = {spec: float(summary["peak_to_peak_error"][k]) for k, spec in enumerate(specs)}
+    peak_error = {spec: float(summary["peak_error"][k]) for k, spec in enumerate(specs)}
     return SensitivityResult(
         problem=problem.name, parameters=point.values, scene=problem.text, names=names,
         parameter_units={name: problem.units[name] for name in names}, units=units,
@@ -303,9 +352,10 @@ def sensitivity(problem: Any, values: Mapping[str, float] | None = None, *, para
         tolerances=tolerances, input_band=band, rms=rms,
         rms_error={spec: float(steady.response_error[k]) for k, spec in enumerate(specs)},
         peak={spec: float(summary["peak"][k]) for k, spec in enumerate(specs)},
-        peak_error={spec: float(summary["peak_error"][k]) for k, spec in enumerate(specs)},
-        peak_to_peak=heads["peak_to_peak"],
-        peak_to_peak_error={spec: float(summary["peak_to_peak_error"][k]) for k, spec in enumerate(specs)},
+        peak_error=peak_error, peak_to_peak=heads["peak_to_peak"], peak_to_peak_error=peak_to_peak_error,
+        error_budget=_budget_terms(peak_to_peak_error, model_terms, band.get("peak_to_peak")),
+        peak_error_budget=_budget_terms(peak_error, model_terms, band.get("peak")),
+        error_methods=_budget_methods(model_terms, bool(tolerances)),
         methods=point.methods, steps=point.steps, steady_run_time=point.linear_run_time + steady.run_time,
         derivative_run_time=point.run_time, scheme=scheme)
 
@@ -366,7 +416,12 @@ def _summary(result: SensitivityResult) -> str:
         top = result.ranked(spec)[:3]
         parts.append(f"{spec}: " + ", ".join(f"{name} {value:+.3g}" for name, value in top))
     words = f"{result.status}: {result.message}" if result.message else result.status
-    return f"{words}; d ln(peak-to-peak) / d ln(p): {'; '.join(parts)}; {result.run_time:.3g} s"
+    budget = result.budget
+    bands = [f"{spec} {describe(budget, spec, result.units[spec], terms=False)}" for spec in result.error_budget
+             if not isinstance(budget.input_band(spec), str)]
+    band_words = f"; peak-to-peak errors: {'; '.join(bands)}" if bands else ""
+    return (f"{words}; d ln(peak-to-peak) / d ln(p): {'; '.join(parts)}{band_words}; "
+            f"{result.run_time:.3g} s")
 
 
 def _headlines(result: SensitivityResult) -> Summary:
@@ -377,9 +432,9 @@ def _headlines(result: SensitivityResult) -> Summary:
                                  float(result.derivative_error[spec][name] * abs(
                                      result.parameters[name] / result.peak_to_peak[spec]))
                                  if result.peak_to_peak[spec] and result.parameters[name] else math.nan))
-        if result.input_band:
-            rows.append(Headline(f"input band of p-p({spec})", float(result.input_band["peak_to_peak"][spec]),
-                                 result.units[spec]))
+        band = result.budget.input_band(spec) if spec in result.error_budget else NOT_APPLICABLE
+        if not isinstance(band, str):
+            rows.append(Headline(f"input band of p-p({spec})", float(band), result.units[spec]))
     return Summary(status=result.status, run_time=result.run_time, rows=rows)
 
 

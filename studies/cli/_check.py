@@ -67,9 +67,9 @@ def _scene(changes: dict[str, Any] | None = None, *, drop: tuple[str, ...] = ())
     return mechanisms.build(spec, source=f"{BASE_SCENE} with {changes or {}}")
 
 
-def _steady(mechanism: Any, speed: float | None = None, n_steps: int = 128):
+def _steady(mechanism: Any, speed: float | None = None, n_steps: int = 128, *, budget: bool = True):
     problem = MechanismProblem.from_mechanism(mechanism, observables=[OBSERVABLE])
-    return steady_state(problem, None if speed is None else {"speed": speed}, n_steps=n_steps)
+    return steady_state(problem, None if speed is None else {"speed": speed}, n_steps=n_steps, budget=budget)
 
 
 def _ptp(result: Any) -> float:
@@ -105,15 +105,22 @@ def stiff_axial():
 
 def many_elements():
     """64 Hermite elements on the coupler (bending only, 128 coordinates: the axial ones would only add
-    unresolved stiff modes); reference: the Ritz discretisation, bending only too."""
+    unresolved stiff modes); reference: the Ritz discretisation, bending only too.
+
+    The 64-element steady state carries its time step's error only (``budget=False``): its mesh
+    term would solve the coupler again on 128 elements (256 coordinates: 9 of the 11 s CPU of this
+    case, two thirds of the whole check). Its error bar is then the smaller one (2.8e-5 m against
+    7.1e-5 m with the mesh term), so the comparison is the stricter; the Ritz reference keeps its
+    whole budget (its mesh term is the error of two modes, the one that counts here)."""
     bending = {"links.coupler.axial": False}
     fine = _steady(_scene({"links.coupler.discretisation": {"type": "fem", "n_elements": 64}, **bending}),
-                   60.0, n_steps=128)
+                   60.0, n_steps=128, budget=False)
     ritz = _steady(_scene(bending), 60.0, n_steps=128)
     gap = abs(_ptp(fine) - _ptp(ritz))
     allowed = _error(fine) + _error(ritz) + 0.01 * _ptp(ritz)
     return (fine.status, fine.message,
-            f"{len(fine.labels)} independent coordinates; peak to peak {_ptp(fine):.5g} m at 60 rad/s",
+            f"{len(fine.labels)} independent coordinates; peak to peak {_ptp(fine):.5g} m at 60 rad/s "
+            f"(+- {_error(fine):.2g} m, the time step's error)",
             f"Ritz, 2 bending modes: {_ptp(ritz):.5g} m (difference {gap:.2g}, allowed {allowed:.2g})",
             "ok, unresolved_stiff_mode or inaccurate (the stiff modes spoil the N/4 level), or the unstiffened "
             "coupler's model form, and the Ritz result",

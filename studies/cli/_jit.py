@@ -19,10 +19,11 @@ import math
 import threading
 import time
 import warnings
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 from .._kind import WARM_UP_STEPS, kind_named
 from .._problem import SPEED
+from ._kernel_list import STEADY_STATE_STEP, Helper, compile_listed, first_root, load_list
 
 __all__ = ["CompileClock", "warm_up"]
 
@@ -41,10 +42,12 @@ _MUTED = ("periodic", "mechanisms", "linearize", "studies")
 class CompileClock:
     """Wall time spent compiling numba kernels while it runs (``start()`` ... ``stop()``), from
     numba's ``numba:compile`` events; nested compilations (a kernel's callees) count once, in their
-    caller. ``announce``: log "compiling numerical kernels ..." at the first compilation."""
+    caller. ``announce``: log "compiling numerical kernels ..." at the first compilation;
+    ``on_first()`` is called then too (the warm-up starts its helper process there)."""
 
-    def __init__(self, *, announce: bool = True) -> None:
+    def __init__(self, *, announce: bool = True, on_first: Callable[[], None] | None = None) -> None:
         self.seconds = 0.0
+        self.on_first = on_first
         self.count = 0
         self.announce = announce
         self._depth = 0
@@ -64,6 +67,8 @@ class CompileClock:
                 if clock._depth == 0:
                     if clock.count == 0 and clock.announce:
                         logger.info("compiling numerical kernels (first run only, %s)...", EXPECTED)
+                    if clock.count == 0 and clock.on_first is not None:
+                        clock.on_first()
                     clock._started = time.perf_counter()
                     clock.count += 1
                 clock._depth += 1
@@ -89,25 +94,50 @@ class CompileClock:
         return self.seconds
 
 
+def warm_up_steps(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> list[tuple[str, Any]]:
+    """The warm-up's steps for the declared ``studies``, in order: ``(name, run)``, ``run()`` runs
+    the step's code path on ``problem`` (the linear steady state first, then each kind's own)."""
+    steps: list[tuple[str, Any]] = [(STEADY_STATE_STEP, lambda: _steady_state(problem))]
+    for name in studies:
+        kind = kind_named(name)
+        if kind.warm_up is not None:
+            steps.append((name, lambda hook=kind.warm_up: hook(problem)))
+        elif kind.grid and kind.point is not None:
+            steps.append((name, lambda point=kind.point: _grid_point(problem, point)))
+    return steps
+
+
 def warm_up(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> CompileClock:
     """Compile the kernels the declared ``studies`` ({kind: options}, as ``plan`` gives them) need on
     ``problem``, by running each kind's code path on a tiny grid; returns the running
     :class:`CompileClock` (stop it after the run: compilations the warm-up missed are counted too).
 
     Every run warms up a linear steady state (what every kind builds on); then each kind its own
-    path: its ``warm_up`` hook, or for a grid kind one point. Nothing the warm-up computes is kept;
-    a warm-up run that fails (a tiny grid may not converge) is logged at DEBUG level and skipped, and
-    its kernels compile when the study needs them."""
-    clock = CompileClock().start()
+    path: its ``warm_up`` hook, or for a grid kind one point. Before the steps, the kernels the list
+    names for these steps are compiled on two cores (:mod:`studies.cli._kernel_list`: this process
+    and a helper started at the first kernel that misses the disk cache); the steps then load them.
+    Nothing the warm-up computes is kept; a warm-up run that fails (a tiny grid may not converge) is
+    logged at DEBUG level and skipped, and its kernels compile when the study needs them."""
+    steps = warm_up_steps(problem, studies)
+    helper = Helper([name for name, _ in steps])
+    clock = CompileClock(on_first=helper.start).start()
     started = time.perf_counter()
-    with _muted():
-        _attempt("steady state", _steady_state, problem)
-        for name in studies:
-            kind = kind_named(name)
-            if kind.warm_up is not None:
-                _attempt(name, kind.warm_up, problem)
-            elif kind.grid and kind.point is not None:
-                _attempt(f"a {name} point", _grid_point, problem, kind.point)
+    try:
+        with _muted():
+            listed = load_list(helper.steps)
+            if listed:
+                # the probe: one kernel the code calls; loaded from the cache, the cache is taken as
+                # warm and the steps load what they need (walking the list would load the callees
+                # too, which a kernel loaded from the cache does not need)
+                before = clock.count
+                compile_listed(listed, helper.folder, only=[first_root(listed)], other_alive=helper.alive)
+                if clock.count > before:
+                    compile_listed(listed, helper.folder, other_alive=helper.alive)
+            clock.seconds += helper.wait()   # the helper's share is compile time too
+            for name, run in steps:
+                _attempt(name, run)
+    finally:
+        helper.stop()
     if clock.count:
         logger.info("compiled the numerical kernels in %.0f s (cached for the next runs; "
                     "not counted in the studies' run times)", time.perf_counter() - started)
