@@ -88,6 +88,39 @@ def _constraint_values(q, phi0, h_lin, drive_rows, drive_angles, ct_int, ct_real
 
 
 @numba.njit(cache=True)
+def _newton_update(LU, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p, rhs,
+                   q, v):
+    """One (modified) Newton step on (NR): residual, solve, update ``sddot, lam`` and the positions
+    and velocities ``q = qhat + beta' sddot``, ``v = vhat + gamma' sddot``. Returns the max-norm of
+    the position increment ``beta' |d sddot|``."""
+    n = M.shape[0]
+    r = Phi_s.shape[0]
+    for i in range(n):
+        acc = -Q[i]
+        for j in range(n):
+            acc += M[i, j] * sddot[j]
+        for k in range(r):
+            acc += Phi_s[k, i] * lam[k]
+        rhs[i] = -acc
+    for k in range(r):
+        rhs[n + k] = -Phi[k] / beta_p
+    lapack.solve_rows_lapack(LU, piv, rhs.reshape((1, rhs.shape[0])), False)
+    dq_max = 0.0
+    finite = True
+    for i in range(n):
+        sddot[i] += rhs[i]
+        q[i] = qhat[i] + beta_p * sddot[i]
+        v[i] = vhat[i] + gamma_p * sddot[i]
+        dq_max = max(dq_max, abs(beta_p * rhs[i]))
+        finite = finite and np.isfinite(rhs[i])
+    for k in range(r):
+        lam[k] += rhs[n + k]
+        finite = finite and np.isfinite(rhs[n + k])
+    # max() drops NaN, so report non-finite increments explicitly
+    return dq_max if finite else np.nan
+
+
+@numba.njit(cache=True)
 def _newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, beta_p, gamma_p,
             full_newton, tangent_valid, alpha_m, alpha_f, beta, gamma, abs_tol, max_iterations,
             max_increment, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, ct_int,
@@ -192,30 +225,8 @@ def _newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h,
                 return SINGULAR, tangent_valid, iterations
         sddot_before[:] = sddot
         lam_before[:] = lam
-        # residual of (NR) and the update
-        for i in range(n):
-            acc = -Q[i]
-            for j in range(n):
-                acc += M[i, j] * sddot[j]
-            for k in range(r):
-                acc += Phi_s[k, i] * lam[k]
-            rhs[i] = -acc
-        for k in range(r):
-            rhs[n + k] = -Phi[k] / beta_p
-        lapack.solve_rows_lapack(G, piv, rhs.reshape((1, n + r)), False)
-        dq = 0.0
-        finite = True
-        for i in range(n):
-            sddot[i] += rhs[i]
-            q[i] = qhat[i] + beta_p * sddot[i]
-            v[i] = vhat[i] + gamma_p * sddot[i]
-            dq = max(dq, abs(beta_p * rhs[i]))
-            finite = finite and np.isfinite(rhs[i])
-        for k in range(r):
-            lam[k] += rhs[n + k]
-            finite = finite and np.isfinite(rhs[n + k])
-        if not finite:
-            dq = np.nan
+        # residual of (NR) and the update (the Python iteration's own kernel)
+        dq = _newton_update(G, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p, rhs, q, v)
         counts[0] += 1
         iterations += 1
         theta = dq / prev_dq if (np.isfinite(prev_dq) and prev_dq > 0.0) else 0.0

@@ -62,6 +62,7 @@ import numpy as np
 from periodic import lapack
 
 from . import _alpha_kernel
+from ._alpha_kernel import _newton_update
 from ._parts import ArgumentError
 
 #: Whether a model that offers ``step_kernel()`` (``Model``) is stepped by the fused kernel
@@ -166,39 +167,6 @@ def _max_abs(x):
             if np.isnan(out):
                 return out
     return out
-
-
-@numba.njit(cache=True)
-def _newton_update(LU, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p, rhs,
-                   q, v):
-    """One (modified) Newton step on (NR): residual, solve, update ``sddot, lam`` and the positions
-    and velocities ``q = qhat + beta' sddot``, ``v = vhat + gamma' sddot``. Returns the max-norm of
-    the position increment ``beta' |d sddot|``."""
-    n = M.shape[0]
-    r = Phi_s.shape[0]
-    for i in range(n):
-        acc = -Q[i]
-        for j in range(n):
-            acc += M[i, j] * sddot[j]
-        for k in range(r):
-            acc += Phi_s[k, i] * lam[k]
-        rhs[i] = -acc
-    for k in range(r):
-        rhs[n + k] = -Phi[k] / beta_p
-    lapack.solve_rows_lapack(LU, piv, rhs.reshape((1, rhs.shape[0])), False)
-    dq_max = 0.0
-    finite = True
-    for i in range(n):
-        sddot[i] += rhs[i]
-        q[i] = qhat[i] + beta_p * sddot[i]
-        v[i] = vhat[i] + gamma_p * sddot[i]
-        dq_max = max(dq_max, abs(beta_p * rhs[i]))
-        finite = finite and np.isfinite(rhs[i])
-    for k in range(r):
-        lam[k] += rhs[n + k]
-        finite = finite and np.isfinite(rhs[n + k])
-    # max() drops NaN, so report non-finite increments explicitly
-    return dq_max if finite else np.nan
 
 
 @numba.njit(cache=True)
