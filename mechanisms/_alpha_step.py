@@ -62,7 +62,7 @@ import numpy as np
 from periodic import lapack
 
 from . import _alpha_kernel
-from ._alpha_kernel import _newton_update
+from ._alpha_kernel import _fill_iteration_matrix, _newton_update
 from ._parts import ArgumentError
 
 #: Whether a model that offers ``step_kernel()`` (``Model``) is stepped by the fused kernel
@@ -130,31 +130,6 @@ def _tangent_terms(dMa_ds, dQ_ds, dQ_dv, dPhiTlam_ds, beta_p, gamma_p, out):
         for j in range(n):
             out[i, j] = (beta_p * (dMa_ds[i, j] - dQ_ds[i, j] + dPhiTlam_ds[i, j])
                          - gamma_p * dQ_dv[i, j])
-
-
-@numba.njit(cache=True)
-def _fill_iteration_matrix(M, tangent, Phi_s, out):
-    """The transpose of the Newton matrix of (NR), ``[[M + beta' K_t + gamma' C_t, Phi_s^T],
-    [Phi_s, 0]]``, into ``out`` (n + r, n + r): the matrix in column-major order for LAPACK.
-
-    Returns ``max(1, max_k sum_j |Phi_s[k, j]|)``, the factor from a position error to the
-    constraint residual that the acceptance test allows for."""
-    n = M.shape[0]
-    r = Phi_s.shape[0]
-    for i in range(n):
-        for j in range(n):
-            out[j, i] = M[i, j] + tangent[i, j]
-    row_sum_max = 1.0
-    for k in range(r):
-        row_sum = 0.0
-        for j in range(n):
-            out[n + k, j] = Phi_s[k, j]
-            out[j, n + k] = Phi_s[k, j]
-            row_sum += abs(Phi_s[k, j])
-        row_sum_max = max(row_sum_max, row_sum)
-        for m in range(r):
-            out[n + k, n + m] = 0.0
-    return row_sum_max
 
 
 @numba.njit(cache=True)
