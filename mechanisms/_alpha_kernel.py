@@ -88,6 +88,64 @@ def _constraint_values(q, phi0, h_lin, drive_rows, drive_angles, ct_int, ct_real
 
 
 @numba.njit(cache=True)
+def _fill_iteration_matrix(M, tangent, Phi_s, out):
+    """The transpose of the Newton matrix of (NR), ``[[M + beta' K_t + gamma' C_t, Phi_s^T],
+    [Phi_s, 0]]``, into ``out`` (n + r, n + r): the matrix in column-major order for LAPACK.
+
+    Returns ``max(1, max_k sum_j |Phi_s[k, j]|)``, the factor from a position error to the
+    constraint residual that the acceptance test allows for."""
+    n = M.shape[0]
+    r = Phi_s.shape[0]
+    for i in range(n):
+        for j in range(n):
+            out[j, i] = M[i, j] + tangent[i, j]
+    row_sum_max = 1.0
+    for k in range(r):
+        row_sum = 0.0
+        for j in range(n):
+            out[n + k, j] = Phi_s[k, j]
+            out[j, n + k] = Phi_s[k, j]
+            row_sum += abs(Phi_s[k, j])
+        row_sum_max = max(row_sum_max, row_sum)
+        for m in range(r):
+            out[n + k, n + m] = 0.0
+    return row_sum_max
+
+
+@numba.njit(cache=True)
+def _newton_update(LU, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p, rhs,
+                   q, v):
+    """One (modified) Newton step on (NR): residual, solve, update ``sddot, lam`` and the positions
+    and velocities ``q = qhat + beta' sddot``, ``v = vhat + gamma' sddot``. Returns the max-norm of
+    the position increment ``beta' |d sddot|``."""
+    n = M.shape[0]
+    r = Phi_s.shape[0]
+    for i in range(n):
+        acc = -Q[i]
+        for j in range(n):
+            acc += M[i, j] * sddot[j]
+        for k in range(r):
+            acc += Phi_s[k, i] * lam[k]
+        rhs[i] = -acc
+    for k in range(r):
+        rhs[n + k] = -Phi[k] / beta_p
+    lapack.solve_rows_lapack(LU, piv, rhs.reshape((1, rhs.shape[0])), False)
+    dq_max = 0.0
+    finite = True
+    for i in range(n):
+        sddot[i] += rhs[i]
+        q[i] = qhat[i] + beta_p * sddot[i]
+        v[i] = vhat[i] + gamma_p * sddot[i]
+        dq_max = max(dq_max, abs(beta_p * rhs[i]))
+        finite = finite and np.isfinite(rhs[i])
+    for k in range(r):
+        lam[k] += rhs[n + k]
+        finite = finite and np.isfinite(rhs[n + k])
+    # max() drops NaN, so report non-finite increments explicitly
+    return dq_max if finite else np.nan
+
+
+@numba.njit(cache=True)
 def _newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, beta_p, gamma_p,
             full_newton, tangent_valid, alpha_m, alpha_f, beta, gamma, abs_tol, max_iterations,
             max_increment, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, ct_int,
@@ -168,19 +226,7 @@ def _newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h,
             factorized = False
         if not factorized:
             # the matrix transposed (LAPACK's order) with M and Phi_s fresh, the tangent terms kept
-            phi_scale = 1.0
-            for i in range(n):
-                for j in range(n):
-                    G[j, i] = M[i, j] + tangent[i, j]
-            for k in range(r):
-                row_sum = 0.0
-                for j in range(n):
-                    G[n + k, j] = Phi_s[k, j]
-                    G[j, n + k] = Phi_s[k, j]
-                    row_sum += abs(Phi_s[k, j])
-                phi_scale = max(phi_scale, row_sum)
-                for m in range(r):
-                    G[n + k, n + m] = 0.0
+            phi_scale = _fill_iteration_matrix(M, tangent, Phi_s, G)
             if lapack.factor_lapack(G, piv):
                 pivot_ratio = lapack.pivot_ratio(G)
             else:
@@ -192,30 +238,8 @@ def _newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h,
                 return SINGULAR, tangent_valid, iterations
         sddot_before[:] = sddot
         lam_before[:] = lam
-        # residual of (NR) and the update
-        for i in range(n):
-            acc = -Q[i]
-            for j in range(n):
-                acc += M[i, j] * sddot[j]
-            for k in range(r):
-                acc += Phi_s[k, i] * lam[k]
-            rhs[i] = -acc
-        for k in range(r):
-            rhs[n + k] = -Phi[k] / beta_p
-        lapack.solve_rows_lapack(G, piv, rhs.reshape((1, n + r)), False)
-        dq = 0.0
-        finite = True
-        for i in range(n):
-            sddot[i] += rhs[i]
-            q[i] = qhat[i] + beta_p * sddot[i]
-            v[i] = vhat[i] + gamma_p * sddot[i]
-            dq = max(dq, abs(beta_p * rhs[i]))
-            finite = finite and np.isfinite(rhs[i])
-        for k in range(r):
-            lam[k] += rhs[n + k]
-            finite = finite and np.isfinite(rhs[n + k])
-        if not finite:
-            dq = np.nan
+        # residual of (NR) and the update (the Python iteration's own kernel)
+        dq = _newton_update(G, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p, rhs, q, v)
         counts[0] += 1
         iterations += 1
         theta = dq / prev_dq if (np.isfinite(prev_dq) and prev_dq > 0.0) else 0.0

@@ -62,6 +62,7 @@ import numpy as np
 from periodic import lapack
 
 from . import _alpha_kernel
+from ._alpha_kernel import _fill_iteration_matrix, _newton_update
 from ._parts import ArgumentError
 
 #: Whether a model that offers ``step_kernel()`` (``Model``) is stepped by the fused kernel
@@ -132,31 +133,6 @@ def _tangent_terms(dMa_ds, dQ_ds, dQ_dv, dPhiTlam_ds, beta_p, gamma_p, out):
 
 
 @numba.njit(cache=True)
-def _fill_iteration_matrix(M, tangent, Phi_s, out):
-    """The transpose of the Newton matrix of (NR), ``[[M + beta' K_t + gamma' C_t, Phi_s^T],
-    [Phi_s, 0]]``, into ``out`` (n + r, n + r): the matrix in column-major order for LAPACK.
-
-    Returns ``max(1, max_k sum_j |Phi_s[k, j]|)``, the factor from a position error to the
-    constraint residual that the acceptance test allows for."""
-    n = M.shape[0]
-    r = Phi_s.shape[0]
-    for i in range(n):
-        for j in range(n):
-            out[j, i] = M[i, j] + tangent[i, j]
-    row_sum_max = 1.0
-    for k in range(r):
-        row_sum = 0.0
-        for j in range(n):
-            out[n + k, j] = Phi_s[k, j]
-            out[j, n + k] = Phi_s[k, j]
-            row_sum += abs(Phi_s[k, j])
-        row_sum_max = max(row_sum_max, row_sum)
-        for m in range(r):
-            out[n + k, n + m] = 0.0
-    return row_sum_max
-
-
-@numba.njit(cache=True)
 def _max_abs(x):
     """``max |x_i|`` (0 for an empty array, NaN if any entry is NaN)."""
     out = 0.0
@@ -166,39 +142,6 @@ def _max_abs(x):
             if np.isnan(out):
                 return out
     return out
-
-
-@numba.njit(cache=True)
-def _newton_update(LU, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p, rhs,
-                   q, v):
-    """One (modified) Newton step on (NR): residual, solve, update ``sddot, lam`` and the positions
-    and velocities ``q = qhat + beta' sddot``, ``v = vhat + gamma' sddot``. Returns the max-norm of
-    the position increment ``beta' |d sddot|``."""
-    n = M.shape[0]
-    r = Phi_s.shape[0]
-    for i in range(n):
-        acc = -Q[i]
-        for j in range(n):
-            acc += M[i, j] * sddot[j]
-        for k in range(r):
-            acc += Phi_s[k, i] * lam[k]
-        rhs[i] = -acc
-    for k in range(r):
-        rhs[n + k] = -Phi[k] / beta_p
-    lapack.solve_rows_lapack(LU, piv, rhs.reshape((1, rhs.shape[0])), False)
-    dq_max = 0.0
-    finite = True
-    for i in range(n):
-        sddot[i] += rhs[i]
-        q[i] = qhat[i] + beta_p * sddot[i]
-        v[i] = vhat[i] + gamma_p * sddot[i]
-        dq_max = max(dq_max, abs(beta_p * rhs[i]))
-        finite = finite and np.isfinite(rhs[i])
-    for k in range(r):
-        lam[k] += rhs[n + k]
-        finite = finite and np.isfinite(rhs[n + k])
-    # max() drops NaN, so report non-finite increments explicitly
-    return dq_max if finite else np.nan
 
 
 @numba.njit(cache=True)

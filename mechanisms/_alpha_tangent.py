@@ -11,7 +11,8 @@ import numpy as np
 
 from periodic import lapack
 
-from ._alpha_step import _fill_iteration_matrix, _generalized_alpha_parameters, _lu_factor
+from ._alpha_kernel import _fill_iteration_matrix
+from ._alpha_step import _generalized_alpha_parameters, _lu_factor
 from ._batch import linear_terms_along
 
 
