@@ -182,7 +182,10 @@ def _swap_rows(b, k, p):
             b[p, j] = tmp
 
 
-@numba.njit(cache=True)
+# One explicit signature, compiled (or loaded) at import: a kernel that passes ``transposed`` as a
+# constant would otherwise compile this for ``Literal[bool](False)`` and ``Literal[bool](True)`` apart
+# (one signature each, in the order the callers first compile), which tests/test_jit.py refuses.
+@numba.njit("void(float64[:, ::1], int32[::1], float64[:, ::1], boolean)", cache=True)
 def solve_rows_lapack(lu, pivots, b, transposed):
     """Overwrite the m rows of ``b`` (m, n), C order (LAPACK's column-major (n, m)), with the solutions of
     ``A x = row`` (``A^T x = row`` with ``transposed``: for a matrix S given in C order as it is, ``lu`` holds
