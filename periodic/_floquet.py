@@ -113,6 +113,10 @@ class FloquetResult:
     unresolved_multipliers : ndarray (k,) complex
         The multipliers of the modes the step does not resolve, decreasing modulus (the scheme's
         values, not the system's), reported apart from ``spectral_radius``.
+    eigenvectors : ndarray (s, s) complex or None
+        The Floquet modes at t = 0: column ``j`` the eigenvector of ``Phi`` of ``multipliers[j]``
+        (unit 2-norm, the state ``[x; v[massive]]``); what tells which natural mode a multiplier belongs
+        to (a characteristic frequency is known from its multiplier only modulo ``2 pi / T``).
     """
 
     monodromy: np.ndarray
@@ -136,6 +140,7 @@ class FloquetResult:
     scheme: Scheme
     run_time: float
     unresolved_multipliers: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=complex))
+    eigenvectors: np.ndarray | None = None
 
 
 def floquet(
@@ -156,7 +161,8 @@ def floquet(
     if estimate_error:
         check_quarterable(system.n_steps, "use such an n_steps or estimate_error=False")
     phi, _ = monodromy(system, scheme, particular=False)
-    multipliers, step_rates = analyse_multipliers(phi, system)
+    multipliers, vectors = sorted_eigen(phi)
+    step_rates = step_rates_of(vectors, system)
     errors = coarse = quarter = None
     if estimate_error:
         coarse_system = every_other_sample(system)
@@ -195,6 +201,7 @@ def floquet(
         scheme=scheme,
         run_time=time.perf_counter() - start,
         unresolved_multipliers=unresolved_multipliers(multipliers, step_rates),
+        eigenvectors=vectors,
     )
 
 
@@ -256,21 +263,33 @@ def raise_on_singular(system: PeriodicSystem, status: int) -> None:
 def analyse_multipliers(phi: np.ndarray, system: PeriodicSystem):
     """Multipliers sorted by decreasing modulus, and the step rate ``h |v| / |x|`` of each eigenvector
     (``v`` with the rates of first-order coordinates, from their row equations at t = 0)."""
-    n = system.n_dof
+    values, vectors = sorted_eigen(phi)
+    return values, step_rates_of(vectors, system)
+
+
+def sorted_eigen(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (s,) of ``phi`` in decreasing modulus (complex; real-valued when all are real) and
+    their eigenvectors (s, s), columns in the same order."""
     values, vectors = np.linalg.eig(phi)
     order = np.argsort(-np.abs(values), kind="stable")
     values, vectors = values[order], vectors[:, order]
+    if np.all(values.imag == 0.0):
+        values = values.real.astype(complex)
+    return values, vectors
+
+
+def step_rates_of(vectors: np.ndarray, system: PeriodicSystem) -> np.ndarray:
+    """The step rate ``h |v| / |x|`` (s,) of each eigenvector column of ``vectors`` (s, s) of the
+    monodromy of ``system`` (``v`` with the rates of first-order coordinates, from their row equations
+    at t = 0); inf where ``x`` vanishes."""
+    n = system.n_dof
     norm_x = np.linalg.norm(vectors[:n], axis=0)
     velocities = vectors[n:]
     if system.n_first_order:
         velocities = np.vstack((velocities, start_rates(system) @ vectors))
     norm_v = np.linalg.norm(velocities, axis=0)
-    step = system.step
     with np.errstate(divide="ignore"):
-        rates = np.where(norm_x > 0.0, step * norm_v / np.where(norm_x > 0.0, norm_x, 1.0), np.inf)
-    if np.all(values.imag == 0.0):
-        values = values.real.astype(complex)
-    return values, rates
+        return np.where(norm_x > 0.0, system.step * norm_v / np.where(norm_x > 0.0, norm_x, 1.0), np.inf)
 
 
 def near_resonance(multipliers, step_rates, tol, multiplier_errors=None):

@@ -313,8 +313,8 @@ def grid_radius_mesh(problem: Any, fields: dict[str, np.ndarray], points: Sequen
 
 
 def grid_frequency_mesh(problem: Any, fields: Mapping[str, np.ndarray], points: Sequence[tuple[tuple, Mapping]],
-                        characteristic: np.ndarray, band_mean: np.ndarray, *, n_steps: int, scheme: str
-                        ) -> tuple[np.ndarray | str, str]:
+                        characteristic: np.ndarray, band_mean: np.ndarray, *, n_steps: int, scheme: str,
+                        unfolded_to: np.ndarray | None = None) -> tuple[np.ndarray | str, str]:
     """The mesh term of a Campbell diagram's characteristic frequencies ``characteristic`` (n, 2m)
     rad/s: ``studies._mesh_error.frequency_mesh_error`` at the radius's headline points
     (:func:`headline_points`), each mode's largest relative error among the points where it was
@@ -342,7 +342,7 @@ def grid_frequency_mesh(problem: Any, fields: Mapping[str, np.ndarray], points: 
         found.append(f"{words} {int(known.sum())} of {estimate.error.size}")
     term = np.full(characteristic.shape, np.nan)
     for i in range(characteristic.shape[0]):
-        mode = nearest_rank(characteristic[i], band_mean[i])
+        mode = nearest_rank(characteristic[i] if unfolded_to is None else unfolded_to[i], band_mean[i])
         inside = mode >= 0
         term[i, inside] = shares[mode[inside]] * np.abs(characteristic[i, inside])
     return term, (f"{method}; {MATCHING_WORDS}; at the headline points ({', '.join(found)} frequencies matched), "

@@ -158,6 +158,51 @@ class RadiusMeshError:
 MULTIPLIERS = "multipliers"
 
 
+@dataclass(frozen=True)
+class _MultiplierPlan:
+    """The refinements of a multipliers' mesh term at one point: the point's ``mechanism`` and its
+    ``elastic`` links, the multipliers' declared ``order`` (None: observed from two refinements),
+    ``levels`` (the refined links of each), the problem's ``specs``, the non-speed parameters
+    ``others`` (sorted pairs) and ``speed`` {SPEED: rad/s}."""
+
+    mechanism: Any
+    elastic: list
+    order: float | None
+    levels: list
+    specs: tuple
+    others: tuple
+    speed: dict
+
+
+def _multiplier_plan(problem: Any, values: Mapping[str, float] | None
+                     ) -> tuple[_MultiplierPlan | None, tuple[str, bool]]:
+    """``(plan, ("", True))``, or ``(None, (words, applicable))`` where no mesh term of the multipliers can
+    be had (no mechanism or elastic link: not applicable; a discretisation that cannot be refined:
+    unknown); shared by the radius's and the frequencies' terms."""
+    make_mechanism = getattr(problem, "mechanism", None)
+    if make_mechanism is None:
+        return None, ("not applicable: the problem has no elastic links (no mesh)", False)
+    params = problem.resolve(values)
+    nominal = problem.parameters
+    mechanism = make_mechanism({k: v for k, v in params.items() if k != SPEED and v != nominal[k]})
+    elastic = [link for link in mechanism.links if getattr(link, "discretisation", None) is not None]
+    if not elastic:
+        return None, ("not applicable: the mechanism has no elastic link (no mesh)", False)
+    unknown = _unrefinable(elastic)
+    if unknown:
+        return None, (f"unknown: {unknown}", True)
+    order = _order(elastic, f"{elastic[0].name}.{MULTIPLIERS}", every=MULTIPLIERS)
+    try:
+        levels = [_refined_links(elastic)]
+        if order is None:
+            levels.append(_refined_links(levels[0]))
+    except ValueError as error:
+        return None, (f"unknown: the discretisation cannot be refined: {error}", True)
+    return _MultiplierPlan(mechanism, elastic, order, levels, tuple(problem.describe(values).observables),
+                           tuple(sorted((k, v) for k, v in params.items() if k != SPEED)),
+                           {SPEED: params[SPEED]}), ("", True)
+
+
 def radius_mesh_error(problem: Any, values: Mapping[str, float] | None, *, n_steps: int,
                       scheme: str = DEFAULT_SCHEME, radius: float | None = None) -> RadiusMeshError:
     """The mesh term of the spectral radius of the monodromy of ``problem`` at ``values`` on
@@ -174,28 +219,11 @@ def radius_mesh_error(problem: Any, values: Mapping[str, float] | None, *, n_ste
                                                                    else levels[1]),
                                method, applicable, time.perf_counter() - start)
 
-    make_mechanism = getattr(problem, "mechanism", None)
-    if make_mechanism is None:
-        return answer(math.nan, "not applicable: the problem has no elastic links (no mesh)", False)
-    params = problem.resolve(values)
-    nominal = problem.parameters
-    mechanism = make_mechanism({k: v for k, v in params.items() if k != SPEED and v != nominal[k]})
-    elastic = [link for link in mechanism.links if getattr(link, "discretisation", None) is not None]
-    if not elastic:
-        return answer(math.nan, "not applicable: the mechanism has no elastic link (no mesh)", False)
-    unknown = _unrefinable(elastic)
-    if unknown:
-        return answer(math.nan, f"unknown: {unknown}")
-    order = _order(elastic, f"{elastic[0].name}.{MULTIPLIERS}", every=MULTIPLIERS)
-    try:
-        levels = [_refined_links(elastic)]
-        if order is None:
-            levels.append(_refined_links(levels[0]))
-    except ValueError as error:
-        return answer(math.nan, f"unknown: the discretisation cannot be refined: {error}")
-    specs = tuple(problem.describe(values).observables)
-    others = tuple(sorted((k, v) for k, v in params.items() if k != SPEED))
-    speed = {SPEED: params[SPEED]}
+    plan, why = _multiplier_plan(problem, values)
+    if plan is None:
+        return answer(math.nan, *why)
+    mechanism, elastic, order, levels = plan.mechanism, plan.elastic, plan.order, plan.levels
+    specs, others, speed = plan.specs, plan.others, plan.speed
     try:
         radii = [float(radius) if radius is not None else
                  _radius(_problem_at(problem, others, specs, 0, lambda: mechanism), speed, n_steps, scheme)]
@@ -226,14 +254,17 @@ def _radius(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: str)
 class _Floquet:
     """What the radius's and the frequencies' mesh terms need of one level's monodromy at one speed:
     ``multipliers`` (2m,) and ``resolved`` (2m,) bool (``periodic.floquet``), ``spectral_radius``,
-    ``period`` (s), ``targets`` (m,) rad/s the mean frozen natural frequencies, ascending (None where
-    not asked for: the radius's term needs none)."""
+    ``period`` (s), ``targets`` (m,) rad/s the mean frozen natural frequencies, ascending, and
+    ``unfold_to`` (2m,) rad/s the one of the mode each multiplier belongs to
+    (``studies._numerics.multiplier_modes``; NaN unassigned) (both None where not asked for: the
+    radius's term needs none)."""
 
     multipliers: np.ndarray
     resolved: np.ndarray
     spectral_radius: float
     period: float
     targets: np.ndarray | None
+    unfold_to: np.ndarray | None = None
 
 
 #: Frozen-time samples per period of the mean frozen frequencies the characteristic frequencies of
@@ -248,7 +279,7 @@ def _floquet_at(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: 
     frequencies' terms of a Campbell diagram share each solve."""
     import periodic
 
-    from ._numerics import frozen_modes
+    from ._numerics import frozen_modes, multiplier_modes
 
     key = (id(problem), tuple(sorted(speed.items())), int(n_steps), scheme)
     cached = _FLOQUETS.get(key)
@@ -257,9 +288,14 @@ def _floquet_at(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: 
         return cached[1]
     linear = problem.linearize(speed, n_steps=n_steps, context=False)
     result = periodic.floquet(linear.system, scheme=study_scheme(scheme))
-    targets = np.sort(frozen_modes(linear.system, MESH_FROZEN_SAMPLES)[1].mean(axis=0)) if frozen else None
+    targets = unfold_to = None
+    if frozen:
+        _, frequencies, shapes = frozen_modes(linear.system, MESH_FROZEN_SAMPLES)
+        means = frequencies.mean(axis=0)
+        modes, _ = multiplier_modes(result.eigenvectors, shapes)
+        targets, unfold_to = np.sort(means), np.where(modes >= 0, means[np.clip(modes, 0, means.size - 1)], np.nan)
     found = _Floquet(np.asarray(result.multipliers), np.asarray(result.resolved, dtype=bool),
-                     float(result.spectral_radius), float(linear.system.period), targets)
+                     float(result.spectral_radius), float(linear.system.period), targets, unfold_to)
     _FLOQUETS[key] = (problem, found)   # the problem held: its id cannot be reused while cached
     if len(_FLOQUETS) > 4 * _CACHE_SIZE:
         _FLOQUETS.popitem(last=False)
@@ -290,8 +326,8 @@ MATCHING_WORDS = (f"modes matched by their multipliers: each resolved multiplier
 class FrequencyMeshError:
     """The mesh term of the Floquet characteristic frequencies at one point: ``error`` (2m,) rad/s
     (NaN where unknown: unmatched or unresolved), ``frequencies`` (2m,) rad/s the user's
-    discretisation's (``studies._numerics.characteristic_frequencies``, unfolded to its mean frozen
-    frequencies), ``refined`` (2m,) the matched once-refined ones (NaN unmatched), ``mode`` (2m,) int
+    discretisation's (``studies._numerics.characteristic_frequencies``, each unfolded to the mean
+    frozen frequency of its mode), ``refined`` (2m,) the matched once-refined ones (NaN unmatched), ``mode`` (2m,) int
     the ascending rank of the mean frozen frequency each is unfolded to, ``method`` in words,
     ``applicable`` False without elastic links, ``run_time`` (s)."""
 
@@ -320,28 +356,11 @@ def frequency_mesh_error(problem: Any, values: Mapping[str, float] | None, *, n_
         return FrequencyMeshError(error, frequencies, refined, mode, method, applicable,
                                   time.perf_counter() - start)
 
-    make_mechanism = getattr(problem, "mechanism", None)
-    if make_mechanism is None:
-        return answer("not applicable: the problem has no elastic links (no mesh)", False)
-    params = problem.resolve(values)
-    nominal = problem.parameters
-    mechanism = make_mechanism({k: v for k, v in params.items() if k != SPEED and v != nominal[k]})
-    elastic = [link for link in mechanism.links if getattr(link, "discretisation", None) is not None]
-    if not elastic:
-        return answer("not applicable: the mechanism has no elastic link (no mesh)", False)
-    unknown = _unrefinable(elastic)
-    if unknown:
-        return answer(f"unknown: {unknown}")
-    order = _order(elastic, f"{elastic[0].name}.{MULTIPLIERS}", every=MULTIPLIERS)
-    try:
-        levels = [_refined_links(elastic)]
-        if order is None:
-            levels.append(_refined_links(levels[0]))
-    except ValueError as error:
-        return answer(f"unknown: the discretisation cannot be refined: {error}")
-    specs = tuple(problem.describe(values).observables)
-    others = tuple(sorted((k, v) for k, v in params.items() if k != SPEED))
-    speed = {SPEED: params[SPEED]}
+    plan, why = _multiplier_plan(problem, values)
+    if plan is None:
+        return answer(*why)
+    mechanism, elastic, order, levels = plan.mechanism, plan.elastic, plan.order, plan.levels
+    specs, others, speed = plan.specs, plan.others, plan.speed
     try:
         solved = [_floquet_at(_problem_at(problem, others, specs, 0, lambda: mechanism), speed, n_steps, scheme)]
         solved += [_floquet_at(_problem_at(problem, others, specs, level + 1,
@@ -352,8 +371,8 @@ def frequency_mesh_error(problem: Any, values: Mapping[str, float] | None, *, n_
     from ._numerics import characteristic_frequencies
 
     coarse = solved[0]
-    frequencies = characteristic_frequencies(coarse.multipliers, coarse.period, coarse.targets)
-    mode = nearest_rank(frequencies, coarse.targets)
+    frequencies = characteristic_frequencies(coarse.multipliers, coarse.period, coarse.unfold_to)
+    mode = nearest_rank(coarse.unfold_to, coarse.targets)   # the ascending rank of each one's mode
     upper = [np.where(s.resolved, _upper(s.multipliers), np.nan) for s in solved]
     matched = [upper[0]]
     for found in upper[1:]:

@@ -236,28 +236,73 @@ def unstable_intervals(parameter: np.ndarray, radius: np.ndarray, *, tol: float)
 
 
 def characteristic_frequencies(multipliers: np.ndarray, period: float, targets: np.ndarray) -> np.ndarray:
-    """Floquet characteristic frequencies, unfolded.
+    """Floquet characteristic frequencies, unfolded, each to its own target.
 
     A multiplier ``mu = exp(lam T)`` fixes ``Im lam`` only modulo ``Omega = 2 pi / T``: the candidates
-    are ``|arg mu| / T + k Omega`` and ``-|arg mu| / T + k Omega`` (k integer, kept >= 0). For each
-    multiplier the candidate nearest to any of ``targets`` (rad/s, e.g. the mean frozen natural
-    frequencies) is returned; shape (2m,), rad/s.
+    are ``|arg mu| / T + k Omega`` and ``-|arg mu| / T + k Omega`` (k integer, kept >= 0). Multiplier
+    ``i`` takes the candidate nearest ``targets[i]`` (rad/s: the mean frozen natural frequency of the
+    mode it belongs to, :func:`multiplier_modes`); shape (s,), rad/s, NaN where the target is not
+    finite. (Unfolding each multiplier to the nearest of a pool of targets picks the wrong mode as soon
+    as ``Omega`` is small against the modes' spacing: every multiplier has a candidate within
+    ``Omega / 2`` of every target.)
     """
     omega = 2.0 * math.pi / period
     base = np.abs(np.angle(multipliers)) / period
-    targets = np.asarray(targets)[np.isfinite(targets)]
-    out = np.full(multipliers.shape, np.nan)
-    if targets.size == 0:
-        return out
-    for i, b in enumerate(base):
+    targets = np.broadcast_to(np.asarray(targets, dtype=float), np.shape(multipliers))
+    out = np.full(np.shape(multipliers), np.nan)
+    for i, (b, target) in enumerate(zip(base, targets)):
+        if not math.isfinite(target):
+            continue
         best, best_distance = np.nan, np.inf
         for sign in (1.0, -1.0):
-            for target in targets:
-                k = np.round((target - sign * b) / omega)
-                candidate = sign * b + k * omega
-                if candidate < 0.0:
-                    candidate += omega * np.ceil(-candidate / omega)
-                if abs(candidate - target) < best_distance:
-                    best, best_distance = candidate, abs(candidate - target)
+            candidate = sign * b + np.round((target - sign * b) / omega) * omega
+            if candidate < 0.0:
+                candidate += omega * np.ceil(-candidate / omega)
+            if abs(candidate - target) < best_distance:
+                best, best_distance = candidate, abs(candidate - target)
         out[i] = best
     return out
+
+
+def multiplier_modes(eigenvectors: np.ndarray, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which frozen natural mode each Floquet multiplier belongs to.
+
+    ``eigenvectors`` (s, s) complex: the Floquet modes at t = 0 (``periodic.FloquetResult.eigenvectors``,
+    state ``[x; v]``, positions first); ``shapes`` (n, m): the frozen mode shapes at t = 0
+    (:func:`frozen_modes`), n the first rows of the state. Each Floquet mode's positions are split into
+    the frozen modes (``x = shapes q``) and each frozen mode given the two multipliers (a conjugate
+    pair) with the largest shares ``|q_j|^2 / sum |q|^2`` in one optimal assignment. Returns ``(modes,
+    shares)``: (s,) int, the column of ``shapes`` of each multiplier (-1 where unassigned), and (s,)
+    the share of that mode in the multiplier's Floquet mode (1: a pure frozen mode; below 1/2 the
+    Floquet mode mixes several frozen ones and the mode it is given is the largest of them).
+    """
+    n, m = shapes.shape
+    count = eigenvectors.shape[1]
+    modes, shares = np.full(count, -1, dtype=int), np.zeros(count)
+    try:
+        q = np.linalg.solve(shapes, eigenvectors[:n]) if n == m else np.linalg.lstsq(shapes, eigenvectors[:n],
+                                                                                        rcond=None)[0]
+    except np.linalg.LinAlgError:
+        return modes, shares
+    weight = np.abs(q) ** 2
+    total = weight.sum(axis=0)
+    share = np.divide(weight, total, out=np.zeros_like(weight), where=total > 0.0)   # (m, s)
+    if not np.all(np.isfinite(share)):
+        return modes, shares
+    rows, columns = linear_sum_assignment(-np.repeat(share, 2, axis=0).T)   # each mode twice
+    modes[rows] = columns // 2
+    shares[rows] = share[columns // 2, rows]
+    return modes, shares
+
+
+def pooled_frequencies(multipliers: np.ndarray, period: float, pool: np.ndarray) -> np.ndarray:
+    """Characteristic frequencies (s,) rad/s, each multiplier unfolded to whichever of the targets
+    ``pool`` (k,) rad/s its candidate comes nearest (:func:`characteristic_frequencies`): the unfolding
+    of results saved before :func:`multiplier_modes`, ambiguous where ``2 pi / period`` is small against
+    the targets' spacing; NaN without a finite target."""
+    pool = np.asarray(pool, dtype=float)
+    pool = pool[np.isfinite(pool)]
+    if pool.size == 0:
+        return np.full(np.shape(multipliers), np.nan)
+    each = np.array([characteristic_frequencies(multipliers, period, target) for target in pool])   # (k, s)
+    return each[np.abs(each - pool[:, None]).argmin(axis=0), np.arange(each.shape[1])]

@@ -32,6 +32,8 @@ from .._numerics import (
     characteristic_frequencies,
     crossings,
     frozen_modes,
+    multiplier_modes,
+    pooled_frequencies,
     study_scheme,
     track_modes,
     unstable_intervals,
@@ -91,6 +93,10 @@ class CampbellResult(NoObservables, GridResult):
         The mode shapes at crank angle 0 (columns).
     multipliers, multipliers_coarse : ndarray of complex, (n, 2m), 1
         The Floquet multipliers with N and N/2 steps.
+    multiplier_modes : ndarray, (n, 2m), 1, or None
+        The frozen mode each multiplier belongs to (``studies._numerics.multiplier_modes``: its Floquet
+        mode split into the frozen mode shapes at crank angle 0): a column of ``frozen`` at that speed
+        (-1 unassigned); None in a file written before it.
     spectral_radius, spectral_radius_error : ndarray, (n,), 1
         The spectral radius at each speed and its estimated error.
     spectral_radius_mesh_error : ndarray, (n,), 1, or None
@@ -108,8 +114,9 @@ class CampbellResult(NoObservables, GridResult):
     band_min, band_max, band_mean : ndarray, (n, m), rad/s
         The band of each tracked mode over the crank angle.
     characteristic, characteristic_error : ndarray, (n, 2m), rad/s
-        The Floquet characteristic frequencies unfolded to the nearest frozen mean frequency, and
-        their time-step error (N against N/2).
+        The Floquet characteristic frequencies, each unfolded to the mean frozen frequency of the mode
+        it belongs to (``multiplier_modes``), and their time-step error (N against N/2: the nearest
+        N/2 multiplier unfolded to the same mode).
     characteristic_mesh_error : ndarray, (n, 2m), rad/s, or None
         The frequencies' mesh term (``studies._budget.grid_frequency_mesh``: each mode's relative
         error at the headline speeds, its multipliers matched to the refined model's, applied to its
@@ -130,6 +137,7 @@ class CampbellResult(NoObservables, GridResult):
     shapes: np.ndarray | None = None
     multipliers: np.ndarray | None = None
     multipliers_coarse: np.ndarray | None = None
+    multiplier_modes: np.ndarray | None = None
     spectral_radius: np.ndarray | None = None
     spectral_radius_error: np.ndarray | None = None
     spectral_radius_mesh_error: np.ndarray | None = None
@@ -190,8 +198,8 @@ class CampbellResult(NoObservables, GridResult):
 
     _axes = {"speeds": "speed"}
     _units = {"speeds": "rad/s", "crank_angle": "rad", "frozen": "rad/s", "shapes": "1",
-              "multipliers": "1", "multipliers_coarse": "1", "period": "s", "order": "1",
-              "tracking_mac": "1", "characteristic_error": "rad/s", "characteristic_mesh_error": "rad/s",
+              "multipliers": "1", "multipliers_coarse": "1", "multiplier_modes": "1", "period": "s",
+              "order": "1", "tracking_mac": "1", "characteristic_error": "rad/s", "characteristic_mesh_error": "rad/s",
               "band_min": "rad/s",
               "band_max": "rad/s", "band_mean": "rad/s", "characteristic": "rad/s", "spectral_radius": "1",
               "spectral_radius_error": "1", "spectral_radius_mesh_error": "1", "is_stable": "1", **GridResult._units}
@@ -262,8 +270,10 @@ def campbell_point(problem: Any, values: Mapping[str, float], *, n_steps: int, f
          f"{unresolved} multipliers belong to modes the {n_steps} steps do not resolve (stiff modes; "
          f"refine n_steps to see their characteristic frequencies)" if unresolved else ""),
         radius_verdict(result.spectral_radius, result.spectral_radius_error, error_tolerance)])
+    modes, _ = multiplier_modes(result.eigenvectors, shapes)
     return ({"frozen": frozen, "shapes": shapes, "multipliers": result.multipliers,
-             "multipliers_coarse": result.multipliers_coarse, "spectral_radius": result.spectral_radius,
+             "multipliers_coarse": result.multipliers_coarse, "multiplier_modes": modes.astype(float),
+             "spectral_radius": result.spectral_radius,
              "spectral_radius_error": result.spectral_radius_error, "is_stable": float(result.is_stable),
              "period": linear.system.period, "crank_angle": np.asarray(linear.crank_angle)[index]},
             status, message)
@@ -291,7 +301,8 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
     labels = problem.describe({SPEED: float(grid[0])}).labels
     settings = {"speeds": grid, "n_steps": n_steps, "frozen_samples": frozen_samples,
                 "scene": problem.text, "scheme": scheme, "error_tolerance": error_tolerance}
-    units = {"frozen": "rad/s", "shapes": "1", "multipliers": "1", "multipliers_coarse": "1", "period": "s",
+    units = {"frozen": "rad/s", "shapes": "1", "multipliers": "1", "multipliers_coarse": "1",
+             "multiplier_modes": "1", "period": "s",
              "crank_angle": "rad", "spectral_radius": "1", "spectral_radius_error": "1", "is_stable": "1"}
     header = dict(problem=problem.name, scene=problem.text, labels=labels)
     store = open_store(out, name, grid.shape, CampbellResult, settings, units, header,
@@ -313,22 +324,21 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
         band_min = fields["frozen"].min(axis=1)[rows, order]
         band_max = fields["frozen"].max(axis=1)[rows, order]
         band_mean = fields["frozen"].mean(axis=1)[rows, order]
-        characteristic, characteristic_error = [], []
+        characteristic, characteristic_error, unfolded_to = [], [], []
         for i in range(grid.size):
-            fine = characteristic_frequencies(fields["multipliers"][i], fields["period"][i], band_mean[i])
-            halved = characteristic_frequencies(fields["multipliers_coarse"][i], fields["period"][i],
-                                                band_mean[i])
+            fine, halved, targets = unfold_point(fields, i, band_mean[i])
             characteristic.append(fine)
+            unfolded_to.append(targets)
             # the N/2 difference times the scheme's error factor estimates the error of the N-step value
-            characteristic_error.append(np.array([np.nanmin(np.abs(halved - f)) * error_factor
-                                                  if np.isfinite(f) else np.nan for f in fine]))
+            characteristic_error.append(np.abs(halved - fine) * error_factor)
         characteristic, characteristic_error = np.array(characteristic), np.array(characteristic_error)
         first = fields["shapes"][0]
         mode_labels = _mode_labels(first, labels)
         # the frequencies' mesh term at the radius's headline speeds (first: its refined solves, with
         # their frozen frequencies, serve the radius's term below from the cache)
         frequency_mesh, frequency_method = grid_frequency_mesh(problem, fields, points, characteristic,
-                                                               band_mean, n_steps=n_steps, scheme=scheme)
+                                                               band_mean, n_steps=n_steps, scheme=scheme,
+                                                               unfolded_to=np.array(unfolded_to))
         extra.update(characteristic_mesh_error=None if isinstance(frequency_mesh, str) else frequency_mesh)
         extra.update(order=order, tracking_mac=confidence, band_min=band_min, band_max=band_max,
                      band_mean=band_mean, characteristic=characteristic,
@@ -344,6 +354,29 @@ def campbell(problem: Any, speeds: Sequence[float], *, n_steps: int = 256, froze
     if store is not None:
         result.to_hdf5(store.group)
     return result
+
+
+def unfold_point(fields: Mapping[str, np.ndarray], i: int, band_mean: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The characteristic frequencies (2m,) rad/s at speed ``i`` of a Campbell diagram's ``fields``
+    with N steps and N/2 steps, and the mean frozen frequency (2m,) rad/s each was unfolded to: each
+    multiplier unfolded to the mean frozen frequency of its mode
+    (``multiplier_modes``), each N/2 one the nearest to an N-step multiplier unfolded to that one's
+    mode. Fields without ``multiplier_modes`` (a point saved by an earlier version) unfold to the
+    nearest of the tracked means ``band_mean`` (m,) (ambiguous where the speed is small against the
+    modes' spacing)."""
+    multipliers, coarse, period = fields["multipliers"][i], fields["multipliers_coarse"][i], fields["period"][i]
+    modes = fields.get("multiplier_modes")
+    nearest = np.abs(multipliers[:, None] - coarse[None, :]).argmin(axis=1)
+    if modes is None or not np.all(np.isfinite(modes[i])):
+        fine = pooled_frequencies(multipliers, period, band_mean)
+        targets = fine
+    else:
+        means = fields["frozen"][i].mean(axis=0)
+        column = modes[i].astype(int)
+        targets = np.where(column >= 0, means[np.clip(column, 0, means.size - 1)], np.nan)
+        fine = characteristic_frequencies(multipliers, period, targets)
+    return fine, characteristic_frequencies(coarse[nearest], period, targets), targets
 
 
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
