@@ -47,6 +47,7 @@ __all__ = [
     "OptimizeResult",
     "SensitivityResult",
     "StabilityMargin",
+    "register_constraint",
     "TorqueLimit",
     "optimize",
     "sensitivity",

@@ -35,6 +35,7 @@ from ._kinds.optimize import OptimizeResult as OptimizeResult
 from ._kinds.optimize import StabilityMargin as StabilityMargin
 from ._kinds.optimize import TorqueLimit as TorqueLimit
 from ._kinds.optimize import optimize as optimize
+from ._kinds.optimize import register_constraint as register_constraint
 from ._kinds.run_up import RunUp as RunUp
 from ._kinds.run_up import run_up as run_up
 from ._kinds.sensitivity import SensitivityResult as SensitivityResult

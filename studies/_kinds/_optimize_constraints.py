@@ -4,10 +4,12 @@ meeting it (scaled values >= 0 where met); the evaluator (``_optimize_search``) 
 
 A new constraint: a frozen dataclass with ``name``, ``bound()``, ``needs(problem)`` (the observables
 it reads; it raises for a problem it cannot judge), ``at_speed(evaluator, linear, steady)`` and
-``judged(values, evaluator, parameters)``, and its entry in ``CONSTRAINT_TYPES`` (and a key of the
-scene table in ``constraints_from_table``); optionally ``gradient_at_speed(evaluator, linear, steady,
-point)`` (d at_speed / d parameters from the point's sensitivities, ``studies._derivatives``) and
-``judged_gradient(gradients, evaluator)``, without which the local method takes forward differences.
+``judged(values, evaluator, parameters)``, its scene keys ``TABLE_KEYS`` (the first names it in the
+``constraints`` table, the others are its options) and a classmethod ``from_table(where, table)``,
+decorated :func:`register_constraint` (``studies.register_constraint``, from outside the package too);
+optionally ``gradient_at_speed(evaluator, linear, steady, point)`` (d at_speed / d parameters from the
+point's sensitivities, ``studies._derivatives``) and ``judged_gradient(gradients, evaluator)``, without
+which the local method takes forward differences.
 """
 
 from __future__ import annotations
@@ -26,10 +28,40 @@ from .._problem import SPEED
 
 #: Frozen-time samples per period of the frequency-separation constraint.
 FROZEN_SAMPLES = 32
-#: Keys of the ``constraints`` table.
-CONSTRAINT_KEYS = ("stability_margin", "torque_limit", "mass_budget", "frequency_separation", "max_harmonic")
+
+#: The registered constraint classes, in registration order (:func:`register_constraint`).
+_CONSTRAINTS: list[type] = []
 
 
+def register_constraint(cls: type) -> type:
+    """Register the constraint class ``cls`` (a class decorator; the module docstring says what it
+    declares): its first ``TABLE_KEYS`` entry becomes a key of the ``constraints`` table. Returns
+    ``cls``. A second class claiming a key already taken raises :class:`StudiesError`."""
+    keys = tuple(getattr(cls, "TABLE_KEYS", ()))
+    if not keys or not callable(getattr(cls, "from_table", None)):
+        raise StudiesError(f"register_constraint: expected a class with TABLE_KEYS and from_table(where, table), "
+                           f"got {cls!r}")
+    taken = {key: other for other in _CONSTRAINTS if other is not cls for key in other.TABLE_KEYS}
+    clash = [key for key in keys if key in taken]
+    if clash:
+        raise StudiesError(f"register_constraint: {cls.__name__} claims the key {clash[0]!r} of "
+                           f"{taken[clash[0]].__name__}")
+    if cls not in _CONSTRAINTS:
+        _CONSTRAINTS.append(cls)
+    return cls
+
+
+def constraint_types() -> tuple[type, ...]:
+    """The registered constraint classes."""
+    return tuple(_CONSTRAINTS)
+
+
+def constraint_keys() -> tuple[str, ...]:
+    """Every key of the ``constraints`` table (each registered class's ``TABLE_KEYS``)."""
+    return tuple(key for cls in _CONSTRAINTS for key in cls.TABLE_KEYS)
+
+
+@register_constraint
 @dataclass(frozen=True)
 class StabilityMargin:
     """Spectral radius at most ``1 - margin`` at every speed (``margin`` in [0, 1))."""
@@ -38,6 +70,11 @@ class StabilityMargin:
     name = "stability"
     #: its gradient reads the critical multiplier's derivative
     needs_radius = True
+    TABLE_KEYS = ("stability_margin",)
+
+    @classmethod
+    def from_table(cls, where: str, table: Mapping[str, Any]) -> StabilityMargin:
+        return cls(fraction(where, "constraints.stability_margin", table["stability_margin"]))
 
     def limit(self) -> float:
         return 1.0 - self.margin
@@ -69,6 +106,7 @@ class StabilityMargin:
         return -gradients
 
 
+@register_constraint
 @dataclass(frozen=True)
 class TorqueLimit:
     """Peak total drive torque (N m) at most ``limit`` at every speed, for the drives at ``joints``
@@ -77,6 +115,11 @@ class TorqueLimit:
 
     limit: float
     joints: tuple[str, ...] | None = None
+    TABLE_KEYS = ("torque_limit",)
+
+    @classmethod
+    def from_table(cls, where: str, table: Mapping[str, Any]) -> TorqueLimit:
+        return cls(number(where, "constraints.torque_limit", table["torque_limit"], positive=True))
 
     @property
     def name(self) -> str:
@@ -110,12 +153,18 @@ class TorqueLimit:
         return -gradients / self.limit
 
 
+@register_constraint
 @dataclass(frozen=True)
 class MassBudget:
     """Sum of the links' masses (``density * area * length`` for elastic links; kg) at most ``budget``."""
 
     budget: float
     name = "mass"
+    TABLE_KEYS = ("mass_budget",)
+
+    @classmethod
+    def from_table(cls, where: str, table: Mapping[str, Any]) -> MassBudget:
+        return cls(number(where, "constraints.mass_budget", table["mass_budget"], positive=True))
 
     def bound(self) -> float:
         return self.budget
@@ -136,6 +185,7 @@ class MassBudget:
         return np.array([1.0 - mass / self.budget]), mass
 
 
+@register_constraint
 @dataclass(frozen=True)
 class FrequencySeparation:
     """Every frozen-time natural frequency band (over the crank angle) at least ``fraction * k *
@@ -144,6 +194,13 @@ class FrequencySeparation:
     fraction: float
     max_harmonic: int = 4
     name = "frequency"
+    TABLE_KEYS = ("frequency_separation", "max_harmonic")
+
+    @classmethod
+    def from_table(cls, where: str, table: Mapping[str, Any]) -> FrequencySeparation:
+        return cls(fraction(where, "constraints.frequency_separation", table["frequency_separation"]),
+                   integer(where, "constraints.max_harmonic", table.get("max_harmonic", 4), 1,
+                           maximum=MAX_HARMONIC, why=HARMONIC_WHY))
 
     def bound(self) -> float:
         return self.fraction
@@ -159,29 +216,23 @@ class FrequencySeparation:
         return values - self.fraction, float(values.min())
 
 
-CONSTRAINT_TYPES = (StabilityMargin, TorqueLimit, MassBudget, FrequencySeparation)
-
-
 def constraints_from_table(where: str, table: Mapping[str, Any]) -> tuple:
-    """The constraint objects of a ``constraints`` table (keys ``CONSTRAINT_KEYS``)."""
+    """The constraint objects of a ``constraints`` table (keys: :func:`constraint_keys`), one per
+    registered class whose first key is present; an option key without its constraint's first key is
+    refused."""
+    keys = constraint_keys()
     if not isinstance(table, Mapping):
-        raise StudiesError(f"[{where}] constraints: expected a table with keys {', '.join(CONSTRAINT_KEYS)}, "
-                           f"got {table!r}")
-    reject_unknown(f"{where}.constraints", table, CONSTRAINT_KEYS)
+        raise StudiesError(f"[{where}] constraints: expected a table with keys {', '.join(keys)}, got {table!r}")
+    reject_unknown(f"{where}.constraints", table, keys)
     found: list = []
-    if "stability_margin" in table:
-        found.append(StabilityMargin(fraction(where, "constraints.stability_margin", table["stability_margin"])))
-    if "torque_limit" in table:
-        found.append(TorqueLimit(number(where, "constraints.torque_limit", table["torque_limit"], positive=True)))
-    if "mass_budget" in table:
-        found.append(MassBudget(number(where, "constraints.mass_budget", table["mass_budget"], positive=True)))
-    if "max_harmonic" in table and "frequency_separation" not in table:
-        raise StudiesError(f"[{where}] constraints.max_harmonic: only with frequency_separation")
-    if "frequency_separation" in table:
-        found.append(FrequencySeparation(
-            fraction(where, "constraints.frequency_separation", table["frequency_separation"]),
-            integer(where, "constraints.max_harmonic", table.get("max_harmonic", 4), 1,
-                    maximum=MAX_HARMONIC, why=HARMONIC_WHY)))
+    for cls in _CONSTRAINTS:
+        first, *options = cls.TABLE_KEYS
+        if first in table:
+            found.append(cls.from_table(where, table))
+        else:
+            stray = [key for key in options if key in table]
+            if stray:
+                raise StudiesError(f"[{where}] constraints.{stray[0]}: only with {first}")
     return tuple(found)
 
 
@@ -190,10 +241,10 @@ def check_constraints(constraints: Any) -> tuple:
         return constraints_from_table("optimize", constraints)
     constraints = tuple(constraints)
     for item in constraints:
-        if not isinstance(item, CONSTRAINT_TYPES):
-            raise StudiesError(f"constraints: expected studies.StabilityMargin, TorqueLimit, MassBudget or "
-                               f"FrequencySeparation objects (or a table with keys "
-                               f"{', '.join(CONSTRAINT_KEYS)}), got {item!r}")
+        if type(item) not in _CONSTRAINTS:
+            raise StudiesError(f"constraints: expected objects of the registered constraint classes "
+                               f"({', '.join(cls.__name__ for cls in _CONSTRAINTS)}; studies.register_constraint "
+                               f"adds one) or a table with keys {', '.join(constraint_keys())}, got {item!r}")
     names = [item.name for item in constraints]
     if len(set(names)) != len(names):
         raise StudiesError(f"constraints: at most one of each kind (torque limits: one per set of joints), "

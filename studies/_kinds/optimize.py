@@ -49,7 +49,6 @@ from .._toolkit import (
     steps,
 )
 from ._optimize_constraints import (
-    CONSTRAINT_KEYS,
     FrequencySeparation,
     MassBudget,
     StabilityMargin,
@@ -57,6 +56,7 @@ from ._optimize_constraints import (
     check_constraints,
     constraints_from_table,
     describe,
+    register_constraint,
 )
 from ._optimize_optimum import objective_map, optimum_budget, optimum_check, optimum_peaks
 from ._optimize_search import (
@@ -70,7 +70,7 @@ from ._optimize_search import (
 )
 
 __all__ = ["OptimizeResult", "optimize", "StabilityMargin", "TorqueLimit", "MassBudget", "FrequencySeparation",
-           "CONSTRAINT_KEYS", "default_evaluations"]
+           "register_constraint", "default_evaluations"]
 
 #: The fewest steps per period an optimisation accepts (its steady states' error check uses N/4).
 MIN_STEPS = 16
