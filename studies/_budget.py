@@ -239,6 +239,22 @@ def radius_verdict(radius: float, error: float, tolerance: float, mesh: Any = NO
     return verdict(budget, {"spectral_radius": float(radius)}, tolerance, quantity="spectral radius")
 
 
+def stability_with_mesh(radius: float, error: float, mesh: float) -> tuple[str, str]:
+    """``("marginal", message)`` where a spectral radius the time step alone judged stable (``1 - radius >
+    error + periodic.STABILITY_TOL``, ``error`` its time-step bar) is within its bar widened by the mesh
+    term ``mesh`` of 1: the stability is not decided at this mesh; else ``("ok", "")``."""
+    import periodic
+
+    margin = 1.0 - float(radius)
+    if not (math.isfinite(margin) and math.isfinite(mesh)) or margin <= float(error) + periodic.STABILITY_TOL:
+        return "ok", ""   # unstable or marginal already (the time step's own verdict), or no term
+    if margin > float(error) + float(mesh) + periodic.STABILITY_TOL:
+        return "ok", ""
+    return "marginal", (f"marginal: the spectral radius {float(radius):.6g} is within its error bar of 1 once the "
+                        f"mesh term counts (time step {float(error):.2g} + mesh {float(mesh):.2g}): stability not "
+                        f"decided at this discretisation; refine the elastic links")
+
+
 def radius_budget(error: Any, mesh: Any = None) -> dict[str, dict[str, Any]]:
     """{"spectral_radius": {term: value}}: the budget of a grid's spectral radius from its time-step
     error and its mesh term (arrays of the grid's shape; ``mesh`` None: not estimated, a result
@@ -300,6 +316,9 @@ def grid_radius_mesh(problem: Any, fields: dict[str, np.ndarray], points: Sequen
         _, alone = radius_verdict(radius[index], fields["spectral_radius_error"][index], tolerance)
         status, message = radius_verdict(radius[index], fields["spectral_radius_error"][index], tolerance,
                                          mesh=mesh[index])
+        if str(status_of[index]) not in ("unstable", "marginal"):
+            status, message = combine([(status, message), stability_with_mesh(
+                radius[index], fields["spectral_radius_error"][index], mesh[index])])
         words = str(message_of[index])
         if status == "ok" or message in words:   # ok, or judged already (a resumed grid)
             continue
