@@ -1,7 +1,8 @@
 """Issue 23: result files that detect damage (result format 3, ``studies._integrity``).
 
-64 bytes flipped at 16 offsets of a finished file (12 spread evenly over it, 4 on a grid study's
-point data, a single study's data, the file's own attributes and the global heap of its text):
+64 bytes flipped at 17 offsets of a finished file (12 spread evenly over it, 5 on a grid study's
+point data, a single study's data, the file's own attributes, the global heap of its text and a
+point dataset's attributes):
 ``flexvib info`` either names the damaged study or the file (exit 1, or 2 for a file no longer
 recognisable as HDF5) or the bytes were unused (the file loads to the undamaged numbers); running
 the same command again (with ``--overwrite`` where the run says the file cannot be resumed) ends
@@ -72,11 +73,13 @@ def _offsets(path: Path) -> list[tuple[str, int]]:
     data = path.read_bytes()
     targeted.append(("the file's own attributes", data.index(b"scene_hash")))  # the attribute's name
     targeted.append(("the global heap of the text", data.index(b"GCOL")))  # strings: messages, requests
+    # a point dataset's own attribute (its object header, which the resume reads: not in any digest)
+    targeted.append(("a point dataset's attributes", data.index(b"grid_points")))
     return spread + targeted
 
 
 @pytest.mark.slow
-def test_damage_at_16_offsets_is_found_and_the_rerun_restores_the_undamaged_numbers(undamaged, tmp_path,
+def test_damage_at_17_offsets_is_found_and_the_rerun_restores_the_undamaged_numbers(undamaged, tmp_path,
                                                                                     assert_same):
     source, expected = undamaged
     detected = 0
