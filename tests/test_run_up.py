@@ -211,7 +211,8 @@ def test_very_slow_ramp_reproduces_the_nonlinear_periodic_states(four_bar):
     revolution's peak to peak is the nonlinear periodic state's at its mean speed, within the error
     estimates and a quasi-static lag of 0.1 %, and nearer to it than to the linear one (0.6 % apart)."""
     spec = "coupler.deflection@0.5"
-    result = studies.run_up(four_bar, start=60.0, stop=64.0, duration=8.0, curve_points=0, mode_steps=24)
+    result = studies.run_up(four_bar, start=60.0, stop=64.0, duration=8.0, curve_points=0, mode_steps=24,
+                            modes="full")
     assert result.status == "ok", result.message
     assert result.start_state == "nonlinear periodic state" and "full element models" in result.message
     for k in (result.speed.size // 2, result.speed.size - 2):
