@@ -8,15 +8,17 @@ ramp's mean speed) over the same number of steps of the same ``dt``, with its ow
 (also a run at 2 dt): the ratio says what the ramp, the start orbit, the per-revolution analysis and
 the steady curve add to the integration itself. Medians of ``--repeats`` rounds.
 
-Usage: ``python benchmarks/bench_run_up.py [--revolutions 500] [--repeats 1] [--modes full|auto|N]``
-(``--modes auto``: the run-up on the reduced model, its reduction checks included in its time; the
-baseline stays the full model's ``simulate``.)
+Usage: ``python benchmarks/bench_run_up.py [--revolutions 500] [--repeats 1] [--modes auto|full|N]``
+(``--modes auto``, the run-up's default: the run-up on the reduced model, its reduction checks included
+in its time; the baseline stays the full model's ``simulate``.) Wall and CPU times (``time.process_time``,
+this process) are printed with the load average: on a shared machine the CPU time is the steadier.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
 import time
 
@@ -33,7 +35,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--start", type=float, default=50.0)
     parser.add_argument("--stop", type=float, default=150.0)
-    parser.add_argument("--modes", default="full", help="the run-up's model: full, auto or a mode count")
+    parser.add_argument("--modes", default="auto", help="the run-up's model: auto (default), full or a mode count")
     args = parser.parse_args()
     modes = int(args.modes) if args.modes.isdigit() else args.modes
     problem = studies.MechanismProblem.from_scene("four_bar_fem4")
@@ -43,15 +45,19 @@ def main() -> None:
     studies.run_up(problem, start=args.start, stop=1.05 * args.start, duration=0.1, curve_points=2)
     mechanism = mechanisms.load("four_bar_fem4")
     model = mechanisms.integrated_model(mechanism)
-    study_times, baseline_times = [], []
+    study_times, baseline_times, study_cpu, baseline_cpu, loads = [], [], [], [], []
     result = None
     for _ in range(args.repeats):
-        started = time.perf_counter()
+        loads.append(os.getloadavg()[0])
+        started, cpu = time.perf_counter(), time.process_time()
         result = studies.run_up(problem, start=args.start, stop=args.stop, duration=duration, modes=modes)
         study_times.append(time.perf_counter() - started)
-        started = time.perf_counter()
+        study_cpu.append(time.process_time() - cpu)
+        started, cpu = time.perf_counter(), time.process_time()
         mechanisms.simulate(model, t_end=duration, dt=result.dt, observables=[SPEC], estimate_error=True)
         baseline_times.append(time.perf_counter() - started)
+        baseline_cpu.append(time.process_time() - cpu)
+    loads.append(os.getloadavg()[0])
     study, baseline = statistics.median(study_times), statistics.median(baseline_times)
     n_steps = int(round(duration / result.dt))
     print(f"run-up four_bar_fem4 {args.start:g} -> {args.stop:g} rad/s, {result.speed.size} revolutions in "
@@ -75,6 +81,9 @@ def main() -> None:
           f"measured / estimated = {study / guess.time:.2f}")
     print(f"baseline mechanisms.simulate at constant speed, same steps and error estimate: {baseline:.2f} s; "
           f"study / baseline = {study / baseline:.2f}")
+    cpu, cpu_baseline = statistics.median(study_cpu), statistics.median(baseline_cpu)
+    print(f"CPU (median of {args.repeats}): study {cpu:.2f} s, baseline {cpu_baseline:.2f} s, study / baseline = "
+          f"{cpu / cpu_baseline:.2f}; load average (1 min) {min(loads):.2f}-{max(loads):.2f}")
 
 
 if __name__ == "__main__":

@@ -36,7 +36,8 @@ so that the iteration matrix
 stays O(1) as h -> 0 instead of having rows of size O(h^2). ``M`` and ``Phi_s`` are evaluated for
 the residual at every iteration anyway, so the matrix is refactorised with them once per step; the
 tangent terms ``beta' K_t + gamma' C_t`` (the model's analytic derivatives) are kept across steps
-while the iteration contracts by 1/4 or better, and re-evaluated when it does not (modified Newton).
+while the iteration contracts by 1/4 or better, and re-evaluated when it does not (modified Newton)
+or when the previous step took more than ``REFRESH_AFTER_ITERATIONS`` iterations.
 
 Robustness (coarse grids, stiff geometrically nonlinear links, approximately consistent starts): an
 increment that grows while the matrix is not the Jacobian at the current iterate is undone and
@@ -77,6 +78,14 @@ FUSED_STEP = "auto"
 #: run on a cold cache (the main job's nonlinear check) keeps the Python iteration, so the first
 #: run's compile time does not grow by it; once compiled (a long run, a run-up), every run uses it.
 FUSED_COMPILE_STEPS = 20000
+#: A step that took more iterations than this starts the next one with fresh tangent terms (the
+#: Jacobian at its predictor) instead of the kept ones. From a kept tangent that still contracts
+#: well a step takes two iterations (an increment and the one below ``tol`` that confirms it); a
+#: third says the kept terms have gone stale, and the next step, much like this one, would repeat
+#: that with them. On four_bar_fem4's run-up (benchmarks/bench_run_up.py) the runs at dt, 2 dt and
+#: 4 dt took 2.9, 4.4 and 8.2 iterations a step with the tangent kept across steps and 2.4, 3.3
+#: and 5.7 with this rule, 0.69-0.77 of their CPU time (docs/benchmarks.md, session 8).
+REFRESH_AFTER_ITERATIONS = 2
 
 
 @contextlib.contextmanager
@@ -203,6 +212,7 @@ class _Stepper:
         self.tangent = np.empty((n, n))
         self.piv = np.empty(n + r, dtype=np.int32)
         self.tangent_h = None      # the step the kept tangent terms were scaled with, or None
+        self.last_iterations = 0   # Newton iterations of the last step solved (all its attempts)
         self.residual = np.nan     # max |Phi| at the last converged solve
         self._counts = {"n_newton": 0, "n_jacobian": 0, "n_factorizations": 0}   # Python iteration's
         self.min_pivot_ratio = np.inf
@@ -237,8 +247,9 @@ class _Stepper:
         alpha_m, alpha_f, beta, gamma = self.alpha_m, self.alpha_f, self.beta, self.gamma
         beta_p = h * h * beta * (1.0 - alpha_f) / (1.0 - alpha_m)
         gamma_p = h * gamma * (1.0 - alpha_f) / (1.0 - alpha_m)
-        if self.tangent_h != h:
+        if self.tangent_h != h or self.last_iterations > REFRESH_AFTER_ITERATIONS:
             self.tangent_h = None
+        iterations_before = self._counts["n_newton"] + int(self.kernel_counts[0])
         self.t = t
         if self.lags is not None:
             self.lags.begin(h)
@@ -254,11 +265,12 @@ class _Stepper:
             if not failure:
                 if full_newton:
                     self.tangent_h = None
-                return ""
+                break
             self.tangent_h = None
             if full_newton and not extrapolate:
                 break           # the retry would repeat this attempt exactly
             extrapolate, full_newton = False, True
+        self.last_iterations = self._counts["n_newton"] + int(self.kernel_counts[0]) - iterations_before
         return failure
 
     def _fused_newton(self, q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, t, h,

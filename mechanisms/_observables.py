@@ -111,6 +111,29 @@ class LinkObservable(OfCoordinates):
             return float(du @ q + 0.5 * weights @ (slopes @ q) ** 2)
         return float(self.flexural_rigidity * (ddw @ q))
 
+    def values_along(self, s) -> np.ndarray:
+        """``value`` at each row of ``s`` (K, n) at once: (K,) (a nonlinear run's samples; the same
+        formulas, to round-off)."""
+        s = np.asarray(s, dtype=float)
+        if s.ndim != 2 or s.shape[1] != self.n_coords:
+            raise ArgumentError(f"s must have shape (K, {self.n_coords}); received shape {s.shape}")
+        if self.kind == "angle":
+            return s[:, self.theta_index].copy()
+        q = s[:, self.coords][:, 3:]
+        u, w, du, dw, ddw, u_tip, w_tip = self.rows
+        if self.kind == "deflection":
+            cx, cy = self.length + q @ u_tip, q @ w_tip
+            px, py = self.x + q @ u, q @ w
+            return (cx * py - cy * px) / np.hypot(cx, cy)
+        if self.kind == "transverse":
+            return q @ w
+        if self.kind == "strain":
+            if not self.membrane:
+                return q @ du
+            weights, slopes = self.membrane
+            return q @ du + 0.5 * ((q @ slopes.T) ** 2) @ weights
+        return self.flexural_rigidity * (q @ ddw)
+
     def gradient(self, s) -> np.ndarray:
         s, q = self._q(s)
         out = np.zeros(self.n_coords)

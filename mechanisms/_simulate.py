@@ -223,6 +223,16 @@ def _initial_state(model, nominal, s0, sdot0, t0: float):
     return s_start, v_start
 
 
+def _values_along(evaluator, s):
+    """An observable's values (K,) at the run's samples ``s`` (K, n): at once where it offers
+    ``values_along`` (the built-in quantities of a link; about 5 us a sample in Python otherwise),
+    else sample by sample."""
+    along = getattr(evaluator, "values_along", None)
+    if along is not None:
+        return np.asarray(along(s), dtype=float)
+    return np.array([evaluator.value(q) for q in s])
+
+
 def _check_consistency(model, q, v, t, length_scale):
     """Raise if the initial state violates the position or velocity constraints."""
     phi = np.asarray(model.constraints(q, t), dtype=np.float64)
@@ -359,7 +369,7 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
     n_lags = len(getattr(model, "lag_names", ()))
     lag0 = None if lag0 is None else _as_vector(lag0, n_lags, "lag0")
     run = _integrate(model, q0, v0, t0, h, n_steps, *options, lag0=lag0)
-    obs = {spec: np.array([ev.value(q) for q in run["s"]]) for spec, ev in evaluators.items()}
+    obs = {spec: _values_along(ev, run["s"]) for spec, ev in evaluators.items()}
     obs_error: dict[str, float] = {}
     if estimate_error and run["status"] == 0 and n_steps < 2:
         run["message"] += " No error estimate: a single step has no coarser grid to compare with."
@@ -371,7 +381,7 @@ def simulate(system: Any, *, t_end: float | None = None, n_periods: float | None
                                f"({coarse['message']})")
         else:
             for spec, ev in evaluators.items():
-                o_coarse = np.array([ev.value(q) for q in coarse["s"]])
+                o_coarse = _values_along(ev, coarse["s"])
                 # Richardson for an order-2 method: e_h ~ (o_h - o_2h) / (2^2 - 1)
                 fine = obs[spec][::2][:o_coarse.size]
                 obs_error[spec] = float(np.max(np.abs(fine - o_coarse)) / 3.0)

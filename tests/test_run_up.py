@@ -211,7 +211,8 @@ def test_very_slow_ramp_reproduces_the_nonlinear_periodic_states(four_bar):
     revolution's peak to peak is the nonlinear periodic state's at its mean speed, within the error
     estimates and a quasi-static lag of 0.1 %, and nearer to it than to the linear one (0.6 % apart)."""
     spec = "coupler.deflection@0.5"
-    result = studies.run_up(four_bar, start=60.0, stop=64.0, duration=8.0, curve_points=0, mode_steps=24)
+    result = studies.run_up(four_bar, start=60.0, stop=64.0, duration=8.0, curve_points=0, mode_steps=24,
+                            modes="full")
     assert result.status == "ok", result.message
     assert result.start_state == "nonlinear periodic state" and "full element models" in result.message
     for k in (result.speed.size // 2, result.speed.size - 2):
@@ -305,3 +306,19 @@ def test_steady_curves_of_the_exactly_linear_arm(arm):
     assert np.all(np.abs(nonlinear - exact) <= 3 * result.curve_error[TIP] + 1e-3 * exact), (nonlinear, exact)
     verdicts = _only_the_model_form_verdict(result, 14.0)
     assert "no error estimate (estimate_error = false)" in verdicts   # as asked
+
+
+def test_the_prescribed_drive_s_torque_series_is_each_sample_s_drive_torque():
+    """The run-up's torque series of a prescribed drive, minus its multiplier read off the run at once,
+    is each sample's ``Model.drive_torques`` (the per-sample path a torque drive keeps), exactly."""
+    from studies._kinds._run_up_revolutions import torques
+
+    model = mechanisms.integrated_model(mechanisms.four_bar(n_elements=1)).with_drive_profiles(
+        lambda drive: mechanisms.SpeedRamp(drive.rate, 1.2 * drive.rate, 0.05))
+    run = mechanisms.simulate(model, t_end=0.02, dt=2e-4, estimate_error=False)
+    joint = model.mechanism.drives[0].joint
+    expected = np.array([model.drive_torques(s, v, t, lam)[0] for s, v, t, lam in zip(run.s, run.sdot, run.t, run.lam)])
+    series = torques(model, run, joint)
+    assert series.shape == run.t.shape and np.ptp(series) > 0.0
+    np.testing.assert_array_equal(series, expected)
+    np.testing.assert_array_equal(torques(model, run), expected)

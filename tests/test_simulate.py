@@ -821,3 +821,22 @@ def test_six_bar_stays_close_to_the_linear_solution():
     dev, amp, err, nominal = _against_linear(mechanisms.six_bar(crank_speed=60.0), spec, 256)
     assert dev <= 0.02 * amp + 3.0 * err, (dev, amp, err)
     assert np.max(nominal.constraint_residual) < 1e-10 * 3.0 * 3.0
+
+
+def test_a_link_observable_s_values_along_a_run_are_its_value_at_each_sample():
+    """``values_along`` (simulate's evaluation of a run's observables at once) against ``value`` sample by
+    sample, for every kind of a link's quantity, with and without the stiffened link's membrane strain."""
+    for scene, stiffened in (("four_bar_fem4", True), ("four_bar_fem1", False)):
+        mechanism = mechanisms.load(scene)
+        if not stiffened:
+            mechanism = mechanism.with_parameter("links.coupler.geometric_stiffening", False)
+        model = mechanisms.integrated_model(mechanism)
+        run = mechanisms.simulate(model, t_end=0.01, dt=2e-4, estimate_error=False)
+        for kind in ("deflection@0.5", "transverse@0.3", "strain@0.25", "moment@0.5", "angle"):
+            observable = model.observable(f"coupler.{kind}")
+            expected = np.array([observable.value(s) for s in run.s])
+            along = observable.values_along(run.s)
+            assert along.shape == expected.shape and np.ptp(expected) > 0.0
+            np.testing.assert_allclose(along, expected, rtol=1e-12, atol=1e-15 * np.abs(expected).max())
+        with pytest.raises(mechanisms.ArgumentError, match=r"s must have shape \(K, "):
+            observable.values_along(run.s[0])

@@ -162,8 +162,14 @@ def analysed(model, linear, drive, start, specs, dt, options) -> Analysis:
     return Analysis(run, phase, response, times, speed, ptp, peak, tail, tail_start)
 
 
-def torques(model, run) -> np.ndarray:
-    """The first drive's torque (n_t,) N m along ``run``."""
+def torques(model, run, joint=None) -> np.ndarray:
+    """The first drive's torque (n_t,) N m along ``run``: a prescribed drive's at ``joint`` is minus
+    its multiplier (its constraint row ``drive:<joint>``, ``mechanisms.ConstrainedModel``), read off
+    the run's at once; otherwise each sample's ``drive_torques`` (the law as applied, the lags' states)."""
+    label = f"drive:{joint}"
+    lagged = run.lag_states is not None and run.lag_states.size and joint in getattr(model, "lag_joints", ())
+    if joint is not None and label in model.constraint_labels and not lagged:
+        return -np.asarray(run.lam, dtype=float)[:, list(model.constraint_labels).index(label)]
     lags = run.lag_states if run.lag_states is not None and run.lag_states.size else [None] * len(run.t)
     return np.array([model.drive_torques(sk, vk, tk, lk, lag_states=yk)[0]
                      for sk, vk, tk, lk, yk in zip(run.s, run.sdot, run.t, run.lam, lags)])

@@ -343,9 +343,8 @@ def _start(problem, values, start, steps_at_start, start_state):
             return linear, lin.nominal.s[0], lin.nominal.sdot[0], None, "rest", []
         steady, verdicts = solve_steady(linear), []
     else:
-        # the full element models, the model the run integrates: a state of a reduced model is not
-        # a state of the run's (other coordinates), and the run's reduction error through a range of
-        # speeds and resonances is not what the reduction check at one steady state measures
+        # on the model the run integrates (reduced or full): a state of another model is not a
+        # state of the run's (other coordinates)
         setup = shooting_setup(problem, point, steps_at_start)
         linear, steady, fine = setup.linear, setup.steady, setup.fine
         lin = linear.context
@@ -373,7 +372,7 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
            mode_steps: int = MODE_STEPS, max_harmonic: int = MAX_HARMONIC, start_state: str = "nonlinear",
            curve_points: int = CURVE_POINTS, curve_steps: int = 128, nonlinear_curve: bool = False,
            estimate_error: bool = True, rho_inf: float = 0.8, tol: float = TOL, run_down: str = "ramp",
-           modes: Any = "full") -> RunUp:
+           modes: Any = "auto") -> RunUp:
     """The full nonlinear model (``mechanisms.simulate``) while the speed goes from ``start`` to
     ``stop`` (rad/s, ``start > stop`` runs it down, ``stop = 0`` to a standstill) over ``duration``
     (s) along ``profile`` (a ramp shape of ``mechanisms.RAMP_SHAPES``: ``"linear"``, ``"smooth"``),
@@ -402,12 +401,13 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     states (``curve_steps`` steps each) between the speeds give the steady curve
     (``nonlinear_curve``: the nonlinear periodic states too).
 
-    The run and its start are on the scene's full element models by default (``modes = "full"``);
-    ``modes = "auto"`` (or a count) runs them on the reduced model ``nonlinear_steady_state`` chooses
-    at ``start`` (``studies._kinds._nonlinear_model``), its reduction check repeated at the ramp's
-    other end and at each resonance in its range, the largest twice as the stated reduction error
-    (``reduction_error``; above a tenth of a peak to peak ``inaccurate``). The nonlinear curve stays
-    on the full models.
+    By default (``modes = "auto"``) the run and its start are on the reduced model
+    ``nonlinear_steady_state`` chooses at ``start`` (``studies._kinds._nonlinear_model``: the fewest
+    modes its reduction check accepts, else the full element models), its reduction check repeated at
+    the ramp's other end and at each resonance in its range, the largest twice as the stated
+    reduction error (``reduction_error``, in each headline's error beside the time step's; above a
+    tenth of a peak to peak ``inaccurate``); ``modes = "full"`` runs the scene's element models, a
+    count reduces to that many modes. The nonlinear curve stays on the full models.
 
     Observables are those of the problem that are functions of the coordinates (deflections, strains,
     moments, angles); the drive torque is reported as its own time series. A run that fails gives
@@ -470,7 +470,7 @@ def run_up(problem: Any, values: Mapping[str, float] | None = None, *, start: fl
     setup_time = time.perf_counter() - clock
     fine = analysed(ramped, linear, drives[0], start, specs, dt, options)
     run, speed, ptp, peak = fine.run, fine.speed, fine.peak_to_peak, fine.peak
-    torque = torques(ramped, run)
+    torque = torques(ramped, run, drives[0].joint)
     n_rev = speed.size
     ptp_error = {spec: np.full(n_rev, np.nan) for spec in specs}
     peak_error = {spec: np.full(n_rev, np.nan) for spec in specs}
@@ -592,9 +592,9 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
 
 
 def _modes_option(where: str, table: Mapping[str, Any]) -> Any:
-    """The table's ``modes`` (default "full": the run-up's, not ``nonlinear_steady_state``'s "auto")."""
+    """The table's ``modes`` (default "auto", as ``nonlinear_steady_state``'s)."""
     try:
-        return check_modes(table.get("modes", "full"))
+        return check_modes(table.get("modes", "auto"))
     except StudiesError as error:
         raise StudiesError(f"[{where}] {error}") from None
 
@@ -662,12 +662,14 @@ def run_up_cost(name, problem, options, workers):
 
 def _warm_up(problem: Any) -> None:
     """Two revolutions of a run-up on the warm-up's coarse steps (the ramped drive law's path), by the
-    fused step (``mechanisms.fused_step``: a run-up's many steps repay its compile)."""
+    fused step (``mechanisms.fused_step``: a run-up's many steps repay its compile), on the full
+    element models: a reduced model runs the same kernels, and its reduction check is a linear
+    study's."""
     if getattr(problem, "supports_nonlinear", False) and hasattr(problem, "mechanism"):
         speed = problem.parameters[SPEED]
         with mechanisms.fused_step(True):
             run_up(problem, start=speed, stop=1.1 * speed, duration=4.0 * math.pi / speed, n_steps=WARM_UP_STEPS,
-                   mode_steps=8, start_state="linear", curve_points=0, estimate_error=False)
+                   mode_steps=8, start_state="linear", curve_points=0, estimate_error=False, modes="full")
 
 
 KIND = register_kind(StudyKind(
