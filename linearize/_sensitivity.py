@@ -31,8 +31,8 @@ import numpy as np
 
 import periodic
 
-__all__ = ["CENTRAL_STEP", "FORWARD_STEP", "analytic_derivative", "coefficient_derivative", "keeps_configuration",
-           "parameter_step"]
+__all__ = ["CENTRAL_STEP", "FORWARD_STEP", "analytic_derivative", "analytic_maps", "coefficient_derivative",
+           "keeps_configuration", "moves_maps", "parameter_step"]
 
 #: Relative step of a forward difference (parameters that leave the kinematics alone).
 FORWARD_STEP = 1e-6
@@ -81,23 +81,142 @@ def coefficient_derivative(plus: periodic.PeriodicSystem, minus: periodic.Period
 def analytic_derivative(linearized, path: str) -> periodic.SystemDerivative | None:
     """The coefficients' derivative of the ``linearize.LinearizedMechanism`` ``linearized`` with respect
     to the scene parameter ``path`` in closed form, or None where no part carries it (the caller then
-    differences linearisations): ``links.<link>.damping.<key>`` through the link's damping kind's
-    ``matrix_derivative(key, link, M_ee, K_ee)`` (module docstring)."""
-    parts = path.split(".")
+    differences linearisations): a link's damping ``links.<link>.damping.<key>`` (its kind's
+    ``matrix_derivative``), its Young's modulus ``links.<link>.youngs_modulus`` (``K_ee / E`` and the
+    damping kind's ``modulus_derivative``) and a controller's gain ``controllers.<name>.<key>`` (its
+    ``law_derivative``); module docstring.  The observables' maps of the last two move with the
+    parameter too: ``analytic_maps``."""
     mechanism = getattr(linearized, "mechanism", None)
-    if len(parts) != 4 or parts[0] != "links" or parts[2] != "damping" or mechanism is None:
+    if mechanism is None:
         return None
+    parts = path.split(".")
+    if parts[0] == "links" and len(parts) in (3, 4):
+        return _link_derivative(linearized, mechanism, parts)
+    if parts[0] == "controllers" and len(parts) == 3:
+        return _controller_derivative(linearized, mechanism, parts[1], parts[2])
+    return None
+
+
+def _moved_specs(linearized, path: str) -> list[str]:
+    """The observables whose maps the parameter ``path`` of ``analytic_derivative`` moves: for a
+    Young's modulus every one (a stress or moment is ``E`` times a curvature or an axial strain, with no
+    nominal part where the link has axial coordinates), for a controller's gain the totals (forces and
+    torques: ``ObservableMap.total``; a deviation of the coordinates is the gain's through ``z`` alone),
+    for a link's damping none."""
+    parts = path.split(".")
+    if parts[0] == "links" and len(parts) == 3 and parts[2] == "youngs_modulus":
+        return list(linearized.observable_maps)
+    if parts[0] == "controllers" and len(parts) == 3:
+        return [spec for spec, found in linearized.observable_maps.items() if found.total]
+    return []
+
+
+def moves_maps(linearized, path: str) -> bool:
+    """Whether the parameter ``path`` of ``analytic_derivative`` moves some of ``linearized``'s
+    observable maps (``analytic_maps``): a Young's modulus (stresses, moments) or a controller's gain
+    where a force or torque is observed; a link's damping moves none."""
+    return bool(_moved_specs(linearized, path))
+
+
+def analytic_maps(linearized, path: str, mechanism) -> dict:
+    """The observable maps {spec: ``ObservableMap``} of ``linearized``'s observables that the parameter
+    ``path`` of ``analytic_derivative`` may move (``moves_maps``), for ``mechanism`` (``linearized``'s
+    with ``path`` at a neighbouring value), on ``linearized``'s nominal motion and coefficients: a gain
+    or ``E`` leaves the multipliers' maps alone (``analytic_derivative`` declines where it would not);
+    {} where none move.  Each map is affine in the gains and in ``E``, so the line through the point's
+    and these is exact."""
+    specs = _moved_specs(linearized, path)
+    if not specs:
+        return {}
+    import mechanisms
+
+    from ._about import _model_with_feedforward, _nominal_maps
+
+    model = _model_with_feedforward(mechanism, linearized.nominal)
+    if model is linearized.nominal.model:      # prescribed drives: the point's own model
+        model = mechanisms.assemble(mechanism)
+    return _nominal_maps(model, specs, linearized.nominal, linearized.coefficients)
+
+
+def _elastic_projection(linearized, layout, d_damping, d_stiffness) -> periodic.SystemDerivative:
+    """``dC = V^T dD V``, ``dK = V^T (dD V' + dK V)`` of changes ``d_damping``, ``d_stiffness``
+    (n_e, n_e or None) of one link's elastic block: independent coordinates, so ``V`` is a selection
+    there and the multipliers' maps (dependent rows) do not move."""
+    c = linearized.coefficients
+    basis, rate = c.V[:, layout.elastic, :], c.Vdot[:, layout.elastic, :]   # (N+1, n_e, m)
+    transposed = np.swapaxes(basis, 1, 2)
+    damping = stiffness = None
+    if d_damping is not None:
+        projected = transposed @ np.asarray(d_damping, dtype=float)         # V^T dD on the link's rows
+        damping, stiffness = projected @ basis, projected @ rate
+    if d_stiffness is not None:
+        block = transposed @ np.asarray(d_stiffness, dtype=float) @ basis
+        stiffness = block if stiffness is None else stiffness + block
+    return periodic.SystemDerivative(C=damping, K=stiffness, log_period=0.0)
+
+
+def _link_derivative(linearized, mechanism, parts) -> periodic.SystemDerivative | None:
+    """``links.<link>.damping.<key>`` and ``links.<link>.youngs_modulus`` of an elastic link."""
     link = next((item for item in mechanism.links if item.name == parts[1]), None)
     layout = linearized.nominal.model.layouts.get(parts[1]) if link is not None else None
-    if layout is None or layout.shapes is None or getattr(link, "damping", None) is None:
+    if layout is None or layout.shapes is None:
         return None
     import mechanisms
 
     m_ee, k_ee = mechanisms.beam_matrices(layout.shapes)
-    block = link.damping.matrix_derivative(parts[3], link, m_ee, k_ee)
-    if block is None:
+    damping = getattr(link, "damping", None)
+    if len(parts) == 4:
+        if parts[2] != "damping" or damping is None:
+            return None
+        block = damping.matrix_derivative(parts[3], link, m_ee, k_ee)
+        return None if block is None else _elastic_projection(linearized, layout, block, None)
+    if parts[2] != "youngs_modulus":
         return None
+    # K_ee = E (A int Su'^T Su' + I int Sw''^T Sw'') (mechanisms.beam_matrices); the geometric stiffness
+    # and the load are the rigid inverse dynamics', which E does not enter
+    rule = getattr(damping, "modulus_derivative", None)
+    if damping is not None and rule is None:
+        return None
+    block = None if damping is None else rule(link, m_ee, k_ee)
+    return _elastic_projection(linearized, layout, block, k_ee / link.youngs_modulus)
+
+
+def _controller_derivative(linearized, mechanism, name, key) -> periodic.SystemDerivative | None:
+    """``controllers.<name>.<key>``: the controller's ``law_derivative(key)``, the law per unit gain,
+    folded in as ``linearize._core`` and ``linearize._lag`` fold the law itself (module docstring)."""
+    import mechanisms
+
+    controller = next((item for item in mechanism.controllers if item.name == name), None)
+    rule = getattr(controller, "law_derivative", None)
+    law = None if rule is None else rule(key)
+    if law is None:
+        return None
+    model = mechanisms.assemble(mechanism)
+    h = model.drive_gradient(controller.joint)                     # (n,) the driven angle's gradient
     c = linearized.coefficients
-    basis, rate = c.V[:, layout.elastic, :], c.Vdot[:, layout.elastic, :]   # (N+1, n_e, m)
-    projected = np.swapaxes(basis, 1, 2) @ np.asarray(block, dtype=float)   # V^T dD on the link's rows
-    return periodic.SystemDerivative(C=projected @ basis, K=projected @ rate, log_period=0.0)
+    du_ds, du_dv = -law.kp * h, -law.kd * h                        # the law's dP, dD per unit gain
+    if law.observable is not None:
+        # an observable of the elastic coordinates alone: its gradient is the same at every sample of
+        # the rigid nominal motion, and its Hessian meets only elastic rates (zero there)
+        gradient = model.observable(law.observable).gradient(linearized.nominal.s[0])
+        du_ds, du_dv = du_ds - law.gain * gradient, du_dv - law.rate_gain * gradient
+    # du = position . z + rate . z' per unit gain, from x = V z, x' = V z' + V' z
+    position = np.einsum("n,kni->ki", du_ds, c.V) + np.einsum("n,kni->ki", du_dv, c.Vdot)
+    rate = np.einsum("n,kni->ki", du_dv, c.V)
+    n_samples, m = position.shape
+    damping, stiffness = np.zeros((n_samples, m, m)), np.zeros((n_samples, m, m))
+    lag = f"lag.{controller.name}"
+    if controller.lag:
+        if lag not in linearized.labels:
+            return None
+        # the lag's own row [-du/ds, 1], [-du/ds', tau] (linearize._lag): only -du moves
+        row = linearized.labels.index(lag)
+        stiffness[:, row, :], damping[:, row, :] = -position, -rate
+    else:
+        dependent = np.setdiff1d(np.arange(model.n_coords), c.independent)
+        if np.any(h[dependent]):
+            return None     # the torque would reach the dependent rows, hence the multipliers' maps
+        # the torque u h in Q: K = -dQ/ds gains -h du/ds, D = -dQ/ds' gains -h du/ds'
+        lever = np.einsum("n,kni->ki", h, c.V)                     # V^T h (N+1, m)
+        stiffness, damping = -lever[:, :, None] * position[:, None, :], -lever[:, :, None] * rate[:, None, :]
+    return periodic.SystemDerivative(C=damping, K=stiffness, log_period=0.0)
