@@ -232,3 +232,128 @@ def test_gains_keep_the_rigid_dynamics():
     z = 1e-4 * np.random.default_rng(2).standard_normal(point.system.f.shape)
     z[-1] = z[0]
     np.testing.assert_allclose(mine.observe(z), theirs.observe(z), rtol=1e-9, atol=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------------
+# controller gains and Young's modulus (the controller's law_derivative, K_ee / E)
+# ---------------------------------------------------------------------------------------------------
+STRESS = "coupler.stress_top@0.5"
+GAINS = ["controllers.crank_pd.kp", "controllers.crank_pd.kd", "controllers.strain.gain",
+         "controllers.strain.rate_gain"]
+MODULUS = "links.coupler.youngs_modulus"
+
+
+def _problem(mechanism_or_scene, names):
+    if isinstance(mechanism_or_scene, str):
+        return studies.MechanismProblem.from_scene(mechanism_or_scene, parameter_paths=names,
+                                                   observables=OBSERVABLES + [STRESS])
+    return studies.MechanismProblem.from_mechanism(mechanism_or_scene, parameter_paths=names,
+                                                   observables=OBSERVABLES + [STRESS])
+
+
+def _lagged():
+    """The closed-loop four-bar with a 2 ms lag on its strain feedback (a lag state in z)."""
+    return mechanisms.load("four_bar_controlled").with_parameter("controllers.strain.lag", 2e-3)
+
+
+def _reduced():
+    """The 4-element coupler reduced to 3 modes (its basis from K_ee and M_ee)."""
+    return mechanisms.load("four_bar_fem4").with_parameter("links.coupler.discretisation.modes", 3)
+
+
+CASES = ([("four_bar_controlled", name) for name in GAINS + [MODULUS]]
+         + [("lagged", name) for name in GAINS[2:]] + [("four_bar_fem4", MODULUS), ("reduced", MODULUS)])
+
+
+@pytest.mark.parametrize("scene, name", CASES)
+def test_gains_and_modulus_against_coefficient_differences(scene, name):
+    """dM, dC, dK, df, d ln T of the closed forms against the forward difference of the coefficients
+    (on the point's kinematics, the route they replace) and the central difference of two fresh
+    linearisations.  The coefficients are affine in a gain on fixed kinematics, so the forward
+    difference is exact but for round-off over its step (1e-16 / 1e-6 of the coefficients' scale) and
+    the central one adds the nominal motions' Newton tolerance over its step: 1e-7 of the scale bounds
+    both (measured: 1e-12).  In E they are affine but for the damping a ratio sets (beta K_ee grows as
+    sqrt(E)), whose forward truncation is FORWARD_STEP / 4 of its derivative: 1e-6 of the scale there.
+    The reduced coupler's basis flips a column's sign at a step of 1e-6 of E (its largest-displacement
+    normalisation picks between two equal entries), so its forward difference is not a derivative at
+    all: that case is held to the central difference only (at 1e-4 the basis stays).  The maps the
+    parameter moves (drive torque, joint force; stress for E) against those of the fresh linearisation
+    at p + h."""
+    mechanism = {"lagged": _lagged, "reduced": _reduced}.get(scene, lambda: scene)()
+    problem = _problem(mechanism, [name])
+    linear = problem.linearize({}, n_steps=N_STEPS)
+    closed = linearize.analytic_derivative(linear.context, name)
+    assert closed is not None
+    value = problem.parameters[name]
+    h = linearize.parameter_step(value, linearize.FORWARD_STEP)
+    forward = linearize.coefficient_derivative(
+        problem.linearize({name: value + h}, n_steps=N_STEPS, kinematics=linear.context.nominal).system,
+        linear.system, h)
+    up, down, step = _central_coefficients(problem, name)
+    for field in "MCKf":
+        central = (getattr(up.system, field) - getattr(down.system, field)) / (2.0 * step)
+        mine = getattr(closed, field)
+        mine = np.zeros_like(central) if mine is None else mine
+        theirs = getattr(forward, field)
+        theirs = np.zeros_like(central) if theirs is None else theirs
+        scale = max(np.abs(central).max(), np.abs(getattr(linear.system, field)).max() / abs(value))
+        if scene != "reduced":
+            tol = linearize.FORWARD_STEP if name == MODULUS else 1e-7
+            assert np.abs(mine - theirs).max() <= tol * scale, (field, "forward")
+        assert np.abs(mine - central).max() <= 1e-7 * scale, (field, "central")
+    assert max(np.abs(array).max() for array in (closed.C, closed.K) if array is not None) > 0.0
+    assert closed.log_period == 0.0 == forward.log_period
+    moved = linearize.analytic_maps(linear.context, name, problem.mechanism({name: value + step}))
+    assert moved and linearize.moves_maps(linear.context, name)
+    for spec, found in moved.items():
+        fresh = up.context.observable_maps[spec].arrays()
+        for key, array in found.arrays().items():
+            assert np.abs(array - fresh[key]).max() <= 1e-9 * max(np.abs(fresh[key]).max(), 1e-300), (spec, key)
+
+
+def test_gain_derivatives_decline_where_they_are_not_closed_forms():
+    """A controller's lag is not a gain (None: differenced), an unknown controller neither; the
+    controller kinds say so themselves."""
+    problem = _problem(_lagged(), [])
+    linear = problem.linearize({}, n_steps=N_STEPS)
+    for path in ("controllers.strain.lag", "controllers.crank_pd.lag", "controllers.nobody.kp"):
+        assert linearize.analytic_derivative(linear.context, path) is None, path
+    assert mechanisms.PDController("pd", "O", kp=2.0).law_derivative("kp") == mechanisms.ControllerLaw(kp=1.0)
+    assert mechanisms.ObservableFeedback("fb", "O", "coupler.strain@0.5").law_derivative(
+        "rate_gain") == mechanisms.ControllerLaw(observable="coupler.strain@0.5", rate_gain=1.0)
+
+
+@pytest.mark.parametrize("scene, names", [("four_bar_controlled", GAINS + [MODULUS]),
+                                          ("lagged", GAINS[2:]), ("four_bar_fem4", [MODULUS])])
+def test_gains_and_modulus_headlines_against_fresh_steady_states(scene, names, monkeypatch):
+    """Every headline's derivative through the closed forms against central differences of fresh steady
+    states at the same N (relative step 1e-3 for the gains: truncation (1e-3)^2 and the steady states'
+    rounding 1e-12 / 1e-3 of the value, well under the 1e-4 asked; 1e-4 for E, near whose value the
+    response curves strongly (measured: the differences converge as the step squared, 1e-2 of the
+    derivative at a step of 1e-2 and 1e-6 at 1e-4), with normalised sensitivities of 0.1 to 5, so the
+    rounding is 1e-7 of the derivative), and against the
+    forward coefficient route they replace (analytic_derivative switched off), tight: the forward
+    route observes a force's magnitude by a one-sided step 1e-6 p in z, its truncation 1e-6 of the
+    derivative and more where a peak-to-peak cancels (measured: 1e-5)."""
+    mechanism = {"lagged": _lagged}.get(scene, lambda: scene)()
+    problem = _problem(mechanism, names)
+    result = studies.sensitivity(problem, parameters=names, n_steps=N_STEPS)
+    assert result.methods == {name: "analytic" for name in names}
+    with monkeypatch.context() as patch:
+        patch.setattr(linearize, "analytic_derivative", lambda linearized, path: None)
+        forward = studies.sensitivity(problem, parameters=names, n_steps=N_STEPS)
+    assert set(forward.methods.values()) == {"forward"}
+    for name in names:
+        value = result.parameters[name]
+        h = (1e-4 if name == MODULUS else 1e-3) * value
+        up = studies.steady_state(problem, {name: value + h}, n_steps=N_STEPS)
+        down = studies.steady_state(problem, {name: value - h}, n_steps=N_STEPS)
+        for spec in result.derivative:
+            for field, table in (("peak_to_peak", "derivative"), ("peak", "peak_derivative"),
+                                 ("rms", "rms_derivative")):
+                mine = getattr(result, table)[spec][name]
+                assert mine == pytest.approx(getattr(forward, table)[spec][name], rel=1e-4), (name, spec, field)
+                if field == "rms":
+                    continue
+                difference = (getattr(up, field)[spec] - getattr(down, field)[spec]) / (2.0 * h)
+                assert mine == pytest.approx(difference, rel=1e-4), (name, spec, field)
