@@ -22,7 +22,20 @@ with the nominal motion and the basis ``V`` unchanged the projection of ``linear
 
 the elastic coordinates are independent ones, so ``dD V`` has no dependent rows and the multipliers'
 maps (joint forces, drive torques) do not change either: an observable's derivative is its map applied
-to the response's derivative.
+to the response's derivative.  A link's Young's modulus (``links.<link>.youngs_modulus``) is pure
+stiffness: ``K_ee`` is ``E`` times the shapes' integrals and the geometric stiffness and the load are
+the rigid inverse dynamics', so ``dK_ee = K_ee / E`` and ``dD_ee`` is the damping kind's
+``modulus_derivative``, projected as above.  A controller's gain (``controllers.<name>.<key>``) enters
+its law linearly: ``law_derivative(key)`` is the law per unit gain, ``du = dP . x + dD . x'`` with
+``dP = -kp' h - gain' g`` (``h`` the driven angle's gradient, ``g`` the fed-back observable's), and
+
+    no lag:  dK = -(V^T h) (dP V + dD V'),  dC = -(V^T h) (dD V)     (the torque u h in Q)
+    a lag:   only the lag state's row, dK_row = -(dP V + dD V'), dC_row = -(dD V)   (linearize._lag)
+
+with ``dM = df = 0`` (the law vanishes on the nominal motion, whose model drops the controllers); where
+``h`` reaches a dependent coordinate the multipliers' maps would move too, and the closed form declines.
+The observable maps these two move (stresses and moments for ``E``, drive torques and joint forces for
+a gain) are rebuilt for the neighbouring mechanism on the point's motion (``analytic_maps``).
 """
 
 from __future__ import annotations

@@ -2,7 +2,9 @@
 what ``studies.sensitivity`` reports and ``studies.optimize``'s local method follows.
 
 For each parameter p the coefficients' derivative is analytic where a part of the mechanism carries it
-(``linearize.analytic_derivative``: a link's damping, with no second linearisation), else it comes from
+(``linearize.analytic_derivative``: a link's damping and Young's modulus, a controller's gains, with no
+second linearisation; the maps they move rebuilt on the point's motion, ``linearize.analytic_maps``),
+else it comes from
 linearisations at nearby values (``linearize.coefficient_derivative``: a forward difference where the
 nominal configuration does not move, else a central one; the speed's central difference on a speed
 family is exact, its coefficients being polynomials in the speed), and the response's from
