@@ -25,7 +25,8 @@ maps (joint forces, drive torques) do not change either: an observable's derivat
 to the response's derivative.  A link's Young's modulus (``links.<link>.youngs_modulus``) is pure
 stiffness: ``K_ee`` is ``E`` times the shapes' integrals and the geometric stiffness and the load are
 the rigid inverse dynamics', so ``dK_ee = K_ee / E`` and ``dD_ee`` is the damping kind's
-``modulus_derivative``, projected as above.  A controller's gain (``controllers.<name>.<key>``) enters
+``modulus_derivative``, projected as above.  A controller's gain (``controllers.<name>.<key>``, and a
+torque drive's own ``kp``, ``kd``: ``drive.<key>``, ``drives.<joint>.<key>``) enters
 its law linearly: ``law_derivative(key)`` is the law per unit gain, ``du = dP . x + dD . x'`` with
 ``dP = -kp' h - gain' g`` (``h`` the driven angle's gradient, ``g`` the fed-back observable's), and
 
@@ -96,8 +97,8 @@ def analytic_derivative(linearized, path: str) -> periodic.SystemDerivative | No
     to the scene parameter ``path`` in closed form, or None where no part carries it (the caller then
     differences linearisations): a link's damping ``links.<link>.damping.<key>`` (its kind's
     ``matrix_derivative``), its Young's modulus ``links.<link>.youngs_modulus`` (``K_ee / E`` and the
-    damping kind's ``modulus_derivative``) and a controller's gain ``controllers.<name>.<key>`` (its
-    ``law_derivative``); module docstring.  The observables' maps of the last two move with the
+    damping kind's ``modulus_derivative``), a controller's gain ``controllers.<name>.<key>`` and a torque
+    drive's own ``drive.kp`` / ``drives.<joint>.kd`` (their ``law_derivative``); module docstring.  The observables' maps of the last two move with the
     parameter too: ``analytic_maps``."""
     mechanism = getattr(linearized, "mechanism", None)
     if mechanism is None:
@@ -106,7 +107,21 @@ def analytic_derivative(linearized, path: str) -> periodic.SystemDerivative | No
     if parts[0] == "links" and len(parts) in (3, 4):
         return _link_derivative(linearized, mechanism, parts)
     if parts[0] == "controllers" and len(parts) == 3:
-        return _controller_derivative(linearized, mechanism, parts[1], parts[2])
+        controller = next((item for item in mechanism.controllers if item.name == parts[1]), None)
+        return _gain_derivative(linearized, mechanism, controller, parts[2])
+    drive = _drive_of(mechanism, parts)
+    if drive is not None:
+        return _gain_derivative(linearized, mechanism, drive, parts[-1])
+    return None
+
+
+def _drive_of(mechanism, parts):
+    """The drive of a scene path ``drive.<key>`` (a scene's one ``[drive]`` table) or
+    ``drives.<joint>.<key>``, else None."""
+    if parts[0] == "drive" and len(parts) == 2 and len(mechanism.drives) == 1:
+        return mechanism.drives[0]
+    if parts[0] == "drives" and len(parts) == 3:
+        return next((item for item in mechanism.drives if item.joint == parts[1]), None)
     return None
 
 
@@ -119,7 +134,7 @@ def _moved_specs(linearized, path: str) -> list[str]:
     parts = path.split(".")
     if parts[0] == "links" and len(parts) == 3 and parts[2] == "youngs_modulus":
         return list(linearized.observable_maps)
-    if parts[0] == "controllers" and len(parts) == 3:
+    if (parts[0] == "controllers" and len(parts) == 3) or _drive_of(linearized.mechanism, parts) is not None:
         return [spec for spec, found in linearized.observable_maps.items() if found.total]
     return []
 
@@ -194,12 +209,12 @@ def _link_derivative(linearized, mechanism, parts) -> periodic.SystemDerivative 
     return _elastic_projection(linearized, layout, block, k_ee / link.youngs_modulus)
 
 
-def _controller_derivative(linearized, mechanism, name, key) -> periodic.SystemDerivative | None:
-    """``controllers.<name>.<key>``: the controller's ``law_derivative(key)``, the law per unit gain,
-    folded in as ``linearize._core`` and ``linearize._lag`` fold the law itself (module docstring)."""
+def _gain_derivative(linearized, mechanism, controller, key) -> periodic.SystemDerivative | None:
+    """A gain ``key`` of ``controller`` (a controller, or a torque drive's own PD): its
+    ``law_derivative(key)``, the law per unit gain, folded in as ``linearize._core`` and
+    ``linearize._lag`` fold the law itself (module docstring)."""
     import mechanisms
 
-    controller = next((item for item in mechanism.controllers if item.name == name), None)
     rule = getattr(controller, "law_derivative", None)
     law = None if rule is None else rule(key)
     if law is None:
@@ -218,8 +233,8 @@ def _controller_derivative(linearized, mechanism, name, key) -> periodic.SystemD
     rate = np.einsum("n,kni->ki", du_dv, c.V)
     n_samples, m = position.shape
     damping, stiffness = np.zeros((n_samples, m, m)), np.zeros((n_samples, m, m))
-    lag = f"lag.{controller.name}"
-    if controller.lag:
+    lag = f"lag.{getattr(controller, 'name', '')}"
+    if getattr(controller, "lag", 0.0):
         if lag not in linearized.labels:
             return None
         # the lag's own row [-du/ds, 1], [-du/ds', tau] (linearize._lag): only -du moves

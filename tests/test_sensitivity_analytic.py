@@ -256,13 +256,19 @@ def _lagged():
     return mechanisms.load("four_bar_controlled").with_parameter("controllers.strain.lag", 2e-3)
 
 
+def _drive_pd():
+    """The closed-loop four-bar with a PD of its torque drive's own (``drive.kp``, ``drive.kd``)."""
+    return mechanisms.load("four_bar_controlled").with_parameters({"drive.kp": 5.0, "drive.kd": 0.05})
+
+
 def _reduced():
     """The 4-element coupler reduced to 3 modes (its basis from K_ee and M_ee)."""
     return mechanisms.load("four_bar_fem4").with_parameter("links.coupler.discretisation.modes", 3)
 
 
 CASES = ([("four_bar_controlled", name) for name in GAINS + [MODULUS]]
-         + [("lagged", name) for name in GAINS[2:]] + [("four_bar_fem4", MODULUS), ("reduced", MODULUS)])
+         + [("lagged", name) for name in GAINS[2:]] + [("drive_pd", "drive.kp"), ("drive_pd", "drive.kd")]
+         + [("four_bar_fem4", MODULUS), ("reduced", MODULUS)])
 
 
 @pytest.mark.parametrize("scene, name", CASES)
@@ -279,7 +285,7 @@ def test_gains_and_modulus_against_coefficient_differences(scene, name):
     all: that case is held to the central difference only (at 1e-4 the basis stays).  The maps the
     parameter moves (drive torque, joint force; stress for E) against those of the fresh linearisation
     at p + h."""
-    mechanism = {"lagged": _lagged, "reduced": _reduced}.get(scene, lambda: scene)()
+    mechanism = {"lagged": _lagged, "reduced": _reduced, "drive_pd": _drive_pd}.get(scene, lambda: scene)()
     problem = _problem(mechanism, [name])
     linear = problem.linearize({}, n_steps=N_STEPS)
     closed = linearize.analytic_derivative(linear.context, name)
@@ -316,7 +322,8 @@ def test_gain_derivatives_decline_where_they_are_not_closed_forms():
     controller kinds say so themselves."""
     problem = _problem(_lagged(), [])
     linear = problem.linearize({}, n_steps=N_STEPS)
-    for path in ("controllers.strain.lag", "controllers.crank_pd.lag", "controllers.nobody.kp"):
+    for path in ("controllers.strain.lag", "controllers.crank_pd.lag", "controllers.nobody.kp", "drive.rate",
+                 "drive.flywheel", "drives.nowhere.kp"):
         assert linearize.analytic_derivative(linear.context, path) is None, path
     assert mechanisms.PDController("pd", "O", kp=2.0).law_derivative("kp") == mechanisms.ControllerLaw(kp=1.0)
     assert mechanisms.ObservableFeedback("fb", "O", "coupler.strain@0.5").law_derivative(
@@ -324,7 +331,8 @@ def test_gain_derivatives_decline_where_they_are_not_closed_forms():
 
 
 @pytest.mark.parametrize("scene, names", [("four_bar_controlled", GAINS + [MODULUS]),
-                                          ("lagged", GAINS[2:]), ("four_bar_fem4", [MODULUS])])
+                                          ("lagged", GAINS[2:]), ("drive_pd", ["drive.kp", "drive.kd"]),
+                                          ("four_bar_fem4", [MODULUS])])
 def test_gains_and_modulus_headlines_against_fresh_steady_states(scene, names, monkeypatch):
     """Every headline's derivative through the closed forms against central differences of fresh steady
     states at the same N (relative step 1e-3 for the gains: truncation (1e-3)^2 and the steady states'
@@ -335,7 +343,7 @@ def test_gains_and_modulus_headlines_against_fresh_steady_states(scene, names, m
     forward coefficient route they replace (analytic_derivative switched off), tight: the forward
     route observes a force's magnitude by a one-sided step 1e-6 p in z, its truncation 1e-6 of the
     derivative and more where a peak-to-peak cancels (measured: 1e-5)."""
-    mechanism = {"lagged": _lagged}.get(scene, lambda: scene)()
+    mechanism = {"lagged": _lagged, "drive_pd": _drive_pd}.get(scene, lambda: scene)()
     problem = _problem(mechanism, names)
     result = studies.sensitivity(problem, parameters=names, n_steps=N_STEPS)
     assert result.methods == {name: "analytic" for name in names}
