@@ -98,8 +98,8 @@ def analytic_derivative(linearized, path: str) -> periodic.SystemDerivative | No
     differences linearisations): a link's damping ``links.<link>.damping.<key>`` (its kind's
     ``matrix_derivative``), its Young's modulus ``links.<link>.youngs_modulus`` (``K_ee / E`` and the
     damping kind's ``modulus_derivative``), a controller's gain ``controllers.<name>.<key>`` and a torque
-    drive's own ``drive.kp`` / ``drives.<joint>.kd`` (their ``law_derivative``); module docstring.  The observables' maps of the last two move with the
-    parameter too: ``analytic_maps``."""
+    drive's own ``drive.kp`` / ``drives.<joint>.kd`` (their ``law_derivative``); module docstring.  The
+    observables' maps of the last two move with the parameter too: ``analytic_maps``."""
     mechanism = getattr(linearized, "mechanism", None)
     if mechanism is None:
         return None
