@@ -35,8 +35,9 @@ its law linearly: ``law_derivative(key)`` is the law per unit gain, ``du = dP . 
 
 with ``dM = df = 0`` (the law vanishes on the nominal motion, whose model drops the controllers); where
 ``h`` reaches a dependent coordinate the multipliers' maps would move too, and the closed form declines.
-The observable maps these two move (stresses and moments for ``E``, drive torques and joint forces for
-a gain) are rebuilt for the neighbouring mechanism on the point's motion (``analytic_maps``).
+The observable maps these two move (stresses and moments for ``E``, drive torques for a gain) are
+rebuilt for the neighbouring mechanism on the point's motion (``analytic_maps``: every map for ``E``,
+the totals for a gain, whose joint forces' maps come out as they were).
 """
 
 from __future__ import annotations
