@@ -157,12 +157,26 @@ def analytic_maps(linearized, path: str, mechanism) -> dict:
     specs = _moved_specs(linearized, path)
     if not specs:
         return {}
+    # the change of each map, built twice on the same nominal motion and coefficients, added to the
+    # point's own: a speed family's member keeps the base speed's multiplier maps in its coefficients
+    # (its own maps are interpolated in the speed, linearize.SpeedFamily), and their part cancels here
+    there, here = (_maps_of(at, specs, linearized) for at in (mechanism, linearized.mechanism))
+    out = {}
+    for spec in specs:
+        point, before, after = (found[spec].arrays() for found in (linearized.observable_maps, here, there))
+        out[spec] = linearized.observable_maps[spec].with_arrays(
+            {key: point.get(key, 0.0) + after[key] - before.get(key, 0.0) for key in after})
+    return out
+
+
+def _maps_of(mechanism, specs, linearized) -> dict:
+    """The observable maps of ``specs`` for ``mechanism`` on ``linearized``'s motion and coefficients."""
     import mechanisms
 
     from ._about import _model_with_feedforward, _nominal_maps
 
     model = _model_with_feedforward(mechanism, linearized.nominal)
-    if model is linearized.nominal.model:      # prescribed drives: the point's own model
+    if model is linearized.nominal.model:      # prescribed drives: the nominal motion's model
         model = mechanisms.assemble(mechanism)
     return _nominal_maps(model, specs, linearized.nominal, linearized.coefficients)
 

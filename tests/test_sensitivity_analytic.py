@@ -412,3 +412,22 @@ def test_reduced_link_sections_against_fresh_steady_states():
             for field, table in checks:
                 difference = (getattr(up, field)[spec] - getattr(down, field)[spec]) / (2.0 * h)
                 assert getattr(result, table)[spec][name] == pytest.approx(difference, rel=1e-4), (name, spec, field)
+
+
+def test_modulus_off_the_scene_speed_against_fresh_steady_states():
+    """At a speed that is not the scene's the point is a speed family's member, whose coefficients keep
+    the base speed's multiplier maps (its own maps are interpolated in the speed): the maps E moves are
+    rebuilt as changes on the member's motion, so the forces and torques come out right (they were
+    wrong by a factor 100 when rebuilt whole).  Against fresh steady states, step 1e-4 of E."""
+    problem = _problem("four_bar_fem4", [MODULUS])
+    point = {"speed": 1.1 * problem.parameters["speed"]}
+    result = studies.sensitivity(problem, point, parameters=[MODULUS], n_steps=N_STEPS)
+    assert result.methods == {MODULUS: "analytic"}
+    value = result.parameters[MODULUS]
+    h = 1e-4 * value
+    up = studies.steady_state(problem, dict(point, **{MODULUS: value + h}), n_steps=N_STEPS)
+    down = studies.steady_state(problem, dict(point, **{MODULUS: value - h}), n_steps=N_STEPS)
+    for spec in result.derivative:
+        for field, table in (("peak_to_peak", "derivative"), ("peak", "peak_derivative")):
+            difference = (getattr(up, field)[spec] - getattr(down, field)[spec]) / (2.0 * h)
+            assert getattr(result, table)[spec][MODULUS] == pytest.approx(difference, rel=1e-4), (spec, field)
