@@ -36,8 +36,8 @@ its law linearly: ``law_derivative(key)`` is the law per unit gain, ``du = dP . 
 with ``dM = df = 0`` (the law vanishes on the nominal motion, whose model drops the controllers); where
 ``h`` reaches a dependent coordinate the multipliers' maps would move too, and the closed form declines.
 The observable maps these two move (stresses and moments for ``E``, drive torques for a gain) are
-rebuilt for the neighbouring mechanism on the point's motion (``analytic_maps``: every map for ``E``,
-the totals for a gain, whose joint forces' maps come out as they were).
+differentiated on the point's motion (``map_derivatives``: the torque law's change per unit gain, the
+gradients' change for ``E``; the multipliers' and the nominal parts do not move).
 """
 
 from __future__ import annotations
@@ -46,7 +46,9 @@ import numpy as np
 
 import periodic
 
-__all__ = ["CENTRAL_STEP", "FORWARD_STEP", "analytic_derivative", "analytic_maps", "coefficient_derivative",
+from ._observe import ObservableMap
+
+__all__ = ["CENTRAL_STEP", "FORWARD_STEP", "analytic_derivative", "map_derivatives", "coefficient_derivative",
            "keeps_configuration", "moves_maps", "parameter_step"]
 
 #: Relative step of a forward difference (parameters that leave the kinematics alone).
@@ -100,19 +102,15 @@ def analytic_derivative(linearized, path: str) -> periodic.SystemDerivative | No
     ``matrix_derivative``), its Young's modulus ``links.<link>.youngs_modulus`` (``K_ee / E`` and the
     damping kind's ``modulus_derivative``), a controller's gain ``controllers.<name>.<key>`` and a torque
     drive's own ``drive.kp`` / ``drives.<joint>.kd`` (their ``law_derivative``); module docstring.  The
-    observables' maps of the last two move with the parameter too: ``analytic_maps``."""
+    observables' maps of the last two move with the parameter too: ``map_derivatives``."""
     mechanism = getattr(linearized, "mechanism", None)
     if mechanism is None:
         return None
     parts = path.split(".")
     if parts[0] == "links" and len(parts) in (3, 4):
         return _link_derivative(linearized, mechanism, parts)
-    if parts[0] == "controllers" and len(parts) == 3:
-        controller = next((item for item in mechanism.controllers if item.name == parts[1]), None)
-        return _gain_derivative(linearized, mechanism, controller, parts[2])
-    drive = _drive_of(mechanism, parts)
-    if drive is not None:
-        return _gain_derivative(linearized, mechanism, drive, parts[-1])
+    if (parts[0] == "controllers" and len(parts) == 3) or _drive_of(mechanism, parts) is not None:
+        return _gain_derivative(linearized, mechanism, _gain_owner(mechanism, parts), parts[-1])
     return None
 
 
@@ -142,43 +140,73 @@ def _moved_specs(linearized, path: str) -> list[str]:
 
 def moves_maps(linearized, path: str) -> bool:
     """Whether the parameter ``path`` of ``analytic_derivative`` moves some of ``linearized``'s
-    observable maps (``analytic_maps``): a Young's modulus (stresses, moments) or a controller's gain
+    observable maps (``map_derivatives``): a Young's modulus (stresses, moments) or a controller's gain
     where a force or torque is observed; a link's damping moves none."""
     return bool(_moved_specs(linearized, path))
 
 
-def analytic_maps(linearized, path: str, mechanism) -> dict:
-    """The observable maps {spec: ``ObservableMap``} of ``linearized``'s observables that the parameter
-    ``path`` of ``analytic_derivative`` may move (``moves_maps``), for ``mechanism`` (``linearized``'s
-    with ``path`` at a neighbouring value), on ``linearized``'s nominal motion and coefficients: a gain
-    or ``E`` leaves the multipliers' maps alone (``analytic_derivative`` declines where it would not);
-    {} where none move.  Each map is affine in the gains and in ``E``, so the line through the point's
-    and these is exact."""
-    specs = _moved_specs(linearized, path)
-    if not specs:
+def map_derivatives(linearized, path: str, mechanism=None, step: float = 0.0) -> dict:
+    """d(map)/dp {spec: ``ObservableMap`` of derivatives, per unit of p} of ``linearized``'s observable
+    maps that the parameter ``path`` of ``analytic_derivative`` moves (``moves_maps``); {} where none
+    move.  A gain moves its drive's torque law only, by the law per unit gain along ``x = V z``; ``E``
+    moves the gradients of the coordinates' observables (a stress or moment is ``E`` times a curvature
+    or strain): their change to ``mechanism``, ``linearized``'s with ``E`` at ``p + step``, over ``step``.
+    Neither moves the nominal motion, the multipliers' maps or the nominal axial forces
+    (``analytic_derivative`` declines where a gain would reach the multipliers), and each map is affine in
+    them, so ``point + h * derivative`` is the map at ``p + h`` exactly."""
+    if not moves_maps(linearized, path):
         return {}
-    # the change of each map, built twice on the same nominal motion and coefficients, added to the
-    # point's own: a speed family's member keeps the base speed's multiplier maps in its coefficients
-    # (its own maps are interpolated in the speed, linearize.SpeedFamily), and their part cancels here
-    there, here = (_maps_of(at, specs, linearized) for at in (mechanism, linearized.mechanism))
-    out = {}
-    for spec in specs:
-        point, before, after = (found[spec].arrays() for found in (linearized.observable_maps, here, there))
-        out[spec] = linearized.observable_maps[spec].with_arrays(
-            {key: point.get(key, 0.0) + after[key] - before.get(key, 0.0) for key in after})
-    return out
+    from ._observe import _Route   # the maps' primitives, for the gradients at both values
 
+    nominal, c = linearized.nominal, linearized.coefficients
+    parts = path.split(".")
+    if parts[0] == "links":
+        import mechanisms
 
-def _maps_of(mechanism, specs, linearized) -> dict:
-    """The observable maps of ``specs`` for ``mechanism`` on ``linearized``'s motion and coefficients."""
-    import mechanisms
+        def route(model):
+            return _Route(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, None, c, None)
 
-    from ._about import _model_with_feedforward, _nominal_maps
-
-    model = _model_with_feedforward(mechanism, linearized.nominal)
-    if model is linearized.nominal.model:      # prescribed drives: the nominal motion's model
         model = mechanisms.assemble(mechanism)
-    return _nominal_maps(model, specs, linearized.nominal, linearized.coefficients)
+        change = _ChangeRoute(len(nominal.t), coordinates=(route(model), route(mechanisms.assemble(
+            linearized.mechanism)), step))
+    else:
+        import mechanisms
+
+        law = _gain_law(linearized, linearized.mechanism, _gain_owner(linearized.mechanism, parts), parts[-1])
+        model = mechanisms.assemble(linearized.mechanism)   # its torque drives' own observables
+        change = _ChangeRoute(len(nominal.t), torque=None if law is None or law[3] else law[:3])
+    return {spec: model.observable(spec).linear_map(change) for spec in _moved_specs(linearized, path)}
+
+
+class _ChangeRoute:
+    """The ``LinearRoute`` (``mechanisms/_protocol.py``) of a map's derivative with respect to a parameter
+    that leaves the nominal motion, the multipliers' maps and the axial forces alone: ``torque`` (joint,
+    position, rate) the torque law's change at that joint per unit p, ``coordinates`` (the routes at p +
+    step and at p, step) where the observables' gradients change."""
+
+    def __init__(self, n_samples, *, torque=None, coordinates=None):
+        self.n_samples, self.torque, self.pair = n_samples, torque, coordinates
+
+    def coordinates(self, observable, nominal=None) -> ObservableMap:
+        if self.pair is None:
+            return ObservableMap(observable.unit)
+        plus, point, step = self.pair
+        change = (plus._gradient_map(observable) - point._gradient_map(point.model.observable(observable.spec))) / step
+        return ObservableMap(observable.unit, position=change)
+
+    def multipliers(self, weights, unit) -> ObservableMap:
+        return ObservableMap(unit)
+
+    def torque_law(self, drive_index, joint, unit) -> ObservableMap:
+        if self.torque is None or self.torque[0] != joint:
+            return ObservableMap(unit)
+        return ObservableMap(unit, position=self.torque[1], rate=self.torque[2])
+
+    def magnitude(self, unit, components) -> ObservableMap:
+        return ObservableMap(unit, components=tuple(components))
+
+    def axial_force(self, link, x) -> np.ndarray:
+        return np.zeros(self.n_samples)
 
 
 def _elastic_projection(linearized, layout, d_damping, d_stiffness) -> periodic.SystemDerivative:
@@ -224,18 +252,26 @@ def _link_derivative(linearized, mechanism, parts) -> periodic.SystemDerivative 
     return _elastic_projection(linearized, layout, block, k_ee / link.youngs_modulus)
 
 
-def _gain_derivative(linearized, mechanism, controller, key) -> periodic.SystemDerivative | None:
-    """A gain ``key`` of ``controller`` (a controller, or a torque drive's own PD): its
-    ``law_derivative(key)``, the law per unit gain, folded in as ``linearize._core`` and
-    ``linearize._lag`` fold the law itself (module docstring)."""
+def _gain_owner(mechanism, parts):
+    """The controller of ``controllers.<name>.<key>`` or the drive of ``drive.<key>`` /
+    ``drives.<joint>.<key>`` (None if there is none)."""
+    if parts[0] == "controllers":
+        return next((item for item in mechanism.controllers if item.name == parts[1]), None)
+    return _drive_of(mechanism, parts)
+
+
+def _gain_law(linearized, mechanism, owner, key):
+    """``(joint, position, rate, lagged)`` of a gain ``key`` of ``owner`` (a controller, or a torque
+    drive's own PD): its law's change per unit gain ``du = position . z + rate . z'`` (N+1, m) from its
+    ``law_derivative(key)``, or None where it has none."""
     import mechanisms
 
-    rule = getattr(controller, "law_derivative", None)
+    rule = getattr(owner, "law_derivative", None)
     law = None if rule is None else rule(key)
     if law is None:
         return None
     model = mechanisms.assemble(mechanism)
-    h = model.drive_gradient(controller.joint)                     # (n,) the driven angle's gradient
+    h = model.drive_gradient(owner.joint)                          # (n,) the driven angle's gradient
     c = linearized.coefficients
     du_ds, du_dv = -law.kp * h, -law.kd * h                        # the law's dP, dD per unit gain
     if law.observable is not None:
@@ -245,21 +281,34 @@ def _gain_derivative(linearized, mechanism, controller, key) -> periodic.SystemD
         du_ds, du_dv = du_ds - law.gain * gradient, du_dv - law.rate_gain * gradient
     # du = position . z + rate . z' per unit gain, from x = V z, x' = V z' + V' z
     position = np.einsum("n,kni->ki", du_ds, c.V) + np.einsum("n,kni->ki", du_dv, c.Vdot)
-    rate = np.einsum("n,kni->ki", du_dv, c.V)
+    return owner.joint, position, np.einsum("n,kni->ki", du_dv, c.V), bool(getattr(owner, "lag", 0.0))
+
+
+def _gain_derivative(linearized, mechanism, owner, key) -> periodic.SystemDerivative | None:
+    """A gain ``key`` of ``owner`` (``_gain_law``) folded in as ``linearize._core`` and
+    ``linearize._lag`` fold the law itself (module docstring)."""
+    found = _gain_law(linearized, mechanism, owner, key)
+    if found is None:
+        return None
+    joint, position, rate, lagged = found
+    c = linearized.coefficients
     n_samples, m = position.shape
     damping, stiffness = np.zeros((n_samples, m, m)), np.zeros((n_samples, m, m))
-    lag = f"lag.{getattr(controller, 'name', '')}"
-    if getattr(controller, "lag", 0.0):
+    if lagged:
+        lag = f"lag.{owner.name}"
         if lag not in linearized.labels:
             return None
         # the lag's own row [-du/ds, 1], [-du/ds', tau] (linearize._lag): only -du moves
         row = linearized.labels.index(lag)
         stiffness[:, row, :], damping[:, row, :] = -position, -rate
-    else:
-        dependent = np.setdiff1d(np.arange(model.n_coords), c.independent)
-        if np.any(h[dependent]):
-            return None     # the torque would reach the dependent rows, hence the multipliers' maps
-        # the torque u h in Q: K = -dQ/ds gains -h du/ds, D = -dQ/ds' gains -h du/ds'
-        lever = np.einsum("n,kni->ki", h, c.V)                     # V^T h (N+1, m)
-        stiffness, damping = -lever[:, :, None] * position[:, None, :], -lever[:, :, None] * rate[:, None, :]
+        return periodic.SystemDerivative(C=damping, K=stiffness, log_period=0.0)
+    import mechanisms
+
+    h = mechanisms.assemble(mechanism).drive_gradient(joint)
+    dependent = np.setdiff1d(np.arange(h.size), c.independent)
+    if np.any(h[dependent]):
+        return None     # the torque would reach the dependent rows, hence the multipliers' maps
+    # the torque u h in Q: K = -dQ/ds gains -h du/ds, D = -dQ/ds' gains -h du/ds'
+    lever = np.einsum("n,kni->ki", h, c.V)                         # V^T h (N+1, m)
+    stiffness, damping = -lever[:, :, None] * position[:, None, :], -lever[:, :, None] * rate[:, None, :]
     return periodic.SystemDerivative(C=damping, K=stiffness, log_period=0.0)

@@ -3,7 +3,7 @@ what ``studies.sensitivity`` reports and ``studies.optimize``'s local method fol
 
 For each parameter p the coefficients' derivative is analytic where a part of the mechanism carries it
 (``linearize.analytic_derivative``: a link's damping and Young's modulus, a controller's gains, with no
-second linearisation; the maps they move rebuilt on the point's motion, ``linearize.analytic_maps``),
+second linearisation; the maps they move differentiated on the point's motion, ``linearize.map_derivatives``),
 else it comes from
 linearisations at nearby values (``linearize.coefficient_derivative``: a forward difference where the
 nominal configuration does not move, else a central one; the speed's central difference on a speed
@@ -87,44 +87,41 @@ def _keeps_configuration(problem, params, name, linear) -> bool:
 
 @dataclass(frozen=True, eq=False)
 class _Maps:
-    """The observable maps {spec: ``linearize.ObservableMap``} an analytic parameter moves, at the
-    point plus ``step`` (``linearize.analytic_maps``); ``plus(linear, h)`` and ``minus(linear, h)`` the
-    point's ``linear`` with them at p + h and p - h, on the line through the point's (they are affine
-    in the parameter)."""
+    """The derivatives {spec: ``linearize.ObservableMap``} of the observable maps an analytic parameter
+    moves (``linearize.map_derivatives``, per unit of it); ``plus(linear, h)`` and ``minus(linear, h)``
+    the point's ``linear`` with its maps at p + h and p - h (they are affine in the parameter)."""
 
-    maps: dict
-    step: float
+    derivatives: dict
 
     def plus(self, linear, h):
-        return self._at(linear, h / self.step)
+        return self._at(linear, h)
 
     def minus(self, linear, h):
-        return self._at(linear, -h / self.step)
+        return self._at(linear, -h)
 
-    def _at(self, linear, fraction):
-        if not self.maps:
+    def _at(self, linear, offset):
+        if not self.derivatives:
             return linear
         moved = []
         for spec, here in zip(linear.observables, linear.maps):
-            there = self.maps.get(spec)
-            if there is None:
-                moved.append(here)
-                continue
-            mine, theirs = here.arrays(), there.arrays()
-            moved.append(here.with_arrays({
-                key: mine.get(key, 0.0) + fraction * (theirs[key] - mine.get(key, 0.0)) for key in theirs}))
+            slope = self.derivatives.get(spec)
+            mine = here.arrays()
+            changes = {} if slope is None else slope.arrays()
+            moved.append(here.with_arrays({key: mine.get(key, 0.0) + offset * change
+                                           for key, change in changes.items()}) if changes else here)
         return replace(linear, maps=tuple(moved))
 
 
 def _analytic_maps(problem, params, name, linear) -> _Maps:
-    """The maps ``name`` moves (``linearize.analytic_maps``) at a step ``CENTRAL_STEP`` (none for a
-    damping key, or without a force, torque or stress observed: no mechanism built)."""
+    """The derivatives of the maps ``name`` moves (``linearize.map_derivatives``; none for a damping key,
+    or without a force, torque or stress observed: no mechanism built), for ``E`` from the mechanism at
+    a step ``CENTRAL_STEP``."""
+    if not linearize.moves_maps(linear.context, name):
+        return _Maps({})
     step = linearize.parameter_step(params[name], linearize.CENTRAL_STEP)
     changed = {key: value for key, value in params.items() if value != problem.parameters.get(key)}
     changed[name] = params[name] + step
-    if not linearize.moves_maps(linear.context, name):
-        return _Maps({}, step)
-    return _Maps(linearize.analytic_maps(linear.context, name, problem.mechanism(changed)), step)
+    return _Maps(linearize.map_derivatives(linear.context, name, problem.mechanism(changed), step))
 
 
 def _neighbour(problem, values, n_steps, linear):
