@@ -44,9 +44,10 @@ from __future__ import annotations
 
 import numpy as np
 
+import mechanisms
 import periodic
 
-from ._observe import ObservableMap
+from ._observe import ObservableMap, _Route  # _Route: the maps' primitives, for E's gradients
 
 __all__ = ["CENTRAL_STEP", "FORWARD_STEP", "analytic_derivative", "map_derivatives", "coefficient_derivative",
            "keeps_configuration", "moves_maps", "parameter_step"]
@@ -68,8 +69,6 @@ def keeps_configuration(mechanism, nominal, *, n_samples: int = 4) -> bool:
     constraints, at ``n_samples`` samples over the period, to ten times its own residual (and 1e-11): the
     kinematics have not moved, without computing ``mechanism``'s nominal motion (a parameter change that
     moves a pin by 1e-6 of a link's length leaves a residual of that size)."""
-    import mechanisms
-
     model = mechanisms.assemble(mechanism)
     if model.n_coords != nominal.s.shape[1]:
         return False
@@ -156,13 +155,9 @@ def map_derivatives(linearized, path: str, mechanism=None, step: float = 0.0) ->
     them, so ``point + h * derivative`` is the map at ``p + h`` exactly."""
     if not moves_maps(linearized, path):
         return {}
-    from ._observe import _Route   # the maps' primitives, for the gradients at both values
-
     nominal, c = linearized.nominal, linearized.coefficients
     parts = path.split(".")
     if parts[0] == "links":
-        import mechanisms
-
         def route(model):
             return _Route(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, None, c, None)
 
@@ -170,8 +165,6 @@ def map_derivatives(linearized, path: str, mechanism=None, step: float = 0.0) ->
         change = _ChangeRoute(len(nominal.t), coordinates=(route(model), route(mechanisms.assemble(
             linearized.mechanism)), step))
     else:
-        import mechanisms
-
         law = _gain_law(linearized, linearized.mechanism, _gain_owner(linearized.mechanism, parts), parts[-1])
         model = mechanisms.assemble(linearized.mechanism)   # its torque drives' own observables
         change = _ChangeRoute(len(nominal.t), torque=None if law is None or law[3] else law[:3])
@@ -232,8 +225,6 @@ def _link_derivative(linearized, mechanism, parts) -> periodic.SystemDerivative 
     layout = linearized.nominal.model.layouts.get(parts[1]) if link is not None else None
     if layout is None or layout.shapes is None:
         return None
-    import mechanisms
-
     m_ee, k_ee = mechanisms.beam_matrices(layout.shapes)
     damping = getattr(link, "damping", None)
     if len(parts) == 4:
@@ -264,8 +255,6 @@ def _gain_law(linearized, mechanism, owner, key):
     """``(joint, position, rate, lagged)`` of a gain ``key`` of ``owner`` (a controller, or a torque
     drive's own PD): its law's change per unit gain ``du = position . z + rate . z'`` (N+1, m) from its
     ``law_derivative(key)``, or None where it has none."""
-    import mechanisms
-
     rule = getattr(owner, "law_derivative", None)
     law = None if rule is None else rule(key)
     if law is None:
@@ -302,8 +291,6 @@ def _gain_derivative(linearized, mechanism, owner, key) -> periodic.SystemDeriva
         row = linearized.labels.index(lag)
         stiffness[:, row, :], damping[:, row, :] = -position, -rate
         return periodic.SystemDerivative(C=damping, K=stiffness, log_period=0.0)
-    import mechanisms
-
     h = mechanisms.assemble(mechanism).drive_gradient(joint)
     dependent = np.setdiff1d(np.arange(h.size), c.independent)
     if np.any(h[dependent]):
