@@ -180,8 +180,8 @@ def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, line
     for name in names:
         closed = None if name in pending else linearize.analytic_derivative(linear.context, name)
         if closed is not None:
-            # a part carries the derivative: no linearisation at a neighbouring value; the maps of the
-            # forces, torques and stresses it moves are rebuilt on the point's motion
+            # a part carries the derivative: no linearisation at a neighbouring value; the maps it moves
+            # (a drive torque, a stress) are differentiated on the point's motion
             methods[name], steps[name] = "analytic", 0.0
             derivatives.append(closed)
             neighbours.append(_analytic_maps(problem, params, name, linear))
