@@ -443,3 +443,28 @@ def test_modulus_off_the_scene_speed_against_fresh_steady_states():
         for field, table in (("peak_to_peak", "derivative"), ("peak", "peak_derivative")):
             difference = (getattr(up, field)[spec] - getattr(down, field)[spec]) / (2.0 * h)
             assert getattr(result, table)[spec][MODULUS] == pytest.approx(difference, rel=1e-4), (spec, field)
+
+
+def test_ratio_made_rayleigh_follows_e_when_rebuilt_from_its_parts():
+    """A Rayleigh damping made from a ratio records it and writes it back, so that a mechanism written
+    from its parts (no scene spec) and rebuilt at another E gets beta from its own first frequency
+    (beta ~ E^-1/2), which ``modulus_derivative`` (beta K_ee / (2 E)) assumes; its closed form against
+    the central difference of beta K_ee over rebuilt links."""
+    scene = mechanisms.load("four_bar_fem4")
+    bare = scene.replace(links=scene.links)
+    assert bare.spec is None
+    coupler = next(link for link in bare.links if link.name == "coupler")
+    assert coupler.damping.ratio == 0.02 and coupler.damping.to_table() == {"type": "rayleigh", "ratio": 0.02}
+    k_ee = np.diag([1.0, 2.0])
+    value = coupler.youngs_modulus
+    h = 1e-4 * value
+
+    def beta_k(e):
+        link = next(item for item in bare.with_parameter(MODULUS, e).links if item.name == "coupler")
+        return link.damping.beta * k_ee * (e / value)     # K_ee grows with E
+
+    central = (beta_k(value + h) - beta_k(value - h)) / (2.0 * h)
+    closed = coupler.damping.modulus_derivative(coupler, np.eye(2), k_ee)
+    np.testing.assert_allclose(closed, central, rtol=1e-7)
+    assert mechanisms.Rayleigh(0.0, 1e-4).modulus_derivative(coupler, np.eye(2), k_ee)[1, 1] == pytest.approx(
+        1e-4 * 2.0 / value, rel=1e-15)

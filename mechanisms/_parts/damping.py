@@ -66,6 +66,10 @@ class Rayleigh:
                    table.number("beta", "s", 0.0, nonnegative=True))
 
     def to_table(self) -> dict[str, Any]:
+        # made from a ratio: written as one, so that a rebuilt link (another E, density, section) gets
+        # its beta from its own first frequency, as modulus_derivative assumes
+        if self.ratio is not None:
+            return {"type": self.TYPE, "ratio": self.ratio}
         return {"type": self.TYPE, "alpha": self.alpha, "beta": self.beta}
 
     @property
