@@ -29,4 +29,6 @@ from ._sensitivity import FORWARD_STEP as FORWARD_STEP
 from ._sensitivity import analytic_derivative as analytic_derivative
 from ._sensitivity import coefficient_derivative as coefficient_derivative
 from ._sensitivity import keeps_configuration as keeps_configuration
+from ._sensitivity import map_derivatives as map_derivatives
+from ._sensitivity import moves_maps as moves_maps
 from ._sensitivity import parameter_step as parameter_step

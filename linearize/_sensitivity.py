@@ -22,17 +22,35 @@ with the nominal motion and the basis ``V`` unchanged the projection of ``linear
 
 the elastic coordinates are independent ones, so ``dD V`` has no dependent rows and the multipliers'
 maps (joint forces, drive torques) do not change either: an observable's derivative is its map applied
-to the response's derivative.
+to the response's derivative.  A link's Young's modulus (``links.<link>.youngs_modulus``) is pure
+stiffness: ``K_ee`` is ``E`` times the shapes' integrals and the geometric stiffness and the load are
+the rigid inverse dynamics', so ``dK_ee = K_ee / E`` and ``dD_ee`` is the damping kind's
+``modulus_derivative``, projected as above.  A controller's gain (``controllers.<name>.<key>``, and a
+torque drive's own ``kp``, ``kd``: ``drive.<key>``, ``drives.<joint>.<key>``) enters
+its law linearly: ``law_derivative(key)`` is the law per unit gain, ``du = dP . x + dD . x'`` with
+``dP = -kp' h - gain' g`` (``h`` the driven angle's gradient, ``g`` the fed-back observable's), and
+
+    no lag:  dK = -(V^T h) (dP V + dD V'),  dC = -(V^T h) (dD V)     (the torque u h in Q)
+    a lag:   only the lag state's row, dK_row = -(dP V + dD V'), dC_row = -(dD V)   (linearize._lag)
+
+with ``dM = df = 0`` (the law vanishes on the nominal motion, whose model drops the controllers); where
+``h`` reaches a dependent coordinate the multipliers' maps would move too, and the closed form declines.
+The observable maps these two move (stresses and moments for ``E``, drive torques for a gain) are
+differentiated on the point's motion (``map_derivatives``: the torque law's change per unit gain, the
+gradients' change for ``E``; the multipliers' and the nominal parts do not move).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+import mechanisms
 import periodic
 
-__all__ = ["CENTRAL_STEP", "FORWARD_STEP", "analytic_derivative", "coefficient_derivative", "keeps_configuration",
-           "parameter_step"]
+from ._observe import ObservableMap, _Route  # _Route: the maps' primitives, for E's gradients
+
+__all__ = ["CENTRAL_STEP", "FORWARD_STEP", "analytic_derivative", "map_derivatives", "coefficient_derivative",
+           "keeps_configuration", "moves_maps", "parameter_step"]
 
 #: Relative step of a forward difference (parameters that leave the kinematics alone).
 FORWARD_STEP = 1e-6
@@ -51,8 +69,6 @@ def keeps_configuration(mechanism, nominal, *, n_samples: int = 4) -> bool:
     constraints, at ``n_samples`` samples over the period, to ten times its own residual (and 1e-11): the
     kinematics have not moved, without computing ``mechanism``'s nominal motion (a parameter change that
     moves a pin by 1e-6 of a link's length leaves a residual of that size)."""
-    import mechanisms
-
     model = mechanisms.assemble(mechanism)
     if model.n_coords != nominal.s.shape[1]:
         return False
@@ -81,23 +97,205 @@ def coefficient_derivative(plus: periodic.PeriodicSystem, minus: periodic.Period
 def analytic_derivative(linearized, path: str) -> periodic.SystemDerivative | None:
     """The coefficients' derivative of the ``linearize.LinearizedMechanism`` ``linearized`` with respect
     to the scene parameter ``path`` in closed form, or None where no part carries it (the caller then
-    differences linearisations): ``links.<link>.damping.<key>`` through the link's damping kind's
-    ``matrix_derivative(key, link, M_ee, K_ee)`` (module docstring)."""
-    parts = path.split(".")
+    differences linearisations): a link's damping ``links.<link>.damping.<key>`` (its kind's
+    ``matrix_derivative``), its Young's modulus ``links.<link>.youngs_modulus`` (``K_ee / E`` and the
+    damping kind's ``modulus_derivative``), a controller's gain ``controllers.<name>.<key>`` and a torque
+    drive's own ``drive.kp`` / ``drives.<joint>.kd`` (their ``law_derivative``); module docstring.  The
+    observables' maps of the last two move with the parameter too: ``map_derivatives``."""
     mechanism = getattr(linearized, "mechanism", None)
-    if len(parts) != 4 or parts[0] != "links" or parts[2] != "damping" or mechanism is None:
+    if mechanism is None:
         return None
-    link = next((item for item in mechanism.links if item.name == parts[1]), None)
-    layout = linearized.nominal.model.layouts.get(parts[1]) if link is not None else None
-    if layout is None or layout.shapes is None or getattr(link, "damping", None) is None:
-        return None
-    import mechanisms
+    parts = path.split(".")
+    if parts[0] == "links" and len(parts) in (3, 4):
+        return _link_derivative(linearized, mechanism, parts)
+    if (parts[0] == "controllers" and len(parts) == 3) or _drive_of(mechanism, parts) is not None:
+        return _gain_derivative(linearized, mechanism, _gain_owner(mechanism, parts), parts[-1])
+    return None
 
-    m_ee, k_ee = mechanisms.beam_matrices(layout.shapes)
-    block = link.damping.matrix_derivative(parts[3], link, m_ee, k_ee)
-    if block is None:
-        return None
+
+def _drive_of(mechanism, parts):
+    """The drive of a scene path ``drive.<key>`` (a scene's one ``[drive]`` table) or
+    ``drives.<joint>.<key>``, else None."""
+    if parts[0] == "drive" and len(parts) == 2 and len(mechanism.drives) == 1:
+        return mechanism.drives[0]
+    if parts[0] == "drives" and len(parts) == 3:
+        return next((item for item in mechanism.drives if item.joint == parts[1]), None)
+    return None
+
+
+def _moved_specs(linearized, path: str) -> list[str]:
+    """The observables whose maps the parameter ``path`` of ``analytic_derivative`` moves: for a
+    Young's modulus every one (a stress or moment is ``E`` times a curvature or an axial strain, with no
+    nominal part where the link has axial coordinates), for a controller's gain the totals (forces and
+    torques: ``ObservableMap.total``; a deviation of the coordinates is the gain's through ``z`` alone),
+    for a link's damping none."""
+    parts = path.split(".")
+    if parts[0] == "links" and len(parts) == 3 and parts[2] == "youngs_modulus":
+        return list(linearized.observable_maps)
+    if (parts[0] == "controllers" and len(parts) == 3) or _drive_of(linearized.mechanism, parts) is not None:
+        return [spec for spec, found in linearized.observable_maps.items() if found.total]
+    return []
+
+
+def moves_maps(linearized, path: str) -> bool:
+    """Whether the parameter ``path`` of ``analytic_derivative`` moves some of ``linearized``'s
+    observable maps (``map_derivatives``): a Young's modulus (stresses, moments) or a controller's gain
+    where a force or torque is observed; a link's damping moves none."""
+    return bool(_moved_specs(linearized, path))
+
+
+def map_derivatives(linearized, path: str, mechanism=None, step: float = 0.0) -> dict:
+    """d(map)/dp {spec: ``ObservableMap`` of derivatives, per unit of p} of ``linearized``'s observable
+    maps that the parameter ``path`` of ``analytic_derivative`` moves (``moves_maps``); {} where none
+    move.  A gain moves its drive's torque law only, by the law per unit gain along ``x = V z``; ``E``
+    moves the gradients of the coordinates' observables (a stress or moment is ``E`` times a curvature
+    or strain): their change to ``mechanism``, ``linearized``'s with ``E`` at ``p + step``, over ``step``.
+    Neither moves the nominal motion, the multipliers' maps or the nominal axial forces
+    (``analytic_derivative`` declines where a gain would reach the multipliers), and each map is affine in
+    them, so ``point + h * derivative`` is the map at ``p + h`` exactly."""
+    if not moves_maps(linearized, path):
+        return {}
+    nominal, c = linearized.nominal, linearized.coefficients
+    parts = path.split(".")
+    if parts[0] == "links":
+        def route(model):
+            return _Route(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, None, c, None)
+
+        model = mechanisms.assemble(mechanism)
+        change = _ChangeRoute(len(nominal.t), coordinates=(route(model), route(mechanisms.assemble(
+            linearized.mechanism)), step))
+    else:
+        law = _gain_law(linearized, linearized.mechanism, _gain_owner(linearized.mechanism, parts), parts[-1])
+        model = mechanisms.assemble(linearized.mechanism)   # its torque drives' own observables
+        change = _ChangeRoute(len(nominal.t), torque=None if law is None or law[3] else law[:3])
+    return {spec: model.observable(spec).linear_map(change) for spec in _moved_specs(linearized, path)}
+
+
+class _ChangeRoute:
+    """The ``LinearRoute`` (``mechanisms/_protocol.py``) of a map's derivative with respect to a parameter
+    that leaves the nominal motion, the multipliers' maps and the axial forces alone: ``torque`` (joint,
+    position, rate) the torque law's change at that joint per unit p, ``coordinates`` (the routes at p +
+    step and at p, step) where the observables' gradients change."""
+
+    def __init__(self, n_samples, *, torque=None, coordinates=None):
+        self.n_samples, self.torque, self.pair = n_samples, torque, coordinates
+
+    def coordinates(self, observable, nominal=None) -> ObservableMap:
+        if self.pair is None:
+            return ObservableMap(observable.unit)
+        plus, point, step = self.pair
+        change = (plus._gradient_map(observable) - point._gradient_map(point.model.observable(observable.spec))) / step
+        return ObservableMap(observable.unit, position=change)
+
+    def multipliers(self, weights, unit) -> ObservableMap:
+        return ObservableMap(unit)
+
+    def torque_law(self, drive_index, joint, unit) -> ObservableMap:
+        if self.torque is None or self.torque[0] != joint:
+            return ObservableMap(unit)
+        return ObservableMap(unit, position=self.torque[1], rate=self.torque[2])
+
+    def magnitude(self, unit, components) -> ObservableMap:
+        return ObservableMap(unit, components=tuple(components))
+
+    def axial_force(self, link, x) -> np.ndarray:
+        return np.zeros(self.n_samples)
+
+
+def _elastic_projection(linearized, layout, d_damping, d_stiffness) -> periodic.SystemDerivative:
+    """``dC = V^T dD V``, ``dK = V^T (dD V' + dK V)`` of changes ``d_damping``, ``d_stiffness``
+    (n_e, n_e or None) of one link's elastic block: independent coordinates, so ``V`` is a selection
+    there and the multipliers' maps (dependent rows) do not move."""
     c = linearized.coefficients
     basis, rate = c.V[:, layout.elastic, :], c.Vdot[:, layout.elastic, :]   # (N+1, n_e, m)
-    projected = np.swapaxes(basis, 1, 2) @ np.asarray(block, dtype=float)   # V^T dD on the link's rows
-    return periodic.SystemDerivative(C=projected @ basis, K=projected @ rate, log_period=0.0)
+    transposed = np.swapaxes(basis, 1, 2)
+    damping = stiffness = None
+    if d_damping is not None:
+        projected = transposed @ np.asarray(d_damping, dtype=float)         # V^T dD on the link's rows
+        damping, stiffness = projected @ basis, projected @ rate
+    if d_stiffness is not None:
+        block = transposed @ np.asarray(d_stiffness, dtype=float) @ basis
+        stiffness = block if stiffness is None else stiffness + block
+    return periodic.SystemDerivative(C=damping, K=stiffness, log_period=0.0)
+
+
+def _link_derivative(linearized, mechanism, parts) -> periodic.SystemDerivative | None:
+    """``links.<link>.damping.<key>`` and ``links.<link>.youngs_modulus`` of an elastic link."""
+    link = next((item for item in mechanism.links if item.name == parts[1]), None)
+    layout = linearized.nominal.model.layouts.get(parts[1]) if link is not None else None
+    if layout is None or layout.shapes is None:
+        return None
+    m_ee, k_ee = mechanisms.beam_matrices(layout.shapes)
+    damping = getattr(link, "damping", None)
+    if len(parts) == 4:
+        if parts[2] != "damping" or damping is None:
+            return None
+        block = damping.matrix_derivative(parts[3], link, m_ee, k_ee)
+        return None if block is None else _elastic_projection(linearized, layout, block, None)
+    if parts[2] != "youngs_modulus":
+        return None
+    # K_ee = E (A int Su'^T Su' + I int Sw''^T Sw'') (mechanisms.beam_matrices); the geometric stiffness
+    # and the load are the rigid inverse dynamics', which E does not enter
+    rule = getattr(damping, "modulus_derivative", None)
+    if damping is not None and rule is None:
+        return None
+    block = None if damping is None else rule(link, m_ee, k_ee)
+    return _elastic_projection(linearized, layout, block, k_ee / link.youngs_modulus)
+
+
+def _gain_owner(mechanism, parts):
+    """The controller of ``controllers.<name>.<key>`` or the drive of ``drive.<key>`` /
+    ``drives.<joint>.<key>`` (None if there is none)."""
+    if parts[0] == "controllers":
+        return next((item for item in mechanism.controllers if item.name == parts[1]), None)
+    return _drive_of(mechanism, parts)
+
+
+def _gain_law(linearized, mechanism, owner, key):
+    """``(joint, position, rate, lagged)`` of a gain ``key`` of ``owner`` (a controller, or a torque
+    drive's own PD): its law's change per unit gain ``du = position . z + rate . z'`` (N+1, m) from its
+    ``law_derivative(key)``, or None where it has none."""
+    rule = getattr(owner, "law_derivative", None)
+    law = None if rule is None else rule(key)
+    if law is None:
+        return None
+    model = mechanisms.assemble(mechanism)
+    h = model.drive_gradient(owner.joint)                          # (n,) the driven angle's gradient
+    c = linearized.coefficients
+    du_ds, du_dv = -law.kp * h, -law.kd * h                        # the law's dP, dD per unit gain
+    if law.observable is not None:
+        # an observable of the elastic coordinates alone: its gradient is the same at every sample of
+        # the rigid nominal motion, and its Hessian meets only elastic rates (zero there)
+        gradient = model.observable(law.observable).gradient(linearized.nominal.s[0])
+        du_ds, du_dv = du_ds - law.gain * gradient, du_dv - law.rate_gain * gradient
+    # du = position . z + rate . z' per unit gain, from x = V z, x' = V z' + V' z
+    position = np.einsum("n,kni->ki", du_ds, c.V) + np.einsum("n,kni->ki", du_dv, c.Vdot)
+    return owner.joint, position, np.einsum("n,kni->ki", du_dv, c.V), bool(getattr(owner, "lag", 0.0))
+
+
+def _gain_derivative(linearized, mechanism, owner, key) -> periodic.SystemDerivative | None:
+    """A gain ``key`` of ``owner`` (``_gain_law``) folded in as ``linearize._core`` and
+    ``linearize._lag`` fold the law itself (module docstring)."""
+    found = _gain_law(linearized, mechanism, owner, key)
+    if found is None:
+        return None
+    joint, position, rate, lagged = found
+    c = linearized.coefficients
+    n_samples, m = position.shape
+    damping, stiffness = np.zeros((n_samples, m, m)), np.zeros((n_samples, m, m))
+    if lagged:
+        lag = f"lag.{owner.name}"
+        if lag not in linearized.labels:
+            return None
+        # the lag's own row [-du/ds, 1], [-du/ds', tau] (linearize._lag): only -du moves
+        row = linearized.labels.index(lag)
+        stiffness[:, row, :], damping[:, row, :] = -position, -rate
+        return periodic.SystemDerivative(C=damping, K=stiffness, log_period=0.0)
+    h = mechanisms.assemble(mechanism).drive_gradient(joint)
+    dependent = np.setdiff1d(np.arange(h.size), c.independent)
+    if np.any(h[dependent]):
+        return None     # the torque would reach the dependent rows, hence the multipliers' maps
+    # the torque u h in Q: K = -dQ/ds gains -h du/ds, D = -dQ/ds' gains -h du/ds'
+    lever = np.einsum("n,kni->ki", h, c.V)                         # V^T h (N+1, m)
+    stiffness, damping = -lever[:, :, None] * position[:, None, :], -lever[:, :, None] * rate[:, None, :]
+    return periodic.SystemDerivative(C=damping, K=stiffness, log_period=0.0)

@@ -111,9 +111,14 @@ def reduction_basis(mass, stiffness, axial: np.ndarray, n_modes: int, loads: np.
     psi = np.hstack(corrections)
     basis = np.hstack([phi, psi])
     # each column's largest displacement along the link becomes +1 (the sign too: the eigensolver's is
-    # arbitrary); every column moves the link (the stiffness is definite), so the peak is not round-off
+    # arbitrary); every column moves the link (the stiffness is definite), so the peak is not round-off.
+    # A symmetric link has peaks of both signs equal to round-off (an antisymmetric mode's +a and -a):
+    # the first sample within 1e-6 of the largest, not whichever round-off makes larger, or a change of
+    # 1e-6 in a section property flips a column's sign and every difference across it (the
+    # sensitivities' forward steps) is O(1) wrong
     sampled = displacements @ basis
-    peak = np.argmax(np.abs(sampled), axis=0)
+    magnitude = np.abs(sampled)
+    peak = np.argmax(magnitude >= (1.0 - 1e-6) * magnitude.max(axis=0), axis=0)
     basis = basis / sampled[peak, np.arange(basis.shape[1])]
     labels = tuple(f"m{i + 1}" for i in range(phi.shape[1])) + tuple(
         f"c{i + 1}" for i in range(psi.shape[1]))

@@ -2,7 +2,9 @@
 what ``studies.sensitivity`` reports and ``studies.optimize``'s local method follows.
 
 For each parameter p the coefficients' derivative is analytic where a part of the mechanism carries it
-(``linearize.analytic_derivative``: a link's damping, with no second linearisation), else it comes from
+(``linearize.analytic_derivative``: a link's damping and Young's modulus, a controller's gains, with no
+second linearisation; the maps they move differentiated on the point's motion, ``linearize.map_derivatives``),
+else it comes from
 linearisations at nearby values (``linearize.coefficient_derivative``: a forward difference where the
 nominal configuration does not move, else a central one; the speed's central difference on a speed
 family is exact, its coefficients being polynomials in the speed), and the response's from
@@ -21,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -83,6 +85,45 @@ def _keeps_configuration(problem, params, name, linear) -> bool:
     return linearize.keeps_configuration(problem.mechanism(changed), nominal)
 
 
+@dataclass(frozen=True, eq=False)
+class _Maps:
+    """The derivatives {spec: ``linearize.ObservableMap``} of the observable maps an analytic parameter
+    moves (``linearize.map_derivatives``, per unit of it); ``plus(linear, h)`` and ``minus(linear, h)``
+    the point's ``linear`` with its maps at p + h and p - h (they are affine in the parameter)."""
+
+    derivatives: dict
+
+    def plus(self, linear, h):
+        return self._at(linear, h)
+
+    def minus(self, linear, h):
+        return self._at(linear, -h)
+
+    def _at(self, linear, offset):
+        if not self.derivatives:
+            return linear
+        moved = []
+        for spec, here in zip(linear.observables, linear.maps):
+            slope = self.derivatives.get(spec)
+            mine = here.arrays()
+            changes = {} if slope is None else slope.arrays()
+            moved.append(here.with_arrays({key: mine.get(key, 0.0) + offset * change
+                                           for key, change in changes.items()}) if changes else here)
+        return replace(linear, maps=tuple(moved))
+
+
+def _analytic_maps(problem, params, name, linear) -> _Maps:
+    """The derivatives of the maps ``name`` moves (``linearize.map_derivatives``; none for a damping key,
+    or without a force, torque or stress observed: no mechanism built), for ``E`` from the mechanism at
+    a step ``CENTRAL_STEP``."""
+    if not linearize.moves_maps(linear.context, name):
+        return _Maps({})
+    step = linearize.parameter_step(params[name], linearize.CENTRAL_STEP)
+    changed = {key: value for key, value in params.items() if value != problem.parameters.get(key)}
+    changed[name] = params[name] + step
+    return _Maps(linearize.map_derivatives(linear.context, name, problem.mechanism(changed), step))
+
+
 def _neighbour(problem, values, n_steps, linear):
     """The linearisation at ``values``, a forward step of a parameter that leaves the linkage alone:
     on the point's own kinematics where the problem reuses them (only the inverse dynamics and the
@@ -139,11 +180,11 @@ def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, line
     for name in names:
         closed = None if name in pending else linearize.analytic_derivative(linear.context, name)
         if closed is not None:
-            # a part carries the derivative: no linearisation at a neighbouring value, and the
-            # observables' maps do not move (linearize.analytic_derivative)
+            # a part carries the derivative: no linearisation at a neighbouring value; the maps it moves
+            # (a drive torque, a stress) are differentiated on the point's motion
             methods[name], steps[name] = "analytic", 0.0
             derivatives.append(closed)
-            neighbours.append(None)
+            neighbours.append(_analytic_maps(problem, params, name, linear))
             continue
         if name in pending:
             plus, minus, step, methods[name] = pending[name]
@@ -176,13 +217,15 @@ def point_derivatives(problem, values, names, *, n_steps: int, scheme: str, line
         coarse_derivative = np.empty((len(names),) + coarse_response.shape)
         levels.append((coarse_derivative, state.x_coarse, dz_coarse, 2))
     for j, neighbour in enumerate(neighbours):
-        if neighbour is None:
-            # the maps are the point's: a central difference along dz (a force's magnitude is not
-            # linear in z; the step's truncation is (h/p)^2 = 1e-8 of the derivative)
+        if methods[names[j]] == "analytic":
+            # the maps are the point's or, where the parameter moves them, theirs at p +- h (affine in
+            # it, exactly); a central difference along dz (a force's magnitude is not linear in z; the
+            # step's truncation is (h/p)^2 = 1e-8 of the derivative)
             h = linearize.parameter_step(params[names[j]], linearize.CENTRAL_STEP)
+            upper, lower = neighbour.plus(linear, h), neighbour.minus(linear, h)
             for out, z, dz_level, stride in levels:
-                out[j] = (linear.observe(z + h * dz_level[j], stride=stride)
-                          - linear.observe(z - h * dz_level[j], stride=stride)) / (2.0 * h)
+                out[j] = (upper.observe(z + h * dz_level[j], stride=stride)
+                          - lower.observe(z - h * dz_level[j], stride=stride)) / (2.0 * h)
             continue
         plus, minus, divisor, forward = neighbour
         # h dz moves z to first order as the parameter's step does; the maps' own change is differenced

@@ -17,7 +17,10 @@ def register_controller(cls: type) -> type:
     """Enter the controller class ``cls`` in ``CONTROLLER_TYPES`` under its ``TYPE`` and return it
     (a class decorator). A controller is a frozen class with ``name``, ``joint`` (the torque drive
     it adds to) and ``lag`` (s, 0 for none), its scene ``TYPE``, ``KEYS``, ``from_table(name,
-    table)``, ``to_table()`` and ``law()`` (its ``ControllerLaw``)."""
+    table)``, ``to_table()`` and ``law()`` (its ``ControllerLaw``); optionally ``law_derivative(key)``,
+    the ``ControllerLaw`` per unit of its scalar scene key ``key`` (a gain: the law is linear in its
+    gains) or None where the law is not linear in that key, which the sensitivities read for their
+    closed-form derivatives (a controller without it is differenced)."""
     return register_class(CONTROLLER_TYPES, cls, _INTERFACE, "controller", "mechanisms.PDController")
 
 
@@ -73,6 +76,11 @@ class PDController(_Controller):
     def law(self) -> ControllerLaw:
         return ControllerLaw(kp=float(self.kp), kd=float(self.kd))
 
+    def law_derivative(self, key: str) -> ControllerLaw | None:
+        """d law / d ``key``: the law of unit ``kp`` or ``kd`` (it is linear in them); None for
+        ``lag`` (the lag is not a gain)."""
+        return {"kp": ControllerLaw(kp=1.0), "kd": ControllerLaw(kd=1.0)}.get(key)
+
 
 @register_controller
 @dataclass(frozen=True)
@@ -113,6 +121,13 @@ class ObservableFeedback(_Controller):
     def law(self) -> ControllerLaw:
         return ControllerLaw(observable=self.observable, gain=float(self.gain),
                              rate_gain=float(self.rate_gain))
+
+    def law_derivative(self, key: str) -> ControllerLaw | None:
+        """d law / d ``key``: the feedback of unit ``gain`` or ``rate_gain`` (it is linear in them);
+        None for ``lag``."""
+        if key not in ("gain", "rate_gain"):
+            return None
+        return ControllerLaw(observable=self.observable, **{key: 1.0})
 
 
 # A controller's ``lag`` (s): the time constant of a first-order lag ``lag y' + y = u`` between its

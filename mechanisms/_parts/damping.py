@@ -10,13 +10,15 @@ m_ee, k_ee, *, strain_rate_beta)``, the constant damping matrix ``C0`` (N s/m) o
 coordinates, and ``matrix_derivative(key, link, m_ee, k_ee)``, the derivative of the linearised
 damping matrix of the link's elastic coordinates with respect to the scalar scene key ``key`` of its
 ``damping`` table (None where the kind has no closed form for that key: the sensitivities then take
-differences of linearisations). ``DAMPING_TYPES`` lists them by ``TYPE``; a scene's ``type = "none"``
+differences of linearisations), and ``modulus_derivative(link, m_ee, k_ee)``, its derivative with
+respect to the link's Young's modulus ``E`` (``K_ee`` is proportional to ``E``, ``M_ee`` does not
+depend on it). ``DAMPING_TYPES`` lists them by ``TYPE``; a scene's ``type = "none"``
 is no damping.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, ClassVar, Union
 
 import numpy as np
@@ -33,10 +35,14 @@ class Rayleigh:
     on the rate of the projected membrane strain, so a bent link shortening its chord is not damped
     as if it were stretched (equal to ``beta K_ee`` at zero deflection, hence in the linearisation).
     In a scene, ``ratio`` instead of ``alpha`` and ``beta``: ``beta = 2 ratio / omega_1``, the
-    stiffness-proportional damping with that ratio at the link's first bending frequency."""
+    stiffness-proportional damping with that ratio at the link's first bending frequency (``ratio``
+    then records it: ``beta`` follows the frequency, hence ``E``, when the scene is rebuilt)."""
 
     alpha: float = 0.0
     beta: float = 0.0
+    # the scene's ratio that beta was made from (None: beta given); not part of the kind's identity,
+    # which is alpha and beta
+    ratio: float | None = field(default=None, compare=False, repr=False)
 
     TYPE: ClassVar[str] = "rayleigh"
     KEYS: ClassVar[tuple[str, ...]] = ("type", "alpha", "beta", "ratio")
@@ -55,11 +61,15 @@ class Rayleigh:
                                      f"alpha and beta, not both")
             # C = beta K gives the ratio beta omega / 2 at omega: beta = 2 zeta / omega_1.
             ratio = table.number("ratio", "1", nonnegative=True)
-            return cls(0.0, 2.0 * ratio / link.first_bending_frequency())
+            return cls(0.0, 2.0 * ratio / link.first_bending_frequency(), ratio=ratio)
         return cls(table.number("alpha", "1/s", 0.0, nonnegative=True),
                    table.number("beta", "s", 0.0, nonnegative=True))
 
     def to_table(self) -> dict[str, Any]:
+        # made from a ratio: written as one, so that a rebuilt link (another E, density, section) gets
+        # its beta from its own first frequency, as modulus_derivative assumes
+        if self.ratio is not None:
+            return {"type": self.TYPE, "ratio": self.ratio}
         return {"type": self.TYPE, "alpha": self.alpha, "beta": self.beta}
 
     @property
@@ -84,6 +94,13 @@ class Rayleigh:
         if key == "ratio":
             return (2.0 / link.first_bending_frequency()) * k_ee
         return None
+
+    def modulus_derivative(self, link, m_ee: np.ndarray, k_ee: np.ndarray) -> np.ndarray:
+        """d(linearised damping)/dE with ``K_ee`` proportional to ``E``: ``beta K_ee / E`` for a
+        given ``beta``; with a ``ratio``, ``beta = 2 ratio / omega_1`` falls as ``E^-1/2`` (``omega_1``
+        grows as ``sqrt(E)``), so ``beta K_ee`` grows as ``sqrt(E)``: ``beta K_ee / (2 E)``."""
+        share = 0.5 if self.ratio is not None else 1.0
+        return (share * self.beta / link.youngs_modulus) * k_ee
 
 
 @dataclass(frozen=True)
@@ -116,6 +133,11 @@ class ModalDamping:
     def matrix_derivative(self, key: str, link, m_ee: np.ndarray, k_ee: np.ndarray) -> None:
         """No closed form for a scalar key (its entries are lists): the sensitivities difference."""
         return None
+
+    def modulus_derivative(self, link, m_ee: np.ndarray, k_ee: np.ndarray) -> np.ndarray:
+        """d(damping)/dE: the modes do not change with ``E`` (``K_ee`` scales with it) and each
+        ``omega`` grows as ``sqrt(E)``, so the matrix does too: ``C0 / (2 E)``."""
+        return self.constant_matrix(link.name, m_ee, k_ee, strain_rate_beta=False) / (2.0 * link.youngs_modulus)
 
     def constant_matrix(self, link_name: str, m_ee: np.ndarray, k_ee: np.ndarray, *,
                strain_rate_beta: bool) -> np.ndarray:
@@ -166,6 +188,10 @@ class DampingMatrix:
     def matrix_derivative(self, key: str, link, m_ee: np.ndarray, k_ee: np.ndarray) -> None:
         """No closed form for a scalar key (its entries are lists): the sensitivities difference."""
         return None
+
+    def modulus_derivative(self, link, m_ee: np.ndarray, k_ee: np.ndarray) -> np.ndarray:
+        """An explicit matrix does not depend on ``E``: zero."""
+        return np.zeros_like(k_ee)
 
     def constant_matrix(self, link_name: str, m_ee: np.ndarray, k_ee: np.ndarray, *,
                         strain_rate_beta: bool) -> np.ndarray:

@@ -272,6 +272,13 @@ class TorqueDrive:
         if self.motor is not None and not isinstance(self.motor, DCMotor):
             raise MechanismError(f"{owner}: motor must be a DCMotor or None, got {self.motor!r}")
 
+    def law_derivative(self, key: str):
+        """d(its PD law)/d ``key``: the ``ControllerLaw`` of unit ``kp`` or ``kd`` (the law is linear in
+        them; the sensitivities' closed form, as a controller's); None for its other keys."""
+        from .controllers import ControllerLaw
+
+        return {"kp": ControllerLaw(kp=1.0), "kd": ControllerLaw(kd=1.0)}.get(key)
+
     @property
     def inertia(self) -> float:
         """Inertia (kg m^2) turning with ``link_b`` about the joint: the motor's rotor through its

@@ -93,7 +93,8 @@ class SensitivityResult(StudyResult):
     spectral_radius, spectral_radius_error : float, 1
         The steady state's spectral radius and its error (as ``steady_state`` reports them).
     methods : dict, {name: str}
-        How each parameter's coefficient derivative was taken: "forward" (the kinematics do not move) or
+        How each parameter's coefficient derivative was taken: "analytic" (a part carries it: a link's
+        damping and Young's modulus, a controller's gains), "forward" (the kinematics do not move) or
         "central" difference of the linearisation's coefficients.
     steps : dict, {name: float}, parameter_units[name]
         The difference steps.
