@@ -15,8 +15,8 @@ forward difference of the map, ``(P(x, p + dp) - P(x, p)) / dp`` with ``dp = sqr
 (relative error ~1e-8, which slows Newton's convergence negligibly), computed once per corrector
 solve at its first iterate (arclength) and once at each accepted point for its tangent (one extra
 map call each).  Step control: a corrector that fails, or whose new secant turns by more than
-``MAX_TURN`` from the tangent at the last point (it may have jumped to another branch), halves the
-step; one that converges in at most ``EASY_ITERATIONS`` steps grows it by ``GROWTH``.  The reference
+``MAX_TURN`` from the tangent at the last point or from the tangent at its new point (it may have
+jumped to another branch, or the branch bends within the step), halves the step; one that converges in at most ``EASY_ITERATIONS`` steps grows it by ``GROWTH``.  The reference
 is the local tangent, not the last secant: where the branch bends sharply (near a resonance) a long
 last secant differs from the local direction by more than ``MAX_TURN`` however short the new step.
 
@@ -57,7 +57,7 @@ from ._verdict import STABILITY_TOL, worst_status
 logger = logging.getLogger(__name__)
 
 METHODS = ("natural", "arclength")
-#: A corrector whose new secant turns by more than this from the tangent at the last point (radians,
+#: A corrector whose new secant turns by more than this from the tangent at the last or the new point (radians,
 #: in the scaled variables) is rejected and the step halved: it may have converged onto another branch.
 MAX_TURN = math.radians(30.0)
 #: A corrector that converges in at most this many Newton steps lets the next step grow ...
@@ -328,30 +328,47 @@ class _Follower:
                 step *= 0.5
                 continue
             parameter = fixed if fixed is not None else corrector.unscaled(found.y)[1]
-            if (parameter - self.stop) * self.direction > 0.0:  # passed: the end point exactly at stop
+            passed = (parameter - self.stop) * self.direction > 0.0
+            if not passed:
+                # the step must also agree with the branch's direction at its end: a branch that bends
+                # sharply at the end of a step (through a resonance) would leave the next step a tangent
+                # turned by up to 180 degrees from the last one
+                new_tangent = self._local_tangent(found, parameter, secant)
+                if secant @ new_tangent < math.cos(MAX_TURN):
+                    last_reason = (f"the branch turned by more than {math.degrees(MAX_TURN):g} degrees in a "
+                                   "step (a fold, or a jump to another branch)")
+                    step *= 0.5
+                    continue
+                new = corrector.orbit(found, self.start_time, fixed)
+            else:  # passed: the end point exactly at stop
                 new, found = self._at_stop(y, found.y)
                 if new is None:
                     last_reason = "the orbit at stop was not found"
                     step *= 0.5
                     continue
-            else:
-                new = corrector.orbit(found, self.start_time, fixed)
+                new_tangent = tangent    # not used: the branch ends at stop
             if self._crossing(current, new, y, found.y):
                 return self._finish("instability")
             self.orbits.append(new)
-            y, tangent = found.y, self._local_tangent(found, parameter, secant)
+            y, tangent = found.y, new_tangent
             if self.adaptive_scale:
                 y, tangent = self._rescale(y, tangent, new.state)
             if found.iterations <= EASY_ITERATIONS:
                 step = min(step * GROWTH, max_step)
 
     def _local_tangent(self, found, parameter, secant) -> np.ndarray:
-        """The unit tangent (scaled) of the branch at the accepted point ``found`` (at ``parameter``),
-        oriented along ``secant`` (the step just taken): the next predictor's direction and the turn
-        check's reference."""
+        """The unit tangent (scaled) of the branch at the converged point ``found`` (at ``parameter``):
+        the next predictor's direction and the turn checks' reference. Oriented, for ``natural``,
+        along the direction of the parameter (the branch it follows has no fold: where the tangent's
+        parameter part vanishes the step fails), for ``arclength`` along ``secant``, the step just taken
+        (through folds). A secant across a sharp bend may make more than 90 degrees with the tangent at
+        its end: orienting a natural continuation's tangent by it turned the branch back (six_bar,
+        75 -> 125 rad/s, at 106.283 rad/s: every later step rejected, issue 24)."""
         corrector = self.corrector
         state = corrector.unscaled(found.y)[0]
         end = state + found.residual_vector[:-1] * corrector.X
+        if self.method == "natural":
+            return corrector.tangent(state, parameter, found.extra, end, self.direction)
         tangent = corrector.tangent(state, parameter, found.extra, end, 1.0)
         return tangent if tangent @ secant >= 0.0 else -tangent
 
