@@ -55,10 +55,20 @@ def problem_and_values():
 
 
 def flexvib(problem, values, modes):
-    """(wall s, result) of the nonlinear periodic state."""
-    started = time.perf_counter()
-    result = studies.nonlinear_steady_state(problem, values, modes=modes)
-    return time.perf_counter() - started, result
+    """(wall s, result) of the nonlinear periodic state; ``modes`` "auto", "full", or "auto@tol": the
+    default model with the error levels converged to ``tol`` (``LEVEL_ACCURACY = None``, the shooting
+    of session 7: the baseline of session 8's levels, side by side)."""
+    from studies._kinds import nonlinear_steady_state as steady_module
+
+    accuracy = steady_module.LEVEL_ACCURACY
+    if modes.endswith("@tol"):
+        modes, steady_module.LEVEL_ACCURACY = modes[:-4], None
+    try:
+        started = time.perf_counter()
+        result = studies.nonlinear_steady_state(problem, values, modes=modes)
+        return time.perf_counter() - started, result
+    finally:
+        steady_module.LEVEL_ACCURACY = accuracy
 
 
 def exudyn_run(mechanism, n_revolutions: int, steps: int):
@@ -202,7 +212,8 @@ def main() -> None:
     parser.add_argument("--exudyn-steps", type=int, default=720)
     parser.add_argument("--long", type=int, default=60, help="revolutions of the runs giving the limits")
     parser.add_argument("--quick", action="store_true", help="one repeat")
-    parser.add_argument("--modes", nargs="+", default=["auto", "full"], choices=["auto", "full"])
+    parser.add_argument("--modes", nargs="+", default=["auto", "auto@tol", "full"],
+                        choices=["auto", "auto@tol", "full"])
     parser.add_argument("--sweep", action="store_true", help="time the 50-speed nonlinear sweep instead")
     args = parser.parse_args()
     repeats = 1 if args.quick else args.repeats
@@ -210,7 +221,7 @@ def main() -> None:
     mechanism = problem.mechanism({path: ELEMENTS for path in PATHS})
     # JIT compilation (the fused step too, as the studies' warm-up compiles it) and the model caches
     with mechanisms.fused_step(True):
-        for modes in args.modes:
+        for modes in {modes.removesuffix("@tol") for modes in args.modes}:
             studies.nonlinear_steady_state(problem, values, n_steps=32, max_iterations=1, modes=modes)
     if args.sweep:
         return sweep(problem, values, repeats)
@@ -220,7 +231,7 @@ def main() -> None:
     except ImportError:
         have_exudyn = False
 
-    _, orbit = flexvib(problem, values, args.modes[-1])
+    _, orbit = flexvib(problem, values, "full" if "full" in args.modes else "auto")
     if have_exudyn:
         steps = args.exudyn_steps
         long_run, _ = exudyn_run(mechanism, args.long, steps)
