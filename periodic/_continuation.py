@@ -71,6 +71,9 @@ EASY_ITERATIONS = 3
 #: ... or, at a fixed parameter (natural steps: chord iterations with the last orbit's monodromy,
 #: contracting by some 0.01-0.1 a step where Newton squares), in at most this many chord steps.
 EASY_CHORD_ITERATIONS = 5
+#: After a chord that does not contract (the last orbit's monodromy too far from this one's), this
+#: many natural steps are solved by Newton before the chord is tried again.
+CHORD_RETRY = 3
 #: ... by this factor (up to max_step); a failed or turning one halves it.
 GROWTH = 1.5
 #: Brent's method locates a bifurcation to this fraction of the chord between two points.
@@ -146,6 +149,7 @@ class _Corrector:
         self.calls_of_last_solve = 0
         #: the monodromy of the last accepted orbit: the chord iterations' Jacobian at a fixed parameter
         self.kept: np.ndarray | None = None
+        self.newton_solves_left = 0    # natural steps still to solve by Newton after a failed chord
 
     def scaled(self, state, parameter) -> np.ndarray:
         return np.append(state / self.X, parameter / self.P)
@@ -211,11 +215,18 @@ class _Corrector:
         its result in the scaled unknowns (``y`` with the parameter, the residual with a zero
         constraint row, ``extra`` the monodromy at ``y``)."""
         n = y_pred.size - 1
-        calls_before = self.map.calls
+        calls_before, monodromies_before = self.map.calls, self.map.monodromies
+        chord = self.newton_solves_left == 0
         found = solve_fixed_point(self.map, self.unscaled(y_pred)[0], parameter, tol=self.tol,
                                   max_iterations=self.max_iterations, state_scale=self.floor,
-                                  monodromy=self.kept)
+                                  monodromy=self.kept if chord else None)
         self.calls_of_last_solve = self.map.calls - calls_before
+        # a chord that did not contract cost its periods for nothing (Newton went on): after one, the
+        # next CHORD_RETRY solves go straight to Newton, then the chord is tried again
+        if chord:
+            self.newton_solves_left = 0 if self.map.monodromies - monodromies_before == 1 else CHORD_RETRY
+        else:
+            self.newton_solves_left -= 1
         monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(n)
         return replace(found, y=self.scaled(found.y, parameter), residual_vector=np.append(
             found.residual_vector / self.X, 0.0), jacobian=None, extra=monodromy)

@@ -267,16 +267,18 @@ def chord(evaluate_end, y0, jacobian, *, tol: float, max_iterations: int, relati
 
 
 class CountingMap:
-    """``period_map`` with input checks on what it returns and a count of its calls."""
+    """``period_map`` with input checks on what it returns and a count of its calls (``calls``; those
+    with the monodromy: ``monodromies``)."""
 
     def __init__(self, period_map, n: int):
         if not callable(period_map):
             raise TypeError(f"period_map: expected a callable (state, parameter) -> (end_state, monodromy), "
                             f"got {type(period_map).__name__}")
-        self.period_map, self.n, self.calls = period_map, n, 0
+        self.period_map, self.n, self.calls, self.monodromies = period_map, n, 0, 0
 
     def __call__(self, state, parameter):
         self.calls += 1
+        self.monodromies += 1
         end, monodromy = self.period_map(state, parameter)
         end = np.asarray(end, dtype=float)
         monodromy = np.asarray(monodromy, dtype=float)
