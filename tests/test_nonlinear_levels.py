@@ -17,7 +17,7 @@ import pytest
 
 import periodic
 import studies
-from studies._kinds import nonlinear_steady_state as steady_module   # the study's level accuracy
+from studies._kinds import nonlinear_steady_state as steady_module  # the study's level accuracy
 
 
 def _duffing(n_steps):

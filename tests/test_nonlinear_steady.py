@@ -211,7 +211,7 @@ def test_bad_arguments_name_themselves(problem):
 @pytest.mark.slow
 def test_continuation_over_speed_against_single_orbits(problem, monkeypatch):
     from studies import kinds
-    from studies._kinds import nonlinear_steady_state as steady_module   # the levels' accuracy
+    from studies._kinds import nonlinear_steady_state as steady_module  # the levels' accuracy
 
     sweep = studies.nonlinear_sweep(problem, start=96.0, stop=100.0, n_steps=128, step=2.0)
     assert sweep.status == "ok" and sweep.values[0] == 96.0 and sweep.values[-1] == 100.0
