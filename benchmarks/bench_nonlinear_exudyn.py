@@ -18,8 +18,14 @@ against the Exudyn transient at matched accuracy (issue 24), side by side in one
   Exudyn figure (3.2 s) is printed as given.
 
 The machine is shared: medians of ``--repeats`` interleaved runs; compare ratios, not seconds.
+``--modes auto`` times the default route only (the full element models take most of a run).
 
-Usage: ``.venv/bin/python benchmarks/bench_nonlinear_exudyn.py [--repeats 3] [--quick]``
+``--sweep``: the issue's second target instead, ``studies.nonlinear_sweep`` of the same six-bar over
+75 -> 125 rad/s (``step = 1``, N = 128, ``modes = "auto"``), after a warm-up sweep: wall and CPU time,
+orbits, status, and the same sweep's orbits against single ``nonlinear_steady_state`` orbits at three
+speeds (the branch's peak-to-peak within both error estimates).
+
+Usage: ``.venv/bin/python benchmarks/bench_nonlinear_exudyn.py [--repeats 3] [--quick] [--sweep]``
 """
 
 from __future__ import annotations
@@ -49,10 +55,20 @@ def problem_and_values():
 
 
 def flexvib(problem, values, modes):
-    """(wall s, result) of the nonlinear periodic state."""
-    started = time.perf_counter()
-    result = studies.nonlinear_steady_state(problem, values, modes=modes)
-    return time.perf_counter() - started, result
+    """(wall s, result) of the nonlinear periodic state; ``modes`` "auto", "full", or "auto@tol": the
+    default model with the error levels converged to ``tol`` (``LEVEL_ACCURACY = None``, the shooting
+    of session 7: the baseline of session 8's levels, side by side)."""
+    from studies._kinds import nonlinear_steady_state as steady_module
+
+    accuracy = steady_module.LEVEL_ACCURACY
+    if modes.endswith("@tol"):
+        modes, steady_module.LEVEL_ACCURACY = modes[:-4], None
+    try:
+        started = time.perf_counter()
+        result = studies.nonlinear_steady_state(problem, values, modes=modes)
+        return time.perf_counter() - started, result
+    finally:
+        steady_module.LEVEL_ACCURACY = accuracy
 
 
 def exudyn_run(mechanism, n_revolutions: int, steps: int):
@@ -196,19 +212,26 @@ def main() -> None:
     parser.add_argument("--exudyn-steps", type=int, default=720)
     parser.add_argument("--long", type=int, default=60, help="revolutions of the runs giving the limits")
     parser.add_argument("--quick", action="store_true", help="one repeat")
+    parser.add_argument("--modes", nargs="+", default=["auto", "auto@tol", "full"],
+                        choices=["auto", "auto@tol", "full"])
+    parser.add_argument("--sweep", action="store_true", help="time the 50-speed nonlinear sweep instead")
     args = parser.parse_args()
     repeats = 1 if args.quick else args.repeats
     problem, values = problem_and_values()
     mechanism = problem.mechanism({path: ELEMENTS for path in PATHS})
-    for modes in ("auto", "full"):      # JIT compilation and the caches of the scene's models
-        studies.nonlinear_steady_state(problem, values, n_steps=32, max_iterations=1, modes=modes)
+    # JIT compilation (the fused step too, as the studies' warm-up compiles it) and the model caches
+    with mechanisms.fused_step(True):
+        for modes in {modes.removesuffix("@tol") for modes in args.modes}:
+            studies.nonlinear_steady_state(problem, values, n_steps=32, max_iterations=1, modes=modes)
+    if args.sweep:
+        return sweep(problem, values, repeats)
     try:
         import exudyn  # noqa: F401
         have_exudyn = True
     except ImportError:
         have_exudyn = False
 
-    _, orbit = flexvib(problem, values, "full")
+    _, orbit = flexvib(problem, values, "full" if "full" in args.modes else "auto")
     if have_exudyn:
         steps = args.exudyn_steps
         long_run, _ = exudyn_run(mechanism, args.long, steps)
@@ -225,10 +248,10 @@ def main() -> None:
     if revolutions is None:
         raise SystemExit(f"{baseline} did not settle within {args.accuracy:g} in {args.long} revolutions")
 
-    times: dict[str, list[float]] = {"auto": [], "full": [], "baseline": []}
+    times: dict[str, list[float]] = {**{modes: [] for modes in args.modes}, "baseline": []}
     results = {}
     for _ in range(repeats):
-        for modes in ("auto", "full"):
+        for modes in args.modes:
             seconds, results[modes] = flexvib(problem, values, modes)
             times[modes].append(seconds)
         if have_exudyn:
@@ -243,7 +266,7 @@ def main() -> None:
           f"peak-to-peak; medians of {repeats} interleaved runs (shared machine)")
     print(f"{baseline}: {steps} steps per revolution x {revolutions} revolutions: {median['baseline']:.3f} s"
           + ("" if have_exudyn else f" (Exudyn not installed; the issue's Exudyn figure: {ISSUE_EXUDYN_SECONDS} s)"))
-    for modes in ("auto", "full"):
+    for modes in args.modes:
         result = results[modes]
         words = ", ".join(
             f"{spec} p2p {result.peak_to_peak[spec] * 1e3:.4f} mm +- {result.response_error[spec] * 1e3:.2g} "
@@ -253,9 +276,35 @@ def main() -> None:
               f"{median[modes]:.3f} s, {result.status}, {result.map_calls} period maps; {words}; "
               f"ratio {baseline} / flexvib {median['baseline'] / median[modes]:.1f}")
     for spec in SPECS:
-        print(f"{spec}: {baseline} limit p2p {np.ptp(limit[spec]) * 1e3:.4f} mm, flexvib full / {baseline} "
-              f"{results['full'].peak_to_peak[spec] / np.ptp(limit[spec]):.4f}, reduced / full "
-              f"{results['auto'].peak_to_peak[spec] / results['full'].peak_to_peak[spec]:.6f}")
+        words = ", ".join(f"flexvib {modes} / {baseline} {results[modes].peak_to_peak[spec] / np.ptp(limit[spec]):.4f}"
+                          for modes in args.modes)
+        print(f"{spec}: {baseline} limit p2p {np.ptp(limit[spec]) * 1e3:.4f} mm, {words}")
+
+
+def sweep(problem, values, repeats: int) -> None:
+    """The 50-speed nonlinear sweep (75 -> 125 rad/s, step 1, N = 128), after a warm-up sweep."""
+    options = {"start": 75.0, "stop": 125.0, "values": values, "n_steps": 128, "step": 1.0}
+    studies.nonlinear_sweep(problem, **dict(options, stop=76.0))
+    walls, cpus = [], []
+    for _ in range(repeats):
+        started, cpu = time.perf_counter(), time.process_time()
+        result = studies.nonlinear_sweep(problem, **options)
+        walls.append(time.perf_counter() - started)
+        cpus.append(time.process_time() - cpu)
+    print(f"nonlinear_sweep {SCENE} 75 -> 125 rad/s, step 1, N = 128, modes auto: {result.status}, "
+          f"{result.values.size} orbits, wall {statistics.median(walls):.2f} s, CPU {statistics.median(cpus):.2f} s "
+          f"(median of {repeats}; {statistics.median(walls) / result.values.size:.3f} s per orbit)")
+    print(f"  {result.message[:240]}")
+    # the branch against single orbits at three of its speeds
+    for k in (0, result.values.size // 2, result.values.size - 1):
+        speed = float(result.values[k])
+        single = studies.nonlinear_steady_state(problem, dict(values, speed=speed), n_steps=128)
+        for spec in SPECS:
+            difference = abs(result.peak_to_peak[spec][k] - single.peak_to_peak[spec])
+            bar = result.peak_to_peak_error[spec][k] + single.peak_to_peak_error[spec]
+            print(f"  {speed:.4f} rad/s {spec}: branch {result.peak_to_peak[spec][k] * 1e3:.4f} mm, single orbit "
+                  f"{single.peak_to_peak[spec] * 1e3:.4f} mm, difference {difference * 1e3:.2g} mm "
+                  f"(error bars {bar * 1e3:.2g} mm)")
 
 
 if __name__ == "__main__":

@@ -323,6 +323,14 @@ class PeriodMap:
         return self.run(x, tangent=False).end_state
 
     @property
+    def blocks(self) -> tuple[tuple[int, int], ...]:
+        """The shooting state's parts in one unit each, as (start, stop) index ranges: the coordinates'
+        deviations (m or rad), their rates (per s) and the lag states (N m) where there are any
+        (``periodic.find_orbit`` judges an error level's accuracy in each apart)."""
+        m = self.independent.size
+        return ((0, m), (m, 2 * m)) + (((2 * m, self.n_state),) if self.n_lags else ())
+
+    @property
     def resolution(self) -> np.ndarray:
         """(2m + L,) the round-off of the end state that the integrator's Newton tolerance leaves
         (``periodic.find_orbit``: a residual at this level that Newton no longer reduces is converged):

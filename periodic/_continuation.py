@@ -7,18 +7,24 @@ largest rms state met so far, or ``state_scale``), ``P = |stop - start|``.  Each
 
 by damped Newton (:func:`periodic._orbit.newton`) from the predictor ``y_pred = y_k + ds t``:
 ``t`` is the unit tangent of the branch at the last point, the null vector of the bordered matrix
-``[Phi - I, dP/dp]`` there (oriented along the step just taken).  ``natural`` fixes the parameter
-(``e_p`` in the constraint, the predictor along ``t`` scaled to move ``p`` by the step);
+``[Phi - I, dP/dp]`` there (oriented along the parameter for ``natural``, along the step just taken
+for ``arclength``).  ``natural`` fixes the parameter (``e_p`` in the constraint, the predictor along
+``t`` scaled to move ``p`` by the step), and solves at it by chord iterations with the last orbit's
+monodromy (periods without their own) and one exact monodromy at the converged orbit
+(:func:`periodic._orbit.solve_fixed_point`, Newton where the chord does not contract);
 ``arclength`` (pseudo-arclength, Keller) takes the constraint's normal along ``t``, so the branch is
 followed through folds, where ``Phi - I`` is singular but the bordered matrix is not.  ``dP/dp`` is a
 forward difference of the map, ``(P(x, p + dp) - P(x, p)) / dp`` with ``dp = sqrt(eps) max(|p|, P)``
 (relative error ~1e-8, which slows Newton's convergence negligibly), computed once per corrector
 solve at its first iterate (arclength) and once at each accepted point for its tangent (one extra
-map call each).  Step control: a corrector that fails, or whose new secant turns by more than
-``MAX_TURN`` from the tangent at the last point (it may have jumped to another branch), halves the
-step; one that converges in at most ``EASY_ITERATIONS`` steps grows it by ``GROWTH``.  The reference
-is the local tangent, not the last secant: where the branch bends sharply (near a resonance) a long
-last secant differs from the local direction by more than ``MAX_TURN`` however short the new step.
+period without its monodromy each).  Step control: a corrector that fails, or whose new secant turns
+by more than ``MAX_TURN`` from the tangent at the last point (it may have jumped to another branch),
+halves the step; one that converges in at most ``EASY_ITERATIONS`` Newton steps
+(``EASY_CHORD_ITERATIONS`` chord steps) grows it by ``GROWTH``.  The reference is the local tangent,
+not the last secant: where the branch bends sharply (near a resonance) a long last secant differs
+from the local direction by more than ``MAX_TURN`` however short the new step.  For the same reason
+a step across the bend may make more than 90 degrees with the tangent at its end, so a natural
+continuation orients that tangent along the parameter, not along the step.
 
 Bifurcations.  Between two accepted points, a change in the number of multipliers outside the unit
 circle (``|mu| > 1 + stability_tol``) is a bifurcation; its kind is read from the test function that
@@ -34,7 +40,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import brentq
@@ -62,6 +68,12 @@ METHODS = ("natural", "arclength")
 MAX_TURN = math.radians(30.0)
 #: A corrector that converges in at most this many Newton steps lets the next step grow ...
 EASY_ITERATIONS = 3
+#: ... or, at a fixed parameter (natural steps: chord iterations with the last orbit's monodromy,
+#: contracting by some 0.01-0.1 a step where Newton squares), in at most this many chord steps.
+EASY_CHORD_ITERATIONS = 5
+#: After a chord that does not contract (the last orbit's monodromy too far from this one's), this
+#: many natural steps are solved by Newton before the chord is tried again.
+CHORD_RETRY = 3
 #: ... by this factor (up to max_step); a failed or turning one halves it.
 GROWTH = 1.5
 #: Brent's method locates a bifurcation to this fraction of the chord between two points.
@@ -135,6 +147,9 @@ class _Corrector:
         self.tol, self.max_iterations, self.stability_tol = tol, max_iterations, stability_tol
         self.estimator = estimator
         self.calls_of_last_solve = 0
+        #: the monodromy of the last accepted orbit: the chord iterations' Jacobian at a fixed parameter
+        self.kept: np.ndarray | None = None
+        self.newton_solves_left = 0    # natural steps still to solve by Newton after a failed chord
 
     def scaled(self, state, parameter) -> np.ndarray:
         return np.append(state / self.X, parameter / self.P)
@@ -145,7 +160,7 @@ class _Corrector:
     def parameter_derivative(self, state, parameter, end) -> np.ndarray:
         """``dP/dp`` (n,) by a forward difference (see the module notes)."""
         increment = _FORWARD_DIFFERENCE * max(abs(parameter), self.P)
-        shifted, _ = self.map(state, parameter + increment)
+        shifted = self.map.end_state(state, parameter + increment)    # a period without its monodromy
         return (shifted - end) / increment
 
     def tangent(self, state, parameter, monodromy, end, direction: float) -> np.ndarray:
@@ -162,7 +177,11 @@ class _Corrector:
     def solve(self, y_pred, normal, *, fixed_parameter: float | None = None):
         """Newton from ``y_pred`` on the hyperplane ``normal . (y - y_pred) = 0``, or at the parameter
         value ``fixed_parameter`` exactly (``normal = e_p``); returns the :class:`NewtonResult`
-        (``extra``: the monodromy)."""
+        (``extra``: the monodromy). At a fixed parameter with a ``kept`` monodromy (the last orbit's):
+        chord iterations with it, periods without their monodromy, and the exact one at the converged
+        state (``solve_fixed_point``), about half the cost of Newton's every-period monodromy."""
+        if fixed_parameter is not None and self.kept is not None:
+            return self._chord_at(y_pred, fixed_parameter)
         n = y_pred.size - 1
         column = {}
 
@@ -190,6 +209,27 @@ class _Corrector:
         found = newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative)
         self.calls_of_last_solve = self.map.calls - calls_before
         return found
+
+    def _chord_at(self, y_pred, parameter: float):
+        """``solve`` at the fixed ``parameter`` by ``solve_fixed_point`` with the ``kept`` monodromy,
+        its result in the scaled unknowns (``y`` with the parameter, the residual with a zero
+        constraint row, ``extra`` the monodromy at ``y``)."""
+        n = y_pred.size - 1
+        calls_before, monodromies_before = self.map.calls, self.map.monodromies
+        chord = self.newton_solves_left == 0
+        found = solve_fixed_point(self.map, self.unscaled(y_pred)[0], parameter, tol=self.tol,
+                                  max_iterations=self.max_iterations, state_scale=self.floor,
+                                  monodromy=self.kept if chord else None)
+        self.calls_of_last_solve = self.map.calls - calls_before
+        # a chord that did not contract cost its periods for nothing (Newton went on): after one, the
+        # next CHORD_RETRY solves go straight to Newton, then the chord is tried again
+        if chord:
+            self.newton_solves_left = 0 if self.map.monodromies - monodromies_before == 1 else CHORD_RETRY
+        else:
+            self.newton_solves_left -= 1
+        monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(n)
+        return replace(found, y=self.scaled(found.y, parameter), residual_vector=np.append(
+            found.residual_vector / self.X, 0.0), jacobian=None, extra=monodromy)
 
     def orbit(self, found, start_time, fixed_parameter: float | None = None) -> PeriodicOrbit:
         state, parameter = self.unscaled(found.y)
@@ -220,7 +260,7 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
                     tol: float = 1e-10, max_iterations: int = 10, max_points: int = 500,
                     stop_at_instability: bool = True, state_scale: float | None = None,
                     estimate=None, error_factor: float = DEFAULT_ERROR_FACTOR,
-                    stability_tol: float = STABILITY_TOL) -> OrbitBranch:
+                    stability_tol: float = STABILITY_TOL, accuracy: float | None = None) -> OrbitBranch:
     """Follow the periodic orbit of ``period_map`` from ``parameter = start`` (near ``guess`` (n,)) to
     ``stop``.
 
@@ -237,8 +277,10 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
     orbit is its last point), else it goes on and records every crossing.  ``estimate`` and
     ``error_factor``: the error bars of each orbit's verdict, as for :func:`periodic.find_orbit` (the
     map on N/2 steps costs a Newton solve on it per point, about a third more calls; the bifurcations
-    are detected and located on the N-step multipliers either way).  Nothing is raised on a
-    numerical failure: see ``OrbitBranch.status``.
+    are detected and located on the N-step multipliers either way); ``accuracy`` (a fraction, default
+    None: ``tol``): each N/2 orbit converged once its correction is at most that of its distance from
+    the N-step orbit, as :func:`periodic.find_orbit`'s.  Nothing is raised on a numerical failure: see
+    ``OrbitBranch.status``.
     """
     start_time = time.perf_counter()
     guess = check_state("guess", guess)
@@ -258,8 +300,10 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
     max_points = check_iterations("max_points", max_points)
     floor = 0.0 if state_scale is None else check_tol("state_scale", state_scale)
     counted = CountingMap(period_map, guess.size)
+    if accuracy is not None:
+        accuracy = check_tol("accuracy", accuracy, 1.0)
     estimator = ErrorEstimate(estimate, error_factor, guess.size, tol=tol, max_iterations=max_iterations,
-                              state_scale=floor)
+                              state_scale=floor, accuracy=accuracy)
 
     first = solve_fixed_point(counted, guess, start, tol=tol, max_iterations=max(max_iterations, 20),
                               state_scale=floor)
@@ -301,6 +345,7 @@ class _Follower:
     def run(self, first: PeriodicOrbit, *, step, min_step, max_step, max_points) -> OrbitBranch:
         corrector = self.corrector
         self.orbits.append(first)
+        corrector.kept = first.monodromy
         # the first tangent: null vector of [Phi - I, dP/dp] at the first orbit (P(x) = x there, to tol)
         tangent = corrector.tangent(first.state, first.parameter, first.monodromy, first.state, self.direction)
         y = corrector.scaled(first.state, first.parameter)
@@ -328,30 +373,42 @@ class _Follower:
                 step *= 0.5
                 continue
             parameter = fixed if fixed is not None else corrector.unscaled(found.y)[1]
-            if (parameter - self.stop) * self.direction > 0.0:  # passed: the end point exactly at stop
+            passed = (parameter - self.stop) * self.direction > 0.0
+            if not passed:
+                # the tangent where the step ends (the next step's direction and turn check); the step
+                # itself may make a large angle with it where the branch bends sharply (issue 12)
+                new_tangent = self._local_tangent(found, parameter, secant)
+                new = corrector.orbit(found, self.start_time, fixed)
+            else:  # passed: the end point exactly at stop
                 new, found = self._at_stop(y, found.y)
                 if new is None:
                     last_reason = "the orbit at stop was not found"
                     step *= 0.5
                     continue
-            else:
-                new = corrector.orbit(found, self.start_time, fixed)
+                new_tangent = tangent    # not used: the branch ends at stop
             if self._crossing(current, new, y, found.y):
                 return self._finish("instability")
             self.orbits.append(new)
-            y, tangent = found.y, self._local_tangent(found, parameter, secant)
+            corrector.kept = new.monodromy
+            y, tangent = found.y, new_tangent
             if self.adaptive_scale:
                 y, tangent = self._rescale(y, tangent, new.state)
-            if found.iterations <= EASY_ITERATIONS:
+            if found.iterations <= (EASY_ITERATIONS if fixed is None else EASY_CHORD_ITERATIONS):
                 step = min(step * GROWTH, max_step)
 
     def _local_tangent(self, found, parameter, secant) -> np.ndarray:
-        """The unit tangent (scaled) of the branch at the accepted point ``found`` (at ``parameter``),
-        oriented along ``secant`` (the step just taken): the next predictor's direction and the turn
-        check's reference."""
+        """The unit tangent (scaled) of the branch at the converged point ``found`` (at ``parameter``):
+        the next predictor's direction and the turn checks' reference. Oriented, for ``natural``,
+        along the direction of the parameter (the branch it follows has no fold: where the tangent's
+        parameter part vanishes the step fails), for ``arclength`` along ``secant``, the step just taken
+        (through folds). A secant across a sharp bend may make more than 90 degrees with the tangent at
+        its end: orienting a natural continuation's tangent by it turned the branch back (six_bar,
+        75 -> 125 rad/s, at 106.283 rad/s: every later step rejected, issue 24)."""
         corrector = self.corrector
         state = corrector.unscaled(found.y)[0]
         end = state + found.residual_vector[:-1] * corrector.X
+        if self.method == "natural":
+            return corrector.tangent(state, parameter, found.extra, end, self.direction)
         tangent = corrector.tangent(state, parameter, found.extra, end, 1.0)
         return tangent if tangent @ secant >= 0.0 else -tangent
 

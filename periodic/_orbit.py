@@ -146,13 +146,17 @@ def scaled_condition(jacobian: np.ndarray) -> float:
     return float(np.linalg.cond(scaled / columns[None, :]))
 
 
-def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: float = 0.0) -> NewtonResult:
+def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: float = 0.0,
+           settled=None) -> NewtonResult:
     """Damped Newton on ``F(y) = 0``.  ``evaluate(y) -> (F (m,), J (m, m), extra)`` may raise
     ``RuntimeError`` (a numerical failure of the map: treated like a non-finite value, the step is
     shortened); ``relative(y, F) -> float`` is the convergence measure, compared with ``tol``;
     ``floor``: an absolute ``|F|`` (2-norm) at or below which ``F`` may be round-off of the evaluation
     (the period map's ``resolution``): a full Newton step that does not decrease such a residual
     shows it stalled at round-off, and ``y`` is converged whatever ``tol`` asks.
+    ``settled(y, correction) -> bool`` (optional, :class:`Settled`): ``y`` is also converged when its
+    Newton correction is small enough for the caller (an error level's orbit); it is asked at every
+    iterate, the last included (so ``max_iterations = 0`` checks ``y0``).
     A backtracking line search on ``|F|`` makes each accepted step decrease it."""
     y = np.array(y0, dtype=float)
     try:
@@ -167,7 +171,7 @@ def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: fl
     for iteration in range(max_iterations + 1):
         if residual <= tol:
             return NewtonResult(y, value, jacobian, extra, residual, iteration, True, "")
-        if iteration == max_iterations:
+        if iteration == max_iterations and settled is None:
             break
         if not np.all(np.isfinite(jacobian)):
             return NewtonResult(y, value, jacobian, extra, residual, iteration, False,
@@ -178,6 +182,10 @@ def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: fl
                 f"singular Jacobian: monodromy - I has condition number {condition:.3g} (a multiplier at +1: "
                 "a fold of the branch, use arclength continuation, or a free mode of an unforced system)"))
         direction = -np.linalg.solve(jacobian, value)
+        if settled is not None and settled(y, direction):
+            return NewtonResult(y, value, jacobian, extra, residual, iteration, True, "")
+        if iteration == max_iterations:
+            break
         norm = np.linalg.norm(value)
         length, accepted, failure = 1.0, False, ""
         for _ in range(_MAX_HALVINGS + 1):
@@ -213,13 +221,16 @@ def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: fl
         f"{tol:g}; raise max_iterations or start nearer the orbit"))
 
 
-def chord(evaluate_end, y0, jacobian, *, tol: float, max_iterations: int, relative, floor: float = 0.0
-          ) -> NewtonResult:
+def chord(evaluate_end, y0, jacobian, *, tol: float, max_iterations: int, relative, floor: float = 0.0,
+          settled=None) -> NewtonResult:
     """Chord iterations on ``F(y) = 0`` with a fixed ``jacobian`` (m, m) (a nearby orbit's ``monodromy
     - I``): ``y <- y - J^-1 F(y)``, ``evaluate_end(y) -> F (m,)`` (no Jacobian: a period without its
     monodromy).  Converged as :func:`newton`; not converged (``reason`` says why, ``y`` the best
     iterate) when an evaluation fails or a step reduces ``|F|`` by less than ``_CHORD_CONTRACTION``:
-    the caller then continues with Newton.  ``jacobian`` and ``extra`` of the result are None."""
+    the caller then continues with Newton.  ``settled(y, correction)`` (optional, :class:`Settled`):
+    once a correction is small enough for the caller, ``y + correction`` is returned converged, not
+    evaluated (``residual_vector`` and ``residual`` are those of ``y``: the caller's exact evaluation
+    there checks it).  ``jacobian`` and ``extra`` of the result are None."""
     import scipy.linalg
 
     y = np.array(y0, dtype=float)
@@ -247,22 +258,27 @@ def chord(evaluate_end, y0, jacobian, *, tol: float, max_iterations: int, relati
             return NewtonResult(y, value, None, None, residual, iteration, True, "")
         if iteration == max_iterations:
             break
-        y = y - scipy.linalg.lu_solve(factors, value, check_finite=False)
+        correction = -scipy.linalg.lu_solve(factors, value, check_finite=False)
+        if settled is not None and settled(y, correction):
+            return NewtonResult(y + correction, value, None, None, residual, iteration + 1, True, "")
+        y = y + correction
     return NewtonResult(best, best_value, None, None, relative(best, best_value), max_iterations, False,
                         f"{max_iterations} chord steps left the relative residual above tol {tol:g}")
 
 
 class CountingMap:
-    """``period_map`` with input checks on what it returns and a count of its calls."""
+    """``period_map`` with input checks on what it returns and a count of its calls (``calls``; those
+    with the monodromy: ``monodromies``)."""
 
     def __init__(self, period_map, n: int):
         if not callable(period_map):
             raise TypeError(f"period_map: expected a callable (state, parameter) -> (end_state, monodromy), "
                             f"got {type(period_map).__name__}")
-        self.period_map, self.n, self.calls = period_map, n, 0
+        self.period_map, self.n, self.calls, self.monodromies = period_map, n, 0, 0
 
     def __call__(self, state, parameter):
         self.calls += 1
+        self.monodromies += 1
         end, monodromy = self.period_map(state, parameter)
         end = np.asarray(end, dtype=float)
         monodromy = np.asarray(monodromy, dtype=float)
@@ -283,6 +299,20 @@ class CountingMap:
             raise PeriodicError(f"period_map.end_state: expected to return an end state ({self.n},), got "
                                 f"{end.shape}")
         return end
+
+    @property
+    def blocks(self) -> tuple:
+        """The map's ``blocks`` ((start, stop) index ranges of the state's parts in one unit, e.g. its
+        positions and its rates; :class:`Settled` judges each apart) where it declares them, else the
+        whole state as one."""
+        blocks = getattr(self.period_map, "blocks", None)
+        if blocks is None:
+            return ((0, self.n),)
+        blocks = tuple((int(a), int(b)) for a, b in blocks)
+        if not all(0 <= a < b <= self.n for a, b in blocks):
+            raise PeriodicError(f"period_map.blocks: expected (start, stop) index ranges within 0..{self.n}, "
+                                f"got {blocks}")
+        return blocks
 
     @property
     def floor(self) -> float:
@@ -320,7 +350,7 @@ def check_iterations(name: str, value) -> int:
 
 
 def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_iterations, state_scale,
-                      monodromy=None):
+                      monodromy=None, settled=None):
     """Newton on ``P(x) - x`` at a fixed parameter; ``extra`` of the result is the monodromy.
 
     With ``monodromy`` (n, n), a nearby orbit's (the finer level's, of which this map is a coarser
@@ -339,13 +369,33 @@ def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_ite
     if monodromy is not None:
         kept = chord(lambda state: period_map.end_state(state, parameter) - state, guess,
                      np.asarray(monodromy, dtype=float) - np.eye(guess.size), tol=tol,
-                     max_iterations=max_iterations, relative=relative, floor=floor)
+                     max_iterations=max_iterations, relative=relative, floor=floor, settled=settled)
         guess = kept.y
         if kept.converged:    # the exact monodromy at the orbit (its period is not run again)
-            found = newton(evaluate, guess, tol=tol, max_iterations=0, relative=relative, floor=floor)
+            found = newton(evaluate, guess, tol=tol, max_iterations=0, relative=relative, floor=floor,
+                           settled=settled)
             if found.converged:
                 return replace(found, iterations=kept.iterations)
-    return newton(evaluate, guess, tol=tol, max_iterations=max_iterations, relative=relative, floor=floor)
+    return newton(evaluate, guess, tol=tol, max_iterations=max_iterations, relative=relative, floor=floor,
+                  settled=settled)
+
+
+class Settled:
+    """``settled(y, correction) -> bool``: whether an error level's iterate ``y`` (n,) is accurate
+    enough, its Newton (or chord) ``correction`` (n,) at most ``fraction`` of its distance from the
+    ``finer`` level's orbit (n,), in each block of the state (``blocks``: (start, stop) index ranges of
+    parts in one unit, positions and rates, max norms).  A level run only to estimate the finer orbit's
+    error needs that distance, ``|x_{N/2} - x_N|``, to a few digits, not its state to ``tol``: with
+    ``fraction`` 0.01 the estimate is within about 1 % of itself (the correction is the iterate's error
+    to first order), several chord periods fewer than a ``tol`` of 1e-8 takes."""
+
+    def __init__(self, finer, fraction: float, blocks):
+        self.finer, self.fraction, self.blocks = np.asarray(finer, dtype=float), float(fraction), tuple(blocks)
+
+    def __call__(self, y, correction) -> bool:
+        distance = np.asarray(y) + correction - self.finer
+        return all(np.abs(correction[a:b]).max(initial=0.0) <= self.fraction * np.abs(distance[a:b]).max(initial=0.0)
+                   for a, b in self.blocks)
 
 
 def classify(parameter, state, monodromy, *, residual, iterations, map_calls, converged, reason="",
@@ -374,7 +424,8 @@ def classify(parameter, state, monodromy, *, residual, iterations, map_calls, co
 
 def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1e-10, max_iterations: int = 20,
                estimate=None, error_factor: float = DEFAULT_ERROR_FACTOR, state_scale: float = 0.0,
-               stability_tol: float = STABILITY_TOL, monodromy=None) -> PeriodicOrbit:
+               stability_tol: float = STABILITY_TOL, monodromy=None, finer=None,
+               accuracy: float | None = None) -> PeriodicOrbit:
     """The periodic orbit of ``period_map`` at ``parameter`` near ``guess`` (n,) by Newton shooting.
 
     ``period_map(state (n,), parameter) -> (end_state (n,), monodromy (n, n))``.  Newton on
@@ -395,6 +446,13 @@ def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1
     ``monodromy`` (n, n): a nearby orbit's (a finer grid's, a neighbouring parameter's) for chord
     iterations from ``guess`` (``solve_fixed_point``), else Newton throughout.
 
+    ``accuracy`` (a fraction, e.g. 0.01; default None: ``tol`` throughout): an error level's orbits
+    are converged once their correction is at most ``accuracy`` of their distance from the finer
+    level's orbit (:class:`Settled`, per block of the map's ``blocks``): the N/2 orbit of
+    ``estimate`` against this orbit, and, given ``finer`` (n,), this orbit itself against ``finer``
+    (this map a coarser grid of ``finer``'s, found only for an error estimate). Their residual is then
+    above ``tol``, and the message says so.
+
     A period map may offer ``end_state(state, parameter) -> end_state`` (one period without its
     monodromy, for the chord iterations) and ``resolution`` (float or (n,), the absolute round-off of
     its end state): a residual whose 2-norm is at or below that of ``resolution`` and which a full
@@ -408,16 +466,27 @@ def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1
     max_iterations = check_iterations("max_iterations", max_iterations)
     state_scale = check_tol("state_scale", state_scale)
     counted = CountingMap(period_map, guess.size)
+    if accuracy is not None:
+        accuracy = check_tol("accuracy", accuracy, 1.0)
     estimator = ErrorEstimate(estimate, error_factor, guess.size, tol=tol, max_iterations=max_iterations,
-                              state_scale=state_scale)
+                              state_scale=state_scale, accuracy=accuracy)
+    settled = None
+    if finer is not None and accuracy is not None:
+        settled = Settled(check_state("finer", finer), accuracy, counted.blocks)
+        if settled.finer.shape != guess.shape:
+            raise PeriodicError(f"finer: expected a state of shape {guess.shape}, got {settled.finer.shape}")
     found = solve_fixed_point(counted, guess, parameter, tol=tol, max_iterations=max_iterations,
-                              state_scale=state_scale, monodromy=monodromy)
+                              state_scale=state_scale, monodromy=monodromy, settled=settled)
     monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(guess.size)
     orbit = classify(parameter, found.y, monodromy, residual=found.residual, iterations=found.iterations,
                      map_calls=counted.calls, converged=found.converged, reason=found.reason,
                      stability_tol=stability_tol, start_time=start_time)
     orbit = estimator.apply(orbit, stability_tol=stability_tol, start_time=start_time)
-    if orbit.converged and orbit.residual > tol:
+    if orbit.converged and orbit.residual > tol and settled is not None:
+        orbit = replace(orbit, message=(
+            f"{orbit.message} (> tol {tol:g}: an error level, converged to {accuracy:g} of its distance from "
+            "the finer orbit)"))
+    elif orbit.converged and orbit.residual > tol:
         orbit = replace(orbit, message=(
             f"{orbit.message} (> tol {tol:g}: the residual stalled at the period map's round-off, its "
             f"resolution {counted.floor:.2g}, and the orbit is converged to it)"))
@@ -427,11 +496,14 @@ def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1
 class ErrorEstimate:
     """The error bars of an orbit's verdict from ``estimate`` (see :func:`find_orbit`): None, the
     multipliers' modulus errors (a float or (n,)), or the period map on N/2 steps with its
-    ``error_factor``.  ``calls`` counts the coarse map's calls (each orbit's ``map_calls`` has its own)."""
+    ``error_factor``.  ``calls`` counts the coarse map's calls (each orbit's ``map_calls`` has its own).
+    ``accuracy`` (a fraction or None): the coarse orbit converged once its correction is at most that
+    of its distance from the finer orbit (:class:`Settled`), else to ``tol``."""
 
-    def __init__(self, estimate, error_factor, n: int, *, tol, max_iterations, state_scale):
+    def __init__(self, estimate, error_factor, n: int, *, tol, max_iterations, state_scale, accuracy=None):
         self.errors, self.coarse, self.calls = None, None, 0
         self.tol, self.max_iterations, self.state_scale = tol, max_iterations, state_scale
+        self.accuracy = accuracy
         if estimate is None:
             return
         if callable(estimate):
@@ -454,9 +526,10 @@ class ErrorEstimate:
         errors, state_error, map_calls = self.errors, math.nan, orbit.map_calls
         if self.coarse is not None:
             calls_before = self.coarse.calls
+            settled = None if self.accuracy is None else Settled(orbit.state, self.accuracy, self.coarse.blocks)
             coarse = solve_fixed_point(self.coarse, orbit.state, orbit.parameter, tol=self.tol,
                                        max_iterations=self.max_iterations, state_scale=self.state_scale,
-                                       monodromy=orbit.monodromy)
+                                       monodromy=orbit.monodromy, settled=settled)
             made = self.coarse.calls - calls_before
             self.calls += made
             map_calls = orbit.map_calls + made

@@ -395,3 +395,30 @@ def test_bad_input_names_the_argument():
         periodic.find_orbit(period_map, [0.0, 0.0], 1.0, estimate=-1e-3)
     with pytest.raises(periodic.PeriodicError, match="estimate"):
         periodic.continue_orbits(period_map, [0.0, 0.0], 1.0, 1.1, estimate=[1e-3, 1e-3, 1e-3])
+
+
+def _cornered_branch(p, corner, slope=50.0, width=1e-3):
+    """Fixed points (2,) of ``_cornered_map`` at ``p``: a line along e1 that turns by 150 degrees to e2
+    within ``width`` of ``corner`` (softplus), steep (``slope`` per unit of p) as an orbit near a
+    resonance, whose phase turns within a fraction of a speed step."""
+    e1, e2 = np.array([1.0, 0.0]), np.array([np.cos(np.radians(150.0)), np.sin(np.radians(150.0))])
+    u = (p - corner) / width
+    soft = width * (np.logaddexp(0.0, u))
+    return slope * ((p - corner) * e1 + soft * (e2 - e1))
+
+
+@pytest.mark.parametrize("corner", [0.505, 0.54, 0.58])
+def test_natural_continuation_follows_a_branch_that_bends_within_a_step(corner):
+    # a step across the corner makes less than 30 degrees with the tangent where it starts and more
+    # than 90 with the tangent where it ends: the continuation oriented that tangent along the step,
+    # backwards, and rejected every later step (six_bar at 106.283 rad/s, issue 24)
+    A = np.array([[0.5, 0.2], [-0.1, 0.4]])
+
+    def period_map(x, p):
+        return A @ x + (np.eye(2) - A) @ _cornered_branch(p, corner), A
+
+    branch = periodic.continue_orbits(period_map, _cornered_branch(0.0, corner), 0.0, 1.0, step=0.1, max_step=0.1)
+    assert branch.status == "ok", branch.message
+    assert branch.parameters[-1] == 1.0 and np.all(np.diff(branch.parameters) > 0.0)
+    for state, p in zip(branch.states, branch.parameters):   # on the closed-form branch
+        assert np.abs(state - _cornered_branch(p, corner)).max() <= 1e-7 * 50.0

@@ -62,6 +62,11 @@ NEWTON_WHY = "Newton steps of one shooting, each a period with its monodromy; it
 ORDER = 2
 #: Richardson factor of the order-2 integrator: the N-step error is about ``|o_N - o_{N/2}| / (2^2 - 1)``.
 ERROR_FACTOR = 1.0 / (2**ORDER - 1)
+#: The error levels' orbits (N/2, N/4) are converged once their correction is at most this fraction
+#: of their distance from the finer level's orbit (``periodic.find_orbit``'s ``accuracy``, per block
+#: of the state: coordinates, rates, lag states): the error estimate to about 1 % of itself, the
+#: ratio of differences of the N/4 check to about 2 %, in fewer periods than ``tol`` takes.
+LEVEL_ACCURACY = 0.01
 #: An observable whose estimated error exceeds this fraction of its peak-to-peak is ``inaccurate``:
 #: the rule and value of the linear steady state's (docs/methods.md), applied to each observable
 #: since the nonlinear study reports them.
@@ -254,23 +259,29 @@ class NonlinearSteadyState(DerivedPeaks, StudyResult):
 
 class _Recording:
     """A period map that remembers the last state it was called with (the coarse orbit's, once
-    ``periodic.find_orbit``'s estimate has converged on it)."""
+    ``periodic.find_orbit``'s estimate has converged on it) and the monodromy there (None when that
+    call ran the period without it)."""
 
     def __init__(self, period_map: Any):
-        self.period_map, self.last = period_map, None
+        self.period_map, self.last, self.last_monodromy = period_map, None, None
 
     def __call__(self, state: np.ndarray, parameter: float):
         self.last = np.array(state, dtype=float)
-        return self.period_map(state, parameter)
+        end, self.last_monodromy = self.period_map(state, parameter)
+        return end, self.last_monodromy
 
     def end_state(self, state: np.ndarray, parameter: float) -> np.ndarray:
         """A period without its monodromy (``periodic.find_orbit``'s chord iterations)."""
-        self.last = np.array(state, dtype=float)
+        self.last, self.last_monodromy = np.array(state, dtype=float), None
         return self.period_map.end_state(state, parameter)
 
     @property
     def resolution(self) -> np.ndarray:
         return self.period_map.resolution
+
+    @property
+    def blocks(self) -> tuple:
+        return self.period_map.blocks
 
 
 @dataclass(frozen=True)
@@ -402,8 +413,8 @@ def untrusted_verdict(status: str, message: str, reasons: list[str]) -> tuple[st
 
 def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z: np.ndarray,
                      coarse_state: np.ndarray, speed: float, *, tol: float, max_iterations: int,
-                     monodromy: np.ndarray | None = None, state: np.ndarray | None = None
-                     ) -> tuple[dict[str, float], list[str]]:
+                     monodromy: np.ndarray | None = None, state: np.ndarray | None = None,
+                     coarse_monodromy: np.ndarray | None = None) -> tuple[dict[str, float], list[str]]:
     """({spec: estimated max abs error of the N-step response} from the N/2 orbit ``coarse_state``,
     the reasons the estimate is not trusted): the N/2 run must not split steps, the orbit found again
     on N/4 steps must give a ratio of successive differences of z in the asymptotic range
@@ -419,13 +430,16 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
     quarter_map = setup.period_map(n_steps // 4)
     # started from the N and N/2 orbits extrapolated with the order (where the step's error is in its
     # asymptotic range, which this level checks, x_{N/4} - x_{N/2} = 2^p (x_{N/2} - x_N)), by chord
-    # iterations with the N-step orbit's ``monodromy`` (periods without their own)
+    # iterations with the N/2 orbit's monodromy where it is known (nearer the N/4 map's than the N
+    # orbit's ``monodromy``: on six_bar the chord with the N orbit's stopped contracting after 4
+    # periods and Newton took 3 more), converged to LEVEL_ACCURACY of its distance from the N/2 orbit
     guess = coarse_state if state is None else coarse_state + 2**ORDER * (coarse_state - state)
-    quarter = periodic.find_orbit(quarter_map, guess, speed, tol=tol, max_iterations=max_iterations,
-                                  monodromy=monodromy)
+    kept = monodromy if coarse_monodromy is None else coarse_monodromy
+    options = {"tol": tol, "max_iterations": max_iterations, "monodromy": kept, "finer": coarse_state,
+               "accuracy": LEVEL_ACCURACY}
+    quarter = periodic.find_orbit(quarter_map, guess, speed, **options)
     if not quarter.converged:    # the extrapolation failed (e.g. a state outside the linkage): from N/2
-        quarter = periodic.find_orbit(quarter_map, coarse_state, speed, tol=tol, max_iterations=max_iterations,
-                                      monodromy=monodromy)
+        quarter = periodic.find_orbit(quarter_map, coarse_state, speed, **options)
     if quarter.converged:
         _, z_quarter, quarter_substeps = orbit_observables(linear, quarter_map, quarter.state,
                                                            observables=False)
@@ -478,7 +492,7 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
     parameters = given.resolve(given_values)
     speed = float(parameters.get("speed", 0.0))
     orbit = periodic.find_orbit(fine, setup.guess, speed, tol=tol, max_iterations=max_iterations,
-                                estimate=coarse, error_factor=ERROR_FACTOR)
+                                estimate=coarse, error_factor=ERROR_FACTOR, accuracy=LEVEL_ACCURACY)
     specs = linear.observables
     mesh, mesh_method, _ = mesh_terms(problem, values, specs, n_steps, DEFAULT_SCHEME)
     linear_response = {spec: setup.steady.response[:, k] for k, spec in enumerate(specs)}
@@ -490,7 +504,7 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
         if coarse.last is not None and np.isfinite(orbit.state_error):
             errors, trust = _error_estimates(setup, response, z, coarse.last, speed, tol=tol,
                                              max_iterations=max_iterations, monodromy=orbit.monodromy,
-                                             state=orbit.state)
+                                             state=orbit.state, coarse_monodromy=coarse.last_monodromy)
             reasons += trust
     else:
         response = {spec: np.full(n_steps + 1, np.nan) for spec in specs}

@@ -41,6 +41,7 @@ from .._toolkit import (
 from ._nonlinear_model import AUTO, check_modes, choose_model
 from .nonlinear_steady_state import (
     ERROR_FACTOR,
+    LEVEL_ACCURACY,
     MIN_STEPS,
     TOL,
     modes_option,
@@ -196,18 +197,43 @@ class NonlinearSweep(StudyResult):
         return drawn(axes, artists)
 
 
+#: Steps of the nominal rigid motion a sweep's period maps are built about: a map reads only its
+#: start and end states (and the period), which the kinematics solve to their tolerance on any grid,
+#: so a coarser one (5.6 degrees of crank a step, small enough for the kinematics' continuation from
+#: step to step) does; the default 360 steps were a quarter of a sweep's time on six_bar (a map at
+#: each value, and at each value's dP/dp).
+NOMINAL_STEPS = 64
+
+
+class _Mechanisms:
+    """The mechanism at each parameter value and its nominal rigid motion (``NOMINAL_STEPS``), the other
+    parameters at ``values``; the last few are kept, shared by the N and N/2 maps."""
+
+    def __init__(self, problem: Any, parameter: str, values: Mapping[str, float]):
+        self.problem, self.parameter, self.values = problem, parameter, dict(values)
+        self._kept: dict[float, tuple[Any, Any]] = {}
+
+    def at(self, value: float) -> tuple[Any, Any]:
+        import mechanisms
+
+        if value not in self._kept:
+            if len(self._kept) >= 6:
+                self._kept.pop(next(iter(self._kept)))
+            mechanism = self.problem.mechanism(dict(self.values, **{self.parameter: value}))
+            self._kept[value] = mechanism, mechanisms.nominal_motion(mechanism, n_steps=NOMINAL_STEPS)
+        return self._kept[value]
+
+
 class _ParameterMap:
-    """``(y, parameter value) -> (end y, monodromy)`` of the mechanism at that value, the other
-    parameters at ``values``, on the scaled shooting state ``y = x / scale``: the coordinates divided by
+    """``(y, parameter value) -> (end y, monodromy)`` of the mechanism at that value (``_Mechanisms``),
+    on the scaled shooting state ``y = x / scale``: the coordinates divided by
     their largest deviation in the linear start, the rates and the lagged controllers' states (N m) by
     theirs, so that positions (m) and rates (m/s, about speed times larger) weigh alike in the
     continuation's norms. The period maps of the last
     few values are kept (the corrector calls the map several times at one value)."""
 
-    def __init__(self, problem: Any, parameter: str, values: Mapping[str, float], n_steps: int,
-                 independent: np.ndarray, scale: np.ndarray):
-        self.problem, self.parameter, self.values = problem, parameter, dict(values)
-        self.n_steps, self.independent, self.scale = n_steps, independent, scale
+    def __init__(self, mechanisms_at: _Mechanisms, n_steps: int, independent: np.ndarray, scale: np.ndarray):
+        self.mechanisms_at, self.n_steps, self.independent, self.scale = mechanisms_at, n_steps, independent, scale
         self._maps: dict[float, Any] = {}
 
     def at(self, value: float):
@@ -216,10 +242,16 @@ class _ParameterMap:
         if value not in self._maps:
             if len(self._maps) >= 4:
                 self._maps.pop(next(iter(self._maps)))
-            mechanism = self.problem.mechanism(dict(self.values, **{self.parameter: value}))
+            mechanism, nominal = self.mechanisms_at.at(value)
             self._maps[value] = mechanisms.PeriodMap(mechanism, n_steps=self.n_steps,
-                                                     independent=self.independent)
+                                                     independent=self.independent, nominal=nominal)
         return self._maps[value]
+
+    @property
+    def blocks(self) -> tuple:
+        """The scaled state's coordinates, rates and lag states (``periodic.find_orbit``'s ``blocks``)."""
+        m = self.independent.size
+        return ((0, m), (m, 2 * m)) + (((2 * m, self.scale.size),) if self.scale.size > 2 * m else ())
 
     def __call__(self, y: np.ndarray, value: float):
         end, monodromy = self.at(float(value))(y * self.scale)
@@ -245,6 +277,10 @@ class _CoarseOrbits:
     def end_state(self, y: np.ndarray, value: float) -> np.ndarray:
         self.states[float(value)] = np.array(y, dtype=float)
         return self.period_map.end_state(y, value)
+
+    @property
+    def blocks(self) -> tuple:
+        return self.period_map.blocks
 
 
 def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop: float,
@@ -296,15 +332,16 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
     # coordinates, rates and the lagged controllers' states (N m) each by their own size
     scale = np.concatenate([np.full(size, max(np.abs(block).max(initial=0.0), 1e-12)) for block, size in
                             ((guess[:m], m), (guess[m:2 * m], m), (guess[2 * m:], first.fine.n_lags))])
-    period_map = _ParameterMap(problem, parameter, fixed, n_steps, first.fine.independent, scale)
+    mechanisms_at = _Mechanisms(problem, parameter, fixed)
+    period_map = _ParameterMap(mechanisms_at, n_steps, first.fine.independent, scale)
     # the N/2 map: each orbit's multipliers get error bars, so ok / unstable and the bifurcations rest
-    # on them and not on a bare stability_tol (as nonlinear_steady_state's verdict)
-    coarse = _CoarseOrbits(_ParameterMap(problem, parameter, fixed, n_steps // 2, first.fine.independent,
-                                         scale))
+    # on them and not on a bare stability_tol (as nonlinear_steady_state's verdict); its orbits to
+    # LEVEL_ACCURACY of their distance from the N-step ones, as the steady state's
+    coarse = _CoarseOrbits(_ParameterMap(mechanisms_at, n_steps // 2, first.fine.independent, scale))
     branch = periodic.continue_orbits(period_map, guess / scale, float(start), float(stop), step=step,
                                       method=method, tol=tol, max_points=max_points,
                                       stop_at_instability=stop_at_instability, estimate=coarse,
-                                      error_factor=ERROR_FACTOR)
+                                      error_factor=ERROR_FACTOR, accuracy=LEVEL_ACCURACY)
     specs = first.linear.observables
     nonlinear = {spec: [] for spec in specs}
     nonlinear_error = {spec: [] for spec in specs}

@@ -1,0 +1,117 @@
+"""Issue 24: the error levels (N/2, N/4) converged to ``accuracy`` of their distance from the finer
+orbit (``periodic.find_orbit``'s ``accuracy``, ``Settled``) instead of to ``tol``, against the same
+levels converged to ``tol`` (the shooting before): the same error estimates to about ``accuracy`` of
+themselves, the same multipliers' error bars, the same verdicts, in fewer periods.
+
+- Duffing reference maps (``periodic.duffing_period_map``): the N/2 estimate and a coarser level found
+  alone against its ``finer`` orbit, each against Newton to 1e-12.
+- ``studies.nonlinear_steady_state`` on the four-bar, the six-bar (8 elements per link, reduced by
+  default) and the two-link arm, with ``LEVEL_ACCURACY`` against ``LEVEL_ACCURACY = None``: the orbit
+  itself (its state and multipliers, the N-step level) is the same, its error estimates within 2 %.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import periodic
+import studies
+from studies._kinds import nonlinear_steady_state as steady_module  # the study's level accuracy
+
+
+def _duffing(n_steps):
+    return periodic.duffing_period_map("omega", n_steps=n_steps, damping=0.05, cubic=0.5, force=0.3, pump=0.1)
+
+
+class _Counting:
+    """A period map that counts its periods (with and without their monodromy)."""
+
+    def __init__(self, period_map):
+        self.period_map, self.calls = period_map, 0
+
+    def __call__(self, x, parameter):
+        self.calls += 1
+        return self.period_map(x, parameter)
+
+    def end_state(self, x, parameter):
+        self.calls += 1
+        return self.period_map(x, parameter)[0]
+
+
+def test_settled_judges_each_block_against_its_distance_from_the_finer_orbit():
+    settled = periodic._orbit.Settled(np.zeros(4), 0.01, ((0, 2), (2, 4)))
+    y = np.array([1.0, 0.0, 100.0, 0.0])
+    assert settled(y, np.array([0.005, 0.0, 0.5, 0.0]))
+    # the positions' correction is small against the rates' distance but not against their own
+    assert not settled(y, np.array([0.05, 0.0, 0.5, 0.0]))
+    # a block at zero distance settles only with a zero correction
+    assert not settled(np.array([1.0, 0.0, 0.0, 0.0]), np.array([0.0, 0.0, 1e-300, 0.0]))
+
+
+def test_the_n_over_2_estimate_at_level_accuracy_against_newton_to_1e_12():
+    fine = _duffing(128)
+    exact = periodic.find_orbit(fine, np.zeros(2), 1.1, tol=1e-12, estimate=_duffing(64), error_factor=1 / 3)
+    coarse = _Counting(_duffing(64))
+    quick = periodic.find_orbit(fine, np.zeros(2), 1.1, tol=1e-12, estimate=coarse, error_factor=1 / 3,
+                                accuracy=0.01)
+    alone = periodic.find_orbit(_duffing(64), np.zeros(2), 1.1, tol=1e-12)
+    assert quick.status == exact.status == "ok"
+    np.testing.assert_array_equal(quick.state, exact.state)          # the orbit itself is unchanged
+    reference = np.abs(exact.state - alone.state).max() / 3
+    assert exact.state_error == pytest.approx(reference, rel=1e-6)
+    assert quick.state_error == pytest.approx(reference, rel=0.02)
+    # the multipliers' error bars: their moduli's N/2 differences, to the same relative accuracy
+    np.testing.assert_allclose(quick.multiplier_errors, exact.multiplier_errors, rtol=0.05,
+                               atol=1e-3 * np.abs(exact.multipliers).max())
+    calls = _Counting(_duffing(64))
+    periodic.find_orbit(fine, np.zeros(2), 1.1, tol=1e-12, estimate=calls, error_factor=1 / 3)
+    assert coarse.calls < calls.calls
+
+
+def test_a_coarser_level_alone_at_accuracy_of_its_distance_from_the_finer_orbit():
+    finer = periodic.find_orbit(_duffing(128), np.zeros(2), 1.1, tol=1e-12)
+    exact = periodic.find_orbit(_duffing(32), finer.state, 1.1, tol=1e-12)
+    level = periodic.find_orbit(_duffing(32), finer.state, 1.1, tol=1e-12, monodromy=finer.monodromy,
+                                finer=finer.state, accuracy=0.01)
+    assert level.converged and level.status == exact.status, level.message
+    distance = np.abs(exact.state - finer.state).max()
+    assert np.abs(level.state - exact.state).max() <= 0.01 * distance
+    assert level.residual > 1e-12 and "error level" in level.message       # said, not hidden
+    np.testing.assert_allclose(np.abs(level.multipliers), np.abs(exact.multipliers), rtol=0, atol=0.01 * np.abs(
+        np.abs(exact.multipliers) - np.abs(finer.multipliers)).max() + 1e-12)
+
+
+def test_accuracy_and_finer_are_checked():
+    with pytest.raises(periodic.PeriodicError, match="accuracy"):
+        periodic.find_orbit(_duffing(32), np.zeros(2), 1.1, accuracy=2.0)
+    with pytest.raises(periodic.PeriodicError, match="finer"):
+        periodic.find_orbit(_duffing(32), np.zeros(2), 1.1, finer=np.zeros(3), accuracy=0.01)
+
+
+def _six_bar():
+    paths = ("links.link2.discretisation.n_elements", "links.link4.discretisation.n_elements")
+    problem = studies.MechanismProblem.from_scene("six_bar", parameter_paths=paths)
+    return problem, {"speed": 100.0, **{path: 8 for path in paths}}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", ["four_bar_fem4", "six_bar", "two_link_arm"])
+def test_the_study_with_its_level_accuracy_against_levels_converged_to_tol(case, monkeypatch):
+    if case == "six_bar":
+        problem, values = _six_bar()
+    else:
+        problem, values = studies.MechanismProblem.from_scene(case), None
+    quick = studies.nonlinear_steady_state(problem, values)
+    monkeypatch.setattr(steady_module, "LEVEL_ACCURACY", None)
+    exact = studies.nonlinear_steady_state(problem, values)
+    assert quick.status == exact.status and quick.is_stable == exact.is_stable, (quick.message, exact.message)
+    assert quick.map_calls < exact.map_calls
+    # the orbit (N steps) is the same one; its error estimates within 2 % of themselves
+    np.testing.assert_array_equal(quick.state, exact.state)
+    np.testing.assert_array_equal(quick.multipliers, exact.multipliers)
+    assert quick.error_estimate == pytest.approx(exact.error_estimate, rel=0.02)
+    for spec, error in exact.response_error.items():
+        assert quick.response_error[spec] == pytest.approx(error, rel=0.02)
+    worst = np.abs(exact.multipliers).max()
+    np.testing.assert_allclose(quick.multiplier_errors, exact.multiplier_errors, rtol=0.05, atol=1e-3 * worst)
