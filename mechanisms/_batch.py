@@ -109,9 +109,11 @@ def constraint_terms_along(model, t, s, sdot=None, *, values: bool = False) -> C
 # ---------------------------------------------------------------------------------------------------
 # Kernels of the assembled model
 # ---------------------------------------------------------------------------------------------------
+# no_cfunc_wrapper: no kernel is passed as a first-class function (its C wrapper is first-run
+# compilation for nothing; see _kernels).
 # inline="always" on the helpers of a few lines: numba types them inside their callers instead of
 # compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _copy_matrix(source, target):
     """target[:, :] = source, as a loop: an array assigned to a slice would compile numba's
     shape-mismatch message (string formatting, seconds of the first run's compilation)."""
@@ -120,7 +122,7 @@ def _copy_matrix(source, target):
             target[i, j] = source[i, j]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def linear_terms_kernel(S, Sd, Sdd, Lam, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0,
                         c0, ct_int, ct_real, h_lin, M, D, K, R, J):
     """Fill M, D, K (N, n, n), R (N, n), J (N, r, n) of ``LinearTerms`` for the samples
@@ -151,7 +153,7 @@ def linear_terms_kernel(S, Sd, Sdd, Lam, gx, gy, mp_int, mp_real, sp_int, sp_rea
             R[k, a] = acc
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def inertia_residual_kernel(S, Sd, Sdd, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0,
                             c0, out):
     """out[k] = M(S[k]) Sdd[k] - Q(S[k], Sd[k]) without the torque drives; out zeroed on entry."""
@@ -170,7 +172,7 @@ def inertia_residual_kernel(S, Sd, Sdd, gx, gy, mp_int, mp_real, sp_int, sp_real
             out[k, a] = acc
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def constraint_terms_kernel(S, Sd, ct_int, ct_real, shp, idx, h_lin, J, gamma, phi):
     """J[k] = Phi_s(S[k]) (constant rows h_lin included); when Sd has rows, gamma[k] += the
     point-constraint part of gamma(S[k], Sd[k]); when phi has rows, phi[k] += h_lin S[k] + the
@@ -189,7 +191,7 @@ def constraint_terms_kernel(S, Sd, ct_int, ct_real, shp, idx, h_lin, J, gamma, p
             _kernels.constraints(S[k], ct_int, ct_real, shp, idx, phi[k])
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _max_abs(values):
     """max |values| of a 1-D array (0 when empty, NaN when one is NaN: never a converged NaN), as
     a loop: ``np.abs(values).max()`` compiles a temporary array's ufunc and numba's reduction, a
@@ -202,7 +204,7 @@ def _max_abs(values):
     return worst
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def scaled_correction(corrected, predicted, rigid, column_scale):
     """How far Newton moved the rigid coordinates from the predictor:
     ``max_j |corrected - predicted|[rigid[j]] / column_scale[j]`` (rad, or units of the link scale).
@@ -213,7 +215,7 @@ def scaled_correction(corrected, predicted, rigid, column_scale):
     return worst
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def continue_positions_kernel(s, start, drive_rows, drive_angles, rigid, phi0, h_lin, ct_int,
                               ct_real, shp, idx, newton_stop, max_correction, column_scale,
                               max_iterations):
