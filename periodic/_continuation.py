@@ -37,7 +37,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ._orbit import (
     DEFAULT_ERROR_FACTOR,
@@ -449,6 +448,8 @@ class _Follower:
 
         if not (value_before * value_after < 0.0):
             return None
+        from scipy.optimize import brentq  # here: scipy.optimize costs about 0.5 s to import
+
         try:
             fraction = brentq(test_function, 0.0, 1.0, xtol=LOCATE_XTOL)
         except (_NotLocated, RuntimeError, ValueError):

@@ -8,7 +8,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-from scipy.optimize import linear_sum_assignment
 
 import periodic
 
@@ -187,6 +186,8 @@ def track_modes(shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             confidence[i] = np.nan
             continue
         score = mac(previous, shapes[i])
+        from scipy.optimize import linear_sum_assignment  # here: scipy.optimize costs ~0.5 s to import
+
         rows, cols = linear_sum_assignment(-score)
         order[i, rows] = cols
         confidence[i, rows] = score[rows, cols]
