@@ -109,9 +109,11 @@ def constraint_terms_along(model, t, s, sdot=None, *, values: bool = False) -> C
 # ---------------------------------------------------------------------------------------------------
 # Kernels of the assembled model
 # ---------------------------------------------------------------------------------------------------
+# no_cfunc_wrapper: no kernel is passed as a first-class function (its C wrapper is first-run
+# compilation for nothing; see _kernels).
 # inline="always" on the helpers of a few lines: numba types them inside their callers instead of
 # compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _copy_matrix(source, target):
     """target[:, :] = source, as a loop: an array assigned to a slice would compile numba's
     shape-mismatch message (string formatting, seconds of the first run's compilation)."""
@@ -120,57 +122,50 @@ def _copy_matrix(source, target):
             target[i, j] = source[i, j]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def linear_terms_kernel(S, Sd, Sdd, Lam, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0,
-                        c0, ct_int, ct_real, h_lin, M, D, K, R, J):
+                        c0, ct_int, ct_real, h_lin, residual_only, M, D, K, R, J):
     """Fill M, D, K (N, n, n), R (N, n), J (N, r, n) of ``LinearTerms`` for the samples
-    S, Sd, Sdd (N, n), Lam (N, r), torque drives left out. Outputs must be zeroed on entry."""
+    S, Sd, Sdd (N, n), Lam (N, r), torque drives left out. Outputs must be zeroed on entry.
+
+    ``residual_only``: only R = M(S[k]) Sdd[k] - Q(S[k], Sd[k]), the inertia residual, with M a
+    (1, n, n) scratch; Lam, D, K, J and the constraint tables are not read (may be empty). One
+    kernel for both: a second would compile and optimise the mass and force kernels once more."""
     n_samples, n = S.shape
     Q = np.zeros(n)
     dQ_ds = np.zeros((n, n))
     for k in range(n_samples):
-        s, sdot, sddot, lam = S[k], Sd[k], Sdd[k], Lam[k]
-        _kernels.mass_matrix(s, mp_int, mp_real, shp, idx, M[k])
+        s, sdot, sddot = S[k], Sd[k], Sdd[k]
+        if residual_only:
+            Mk = M[0]
+            Mk[:, :] = 0.0
+        else:
+            Mk = M[k]
+        _kernels.mass_matrix(s, mp_int, mp_real, shp, idx, Mk)
         Q[:] = 0.0
         _kernels.forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, Q)
-        dQ_ds[:, :] = 0.0
-        _kernels.force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0,
-                                 c0, dQ_ds, D[k])
-        _kernels.mass_matrix_jacobian(s, sddot, mp_int, mp_real, shp, idx, K[k])
-        _kernels.constraint_force_jacobian(s, lam, ct_int, ct_real, shp, idx, K[k])
-        _copy_matrix(h_lin, J[k])
-        _kernels.constraint_jacobian(s, ct_int, ct_real, shp, idx, J[k])
+        if not residual_only:
+            dQ_ds[:, :] = 0.0
+            _kernels.force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
+                                     k0, c0, dQ_ds, D[k])
+            _kernels.mass_matrix_jacobian(s, sddot, mp_int, mp_real, shp, idx, K[k])
+            _kernels.constraint_force_jacobian(s, Lam[k], ct_int, ct_real, shp, idx, K[k])
+            _copy_matrix(h_lin, J[k])
+            _kernels.constraint_jacobian(s, ct_int, ct_real, shp, idx, J[k])
         for a in range(n):
             acc = -Q[a]
             for b in range(n):
-                acc += M[k, a, b] * sddot[b]
-                K[k, a, b] -= dQ_ds[a, b]
-                D[k, a, b] = -D[k, a, b]
-            for row in range(lam.shape[0]):
-                acc += J[k, row, a] * lam[row]
+                acc += Mk[a, b] * sddot[b]
+            if not residual_only:
+                for b in range(n):
+                    K[k, a, b] -= dQ_ds[a, b]
+                    D[k, a, b] = -D[k, a, b]
+                for row in range(Lam.shape[1]):
+                    acc += J[k, row, a] * Lam[k, row]
             R[k, a] = acc
 
 
-@numba.njit(cache=True)
-def inertia_residual_kernel(S, Sd, Sdd, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0,
-                            c0, out):
-    """out[k] = M(S[k]) Sdd[k] - Q(S[k], Sd[k]) without the torque drives; out zeroed on entry."""
-    n_samples, n = S.shape
-    M = np.zeros((n, n))
-    Q = np.zeros(n)
-    for k in range(n_samples):
-        M[:, :] = 0.0
-        Q[:] = 0.0
-        _kernels.mass_matrix(S[k], mp_int, mp_real, shp, idx, M)
-        _kernels.forces(S[k], Sd[k], gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, Q)
-        for a in range(n):
-            acc = -Q[a]
-            for b in range(n):
-                acc += M[a, b] * Sdd[k, b]
-            out[k, a] = acc
-
-
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def constraint_terms_kernel(S, Sd, ct_int, ct_real, shp, idx, h_lin, J, gamma, phi):
     """J[k] = Phi_s(S[k]) (constant rows h_lin included); when Sd has rows, gamma[k] += the
     point-constraint part of gamma(S[k], Sd[k]); when phi has rows, phi[k] += h_lin S[k] + the
@@ -189,7 +184,7 @@ def constraint_terms_kernel(S, Sd, ct_int, ct_real, shp, idx, h_lin, J, gamma, p
             _kernels.constraints(S[k], ct_int, ct_real, shp, idx, phi[k])
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _max_abs(values):
     """max |values| of a 1-D array (0 when empty, NaN when one is NaN: never a converged NaN), as
     a loop: ``np.abs(values).max()`` compiles a temporary array's ufunc and numba's reduction, a
@@ -202,7 +197,7 @@ def _max_abs(values):
     return worst
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def scaled_correction(corrected, predicted, rigid, column_scale):
     """How far Newton moved the rigid coordinates from the predictor:
     ``max_j |corrected - predicted|[rigid[j]] / column_scale[j]`` (rad, or units of the link scale).
@@ -213,7 +208,7 @@ def scaled_correction(corrected, predicted, rigid, column_scale):
     return worst
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def continue_positions_kernel(s, start, drive_rows, drive_angles, rigid, phi0, h_lin, ct_int,
                               ct_real, shp, idx, newton_stop, max_correction, column_scale,
                               max_iterations):

@@ -72,9 +72,12 @@ import numba
 import numpy as np
 
 
+# no_cfunc_wrapper on every kernel: none is passed as a first-class function, and the C wrapper numba
+# builds for that costs about 35 ms of the first run's compilation per kernel; no_cpython_wrapper on
+# the helpers that only kernels call (the Python wrapper unboxing their arrays costs as much again).
 # inline="always" on the helpers of a few lines: numba types them inside their callers instead of
 # compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _max_local(table_nnz):
     n = 0
     for i in range(table_nnz.shape[0]):
@@ -83,14 +86,14 @@ def _max_local(table_nnz):
     return n + 3
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _scratch(table_nnz):
     """Columns of L (x and y components) and their indices in s, for the largest point."""
     nmax = _max_local(table_nnz)
     return np.empty(nmax), np.empty(nmax), np.empty(nmax, dtype=np.int64)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _group_scratch(sp_int):
     """Per-point arrays (slope, eps, kappa, c) for the largest strain-point group."""
     n = 1
@@ -100,7 +103,7 @@ def _group_scratch(sp_int):
     return np.empty(n), np.empty(n), np.empty(n), np.empty(n)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _strain_rows(v, i0, sp_int, shp, idx, axial, slope, curvature):
     """u'_g v, w'_g v and w''_g v (the first ``size`` entries) at the strain points of the group
     starting at row i0, for a vector v of coordinates (q, eq. 4) or of their rates (q', eq. 7)."""
@@ -120,7 +123,7 @@ def _strain_rows(v, i0, sp_int, shp, idx, axial, slope, curvature):
         curvature[g] = kap
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _project(i0, sp_int, sp_real, shp, factor, a, b, scale, strain, coef):
     """strain_g += factor sum_j P_gj a_j b_j, then coef_j = scale sum_g w EA strain_g P_gj, over the
     group starting at row i0 (eq. 4-5 with a = b = s, factor 1/2, scale 1; eq. 7-8 with a = s,
@@ -138,7 +141,7 @@ def _project(i0, sp_int, sp_real, shp, factor, a, b, scale, strain, coef):
         coef[j] = scale * acc
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef):
     """Eq. (4)-(5) for the strain-point group starting at row i0: fill slope s_j, projected strain
     eps_g, curvature kappa_g and c_j (first ``size`` entries); return the group's size."""
@@ -147,7 +150,7 @@ def _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef):
     return sp_int[i0, 4]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _membrane_rate_group(sdot, i0, sp_int, sp_real, shp, idx, slope, slope_rate, eps_rate,
                          kappa_rate, coef_rate):
     """Eq. (7)-(8) for the group starting at row i0, after ``_membrane_group`` filled ``slope``:
@@ -157,7 +160,7 @@ def _membrane_rate_group(sdot, i0, sp_int, sp_real, shp, idx, slope, slope_rate,
              coef_rate)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _subtract_strain_force(out, i0, sp_int, sp_real, shp, idx, scale, strain, curvature, slope,
                            coef):
     """out -= sum_g scale (w EA strain_g u'_g + w EI curvature_g w''_g) + coef_g slope_g w'_g over
@@ -173,7 +176,7 @@ def _subtract_strain_force(out, i0, sp_int, sp_real, shp, idx, scale, strain, cu
                                              + coef[g] * slope[g] * shp[ptr + nnz + k])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols):
     """Fill the active columns of L (eq. 1) into lx, ly and their indices in s into cols (length
     3 + nnz); return A p."""
@@ -206,7 +209,7 @@ def _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols):
     return apx, apy
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _elastic_velocity(sdot, nnz, lx, ly, cols):
     """A S q' (m/s)."""
     vx = 0.0
@@ -217,7 +220,7 @@ def _elastic_velocity(sdot, nnz, lx, ly, cols):
     return vx, vy
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _point_motion(s, sdot, gx, gy, i, mp_int, mp_real, shp, idx, lx, ly, cols):
     """For mass point ``i``: fill L (eq. 1) and return A p, theta', A S q' and v = g - c (eq. 2),
     the acceleration that gravity minus the velocity terms give the point:
@@ -232,7 +235,7 @@ def _point_motion(s, sdot, gx, gy, i, mp_int, mp_real, shp, idx, lx, ly, cols):
     return apx, apy, wt, asv_x, asv_y, vx, vy
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _add_d(out, scale, nnz, apx, apy, lx, ly, cols, vx, vy):
     """out += scale * D(v), eq. (3)."""
     t = cols[2]
@@ -244,7 +247,7 @@ def _add_d(out, scale, nnz, apx, apy, lx, ly, cols, vx, vy):
         out[cols[3 + k], t] += value
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def mass_matrix(s, mp_int, mp_real, shp, idx, out):
     """M = sum m L^T L + J h h^T, h = (0, 0, 1, g) (seed eq. 2.12 by d'Alembert); out (n, n) zeroed."""
     lx, ly, cols = _scratch(mp_int[:, 1])
@@ -267,7 +270,7 @@ def mass_matrix(s, mp_int, mp_real, shp, idx, out):
                     out[cols[3 + k], cols[3 + j]] += inertia * shp[g0 + k] * shp[g0 + j]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def mass_matrix_jacobian(s, acc, mp_int, mp_real, shp, idx, out):
     """d(M(s) a)/ds, a fixed: sum m [L^T d(L a)/ds + D(L a)] (eq. 1, 3); h is constant so the
     rotary inertia adds nothing; out (n, n) zeroed."""
@@ -300,7 +303,7 @@ def mass_matrix_jacobian(s, acc, mp_int, mp_real, shp, idx, out):
         _add_d(out, m, nnz, apx, apy, lx, ly, cols, la_x, la_y)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, out):
     """Q = sum m L^T (g - c) - dPi/ds - dD/ds' - K0 s - C0 s' (eq. 2, 5, 8; seed eq. 2.10, 2.13);
     out (n,) zeroed."""
@@ -337,7 +340,7 @@ def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, 
             out[a] -= acc
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, out_s,
                     out_v):
     """dQ/ds and dQ/ds' of ``forces`` (derivatives of eq. 2 and of the strain forces); outputs
@@ -419,7 +422,7 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
                 out_v[a, b] -= c0[a, b]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _term_direction(s, frame, dx, dy):
     """The term's direction in the plane: ``d``, or ``e = A(theta_f) d`` in a link's frame."""
     if frame < 0:
@@ -429,7 +432,7 @@ def _term_direction(s, frame, dx, dy):
     return c * dx - sn * dy, sn * dx + c * dy
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols):
     """Constraint term ``i`` at ``s``: its row, link offset, active elastic count and frame offset
     (-1: fixed in the plane), ``A p`` (the point's offset from its link's origin, eq. 1) with its
@@ -442,7 +445,7 @@ def _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols):
     return row, off, nnz, frame, apx, apy, ex, ey
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def constraints(s, ct_int, ct_real, shp, idx, out):
     """Phi[row] += d . (R + A p), or e . (R + A p - R_f) in a frame, over the constraint terms;
     out (r,) holds the constant parts."""
@@ -457,7 +460,7 @@ def constraints(s, ct_int, ct_real, shp, idx, out):
         out[row] += ex * rx + ey * ry
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def constraint_jacobian(s, ct_int, ct_real, shp, idx, out):
     """Phi_s[row] += d^T L (eq. 1), with a frame eq. (10); out (r, n) holds the constant (linear)
     rows."""
@@ -473,7 +476,7 @@ def constraint_jacobian(s, ct_int, ct_real, shp, idx, out):
                                                                           - s[frame + 1])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def constraint_gamma(s, sdot, ct_int, ct_real, shp, idx, out):
     """gamma[row] -= d . c (eq. 2; the point constraints do not depend on t), with a frame also
     eq. (11); out (r,) holds the drive rows' accelerations."""
@@ -498,7 +501,7 @@ def constraint_gamma(s, sdot, ct_int, ct_real, shp, idx, out):
                          + wf * wf * (ex * delta_x + ey * delta_y))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def constraint_force_jacobian(s, lam, ct_int, ct_real, shp, idx, out):
     """d(Phi_s^T lam)/ds = sum lam[row] D(d) (eq. 3), with a frame also eq. (12); out (n, n)
     zeroed."""
@@ -521,7 +524,7 @@ def constraint_force_jacobian(s, lam, ct_int, ct_real, shp, idx, out):
                                                                          - s[frame + 1]))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def kinetic_energy(s, sdot, mp_int, mp_real, shp, idx):
     """T = sum 1/2 m |L s'|^2 + 1/2 J (theta' + g.q')^2 (J)."""
     lx, ly, cols = _scratch(mp_int[:, 1])
@@ -542,7 +545,7 @@ def kinetic_energy(s, sdot, mp_int, mp_real, shp, idx):
     return energy
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def potential_energy(s, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0):
     """V = -sum m g.r + strain energy (seed eq. 2.13, with the projected membrane strain of eq. (4)
     at strain points and 1/2 s^T K0 s for the links without geometric stiffening) (J)."""
@@ -568,7 +571,7 @@ def potential_energy(s, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0):
     return energy
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def damping_power(s, sdot, sp_int, sp_real, shp, idx, c0):
     """Power dissipated by the damping (W, >= 0): 2 D of eq. (7)-(8), sum_g beta (w EA eps'_g^2 +
     w EI kappa'_g^2) over the strain points with Kelvin-Voigt damping, plus s'^T C0 s'."""

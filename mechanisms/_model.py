@@ -477,7 +477,7 @@ class Model:
         tb = self._tables
         _batch.linear_terms_kernel(s, sdot, sddot, lam, self._gx, self._gy, tb.mp_int, tb.mp_real,
                                    tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, tb.ct_int,
-                                   tb.ct_real, tb.h_lin, M, D, K, R, J)
+                                   tb.ct_real, tb.h_lin, False, M, D, K, R, J)
         for info in self._torque_drives:
             # tau h enters Q: K = -dQ/ds gets -h dtau/ds^T, D = -dQ/ds' gets -h dtau/ds'^T
             tau, dtau_ds, dtau_dv = self._torque_terms(info, t, s, sdot)
@@ -493,8 +493,11 @@ class Model:
         t, (s, sdot, sddot) = self._samples(t, {"s": s, "sdot": sdot, "sddot": sddot}, (n, n, n))
         out = np.zeros(s.shape)
         tb = self._tables
-        _batch.inertia_residual_kernel(s, sdot, sddot, self._gx, self._gy, tb.mp_int, tb.mp_real,
-                                       tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, out)
+        unread = np.zeros((0, 0, 0))
+        _batch.linear_terms_kernel(s, sdot, sddot, np.zeros((0, 0)), self._gx, self._gy, tb.mp_int,
+                                   tb.mp_real, tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0,
+                                   tb.ct_int, tb.ct_real, tb.h_lin, True, np.zeros((1, n, n)), unread,
+                                   unread, out, unread)
         for info in self._torque_drives:
             tau, _, _ = self._torque_terms(info, t, s, sdot, derivatives=False)
             out -= tau[:, None] * info.gradient

@@ -43,7 +43,6 @@ import time
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ._orbit import (
     DEFAULT_ERROR_FACTOR,
@@ -506,6 +505,8 @@ class _Follower:
 
         if not (value_before * value_after < 0.0):
             return None
+        from scipy.optimize import brentq  # here: scipy.optimize costs about 0.5 s to import
+
         try:
             fraction = brentq(test_function, 0.0, 1.0, xtol=LOCATE_XTOL)
         except (_NotLocated, RuntimeError, ValueError):

@@ -12,7 +12,7 @@ from . import lapack
 from ._newmark import _BLAS_FROM_N_DOF, _copy, _split_start, _start_system
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _residual_columns(Ck, Kk, Fk, x, v, out, work):
     """``out = F_k - C_k v - K_k x`` for all columns (F_k (n, m): one forcing per column)."""
     n, m = x.shape
@@ -33,7 +33,7 @@ def _residual_columns(Ck, Kk, Fk, x, v, out, work):
                 out[i, j] -= cil * v[l, j] + kil * x[l, j]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def newmark_march_forcings(M, C, K, F, first_order, h, beta, gamma, x, v, a, x_hist, v_hist, a_hist):
     """``periodic._newmark.newmark_march`` with column j driven by ``F[:, :, j]`` (F (N+1, n, m)):
     equations (N0)-(N3) there, one LU per step (the hand-written one, which skips the zeros of sparse

@@ -61,7 +61,10 @@ from . import lapack
 
 # inline="always" on the helpers of a few lines: numba types them inside their callers instead of
 # compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
-@numba.njit(cache=True, inline="always")
+# no_cfunc_wrapper on every kernel: none is passed as a first-class function, and the C wrapper numba
+# builds for that costs about 35 ms of the first run's compilation per kernel (no_cpython_wrapper too
+# on ``_residual_force``, which only kernels call).
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _copy(source, target):
     """target[:, :] = source (2-D), as a loop: an array assigned to a slice would compile numba's
     shape-mismatch message (string formatting, seconds of the first run's compilation)."""
@@ -70,7 +73,7 @@ def _copy(source, target):
             target[i, j] = source[i, j]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _start_system(M0, C0, first_order, v, out):
     """``out`` = the matrix of (N0): M_0 with the columns of first-order coordinates taken from C_0; their
     rows of ``v`` (n, m) set to 0, since those rates are unknowns of (N0), not data."""
@@ -86,7 +89,7 @@ def _start_system(M0, C0, first_order, v, out):
                 out[i, j] = M0[i, j]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _split_start(first_order, v, a):
     """After (N0): the rows of first-order coordinates in ``a`` (n, m) are their rates: move them to
     ``v`` and set the (free, see the module notes) auxiliary accelerations to 0."""
@@ -102,7 +105,7 @@ def _split_start(first_order, v, a):
 _BLAS_FROM_N_DOF = 8
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _residual_force(Ck, Kk, fk, forced, x, v, out, work):
     """``out = forced * f_k - C_k v - K_k x`` for all columns (right-hand side of N0 and N2)."""
     n, m = x.shape
@@ -123,7 +126,7 @@ def _residual_force(Ck, Kk, fk, forced, x, v, out, work):
                 out[i, j] -= cil * v[l, j] + kil * x[l, j]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist):
     """March ``x, v`` (n, m) from ``t_0`` to ``t_N`` in place; ``a`` (n, m) receives the final acceleration.
 
@@ -195,7 +198,7 @@ def newmark_march(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hi
 SOLVE_LOOPS, SOLVE_LAPACK, SOLVE_INVERSE = 0, 1, 2
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _lapack_factor(lu, pivots, getri_work, invert):
     """dgetrf of ``lu`` (n, n), which holds S in C order (``periodic.lapack`` factors S^T), and with
     ``invert`` dgetri, which leaves inv(S) in C order.  Returns False when a pivot is exactly zero."""
@@ -206,7 +209,7 @@ def _lapack_factor(lu, pivots, getri_work, invert):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _lapack_solve(lu, pivots, b, work, work_t, invert):
     """Overwrite ``b`` (n, m) with ``S^-1 b`` from :func:`_lapack_factor`: one dgemm with the inverse, or
     dgetrs on the columns transposed to LAPACK's order (C-order (m, n) is LAPACK's (n, m)) and back.
@@ -220,7 +223,7 @@ def _lapack_solve(lu, pivots, b, work, work_t, invert):
     lapack.transpose(work_t, b)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def newmark_march_lapack(M, C, K, f, first_order, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist,
                          invert):
     """:func:`newmark_march` (same arguments, results to rounding, and return value) with LAPACK:
@@ -310,7 +313,7 @@ def march(M, C, K, f, h, beta, gamma, forced, x, v, a, x_hist, v_hist, a_hist, s
                                 solver == SOLVE_INVERSE)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def mass_pivot_ratios(M):
     """For each sample of M (N+1, n, n): smallest |LU pivot| / largest |entry| (0 when singular)."""
     n_samples, n = M.shape[0], M.shape[1]

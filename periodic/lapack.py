@@ -72,8 +72,11 @@ _TRANS = np.array([ord("N"), ord("T")], dtype=np.int8)
 #: least it accepts).
 GETRI_WORK_PER_ROW = 64
 
+# no_cfunc_wrapper on every kernel: none is passed as a first-class function (the C wrapper numba builds
+# for that is first-run compilation for nothing, about 35 ms a kernel).
 
-@numba.njit(cache=True)
+
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def factor_lapack(lu, pivots):
     """``P A = L U`` of the matrix A whose transpose ``lu`` (n, n) holds (LAPACK dgetrf), in place; ``pivots``
     (n,) int32 receives dgetrf's 1-based pivots.  Returns False when a pivot is exactly zero."""
@@ -83,7 +86,7 @@ def factor_lapack(lu, pivots):
     return ints[1] == 0  # info > 0: u_kk exactly zero at k = info
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def factor_rowmajor(a, pivots):
     """``P A = L U`` with partial pivoting of the matrix A given in C order as it is (``a[i, j] = A[i, j]``,
     the row-major layout, not LAPACK's), in place: ``a`` receives L (unit diagonal, below) and U, ``pivots``
@@ -115,7 +118,7 @@ def factor_rowmajor(a, pivots):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def solve_rowmajor(lu, pivots, b):
     """Overwrite ``b`` (n, m), C order, with ``A^-1 b`` (its m columns solved) from :func:`factor_rowmajor`,
     by loops that skip zero factors.  One right-hand side b (n,): pass ``b.reshape((n, 1))``."""
@@ -145,7 +148,7 @@ def solve_rowmajor(lu, pivots, b):
             b[i, j] *= inv
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def solve_columns_loops(lu, pivots, b):
     """Overwrite ``b`` (n, m), C order, with ``A^-1 b`` (its m columns solved) from the factors of
     :func:`factor_lapack`, by loops that skip zero factors (no BLAS threads: OpenBLAS's dgetrs splits many
@@ -173,7 +176,7 @@ def solve_columns_loops(lu, pivots, b):
 
 # inline="always" on the helpers of a few lines: numba types them inside their callers instead of
 # compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _swap_rows(b, k, p):
     if p != k:
         for j in range(b.shape[1]):
@@ -185,7 +188,7 @@ def _swap_rows(b, k, p):
 # One explicit signature, compiled (or loaded) at import: a kernel that passes ``transposed`` as a
 # constant would otherwise compile this for ``Literal[bool](False)`` and ``Literal[bool](True)`` apart
 # (one signature each, in the order the callers first compile), which tests/test_jit.py refuses.
-@numba.njit("void(float64[:, ::1], int32[::1], float64[:, ::1], boolean)", cache=True)
+@numba.njit("void(float64[:, ::1], int32[::1], float64[:, ::1], boolean)", cache=True, no_cfunc_wrapper=True)
 def solve_rows_lapack(lu, pivots, b, transposed):
     """Overwrite the m rows of ``b`` (m, n), C order (LAPACK's column-major (n, m)), with the solutions of
     ``A x = row`` (``A^T x = row`` with ``transposed``: for a matrix S given in C order as it is, ``lu`` holds
@@ -199,7 +202,7 @@ def solve_rows_lapack(lu, pivots, b, transposed):
             b.ctypes, ints.ctypes, ints[2:].ctypes)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def invert_lapack(lu, pivots, work):
     """Overwrite the factors in ``lu`` (from :func:`factor_lapack`) with inv(A) in the
     same layout, i.e. ``lu`` then holds inv(A)^T in C order (LAPACK dgetri; 4/3 n^3 flops).  ``work`` is scratch
@@ -210,7 +213,7 @@ def invert_lapack(lu, pivots, work):
     _dgetri(ints.ctypes, lu.ctypes, ints.ctypes, pivots.ctypes, work.ctypes, ints[1:].ctypes, ints[2:].ctypes)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def pivot_ratio(lu):
     """``min |u_kk| / max |u_kk|`` of the factors in ``lu`` (0 when they are all zero), a cheap singularity
     indicator (the condition number is at least its inverse, roughly)."""
@@ -224,7 +227,7 @@ def pivot_ratio(lu):
     return umin / umax
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def transpose(source, target):
     """``target[:, :] = source.T`` (2-D) as a loop (a slice assignment's shape check compiles slowly)."""
     for i in range(source.shape[0]):
@@ -232,7 +235,7 @@ def transpose(source, target):
             target[j, i] = source[i, j]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def solve_in_place(a, b):
     """Overwrite ``b`` (n,) with the solution of ``a x = b`` for a small ``a`` (n, n) given as it is (C order),
     which is overwritten by its factors (:func:`factor_rowmajor`).  False when a pivot is exactly zero, or when

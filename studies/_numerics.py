@@ -8,7 +8,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-from scipy.optimize import linear_sum_assignment
 
 import periodic
 
@@ -187,6 +186,8 @@ def track_modes(shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             confidence[i] = np.nan
             continue
         score = mac(previous, shapes[i])
+        from scipy.optimize import linear_sum_assignment  # here: scipy.optimize costs ~0.5 s to import
+
         rows, cols = linear_sum_assignment(-score)
         order[i, rows] = cols
         confidence[i, rows] = score[rows, cols]
@@ -289,6 +290,8 @@ def multiplier_modes(eigenvectors: np.ndarray, shapes: np.ndarray) -> tuple[np.n
     share = np.divide(weight, total, out=np.zeros_like(weight), where=total > 0.0)   # (m, s)
     if not np.all(np.isfinite(share)):
         return modes, shares
+    from scipy.optimize import linear_sum_assignment  # here: scipy.optimize costs ~0.5 s to import
+
     rows, columns = linear_sum_assignment(-np.repeat(share, 2, axis=0).T)   # each mode twice
     modes[rows] = columns // 2
     shares[rows] = share[columns // 2, rows]

@@ -88,9 +88,11 @@ import sys
 
 class CutBySignal:
     '''An import cut by a signal as a pybind11 module's initialisation reports it (scipy's HiGHS,
-    imported with scipy.optimize): ImportError("initialization failed") raised from the interrupt.'''
+    imported with scipy.optimize, did): ImportError("initialization failed") raised from the
+    interrupt; here scipy.linalg's, which every run imports at its start (scipy.optimize is imported
+    only where it is called).'''
     def find_spec(self, name, path=None, target=None):
-        if name == "scipy.optimize":
+        if name == "scipy.linalg":
             try:
                 raise KeyboardInterrupt("SIGINT")
             except KeyboardInterrupt as interrupt:

@@ -21,7 +21,6 @@ from dataclasses import dataclass
 from typing import Any, Callable, ClassVar
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .checks import MAX_MODES, MechanismError, _check_count
 from .discretisations import ShapeLayout, ShapeValues, bending_and_axial_labels, register_discretisation
@@ -188,6 +187,8 @@ def _imported(table, key: str, default: Any = None) -> list[Callable]:
 
 def clamped_free_roots(n: int) -> np.ndarray:
     """The first ``n`` roots ``beta L`` of ``cos(b) cosh(b) = -1`` (1.8751, 4.6941, ...)."""
+    from scipy.optimize import brentq  # here: scipy.optimize costs about 0.5 s to import
+
     def f(b):
         return math.cos(b) + 1.0 / math.cosh(b)  # same roots, no overflow
     return np.array([brentq(f, (i - 1) * math.pi + 1e-3, i * math.pi, xtol=1e-15, rtol=1e-15)
