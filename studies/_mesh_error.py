@@ -279,7 +279,7 @@ def _floquet_at(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: 
     frequencies' terms of a Campbell diagram share each solve."""
     import periodic
 
-    from ._numerics import frozen_modes, multiplier_modes
+    from ._numerics import frozen_modes, mode_targets, multiplier_modes
 
     key = (id(problem), tuple(sorted(speed.items())), int(n_steps), scheme)
     cached = _FLOQUETS.get(key)
@@ -293,7 +293,7 @@ def _floquet_at(problem: Any, speed: Mapping[str, float], n_steps: int, scheme: 
         _, frequencies, shapes = frozen_modes(linear.system, MESH_FROZEN_SAMPLES)
         means = frequencies.mean(axis=0)
         modes, _ = multiplier_modes(result.eigenvectors, shapes)
-        targets, unfold_to = np.sort(means), np.where(modes >= 0, means[np.clip(modes, 0, means.size - 1)], np.nan)
+        targets, unfold_to = np.sort(means), mode_targets(modes, means)
     found = _Floquet(np.asarray(result.multipliers), np.asarray(result.resolved, dtype=bool),
                      float(result.spectral_radius), float(linear.system.period), targets, unfold_to)
     _FLOQUETS[key] = (problem, found)   # the problem held: its id cannot be reused while cached

@@ -309,3 +309,11 @@ def pooled_frequencies(multipliers: np.ndarray, period: float, pool: np.ndarray)
         return np.full(np.shape(multipliers), np.nan)
     each = np.array([characteristic_frequencies(multipliers, period, target) for target in pool])   # (k, s)
     return each[np.abs(each - pool[:, None]).argmin(axis=0), np.arange(each.shape[1])]
+
+
+def mode_targets(modes: np.ndarray, means: np.ndarray) -> np.ndarray:
+    """The frequency (s,) rad/s each multiplier is unfolded to: ``means`` (m,) rad/s (the mean frozen
+    frequency of each frozen mode column) at its mode ``modes`` (s,) int (:func:`multiplier_modes`),
+    NaN where unassigned (-1)."""
+    modes = np.asarray(modes).astype(int)
+    return np.where(modes >= 0, means[np.clip(modes, 0, means.size - 1)], np.nan)

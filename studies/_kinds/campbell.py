@@ -32,6 +32,7 @@ from .._numerics import (
     characteristic_frequencies,
     crossings,
     frozen_modes,
+    mode_targets,
     multiplier_modes,
     pooled_frequencies,
     study_scheme,
@@ -372,9 +373,7 @@ def unfold_point(fields: Mapping[str, np.ndarray], i: int, band_mean: np.ndarray
         fine = pooled_frequencies(multipliers, period, band_mean)
         targets = fine
     else:
-        means = fields["frozen"][i].mean(axis=0)
-        column = modes[i].astype(int)
-        targets = np.where(column >= 0, means[np.clip(column, 0, means.size - 1)], np.nan)
+        targets = mode_targets(modes[i], fields["frozen"][i].mean(axis=0))
         fine = characteristic_frequencies(multipliers, period, targets)
     return fine, characteristic_frequencies(coarse[nearest], period, targets), targets
 
