@@ -418,6 +418,9 @@ class SpeedFamily:
     the observables that depend on the speed (forces, torques, the nominal axial stress: their
     arrays are polynomials of degree two at most in ``Omega``) are kept at ``Omega = 0`` and
     ``2 rate`` (``speed_maps``) besides the base's; ``observable_maps_at(Omega)`` interpolates.
+    So are the maps of the multipliers' change (``LinearCoefficients.multiplier_maps``: ``A_a`` the
+    same at every speed, ``A_v`` linear and ``A_x`` quadratic in ``Omega``), kept at ``Omega = 0``
+    and ``2 rate`` (``speed_multiplier_maps``) and interpolated by ``at_speed``.
     ``rate``: the base mechanism's speed (rad/s).
     """
 
@@ -438,6 +441,26 @@ class SpeedFamily:
     axial0: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
     axial2: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
     speed_maps: tuple = dataclasses.field(default=(), repr=False, compare=False)
+    speed_multiplier_maps: tuple = dataclasses.field(default=(), repr=False, compare=False)
+
+    def _speed_weights(self, rate: float) -> tuple[float, float, float]:
+        """Lagrange weights of the quadratic through speeds 0, ``self.rate`` and ``2 self.rate``
+        at speed ``rate``."""
+        u = rate / self.rate
+        return 0.5 * (u - 1.0) * (u - 2.0), -u * (u - 2.0), 0.5 * u * (u - 1.0)
+
+    def multiplier_maps_at(self, rate: float) -> tuple:
+        """``(A_x, A_v, A_a)`` at speed ``rate`` (rad/s), each (N+1, r, m) on the phase grid: the
+        quadratic through the maps at speeds 0, ``self.rate`` and ``2 self.rate`` (exact: each is a
+        polynomial of degree <= 2 in the speed); ``()`` when the base has none."""
+        self._check_rate(rate)
+        base = self.base.coefficients.multiplier_maps
+        if not base:
+            return ()
+        weights = self._speed_weights(rate)
+        at_zero, at_double = self.speed_multiplier_maps
+        return tuple(weights[0] * a0 + weights[1] * a1 + weights[2] * a2
+                     for a0, a1, a2 in zip(at_zero, base, at_double))
 
     def observable_maps_at(self, rate: float) -> dict[str, ObservableMap]:
         """The observable maps at speed ``rate`` (rad/s): the base's for the observables of
@@ -447,8 +470,7 @@ class SpeedFamily:
         maps = dict(self.base.observable_maps)
         if not self.speed_maps:
             return maps
-        u = rate / self.rate
-        weights = (0.5 * (u - 1.0) * (u - 2.0), -u * (u - 2.0), 0.5 * u * (u - 1.0))
+        weights = self._speed_weights(rate)
         at_zero, at_double = self.speed_maps
         for spec in at_zero:
             samples = (at_zero[spec].arrays(), maps[spec].arrays(), at_double[spec].arrays())
@@ -501,7 +523,8 @@ class SpeedFamily:
             drive_torque=-lam[:, base.nominal.model.drive_rows], period=system.period)
         coeffs = dataclasses.replace(
             base.coefficients, t=nominal.t, C=system.C, K=system.K, f=system.f,
-            Vdot=base.coefficients.Vdot * scale, Vddot=base.coefficients.Vddot * scale**2)
+            Vdot=base.coefficients.Vdot * scale, Vddot=base.coefficients.Vddot * scale**2,
+            multiplier_maps=self.multiplier_maps_at(rate))
         mechanism = _at_speed(self.mechanism, self.rate, rate) if rebuild else self.mechanism
         return dataclasses.replace(base, mechanism=mechanism, nominal=nominal, system=system,
                                    coefficients=coeffs,
@@ -585,7 +608,8 @@ def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFam
     return SpeedFamily(mechanism=mechanism, base=base, rate=rate, M=c1.M, C0=c0.C, C1=C1,
                        K0=c0.K, K1=K1, K2=K2, f0=c0.f, f2=f2, lam0=lam_static, lam2=lam2,
                        run_time=time.perf_counter() - started, axial0=axial0, axial2=axial2,
-                       speed_maps=speed_maps)
+                       speed_maps=speed_maps,
+                       speed_multiplier_maps=(c0.multiplier_maps, c2.multiplier_maps))
 
 
 def _at_speed(mechanism, base_speed: float, speed: float):

@@ -31,6 +31,16 @@ def assert_systems_equal(fast, direct, tol=1e-11):
         np.testing.assert_allclose(a, b, rtol=0, atol=tol * np.abs(b).max(), err_msg=name)
 
 
+def assert_multiplier_maps_equal(fast, direct):
+    """The maps of the multipliers' change (A_x, A_v, A_a) of a family member against a direct
+    linearisation's: present on both (the specs include a joint force) and equal."""
+    assert len(direct.coefficients.multiplier_maps) == 3
+    for name, mine, theirs in zip(("A_x", "A_v", "A_a"), fast.coefficients.multiplier_maps,
+                                  direct.coefficients.multiplier_maps):
+        np.testing.assert_allclose(mine, theirs, rtol=0, atol=1e-9 * np.abs(theirs).max(),
+                                   err_msg=name)
+
+
 def assert_maps_equal(fast, direct, specs):
     for spec in specs:
         for name, expected in direct[spec].arrays().items():
@@ -70,6 +80,7 @@ def test_robot_family_equals_direct_linearisation(robot, robot_family, speed):
     fast = robot_family.at_speed(speed)
     assert_systems_equal(fast.system, direct.system)
     assert_maps_equal(robot_family.observable_maps_at(speed), direct.observable_maps, ROBOT_SPECS)
+    assert_multiplier_maps_equal(fast, direct)
     for mine, theirs in zip(fast.range_probes, direct.range_probes):
         np.testing.assert_allclose(mine.axial, theirs.axial, rtol=0,
                                    atol=1e-10 * np.abs(theirs.axial).max())
@@ -114,6 +125,7 @@ def test_harmonic_four_bar_family_equals_direct_linearisation(turns, sign):
         fast = family.at_speed(sign * speed)
         assert_systems_equal(fast.system, direct.system)
         assert_maps_equal(fast.observable_maps, direct.observable_maps, specs)
+        assert_multiplier_maps_equal(fast, direct)
         assert fast.mechanism.drives[0].rate == pytest.approx(direct.mechanism.drives[0].rate,
                                                                rel=1e-15)
     with pytest.raises(ValueError, match="same sign"):
