@@ -25,6 +25,7 @@ import time
 import warnings
 
 import numpy as np
+from _timing import clear_study_caches, median_time
 
 import mechanisms
 import studies
@@ -33,29 +34,13 @@ SCENE = "four_bar_fem4"
 SPEC = "coupler.deflection@0.5"
 
 
-def median_time(func, repeats):
-    times, value = [], None
-    for _ in range(repeats):
-        start = time.perf_counter()
-        value = func()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), value
-
-
-def clear_caches():
-    from studies import _mechanism
-
-    _mechanism._families.clear()
-    _mechanism._mechanisms.clear()
-
-
 def bench_sweep(count, repeats):
     speeds = np.linspace(20.0, 400.0, count)
     problem = studies.MechanismProblem.from_scene(SCENE)
     studies.sweep(problem, "speed", speeds[:4], n_steps=256)  # JIT warm-up
 
     def run(budget):
-        clear_caches()
+        clear_study_caches()
         return studies.sweep(problem, "speed", speeds, n_steps=256, budget=budget)
 
     times = {True: [], False: []}
@@ -78,7 +63,7 @@ def bench_steady(repeats):
     times = {True: [], False: []}
     for _ in range(repeats):
         for budget in (False, True):
-            clear_caches()
+            clear_study_caches()
             started = time.perf_counter()
             result = studies.steady_state(problem, {"speed": 100.0}, budget=budget)
             times[budget].append(time.perf_counter() - started)
@@ -102,7 +87,7 @@ def bench_matched(repeats):
           f"state at 1024 steps, peak {1e3 * target:.4f} mm ({reference.status})")
 
     def linear():
-        clear_caches()
+        clear_study_caches()
         return studies.steady_state(problem, n_steps=256)
 
     t_linear, result = median_time(linear, repeats)

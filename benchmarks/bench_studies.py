@@ -24,10 +24,9 @@ from __future__ import annotations
 
 import argparse
 import logging
-import statistics
-import time
 
 import numpy as np
+from _timing import clear_study_caches, median_time
 
 import linearize
 import mechanisms
@@ -38,35 +37,17 @@ SCENE = "four_bar_fem4"
 SPEC = "coupler.deflection@0.5"
 
 
-def median_time(func, repeats):
-    times, value = [], None
-    for _ in range(repeats):
-        start = time.perf_counter()
-        value = func()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), value
-
-
-def clear_caches():
-    # every timed run starts from empty per-process caches, so it includes the linearisation (speed
-    # family) it needs; pool workers are fresh processes anyway
-    from studies import _mechanism
-
-    _mechanism._families.clear()
-    _mechanism._mechanisms.clear()
-
-
 def bench_sweep(count, repeats):
     speeds = np.linspace(20.0, 400.0, count)
     problem = studies.MechanismProblem.from_scene(SCENE)
     studies.sweep(problem, "speed", speeds[:4], n_steps=256)  # JIT warm-up
 
     def serial():
-        clear_caches()
+        clear_study_caches()
         return studies.sweep(problem, "speed", speeds, n_steps=256)
 
     def pooled():
-        clear_caches()
+        clear_study_caches()
         with studies.process_pool(2) as pool:
             return studies.sweep(problem, "speed", speeds, n_steps=256, executor=pool)
 
@@ -95,7 +76,7 @@ def bench_chart(count, repeats):
     problem = studies.MechanismProblem.from_scene(SCENE, parameter_paths=("links.coupler.thickness",))
 
     def pooled():
-        clear_caches()
+        clear_study_caches()
         with studies.process_pool(2) as pool:
             return studies.stability_chart(problem, ("speed", speeds), ("links.coupler.thickness", thickness),
                                            n_steps=128, executor=pool)
