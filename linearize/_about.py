@@ -385,7 +385,7 @@ def _multipliers_of(model, nominal):
 def _model_with_feedforward(mechanism, nominal):
     """The model whose torque drives apply the nominal inverse-dynamics torque (interpolated
     periodically on the grid), so that the nominal motion is a solution of the full equations."""
-    if not any(isinstance(d, mechanisms.TorqueDrive) for d in mechanism.drives):
+    if not mechanism.torque_drives:
         return nominal.model
     return mechanisms.assemble(mechanism,
                                feedforward=mechanisms.feedforward_torques(mechanism, nominal))
@@ -534,10 +534,10 @@ class SpeedFamily:
 
 
 def supports_speed_family(mechanism) -> bool:
-    """Whether ``speed_family`` applies to ``mechanism``: it has drives and every one is a
-    ``mechanisms.PrescribedDrive`` (the motion a function of the phase 2 pi t / period)."""
-    return bool(mechanism.drives) and all(isinstance(d, mechanisms.PrescribedDrive)
-                                          for d in mechanism.drives)
+    """Whether ``speed_family`` applies to ``mechanism``: it has drives and every one imposes its
+    joint's motion (``IMPOSES_MOTION``: a ``mechanisms.PrescribedDrive``, the motion a function of the
+    phase 2 pi t / period)."""
+    return bool(mechanism.drives) and all(d.IMPOSES_MOTION for d in mechanism.drives)
 
 
 def speed_family(mechanism, *, n_steps: int = 512, observables=None) -> SpeedFamily:

@@ -236,7 +236,7 @@ def drive_probes(model, t, s, sdot, coefficients, period) -> tuple[_DriveProbe, 
 
     probes = []
     for drive in model.mechanism.drives:
-        if not isinstance(drive, mechanisms.TorqueDrive):
+        if drive.IMPOSES_MOTION:
             continue
         motor = drive.motor
         if motor is None and not math.isfinite(drive.torque_limit):

@@ -28,6 +28,7 @@ from ._orbit import PeriodRun as PeriodRun
 from ._parts import CONTROLLER_TYPES as CONTROLLER_TYPES
 from ._parts import DAMPING_TYPES as DAMPING_TYPES
 from ._parts import DISCRETISATION_TYPES as DISCRETISATION_TYPES
+from ._parts import DRIVE_TYPES as DRIVE_TYPES
 from ._parts import GROUND as GROUND
 from ._parts import JOINT_TYPES as JOINT_TYPES
 from ._parts import RAMP_SHAPES as RAMP_SHAPES
@@ -63,6 +64,7 @@ from ._parts import UserShapes as UserShapes
 from ._parts import drive_law as drive_law
 from ._parts import register_controller as register_controller
 from ._parts import register_discretisation as register_discretisation
+from ._parts import register_drive as register_drive
 from ._parts import register_joint as register_joint
 from ._parts import register_ramp_shape as register_ramp_shape
 from ._protocol import ConstrainedModel as ConstrainedModel

@@ -57,9 +57,7 @@ from ._parts import (
     ElasticLink,
     Mechanism,
     MechanismError,
-    PrescribedDrive,
     RigidLink,
-    TorqueDrive,
 )
 from ._reduce import equivalent_mass_points, equivalent_strain_points
 
@@ -216,7 +214,7 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
                                                                                  Mapping):
         raise TypeError(f"feedforward must be a callable tau(t) or a mapping joint name -> "
                         f"callable; received {type(feedforward).__name__}")
-    torque_joints = [d.joint for d in mechanism.drives if isinstance(d, TorqueDrive)]
+    torque_joints = [d.joint for d in mechanism.torque_drives]
     if callable(feedforward) and len(torque_joints) != 1:
         raise MechanismError(f"feedforward is a single callable but the mechanism has "
                              f"{len(torque_joints)} torque drives; pass a mapping joint name -> "
@@ -237,7 +235,7 @@ def _assemble(mechanism: Mechanism, feedforward) -> Model:
             cx, cy, su, sw, dw = _point_local(lay, terms[0].point)
             mp_int.append((lay.offset, *push(su, sw, dw)))
             mp_real.append((0.0, float(drive.inertia), cx, cy))
-        if isinstance(drive, PrescribedDrive):
+        if drive.IMPOSES_MOTION:   # one rheonomic row; its multiplier is the drive torque
             row = len(constraint_labels)
             constraint_labels.append(f"drive:{drive.joint}")
             angle_rows.append(True)

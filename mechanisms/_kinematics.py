@@ -31,7 +31,7 @@ import numpy as np
 from ._assemble import assemble
 from ._batch import constraint_terms_along, inertia_residual_along, scaled_correction
 from ._model import Model
-from ._parts import GROUND, ArgumentError, Mechanism, MechanismError, PrescribedDrive, TorqueDrive
+from ._parts import GROUND, ArgumentError, Mechanism, MechanismError
 
 logger = logging.getLogger(__name__)
 
@@ -120,8 +120,7 @@ def nominal_motion(mechanism_or_model: Any, *, n_steps: int = 360, period: float
     if r != len(rigid):
         hint = ("; a model assembled with torque drives has no drive rows: pass the Mechanism, "
                 "whose nominal motion follows the drives' nominal laws"
-                if mechanism is not None and any(isinstance(d, TorqueDrive)
-                                                 for d in mechanism.drives) else "")
+                if mechanism is not None and mechanism.torque_drives else "")
         raise MechanismError(f"the rigid subsystem is not square: {len(rigid)} rigid coordinates "
                              f"but {r} constraint equations{hint}")
     labels = list(model.coord_labels)
@@ -244,12 +243,10 @@ def _rigid_mechanism(mechanism: Mechanism) -> Mechanism:
     """The mechanism whose model the nominal motion uses: torque drives following their nominal
     law, prescribed (their inverse-dynamics torque is what the drive's multiplier gives), without
     controllers; ``mechanism`` itself when every drive is prescribed."""
-    if not any(isinstance(d, TorqueDrive) for d in mechanism.drives):
+    if not mechanism.torque_drives:
         return mechanism
-    return mechanism.replace(drives=tuple(
-        PrescribedDrive(d.joint, d.rate, d.offset, d.harmonics, inertia=d.inertia)
-        if isinstance(d, TorqueDrive) else d for d in mechanism.drives), period=mechanism.period,
-        controllers=())
+    return mechanism.replace(drives=tuple(d.kinematic() for d in mechanism.drives), period=mechanism.period,
+                             controllers=())
 
 
 def _same_mechanism(a: Any, b: Any) -> bool:
@@ -518,7 +515,7 @@ def feedforward_torques(mechanism: Mechanism, nominal: NominalMotion
 
     feedforward = {}
     for i, drive in enumerate(mechanism.drives):
-        if not isinstance(drive, TorqueDrive) or not drive.feedforward:
+        if drive.IMPOSES_MOTION or not drive.feedforward:
             continue   # a drive left out of the mapping applies no feedforward (assemble)
         torque = np.array(nominal.drive_torque[:, i], dtype=float)
         torque[-1] = torque[0]   # equal up to the nominal motion's closure error (round-off)

@@ -167,9 +167,8 @@ def integrated_model(mechanism: Any, nominal: Any = None) -> Any:
     drive's limits, plus the lag states given)."""
     from ._assemble import assemble
     from ._kinematics import feedforward_torques, nominal_motion
-    from ._parts import TorqueDrive
 
-    if not any(isinstance(d, TorqueDrive) for d in mechanism.drives):
+    if not mechanism.torque_drives:
         return assemble(mechanism)
     nominal = nominal_motion(mechanism) if nominal is None else nominal
     return assemble(mechanism, feedforward=feedforward_torques(mechanism, nominal))
@@ -181,11 +180,10 @@ def _resolve_model(system: Any, need_nominal: bool):
     A Mechanism is assembled here; with torque drives its nominal inverse-dynamics torque
     (``feedforward_torques``) is the drives' feedforward. The nominal motion is computed when a
     start state is needed or for the feedforward."""
-    from ._parts import Mechanism, TorqueDrive
+    from ._parts import Mechanism
     if isinstance(system, Mechanism):
         from ._kinematics import nominal_motion
-        torque_drives = any(isinstance(d, TorqueDrive) for d in system.drives)
-        nominal = nominal_motion(system) if (need_nominal or torque_drives) else None
+        nominal = nominal_motion(system) if (need_nominal or system.torque_drives) else None
         return integrated_model(system, nominal), system, nominal
     required = ("n_coords", "n_constraints", "mass_matrix", "forces", "constraints",
                 "constraint_jacobian", "constraint_rate", "constraint_gamma",

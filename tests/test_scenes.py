@@ -325,11 +325,11 @@ def test_docs_name_every_key_and_their_example_runs():
 
     joint_keys = tuple(key for joint in shipped(mechanisms.JOINT_TYPES) for key in joint.KEYS)
     keys = set(_load._TOP_KEYS + _load._RIGID_KEYS + _load._ELASTIC_KEYS + joint_keys
-               + _load._TORQUE_KEYS + _load._POINT_MASS_KEYS)
+               + _load._POINT_MASS_KEYS)
     for registry in (mechanisms.DISCRETISATION_TYPES, mechanisms.DAMPING_TYPES,
-                     mechanisms.CONTROLLER_TYPES):
+                     mechanisms.CONTROLLER_TYPES, mechanisms.DRIVE_TYPES):
         keys.update(key for cls in shipped(registry) for key in cls.KEYS)
-    keys.update(_load._MOTOR_KEYS)
+    keys.update(mechanisms.DCMotor.KEYS)
     assert [key for key in sorted(keys) if f"`{key}`" not in text] == []
     example = re.search(r"```toml\n(.*?)```", text, re.S).group(1)
     motion = mechanisms.nominal_motion(mechanisms.loads(example), n_steps=16)

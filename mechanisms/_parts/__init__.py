@@ -43,6 +43,7 @@ from .discretisations import DISCRETISATION_TYPES as DISCRETISATION_TYPES
 from .discretisations import ShapeLayout as ShapeLayout
 from .discretisations import ShapeValues as ShapeValues
 from .discretisations import register_discretisation as register_discretisation
+from .drives import DRIVE_TYPES as DRIVE_TYPES
 from .drives import RAMP_SHAPES as RAMP_SHAPES
 from .drives import DCMotor as DCMotor
 from .drives import PrescribedDrive as PrescribedDrive
@@ -50,6 +51,7 @@ from .drives import RampShape as RampShape
 from .drives import SpeedRamp as SpeedRamp
 from .drives import TorqueDrive as TorqueDrive
 from .drives import drive_law as drive_law
+from .drives import register_drive as register_drive
 from .drives import register_ramp_shape as register_ramp_shape
 from .fem import Fem as Fem
 from .joints import JOINT_TYPES as JOINT_TYPES

@@ -1,14 +1,74 @@
-"""Drives: a prescribed motion or a torque at a revolute joint, and the DC motor of a torque drive."""
+"""Drives: a prescribed motion or a torque at a revolute joint, and the DC motor of a torque drive.
+
+A drive kind is a frozen class entered in ``DRIVE_TYPES`` by ``register_drive`` (the scene loader, the
+``Mechanism``'s checks and the scene writer find it there). It has the fields ``joint``, ``rate``,
+``offset``, ``harmonics`` and ``profile`` (its nominal law, ``drive_law``) and declares:
+
+- ``TYPE`` and ``KEYS``, ``from_table(joint, table)`` and ``to_table()``: its scene table
+  (``[drive]`` or ``[drives.<joint>]``), and ``table_without_feedback(table)``, that table with its
+  feedback gains zeroed;
+- ``IMPOSES_MOTION``: True for a drive that imposes its joint's angle (one rheonomic constraint row,
+  the drive torque its multiplier), False for one that applies a torque the dynamics answer (the
+  assembler then reads the torque drive's law: ``kp``, ``kd``, ``motor``, ``torque_limit``);
+- ``feedforward`` (whether the nominal inverse-dynamics torque is applied) and ``inertia`` (kg m^2
+  turning with the driven side);
+- ``kinematic()``: the drive that imposes its nominal motion (itself when it imposes motion), which
+  the nominal (rigid) motion is computed with; ``without_feedback()``: itself with no feedback gains.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any, Callable, Union
 
 import numpy as np
 
-from .checks import MAX_HARMONIC_ORDER, MAX_HARMONICS, MechanismError, _check_count, _check_number, _is_number
+from .checks import (
+    MAX_HARMONIC_ORDER,
+    MAX_HARMONICS,
+    MechanismError,
+    _check_count,
+    _check_number,
+    _is_number,
+    register_class,
+)
+from .table import _Table
+
+#: The drive kinds by scene ``type`` (``register_drive``); the first is a scene's default.
+DRIVE_TYPES: dict[str, type] = {}
+
+_INTERFACE = ("TYPE", "KEYS", "IMPOSES_MOTION", "from_table", "to_table", "table_without_feedback",
+              "kinematic", "without_feedback", "angle", "inertia", "feedforward")
+
+#: The keys every drive's table shares (its nominal law).
+LAW_KEYS = ("type", "joint", "rate", "offset", "harmonics")
+
+
+def register_drive(cls: type) -> type:
+    """Enter the drive class ``cls`` in ``DRIVE_TYPES`` under its ``TYPE`` and return it (a class
+    decorator). The interface is the module docstring's; see ``mechanisms.PrescribedDrive``."""
+    return register_class(DRIVE_TYPES, cls, _INTERFACE, "drive", "mechanisms.PrescribedDrive")
+
+
+def law_from_table(joint: str, t: _Table) -> dict[str, Any]:
+    """The nominal law's fields (``joint``, ``rate``, ``offset``, ``harmonics``) from a drive's table ``t``
+    (``joint``: the table's name, or None to read its ``joint`` key)."""
+    harmonics = t.raw("harmonics", [])
+    if not isinstance(harmonics, list) or not all(isinstance(h, list) and len(h) == 3
+                                                  for h in harmonics):
+        raise MechanismError(f"{t.path}.harmonics must be a list of [k, cos_k, sin_k] (rad), got "
+                             f"{harmonics!r}")
+    return dict(joint=joint if joint is not None else t.string("joint"),
+                rate=t.number("rate", "rad/s", 0.0), offset=t.number("offset", "rad", 0.0),
+                harmonics=tuple(tuple(h) for h in harmonics))
+
+
+def _law_table(drive: Any) -> dict[str, Any]:
+    """The nominal law's part of a drive's scene table (the joint is the table's name)."""
+    return {"type": drive.TYPE, "rate": drive.rate, "offset": drive.offset,
+            "harmonics": [list(h) for h in drive.harmonics]}
 
 
 def _check_drive(drive: "PrescribedDrive | TorqueDrive") -> None:
@@ -146,6 +206,7 @@ def _drive_angle(drive: "PrescribedDrive | TorqueDrive", t: float,
     return drive_law(drive, period, t)
 
 
+@register_drive
 @dataclass(frozen=True)
 class PrescribedDrive:
     """Prescribes the relative rotation at revolute joint ``joint``: the angle of ``link_b``'s material
@@ -156,6 +217,12 @@ class PrescribedDrive:
     with ``harmonics`` a tuple of ``(k, cos_k, sin_k)``. One constraint equation (rheonomic).
     ``inertia`` (kg m^2) turns with ``link_b`` about the joint: the rotor and flywheel a torque
     drive carries into its nominal motion (``TorqueDrive.inertia``); not a scene key."""
+
+    TYPE = "prescribed"
+    KEYS = LAW_KEYS
+    IMPOSES_MOTION = True
+    #: a prescribed drive applies no torque law: its torque is the constraint's multiplier
+    feedforward = False
 
     joint: str
     rate: float = 0.0
@@ -168,6 +235,23 @@ class PrescribedDrive:
         _check_drive(self)
         _check_number(f"drive at joint {self.joint!r}", "inertia", self.inertia, "kg m^2",
                       nonnegative=True)
+
+    @classmethod
+    def from_table(cls, joint: str | None, t: _Table) -> "PrescribedDrive":
+        return cls(**law_from_table(joint, t))
+
+    def to_table(self) -> dict[str, Any]:
+        return _law_table(self)
+
+    @staticmethod
+    def table_without_feedback(table: dict[str, Any]) -> dict[str, Any]:
+        return table
+
+    def kinematic(self) -> "PrescribedDrive":
+        return self
+
+    def without_feedback(self) -> "PrescribedDrive":
+        return self
 
     angle = _drive_angle
 
@@ -185,6 +269,10 @@ class DCMotor:
     and the rotor adds ``G^2 rotor_inertia`` (kg m^2) on the crank. From armature constants
     (``from_armature``): ``stall_torque = k_t V / R``, ``no_load_speed = V / k_t`` (SI: the
     back-EMF constant equals the torque constant ``k_t``)."""
+
+    #: the keys of its scene table (a torque drive's ``motor``)
+    KEYS = ("stall_torque", "no_load_speed", "resistance", "torque_constant", "supply_voltage",
+            "rotor_inertia", "gear_ratio")
 
     stall_torque: float
     no_load_speed: float
@@ -223,7 +311,33 @@ class DCMotor:
         """The rotor's inertia seen at the crank, ``G^2 rotor_inertia`` (kg m^2)."""
         return self.gear_ratio ** 2 * self.rotor_inertia
 
+    @classmethod
+    def from_table(cls, data: object, path: str) -> "DCMotor":
+        """A ``[drive.motor]`` table: the characteristic by ``stall_torque`` and ``no_load_speed`` or by
+        the armature constants ``resistance``, ``torque_constant``, ``supply_voltage``."""
+        t = _Table(data, path, cls.KEYS)
+        extra = dict(rotor_inertia=t.number("rotor_inertia", "kg m^2", 0.0, nonnegative=True),
+                     gear_ratio=t.number("gear_ratio", "1", 1.0, positive=True))
+        characteristic = [k for k in ("stall_torque", "no_load_speed") if t.has(k)]
+        armature = [k for k in ("resistance", "torque_constant", "supply_voltage") if t.has(k)]
+        if characteristic and armature:
+            raise MechanismError(f"{path}: give either stall_torque and no_load_speed or the armature "
+                                 f"constants resistance, torque_constant and supply_voltage, not both")
+        if armature:
+            return cls.from_armature(resistance=t.number("resistance", "ohm", positive=True),
+                                     torque_constant=t.number("torque_constant", "N m/A", positive=True),
+                                     supply_voltage=t.number("supply_voltage", "V", positive=True),
+                                     **extra)
+        return cls(t.number("stall_torque", "N m", positive=True),
+                   t.number("no_load_speed", "rad/s", positive=True), **extra)
 
+    def to_table(self) -> dict[str, float]:
+        return {key: getattr(self, key) for key in ("stall_torque", "no_load_speed", "rotor_inertia",
+                                                    "gear_ratio")}
+
+
+
+@register_drive
 @dataclass(frozen=True)
 class TorqueDrive:
     """A torque on ``link_b`` of revolute joint ``joint`` (reaction on ``link_a``). The nominal motion
@@ -243,6 +357,10 @@ class TorqueDrive:
     (``|tau + c rate| <= G stall_torque``), in nonlinear runs; the linearisation uses the
     unsaturated law and its linear range reports the peak demanded torque against the limits.
     """
+
+    TYPE = "torque"
+    KEYS = LAW_KEYS + ("kp", "kd", "motor", "flywheel", "torque_limit", "feedforward")
+    IMPOSES_MOTION = False
 
     joint: str
     rate: float = 0.0
@@ -271,6 +389,35 @@ class TorqueDrive:
                                  f"{self.torque_limit!r}")
         if self.motor is not None and not isinstance(self.motor, DCMotor):
             raise MechanismError(f"{owner}: motor must be a DCMotor or None, got {self.motor!r}")
+
+    @classmethod
+    def from_table(cls, joint: str | None, t: _Table) -> "TorqueDrive":
+        limit = t.number("torque_limit", "N m", positive=True) if t.has("torque_limit") else math.inf
+        return cls(**law_from_table(joint, t), kp=t.number("kp", "N m/rad", 0.0, nonnegative=True),
+                   kd=t.number("kd", "N m s/rad", 0.0, nonnegative=True),
+                   motor=DCMotor.from_table(t.table("motor"), f"{t.path}.motor") if t.has("motor") else None,
+                   flywheel=t.number("flywheel", "kg m^2", 0.0, nonnegative=True),
+                   torque_limit=limit, feedforward=t.boolean("feedforward", True))
+
+    def to_table(self) -> dict[str, Any]:
+        entry = {**_law_table(self), "kp": self.kp, "kd": self.kd, "flywheel": self.flywheel,
+                 "feedforward": self.feedforward}
+        if math.isfinite(self.torque_limit):
+            entry["torque_limit"] = self.torque_limit
+        if self.motor is not None:
+            entry["motor"] = self.motor.to_table()
+        return entry
+
+    @staticmethod
+    def table_without_feedback(table: dict[str, Any]) -> dict[str, Any]:
+        return {**table, "kp": 0.0, "kd": 0.0}
+
+    def kinematic(self) -> PrescribedDrive:
+        """The prescribed drive of its nominal law (its rotor and flywheel kept): the nominal motion's."""
+        return PrescribedDrive(self.joint, self.rate, self.offset, self.harmonics, inertia=self.inertia)
+
+    def without_feedback(self) -> "TorqueDrive":
+        return dataclasses.replace(self, kp=0.0, kd=0.0)
 
     def law_derivative(self, key: str):
         """d(its PD law)/d ``key``: the ``ControllerLaw`` of unit ``kp`` or ``kd`` (the law is linear in

@@ -19,7 +19,7 @@ from .checks import (
     _check_pair,
 )
 from .controllers import CONTROLLER_TYPES, Controller
-from .drives import Drive, PrescribedDrive, TorqueDrive
+from .drives import DRIVE_TYPES, Drive
 from .grashof import check_four_bar
 from .joints import JOINT_TYPES, Joint
 from .links import ElasticLink, Link, PointMass, RigidLink, _pin_position
@@ -103,6 +103,12 @@ class Mechanism:
             spec = _spec.set_path(spec, path, value)
         return Mechanism.from_spec(spec, source=f"{self.name} with {dict(changes)}")
 
+    @property
+    def torque_drives(self) -> tuple:
+        """The drives that apply a torque the dynamics answer (``IMPOSES_MOTION`` False: torque drives),
+        in order."""
+        return tuple(d for d in self.drives if not d.IMPOSES_MOTION)
+
     def without_feedback(self) -> "Mechanism":
         """The same machine with every feedback removed: the torque drives' ``kp``, ``kd`` set to 0
         and the controllers dropped; the feedforward torque and the motors (characteristic, rotor
@@ -110,9 +116,7 @@ class Mechanism:
         if self.spec is not None:
             return Mechanism.from_spec(_spec.without_feedback_spec(self.spec),
                                        source=f"{self.name} without feedback")
-        drives = tuple(dataclasses.replace(d, kp=0.0, kd=0.0) if isinstance(d, TorqueDrive) else d
-                       for d in self.drives)
-        return self.replace(drives=drives, controllers=())
+        return self.replace(drives=tuple(d.without_feedback() for d in self.drives), controllers=())
 
     # --- the scene description ------------------------------------------------------------------------
     @classmethod
@@ -179,8 +183,10 @@ def _validate(mech: Mechanism) -> None:
 
     driven: set[str] = set()
     for drive in mech.drives:
-        if not isinstance(drive, (PrescribedDrive, TorqueDrive)):
-            raise MechanismError(f"drives must be PrescribedDrive or TorqueDrive, got {drive!r}")
+        if not isinstance(drive, tuple(DRIVE_TYPES.values())):
+            raise MechanismError(f"drives must be drives of a registered kind "
+                                 f"({', '.join(cls.__name__ for cls in DRIVE_TYPES.values())}: "
+                                 f"mechanisms.register_drive), got {drive!r}")
         joint = joints.get(drive.joint)
         if joint is None or joint.drive_terms() is None:
             drivable = [j.name for j in mech.joints if j.drive_terms() is not None]
@@ -196,7 +202,7 @@ def _validate(mech: Mechanism) -> None:
                              f"rate = 100.0 (rad/s) (or one [drives.<joint>] table per drive; docs/scenes.md); "
                              f"joints a drive can act at: {drivable}")
 
-    torque_joints = [d.joint for d in mech.drives if isinstance(d, TorqueDrive)]
+    torque_joints = [d.joint for d in mech.torque_drives]
     _by_name(mech.controllers, tuple(CONTROLLER_TYPES.values()), "controller")
     for controller in mech.controllers:
         if controller.joint not in torque_joints:

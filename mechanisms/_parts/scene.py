@@ -8,14 +8,13 @@ into the parts' derived quantities; ``Mechanism.from_spec`` makes the mechanism 
 from __future__ import annotations
 
 import copy
-import math
 from typing import Any, Mapping
 
 from .checks import MechanismError
 from .controllers import CONTROLLER_TYPES
 from .damping import DAMPING_TYPES
 from .discretisations import DEFAULT_DISCRETISATION, DISCRETISATION_TYPES
-from .drives import DCMotor, PrescribedDrive, TorqueDrive
+from .drives import DRIVE_TYPES
 from .joints import JOINT_TYPES
 from .links import ElasticLink, PointMass, RigidLink
 from .table import _REQUIRED, _Table
@@ -27,10 +26,6 @@ _RIGID_KEYS = ("type", "length", "mass", "inertia", "centroid", "points", "width
 _ELASTIC_KEYS = ("type", "length", "density", "youngs_modulus", "width", "thickness", "area",
                  "second_moment", "discretisation", "boundary", "axial", "geometric_stiffening",
                  "rotary_inertia", "damping", "yield_strength", "outer_fibre")
-_PRESCRIBED_KEYS = ("type", "joint", "rate", "offset", "harmonics")
-_TORQUE_KEYS = _PRESCRIBED_KEYS + ("kp", "kd", "motor", "flywheel", "torque_limit", "feedforward")
-_MOTOR_KEYS = ("stall_torque", "no_load_speed", "resistance", "torque_constant", "supply_voltage",
-               "rotor_inertia", "gear_ratio")
 _POINT_MASS_KEYS = ("link", "point", "mass", "inertia")
 
 def _rigid_link(name: str, t: _Table) -> RigidLink:
@@ -115,48 +110,16 @@ def _joint(name: str, data: object, path: str):
     return cls.from_table(name, _Table(data, path, cls.KEYS))
 
 
-def _drive(data: object, path: str, joint: str | None) -> PrescribedDrive | TorqueDrive:
-    kind = _Table(data, path, _TORQUE_KEYS).string("type", "prescribed", ("prescribed", "torque"))
-    t = _Table(data, path, _TORQUE_KEYS if kind == "torque" else _PRESCRIBED_KEYS)
+def _drive(data: object, path: str, joint: str | None):
+    """A drive from its ``[drive]`` table (``joint`` None: its ``joint`` key names the joint) or its
+    ``[drives.<joint>]`` table: the class its ``type`` names reads its own keys."""
+    every_key = tuple(dict.fromkeys(key for cls in DRIVE_TYPES.values() for key in cls.KEYS))
+    kind = _Table(data, path, every_key).string("type", next(iter(DRIVE_TYPES)), tuple(DRIVE_TYPES))
+    cls = DRIVE_TYPES[kind]
+    t = _Table(data, path, cls.KEYS)
     if joint is not None and t.has("joint"):
         raise MechanismError(f"{path}: the joint is the table name {joint!r}; remove key 'joint'")
-    harmonics = t.raw("harmonics", [])
-    if not isinstance(harmonics, list) or not all(isinstance(h, list) and len(h) == 3
-                                                  for h in harmonics):
-        raise MechanismError(f"{path}.harmonics must be a list of [k, cos_k, sin_k] (rad), got "
-                             f"{harmonics!r}")
-    common = dict(joint=joint if joint is not None else t.string("joint"),
-                  rate=t.number("rate", "rad/s", 0.0), offset=t.number("offset", "rad", 0.0),
-                  harmonics=tuple(tuple(h) for h in harmonics))
-    if kind == "torque":
-        limit = t.number("torque_limit", "N m", positive=True) if t.has("torque_limit") else math.inf
-        return TorqueDrive(**common, kp=t.number("kp", "N m/rad", 0.0, nonnegative=True),
-                           kd=t.number("kd", "N m s/rad", 0.0, nonnegative=True),
-                           motor=_motor(t.table("motor"), f"{path}.motor") if t.has("motor") else None,
-                           flywheel=t.number("flywheel", "kg m^2", 0.0, nonnegative=True),
-                           torque_limit=limit, feedforward=t.boolean("feedforward", True))
-    return PrescribedDrive(**common)
-
-
-def _motor(data: object, path: str) -> DCMotor:
-    """A ``[drive.motor]`` table: the characteristic by ``stall_torque`` and ``no_load_speed`` or by
-    the armature constants ``resistance``, ``torque_constant``, ``supply_voltage``."""
-    t = _Table(data, path, _MOTOR_KEYS)
-    extra = dict(rotor_inertia=t.number("rotor_inertia", "kg m^2", 0.0, nonnegative=True),
-                 gear_ratio=t.number("gear_ratio", "1", 1.0, positive=True))
-    characteristic = [k for k in ("stall_torque", "no_load_speed") if t.has(k)]
-    armature = [k for k in ("resistance", "torque_constant", "supply_voltage") if t.has(k)]
-    if characteristic and armature:
-        raise MechanismError(f"{path}: give either stall_torque and no_load_speed or the armature "
-                             f"constants resistance, torque_constant and supply_voltage, not both")
-    if armature:
-        return DCMotor.from_armature(resistance=t.number("resistance", "ohm", positive=True),
-                                     torque_constant=t.number("torque_constant", "N m/A",
-                                                              positive=True),
-                                     supply_voltage=t.number("supply_voltage", "V", positive=True),
-                                     **extra)
-    return DCMotor(t.number("stall_torque", "N m", positive=True),
-                   t.number("no_load_speed", "rad/s", positive=True), **extra)
+    return cls.from_table(joint, t)
 
 
 def _controller(name: str, data: object, path: str):

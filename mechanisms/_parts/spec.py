@@ -11,7 +11,7 @@ import math
 from typing import Any, Mapping
 
 from .checks import MechanismError
-from .drives import TorqueDrive
+from .drives import DRIVE_TYPES
 from .links import ElasticLink, RigidLink
 
 
@@ -32,17 +32,7 @@ def to_spec(mech) -> dict[str, Any]:
         spec["joints"][joint.name] = joint.to_table()
     spec["drives"] = {}
     for drive in mech.drives:
-        entry = {"type": "torque" if isinstance(drive, TorqueDrive) else "prescribed",
-                 "rate": drive.rate, "offset": drive.offset,
-                 "harmonics": [list(h) for h in drive.harmonics]}
-        if isinstance(drive, TorqueDrive):
-            entry.update(kp=drive.kp, kd=drive.kd, flywheel=drive.flywheel,
-                         feedforward=drive.feedforward)
-            if math.isfinite(drive.torque_limit):
-                entry["torque_limit"] = drive.torque_limit
-            if drive.motor is not None:
-                entry["motor"] = {key: getattr(drive.motor, key) for key in
-                                  ("stall_torque", "no_load_speed", "rotor_inertia", "gear_ratio")}
+        entry = drive.to_table()
         spec["drives"][drive.joint] = entry
     if mech.controllers:
         spec["controllers"] = {c.name: c.to_table() for c in mech.controllers}
@@ -80,15 +70,17 @@ def _link_spec(link: RigidLink | ElasticLink) -> dict[str, Any]:
 
 
 def without_feedback_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
-    """A copy of ``spec`` without feedback (``Mechanism.without_feedback``): every torque drive's
-    ``kp`` and ``kd`` set to 0, the ``[controllers]`` tables removed."""
+    """A copy of ``spec`` without feedback (``Mechanism.without_feedback``): every drive's table without
+    its feedback gains (its kind's ``table_without_feedback``: a torque drive's ``kp`` and ``kd`` 0), the
+    ``[controllers]`` tables removed."""
     result = copy.deepcopy(dict(spec))
     result.pop("controllers", None)
     tables = [result["drive"]] if isinstance(result.get("drive"), dict) else list(
         (result.get("drives") or {}).values())
     for table in tables:
-        if isinstance(table, dict) and table.get("type") == "torque":
-            table["kp"] = table["kd"] = 0.0
+        kind = DRIVE_TYPES.get(table.get("type", next(iter(DRIVE_TYPES)))) if isinstance(table, dict) else None
+        if kind is not None:
+            table.update(kind.table_without_feedback(table))
     return result
 
 

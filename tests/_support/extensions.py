@@ -11,7 +11,9 @@ faces only (``periodic``, ``mechanisms``, ``studies``), each registered when thi
   of each observable at a few speeds), ``studies.register_kind``;
 * ``ThetaMethod``, ``THETA_SCHEMES``: a periodic scheme in numpy ("theta-0.6", "theta-0.5"),
   ``periodic.register_scheme``;
-* ``GaugedPD``: a controller, ``mechanisms.register_controller``.
+* ``GaugedPD``: a controller, ``mechanisms.register_controller``;
+* ``ServoDrive``: a drive kind, a torque drive tuned by its closed-loop bandwidth,
+  ``mechanisms.register_drive``.
 
 The tests ``tests/test_extend_*.py`` check each against what does not know of it;
 ``tests/test_extension.py`` runs them together, and checks that this module imports public names
@@ -20,6 +22,7 @@ only (no edit to any package was needed).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -452,3 +455,59 @@ class GaugedPD:
     def law(self):
         return mechanisms.ControllerLaw(kp=self.kp, kd=self.kd, observable="coupler.strain@0.5",
                                         gain=self.gain)
+
+
+# ---------------------------------------------------------------------------------------------------
+# a drive kind: a torque drive whose PD gains follow from a closed-loop bandwidth
+# ---------------------------------------------------------------------------------------------------
+@mechanisms.register_drive
+@dataclass(frozen=True)
+class ServoDrive(mechanisms.TorqueDrive):
+    """A torque drive tuned by its closed-loop ``bandwidth`` w (rad/s) and ``damping_ratio`` zeta for
+    the inertia ``crank_inertia`` J (kg m^2) its designer expects at the crank: ``kp = J w^2``,
+    ``kd = 2 zeta J w``; otherwise a torque drive (feedforward, motor, flywheel, torque limit)."""
+
+    bandwidth: float = 0.0
+    damping_ratio: float = 0.7
+    crank_inertia: float = 0.0
+
+    TYPE: ClassVar[str] = "servo"
+    KEYS: ClassVar[tuple[str, ...]] = ("type", "joint", "rate", "offset", "harmonics", "bandwidth",
+                                       "damping_ratio", "crank_inertia", "motor", "flywheel",
+                                       "torque_limit")
+
+    def __post_init__(self):
+        object.__setattr__(self, "kp", self.crank_inertia * self.bandwidth**2)
+        object.__setattr__(self, "kd", 2.0 * self.damping_ratio * self.crank_inertia * self.bandwidth)
+        super().__post_init__()
+
+    @classmethod
+    def from_table(cls, joint, table):
+        motor = (mechanisms.DCMotor.from_table(table.table("motor"), f"{table.path}.motor")
+                 if table.has("motor") else None)
+        limit = table.number("torque_limit", "N m", positive=True) if table.has("torque_limit") else math.inf
+        return cls(joint if joint is not None else table.string("joint"),
+                   rate=table.number("rate", "rad/s", 0.0), offset=table.number("offset", "rad", 0.0),
+                   harmonics=tuple(tuple(h) for h in table.raw("harmonics", [])), motor=motor,
+                   flywheel=table.number("flywheel", "kg m^2", 0.0), torque_limit=limit,
+                   bandwidth=table.number("bandwidth", "rad/s", 0.0, nonnegative=True),
+                   damping_ratio=table.number("damping_ratio", "1", 0.7, nonnegative=True),
+                   crank_inertia=table.number("crank_inertia", "kg m^2", 0.0, nonnegative=True))
+
+    def to_table(self):
+        entry = {"type": self.TYPE, "rate": self.rate, "offset": self.offset,
+                 "harmonics": [list(h) for h in self.harmonics], "bandwidth": self.bandwidth,
+                 "damping_ratio": self.damping_ratio, "crank_inertia": self.crank_inertia,
+                 "flywheel": self.flywheel}
+        if math.isfinite(self.torque_limit):
+            entry["torque_limit"] = self.torque_limit
+        if self.motor is not None:
+            entry["motor"] = self.motor.to_table()
+        return entry
+
+    @staticmethod
+    def table_without_feedback(table):
+        return {**table, "bandwidth": 0.0}
+
+    def without_feedback(self):
+        return dataclasses.replace(self, bandwidth=0.0)
