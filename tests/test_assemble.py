@@ -662,7 +662,7 @@ CONSTRUCTOR_CHECKS = {
     "slider origin": (lambda m: Slider("C", "rocker", "end", origin=(0.0,)),
                       "origin must be a pair"),
     "drive type": (lambda m: _replace(m, drives=("motor",)),
-                   "drives must be PrescribedDrive or TorqueDrive"),
+                   "drives must be drives of a registered kind"),
     "drive joint": (lambda m: _replace(m, drives=(PrescribedDrive("Q", rate=1.0),)),
                     "drive names joint 'Q', which is not a revolute joint"),
     "drive rate": (lambda m: PrescribedDrive("O", rate=math.inf), "rate must be a finite number"),
