@@ -69,6 +69,7 @@ class ResultFile:
         self._broken = False
         self._root_damage = ""   # the file's own attributes fail their checksum (found on opening)
         self._dirty = False  # written since the last commit (a run that wrote nothing commits nothing)
+        self._before_commit: list[Any] = []   # writes waiting in memory (a grid's points), done first
         self._signals = contextlib.ExitStack()
         #: attributes a study group gets when it is created (``studies.cli._run``: what was asked of it)
         self.study_attrs: dict[str, dict[str, Any]] = {}
@@ -306,11 +307,20 @@ class ResultFile:
                 self._broken = True
                 raise
 
+    def before_commit(self, flush: Any) -> None:
+        """Call ``flush()`` (a write of what waits in memory: ``studies._grid.GridStore.flush``) before
+        the next commit, once."""
+        if flush not in self._before_commit:
+            self._before_commit.append(flush)
+
     def commit(self) -> None:
         """Make the working copy's state the content of ``path``, atomically (nothing to do when
-        nothing was written since the last commit)."""
+        nothing was written since the last commit), after the writes waiting in memory."""
         import h5py
 
+        waiting, self._before_commit = self._before_commit, []
+        for flush in waiting:
+            flush()
         if not self._dirty:
             return
         if self._broken:

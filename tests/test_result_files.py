@@ -254,6 +254,67 @@ def test_ctrl_c_saves_what_is_done_and_says_so_in_one_line(result_file, tmp_path
     assert sweep.done.tolist() == [True, True, False]
 
 
+CHART = """
+[studies.stability_chart]
+x = { parameter = "speed", start = 60.0, stop = 120.0, count = 4 }
+y = { parameter = "links.coupler.thickness", start = 1.2e-3, stop = 2.0e-3, count = 3 }
+"""
+
+
+def test_a_grid_committed_every_few_points_saves_each_point_as_computed(tmp_path, monkeypatch, capsys):
+    """A run commits every few seconds and writes the points finished since in one go (the block of
+    the grid they fill, strings point by point where they do not fill it). Committed every third
+    point, a 3 x 4 chart's commits cut its rows of 4 (blocks the points do not fill); interrupted at
+    its eighth point, the file must hold the seven finished points as they were computed (their
+    status and message words included, which the end of a grid judges again and rewrites), each
+    point's digest must hold, and the resumed run must end equal to an uninterrupted one."""
+    from studies import _resultfile
+
+    scene = _scene(tmp_path, "chart", CHART)
+    assert _run(scene, tmp_path / "once.h5") == 0
+    maybe_commit, evaluate, write = _resultfile.ResultFile.maybe_commit, _grid.evaluate, _grid.GridStore.write
+    calls, evaluated, written = [], [], {}
+
+    def recorded(self, index, outcome):
+        written[index] = outcome
+        write(self, index, outcome)
+
+    def every_third_point(self):
+        calls.append(1)
+        if len(calls) % 3 == 0:
+            self.commit()
+
+    def interrupted_at_the_eighth_point(*args):
+        if len(evaluated) == 7:
+            raise KeyboardInterrupt
+        evaluated.append(args)
+        return evaluate(*args)
+
+    monkeypatch.setattr(_resultfile.ResultFile, "maybe_commit", every_third_point)
+    monkeypatch.setattr(_grid, "evaluate", interrupted_at_the_eighth_point)
+    monkeypatch.setattr(_grid.GridStore, "write", recorded)
+    assert _run(scene, tmp_path / "often.h5") == 130
+    monkeypatch.setattr(_grid, "evaluate", evaluate)
+    monkeypatch.setattr(_grid.GridStore, "write", write)
+    assert "8 of 13 points saved" in capsys.readouterr().err   # the steady state and 7 of the chart's
+    assert len(written) == 7
+    with h5py.File(tmp_path / "often.h5", "r") as handle:
+        group = handle["stability_chart"]
+        assert group["done"][()].sum() == 7
+        for index, outcome in written.items():
+            assert group["done"][index]
+            assert group["status"].asstr()[index] == outcome.status
+            assert group["message"].asstr()[index] == outcome.message
+            assert group["point_run_time"][index] == outcome.run_time
+            assert group["spectral_radius"][index] == outcome.data["spectral_radius"]
+    assert main(["info", str(tmp_path / "often.h5")]) == 0   # every saved point's digest holds
+    assert _run(scene, tmp_path / "often.h5") == 0
+    monkeypatch.setattr(_resultfile.ResultFile, "maybe_commit", maybe_commit)
+    once, often = studies.load(tmp_path / "once.h5")["stability_chart"], studies.load(tmp_path / "often.h5")["stability_chart"]
+    for field in ("spectral_radius", "spectral_radius_error", "point_status", "point_message", "done"):
+        np.testing.assert_array_equal(getattr(once, field), getattr(often, field), err_msg=field)
+
+
 # ---------------------------------------------------------------------------------------------------
 # flexvib info reads every dataset
 # ---------------------------------------------------------------------------------------------------
