@@ -105,3 +105,21 @@ def test_the_branchs_n_over_2_levels_give_single_solves_error_estimates():
         np.testing.assert_allclose(orbit.multiplier_errors, single.multiplier_errors, rtol=0.05,
                                    atol=1e-3 * np.abs(single.multiplier_errors).max())
         assert single.state_error > 1e-4   # a level difference the test can see
+
+
+def test_the_branch_is_the_same_whichever_corrector_solves_it(monkeypatch):
+    # always the chord (with Newton where it does not contract: the old rule) against never the chord
+    fine, coarse = _duffing(64), _duffing(32)
+    branches = {}
+    for rate in (np.inf, 0.0):
+        monkeypatch.setattr("periodic._continuation.CHORD_RATE", rate)
+        branches[rate] = periodic.continue_orbits(fine, np.zeros(2), 1.0, 1.3, step=0.05, max_step=0.05,
+                                                  estimate=coarse, accuracy=0.01)
+    chord, newton = branches[np.inf], branches[0.0]
+    assert chord.map_calls != newton.map_calls   # two correctors did run
+    assert chord.status == newton.status == "ok" and chord.statuses == newton.statuses
+    np.testing.assert_array_equal(chord.parameters, newton.parameters)
+    np.testing.assert_allclose(chord.states, newton.states, rtol=0, atol=1e-8 * np.abs(newton.states).max())
+    np.testing.assert_allclose(chord.multipliers, newton.multipliers, rtol=0, atol=1e-7)
+    for a, b in zip(chord.orbits, newton.orbits):
+        assert a.state_error == pytest.approx(b.state_error, rel=0.02)

@@ -204,8 +204,9 @@ class NonlinearSweep(StudyResult):
 #: each value, and at each value's dP/dp).
 NOMINAL_STEPS = 64
 #: Values whose last period run a sweep's map keeps for the orbits' observables (each a period's
-#: coordinates and rates: (N + 1) x n doubles; a longer branch runs the older ones again).
-KEPT_RUNS = 512
+#: coordinates, rates and multipliers, (N + 1) x (2 n + r) doubles, 0.08 MB on six_bar at N = 128;
+#: a longer branch runs the older ones again).
+KEPT_RUNS = 256
 #: A state within this fraction of its size (max norm) of the kept run's is that run's: a relative
 #: change of 1e-12 in the start moves the observables far below their error estimate (and the
 #: orbit's residual tolerance, 1e-8).
