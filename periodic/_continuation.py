@@ -9,9 +9,11 @@ by damped Newton (:func:`periodic._orbit.newton`) from the predictor ``y_pred = 
 ``t`` is the unit tangent of the branch at the last point, the null vector of the bordered matrix
 ``[Phi - I, dP/dp]`` there (oriented along the parameter for ``natural``, along the step just taken
 for ``arclength``).  ``natural`` fixes the parameter (``e_p`` in the constraint, the predictor along
-``t`` scaled to move ``p`` by the step), and solves at it by chord iterations with the last orbit's
-monodromy (periods without their own) and one exact monodromy at the converged orbit
-(:func:`periodic._orbit.solve_fixed_point`, Newton where the chord does not contract);
+``t`` scaled to move ``p`` by the step), and solves at it (:func:`periodic._orbit.solve_fixed_point`)
+by chord iterations with the last orbit's monodromy (periods without their own) and one exact
+monodromy at the converged orbit where they are predicted to contract fast enough (``CHORD_RATE``:
+the rate they would have had over the step just taken), else by Newton; the error level's orbit
+(``estimate``) likewise, by chord with the orbit's monodromy or by Newton;
 ``arclength`` (pseudo-arclength, Keller) takes the constraint's normal along ``t``, so the branch is
 followed through folds, where ``Phi - I`` is singular but the bordered matrix is not.  ``dP/dp`` is a
 forward difference of the map, ``(P(x, p + dp) - P(x, p)) / dp`` with ``dp = sqrt(eps) max(|p|, P)``
@@ -70,9 +72,15 @@ EASY_ITERATIONS = 3
 #: ... or, at a fixed parameter (natural steps: chord iterations with the last orbit's monodromy,
 #: contracting by some 0.01-0.1 a step where Newton squares), in at most this many chord steps.
 EASY_CHORD_ITERATIONS = 5
-#: After a chord that does not contract (the last orbit's monodromy too far from this one's), this
-#: many natural steps are solved by Newton before the chord is tried again.
-CHORD_RETRY = 3
+#: A natural step is solved by chord iterations with the last orbit's monodromy only where they are
+#: predicted to contract by at least this factor a step (``chord_rate``: the rate they would have had
+#: over the step just taken), else by Newton. A chord step costs a period, a Newton step a period and
+#: its monodromy (1.2-1.4 periods on six_bar's reduced model), and from the predictor's residual
+#: (0.04-0.1 at 1 rad/s steps on six_bar) to tol = 1e-8 Newton takes 3-4 steps: a chord at this rate
+#: takes about 4 periods and the converged orbit's monodromy, about even. On six_bar at 1 rad/s steps
+#: the rate is 0.1-0.4 (the monodromy changes by 20-50 % a step): every chord tried there failed and
+#: cost its periods (issue 24).
+CHORD_RATE = 0.01
 #: ... by this factor (up to max_step); a failed or turning one halves it.
 GROWTH = 1.5
 #: Brent's method locates a bifurcation to this fraction of the chord between two points.
@@ -148,7 +156,16 @@ class _Corrector:
         self.calls_of_last_solve = 0
         #: the monodromy of the last accepted orbit: the chord iterations' Jacobian at a fixed parameter
         self.kept: np.ndarray | None = None
-        self.newton_solves_left = 0    # natural steps still to solve by Newton after a failed chord
+        #: the chord's predicted contraction per step at the next natural step (``keep``)
+        self.chord_rate = math.inf
+        #: the coarse level's chord rate at the last point (``estimate``; 0: the chord is tried first)
+        self.coarse_chord_rate = 0.0
+
+    def keep(self, monodromy: np.ndarray) -> None:
+        """``monodromy`` (n, n), an accepted orbit's, becomes the next chord's Jacobian; ``chord_rate``
+        the rate a chord with the one before would have had on it (``chord_rate``)."""
+        self.chord_rate = math.inf if self.kept is None else chord_rate(self.kept, monodromy)
+        self.kept = monodromy
 
     def scaled(self, state, parameter) -> np.ndarray:
         return np.append(state / self.X, parameter / self.P)
@@ -214,18 +231,12 @@ class _Corrector:
         its result in the scaled unknowns (``y`` with the parameter, the residual with a zero
         constraint row, ``extra`` the monodromy at ``y``)."""
         n = y_pred.size - 1
-        calls_before, monodromies_before = self.map.calls, self.map.monodromies
-        chord = self.newton_solves_left == 0
+        calls_before = self.map.calls
+        chord = self.chord_rate <= CHORD_RATE
         found = solve_fixed_point(self.map, self.unscaled(y_pred)[0], parameter, tol=self.tol,
                                   max_iterations=self.max_iterations, state_scale=self.floor,
                                   monodromy=self.kept if chord else None)
         self.calls_of_last_solve = self.map.calls - calls_before
-        # a chord that did not contract cost its periods for nothing (Newton went on): after one, the
-        # next CHORD_RETRY solves go straight to Newton, then the chord is tried again
-        if chord:
-            self.newton_solves_left = 0 if self.map.monodromies - monodromies_before == 1 else CHORD_RETRY
-        else:
-            self.newton_solves_left -= 1
         monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(n)
         return replace(found, y=self.scaled(found.y, parameter), residual_vector=np.append(
             found.residual_vector / self.X, 0.0), jacobian=None, extra=monodromy)
@@ -237,7 +248,33 @@ class _Corrector:
         orbit = classify(parameter, state, found.extra, residual=found.residual, iterations=found.iterations,
                          map_calls=self.calls_of_last_solve, converged=found.converged, reason=found.reason,
                          stability_tol=self.stability_tol, start_time=start_time)
-        return self.estimator.apply(orbit, stability_tol=self.stability_tol, start_time=start_time)
+        return self.estimate(orbit, start_time)
+
+    def estimate(self, orbit: PeriodicOrbit, start_time: float) -> PeriodicOrbit:
+        """``orbit`` with its error bars from the coarse level (``ErrorEstimate.apply``), the coarse
+        orbit solved by chord iterations with this orbit's monodromy only where they are predicted to
+        contract by ``CHORD_RATE`` (``chord_rate`` of the two levels' monodromies at the last point;
+        tried at the first), else by Newton: on six_bar at N = 128 the N/2 orbit differs from the N
+        one by 10-110 % of the state near 78 rad/s and the chord contracted by 0.1-0.2 only (issue 24)."""
+        judged = self.estimator.apply(orbit, stability_tol=self.stability_tol, start_time=start_time,
+                                      chord=self.coarse_chord_rate <= CHORD_RATE)
+        coarse = self.estimator.coarse_monodromy
+        if coarse is not None:
+            self.coarse_chord_rate = chord_rate(orbit.monodromy, coarse)
+        return judged
+
+
+def chord_rate(kept: np.ndarray, monodromy: np.ndarray) -> float:
+    """The asymptotic contraction per step of chord iterations with the Jacobian ``kept - I`` on a map
+    whose monodromy is ``monodromy`` (both (n, n)): the error goes as ``e <- (kept - I)^-1 (kept -
+    monodromy) e``, so its spectral radius (inf where ``kept - I`` is singular)."""
+    try:
+        iteration = np.linalg.solve(kept - np.eye(kept.shape[0]), kept - monodromy)
+    except np.linalg.LinAlgError:
+        return math.inf
+    if not np.all(np.isfinite(iteration)):
+        return math.inf
+    return float(np.max(np.abs(np.linalg.eigvals(iteration)), initial=0.0))
 
 
 def _test_functions(multipliers: np.ndarray) -> dict:
@@ -310,13 +347,13 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
                            residual=first.residual, iterations=first.iterations, map_calls=counted.calls,
                            converged=first.converged, reason=first.reason, stability_tol=stability_tol,
                            start_time=start_time)
-    first_orbit = estimator.apply(first_orbit, stability_tol=stability_tol, start_time=start_time)
     if not first.converged:
         return _branch([], [], [], "failed", f"failed: the first orbit was not found: {first_orbit.message}",
                        method, counted.calls + estimator.calls, start_time, guess.size)
     rms = float(np.sqrt(np.mean(first.y**2)))
     scale = state_scale if state_scale else (rms if rms > 0.0 else 1.0)
     corrector = _Corrector(counted, scale, span, floor, tol, max_iterations, stability_tol, estimator)
+    first_orbit = corrector.estimate(first_orbit, start_time)
     follower = _Follower(corrector, method, direction, stop, stop_at_instability, start_time,
                          adaptive_scale=not state_scale)
     return follower.run(first_orbit, step=step, min_step=min_step, max_step=max_step, max_points=max_points)
@@ -344,7 +381,7 @@ class _Follower:
     def run(self, first: PeriodicOrbit, *, step, min_step, max_step, max_points) -> OrbitBranch:
         corrector = self.corrector
         self.orbits.append(first)
-        corrector.kept = first.monodromy
+        corrector.keep(first.monodromy)
         # the first tangent: null vector of [Phi - I, dP/dp] at the first orbit (P(x) = x there, to tol)
         tangent = corrector.tangent(first.state, first.parameter, first.monodromy, first.state, self.direction)
         y = corrector.scaled(first.state, first.parameter)
@@ -388,7 +425,7 @@ class _Follower:
             if self._crossing(current, new, y, found.y):
                 return self._finish("instability")
             self.orbits.append(new)
-            corrector.kept = new.monodromy
+            corrector.keep(new.monodromy)
             y, tangent = found.y, new_tangent
             if self.adaptive_scale:
                 y, tangent = self._rescale(y, tangent, new.state)

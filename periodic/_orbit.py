@@ -501,7 +501,7 @@ class ErrorEstimate:
     of its distance from the finer orbit (:class:`Settled`), else to ``tol``."""
 
     def __init__(self, estimate, error_factor, n: int, *, tol, max_iterations, state_scale, accuracy=None):
-        self.errors, self.coarse, self.calls = None, None, 0
+        self.errors, self.coarse, self.calls, self.coarse_monodromy = None, None, 0, None
         self.tol, self.max_iterations, self.state_scale = tol, max_iterations, state_scale
         self.accuracy = accuracy
         if estimate is None:
@@ -519,8 +519,14 @@ class ErrorEstimate:
                                 f"period map on N/2 steps, got {estimate!r}")
         self.errors = errors
 
-    def apply(self, orbit: PeriodicOrbit, *, stability_tol: float, start_time: float) -> PeriodicOrbit:
-        """``orbit`` judged again with the error bars (unchanged without an estimate or if not converged)."""
+    def apply(self, orbit: PeriodicOrbit, *, stability_tol: float, start_time: float,
+              chord: bool = True) -> PeriodicOrbit:
+        """``orbit`` judged again with the error bars (unchanged without an estimate or if not converged).
+        The coarse orbit is solved from ``orbit.state`` by chord iterations with ``orbit.monodromy``
+        (``chord``, the default), else by Newton (a continuation whose two levels' monodromies differ
+        too much for the chord to contract); ``coarse_monodromy`` is then the coarse orbit's (None
+        where there is none)."""
+        self.coarse_monodromy = None
         if not orbit.converged or (self.errors is None and self.coarse is None):
             return orbit
         errors, state_error, map_calls = self.errors, math.nan, orbit.map_calls
@@ -529,10 +535,12 @@ class ErrorEstimate:
             settled = None if self.accuracy is None else Settled(orbit.state, self.accuracy, self.coarse.blocks)
             coarse = solve_fixed_point(self.coarse, orbit.state, orbit.parameter, tol=self.tol,
                                        max_iterations=self.max_iterations, state_scale=self.state_scale,
-                                       monodromy=orbit.monodromy, settled=settled)
+                                       monodromy=orbit.monodromy if chord else None, settled=settled)
             made = self.coarse.calls - calls_before
             self.calls += made
             map_calls = orbit.map_calls + made
+            if coarse.converged:
+                self.coarse_monodromy = coarse.extra
             if not coarse.converged:
                 return replace(orbit, status=worst_status(orbit.status, "inaccurate"),
                                map_calls=map_calls, message=(

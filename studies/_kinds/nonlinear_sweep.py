@@ -203,6 +203,14 @@ class NonlinearSweep(StudyResult):
 #: step to step) does; the default 360 steps were a quarter of a sweep's time on six_bar (a map at
 #: each value, and at each value's dP/dp).
 NOMINAL_STEPS = 64
+#: Values whose last period run a sweep's map keeps for the orbits' observables (each a period's
+#: coordinates, rates and multipliers, (N + 1) x (2 n + r) doubles, 0.08 MB on six_bar at N = 128;
+#: a longer branch runs the older ones again).
+KEPT_RUNS = 256
+#: A state within this fraction of its size (max norm) of the kept run's is that run's: a relative
+#: change of 1e-12 in the start moves the observables far below their error estimate (and the
+#: orbit's residual tolerance, 1e-8).
+SAME_STATE = 1e-12
 
 
 class _Mechanisms:
@@ -235,6 +243,10 @@ class _ParameterMap:
     def __init__(self, mechanisms_at: _Mechanisms, n_steps: int, independent: np.ndarray, scale: np.ndarray):
         self.mechanisms_at, self.n_steps, self.independent, self.scale = mechanisms_at, n_steps, independent, scale
         self._maps: dict[float, Any] = {}
+        #: {value: (scaled state, mechanisms.PeriodRun, its model)} of the last period run at each of
+        #: the last KEPT_RUNS values: a branch's orbit is the last state its map ran at that value, and
+        #: its observables read that period instead of building the map and running it again
+        self._runs: dict[float, tuple[np.ndarray, Any, Any]] = {}
 
     def at(self, value: float):
         import mechanisms
@@ -254,12 +266,48 @@ class _ParameterMap:
         return ((0, m), (m, 2 * m)) + (((2 * m, self.scale.size),) if self.scale.size > 2 * m else ())
 
     def __call__(self, y: np.ndarray, value: float):
-        end, monodromy = self.at(float(value))(y * self.scale)
-        return end / self.scale, monodromy * self.scale[None, :] / self.scale[:, None]
+        run = self._run(y, value, tangent=True)
+        return run.end_state / self.scale, run.monodromy * self.scale[None, :] / self.scale[:, None]
 
     def end_state(self, y: np.ndarray, value: float) -> np.ndarray:
         """A period without its monodromy (``periodic``'s chord iterations), scaled as ``__call__``."""
-        return self.at(float(value)).end_state(y * self.scale) / self.scale
+        return self._run(y, value, tangent=False).end_state / self.scale
+
+    def _run(self, y: np.ndarray, value: float, *, tangent: bool):
+        value = float(value)
+        run = self.at(value).run(y * self.scale, tangent=tangent)
+        self._runs.pop(value, None)
+        if len(self._runs) >= KEPT_RUNS:
+            self._runs.pop(next(iter(self._runs)))
+        self._runs[value] = (np.array(y, dtype=float), run, self.at(value).model)
+        return run
+
+    def observed(self, value: float, y: np.ndarray) -> "_KeptPeriod":
+        """The period map at ``value`` for ``orbit_observables`` from the scaled state ``y``: its one
+        period the last one run at ``value`` if that was from ``y`` (to ``SAME_STATE`` of its size:
+        the continuation's scaled round trip of a state may change its last bits)."""
+        value = float(value)
+        kept = self._runs.get(value)
+        if kept is not None:
+            state, run, model = kept
+            if float(np.abs(np.asarray(y) - state).max(initial=0.0)) <= SAME_STATE * float(np.abs(state).max()):
+                return _KeptPeriod(model, self.n_steps, self.independent, run, lambda: self.at(value))
+        period_map = self.at(value)
+        return _KeptPeriod(period_map.model, self.n_steps, self.independent, None, lambda: period_map)
+
+
+class _KeptPeriod:
+    """What ``orbit_observables`` reads of a ``mechanisms.PeriodMap`` (``model``, ``n_steps``,
+    ``independent``, ``run``): one period from the orbit's state is ``kept`` (the run the continuation
+    has just made there, or None); a second period runs on the map ``build()`` returns."""
+
+    def __init__(self, model: Any, n_steps: int, independent: np.ndarray, kept: Any, build: Any):
+        self.model, self.n_steps, self.independent, self.kept, self.build = model, n_steps, independent, kept, build
+
+    def run(self, x: np.ndarray, *, tangent: bool = True, n_periods: int = 1):
+        if self.kept is not None and n_periods == 1 and not tangent:
+            return self.kept
+        return self.build().run(x, tangent=tangent, n_periods=n_periods)
 
 
 class _CoarseOrbits:
@@ -352,7 +400,8 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
     for k, (value, state) in enumerate(zip(branch.parameters, branch.states)):
         linear = problem.linearize(dict(fixed, **{parameter: float(value)}), n_steps=n_steps)
         steady = solve_steady(linear)
-        response, _, n_substeps = orbit_observables(linear, period_map.at(float(value)), state * scale)
+        response, _, n_substeps = orbit_observables(linear, period_map.observed(float(value), state),
+                                                    state * scale)
         coarse_response, coarse_substeps = _coarse_response(linear, coarse, branch.orbits[k], float(value))
         if n_substeps or coarse_substeps:
             statuses[k] = substep_verdict(statuses[k], "", n_substeps + coarse_substeps, n_steps)[0]
@@ -412,7 +461,7 @@ def _coarse_response(linear: Any, coarse: _CoarseOrbits, orbit: Any, value: floa
     if state is None or not np.isfinite(orbit.state_error):
         return {}, 0
     map_ = coarse.period_map
-    response, _, n_substeps = orbit_observables(linear, map_.at(value), state * map_.scale)
+    response, _, n_substeps = orbit_observables(linear, map_.observed(value, state), state * map_.scale)
     return response, n_substeps
 
 
