@@ -55,20 +55,30 @@ def problem_and_values():
 
 
 def flexvib(problem, values, modes):
-    """(wall s, result) of the nonlinear periodic state; ``modes`` "auto", "full", or "auto@tol": the
+    """(wall s, result) of the nonlinear periodic state; ``modes`` "auto", "full", "auto@tol": the
     default model with the error levels converged to ``tol`` (``LEVEL_ACCURACY = None``, the shooting
-    of session 7: the baseline of session 8's levels, side by side)."""
+    of session 7: the baseline of session 8's levels, side by side), or "auto@s8": the shooting of
+    session 8 (Newton throughout on N, the error levels' orbits their settled iterate plus its
+    correction, evaluated once more, the mesh term's base level solved again:
+    ``REUSE_FIRST_MONODROMY = SETTLE_ON_ITERATE = REUSE_LINEAR_STATE = False``), the baseline of
+    session 9's."""
     from studies._kinds import nonlinear_steady_state as steady_module
 
-    accuracy = steady_module.LEVEL_ACCURACY
-    if modes.endswith("@tol"):
-        modes, steady_module.LEVEL_ACCURACY = modes[:-4], None
+    saved = {name: getattr(steady_module, name)
+             for name in ("LEVEL_ACCURACY", "REUSE_FIRST_MONODROMY", "SETTLE_ON_ITERATE", "REUSE_LINEAR_STATE")}
+    modes, _, before = modes.partition("@")
+    if before == "tol":
+        steady_module.LEVEL_ACCURACY = None
+    if before in ("tol", "s8"):
+        steady_module.REUSE_FIRST_MONODROMY = steady_module.SETTLE_ON_ITERATE = False
+        steady_module.REUSE_LINEAR_STATE = False
     try:
         started = time.perf_counter()
         result = studies.nonlinear_steady_state(problem, values, modes=modes)
         return time.perf_counter() - started, result
     finally:
-        steady_module.LEVEL_ACCURACY = accuracy
+        for name, value in saved.items():
+            setattr(steady_module, name, value)
 
 
 def exudyn_run(mechanism, n_revolutions: int, steps: int):
@@ -213,7 +223,7 @@ def main() -> None:
     parser.add_argument("--long", type=int, default=60, help="revolutions of the runs giving the limits")
     parser.add_argument("--quick", action="store_true", help="one repeat")
     parser.add_argument("--modes", nargs="+", default=["auto", "auto@tol", "full"],
-                        choices=["auto", "auto@tol", "full"])
+                        choices=["auto", "auto@s8", "auto@tol", "full"])
     parser.add_argument("--sweep", action="store_true", help="time the 50-speed nonlinear sweep instead")
     args = parser.parse_args()
     repeats = 1 if args.quick else args.repeats
@@ -221,7 +231,7 @@ def main() -> None:
     mechanism = problem.mechanism({path: ELEMENTS for path in PATHS})
     # JIT compilation (the fused step too, as the studies' warm-up compiles it) and the model caches
     with mechanisms.fused_step(True):
-        for modes in {modes.removesuffix("@tol") for modes in args.modes}:
+        for modes in {modes.split("@")[0] for modes in args.modes}:
             studies.nonlinear_steady_state(problem, values, n_steps=32, max_iterations=1, modes=modes)
     if args.sweep:
         return sweep(problem, values, repeats)
