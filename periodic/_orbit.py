@@ -404,6 +404,10 @@ def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_ite
                            settled=settled)
             if found.converged:
                 return replace(found, iterations=kept.iterations)
+            if kept.residual > tol and np.linalg.norm(found.residual_vector) <= floor:
+                # the chord stalled at the map's round-off (``chord``): converged there, as Newton's
+                # full step that no longer decreases such a residual is; its monodromy is exact
+                return replace(found, converged=True, reason="", iterations=kept.iterations)
     # from the start again where the chord's first step did not contract: its monodromy is known
     first = ((value0, monodromy - np.eye(guess.size), monodromy)
              if value0 is not None and np.array_equal(guess, start) else None)
