@@ -64,7 +64,8 @@ def flexvib(problem, values, modes):
     session 9's."""
     from studies._kinds import nonlinear_steady_state as steady_module
 
-    saved = {name: getattr(steady_module, name)
+    # (getattr with a default: the script also times an older checkout's "auto", which lacks them)
+    saved = {name: getattr(steady_module, name, None)
              for name in ("LEVEL_ACCURACY", "REUSE_FIRST_MONODROMY", "SETTLE_ON_ITERATE", "REUSE_LINEAR_STATE")}
     modes, _, before = modes.partition("@")
     if before == "tol":
@@ -78,12 +79,13 @@ def flexvib(problem, values, modes):
         return time.perf_counter() - started, result
     finally:
         for name, value in saved.items():
-            setattr(steady_module, name, value)
+            if value is not None:
+                setattr(steady_module, name, value)
 
 
 def exudyn_run(mechanism, n_revolutions: int, steps: int):
     """Exudyn from the nominal rigid motion: (midspan deflections {spec: (k,)} relative to each link's
-    chord, sampled at every step, m; run time s)."""
+    chord, sampled at every step, m; run time s, its CPU time s)."""
     import exudyn as exu
     from exudyn.itemInterface import (
         MarkerBodyPosition,
@@ -191,9 +193,9 @@ def exudyn_run(mechanism, n_revolutions: int, steps: int):
     settings.timeIntegration.verboseMode = 0
     settings.solutionSettings.writeSolutionToFile = False
     settings.solutionSettings.sensorsWritePeriod = period / steps
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     mbs.SolveDynamic(settings)
-    run_time = time.perf_counter() - started
+    run_time, cpu = time.perf_counter() - started, time.process_time() - cpu
     deflections = {}
     for name, spec in zip(LINKS, SPECS):
         a, m, b = (mbs.GetSensorStoredData(s) for s in sensors[name])
@@ -201,7 +203,7 @@ def exudyn_run(mechanism, n_revolutions: int, steps: int):
         chord /= np.linalg.norm(chord, axis=1)[:, None]
         offset = m[:, 1:3] - a[:, 1:3]
         deflections[spec] = chord[:, 0] * offset[:, 1] - chord[:, 1] * offset[:, 0]
-    return deflections, run_time
+    return deflections, run_time, cpu
 
 
 def revolutions_to(series: dict, steps: int, limit: dict, accuracy: float) -> int | None:
@@ -244,7 +246,7 @@ def main() -> None:
     _, orbit = flexvib(problem, values, "full" if "full" in args.modes else "auto")
     if have_exudyn:
         steps = args.exudyn_steps
-        long_run, _ = exudyn_run(mechanism, args.long, steps)
+        long_run, _, _ = exudyn_run(mechanism, args.long, steps)
         limit = {spec: v[-steps - 1:] for spec, v in long_run.items()}
         baseline = "Exudyn"
     else:
@@ -258,23 +260,34 @@ def main() -> None:
     if revolutions is None:
         raise SystemExit(f"{baseline} did not settle within {args.accuracy:g} in {args.long} revolutions")
 
+    # wall and CPU time (``time.process_time``: less sensitive to the shared machine's load; every
+    # route here runs on one thread)
     times: dict[str, list[float]] = {**{modes: [] for modes in args.modes}, "baseline": []}
+    cpus: dict[str, list[float]] = {key: [] for key in times}
     results = {}
-    for _ in range(repeats):
-        for modes in args.modes:
+    for repeat in range(repeats):
+        # the routes' order alternates between repeats (no route always runs after another)
+        for modes in (args.modes if repeat % 2 == 0 else args.modes[::-1]):
+            cpu = time.process_time()
             seconds, results[modes] = flexvib(problem, values, modes)
             times[modes].append(seconds)
+            cpus[modes].append(time.process_time() - cpu)
         if have_exudyn:
-            times["baseline"].append(exudyn_run(mechanism, revolutions, steps)[1])
+            _, seconds, cpu = exudyn_run(mechanism, revolutions, steps)
+            times["baseline"].append(seconds)
+            cpus["baseline"].append(cpu)
         else:
-            started = time.perf_counter()
+            started, cpu = time.perf_counter(), time.process_time()
             mechanisms.simulate(mechanism, n_periods=revolutions, steps_per_period=steps, estimate_error=False,
                                 observables=list(SPECS))
             times["baseline"].append(time.perf_counter() - started)
+            cpus["baseline"].append(time.process_time() - cpu)
     median = {key: statistics.median(value) for key, value in times.items()}
+    cpu_median = {key: statistics.median(value) for key, value in cpus.items()}
     print(f"{SCENE}, {ELEMENTS} elements per elastic link, 100 rad/s; accuracy {args.accuracy:g} of the "
           f"peak-to-peak; medians of {repeats} interleaved runs (shared machine)")
-    print(f"{baseline}: {steps} steps per revolution x {revolutions} revolutions: {median['baseline']:.3f} s"
+    print(f"{baseline}: {steps} steps per revolution x {revolutions} revolutions: {median['baseline']:.3f} s "
+          f"(CPU {cpu_median['baseline']:.3f} s)"
           + ("" if have_exudyn else f" (Exudyn not installed; the issue's Exudyn figure: {ISSUE_EXUDYN_SECONDS} s)"))
     for modes in args.modes:
         result = results[modes]
@@ -283,8 +296,9 @@ def main() -> None:
             f"(time step) +- {result.reduction_error.get(spec, 0.0) * 1e3:.2g} (reduction) mm"
             for spec in SPECS)
         print(f"flexvib nonlinear_steady_state modes={modes} {result.reduced_modes or ''}: "
-              f"{median[modes]:.3f} s, {result.status}, {result.map_calls} period maps; {words}; "
-              f"ratio {baseline} / flexvib {median['baseline'] / median[modes]:.1f}")
+              f"{median[modes]:.3f} s (CPU {cpu_median[modes]:.3f} s), {result.status}, {result.map_calls} "
+              f"period maps; {words}; ratio {baseline} / flexvib {median['baseline'] / median[modes]:.1f} "
+              f"(CPU {cpu_median['baseline'] / cpu_median[modes]:.1f})")
     for spec in SPECS:
         words = ", ".join(f"flexvib {modes} / {baseline} {results[modes].peak_to_peak[spec] / np.ptp(limit[spec]):.4f}"
                           for modes in args.modes)
