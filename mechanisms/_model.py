@@ -650,8 +650,15 @@ class Model:
         return self._joint_rows[name]
 
     def observable(self, spec: str):
-        """A scalar of ``s`` named by ``spec`` (see ``mechanisms._observables``)."""
-        return make_observable(self, spec)
+        """A scalar of ``s`` named by ``spec`` (see ``mechanisms._observables``). Built once per
+        model and spec (an observable is a frozen description of the model; building one evaluates
+        its link's shape functions, about 2 ms: a nonlinear steady state asked for the same 8 24
+        times)."""
+        cache = self.__dict__.setdefault("_observables", {})
+        if not isinstance(spec, str) or spec not in cache:
+            observable = make_observable(self, spec)     # raises for a bad spec: nothing kept
+            cache[spec] = observable
+        return cache[spec]
 
     def link_coordinates(self, name: str) -> slice:
         """The slice of ``s`` holding link ``name``'s coordinates ``(x, y, theta, q...)``."""

@@ -147,7 +147,7 @@ def scaled_condition(jacobian: np.ndarray) -> float:
 
 
 def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: float = 0.0,
-           settled=None) -> NewtonResult:
+           settled=None, first=None) -> NewtonResult:
     """Damped Newton on ``F(y) = 0``.  ``evaluate(y) -> (F (m,), J (m, m), extra)`` may raise
     ``RuntimeError`` (a numerical failure of the map: treated like a non-finite value, the step is
     shortened); ``relative(y, F) -> float`` is the convergence measure, compared with ``tol``;
@@ -157,10 +157,11 @@ def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: fl
     ``settled(y, correction) -> bool`` (optional, :class:`Settled`): ``y`` is also converged when its
     Newton correction is small enough for the caller (an error level's orbit); it is asked at every
     iterate, the last included (so ``max_iterations = 0`` checks ``y0``).
+    ``first``: ``evaluate(y0)`` where the caller has it already (not evaluated again).
     A backtracking line search on ``|F|`` makes each accepted step decrease it."""
     y = np.array(y0, dtype=float)
     try:
-        value, jacobian, extra = evaluate(y)
+        value, jacobian, extra = evaluate(y) if first is None else first
     except RuntimeError as error:
         return NewtonResult(y, np.full(y.shape, np.nan), np.full((y.size, y.size), np.nan), None, math.inf,
                             0, False, f"the period map failed at the initial guess: {error}")
@@ -222,7 +223,7 @@ def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: fl
 
 
 def chord(evaluate_end, y0, jacobian, *, tol: float, max_iterations: int, relative, floor: float = 0.0,
-          settled=None) -> NewtonResult:
+          settled=None, value0=None, settle_on_iterate=False) -> NewtonResult:
     """Chord iterations on ``F(y) = 0`` with a fixed ``jacobian`` (m, m) (a nearby orbit's ``monodromy
     - I``): ``y <- y - J^-1 F(y)``, ``evaluate_end(y) -> F (m,)`` (no Jacobian: a period without its
     monodromy).  Converged as :func:`newton`; not converged (``reason`` says why, ``y`` the best
@@ -230,7 +231,11 @@ def chord(evaluate_end, y0, jacobian, *, tol: float, max_iterations: int, relati
     the caller then continues with Newton.  ``settled(y, correction)`` (optional, :class:`Settled`):
     once a correction is small enough for the caller, ``y + correction`` is returned converged, not
     evaluated (``residual_vector`` and ``residual`` are those of ``y``: the caller's exact evaluation
-    there checks it).  ``jacobian`` and ``extra`` of the result are None."""
+    there checks it).  ``value0`` (m,): ``F(y0)`` where the caller has it already (the period that gave
+    ``jacobian``), so that it is not evaluated again.  ``settle_on_iterate``: a settled ``y`` is
+    returned itself (evaluated: the caller's exact evaluation there reuses the period a map keeps),
+    not ``y + correction`` (its error then about the correction, within ``settled``'s fraction, not
+    the next one's).  ``jacobian`` and ``extra`` of the result are None."""
     import scipy.linalg
 
     y = np.array(y0, dtype=float)
@@ -241,7 +246,7 @@ def chord(evaluate_end, y0, jacobian, *, tol: float, max_iterations: int, relati
     best, best_value, norm = y, None, math.inf
     for iteration in range(max_iterations + 1):
         try:
-            value = np.asarray(evaluate_end(y), dtype=float)
+            value = np.asarray(value0 if iteration == 0 and value0 is not None else evaluate_end(y), dtype=float)
         except RuntimeError as error:
             return NewtonResult(best, best_value, None, None, math.inf, iteration, False,
                                 f"the period map failed at a chord iterate ({error})")
@@ -260,6 +265,8 @@ def chord(evaluate_end, y0, jacobian, *, tol: float, max_iterations: int, relati
             break
         correction = -scipy.linalg.lu_solve(factors, value, check_finite=False)
         if settled is not None and settled(y, correction):
+            if settle_on_iterate:
+                return NewtonResult(y, value, None, None, residual, iteration, True, "")
             return NewtonResult(y + correction, value, None, None, residual, iteration + 1, True, "")
         y = y + correction
     return NewtonResult(best, best_value, None, None, relative(best, best_value), max_iterations, False,
@@ -350,13 +357,21 @@ def check_iterations(name: str, value) -> int:
 
 
 def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_iterations, state_scale,
-                      monodromy=None, settled=None):
+                      monodromy=None, settled=None, reuse_first=False, settle_on_iterate=False):
     """Newton on ``P(x) - x`` at a fixed parameter; ``extra`` of the result is the monodromy.
 
     With ``monodromy`` (n, n), a nearby orbit's (the finer level's, of which this map is a coarser
     grid, or a neighbouring parameter's): chord iterations with it first, periods without their
     monodromy, and the exact monodromy once at the converged state (Newton from the chord's last
-    iterate where the chord does not contract)."""
+    iterate where the chord does not contract).
+
+    ``reuse_first`` (without ``monodromy``): the monodromy at ``guess`` is that kept monodromy, the
+    chord's first step Newton's own (its period not run again): from a start whose error is mostly
+    the linearisation's, the monodromy barely changes on the way to the orbit (six_bar at 100 rad/s:
+    2.4 % from the linear start to the first iterate; the chord reached 7e-9 in two periods where
+    Newton took two more periods with their monodromy).  ``settle_on_iterate``: ``chord``'s (an
+    error level's orbit is the settled iterate, whose period a ``mechanisms.PeriodMap`` keeps: its
+    monodromy without a period more)."""
 
     def evaluate(state):
         end, monodromy = period_map(state, parameter)
@@ -366,18 +381,38 @@ def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_ite
         return relative_residual(state, value, state_scale)
 
     floor = period_map.floor
+    start, value0 = np.array(guess, dtype=float), None
+    if monodromy is None and reuse_first:
+        try:
+            value0, _, monodromy = evaluate(start)
+        except RuntimeError:    # Newton's own evaluation reports the failure
+            value0 = monodromy = None
+        if value0 is not None and not (np.all(np.isfinite(value0)) and np.all(np.isfinite(monodromy))):
+            value0 = monodromy = None
     if monodromy is not None:
         kept = chord(lambda state: period_map.end_state(state, parameter) - state, guess,
                      np.asarray(monodromy, dtype=float) - np.eye(guess.size), tol=tol,
-                     max_iterations=max_iterations, relative=relative, floor=floor, settled=settled)
+                     max_iterations=max_iterations, relative=relative, floor=floor, settled=settled,
+                     value0=value0, settle_on_iterate=settle_on_iterate)
         guess = kept.y
+        if kept.converged and value0 is not None and kept.iterations == 0 and np.array_equal(guess, start):
+            # the guess was the orbit already, and its monodromy the one just computed
+            return NewtonResult(kept.y, value0, monodromy - np.eye(guess.size), monodromy, kept.residual, 0,
+                                True, "")
         if kept.converged:    # the exact monodromy at the orbit (its period is not run again)
             found = newton(evaluate, guess, tol=tol, max_iterations=0, relative=relative, floor=floor,
                            settled=settled)
             if found.converged:
                 return replace(found, iterations=kept.iterations)
+            if kept.residual > tol and np.linalg.norm(found.residual_vector) <= floor:
+                # the chord stalled at the map's round-off (``chord``): converged there, as Newton's
+                # full step that no longer decreases such a residual is; its monodromy is exact
+                return replace(found, converged=True, reason="", iterations=kept.iterations)
+    # from the start again where the chord's first step did not contract: its monodromy is known
+    first = ((value0, monodromy - np.eye(guess.size), monodromy)
+             if value0 is not None and np.array_equal(guess, start) else None)
     return newton(evaluate, guess, tol=tol, max_iterations=max_iterations, relative=relative, floor=floor,
-                  settled=settled)
+                  settled=settled, first=first)
 
 
 class Settled:
@@ -425,7 +460,8 @@ def classify(parameter, state, monodromy, *, residual, iterations, map_calls, co
 def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1e-10, max_iterations: int = 20,
                estimate=None, error_factor: float = DEFAULT_ERROR_FACTOR, state_scale: float = 0.0,
                stability_tol: float = STABILITY_TOL, monodromy=None, finer=None,
-               accuracy: float | None = None) -> PeriodicOrbit:
+               accuracy: float | None = None, reuse_first: bool = False,
+               settle_on_iterate: bool = False) -> PeriodicOrbit:
     """The periodic orbit of ``period_map`` at ``parameter`` near ``guess`` (n,) by Newton shooting.
 
     ``period_map(state (n,), parameter) -> (end_state (n,), monodromy (n, n))``.  Newton on
@@ -444,7 +480,14 @@ def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1
     their monodromy) and one exact monodromy at its converged state.
 
     ``monodromy`` (n, n): a nearby orbit's (a finer grid's, a neighbouring parameter's) for chord
-    iterations from ``guess`` (``solve_fixed_point``), else Newton throughout.
+    iterations from ``guess`` (``solve_fixed_point``), else Newton throughout; ``reuse_first``
+    (without ``monodromy``): the monodromy at ``guess`` kept for chord iterations after Newton's first
+    step, the exact monodromy once more at the converged state (for the multipliers).
+    ``settle_on_iterate`` (with ``accuracy``): an error level's orbit (this one with ``finer``, and
+    the N/2 orbit of ``estimate``) is the chord's iterate whose correction is within ``accuracy``,
+    not that iterate plus its correction: its monodromy from the period just run (a map that keeps
+    its last period), one period fewer per level, the level's error about ``accuracy`` of its
+    distance instead of a fraction of that.
 
     ``accuracy`` (a fraction, e.g. 0.01; default None: ``tol`` throughout): an error level's orbits
     are converged once their correction is at most ``accuracy`` of their distance from the finer
@@ -469,14 +512,15 @@ def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1
     if accuracy is not None:
         accuracy = check_tol("accuracy", accuracy, 1.0)
     estimator = ErrorEstimate(estimate, error_factor, guess.size, tol=tol, max_iterations=max_iterations,
-                              state_scale=state_scale, accuracy=accuracy)
+                              state_scale=state_scale, accuracy=accuracy, settle_on_iterate=settle_on_iterate)
     settled = None
     if finer is not None and accuracy is not None:
         settled = Settled(check_state("finer", finer), accuracy, counted.blocks)
         if settled.finer.shape != guess.shape:
             raise PeriodicError(f"finer: expected a state of shape {guess.shape}, got {settled.finer.shape}")
     found = solve_fixed_point(counted, guess, parameter, tol=tol, max_iterations=max_iterations,
-                              state_scale=state_scale, monodromy=monodromy, settled=settled)
+                              state_scale=state_scale, monodromy=monodromy, settled=settled,
+                              reuse_first=reuse_first, settle_on_iterate=settle_on_iterate)
     monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(guess.size)
     orbit = classify(parameter, found.y, monodromy, residual=found.residual, iterations=found.iterations,
                      map_calls=counted.calls, converged=found.converged, reason=found.reason,
@@ -500,10 +544,11 @@ class ErrorEstimate:
     ``accuracy`` (a fraction or None): the coarse orbit converged once its correction is at most that
     of its distance from the finer orbit (:class:`Settled`), else to ``tol``."""
 
-    def __init__(self, estimate, error_factor, n: int, *, tol, max_iterations, state_scale, accuracy=None):
+    def __init__(self, estimate, error_factor, n: int, *, tol, max_iterations, state_scale, accuracy=None,
+                 settle_on_iterate=False):
         self.errors, self.coarse, self.calls, self.coarse_monodromy = None, None, 0, None
         self.tol, self.max_iterations, self.state_scale = tol, max_iterations, state_scale
-        self.accuracy = accuracy
+        self.accuracy, self.settle_on_iterate = accuracy, settle_on_iterate
         if estimate is None:
             return
         if callable(estimate):
@@ -535,7 +580,8 @@ class ErrorEstimate:
             settled = None if self.accuracy is None else Settled(orbit.state, self.accuracy, self.coarse.blocks)
             coarse = solve_fixed_point(self.coarse, orbit.state, orbit.parameter, tol=self.tol,
                                        max_iterations=self.max_iterations, state_scale=self.state_scale,
-                                       monodromy=orbit.monodromy if chord else None, settled=settled)
+                                       monodromy=orbit.monodromy if chord else None, settled=settled,
+                                       settle_on_iterate=self.settle_on_iterate)
             made = self.coarse.calls - calls_before
             self.calls += made
             map_calls = orbit.map_calls + made

@@ -445,13 +445,14 @@ def linearisation_terms(linear: Any, steady: Any, scheme: Any, *, max_steps: int
 
 
 def mesh_terms(problem: Any, values: Mapping[str, float] | None, observables: Any, n_steps: int,
-               scheme: str) -> tuple[dict[str, Any] | str, str, float]:
+               scheme: str, response: Mapping[str, Any] | None = None) -> tuple[dict[str, Any] | str, str, float]:
     """The mesh term at one point (``studies._mesh_error.mesh_error``): ``({quantity: {spec:
-    value}} or NOT_APPLICABLE, method, run time)``."""
+    value}} or NOT_APPLICABLE, method, run time)``; ``response`` ({spec: (N+1,)}): the linear steady
+    response of ``problem`` at these settings where the caller has it (not solved again)."""
     from ._mesh_error import mesh_error
 
     found = mesh_error(problem, dict(values or {}), observables=observables, n_steps=n_steps,
-                       scheme=scheme)
+                       scheme=scheme, response=response)
     if not found.applicable:
         return NOT_APPLICABLE, found.method, found.run_time
     return ({"response": dict(found.response), "peak": dict(found.peak),

@@ -67,6 +67,23 @@ ERROR_FACTOR = 1.0 / (2**ORDER - 1)
 #: of the state: coordinates, rates, lag states): the error estimate to about 1 % of itself, the
 #: ratio of differences of the N/4 check to about 2 %, in fewer periods than ``tol`` takes.
 LEVEL_ACCURACY = 0.01
+#: The N-step orbit by chord iterations with the monodromy at the linear start (Newton's first step,
+#: then periods without their monodromy; ``periodic.find_orbit``'s ``reuse_first``), the exact
+#: monodromy once more at the converged orbit for the multipliers: on six_bar (8 elements per link,
+#: 100 rad/s) the monodromy moves by 2.4 % from the linear start to the first iterate, and the chord
+#: reached 7e-9 in two periods where Newton took two more with their monodromy. False: Newton
+#: throughout (the benchmark's baseline, benchmarks/bench_nonlinear_exudyn.py).
+REUSE_FIRST_MONODROMY = True
+#: The error levels' orbits (N/2, N/4) are the chord iterates whose correction is within
+#: ``LEVEL_ACCURACY``, not those plus their correction (``periodic.find_orbit``'s
+#: ``settle_on_iterate``): their monodromy from the period just run, one period fewer per level; the
+#: error estimate to about ``LEVEL_ACCURACY`` of itself, as that constant says. False: the iterate
+#: plus its correction, evaluated once more (the benchmark's baseline).
+SETTLE_ON_ITERATE = True
+#: The error budget's mesh term takes the linear start's steady state as its base level
+#: (``studies._budget.mesh_terms``' ``response``: the same problem, N and scheme, the same numbers)
+#: instead of solving it again. False: solved again (the benchmark's baseline).
+REUSE_LINEAR_STATE = True
 #: An observable whose estimated error exceeds this fraction of its peak-to-peak is ``inaccurate``:
 #: the rule and value of the linear steady state's (docs/methods.md), applied to each observable
 #: since the nonlinear study reports them.
@@ -436,7 +453,7 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
     guess = coarse_state if state is None else coarse_state + 2**ORDER * (coarse_state - state)
     kept = monodromy if coarse_monodromy is None else coarse_monodromy
     options = {"tol": tol, "max_iterations": max_iterations, "monodromy": kept, "finer": coarse_state,
-               "accuracy": LEVEL_ACCURACY}
+               "accuracy": LEVEL_ACCURACY, "settle_on_iterate": SETTLE_ON_ITERATE}
     quarter = periodic.find_orbit(quarter_map, guess, speed, **options)
     if not quarter.converged:    # the extrapolation failed (e.g. a state outside the linkage): from N/2
         quarter = periodic.find_orbit(quarter_map, coarse_state, speed, **options)
@@ -492,10 +509,13 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
     parameters = given.resolve(given_values)
     speed = float(parameters.get("speed", 0.0))
     orbit = periodic.find_orbit(fine, setup.guess, speed, tol=tol, max_iterations=max_iterations,
-                                estimate=coarse, error_factor=ERROR_FACTOR, accuracy=LEVEL_ACCURACY)
+                                estimate=coarse, error_factor=ERROR_FACTOR, accuracy=LEVEL_ACCURACY,
+                                reuse_first=REUSE_FIRST_MONODROMY, settle_on_iterate=SETTLE_ON_ITERATE)
     specs = linear.observables
-    mesh, mesh_method, _ = mesh_terms(problem, values, specs, n_steps, DEFAULT_SCHEME)
     linear_response = {spec: setup.steady.response[:, k] for k, spec in enumerate(specs)}
+    # the mesh term's base level is this linear state (the same problem, N and scheme): not solved again
+    mesh, mesh_method, _ = mesh_terms(problem, values, specs, n_steps, DEFAULT_SCHEME,
+                                      response=linear_response if REUSE_LINEAR_STATE else None)
     errors = {spec: math.nan for spec in specs}
     reasons: list[str] = []
     if orbit.converged:
