@@ -48,6 +48,7 @@ import mechanisms
 import periodic
 
 from ._observe import ObservableMap, _Route  # _Route: the maps' primitives, for E's gradients
+from ._section import section_derivative, section_map_derivatives, section_route
 
 __all__ = ["CENTRAL_STEP", "FORWARD_STEP", "analytic_derivative", "map_derivatives", "coefficient_derivative",
            "keeps_configuration", "moves_maps", "parameter_step"]
@@ -106,6 +107,9 @@ def analytic_derivative(linearized, path: str) -> periodic.SystemDerivative | No
     if mechanism is None:
         return None
     parts = path.split(".")
+    if parts[0] == "links" and len(parts) == 3 and parts[2] != "youngs_modulus":
+        route = section_route(linearized, parts)
+        return None if route is None else section_derivative(linearized, route)
     if parts[0] == "links" and len(parts) in (3, 4):
         return _link_derivative(linearized, mechanism, parts)
     if (parts[0] == "controllers" and len(parts) == 3) or _drive_of(mechanism, parts) is not None:
@@ -132,6 +136,8 @@ def _moved_specs(linearized, path: str) -> list[str]:
     parts = path.split(".")
     if parts[0] == "links" and len(parts) == 3 and parts[2] == "youngs_modulus":
         return list(linearized.observable_maps)
+    if parts[0] == "links" and len(parts) == 3 and section_route(linearized, parts) is not None:
+        return list(linearized.observable_maps)
     if (parts[0] == "controllers" and len(parts) == 3) or _drive_of(linearized.mechanism, parts) is not None:
         return [spec for spec, found in linearized.observable_maps.items() if found.total]
     return []
@@ -157,6 +163,8 @@ def map_derivatives(linearized, path: str, mechanism=None, step: float = 0.0) ->
         return {}
     nominal, c = linearized.nominal, linearized.coefficients
     parts = path.split(".")
+    if parts[0] == "links" and parts[2] != "youngs_modulus":
+        return section_map_derivatives(linearized, section_route(linearized, parts))
     if parts[0] == "links":
         def route(model):
             return _Route(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, None, c, None)
