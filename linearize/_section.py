@@ -28,9 +28,10 @@ chain rule
 with ``dM_ee = (r_rho + r_A) M_ee``; ``d ln T = 0``.  The observables' maps move the same way: the
 multipliers' part (joint forces, drive torques, the nominal axial force of a stress) by the same
 difference of ``L`` (affine, exact), and the section's own part (the fibre distance ``c = h / 2``, ``A``
-and ``I`` in stresses, moments and axial forces, ``N / A``) by a central difference of the maps rebuilt
-on the point's motion with ``A, I`` moved and ``rho A`` held (relative step ``CENTRAL_STEP``: truncation
-(1e-4)^2 where they are not linear in ``p``, as the studies' central difference along ``dz``).
+and ``I`` in stresses, moments and axial forces) by the difference of the observables' gradients on a
+link with ``A, I, c`` moved linearly at the parameter's rates and ``rho A`` held, exact since every
+gradient is linear in them (``E c``, ``E I``, ``E A``, ``E``), and an axially rigid link's nominal stress
+``N / A`` by ``-r_A N / A``.
 
 Where this is not exact the route declines (None) and the caller keeps the forward difference of
 linearisations on reused kinematics: a torque drive (its nominal law and feedforward move with the
@@ -50,15 +51,16 @@ import mechanisms
 import periodic
 
 from ._about import about, supports_speed_family
-from ._observe import ObservableMap, observable_maps
+from ._observe import ObservableMap, _ChangeRoute, _Route
 
 __all__ = ["MASS_STEP", "section_derivative", "section_map_derivatives", "section_route"]
 
 #: Relative change of the link's density for the mass part (any value is exact: the coefficients are
 #: affine in the mass; a doubling keeps the difference at the coefficients' own rounding).
 MASS_STEP = 1.0
-#: Relative change of ``A`` or ``I`` for the central difference of the section's own part of the maps.
-MAP_STEP = 1e-4
+#: Largest relative change of ``A``, ``I`` or ``c`` for the section's own part of the maps (any value is
+#: exact: the gradients are linear in them; a large one keeps the difference at their own rounding).
+GEOMETRY_STEP = 0.5
 # The massless-damping neighbours of the last few points (a point's coefficients and its maps both
 # need the same one): keyed by the linearisation's id, holding it so the id is not reused.
 _NEIGHBOURS: OrderedDict = OrderedDict()
@@ -205,9 +207,9 @@ def _sum(a: ObservableMap, b: ObservableMap) -> ObservableMap:
 
 def section_map_derivatives(linearized, route: SectionRoute) -> dict:
     """d(map)/dp {spec: ``ObservableMap``} of every observable map of ``linearized`` per unit of the
-    section parameter of ``route``: the multipliers' part from the mass difference (exact), the
-    section's own part by a central difference of the maps rebuilt on the point's motion with ``A``
-    and ``I`` moved at the parameter's rates and ``rho A`` held (module docstring)."""
+    section parameter of ``route``: the multipliers' part from the mass difference, the section's own
+    part from the gradients on a link with ``A``, ``I``, ``c`` moved linearly and ``rho A`` held, and
+    ``-r_A N / A`` for an axially rigid link's nominal stress: exact to rounding (module docstring)."""
     specs = list(linearized.observable_maps)
     maps = {}
     if route.mass_rate != 0.0:
@@ -217,23 +219,30 @@ def section_map_derivatives(linearized, route: SectionRoute) -> dict:
     r_area, r_moment = route.rates["area"], route.rates["second_moment"]
     if r_area == 0.0 and r_moment == 0.0:
         return maps
-    step = MAP_STEP / max(abs(r_area), abs(r_moment))     # in the parameter's unit
-    nominal, c = linearized.nominal, linearized.coefficients
-    link = route.link
+    link, nominal, c = route.link, linearized.nominal, linearized.coefficients
+    # A, I and c (c = sqrt(12 I / A) / 2 unless the scene gives it: then fixed) moved linearly in the
+    # offset t at the parameter's rates, rho A held: every gradient (E c, E I, E A, E) is then linear in t
+    # and one difference at a large offset is exact
+    r_fibre = 0.5 * (r_moment - r_area) if link.outer_fibre is None else 0.0
+    offset = GEOMETRY_STEP / max(abs(r_area), abs(r_moment), abs(r_fibre))   # in the parameter's unit
+    area = link.area * (1.0 + r_area * offset)
+    changed = dataclasses.replace(link, area=area, second_moment=link.second_moment * (1.0 + r_moment * offset),
+                                  outer_fibre=link.fibre_distance * (1.0 + r_fibre * offset),
+                                  density=link.density * link.area / area, damping=None)
+    moved = mechanisms.assemble(linearized.mechanism.replace(links=tuple(
+        changed if item.name == link.name else item for item in linearized.mechanism.links)))
+    point = _Route(nominal.model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, nominal.lam, c, None)
 
-    def rebuilt(offset):
-        area = link.area * (1.0 + r_area * offset)
-        changed = dataclasses.replace(link, area=area, second_moment=link.second_moment * (1.0 + r_moment * offset),
-                                      density=link.density * link.area / area, damping=None)
-        mechanism = linearized.mechanism.replace(links=tuple(
-            changed if item.name == link.name else item for item in linearized.mechanism.links))
-        # the point's multipliers, maps and torques: only the section's own part moves
-        return observable_maps(mechanisms.assemble(mechanism), specs, t=nominal.t, s=nominal.s, sdot=nominal.sdot,
-                               sddot=nominal.sddot, lam=nominal.lam, coefficients=c,
-                               drive_torque=nominal.drive_torque)
+    def axial(name, x):
+        # an axially rigid link's stress N / A: N is the mass part's (rho A held here), 1 / A moves as
+        # -r_A / A; the moved observable divides by its own area A (1 + r_A t); other links' do not move
+        if name != link.name:
+            return np.zeros(len(nominal.t))
+        return -r_area * (1.0 + r_area * offset) * point.axial_force(name, x)
 
-    upper, lower = rebuilt(step), rebuilt(-step)
+    change = _ChangeRoute(len(nominal.t), coordinates=(
+        _Route(moved, nominal.t, nominal.s, nominal.sdot, nominal.sddot, None, c, None), point, offset), axial=axial)
     for spec in specs:
-        own = _change(upper[spec], lower[spec], 0.5 / step)
+        own = moved.observable(spec).linear_map(change)
         maps[spec] = own if spec not in maps else _sum(maps[spec], own)
     return maps

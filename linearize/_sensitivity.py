@@ -47,7 +47,7 @@ import numpy as np
 import mechanisms
 import periodic
 
-from ._observe import ObservableMap, _Route  # _Route: the maps' primitives, for E's gradients
+from ._observe import _ChangeRoute, _Route  # the maps' primitives, for E's gradients
 from ._section import section_derivative, section_map_derivatives, section_route
 
 __all__ = ["CENTRAL_STEP", "FORWARD_STEP", "analytic_derivative", "map_derivatives", "coefficient_derivative",
@@ -177,37 +177,6 @@ def map_derivatives(linearized, path: str, mechanism=None, step: float = 0.0) ->
         model = mechanisms.assemble(linearized.mechanism)   # its torque drives' own observables
         change = _ChangeRoute(len(nominal.t), torque=None if law is None or law[3] else law[:3])
     return {spec: model.observable(spec).linear_map(change) for spec in _moved_specs(linearized, path)}
-
-
-class _ChangeRoute:
-    """The ``LinearRoute`` (``mechanisms/_protocol.py``) of a map's derivative with respect to a parameter
-    that leaves the nominal motion, the multipliers' maps and the axial forces alone: ``torque`` (joint,
-    position, rate) the torque law's change at that joint per unit p, ``coordinates`` (the routes at p +
-    step and at p, step) where the observables' gradients change."""
-
-    def __init__(self, n_samples, *, torque=None, coordinates=None):
-        self.n_samples, self.torque, self.pair = n_samples, torque, coordinates
-
-    def coordinates(self, observable, nominal=None) -> ObservableMap:
-        if self.pair is None:
-            return ObservableMap(observable.unit)
-        plus, point, step = self.pair
-        change = (plus._gradient_map(observable) - point._gradient_map(point.model.observable(observable.spec))) / step
-        return ObservableMap(observable.unit, position=change)
-
-    def multipliers(self, weights, unit) -> ObservableMap:
-        return ObservableMap(unit)
-
-    def torque_law(self, drive_index, joint, unit) -> ObservableMap:
-        if self.torque is None or self.torque[0] != joint:
-            return ObservableMap(unit)
-        return ObservableMap(unit, position=self.torque[1], rate=self.torque[2])
-
-    def magnitude(self, unit, components) -> ObservableMap:
-        return ObservableMap(unit, components=tuple(components))
-
-    def axial_force(self, link, x) -> np.ndarray:
-        return np.zeros(self.n_samples)
 
 
 def _elastic_projection(linearized, layout, d_damping, d_stiffness) -> periodic.SystemDerivative:
