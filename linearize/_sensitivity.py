@@ -5,10 +5,11 @@ parameter values (not of whole steady states), on the same phase grid ``t_k / T 
 Two linearisations differ by the parameter's effect on the mass, damping, stiffness, forcing and
 period, and, where the parameter moves the kinematics (a link length, a joint position), by the
 nominal motion's change: a central difference takes both.  Where the nominal configuration is the
-same at both values (section properties, densities, damping, gains: the kinematics do not move), the
-coefficients are smooth closed-form functions of the parameter evaluated on the same nominal motion and
-one forward difference of step ``FORWARD_STEP`` is accurate to about that step (measured: 2e-9 of the
-derivative for the coupler's thickness of the thesis four-bar); a parameter that moves the kinematics
+same at both values (section properties, densities, damping, gains: the kinematics do not move) and
+no exact route applies (below), the coefficients are smooth closed-form functions of the parameter
+evaluated on the same nominal motion and one forward difference of step ``FORWARD_STEP`` is accurate to
+about that step (measured: 5e-7 of the damping's derivative for the coupler's thickness of the thesis
+four-bar, I = b h^3 / 12); a parameter that moves the kinematics
 carries the nominal motion's Newton tolerance into the difference (3e-5 of the derivative at that step
 for the crank's length), so it takes a central difference of step ``CENTRAL_STEP`` (2e-9 truncation,
 the residual's 1e-12 over the step).
@@ -38,6 +39,19 @@ with ``dM = df = 0`` (the law vanishes on the nominal motion, whose model drops 
 The observable maps these two move (stresses and moments for ``E``, drive torques for a gain) are
 differentiated on the point's motion (``map_derivatives``: the torque law's change per unit gain, the
 gradients' change for ``E``; the multipliers' and the nominal parts do not move).
+
+An elastic link's section (``links.<link>.density``, ``width``, ``thickness``, ``area``,
+``second_moment``) moves the mass, hence the multipliers, the geometric stiffness, the load and the
+multipliers' maps: on the fixed kinematics of prescribed drives all of them are affine in the link's
+``rho A``, so one linearisation at a doubled density (the link's damping removed) differenced with the
+point's (its damping's projection removed) is ``d coef / d ln(rho A)`` exactly, to rounding; ``K_ee``'s
+axial and bending parts (``E A``, ``E I``) and the damping kind's ``section_derivative`` are closed forms,
+and the link's ``section_rates(key)`` (d ln rho, d ln A, d ln I per unit p) combine them by the chain rule
+(``linearize._section``, whose docstring has the formulas and the cases that keep the forward difference:
+a torque drive, a reduced link, rotary inertia under a key that moves ``rho I`` apart from ``rho A``, modal
+damping).  Its maps: the multipliers' part from the same difference, the section's own part (the fibre
+distance, ``A`` and ``I`` of stresses and moments, an axially rigid link's ``N / A``) from gradients linear
+in ``A``, ``I``, ``c``: exact too.
 """
 
 from __future__ import annotations
@@ -100,9 +114,12 @@ def analytic_derivative(linearized, path: str) -> periodic.SystemDerivative | No
     to the scene parameter ``path`` in closed form, or None where no part carries it (the caller then
     differences linearisations): a link's damping ``links.<link>.damping.<key>`` (its kind's
     ``matrix_derivative``), its Young's modulus ``links.<link>.youngs_modulus`` (``K_ee / E`` and the
-    damping kind's ``modulus_derivative``), a controller's gain ``controllers.<name>.<key>`` and a torque
-    drive's own ``drive.kp`` / ``drives.<joint>.kd`` (their ``law_derivative``); module docstring.  The
-    observables' maps of the last two move with the parameter too: ``map_derivatives``."""
+    damping kind's ``modulus_derivative``), an elastic link's section ``links.<link>.density`` / ``width`` /
+    ``thickness`` / ``area`` / ``second_moment`` on prescribed drives (exact by the coefficients' affinity in
+    its mass: one linearisation on the point's kinematics, ``linearize._section``), a controller's gain
+    ``controllers.<name>.<key>`` and a torque drive's own ``drive.kp`` / ``drives.<joint>.kd`` (their
+    ``law_derivative``); module docstring.  The observables' maps of the last three move with the parameter
+    too: ``map_derivatives``."""
     mechanism = getattr(linearized, "mechanism", None)
     if mechanism is None:
         return None

@@ -149,8 +149,8 @@ def test_nominal_dynamics_refuses_a_moved_linkage():
 def test_forward_neighbours_off_the_scene_speed_against_fresh_steady_states():
     """At a speed that is not the scene's (a speed family's member) the forward neighbour reuses that
     member's kinematics: the derivatives against fresh steady states at the same point (the rigid
-    crank's thickness: its mass moves, the linkage does not)."""
-    name = "links.crank.thickness"
+    rocker's thickness: its mass moves, the linkage does not)."""
+    name = "links.rocker.thickness"
     problem = studies.MechanismProblem.from_scene("four_bar_fem4", parameter_paths=[name], observables=OBSERVABLES)
     point = {"speed": 1.1 * problem.parameters["speed"]}
     result = studies.sensitivity(problem, point, parameters=[name], n_steps=N_STEPS)

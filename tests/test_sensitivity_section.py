@@ -42,7 +42,8 @@ def _richardson(problem, nominal, name, relative, read):
     value = problem.parameters[name]
 
     def central(h):
-        up, down = (read(problem.linearize({name: v}, n_steps=N_STEPS, kinematics=nominal)) for v in (value + h, value - h))
+        up, down = (read(problem.linearize({name: v}, n_steps=N_STEPS, kinematics=nominal))
+                    for v in (value + h, value - h))
         return {key: (up[key] - down[key]) / (2.0 * h) for key in up}
 
     h = relative * value
@@ -221,8 +222,10 @@ def test_section_rates_of_a_rectangle():
     """d ln(rho, A, I) / dp of the scene keys: A = b h, I = b h^3 / 12."""
     link = mechanisms.ElasticLink.rectangular("bar", 0.3, width=0.02, thickness=0.0016, density=7800.0,
                                                youngs_modulus=2e11)
-    assert link.section_rates("thickness") == pytest.approx({"density": 0.0, "area": 1 / 0.0016, "second_moment": 3 / 0.0016})
-    assert link.section_rates("width") == pytest.approx({"density": 0.0, "area": 1 / 0.02, "second_moment": 1 / 0.02})
+    assert link.section_rates("thickness") == pytest.approx(
+        {"density": 0.0, "area": 1 / 0.0016, "second_moment": 3 / 0.0016})
+    assert link.section_rates("width") == pytest.approx({"density": 0.0, "area": 1 / 0.02,
+                                                         "second_moment": 1 / 0.02})
     assert link.section_rates("density") == {"density": 1 / 7800.0, "area": 0.0, "second_moment": 0.0}
     assert link.section_rates("length") is None
 

@@ -153,6 +153,12 @@ class ModalDamping:
         ``omega`` grows as ``sqrt(E)``, so the matrix does too: ``C0 / (2 E)``."""
         return self.constant_matrix(link.name, m_ee, k_ee, strain_rate_beta=False) / (2.0 * link.youngs_modulus)
 
+    def section_derivative(self, link, m_ee: np.ndarray, k_ee: np.ndarray, d_mass: np.ndarray,
+                           d_stiffness: np.ndarray, d_log_frequency: float) -> None:
+        """No closed form: ``M Phi diag(2 zeta omega) Phi^T M`` is not affine in ``M_ee`` and ``K_ee`` (its
+        modes move when they change unlike each other): the sensitivities difference linearisations."""
+        return None
+
     def constant_matrix(self, link_name: str, m_ee: np.ndarray, k_ee: np.ndarray, *,
                strain_rate_beta: bool) -> np.ndarray:
         """``M Phi diag(2 zeta omega) Phi^T M`` over the modes given ratios (mass-normalised)."""
