@@ -8,30 +8,27 @@ rotary inertia), its stiffness ``K_ee = E A Gu + E I Gw`` (the shapes' Gram matr
 ``w''``, ``mechanisms.beam_matrices``) and its damping matrix ``D_ee``.  The mass enters affinely: ``M``,
 the nominal multipliers (linear in the masses for a prescribed motion: one linear solve of the rigid
 inverse dynamics), the geometric stiffness (the axial force of that inverse dynamics), the load ``f``
-and the multipliers' maps are all affine in ``rho A`` at fixed ``K_ee`` and ``D_ee``.  So, with
-``L(rho)`` the coefficients of the mechanism whose link has density ``rho`` and no damping (on the
-point's kinematics, ``mechanisms.nominal_dynamics``), and ``P(D) = (V^T D V, V^T D V')`` the projection
-of a damping matrix on the elastic block (``_elastic_projection``),
+and the multipliers' maps are all affine in ``rho A`` at fixed ``K_ee`` and ``D_ee``, ``K_ee`` is linear in
+``A`` and ``I``, and every observable's gradient is linear in ``A``, ``I`` and the fibre distance ``c``
+(stresses ``E c``, moments ``E I``, axial forces ``E A``).  A section parameter ``p`` moves ``ln rho, ln A,
+ln I`` at the rates ``r_rho, r_A, r_I`` its link declares (``ElasticLink.section_rates``: ``A = b h``,
+``I = b h^3 / 12`` for width and thickness).  Along its tangent,
 
-    d coef / d ln(rho A) = (L(rho (1 + s)) - [coef - P(D_ee)]) / s      for any s (here ``MASS_STEP`` = 1)
+    rho A (1 + (r_rho + r_A) t),   A (1 + r_A t),   I (1 + r_I t),   c (1 + r_c t)   (r_c = (r_I - r_A) / 2),
 
-exactly, to rounding (the point's coefficients less its own damping are ``L(rho)``).  A section
-parameter ``p`` moves ``ln rho, ln A, ln I`` at the rates ``r_rho, r_A, r_I`` its link declares
-(``ElasticLink.section_rates``: ``A = b h``, ``I = b h^3 / 12`` for width and thickness), and by the
-chain rule
+all of these are linear in ``t``, so with ``L(t)`` the coefficients (and maps) of the mechanism whose link
+is moved so and has no damping, linearised on the point's kinematics (``mechanisms.nominal_dynamics``),
 
-    d coef / dp = (r_rho + r_A) d coef / d ln(rho A) + P(dD, dK),
-    dK_ee = r_A E A Gu + r_I E I Gw,
-    dD_ee = the damping kind's ``section_derivative`` (Rayleigh: ``alpha dM + beta dK``, and a ratio's
-            ``beta = 2 ratio / omega_1`` moving with ``d ln omega_1 = (r_I - r_rho - r_A) / 2``),
+    d coef / dp = (L(t) - [coef - P(D_ee)]) / t + P(dD_ee)            for any t (``TANGENT_STEP``),
 
-with ``dM_ee = (r_rho + r_A) M_ee``; ``d ln T = 0``.  The observables' maps move the same way: the
-multipliers' part (joint forces, drive torques, the nominal axial force of a stress) by the same
-difference of ``L`` (affine, exact), and the section's own part (the fibre distance ``c = h / 2``, ``A``
-and ``I`` in stresses, moments and axial forces) by the difference of the observables' gradients on a
-link with ``A, I, c`` moved linearly at the parameter's rates and ``rho A`` held, exact since every
-gradient is linear in them (``E c``, ``E I``, ``E A``, ``E``), and an axially rigid link's nominal stress
-``N / A`` by ``-r_A N / A``.
+exactly, to rounding: the point's coefficients less their own damping are ``L(0)``, ``P(D) = (V^T D V,
+V^T D V')`` the projection of a damping matrix on the elastic block (``_projection``), and ``dD_ee`` the
+damping kind's ``section_derivative`` for ``dM_ee = (r_rho + r_A) M_ee``, ``dK_ee = r_A E A Gu + r_I E I Gw``
+(Rayleigh: ``alpha dM + beta dK``, and a ratio's ``beta = 2 ratio / omega_1`` moving with
+``d ln omega_1 = (r_I - r_rho - r_A) / 2``); ``d ln T = 0``.  The maps are ``(maps(t) - maps) / t`` (the
+multipliers' part, joint forces and drive torques, and the gradients' part), but for an axially rigid
+link's nominal stress ``N / A``, not linear in ``t`` (``N`` is, ``1 / A`` is not): its difference is
+``(dN - r_A N) / (A (1 + r_A t))``, corrected by the factor.
 
 Where this is not exact the route declines (None) and the caller keeps the forward difference of
 linearisations on reused kinematics: a torque drive (its nominal law and feedforward move with the
@@ -53,14 +50,11 @@ import periodic
 from ._about import about, supports_speed_family
 from ._observe import ObservableMap, _ChangeRoute, _Route
 
-__all__ = ["MASS_STEP", "section_derivative", "section_map_derivatives", "section_route"]
+__all__ = ["TANGENT_STEP", "section_derivative", "section_map_derivatives", "section_route"]
 
-#: Relative change of the link's density for the mass part (any value is exact: the coefficients are
-#: affine in the mass; a doubling keeps the difference at the coefficients' own rounding).
-MASS_STEP = 1.0
-#: Largest relative change of ``A``, ``I`` or ``c`` for the section's own part of the maps (any value is
-#: exact: the gradients are linear in them; a large one keeps the difference at their own rounding).
-GEOMETRY_STEP = 0.5
+#: Largest relative change of ``rho A``, ``A``, ``I`` or ``c`` along the tangent (any value is exact: the
+#: coefficients and maps are linear along it; a large one keeps the difference at their own rounding).
+TANGENT_STEP = 0.5
 # The massless-damping neighbours of the last few points (a point's coefficients and its maps both
 # need the same one): keyed by the linearisation's id, holding it so the id is not reused.
 _NEIGHBOURS: OrderedDict = OrderedDict()
@@ -98,23 +92,33 @@ def section_route(linearized, parts) -> SectionRoute | None:
     return SectionRoute(link, layout, rates, rates["density"] + rates["area"])
 
 
-def _neighbour(linearized, link):
-    """``L(rho (1 + MASS_STEP))``: ``linearized``'s mechanism with ``link``'s density raised and its
-    damping removed, linearised on ``linearized``'s kinematics (remembered for the maps)."""
-    key = (id(linearized), link.name)
+def _neighbour(linearized, route: SectionRoute):
+    """``(L(t), t)``: ``linearized``'s mechanism with ``route``'s link moved along the parameter's tangent by
+    ``t`` (its unit) and its damping removed, linearised on ``linearized``'s kinematics (module docstring;
+    remembered for the maps)."""
+    key = (id(linearized), route.link.name, tuple(route.rates.values()))
     found = _NEIGHBOURS.get(key)
     if found is not None and found[0] is linearized:
         return found[1]
-    changed = dataclasses.replace(link, density=link.density * (1.0 + MASS_STEP), damping=None)
+    link, rates = route.link, route.rates
+    # rho A, A, I and c, each linear in t at the parameter's rates (c = sqrt(12 I / A) / 2 unless the
+    # scene gives it, then fixed: set explicitly, so that it too is linear)
+    fibre = 0.5 * (rates["second_moment"] - rates["area"]) if link.outer_fibre is None else 0.0
+    t = TANGENT_STEP / max(abs(route.mass_rate), abs(rates["area"]), abs(rates["second_moment"]), abs(fibre))
+    area = link.area * (1.0 + rates["area"] * t)
+    changed = dataclasses.replace(
+        link, area=area, second_moment=link.second_moment * (1.0 + rates["second_moment"] * t),
+        density=link.density * link.area * (1.0 + route.mass_rate * t) / area,
+        outer_fibre=link.fibre_distance * (1.0 + fibre * t), damping=None)
     mechanism = linearized.mechanism.replace(links=tuple(
         changed if item.name == link.name else item for item in linearized.mechanism.links))
     nominal = linearized.nominal
     neighbour = about(mechanism, n_steps=len(nominal.t) - 1, observables=linearized.observables,
                       kinematics=nominal)
-    _NEIGHBOURS[key] = (linearized, neighbour)
+    _NEIGHBOURS[key] = (linearized, (neighbour, t))
     while len(_NEIGHBOURS) > _KEPT:
         _NEIGHBOURS.popitem(last=False)
-    return neighbour
+    return neighbour, t
 
 
 def _projection(linearized, layout, d_damping, d_stiffness):
@@ -160,23 +164,17 @@ def section_derivative(linearized, route: SectionRoute) -> periodic.SystemDeriva
                                                     d_log_frequency)
         if d_damping is None:
             return None
-    damping, stiffness = _projection(linearized, layout, d_damping, d_stiffness)
-    system = linearized.system
-    mass = force = None
-    if route.mass_rate != 0.0:
-        neighbour = _neighbour(linearized, link).system
-        own_damping, own_stiffness = np.zeros_like(damping), np.zeros_like(stiffness)
-        if link.damping is not None:
-            own = link.damping.constant_matrix(link.name, m_ee, k_ee, strain_rate_beta=False)
-            own_damping, own_stiffness = _projection(linearized, layout, own, None)
-        # L(rho) = the point's coefficients less its own damping; affine in rho A, so exact
-        scale = route.mass_rate / MASS_STEP
-        mass = scale * (neighbour.M - system.M)
-        damping = damping + scale * (neighbour.C - (system.C - own_damping))
-        stiffness = stiffness + scale * (neighbour.K - (system.K - own_stiffness))
-        force = scale * (neighbour.f - system.f)
-    return periodic.SystemDerivative(M=_nonzero(mass), C=_nonzero(damping), K=_nonzero(stiffness),
-                                     f=_nonzero(force), log_period=0.0)
+    neighbour, t = _neighbour(linearized, route)
+    own = np.zeros_like(k_ee) if link.damping is None else link.damping.constant_matrix(
+        link.name, m_ee, k_ee, strain_rate_beta=False)
+    # L(0) = the point's coefficients less its own damping; L is linear in t (K_ee's change included)
+    own_damping, own_stiffness = _projection(linearized, layout, own, None)
+    damping, stiffness = _projection(linearized, layout, d_damping, None)
+    system, other = linearized.system, neighbour.system
+    return periodic.SystemDerivative(
+        M=_nonzero((other.M - system.M) / t), C=_nonzero(damping + (other.C - (system.C - own_damping)) / t),
+        K=_nonzero(stiffness + (other.K - (system.K - own_stiffness)) / t), f=_nonzero((other.f - system.f) / t),
+        log_period=0.0)
 
 
 def _nonzero(array):
@@ -207,42 +205,32 @@ def _sum(a: ObservableMap, b: ObservableMap) -> ObservableMap:
 
 def section_map_derivatives(linearized, route: SectionRoute) -> dict:
     """d(map)/dp {spec: ``ObservableMap``} of every observable map of ``linearized`` per unit of the
-    section parameter of ``route``: the multipliers' part from the mass difference, the section's own
-    part from the gradients on a link with ``A``, ``I``, ``c`` moved linearly and ``rho A`` held, and
-    ``-r_A N / A`` for an axially rigid link's nominal stress: exact to rounding (module docstring)."""
-    specs = list(linearized.observable_maps)
-    maps = {}
-    if route.mass_rate != 0.0:
-        neighbour = _neighbour(linearized, route.link).observable_maps
-        scale = route.mass_rate / MASS_STEP
-        maps = {spec: _change(neighbour[spec], linearized.observable_maps[spec], scale) for spec in specs}
-    r_area, r_moment = route.rates["area"], route.rates["second_moment"]
-    if r_area == 0.0 and r_moment == 0.0:
-        return maps
-    link, nominal, c = route.link, linearized.nominal, linearized.coefficients
-    # A, I and c (c = sqrt(12 I / A) / 2 unless the scene gives it: then fixed) moved linearly in the
-    # offset t at the parameter's rates, rho A held: every gradient (E c, E I, E A, E) is then linear in t
-    # and one difference at a large offset is exact
-    r_fibre = 0.5 * (r_moment - r_area) if link.outer_fibre is None else 0.0
-    offset = GEOMETRY_STEP / max(abs(r_area), abs(r_moment), abs(r_fibre))   # in the parameter's unit
-    area = link.area * (1.0 + r_area * offset)
-    changed = dataclasses.replace(link, area=area, second_moment=link.second_moment * (1.0 + r_moment * offset),
-                                  outer_fibre=link.fibre_distance * (1.0 + r_fibre * offset),
-                                  density=link.density * link.area / area, damping=None)
-    moved = mechanisms.assemble(linearized.mechanism.replace(links=tuple(
-        changed if item.name == link.name else item for item in linearized.mechanism.links)))
-    point = _Route(nominal.model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, nominal.lam, c, None)
+    section parameter of ``route``: the difference of the tangent neighbour's maps (multipliers, linear
+    in the mass; gradients, linear in ``A``, ``I``, ``c``), and for an axially rigid link's nominal stress
+    ``N / A``, which is not linear in ``t``, the difference's correction to ``(dN - r_A N) / A``: exact to
+    rounding (module docstring)."""
+    neighbour, t = _neighbour(linearized, route)
+    maps = {spec: _change(neighbour.observable_maps[spec], found, 1.0 / t)
+            for spec, found in linearized.observable_maps.items()}
+    layout = route.layout
+    if np.any(layout.shapes.evaluate(layout.shapes.quadrature[0]).du):
+        return maps             # axial coordinates: a stress's axial force is EA eps, linear in t
+    nominal, r_area = linearized.nominal, route.rates["area"]
+    point = _Route(nominal.model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, nominal.lam,
+                   linearized.coefficients, None)
+    moved = neighbour.nominal
+    other = _Route(moved.model, moved.t, moved.s, moved.sdot, moved.sddot, moved.lam, neighbour.coefficients, None)
 
     def axial(name, x):
-        # an axially rigid link's stress N / A: N is the mass part's (rho A held here), 1 / A moves as
-        # -r_A / A; the moved observable divides by its own area A (1 + r_A t); other links' do not move
-        if name != link.name:
+        # (N(t) / A(t) - N / A) / t = (dN - r_A N) / (A (1 + r_A t)): add r_A t times it (A times it here,
+        # the observable dividing by its A)
+        if name != route.link.name:
             return np.zeros(len(nominal.t))
-        return -r_area * (1.0 + r_area * offset) * point.axial_force(name, x)
+        force = point.axial_force(name, x)
+        slope = (other.axial_force(name, x) - force) / t
+        return r_area * t * (slope - r_area * force) / (1.0 + r_area * t)
 
-    change = _ChangeRoute(len(nominal.t), coordinates=(
-        _Route(moved, nominal.t, nominal.s, nominal.sdot, nominal.sddot, None, c, None), point, offset), axial=axial)
-    for spec in specs:
-        own = moved.observable(spec).linear_map(change)
-        maps[spec] = own if spec not in maps else _sum(maps[spec], own)
+    correction = _ChangeRoute(len(nominal.t), axial=axial)
+    for spec in maps:
+        maps[spec] = _sum(maps[spec], nominal.model.observable(spec).linear_map(correction))
     return maps
