@@ -43,15 +43,14 @@ gradients' change for ``E``; the multipliers' and the nominal parts do not move)
 An elastic link's section (``links.<link>.density``, ``width``, ``thickness``, ``area``,
 ``second_moment``) moves the mass, hence the multipliers, the geometric stiffness, the load and the
 multipliers' maps: on the fixed kinematics of prescribed drives all of them are affine in the link's
-``rho A``, so one linearisation at a doubled density (the link's damping removed) differenced with the
-point's (its damping's projection removed) is ``d coef / d ln(rho A)`` exactly, to rounding; ``K_ee``'s
-axial and bending parts (``E A``, ``E I``) and the damping kind's ``section_derivative`` are closed forms,
-and the link's ``section_rates(key)`` (d ln rho, d ln A, d ln I per unit p) combine them by the chain rule
-(``linearize._section``, whose docstring has the formulas and the cases that keep the forward difference:
-a torque drive, a reduced link, rotary inertia under a key that moves ``rho I`` apart from ``rho A``, modal
-damping).  Its maps: the multipliers' part from the same difference, the section's own part (the fibre
-distance, ``A`` and ``I`` of stresses and moments, an axially rigid link's ``N / A``) from gradients linear
-in ``A``, ``I``, ``c``: exact too.
+``rho A``, and ``K_ee`` and the observables' gradients are linear in ``A``, ``I`` and the fibre distance
+``c``; moved along the parameter's tangent (each of these linear in one offset ``t``, at the rates the
+link's ``section_rates(key)`` gives) with its damping removed, the link's linearisation on the point's
+kinematics differenced with the point's own (its damping's projection removed) is the derivative
+exactly, to rounding, for the coefficients and the maps alike; the damping kind's ``section_derivative``
+adds the damping's (``linearize._section``, whose docstring has the formulas and the cases that keep the
+forward difference: a torque drive, a reduced link, rotary inertia under a key that moves ``rho I`` apart
+from ``rho A``, modal damping).
 """
 
 from __future__ import annotations
