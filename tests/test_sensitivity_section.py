@@ -1,9 +1,10 @@
 """Exact section derivatives of the sensitivities (issue 20): a link's density, width and thickness
 (``linearize/_section.py``: one linearisation of the link moved along the parameter's tangent, along
-which coefficients and maps are linear, and the damping's closed form) against Richardson-extrapolated central differences of the linearisation's coefficients and
-maps on the point's kinematics (rounding level, where the forward difference it replaces was 5e-7 off),
-the headlines and the spectral radius against central differences of fresh steady states, the damping
-kind's closed form against rebuilt links, and the cases that keep the forward difference."""
+which coefficients and maps are linear, and the damping's closed form) against Richardson-extrapolated
+central differences of the linearisation's coefficients and maps on the point's kinematics (rounding
+level, where the forward difference it replaces was 5e-7 off), the headlines and the spectral radius
+against central differences of fresh steady states, the damping kind's closed form against rebuilt
+links, and the cases that keep the forward difference."""
 
 from __future__ import annotations
 
