@@ -191,3 +191,38 @@ class _Route:
         else:
             gradients = np.stack([observable.gradient(sk) for sk in self.s])
         return np.einsum("kn,kni->ki", gradients, self.c.V)
+
+
+class _ChangeRoute:
+    """The ``LinearRoute`` (``mechanisms/_protocol.py``) of a map's derivative with respect to a parameter
+    that leaves the nominal motion and the multipliers' maps alone (``linearize.map_derivatives``):
+    ``torque`` (joint, position, rate) the torque law's change at that joint per unit p, ``coordinates``
+    (the routes at p + step and at p, step) where the observables' gradients change (their difference over
+    the step: exact where the gradients are linear in p), ``axial(link, x)`` (N+1,) what an axially rigid
+    link's nominal axial force contributes to the change (divided by the observable's area, as the
+    observable divides the force; None: nothing, the nominal part does not move)."""
+
+    def __init__(self, n_samples, *, torque=None, coordinates=None, axial=None):
+        self.n_samples, self.torque, self.pair, self.axial = n_samples, torque, coordinates, axial
+
+    def coordinates(self, observable, nominal=None) -> ObservableMap:
+        nominal = nominal if self.axial is not None else None
+        if self.pair is None:
+            return ObservableMap(observable.unit, nominal=nominal)
+        plus, point, step = self.pair
+        change = (plus._gradient_map(observable) - point._gradient_map(point.model.observable(observable.spec))) / step
+        return ObservableMap(observable.unit, nominal=nominal, position=change)
+
+    def multipliers(self, weights, unit) -> ObservableMap:
+        return ObservableMap(unit)
+
+    def torque_law(self, drive_index, joint, unit) -> ObservableMap:
+        if self.torque is None or self.torque[0] != joint:
+            return ObservableMap(unit)
+        return ObservableMap(unit, position=self.torque[1], rate=self.torque[2])
+
+    def magnitude(self, unit, components) -> ObservableMap:
+        return ObservableMap(unit, components=tuple(components))
+
+    def axial_force(self, link, x) -> np.ndarray:
+        return np.zeros(self.n_samples) if self.axial is None else self.axial(link, x)

@@ -5,10 +5,11 @@ parameter values (not of whole steady states), on the same phase grid ``t_k / T 
 Two linearisations differ by the parameter's effect on the mass, damping, stiffness, forcing and
 period, and, where the parameter moves the kinematics (a link length, a joint position), by the
 nominal motion's change: a central difference takes both.  Where the nominal configuration is the
-same at both values (section properties, densities, damping, gains: the kinematics do not move), the
-coefficients are smooth closed-form functions of the parameter evaluated on the same nominal motion and
-one forward difference of step ``FORWARD_STEP`` is accurate to about that step (measured: 2e-9 of the
-derivative for the coupler's thickness of the thesis four-bar); a parameter that moves the kinematics
+same at both values (section properties, densities, damping, gains: the kinematics do not move) and
+no exact route applies (below), the coefficients are smooth closed-form functions of the parameter
+evaluated on the same nominal motion and one forward difference of step ``FORWARD_STEP`` is accurate to
+about that step (measured: 5e-7 of the damping's derivative for the coupler's thickness of the thesis
+four-bar, I = b h^3 / 12); a parameter that moves the kinematics
 carries the nominal motion's Newton tolerance into the difference (3e-5 of the derivative at that step
 for the crank's length), so it takes a central difference of step ``CENTRAL_STEP`` (2e-9 truncation,
 the residual's 1e-12 over the step).
@@ -38,6 +39,18 @@ with ``dM = df = 0`` (the law vanishes on the nominal motion, whose model drops 
 The observable maps these two move (stresses and moments for ``E``, drive torques for a gain) are
 differentiated on the point's motion (``map_derivatives``: the torque law's change per unit gain, the
 gradients' change for ``E``; the multipliers' and the nominal parts do not move).
+
+An elastic link's section (``links.<link>.density``, ``width``, ``thickness``, ``area``,
+``second_moment``) moves the mass, hence the multipliers, the geometric stiffness, the load and the
+multipliers' maps: on the fixed kinematics of prescribed drives all of them are affine in the link's
+``rho A``, and ``K_ee`` and the observables' gradients are linear in ``A``, ``I`` and the fibre distance
+``c``; moved along the parameter's tangent (each of these linear in one offset ``t``, at the rates the
+link's ``section_rates(key)`` gives) with its damping removed, the link's linearisation on the point's
+kinematics differenced with the point's own (its damping's projection removed) is the derivative
+exactly, to rounding, for the coefficients and the maps alike; the damping kind's ``section_derivative``
+adds the damping's (``linearize._section``, whose docstring has the formulas and the cases that keep the
+forward difference: a torque drive, a reduced link, rotary inertia under a key that moves ``rho I`` apart
+from ``rho A``, modal damping).
 """
 
 from __future__ import annotations
@@ -47,7 +60,8 @@ import numpy as np
 import mechanisms
 import periodic
 
-from ._observe import ObservableMap, _Route  # _Route: the maps' primitives, for E's gradients
+from ._observe import _ChangeRoute, _Route  # the maps' primitives, for E's gradients
+from ._section import section_derivative, section_map_derivatives, section_route
 
 __all__ = ["CENTRAL_STEP", "FORWARD_STEP", "analytic_derivative", "map_derivatives", "coefficient_derivative",
            "keeps_configuration", "moves_maps", "parameter_step"]
@@ -99,13 +113,19 @@ def analytic_derivative(linearized, path: str) -> periodic.SystemDerivative | No
     to the scene parameter ``path`` in closed form, or None where no part carries it (the caller then
     differences linearisations): a link's damping ``links.<link>.damping.<key>`` (its kind's
     ``matrix_derivative``), its Young's modulus ``links.<link>.youngs_modulus`` (``K_ee / E`` and the
-    damping kind's ``modulus_derivative``), a controller's gain ``controllers.<name>.<key>`` and a torque
-    drive's own ``drive.kp`` / ``drives.<joint>.kd`` (their ``law_derivative``); module docstring.  The
-    observables' maps of the last two move with the parameter too: ``map_derivatives``."""
+    damping kind's ``modulus_derivative``), an elastic link's section ``links.<link>.density`` / ``width`` /
+    ``thickness`` / ``area`` / ``second_moment`` on prescribed drives (exact by the coefficients' affinity in
+    its mass: one linearisation on the point's kinematics, ``linearize._section``), a controller's gain
+    ``controllers.<name>.<key>`` and a torque drive's own ``drive.kp`` / ``drives.<joint>.kd`` (their
+    ``law_derivative``); module docstring.  The observables' maps of the last three move with the parameter
+    too: ``map_derivatives``."""
     mechanism = getattr(linearized, "mechanism", None)
     if mechanism is None:
         return None
     parts = path.split(".")
+    if parts[0] == "links" and len(parts) == 3 and parts[2] != "youngs_modulus":
+        route = section_route(linearized, parts)
+        return None if route is None else section_derivative(linearized, route)
     if parts[0] == "links" and len(parts) in (3, 4):
         return _link_derivative(linearized, mechanism, parts)
     if (parts[0] == "controllers" and len(parts) == 3) or _drive_of(mechanism, parts) is not None:
@@ -132,6 +152,8 @@ def _moved_specs(linearized, path: str) -> list[str]:
     parts = path.split(".")
     if parts[0] == "links" and len(parts) == 3 and parts[2] == "youngs_modulus":
         return list(linearized.observable_maps)
+    if parts[0] == "links" and len(parts) == 3 and section_route(linearized, parts) is not None:
+        return list(linearized.observable_maps)
     if (parts[0] == "controllers" and len(parts) == 3) or _drive_of(linearized.mechanism, parts) is not None:
         return [spec for spec, found in linearized.observable_maps.items() if found.total]
     return []
@@ -157,6 +179,8 @@ def map_derivatives(linearized, path: str, mechanism=None, step: float = 0.0) ->
         return {}
     nominal, c = linearized.nominal, linearized.coefficients
     parts = path.split(".")
+    if parts[0] == "links" and parts[2] != "youngs_modulus":
+        return section_map_derivatives(linearized, section_route(linearized, parts))
     if parts[0] == "links":
         def route(model):
             return _Route(model, nominal.t, nominal.s, nominal.sdot, nominal.sddot, None, c, None)
@@ -169,37 +193,6 @@ def map_derivatives(linearized, path: str, mechanism=None, step: float = 0.0) ->
         model = mechanisms.assemble(linearized.mechanism)   # its torque drives' own observables
         change = _ChangeRoute(len(nominal.t), torque=None if law is None or law[3] else law[:3])
     return {spec: model.observable(spec).linear_map(change) for spec in _moved_specs(linearized, path)}
-
-
-class _ChangeRoute:
-    """The ``LinearRoute`` (``mechanisms/_protocol.py``) of a map's derivative with respect to a parameter
-    that leaves the nominal motion, the multipliers' maps and the axial forces alone: ``torque`` (joint,
-    position, rate) the torque law's change at that joint per unit p, ``coordinates`` (the routes at p +
-    step and at p, step) where the observables' gradients change."""
-
-    def __init__(self, n_samples, *, torque=None, coordinates=None):
-        self.n_samples, self.torque, self.pair = n_samples, torque, coordinates
-
-    def coordinates(self, observable, nominal=None) -> ObservableMap:
-        if self.pair is None:
-            return ObservableMap(observable.unit)
-        plus, point, step = self.pair
-        change = (plus._gradient_map(observable) - point._gradient_map(point.model.observable(observable.spec))) / step
-        return ObservableMap(observable.unit, position=change)
-
-    def multipliers(self, weights, unit) -> ObservableMap:
-        return ObservableMap(unit)
-
-    def torque_law(self, drive_index, joint, unit) -> ObservableMap:
-        if self.torque is None or self.torque[0] != joint:
-            return ObservableMap(unit)
-        return ObservableMap(unit, position=self.torque[1], rate=self.torque[2])
-
-    def magnitude(self, unit, components) -> ObservableMap:
-        return ObservableMap(unit, components=tuple(components))
-
-    def axial_force(self, link, x) -> np.ndarray:
-        return np.zeros(self.n_samples)
 
 
 def _elastic_projection(linearized, layout, d_damping, d_stiffness) -> periodic.SystemDerivative:

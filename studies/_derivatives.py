@@ -3,7 +3,9 @@ what ``studies.sensitivity`` reports and ``studies.optimize``'s local method fol
 
 For each parameter p the coefficients' derivative is analytic where a part of the mechanism carries it
 (``linearize.analytic_derivative``: a link's damping and Young's modulus, a controller's gains, with no
-second linearisation; the maps they move differentiated on the point's motion, ``linearize.map_derivatives``),
+second linearisation, and an elastic link's section on prescribed drives, exact by the coefficients'
+affinity in its mass from one linearisation on the point's kinematics; the maps they move differentiated
+on the point's motion, ``linearize.map_derivatives``),
 else it comes from
 linearisations at nearby values (``linearize.coefficient_derivative``: a forward difference where the
 nominal configuration does not move, else a central one; the speed's central difference on a speed

@@ -310,7 +310,8 @@ def test_a_grid_committed_every_few_points_saves_each_point_as_computed(tmp_path
     assert main(["info", str(tmp_path / "often.h5")]) == 0   # every saved point's digest holds
     assert _run(scene, tmp_path / "often.h5") == 0
     monkeypatch.setattr(_resultfile.ResultFile, "maybe_commit", maybe_commit)
-    once, often = studies.load(tmp_path / "once.h5")["stability_chart"], studies.load(tmp_path / "often.h5")["stability_chart"]
+    once = studies.load(tmp_path / "once.h5")["stability_chart"]
+    often = studies.load(tmp_path / "often.h5")["stability_chart"]
     for field in ("spectral_radius", "spectral_radius_error", "point_status", "point_message", "done"):
         np.testing.assert_array_equal(getattr(once, field), getattr(often, field), err_msg=field)
 

@@ -84,11 +84,12 @@ def test_ratio_on_a_torque_drive_against_central_differences():
 
 
 def test_no_closed_form_falls_back():
-    """A parameter that no part differentiates (a section property, a length) gets None here, and the
+    """A parameter that no part differentiates (a rigid link's section, a length) gets None here, and the
     study differences linearisations for it."""
-    problem = studies.MechanismProblem.from_scene("four_bar_fem4", parameter_paths=["links.coupler.thickness"])
+    problem = studies.MechanismProblem.from_scene("four_bar_fem4", parameter_paths=["links.crank.thickness"])
     linear = problem.linearize({}, n_steps=N_STEPS)
-    assert linearize.analytic_derivative(linear.context, "links.coupler.thickness") is None
+    assert linearize.analytic_derivative(linear.context, "links.crank.thickness") is None
+    assert linearize.analytic_derivative(linear.context, "links.crank.length") is None
     assert linearize.analytic_derivative(linear.context, "links.crank.damping.ratio") is None  # a rigid link
 
 
@@ -147,8 +148,9 @@ def test_nominal_dynamics_refuses_a_moved_linkage():
 
 def test_forward_neighbours_off_the_scene_speed_against_fresh_steady_states():
     """At a speed that is not the scene's (a speed family's member) the forward neighbour reuses that
-    member's kinematics: the derivatives against fresh steady states at the same point."""
-    name = "links.coupler.thickness"
+    member's kinematics: the derivatives against fresh steady states at the same point (the rigid
+    rocker's thickness: its mass moves, the linkage does not)."""
+    name = "links.rocker.thickness"
     problem = studies.MechanismProblem.from_scene("four_bar_fem4", parameter_paths=[name], observables=OBSERVABLES)
     point = {"speed": 1.1 * problem.parameters["speed"]}
     result = studies.sensitivity(problem, point, parameters=[name], n_steps=N_STEPS)

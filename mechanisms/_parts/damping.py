@@ -12,8 +12,12 @@ damping matrix of the link's elastic coordinates with respect to the scalar scen
 ``damping`` table (None where the kind has no closed form for that key: the sensitivities then take
 differences of linearisations), and ``modulus_derivative(link, m_ee, k_ee)``, its derivative with
 respect to the link's Young's modulus ``E`` (``K_ee`` is proportional to ``E``, ``M_ee`` does not
-depend on it). ``DAMPING_TYPES`` lists them by ``TYPE``; a scene's ``type = "none"``
-is no damping.
+depend on it), and optionally ``section_derivative(link, m_ee, k_ee, d_mass, d_stiffness,
+d_log_frequency)``, its derivative with respect to a section parameter that changes ``M_ee`` by
+``d_mass``, ``K_ee`` by ``d_stiffness`` and the link's first bending frequency by ``d_log_frequency``
+(relative), per unit of the parameter, as the scene rebuilt at the new value would give it (None, or
+no such method, where the kind is not affine in them: the sensitivities then difference). ``DAMPING_TYPES``
+lists them by ``TYPE``; a scene's ``type = "none"`` is no damping.
 """
 
 from __future__ import annotations
@@ -102,6 +106,16 @@ class Rayleigh:
         share = 0.5 if self.ratio is not None else 1.0
         return (share * self.beta / link.youngs_modulus) * k_ee
 
+    def section_derivative(self, link, m_ee: np.ndarray, k_ee: np.ndarray, d_mass: np.ndarray,
+                           d_stiffness: np.ndarray, d_log_frequency: float) -> np.ndarray:
+        """d(``alpha M_ee + beta K_ee``) for changes ``d_mass``, ``d_stiffness`` of ``M_ee``, ``K_ee`` (kg,
+        N/m per unit of the parameter): ``alpha dM + beta dK``, and with a ``ratio`` also ``beta``'s own
+        change, ``beta = 2 ratio / omega_1`` moving by ``-beta d ln omega_1`` (``d_log_frequency``)."""
+        change = self.alpha * d_mass + self.beta * d_stiffness
+        if self.ratio is not None:
+            change = change - (self.beta * d_log_frequency) * k_ee
+        return change
+
 
 @dataclass(frozen=True)
 class ModalDamping:
@@ -138,6 +152,12 @@ class ModalDamping:
         """d(damping)/dE: the modes do not change with ``E`` (``K_ee`` scales with it) and each
         ``omega`` grows as ``sqrt(E)``, so the matrix does too: ``C0 / (2 E)``."""
         return self.constant_matrix(link.name, m_ee, k_ee, strain_rate_beta=False) / (2.0 * link.youngs_modulus)
+
+    def section_derivative(self, link, m_ee: np.ndarray, k_ee: np.ndarray, d_mass: np.ndarray,
+                           d_stiffness: np.ndarray, d_log_frequency: float) -> None:
+        """No closed form: ``M Phi diag(2 zeta omega) Phi^T M`` is not affine in ``M_ee`` and ``K_ee`` (its
+        modes move when they change unlike each other): the sensitivities difference linearisations."""
+        return None
 
     def constant_matrix(self, link_name: str, m_ee: np.ndarray, k_ee: np.ndarray, *,
                strain_rate_beta: bool) -> np.ndarray:
@@ -191,6 +211,11 @@ class DampingMatrix:
 
     def modulus_derivative(self, link, m_ee: np.ndarray, k_ee: np.ndarray) -> np.ndarray:
         """An explicit matrix does not depend on ``E``: zero."""
+        return np.zeros_like(k_ee)
+
+    def section_derivative(self, link, m_ee: np.ndarray, k_ee: np.ndarray, d_mass: np.ndarray,
+                           d_stiffness: np.ndarray, d_log_frequency: float) -> np.ndarray:
+        """An explicit matrix does not depend on the section: zero."""
         return np.zeros_like(k_ee)
 
     def constant_matrix(self, link_name: str, m_ee: np.ndarray, k_ee: np.ndarray, *,

@@ -125,6 +125,20 @@ class ElasticLink:
     def mass(self) -> float:
         return self.density * self.area * self.length
 
+    def section_rates(self, key: str) -> dict[str, float] | None:
+        """How the scene key ``key`` of this link's section moves its density, area and second moment:
+        ``{"density": d ln rho / dp, "area": d ln A / dp, "second_moment": d ln I / dp}`` (1 / the key's
+        unit) for ``density``, ``area``, ``second_moment`` and a rectangle's ``width`` ``b`` and
+        ``thickness`` ``h`` (``A = b h``, ``I = b h^3 / 12``: ``h`` the ``section_height``, ``b = A / h``);
+        None for any other key.  The sensitivities' exact section derivatives
+        (``linearize.analytic_derivative``) combine them by the chain rule."""
+        height = self.section_height
+        rates = {"density": (1.0 / self.density, 0.0, 0.0), "area": (0.0, 1.0 / self.area, 0.0),
+                 "second_moment": (0.0, 0.0, 1.0 / self.second_moment),
+                 "width": (0.0, height / self.area, height / self.area),
+                 "thickness": (0.0, 1.0 / height, 3.0 / height)}.get(key)
+        return None if rates is None else dict(zip(("density", "area", "second_moment"), rates))
+
     def point_position(self, point: PointRef) -> tuple[float, float]:
         """Position (m) of ``point`` (``"start"``, ``"end"`` or a distance along the link) in the
         undeformed link frame: ``(x, 0)``, ``x`` the point's abscissa."""
