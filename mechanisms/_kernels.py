@@ -77,7 +77,7 @@ import numpy as np
 # the helpers that only kernels call (the Python wrapper unboxing their arrays costs as much again).
 # inline="always" on the helpers of a few lines: numba types them inside their callers instead of
 # compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _max_local(table_nnz):
     n = 0
     for i in range(table_nnz.shape[0]):
@@ -86,14 +86,14 @@ def _max_local(table_nnz):
     return n + 3
 
 
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _scratch(table_nnz):
     """Columns of L (x and y components) and their indices in s, for the largest point."""
     nmax = _max_local(table_nnz)
     return np.empty(nmax), np.empty(nmax), np.empty(nmax, dtype=np.int64)
 
 
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _group_scratch(sp_int):
     """Per-point arrays (slope, eps, kappa, c) for the largest strain-point group."""
     n = 1
@@ -209,7 +209,7 @@ def _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols):
     return apx, apy
 
 
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _elastic_velocity(sdot, nnz, lx, ly, cols):
     """A S q' (m/s)."""
     vx = 0.0
@@ -422,7 +422,7 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
                 out_v[a, b] -= c0[a, b]
 
 
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _term_direction(s, frame, dx, dy):
     """The term's direction in the plane: ``d``, or ``e = A(theta_f) d`` in a link's frame."""
     if frame < 0:

@@ -176,7 +176,7 @@ def solve_columns_loops(lu, pivots, b):
 
 # inline="always" on the helpers of a few lines: numba types them inside their callers instead of
 # compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _swap_rows(b, k, p):
     if p != k:
         for j in range(b.shape[1]):
