@@ -30,6 +30,8 @@ from ._parts import drive_law
 # failure codes of ``_newton`` (0: converged); ``StepKernel.failure`` words them
 STALLED, SINGULAR, NOT_FINITE, NO_CONVERGENCE, WILD, DIVERGED = 1, 2, 3, 4, 5, 6
 
+# no_cfunc_wrapper on every kernel here and in _alpha_step, _alpha_tangent: none is passed as a
+# first-class function, and the C wrapper numba builds for that is first-run compilation for nothing.
 
 @numba.njit(cache=True, no_cfunc_wrapper=True)
 def _affine_torques(s, v, grad, const, pos_gain, rate_gain, back_emf, command_limit, torque_limit,

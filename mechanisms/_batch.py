@@ -111,8 +111,10 @@ def constraint_terms_along(model, t, s, sdot=None, *, values: bool = False) -> C
 # ---------------------------------------------------------------------------------------------------
 # no_cfunc_wrapper: no kernel is passed as a first-class function (its C wrapper is first-run
 # compilation for nothing; see _kernels).
-# inline="always" on the helpers of a few lines: numba types them inside their callers instead of
-# compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
+# forceinline on the helpers of a few lines: LLVM inlines them into every caller (its alwaysinline),
+# so the machine code is what numba's inline="always" gave, while numba types and lowers each once, as
+# a kernel of its own, instead of once per call site (inline="always" cost about 7 % more of the first
+# run's compilation: docs/benchmarks.md, session 9).
 @numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _copy_matrix(source, target):
     """target[:, :] = source, as a loop: an array assigned to a slice would compile numba's

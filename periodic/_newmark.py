@@ -59,8 +59,10 @@ import numpy as np
 from . import lapack
 
 
-# inline="always" on the helpers of a few lines: numba types them inside their callers instead of
-# compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
+# forceinline on the helpers of a few lines: LLVM inlines them into every caller (its alwaysinline),
+# so the machine code is what numba's inline="always" gave, while numba types and lowers each once, as
+# a kernel of its own, instead of once per call site (inline="always" cost about 7 % more of the first
+# run's compilation: docs/benchmarks.md, session 9).
 # no_cfunc_wrapper on every kernel: none is passed as a first-class function, and the C wrapper numba
 # builds for that costs about 35 ms of the first run's compilation per kernel (no_cpython_wrapper too
 # on ``_residual_force``, which only kernels call).
