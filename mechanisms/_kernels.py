@@ -78,8 +78,10 @@ import numpy as np
 # forceinline on the helpers of a few lines: LLVM inlines them into every caller (its alwaysinline),
 # so the machine code is what numba's inline="always" gave, while numba types and lowers each once, as
 # a kernel of its own, instead of once per call site (inline="always" cost about 7 % more of the first
-# run's compilation: docs/benchmarks.md, session 9).
-@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
+# run's compilation: docs/benchmarks.md, session 9). Not on the three that allocate the scratch arrays
+# (inline="always"): returned from a function of their own, the arrays' reference counting made the
+# constraint terms along a motion 12 % slower (four_bar_fem4, session 9).
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _max_local(table_nnz):
     n = 0
     for i in range(table_nnz.shape[0]):
@@ -88,14 +90,14 @@ def _max_local(table_nnz):
     return n + 3
 
 
-@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _scratch(table_nnz):
     """Columns of L (x and y components) and their indices in s, for the largest point."""
     nmax = _max_local(table_nnz)
     return np.empty(nmax), np.empty(nmax), np.empty(nmax, dtype=np.int64)
 
 
-@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _group_scratch(sp_int):
     """Per-point arrays (slope, eps, kappa, c) for the largest strain-point group."""
     n = 1
