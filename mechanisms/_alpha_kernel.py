@@ -30,8 +30,10 @@ from ._parts import drive_law
 # failure codes of ``_newton`` (0: converged); ``StepKernel.failure`` words them
 STALLED, SINGULAR, NOT_FINITE, NO_CONVERGENCE, WILD, DIVERGED = 1, 2, 3, 4, 5, 6
 
+# no_cfunc_wrapper on every kernel here and in _alpha_step, _alpha_tangent: none is passed as a
+# first-class function, and the C wrapper numba builds for that is first-run compilation for nothing.
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _affine_torques(s, v, grad, const, pos_gain, rate_gain, back_emf, command_limit, torque_limit,
                     out, d_s, d_v, jacobians):
     """``out += tau_k g_k`` over the affine torque terms (module docstring), and with ``jacobians``
@@ -73,7 +75,7 @@ def _affine_torques(s, v, grad, const, pos_gain, rate_gain, back_emf, command_li
                     d_v[i, j] -= g * back_emf[k] * grad[k, j]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _constraint_values(q, phi0, h_lin, drive_rows, drive_angles, ct_int, ct_real, shp, idx, out):
     """``Phi(q, t)`` (r,) as ``Model.constraints``: constant part, drive rows (their angles at t
     given), the kernel's terms."""
@@ -87,7 +89,7 @@ def _constraint_values(q, phi0, h_lin, drive_rows, drive_angles, ct_int, ct_real
     _kernels.constraints(q, ct_int, ct_real, shp, idx, out)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _fill_iteration_matrix(M, tangent, Phi_s, out):
     """The transpose of the Newton matrix of (NR), ``[[M + beta' K_t + gamma' C_t, Phi_s^T],
     [Phi_s, 0]]``, into ``out`` (n + r, n + r): the matrix in column-major order for LAPACK.
@@ -112,7 +114,7 @@ def _fill_iteration_matrix(M, tangent, Phi_s, out):
     return row_sum_max
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _newton_update(LU, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, gamma_p, rhs,
                    q, v):
     """One (modified) Newton step on (NR): residual, solve, update ``sddot, lam`` and the positions
@@ -145,7 +147,7 @@ def _newton_update(LU, piv, M, sddot, Phi_s, lam, Q, Phi, qhat, vhat, beta_p, ga
     return dq_max if finite else np.nan
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, beta_p, gamma_p,
             full_newton, tangent_valid, alpha_m, alpha_f, beta, gamma, abs_tol, max_iterations,
             max_increment, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, ct_int,
@@ -275,7 +277,7 @@ def _newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h,
             tangent_valid = False
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _max_abs_value(x):
     """``max |x_i|`` (NaN if any entry is NaN), as ``_alpha_step._max_abs``."""
     out = 0.0
@@ -287,7 +289,7 @@ def _max_abs_value(x):
     return out
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _start_step_values(q, v, a, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, alpha_m,
                        alpha_f, beta, gamma, beta_p, gamma_p, qhat, vhat, sddot, lam, q_new, v_new):
     """The predictor of ``_alpha_step._start_step`` (the same arithmetic)."""

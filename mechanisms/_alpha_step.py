@@ -119,7 +119,7 @@ def fused_step_wanted(n_steps: int) -> bool:
 # dgetrf / dgetrs calls cost 0-4 % (125) and 3-10 % (400) against the hand-written LU they replaced (medians
 # of interleaved runs; a cold OpenBLAS call takes ~2-3 us more). The matrix is built transposed
 # (``periodic.lapack``'s order).
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _lu_factor(G_T, piv):
     """``P G = L U`` of the iteration matrix G whose transpose ``G_T`` (n, n) is given (``periodic.lapack``'s
     convention; LAPACK dgetrf), in place; ``piv`` (n,) int32 receives the pivots.
@@ -131,7 +131,7 @@ def _lu_factor(G_T, piv):
     return lapack.pivot_ratio(G_T)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _tangent_terms(dMa_ds, dQ_ds, dQ_dv, dPhiTlam_ds, beta_p, gamma_p, out):
     """``beta' K_t + gamma' C_t`` of (NR), the part of the Newton matrix kept across iterations."""
     n = dMa_ds.shape[0]
@@ -141,7 +141,7 @@ def _tangent_terms(dMa_ds, dQ_ds, dQ_dv, dPhiTlam_ds, beta_p, gamma_p, out):
                          - gamma_p * dQ_dv[i, j])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _max_abs(x):
     """``max |x_i|`` (0 for an empty array, NaN if any entry is NaN)."""
     out = 0.0
@@ -153,7 +153,7 @@ def _max_abs(x):
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _start_step(q, v, a, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, alpha_m, alpha_f,
                 beta, gamma, beta_p, gamma_p, qhat, vhat, sddot, lam, q_new, v_new):
     """Predictor of the step from ``t_n``: the parts of (GA2), (GA3) known at ``t_n`` (``a_{n+1}``
@@ -172,7 +172,7 @@ def _start_step(q, v, a, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, a
         lam[k] = 2.0 * lam_n[k] - lam_prev[k] if extrapolate else lam_n[k]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _advance_alpha_acceleration(a, sddot_old, sddot_new, alpha_m, alpha_f):
     """(GA1) solved for ``a_{n+1}``, in place."""
     for i in range(a.shape[0]):

@@ -86,7 +86,7 @@ class _LagTangent:
         return (stiffness - weighted @ self.du_ds[1:], damping - weighted @ self.du_dv[1:])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _tangent_steps(mass, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, gamma_p, state,
                    lag_gradients, lag_decay, lag_weight, du_ds, du_dv, lag_state):
     """The step loop of ``_propagate_tangent``, in place on ``state`` (4, n, p) = d(q, v, a, sddot)
@@ -171,7 +171,7 @@ def _tangent_steps(mass, K, C, Phi_s, h, alpha_m, alpha_f, beta, gamma, beta_p, 
                 lag_state[k, j] += lag_known[k, j]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, no_cfunc_wrapper=True)
 def _lag_input_change(du_ds, du_dv, dq, dv, weight, out):
     """``out[k] = weight[k] (du_ds[k] dq + du_dv[k] dv)`` (L, p), the weighted change of the lags'
     inputs ``u`` (L,) for the changes ``dq``, ``dv`` (n, p) of the state; ``du_ds``, ``du_dv`` (L, n)."""

@@ -111,9 +111,11 @@ def constraint_terms_along(model, t, s, sdot=None, *, values: bool = False) -> C
 # ---------------------------------------------------------------------------------------------------
 # no_cfunc_wrapper: no kernel is passed as a first-class function (its C wrapper is first-run
 # compilation for nothing; see _kernels).
-# inline="always" on the helpers of a few lines: numba types them inside their callers instead of
-# compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+# forceinline on the helpers of a few lines: LLVM inlines them into every caller (its alwaysinline),
+# so the machine code is what numba's inline="always" gave, while numba types and lowers each once, as
+# a kernel of its own, instead of once per call site (inline="always" cost about 7 % more of the first
+# run's compilation: docs/benchmarks.md, session 9).
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _copy_matrix(source, target):
     """target[:, :] = source, as a loop: an array assigned to a slice would compile numba's
     shape-mismatch message (string formatting, seconds of the first run's compilation)."""
@@ -184,7 +186,7 @@ def constraint_terms_kernel(S, Sd, ct_int, ct_real, shp, idx, h_lin, J, gamma, p
             _kernels.constraints(S[k], ct_int, ct_real, shp, idx, phi[k])
 
 
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True)
 def _max_abs(values):
     """max |values| of a 1-D array (0 when empty, NaN when one is NaN: never a converged NaN), as
     a loop: ``np.abs(values).max()`` compiles a temporary array's ufunc and numba's reduction, a

@@ -75,8 +75,12 @@ import numpy as np
 # no_cfunc_wrapper on every kernel: none is passed as a first-class function, and the C wrapper numba
 # builds for that costs about 35 ms of the first run's compilation per kernel; no_cpython_wrapper on
 # the helpers that only kernels call (the Python wrapper unboxing their arrays costs as much again).
-# inline="always" on the helpers of a few lines: numba types them inside their callers instead of
-# compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
+# forceinline on the helpers of a few lines: LLVM inlines them into every caller (its alwaysinline),
+# so the machine code is what numba's inline="always" gave, while numba types and lowers each once, as
+# a kernel of its own, instead of once per call site (inline="always" cost about 7 % more of the first
+# run's compilation: docs/benchmarks.md, session 9). Not on the three that allocate the scratch arrays
+# (inline="always"): returned from a function of their own, the arrays' reference counting made the
+# constraint terms along a motion 12 % slower (four_bar_fem4, session 9).
 @numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _max_local(table_nnz):
     n = 0
@@ -209,7 +213,7 @@ def _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols):
     return apx, apy
 
 
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _elastic_velocity(sdot, nnz, lx, ly, cols):
     """A S q' (m/s)."""
     vx = 0.0
@@ -422,7 +426,7 @@ def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
                 out_v[a, b] -= c0[a, b]
 
 
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _term_direction(s, frame, dx, dy):
     """The term's direction in the plane: ``d``, or ``e = A(theta_f) d`` in a link's frame."""
     if frame < 0:

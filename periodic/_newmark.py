@@ -59,12 +59,14 @@ import numpy as np
 from . import lapack
 
 
-# inline="always" on the helpers of a few lines: numba types them inside their callers instead of
-# compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
+# forceinline on the helpers of a few lines: LLVM inlines them into every caller (its alwaysinline),
+# so the machine code is what numba's inline="always" gave, while numba types and lowers each once, as
+# a kernel of its own, instead of once per call site (inline="always" cost about 7 % more of the first
+# run's compilation: docs/benchmarks.md, session 9).
 # no_cfunc_wrapper on every kernel: none is passed as a first-class function, and the C wrapper numba
 # builds for that costs about 35 ms of the first run's compilation per kernel (no_cpython_wrapper too
 # on ``_residual_force``, which only kernels call).
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _copy(source, target):
     """target[:, :] = source (2-D), as a loop: an array assigned to a slice would compile numba's
     shape-mismatch message (string formatting, seconds of the first run's compilation)."""
@@ -73,7 +75,7 @@ def _copy(source, target):
             target[i, j] = source[i, j]
 
 
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _start_system(M0, C0, first_order, v, out):
     """``out`` = the matrix of (N0): M_0 with the columns of first-order coordinates taken from C_0; their
     rows of ``v`` (n, m) set to 0, since those rates are unknowns of (N0), not data."""
@@ -89,7 +91,7 @@ def _start_system(M0, C0, first_order, v, out):
                 out[i, j] = M0[i, j]
 
 
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _split_start(first_order, v, a):
     """After (N0): the rows of first-order coordinates in ``a`` (n, m) are their rates: move them to
     ``v`` and set the (free, see the module notes) auxiliary accelerations to 0."""

@@ -174,9 +174,11 @@ def solve_columns_loops(lu, pivots, b):
                     b[i, j] -= uil * b[l, j]
 
 
-# inline="always" on the helpers of a few lines: numba types them inside their callers instead of
-# compiling each as a kernel of its own (about 0.1-0.2 s each on the first run); the code is the same.
-@numba.njit(cache=True, inline="always", no_cfunc_wrapper=True)
+# forceinline on the helpers of a few lines: LLVM inlines them into every caller (its alwaysinline),
+# so the machine code is what numba's inline="always" gave, while numba types and lowers each once, as
+# a kernel of its own, instead of once per call site (inline="always" cost about 7 % more of the first
+# run's compilation: docs/benchmarks.md, session 9).
+@numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
 def _swap_rows(b, k, p):
     if p != k:
         for j in range(b.shape[1]):
