@@ -84,13 +84,17 @@ EASY_CHORD_ITERATIONS = 5
 CHORD_RATE = 0.01
 #: ... by this factor (up to max_step); a failed or turning one halves it.
 GROWTH = 1.5
-#: Where a natural step (or the N/2 level, or the first orbit) is not solved by the chord with the
-#: last orbit's monodromy: Newton's first step from the predictor, then chord iterations with THAT
-#: step's monodromy (``solve_fixed_point(..., reuse_first=True)``), the exact monodromy once at the
-#: converged orbit (from the period the chord ran last: only its tangent), Newton where that chord does
-#: not contract. The monodromy changes with the parameter (20-55 % per 1 rad/s step on six_bar), far
-#: less with the state between the predictor and the orbit (issue 24).
-REUSE_FIRST_MONODROMY = True
+#: Off by default (it does not pay on six_bar, issue 24). On: every corrector solve not done by the
+#: chord with the last orbit's monodromy (natural and arclength steps, the N/2 level, the first
+#: orbit) takes Newton's first step from its predictor, then chord iterations with THAT step's
+#: Jacobian (``solve_fixed_point(..., reuse_first=True)``; the bordered one for arclength), the exact
+#: monodromy once at the converged orbit (from the period the chord ran last: only its tangent), Newton
+#: where that chord does not contract. On six_bar's 50-speed sweep (tol 1e-8, 1 rad/s steps) Newton's
+#: first step leaves a relative residual of 4e-6 to 3e-4, from which Newton needs one more step
+#: and this chord (contracting by 1e-4 to 5e-2 a period) two to four: 435 N periods and 226 tangents
+#: against Newton's 364 and 314, the N/2 level 160 / 126 against 147 / 145, at about 0.3 of a period
+#: a tangent more time, not less. It pays where Newton takes four or more steps (a poor start).
+REUSE_FIRST_MONODROMY = False
 #: The N/2 level's orbit is its settled chord iterate, not that iterate plus its correction
 #: (``settle_on_iterate``): its monodromy from the period just run.
 SETTLE_ON_ITERATE = True
