@@ -98,6 +98,12 @@ REUSE_FIRST_MONODROMY = False
 #: The N/2 level's orbit is its settled chord iterate, not that iterate plus its correction
 #: (``settle_on_iterate``): its monodromy from the period just run.
 SETTLE_ON_ITERATE = True
+#: The turn check (``MAX_TURN``) at each Newton iterate of a step's corrector, not only at its converged
+#: point: Newton's first step is within 1e-4 or so of the orbit, its secant within about 0.1 degree of
+#: the converged one's, so a step that will turn too far is abandoned after one or two periods with
+#: their monodromy instead of three or four (on six_bar's 50-speed sweep 25 of 75 steps were
+#: rejected by it, a third of the N periods with their monodromy; issue 24).
+EARLY_TURN_CHECK = True
 #: Brent's method locates a bifurcation to this fraction of the chord between two points.
 LOCATE_XTOL = 1e-10
 #: Without ``state_scale`` the state's scale follows the largest rms state met, by factors of this.
@@ -205,14 +211,14 @@ class _Corrector:
             tangent = -tangent
         return tangent
 
-    def solve(self, y_pred, normal, *, fixed_parameter: float | None = None):
+    def solve(self, y_pred, normal, *, fixed_parameter: float | None = None, abandon=None):
         """Newton from ``y_pred`` on the hyperplane ``normal . (y - y_pred) = 0``, or at the parameter
         value ``fixed_parameter`` exactly (``normal = e_p``); returns the :class:`NewtonResult`
         (``extra``: the monodromy). At a fixed parameter with a ``kept`` monodromy (the last orbit's):
         chord iterations with it, periods without their monodromy, and the exact one at the converged
         state (``solve_fixed_point``), about half the cost of Newton's every-period monodromy."""
         if fixed_parameter is not None and self.kept is not None:
-            return self._chord_at(y_pred, fixed_parameter)
+            return self._chord_at(y_pred, fixed_parameter, abandon)
         n = y_pred.size - 1
         column = {}
 
@@ -245,7 +251,8 @@ class _Corrector:
 
         calls_before = self.map.calls
         found = (self._reusing_first(evaluate, evaluate_end, y_pred, relative) if REUSE_FIRST_MONODROMY
-                 else newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative))
+                 else newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative,
+                             abandon=abandon))
         self.calls_of_last_solve = self.map.calls - calls_before
         return found
 
@@ -272,17 +279,19 @@ class _Corrector:
         return newton(evaluate, start, tol=self.tol, max_iterations=self.max_iterations, relative=relative,
                       first=first if np.array_equal(start, y_pred) else None)
 
-    def _chord_at(self, y_pred, parameter: float):
+    def _chord_at(self, y_pred, parameter: float, abandon=None):
         """``solve`` at the fixed ``parameter`` by ``solve_fixed_point`` with the ``kept`` monodromy,
         its result in the scaled unknowns (``y`` with the parameter, the residual with a zero
         constraint row, ``extra`` the monodromy at ``y``)."""
         n = y_pred.size - 1
         calls_before = self.map.calls
         by_chord = self.chord_rate <= CHORD_RATE
+        turned = None if abandon is None else (lambda state: abandon(self.scaled(state, parameter)))
         found = solve_fixed_point(self.map, self.unscaled(y_pred)[0], parameter, tol=self.tol,
                                   max_iterations=self.max_iterations, state_scale=self.floor,
                                   monodromy=self.kept if by_chord else None,
-                                  reuse_first=not by_chord and REUSE_FIRST_MONODROMY)
+                                  reuse_first=not by_chord and REUSE_FIRST_MONODROMY,
+                                  abandon=turned)
         self.calls_of_last_solve = self.map.calls - calls_before
         monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(n)
         return replace(found, y=self.scaled(found.y, parameter), residual_vector=np.append(
@@ -444,7 +453,8 @@ class _Follower:
             if step < min_step:
                 return self._finish("min_step", min_step=min_step, reason=last_reason)
             y_pred, normal, fixed = self._predict(y, tangent, step)
-            found = corrector.solve(y_pred, normal, fixed_parameter=fixed)
+            turned = self._turn_check(y, tangent) if EARLY_TURN_CHECK else None
+            found = corrector.solve(y_pred, normal, fixed_parameter=fixed, abandon=turned)
             if not found.converged:
                 last_reason = found.reason
                 step *= 0.5
@@ -481,6 +491,20 @@ class _Follower:
             if found.iterations <= (EASY_ITERATIONS if fixed is None and not REUSE_FIRST_MONODROMY
                                     else EASY_CHORD_ITERATIONS):
                 step = min(step * GROWTH, max_step)
+
+    @staticmethod
+    def _turn_check(y, tangent):
+        """``abandon(y_new) -> str`` for the corrector's Newton: the turn check's reason where the secant
+        from ``y`` to the iterate ``y_new`` (scaled) turns by more than ``MAX_TURN`` from ``tangent``
+        (``EARLY_TURN_CHECK``), else ""."""
+        def turned(y_new) -> str:
+            secant = y_new - y
+            norm = float(np.linalg.norm(secant))
+            if norm > 0.0 and secant @ tangent >= math.cos(MAX_TURN) * norm:
+                return ""
+            return (f"the branch turned by more than {math.degrees(MAX_TURN):g} degrees in a step "
+                    "(a fold, or a jump to another branch)")
+        return turned
 
     def _local_tangent(self, found, parameter, secant) -> np.ndarray:
         """The unit tangent (scaled) of the branch at the converged point ``found`` (at ``parameter``):
