@@ -182,3 +182,27 @@ def test_reusing_the_first_monodromy_gives_newtons_branch(method, monkeypatch):
         assert a.state_error == pytest.approx(b.state_error, rel=0.02)
         np.testing.assert_allclose(a.multiplier_errors, b.multiplier_errors, rtol=0.05,
                                    atol=1e-3 * np.abs(b.multiplier_errors).max())
+
+
+def test_the_early_turn_check_rejects_the_same_steps_for_fewer_periods(monkeypatch):
+    # natural steps up a lightly damped Duffing's resonance into its fold: near it steps turn too far
+    # and are halved until min_step; the turn checked at each Newton iterate (and at a full step's point
+    # before its period) against only at the converged point
+    branches, maps = {}, {}
+    for early in (True, False):
+        monkeypatch.setattr("periodic._continuation.EARLY_TURN_CHECK", early)
+        maps[early] = _CountedPeriods(periodic.duffing_period_map("omega", n_steps=64, damping=0.01, cubic=0.2,
+                                                                  force=0.005))
+        branches[early] = periodic.continue_orbits(maps[early], np.zeros(2), 0.9, 1.15, stop_at_instability=False)
+    early, late = branches[True], branches[False]
+    assert late.status == early.status == "failed" and "method='arclength'" in early.message
+    # (the last step's reason may differ: the late check's Newton diverged there before converging)
+    assert "turned by more than" in early.message
+    np.testing.assert_array_equal(early.parameters, late.parameters)
+    np.testing.assert_array_equal(early.states, late.states)
+    assert early.statuses == late.statuses
+    assert maps[True].monodromies < 0.5 * maps[False].monodromies
+    exact = periodic.duffing_period_map("omega", n_steps=64, damping=0.01, cubic=0.2, force=0.005)
+    for orbit in early.orbits[-3:]:    # the last orbits, nearest the fold: on the branch
+        single = periodic.find_orbit(exact, orbit.state, orbit.parameter, tol=1e-13)
+        np.testing.assert_allclose(orbit.state, single.state, rtol=0, atol=1e-8 * np.abs(single.state).max())
