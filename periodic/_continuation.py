@@ -21,7 +21,9 @@ forward difference of the map, ``(P(x, p + dp) - P(x, p)) / dp`` with ``dp = sqr
 solve at its first iterate (arclength) and once at each accepted point for its tangent (one extra
 period without its monodromy each).  Step control: a corrector that fails, or whose new secant turns
 by more than ``MAX_TURN`` from the tangent at the last point (it may have jumped to another branch),
-halves the step; one that converges in at most ``EASY_ITERATIONS`` Newton steps
+halves the step (checked at each Newton iterate, and at a full Newton step's point before its period
+is run, ``EARLY_TURN_CHECK``: no more periods for a step that has turned); one that converges in at
+most ``EASY_ITERATIONS`` Newton steps
 (``EASY_CHORD_ITERATIONS`` chord steps) grows it by ``GROWTH``.  The reference is the local tangent,
 not the last secant: where the branch bends sharply (near a resonance) a long last secant differs
 from the local direction by more than ``MAX_TURN`` however short the new step.  For the same reason
@@ -104,6 +106,9 @@ SETTLE_ON_ITERATE = True
 #: their monodromy instead of three or four (on six_bar's 50-speed sweep 25 of 75 steps were
 #: rejected by it, a third of the N periods with their monodromy; issue 24).
 EARLY_TURN_CHECK = True
+#: A step grows only where the turn it made, times ``GROWTH``, stays within ``MAX_TURN`` (the turn
+#: grows about as the step where the branch's curvature is smooth).
+TURN_LIMITED_GROWTH = False
 #: Brent's method locates a bifurcation to this fraction of the chord between two points.
 LOCATE_XTOL = 1e-10
 #: Without ``state_scale`` the state's scale follows the largest rms state met, by factors of this.
@@ -462,6 +467,7 @@ class _Follower:
             secant = found.y - y
             secant /= np.linalg.norm(secant)
             # against the tangent at the last point, not the last secant (see the module notes)
+            turn = math.acos(min(1.0, max(-1.0, float(secant @ tangent))))
             if secant @ tangent < math.cos(MAX_TURN):
                 last_reason = (f"the branch turned by more than {math.degrees(MAX_TURN):g} degrees in a step "
                                "(a fold, or a jump to another branch)")
@@ -488,8 +494,9 @@ class _Follower:
             y, tangent = found.y, new_tangent
             if self.adaptive_scale:
                 y, tangent = self._rescale(y, tangent, new.state)
-            if found.iterations <= (EASY_ITERATIONS if fixed is None and not REUSE_FIRST_MONODROMY
-                                    else EASY_CHORD_ITERATIONS):
+            easy = found.iterations <= (EASY_ITERATIONS if fixed is None and not REUSE_FIRST_MONODROMY
+                                        else EASY_CHORD_ITERATIONS)
+            if easy and not (TURN_LIMITED_GROWTH and turn * GROWTH > MAX_TURN):
                 step = min(step * GROWTH, max_step)
 
     @staticmethod
