@@ -130,13 +130,7 @@ def main() -> None:
     parser.add_argument("--compare", nargs=2, default=None)
     parser.add_argument("--reuse-steps", choices=("on", "off"), default=None,
                         help="periodic._continuation.REUSE_FIRST_MONODROMY (this code only; default: as it is)")
-    parser.add_argument("--turn-limited-growth", action="store_true",
-                        help="periodic._continuation.TURN_LIMITED_GROWTH = True (this code only)")
     args = parser.parse_args()
-    if args.turn_limited_growth:
-        import periodic._continuation as continuation
-
-        continuation.TURN_LIMITED_GROWTH = True
     if args.reuse_steps:
         import periodic._continuation as continuation
 

@@ -106,9 +106,6 @@ SETTLE_ON_ITERATE = True
 #: their monodromy instead of three or four (on six_bar's 50-speed sweep 25 of 75 steps were
 #: rejected by it, a third of the N periods with their monodromy; issue 24).
 EARLY_TURN_CHECK = True
-#: A step grows only where the turn it made, times ``GROWTH``, stays within ``MAX_TURN`` (the turn
-#: grows about as the step where the branch's curvature is smooth).
-TURN_LIMITED_GROWTH = False
 #: Brent's method locates a bifurcation to this fraction of the chord between two points.
 LOCATE_XTOL = 1e-10
 #: Without ``state_scale`` the state's scale follows the largest rms state met, by factors of this.
@@ -467,7 +464,6 @@ class _Follower:
             secant = found.y - y
             secant /= np.linalg.norm(secant)
             # against the tangent at the last point, not the last secant (see the module notes)
-            turn = math.acos(min(1.0, max(-1.0, float(secant @ tangent))))
             if secant @ tangent < math.cos(MAX_TURN):
                 last_reason = (f"the branch turned by more than {math.degrees(MAX_TURN):g} degrees in a step "
                                "(a fold, or a jump to another branch)")
@@ -494,9 +490,8 @@ class _Follower:
             y, tangent = found.y, new_tangent
             if self.adaptive_scale:
                 y, tangent = self._rescale(y, tangent, new.state)
-            easy = found.iterations <= (EASY_ITERATIONS if fixed is None and not REUSE_FIRST_MONODROMY
-                                        else EASY_CHORD_ITERATIONS)
-            if easy and not (TURN_LIMITED_GROWTH and turn * GROWTH > MAX_TURN):
+            if found.iterations <= (EASY_ITERATIONS if fixed is None and not REUSE_FIRST_MONODROMY
+                                    else EASY_CHORD_ITERATIONS):
                 step = min(step * GROWTH, max_step)
 
     @staticmethod
