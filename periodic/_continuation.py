@@ -94,17 +94,18 @@ GROWTH = 1.5
 #: where that chord does not contract. On six_bar's 50-speed sweep (tol 1e-8, 1 rad/s steps) Newton's
 #: first step leaves a relative residual of 4e-6 to 3e-4, from which Newton needs one more step
 #: and this chord (contracting by 1e-4 to 5e-2 a period) two to four: 435 N periods and 226 tangents
-#: against Newton's 364 and 314, the N/2 level 160 / 126 against 147 / 145, at about 0.3 of a period
-#: a tangent more time, not less. It pays where Newton takes four or more steps (a poor start).
+#: against Newton's 364 and 314, the N/2 level 160 / 126 against 147 / 145, at 0.38 of a period a
+#: tangent more time, not less. It pays where Newton takes four or more steps (a poor start).
 REUSE_FIRST_MONODROMY = False
 #: The N/2 level's orbit is its settled chord iterate, not that iterate plus its correction
 #: (``settle_on_iterate``): its monodromy from the period just run.
 SETTLE_ON_ITERATE = True
 #: The turn check (``MAX_TURN``) at each Newton iterate of a step's corrector, not only at its converged
 #: point: Newton's first step is within 1e-4 or so of the orbit, its secant within about 0.1 degree of
-#: the converged one's, so a step that will turn too far is abandoned after one or two periods with
-#: their monodromy instead of three or four (on six_bar's 50-speed sweep 25 of 75 steps were
-#: rejected by it, a third of the N periods with their monodromy; issue 24).
+#: the converged one's, so a step that will turn too far is abandoned after the predictor's period
+#: with its monodromy (a full step's point is checked before its period is run) instead of three or
+#: four (on six_bar's 50-speed sweep 25 of 75 steps were rejected by it, a third of the N periods
+#: with their monodromy; issue 24). Newton's iterates only: not the chords'.
 EARLY_TURN_CHECK = True
 #: Brent's method locates a bifurcation to this fraction of the chord between two points.
 LOCATE_XTOL = 1e-10
