@@ -21,7 +21,9 @@ forward difference of the map, ``(P(x, p + dp) - P(x, p)) / dp`` with ``dp = sqr
 solve at its first iterate (arclength) and once at each accepted point for its tangent (one extra
 period without its monodromy each).  Step control: a corrector that fails, or whose new secant turns
 by more than ``MAX_TURN`` from the tangent at the last point (it may have jumped to another branch),
-halves the step; one that converges in at most ``EASY_ITERATIONS`` Newton steps
+halves the step (checked at each Newton iterate, and at a full Newton step's point before its period
+is run, ``EARLY_TURN_CHECK``: no more periods for a step that has turned); one that converges in at
+most ``EASY_ITERATIONS`` Newton steps
 (``EASY_CHORD_ITERATIONS`` chord steps) grows it by ``GROWTH``.  The reference is the local tangent,
 not the last secant: where the branch bends sharply (near a resonance) a long last secant differs
 from the local direction by more than ``MAX_TURN`` however short the new step.  For the same reason
@@ -53,6 +55,7 @@ from ._orbit import (
     PeriodicOrbit,
     check_iterations,
     check_state,
+    chord,
     classify,
     newton,
     relative_residual,
@@ -83,6 +86,27 @@ EASY_CHORD_ITERATIONS = 5
 CHORD_RATE = 0.01
 #: ... by this factor (up to max_step); a failed or turning one halves it.
 GROWTH = 1.5
+#: Off by default (it does not pay on six_bar, issue 24). On: every corrector solve not done by the
+#: chord with the last orbit's monodromy (natural and arclength steps, the N/2 level, the first
+#: orbit) takes Newton's first step from its predictor, then chord iterations with THAT step's
+#: Jacobian (``solve_fixed_point(..., reuse_first=True)``; the bordered one for arclength), the exact
+#: monodromy once at the converged orbit (from the period the chord ran last: only its tangent), Newton
+#: where that chord does not contract. On six_bar's 50-speed sweep (tol 1e-8, 1 rad/s steps) Newton's
+#: first step leaves a relative residual of 4e-6 to 3e-4, from which Newton needs one more step
+#: and this chord (contracting by 1e-4 to 5e-2 a period) two to four: 435 N periods and 226 tangents
+#: against Newton's 364 and 314, the N/2 level 160 / 126 against 147 / 145, at 0.38 of a period a
+#: tangent more time, not less. It pays where Newton takes four or more steps (a poor start).
+REUSE_FIRST_MONODROMY = False
+#: The N/2 level's orbit is its settled chord iterate, not that iterate plus its correction
+#: (``settle_on_iterate``): its monodromy from the period just run.
+SETTLE_ON_ITERATE = True
+#: The turn check (``MAX_TURN``) at each Newton iterate of a step's corrector, not only at its converged
+#: point: Newton's first step is within 1e-4 or so of the orbit, its secant within about 0.1 degree of
+#: the converged one's, so a step that will turn too far is abandoned after the predictor's period
+#: with its monodromy (a full step's point is checked before its period is run) instead of three or
+#: four (on six_bar's 50-speed sweep 25 of 75 steps were rejected by it, a third of the N periods
+#: with their monodromy; issue 24). Newton's iterates only: not the chords'.
+EARLY_TURN_CHECK = True
 #: Brent's method locates a bifurcation to this fraction of the chord between two points.
 LOCATE_XTOL = 1e-10
 #: Without ``state_scale`` the state's scale follows the largest rms state met, by factors of this.
@@ -190,14 +214,14 @@ class _Corrector:
             tangent = -tangent
         return tangent
 
-    def solve(self, y_pred, normal, *, fixed_parameter: float | None = None):
+    def solve(self, y_pred, normal, *, fixed_parameter: float | None = None, abandon=None):
         """Newton from ``y_pred`` on the hyperplane ``normal . (y - y_pred) = 0``, or at the parameter
         value ``fixed_parameter`` exactly (``normal = e_p``); returns the :class:`NewtonResult`
         (``extra``: the monodromy). At a fixed parameter with a ``kept`` monodromy (the last orbit's):
         chord iterations with it, periods without their monodromy, and the exact one at the converged
         state (``solve_fixed_point``), about half the cost of Newton's every-period monodromy."""
         if fixed_parameter is not None and self.kept is not None:
-            return self._chord_at(y_pred, fixed_parameter)
+            return self._chord_at(y_pred, fixed_parameter, abandon)
         n = y_pred.size - 1
         column = {}
 
@@ -221,21 +245,56 @@ class _Corrector:
         def relative(y, value):
             return relative_residual(y[:-1] * self.X, value[:-1] * self.X, self.floor)
 
+        def evaluate_end(y):    # a period without its monodromy, for the chord iterations
+            state, parameter = self.unscaled(y)
+            if fixed_parameter is not None:
+                parameter = fixed_parameter
+            end = self.map.end_state(state, parameter)
+            return np.append((end - state) / self.X, normal @ (y - y_pred))
+
         calls_before = self.map.calls
-        found = newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative)
+        found = (self._reusing_first(evaluate, evaluate_end, y_pred, relative) if REUSE_FIRST_MONODROMY
+                 else newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative,
+                             abandon=abandon))
         self.calls_of_last_solve = self.map.calls - calls_before
         return found
 
-    def _chord_at(self, y_pred, parameter: float):
+    def _reusing_first(self, evaluate, evaluate_end, y_pred, relative):
+        """The bordered system's ``reuse_first`` (``solve_fixed_point``'s): Newton's first step from
+        ``y_pred``, chord iterations with its Jacobian (monodromy and ``dP/dp``), the exact monodromy
+        once at the converged point (its period not run again), Newton where the chord does not
+        contract."""
+        try:
+            first = evaluate(y_pred)
+        except RuntimeError:    # Newton's own evaluation reports the failure
+            first = None
+        if first is None or not (np.all(np.isfinite(first[0])) and np.all(np.isfinite(first[1]))):
+            return newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative)
+        kept = chord(evaluate_end, y_pred, first[1], tol=self.tol, max_iterations=self.max_iterations,
+                     relative=relative, value0=first[0])
+        if kept.converged and kept.iterations == 0:
+            return newton(evaluate, y_pred, tol=self.tol, max_iterations=0, relative=relative, first=first)
+        if kept.converged:
+            found = newton(evaluate, kept.y, tol=self.tol, max_iterations=0, relative=relative)
+            if found.converged:
+                return replace(found, iterations=kept.iterations)
+        start = kept.y if kept.y is not None and np.all(np.isfinite(kept.y)) else y_pred
+        return newton(evaluate, start, tol=self.tol, max_iterations=self.max_iterations, relative=relative,
+                      first=first if np.array_equal(start, y_pred) else None)
+
+    def _chord_at(self, y_pred, parameter: float, abandon=None):
         """``solve`` at the fixed ``parameter`` by ``solve_fixed_point`` with the ``kept`` monodromy,
         its result in the scaled unknowns (``y`` with the parameter, the residual with a zero
         constraint row, ``extra`` the monodromy at ``y``)."""
         n = y_pred.size - 1
         calls_before = self.map.calls
-        chord = self.chord_rate <= CHORD_RATE
+        by_chord = self.chord_rate <= CHORD_RATE
+        turned = None if abandon is None else (lambda state: abandon(self.scaled(state, parameter)))
         found = solve_fixed_point(self.map, self.unscaled(y_pred)[0], parameter, tol=self.tol,
                                   max_iterations=self.max_iterations, state_scale=self.floor,
-                                  monodromy=self.kept if chord else None)
+                                  monodromy=self.kept if by_chord else None,
+                                  reuse_first=not by_chord and REUSE_FIRST_MONODROMY,
+                                  abandon=turned)
         self.calls_of_last_solve = self.map.calls - calls_before
         monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(n)
         return replace(found, y=self.scaled(found.y, parameter), residual_vector=np.append(
@@ -256,8 +315,9 @@ class _Corrector:
         contract by ``CHORD_RATE`` (``chord_rate`` of the two levels' monodromies at the last point;
         tried at the first), else by Newton: on six_bar at N = 128 the N/2 orbit differs from the N
         one by 10-110 % of the state near 78 rad/s and the chord contracted by 0.1-0.2 only (issue 24)."""
+        by_chord = self.coarse_chord_rate <= CHORD_RATE
         judged = self.estimator.apply(orbit, stability_tol=self.stability_tol, start_time=start_time,
-                                      chord=self.coarse_chord_rate <= CHORD_RATE)
+                                      chord=by_chord, reuse_first=not by_chord and REUSE_FIRST_MONODROMY)
         coarse = self.estimator.coarse_monodromy
         if coarse is not None:
             self.coarse_chord_rate = chord_rate(orbit.monodromy, coarse)
@@ -339,10 +399,11 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
     if accuracy is not None:
         accuracy = check_tol("accuracy", accuracy, 1.0)
     estimator = ErrorEstimate(estimate, error_factor, guess.size, tol=tol, max_iterations=max_iterations,
-                              state_scale=floor, accuracy=accuracy)
+                              state_scale=floor, accuracy=accuracy,
+                              settle_on_iterate=SETTLE_ON_ITERATE and accuracy is not None)
 
     first = solve_fixed_point(counted, guess, start, tol=tol, max_iterations=max(max_iterations, 20),
-                              state_scale=floor)
+                              state_scale=floor, reuse_first=REUSE_FIRST_MONODROMY)
     first_orbit = classify(start, first.y, first.extra if first.extra is not None else first.jacobian,
                            residual=first.residual, iterations=first.iterations, map_calls=counted.calls,
                            converged=first.converged, reason=first.reason, stability_tol=stability_tol,
@@ -395,7 +456,8 @@ class _Follower:
             if step < min_step:
                 return self._finish("min_step", min_step=min_step, reason=last_reason)
             y_pred, normal, fixed = self._predict(y, tangent, step)
-            found = corrector.solve(y_pred, normal, fixed_parameter=fixed)
+            turned = self._turn_check(y, tangent) if EARLY_TURN_CHECK else None
+            found = corrector.solve(y_pred, normal, fixed_parameter=fixed, abandon=turned)
             if not found.converged:
                 last_reason = found.reason
                 step *= 0.5
@@ -429,8 +491,23 @@ class _Follower:
             y, tangent = found.y, new_tangent
             if self.adaptive_scale:
                 y, tangent = self._rescale(y, tangent, new.state)
-            if found.iterations <= (EASY_ITERATIONS if fixed is None else EASY_CHORD_ITERATIONS):
+            if found.iterations <= (EASY_ITERATIONS if fixed is None and not REUSE_FIRST_MONODROMY
+                                    else EASY_CHORD_ITERATIONS):
                 step = min(step * GROWTH, max_step)
+
+    @staticmethod
+    def _turn_check(y, tangent):
+        """``abandon(y_new) -> str`` for the corrector's Newton: the turn check's reason where the secant
+        from ``y`` to the iterate ``y_new`` (scaled) turns by more than ``MAX_TURN`` from ``tangent``
+        (``EARLY_TURN_CHECK``), else ""."""
+        def turned(y_new) -> str:
+            secant = y_new - y
+            norm = float(np.linalg.norm(secant))
+            if norm > 0.0 and secant @ tangent >= math.cos(MAX_TURN) * norm:
+                return ""
+            return (f"the branch turned by more than {math.degrees(MAX_TURN):g} degrees in a step "
+                    "(a fold, or a jump to another branch)")
+        return turned
 
     def _local_tangent(self, found, parameter, secant) -> np.ndarray:
         """The unit tangent (scaled) of the branch at the converged point ``found`` (at ``parameter``):

@@ -147,7 +147,7 @@ def scaled_condition(jacobian: np.ndarray) -> float:
 
 
 def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: float = 0.0,
-           settled=None, first=None) -> NewtonResult:
+           settled=None, first=None, abandon=None) -> NewtonResult:
     """Damped Newton on ``F(y) = 0``.  ``evaluate(y) -> (F (m,), J (m, m), extra)`` may raise
     ``RuntimeError`` (a numerical failure of the map: treated like a non-finite value, the step is
     shortened); ``relative(y, F) -> float`` is the convergence measure, compared with ``tol``;
@@ -158,6 +158,9 @@ def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: fl
     Newton correction is small enough for the caller (an error level's orbit); it is asked at every
     iterate, the last included (so ``max_iterations = 0`` checks ``y0``).
     ``first``: ``evaluate(y0)`` where the caller has it already (not evaluated again).
+    ``abandon(y) -> str`` (optional): asked of each full Newton step's point before it is evaluated,
+    and of each iterate after a (damped) step; a non-empty answer stops Newton, not converged, with
+    that reason (a continuation step that turns too far: no period run for it).
     A backtracking line search on ``|F|`` makes each accepted step decrease it."""
     y = np.array(y0, dtype=float)
     try:
@@ -191,6 +194,9 @@ def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: fl
         length, accepted, failure = 1.0, False, ""
         for _ in range(_MAX_HALVINGS + 1):
             trial = y + length * direction
+            reason = abandon(trial) if abandon is not None and length == 1.0 else ""
+            if reason:    # the full step's point, before its period is run
+                return NewtonResult(y, value, jacobian, extra, residual, iteration, False, reason)
             try:
                 trial_value, trial_jacobian, trial_extra = evaluate(trial)
             except RuntimeError as error:
@@ -217,6 +223,9 @@ def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: fl
                 f"step (relative residual {residual:.3g}); start nearer the orbit or take smaller steps"))
         y, value, jacobian, extra = trial, trial_value, trial_jacobian, trial_extra
         residual = relative(y, value)
+        reason = abandon(y) if abandon is not None else ""
+        if reason:
+            return NewtonResult(y, value, jacobian, extra, residual, iteration + 1, False, reason)
     return NewtonResult(y, value, jacobian, extra, residual, max_iterations, False, (
         f"max iterations: {max_iterations} Newton steps left the relative residual at {residual:.3g} > tol "
         f"{tol:g}; raise max_iterations or start nearer the orbit"))
@@ -357,7 +366,7 @@ def check_iterations(name: str, value) -> int:
 
 
 def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_iterations, state_scale,
-                      monodromy=None, settled=None, reuse_first=False, settle_on_iterate=False):
+                      monodromy=None, settled=None, reuse_first=False, settle_on_iterate=False, abandon=None):
     """Newton on ``P(x) - x`` at a fixed parameter; ``extra`` of the result is the monodromy.
 
     With ``monodromy`` (n, n), a nearby orbit's (the finer level's, of which this map is a coarser
@@ -371,7 +380,7 @@ def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_ite
     2.4 % from the linear start to the first iterate; the chord reached 7e-9 in two periods where
     Newton took two more periods with their monodromy).  ``settle_on_iterate``: ``chord``'s (an
     error level's orbit is the settled iterate, whose period a ``mechanisms.PeriodMap`` keeps: its
-    monodromy without a period more)."""
+    monodromy without a period more).  ``abandon``: Newton's (its iterates only, not the chord's)."""
 
     def evaluate(state):
         end, monodromy = period_map(state, parameter)
@@ -412,7 +421,7 @@ def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_ite
     first = ((value0, monodromy - np.eye(guess.size), monodromy)
              if value0 is not None and np.array_equal(guess, start) else None)
     return newton(evaluate, guess, tol=tol, max_iterations=max_iterations, relative=relative, floor=floor,
-                  settled=settled, first=first)
+                  settled=settled, first=first, abandon=abandon)
 
 
 class Settled:
@@ -565,11 +574,12 @@ class ErrorEstimate:
         self.errors = errors
 
     def apply(self, orbit: PeriodicOrbit, *, stability_tol: float, start_time: float,
-              chord: bool = True) -> PeriodicOrbit:
+              chord: bool = True, reuse_first: bool = False) -> PeriodicOrbit:
         """``orbit`` judged again with the error bars (unchanged without an estimate or if not converged).
         The coarse orbit is solved from ``orbit.state`` by chord iterations with ``orbit.monodromy``
         (``chord``, the default), else by Newton (a continuation whose two levels' monodromies differ
-        too much for the chord to contract); ``coarse_monodromy`` is then the coarse orbit's (None
+        too much for the chord to contract; ``reuse_first``: Newton's first step, then the chord with
+        its monodromy, ``solve_fixed_point``'s); ``coarse_monodromy`` is then the coarse orbit's (None
         where there is none)."""
         self.coarse_monodromy = None
         if not orbit.converged or (self.errors is None and self.coarse is None):
@@ -581,6 +591,7 @@ class ErrorEstimate:
             coarse = solve_fixed_point(self.coarse, orbit.state, orbit.parameter, tol=self.tol,
                                        max_iterations=self.max_iterations, state_scale=self.state_scale,
                                        monodromy=orbit.monodromy if chord else None, settled=settled,
+                                       reuse_first=reuse_first and not chord,
                                        settle_on_iterate=self.settle_on_iterate)
             made = self.coarse.calls - calls_before
             self.calls += made
