@@ -12,11 +12,8 @@ compares two runs at the speeds both visit.
 Run it against another commit in alternating processes, e.g. with ``git archive <commit> | tar -x
 -C /tmp/base`` and ``PYTHONPATH=/tmp/base``: the script imports whichever ``studies`` comes first.
 
-``--reuse-steps on|off``: ``periodic._continuation.REUSE_FIRST_MONODROMY`` (the steps' and the N/2
-level's corrector by Newton's first step then the chord with its monodromy; this code only).
-
 Usage: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_sweep_corrector.py [--repeats 1]
-[--save out/sweep.npz] [--reuse-steps on|off]`` or ``... --compare A.npz B.npz``
+[--save out/sweep.npz]`` or ``... --compare A.npz B.npz``
 """
 
 from __future__ import annotations
@@ -128,13 +125,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--save", default=None)
     parser.add_argument("--compare", nargs=2, default=None)
-    parser.add_argument("--reuse-steps", choices=("on", "off"), default=None,
-                        help="periodic._continuation.REUSE_FIRST_MONODROMY (this code only; default: as it is)")
     args = parser.parse_args()
-    if args.reuse_steps:
-        import periodic._continuation as continuation
-
-        continuation.REUSE_FIRST_MONODROMY = args.reuse_steps == "on"
     if args.compare:
         _compare(*args.compare)
     else:

@@ -55,7 +55,6 @@ from ._orbit import (
     PeriodicOrbit,
     check_iterations,
     check_state,
-    chord,
     classify,
     newton,
     relative_residual,
@@ -86,17 +85,6 @@ EASY_CHORD_ITERATIONS = 5
 CHORD_RATE = 0.01
 #: ... by this factor (up to max_step); a failed or turning one halves it.
 GROWTH = 1.5
-#: Off by default (it does not pay on six_bar, issue 24). On: every corrector solve not done by the
-#: chord with the last orbit's monodromy (natural and arclength steps, the N/2 level, the first
-#: orbit) takes Newton's first step from its predictor, then chord iterations with THAT step's
-#: Jacobian (``solve_fixed_point(..., reuse_first=True)``; the bordered one for arclength), the exact
-#: monodromy once at the converged orbit (from the period the chord ran last: only its tangent), Newton
-#: where that chord does not contract. On six_bar's 50-speed sweep (tol 1e-8, 1 rad/s steps) Newton's
-#: first step leaves a relative residual of 4e-6 to 3e-4, from which Newton needs one more step
-#: and this chord (contracting by 1e-4 to 5e-2 a period) two to four: 435 N periods and 226 tangents
-#: against Newton's 364 and 314, the N/2 level 160 / 126 against 147 / 145, at 0.38 of a period a
-#: tangent more time, not less. It pays where Newton takes four or more steps (a poor start).
-REUSE_FIRST_MONODROMY = False
 #: The N/2 level's orbit is its settled chord iterate, not that iterate plus its correction
 #: (``settle_on_iterate``): its monodromy from the period just run.
 SETTLE_ON_ITERATE = True
@@ -245,42 +233,11 @@ class _Corrector:
         def relative(y, value):
             return relative_residual(y[:-1] * self.X, value[:-1] * self.X, self.floor)
 
-        def evaluate_end(y):    # a period without its monodromy, for the chord iterations
-            state, parameter = self.unscaled(y)
-            if fixed_parameter is not None:
-                parameter = fixed_parameter
-            end = self.map.end_state(state, parameter)
-            return np.append((end - state) / self.X, normal @ (y - y_pred))
-
         calls_before = self.map.calls
-        found = (self._reusing_first(evaluate, evaluate_end, y_pred, relative) if REUSE_FIRST_MONODROMY
-                 else newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative,
-                             abandon=abandon))
+        found = newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative,
+                       abandon=abandon)
         self.calls_of_last_solve = self.map.calls - calls_before
         return found
-
-    def _reusing_first(self, evaluate, evaluate_end, y_pred, relative):
-        """The bordered system's ``reuse_first`` (``solve_fixed_point``'s): Newton's first step from
-        ``y_pred``, chord iterations with its Jacobian (monodromy and ``dP/dp``), the exact monodromy
-        once at the converged point (its period not run again), Newton where the chord does not
-        contract."""
-        try:
-            first = evaluate(y_pred)
-        except RuntimeError:    # Newton's own evaluation reports the failure
-            first = None
-        if first is None or not (np.all(np.isfinite(first[0])) and np.all(np.isfinite(first[1]))):
-            return newton(evaluate, y_pred, tol=self.tol, max_iterations=self.max_iterations, relative=relative)
-        kept = chord(evaluate_end, y_pred, first[1], tol=self.tol, max_iterations=self.max_iterations,
-                     relative=relative, value0=first[0])
-        if kept.converged and kept.iterations == 0:
-            return newton(evaluate, y_pred, tol=self.tol, max_iterations=0, relative=relative, first=first)
-        if kept.converged:
-            found = newton(evaluate, kept.y, tol=self.tol, max_iterations=0, relative=relative)
-            if found.converged:
-                return replace(found, iterations=kept.iterations)
-        start = kept.y if kept.y is not None and np.all(np.isfinite(kept.y)) else y_pred
-        return newton(evaluate, start, tol=self.tol, max_iterations=self.max_iterations, relative=relative,
-                      first=first if np.array_equal(start, y_pred) else None)
 
     def _chord_at(self, y_pred, parameter: float, abandon=None):
         """``solve`` at the fixed ``parameter`` by ``solve_fixed_point`` with the ``kept`` monodromy,
@@ -292,9 +249,7 @@ class _Corrector:
         turned = None if abandon is None else (lambda state: abandon(self.scaled(state, parameter)))
         found = solve_fixed_point(self.map, self.unscaled(y_pred)[0], parameter, tol=self.tol,
                                   max_iterations=self.max_iterations, state_scale=self.floor,
-                                  monodromy=self.kept if by_chord else None,
-                                  reuse_first=not by_chord and REUSE_FIRST_MONODROMY,
-                                  abandon=turned)
+                                  monodromy=self.kept if by_chord else None, abandon=turned)
         self.calls_of_last_solve = self.map.calls - calls_before
         monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(n)
         return replace(found, y=self.scaled(found.y, parameter), residual_vector=np.append(
@@ -317,7 +272,7 @@ class _Corrector:
         one by 10-110 % of the state near 78 rad/s and the chord contracted by 0.1-0.2 only (issue 24)."""
         by_chord = self.coarse_chord_rate <= CHORD_RATE
         judged = self.estimator.apply(orbit, stability_tol=self.stability_tol, start_time=start_time,
-                                      chord=by_chord, reuse_first=not by_chord and REUSE_FIRST_MONODROMY)
+                                      chord=by_chord)
         coarse = self.estimator.coarse_monodromy
         if coarse is not None:
             self.coarse_chord_rate = chord_rate(orbit.monodromy, coarse)
@@ -403,7 +358,7 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
                               settle_on_iterate=SETTLE_ON_ITERATE and accuracy is not None)
 
     first = solve_fixed_point(counted, guess, start, tol=tol, max_iterations=max(max_iterations, 20),
-                              state_scale=floor, reuse_first=REUSE_FIRST_MONODROMY)
+                              state_scale=floor)
     first_orbit = classify(start, first.y, first.extra if first.extra is not None else first.jacobian,
                            residual=first.residual, iterations=first.iterations, map_calls=counted.calls,
                            converged=first.converged, reason=first.reason, stability_tol=stability_tol,
@@ -491,8 +446,7 @@ class _Follower:
             y, tangent = found.y, new_tangent
             if self.adaptive_scale:
                 y, tangent = self._rescale(y, tangent, new.state)
-            if found.iterations <= (EASY_ITERATIONS if fixed is None and not REUSE_FIRST_MONODROMY
-                                    else EASY_CHORD_ITERATIONS):
+            if found.iterations <= (EASY_ITERATIONS if fixed is None else EASY_CHORD_ITERATIONS):
                 step = min(step * GROWTH, max_step)
 
     @staticmethod

@@ -574,12 +574,11 @@ class ErrorEstimate:
         self.errors = errors
 
     def apply(self, orbit: PeriodicOrbit, *, stability_tol: float, start_time: float,
-              chord: bool = True, reuse_first: bool = False) -> PeriodicOrbit:
+              chord: bool = True) -> PeriodicOrbit:
         """``orbit`` judged again with the error bars (unchanged without an estimate or if not converged).
         The coarse orbit is solved from ``orbit.state`` by chord iterations with ``orbit.monodromy``
         (``chord``, the default), else by Newton (a continuation whose two levels' monodromies differ
-        too much for the chord to contract; ``reuse_first``: Newton's first step, then the chord with
-        its monodromy, ``solve_fixed_point``'s); ``coarse_monodromy`` is then the coarse orbit's (None
+        too much for the chord to contract); ``coarse_monodromy`` is then the coarse orbit's (None
         where there is none)."""
         self.coarse_monodromy = None
         if not orbit.converged or (self.errors is None and self.coarse is None):
@@ -591,7 +590,6 @@ class ErrorEstimate:
             coarse = solve_fixed_point(self.coarse, orbit.state, orbit.parameter, tol=self.tol,
                                        max_iterations=self.max_iterations, state_scale=self.state_scale,
                                        monodromy=orbit.monodromy if chord else None, settled=settled,
-                                       reuse_first=reuse_first and not chord,
                                        settle_on_iterate=self.settle_on_iterate)
             made = self.coarse.calls - calls_before
             self.calls += made

@@ -64,9 +64,8 @@ class _AffineFamily:
         return self.matrix(p) @ x + self.b * p
 
 
-@pytest.mark.parametrize("slope_size, chord, reuse", [(0.0, True, True), (6.0, False, True), (6.0, False, False)])
-def test_natural_steps_take_the_chord_only_where_its_rate_pays(slope_size, chord, reuse, monkeypatch):
-    monkeypatch.setattr("periodic._continuation.REUSE_FIRST_MONODROMY", reuse)
+@pytest.mark.parametrize("slope_size, chord", [(0.0, True), (6.0, False)])
+def test_natural_steps_take_the_chord_only_where_its_rate_pays(slope_size, chord):
     base = _stable_matrix(4, 0.2)
     family = _AffineFamily(base, slope_size * _stable_matrix(4, 0.1))
     branch = periodic.continue_orbits(family, np.zeros(4), 0.1, 0.6, step=0.05, max_step=0.05, tol=1e-12)
@@ -81,11 +80,6 @@ def test_natural_steps_take_the_chord_only_where_its_rate_pays(slope_size, chord
         # affine map with A's monodromy) and the orbit's own monodromy (the same period, not run again)
         assert family.monodromies <= 3 + steps + 2
         assert family.ends >= 2 * (steps - 1)
-    elif reuse:
-        # at each point Newton's first step from the predictor (exact for an affine map), one chord period
-        # that finds it converged, its exact monodromy, and the tangent's dP/dp
-        assert family.monodromies == 2 * branch.parameters.size
-        assert family.ends == 2 * branch.parameters.size
     else:
         # Newton at every step: a period without a monodromy only for each point's tangent (dP/dp)
         assert family.ends == branch.parameters.size
@@ -115,8 +109,7 @@ def test_the_branchs_n_over_2_levels_give_single_solves_error_estimates():
 
 def test_the_branch_is_the_same_whichever_corrector_solves_it(monkeypatch):
     # always the chord (with Newton where it does not contract: the old rule) against never the chord
-    # (Newton throughout; Newton's first step then its chord: test_reusing_the_first_monodromy_...)
-    monkeypatch.setattr("periodic._continuation.REUSE_FIRST_MONODROMY", False)
+    # (Newton throughout)
     fine, coarse = _duffing(64), _duffing(32)
     branches = {}
     for rate in (np.inf, 0.0):
@@ -146,42 +139,6 @@ class _CountedPeriods:
     def end_state(self, x, p):
         self.ends += 1
         return self.period_map(x, p)[0]
-
-
-@pytest.mark.parametrize("method", ["natural", "arclength"])
-def test_reusing_the_first_monodromy_gives_newtons_branch(method, monkeypatch):
-    # Newton's first step, then the chord with its monodromy (and the N/2 level at its settled iterate)
-    # against Newton throughout, the last orbit's chord never taken: the same Duffing branch, each
-    # orbit's multipliers from the exact monodromy at its state
-    monkeypatch.setattr("periodic._continuation.CHORD_RATE", -1.0)
-    branches, fines = {}, {}
-    for reuse in (True, False):
-        monkeypatch.setattr("periodic._continuation.REUSE_FIRST_MONODROMY", reuse)
-        monkeypatch.setattr("periodic._continuation.SETTLE_ON_ITERATE", reuse)
-        fines[reuse], coarse = _CountedPeriods(_duffing(64)), _CountedPeriods(_duffing(32))
-        branches[reuse] = periodic.continue_orbits(fines[reuse], np.zeros(2), 1.0, 1.3, step=0.05, max_step=0.05,
-                                                   method=method, estimate=coarse, accuracy=0.01, tol=1e-12)
-    reused, newton = branches[True], branches[False]
-    assert fines[True].ends > 0 and fines[True].monodromies < fines[False].monodromies
-    assert reused.status == newton.status == "ok" and reused.statuses == newton.statuses
-    assert reused.parameters.size == newton.parameters.size >= 7
-    # natural: the same parameters; arclength: each corrector's hyperplane from its own last point's
-    # tangent, so the points move along the branch by about its tolerance
-    np.testing.assert_allclose(reused.parameters, newton.parameters, rtol=0, atol=0.0 if method == "natural" else 1e-8)
-    np.testing.assert_allclose(reused.states, newton.states, rtol=0, atol=(1e-9 if method == "natural" else 1e-8)
-                               * np.abs(newton.states).max())
-    np.testing.assert_allclose(reused.multipliers, newton.multipliers, rtol=0, atol=1e-7)
-    exact = _duffing(64)
-    for a, b in zip(reused.orbits, newton.orbits):
-        # on the branch: a fresh Newton solve at its parameter, to 1e-13
-        single = periodic.find_orbit(exact, a.state, a.parameter, tol=1e-13)
-        np.testing.assert_allclose(a.state, single.state, rtol=0, atol=1e-10 * np.abs(single.state).max())
-        np.testing.assert_allclose(a.monodromy, exact(a.state, a.parameter)[1], rtol=0, atol=1e-12)
-        assert a.residual <= 1e-12
-        # the N/2 level within 1 % of its distance from the N orbit either way: the estimates to ~1 %
-        assert a.state_error == pytest.approx(b.state_error, rel=0.02)
-        np.testing.assert_allclose(a.multiplier_errors, b.multiplier_errors, rtol=0.05,
-                                   atol=1e-3 * np.abs(b.multiplier_errors).max())
 
 
 def test_the_early_turn_check_rejects_the_same_steps_for_fewer_periods(monkeypatch):
