@@ -495,15 +495,10 @@ class ServoDrive(mechanisms.TorqueDrive):
                    crank_inertia=table.number("crank_inertia", "kg m^2", 0.0, nonnegative=True))
 
     def to_table(self):
-        entry = {"type": self.TYPE, "rate": self.rate, "offset": self.offset,
-                 "harmonics": [list(h) for h in self.harmonics], "bandwidth": self.bandwidth,
-                 "damping_ratio": self.damping_ratio, "crank_inertia": self.crank_inertia,
-                 "flywheel": self.flywheel}
-        if math.isfinite(self.torque_limit):
-            entry["torque_limit"] = self.torque_limit
-        if self.motor is not None:
-            entry["motor"] = self.motor.to_table()
-        return entry
+        # the torque drive's table with the bandwidth, damping ratio and inertia in place of the gains
+        entry = {key: value for key, value in super().to_table().items() if key not in ("kp", "kd", "feedforward")}
+        return {**entry, "bandwidth": self.bandwidth, "damping_ratio": self.damping_ratio,
+                "crank_inertia": self.crank_inertia}
 
     @staticmethod
     def table_without_feedback(table):
