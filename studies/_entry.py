@@ -30,19 +30,41 @@ def _interrupt(signum: int, frame) -> None:
 
 
 
+#: Seconds after which an interrupt that arrived where Python cannot raise it is raised again.
+RETRY_SECONDS = 0.001
+
+
+def _raise_later(name: str):
+    """A SIGALRM handler that raises ``KeyboardInterrupt(name)`` at an ordinary line: where it runs
+    inside the unraisable hook still (the hook has not returned), it waits another ``RETRY_SECONDS``."""
+    def handler(signum: int, frame) -> None:
+        if frame is not None and frame.f_code is _HOOK_CODE:
+            signal.setitimer(signal.ITIMER_REAL, RETRY_SECONDS)
+            return
+        signal.signal(signal.SIGALRM, signal.SIG_DFL)
+        raise KeyboardInterrupt(name)
+    return handler
+
+
 def _signal_again(previous_hook):
     """``sys.unraisablehook`` that does not lose an interrupt: a signal whose handler ran inside a
     callback Python cannot raise from (a weak reference's callback of the import machinery's module
     locks, a ``__del__``) would be printed there as "Exception ignored ... KeyboardInterrupt", with a
-    traceback, and the run would go on. Instead the same signal is sent again to this process: its
-    handler runs at the next ordinary line and ends the command as any interrupt does."""
+    traceback, and the run would go on. Instead the interrupt is raised again ``RETRY_SECONDS`` later
+    (a SIGALRM timer), at the next ordinary line, and ends the command as any interrupt does. Not the
+    same signal sent again at once: its handler would run inside this hook, at the call's return, and
+    its ``KeyboardInterrupt`` would be printed as the hook's own failure, with a traceback."""
     def hook(unraisable) -> None:
         if isinstance(unraisable.exc_value, KeyboardInterrupt):
-            number = getattr(signal, str(unraisable.exc_value), signal.SIGINT)   # "SIGTERM", "SIGINT"
-            os.kill(os.getpid(), number)
+            name = str(unraisable.exc_value) or "SIGINT"   # "SIGTERM", "SIGINT"
+            signal.signal(signal.SIGALRM, _raise_later(name))
+            signal.setitimer(signal.ITIMER_REAL, RETRY_SECONDS)
             return
         previous_hook(unraisable)
     return hook
+
+
+_HOOK_CODE = _signal_again(None).__code__
 
 
 def _exit_now(signum: int, frame) -> None:
@@ -77,6 +99,7 @@ def run(argv=None) -> int:
     except KeyboardInterrupt:   # a second signal while the first was being reported
         code = INTERRUPTED
     try:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)   # no retried interrupt after the command
         for number in (signal.SIGINT, signal.SIGTERM):
             signal.signal(number, _exit_now)
     except KeyboardInterrupt:   # a signal as the command returned, before _exit_now took over
