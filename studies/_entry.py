@@ -16,6 +16,7 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import threading
 
 from studies._errors import interruption  # light: no numpy
 
@@ -57,6 +58,11 @@ def _signal_again(previous_hook):
     def hook(unraisable) -> None:
         if isinstance(unraisable.exc_value, KeyboardInterrupt):
             name = str(unraisable.exc_value) or "SIGINT"   # "SIGTERM", "SIGINT"
+            if threading.current_thread() is not threading.main_thread():
+                # only the main thread may set a handler; there the signal sent again is handled in
+                # the main thread, not inside this hook
+                os.kill(os.getpid(), getattr(signal, name, signal.SIGINT))
+                return
             signal.signal(signal.SIGALRM, _raise_later(name))
             signal.setitimer(signal.ITIMER_REAL, RETRY_SECONDS)
             return

@@ -206,3 +206,37 @@ def test_the_unraisable_hook_passes_anything_else_on():
     error = types.SimpleNamespace(exc_value=ValueError("other"), object=None)
     hook(error)
     assert others == [error]
+
+
+def test_the_unraisable_hook_off_the_main_thread_signals_the_main_thread():
+    """Only the main thread may set a signal handler: an interrupt caught in a callback of another
+    thread is sent again as its signal, whose handler then runs in the main thread."""
+    import threading
+    import types
+
+    from studies import _entry
+
+    handled = []
+    previous = signal.signal(signal.SIGUSR1, lambda signum, frame: handled.append(
+        threading.current_thread() is threading.main_thread()))
+    try:
+        hook = _entry._signal_again(lambda unraisable: handled.append("passed on"))
+        caught = types.SimpleNamespace(exc_value=KeyboardInterrupt("SIGUSR1"), object=None)
+        failures = []
+        thread = threading.Thread(target=lambda: _call(hook, caught, failures))
+        thread.start()
+        thread.join()
+        for _ in range(200):
+            if handled:
+                break
+            time.sleep(0.005)
+        assert failures == [] and handled == [True]
+    finally:
+        signal.signal(signal.SIGUSR1, previous)
+
+
+def _call(hook, caught, failures):
+    try:
+        hook(caught)
+    except Exception as error:  # noqa: BLE001 - the test reports it
+        failures.append(error)
