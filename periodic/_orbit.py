@@ -45,6 +45,10 @@ _SINGULAR_CONDITION = 1e12
 #: costs a period, a Newton step a period and its monodromy (about 1.3 periods on six_bar) and
 #: converges quadratically: beyond 0.1 per step Newton reaches 1e-8 in fewer periods.
 _CHORD_CONTRACTION = 0.1
+#: ``find_orbit``'s ``settle_within_error``: an orbit settled at a correction whose share of its actual
+#: distance from the N/2 orbit exceeds this times ``accuracy`` (the distance measured at the first iterate
+#: misled) is solved on to ``tol``.
+SETTLE_SLACK = 2.0
 #: Default error factor of an N/2 estimate: ``1 / (2^p - 1)`` for the order-2 integrators of the project.
 DEFAULT_ERROR_FACTOR = 1.0 / 3.0
 #: Values of ``PeriodicOrbit.bifurcation``.
@@ -96,6 +100,10 @@ class PeriodicOrbit:
         The verdict in words.
     run_time : float
         Wall time, s.
+    settled_fraction : float
+        0 where ``state`` is converged to ``tol``; with ``settle_within_error``, the largest share
+        (over the state's blocks) of the Newton correction left at ``state`` in its distance from the
+        coarse orbit of ``estimate``, by which the error bars were widened (:func:`find_orbit`).
     """
 
     parameter: float
@@ -114,6 +122,7 @@ class PeriodicOrbit:
     status: str
     message: str
     run_time: float
+    settled_fraction: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -366,13 +375,17 @@ def check_iterations(name: str, value) -> int:
 
 
 def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_iterations, state_scale,
-                      monodromy=None, settled=None, reuse_first=False, settle_on_iterate=False, abandon=None):
+                      monodromy=None, settled=None, reuse_first=False, settle_on_iterate=False, abandon=None,
+                      first_value=None, exact_monodromy=True):
     """Newton on ``P(x) - x`` at a fixed parameter; ``extra`` of the result is the monodromy.
 
     With ``monodromy`` (n, n), a nearby orbit's (the finer level's, of which this map is a coarser
     grid, or a neighbouring parameter's): chord iterations with it first, periods without their
     monodromy, and the exact monodromy once at the converged state (Newton from the chord's last
-    iterate where the chord does not contract).
+    iterate where the chord does not contract); ``first_value`` (n,): ``P(guess) - guess`` where the
+    caller has it (a period run at ``guess`` already: not run again); ``exact_monodromy=False``: the
+    chord's converged state is returned with the kept ``monodromy`` as its own (an error level whose
+    multipliers nobody reads: one tangent propagation fewer).
 
     ``reuse_first`` (without ``monodromy``): the monodromy at ``guess`` is that kept monodromy, the
     chord's first step Newton's own (its period not run again): from a start whose error is mostly
@@ -380,7 +393,9 @@ def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_ite
     2.4 % from the linear start to the first iterate; the chord reached 7e-9 in two periods where
     Newton took two more periods with their monodromy).  ``settle_on_iterate``: ``chord``'s (an
     error level's orbit is the settled iterate, whose period a ``mechanisms.PeriodMap`` keeps: its
-    monodromy without a period more).  ``abandon``: Newton's (its iterates only, not the chord's)."""
+    monodromy without a period more).  ``abandon``: Newton's (its iterates only, not the chord's).
+    A ``settled`` with a ``use_jacobian(J)`` method (:class:`WithinError`) is given the chord's kept
+    Jacobian before the chord starts."""
 
     def evaluate(state):
         end, monodromy = period_map(state, parameter)
@@ -390,7 +405,9 @@ def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_ite
         return relative_residual(state, value, state_scale)
 
     floor = period_map.floor
-    start, value0 = np.array(guess, dtype=float), None
+    start = np.array(guess, dtype=float)
+    value0 = None if first_value is None else np.asarray(first_value, dtype=float)
+    at_start = False     # whether ``monodromy`` is the exact one at ``guess`` (evaluated here)
     if monodromy is None and reuse_first:
         try:
             value0, _, monodromy = evaluate(start)
@@ -398,13 +415,18 @@ def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_ite
             value0 = monodromy = None
         if value0 is not None and not (np.all(np.isfinite(value0)) and np.all(np.isfinite(monodromy))):
             value0 = monodromy = None
+        at_start = monodromy is not None
     if monodromy is not None:
-        kept = chord(lambda state: period_map.end_state(state, parameter) - state, guess,
-                     np.asarray(monodromy, dtype=float) - np.eye(guess.size), tol=tol,
-                     max_iterations=max_iterations, relative=relative, floor=floor, settled=settled,
+        kept_jacobian = np.asarray(monodromy, dtype=float) - np.eye(guess.size)
+        if callable(getattr(settled, "use_jacobian", None)):
+            settled.use_jacobian(kept_jacobian)
+        kept = chord(lambda state: period_map.end_state(state, parameter) - state, guess, kept_jacobian,
+                     tol=tol, max_iterations=max_iterations, relative=relative, floor=floor, settled=settled,
                      value0=value0, settle_on_iterate=settle_on_iterate)
         guess = kept.y
-        if kept.converged and value0 is not None and kept.iterations == 0 and np.array_equal(guess, start):
+        if kept.converged and not exact_monodromy:
+            return replace(kept, jacobian=kept_jacobian, extra=np.asarray(monodromy, dtype=float))
+        if kept.converged and at_start and kept.iterations == 0 and np.array_equal(guess, start):
             # the guess was the orbit already, and its monodromy the one just computed
             return NewtonResult(kept.y, value0, monodromy - np.eye(guess.size), monodromy, kept.residual, 0,
                                 True, "")
@@ -419,7 +441,7 @@ def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_ite
                 return replace(found, converged=True, reason="", iterations=kept.iterations)
     # from the start again where the chord's first step did not contract: its monodromy is known
     first = ((value0, monodromy - np.eye(guess.size), monodromy)
-             if value0 is not None and np.array_equal(guess, start) else None)
+             if at_start and np.array_equal(guess, start) else None)
     return newton(evaluate, guess, tol=tol, max_iterations=max_iterations, relative=relative, floor=floor,
                   settled=settled, first=first, abandon=abandon)
 
@@ -440,6 +462,71 @@ class Settled:
         distance = np.asarray(y) + correction - self.finer
         return all(np.abs(correction[a:b]).max(initial=0.0) <= self.fraction * np.abs(distance[a:b]).max(initial=0.0)
                    for a, b in self.blocks)
+
+
+class WithinError:
+    """``settled(y, correction) -> bool`` of the orbit whose error the ``coarse`` map (a
+    :class:`CountingMap` of the same system on N/2 steps) estimates (:func:`find_orbit`'s
+    ``settle_within_error``): ``y`` is converged once its correction is at most ``fraction`` of its
+    distance from the coarse orbit, in each block (``blocks``), as an error level's orbit is
+    (:class:`Settled`): iterating further would refine the state far below its own time-step error.
+
+    That distance is measured once, at the first iterate asked about after the start (the start's
+    correction measures the start, e.g. the linearisation's error, not the orbit): one period of the
+    coarse map there, without its monodromy, and its chord correction with the kept Jacobian
+    (``use_jacobian``), about ``|x_{N/2} - y|`` per block. That period is the coarse level's first
+    (``probe``: (y, P_{N/2}(y) - y)), so it costs nothing more where the coarse level starts there.
+    ``correction`` is the last correction asked about, the settled state's error to first order:
+    :class:`ErrorEstimate` compares it with the coarse orbit's actual distance."""
+
+    def __init__(self, coarse: "CountingMap", parameter: float, fraction: float, blocks):
+        self.coarse, self.parameter, self.fraction = coarse, float(parameter), float(fraction)
+        self.blocks = tuple(blocks)
+        self.factors = self.distance = self.probe = self.correction = None
+        self.asked = 0
+
+    def use_jacobian(self, jacobian) -> None:
+        """The chord's kept Jacobian (n, n), ``monodromy - I``, factorised for the probe's correction."""
+        import scipy.linalg
+
+        self.factors = scipy.linalg.lu_factor(np.asarray(jacobian, dtype=float), check_finite=False)
+
+    def _measure(self, y: np.ndarray) -> None:
+        import scipy.linalg
+
+        try:
+            value = np.asarray(self.coarse.end_state(y, self.parameter), dtype=float) - y
+        except RuntimeError:      # the coarse level reports its own failure later: settle to tol
+            value = np.full(y.shape, np.nan)
+        step = scipy.linalg.lu_solve(self.factors, value, check_finite=False)
+        if np.all(np.isfinite(step)):
+            self.probe = (y.copy(), value)
+            self.distance = np.array([np.abs(step[a:b]).max(initial=0.0) for a, b in self.blocks])
+        else:                     # no distance to settle within: converged to tol only
+            self.distance = np.zeros(len(self.blocks))
+
+    def __call__(self, y, correction) -> bool:
+        self.asked += 1
+        if self.asked == 1 or self.factors is None:
+            return False
+        y = np.asarray(y, dtype=float)
+        if self.distance is None:
+            self._measure(y)
+        self.correction = np.array(correction, dtype=float)
+        return all(np.abs(self.correction[a:b]).max(initial=0.0) <= self.fraction * distance
+                   for (a, b), distance in zip(self.blocks, self.distance))
+
+    @staticmethod
+    def share_of(correction, state, coarse_state, blocks) -> float:
+        """The largest ratio over ``blocks`` of ``correction`` (n,) to the distance of ``state +
+        correction`` from the coarse orbit ``coarse_state`` (max norms; inf where that distance is 0
+        and the correction not)."""
+        ratios = []
+        for a, b in blocks:
+            size = float(np.abs(correction[a:b]).max(initial=0.0))
+            distance = float(np.abs(state[a:b] + correction[a:b] - coarse_state[a:b]).max(initial=0.0))
+            ratios.append(size / distance if distance > 0.0 else (0.0 if size == 0.0 else math.inf))
+        return max(ratios, default=0.0)
 
 
 def classify(parameter, state, monodromy, *, residual, iterations, map_calls, converged, reason="",
@@ -470,7 +557,8 @@ def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1
                estimate=None, error_factor: float = DEFAULT_ERROR_FACTOR, state_scale: float = 0.0,
                stability_tol: float = STABILITY_TOL, monodromy=None, finer=None,
                accuracy: float | None = None, reuse_first: bool = False,
-               settle_on_iterate: bool = False) -> PeriodicOrbit:
+               settle_on_iterate: bool = False, settle_within_error: bool = False,
+               exact_monodromy: bool = True) -> PeriodicOrbit:
     """The periodic orbit of ``period_map`` at ``parameter`` near ``guess`` (n,) by Newton shooting.
 
     ``period_map(state (n,), parameter) -> (end_state (n,), monodromy (n, n))``.  Newton on
@@ -505,6 +593,18 @@ def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1
     (this map a coarser grid of ``finer``'s, found only for an error estimate). Their residual is then
     above ``tol``, and the message says so.
 
+    ``settle_within_error`` (with ``estimate`` a period map and ``accuracy``): this orbit, too, is
+    converged once its correction is at most ``accuracy`` of its distance from the coarse orbit, in each
+    block (:class:`WithinError`; that distance measured by one coarse period at the first iterate after
+    the start, the coarse level's first period), before its residual reaches ``tol``: a state more
+    accurate than its own time-step error is not needed. The settled iterate is the orbit (its
+    monodromy exact there); its correction's largest share of the coarse orbit's actual distance is
+    ``settled_fraction``, by which the error bars are made larger (the state's by the correction, the
+    multipliers' by that share of their N, N/2 difference); a share above ``SETTLE_SLACK`` times
+    ``accuracy`` (the measured distance misled) sends Newton on to ``tol``.
+    ``exact_monodromy=False`` (with ``monodromy``): the orbit's monodromy is the kept one, not the exact
+    one at the converged state (an error level whose multipliers are not read: one monodromy fewer).
+
     A period map may offer ``end_state(state, parameter) -> end_state`` (one period without its
     monodromy, for the chord iterations) and ``resolution`` (float or (n,), the absolute round-off of
     its end state): a residual whose 2-norm is at or below that of ``resolution`` and which a full
@@ -522,20 +622,47 @@ def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1
         accuracy = check_tol("accuracy", accuracy, 1.0)
     estimator = ErrorEstimate(estimate, error_factor, guess.size, tol=tol, max_iterations=max_iterations,
                               state_scale=state_scale, accuracy=accuracy, settle_on_iterate=settle_on_iterate)
-    settled = None
+    settled = within = None
     if finer is not None and accuracy is not None:
         settled = Settled(check_state("finer", finer), accuracy, counted.blocks)
         if settled.finer.shape != guess.shape:
             raise PeriodicError(f"finer: expected a state of shape {guess.shape}, got {settled.finer.shape}")
+    if settle_within_error:
+        if estimator.coarse is None or accuracy is None or settled is not None:
+            raise PeriodicError("settle_within_error: expected `estimate` (the period map on N/2 steps) and "
+                                "`accuracy`, and no `finer` (this orbit is the finest level)")
+        settled = within = WithinError(estimator.coarse, parameter, accuracy, counted.blocks)
     found = solve_fixed_point(counted, guess, parameter, tol=tol, max_iterations=max_iterations,
                               state_scale=state_scale, monodromy=monodromy, settled=settled,
-                              reuse_first=reuse_first, settle_on_iterate=settle_on_iterate)
+                              reuse_first=reuse_first, settle_on_iterate=settle_on_iterate,
+                              exact_monodromy=exact_monodromy)
+    early = within is not None and found.converged and found.residual > tol and within.correction is not None
     monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(guess.size)
     orbit = classify(parameter, found.y, monodromy, residual=found.residual, iterations=found.iterations,
                      map_calls=counted.calls, converged=found.converged, reason=found.reason,
                      stability_tol=stability_tol, start_time=start_time)
-    orbit = estimator.apply(orbit, stability_tol=stability_tol, start_time=start_time)
-    if orbit.converged and orbit.residual > tol and settled is not None:
+    correction = within.correction if early else None
+    orbit = estimator.apply(orbit, stability_tol=stability_tol, start_time=start_time,
+                            probe=within.probe if within is not None else None, correction=correction)
+    if early and not orbit.settled_fraction <= SETTLE_SLACK * accuracy and estimator.coarse_orbit is not None:
+        # the probe's distance misled (or no coarse orbit to compare with): Newton on to tol from the
+        # corrected iterate, the coarse orbit kept
+        iterations = found.iterations
+        found = solve_fixed_point(counted, found.y + within.correction, parameter, tol=tol,
+                                  max_iterations=max_iterations, state_scale=state_scale,
+                                  monodromy=orbit.monodromy)
+        early = False
+        monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(guess.size)
+        orbit = classify(parameter, found.y, monodromy, residual=found.residual,
+                         iterations=iterations + 1 + found.iterations, map_calls=counted.calls,
+                         converged=found.converged, reason=found.reason, stability_tol=stability_tol,
+                         start_time=start_time)
+        orbit = estimator.apply(orbit, stability_tol=stability_tol, start_time=start_time, coarse_again=True)
+    if orbit.converged and early:
+        orbit = replace(orbit, message=(
+            f"{orbit.message} (> tol {tol:g}: converged to {orbit.settled_fraction:.2g} of its distance from "
+            f"the N/2 orbit, within {accuracy:g}; the error bars include that share)"))
+    elif orbit.converged and orbit.residual > tol and settled is not None and within is None:
         orbit = replace(orbit, message=(
             f"{orbit.message} (> tol {tol:g}: an error level, converged to {accuracy:g} of its distance from "
             "the finer orbit)"))
@@ -556,6 +683,8 @@ class ErrorEstimate:
     def __init__(self, estimate, error_factor, n: int, *, tol, max_iterations, state_scale, accuracy=None,
                  settle_on_iterate=False):
         self.errors, self.coarse, self.calls, self.coarse_monodromy = None, None, 0, None
+        self.coarse_result = self.coarse_orbit = None
+        self.counted = self.made = 0     # the coarse map's calls already in ``calls``; the last orbit's
         self.tol, self.max_iterations, self.state_scale = tol, max_iterations, state_scale
         self.accuracy, self.settle_on_iterate = accuracy, settle_on_iterate
         if estimate is None:
@@ -574,26 +703,38 @@ class ErrorEstimate:
         self.errors = errors
 
     def apply(self, orbit: PeriodicOrbit, *, stability_tol: float, start_time: float,
-              chord: bool = True) -> PeriodicOrbit:
+              chord: bool = True, probe=None, correction=None, coarse_again: bool = False) -> PeriodicOrbit:
         """``orbit`` judged again with the error bars (unchanged without an estimate or if not converged).
         The coarse orbit is solved from ``orbit.state`` by chord iterations with ``orbit.monodromy``
         (``chord``, the default), else by Newton (a continuation whose two levels' monodromies differ
         too much for the chord to contract); ``coarse_monodromy`` is then the coarse orbit's (None
-        where there is none)."""
-        self.coarse_monodromy = None
+        where there is none), ``coarse_orbit`` its state. ``probe`` ((y, P_{N/2}(y) - y), a coarse period
+        run already: :class:`WithinError`): the chord starts at ``y`` with that period. ``correction``
+        (n,): the Newton correction left at ``orbit.state`` (an orbit settled within its error, see
+        :func:`find_orbit`), whose share of the distance from the coarse orbit widens the error bars and
+        is ``settled_fraction``. ``coarse_again``: the coarse orbit of the last call, not solved again
+        (the same orbit refined)."""
+        self.coarse_monodromy = None if not coarse_again else self.coarse_monodromy
         if not orbit.converged or (self.errors is None and self.coarse is None):
             return orbit
-        errors, state_error, map_calls = self.errors, math.nan, orbit.map_calls
+        errors, state_error, map_calls, share = self.errors, math.nan, orbit.map_calls, 0.0
         if self.coarse is not None:
-            calls_before = self.coarse.calls
-            settled = None if self.accuracy is None else Settled(orbit.state, self.accuracy, self.coarse.blocks)
-            coarse = solve_fixed_point(self.coarse, orbit.state, orbit.parameter, tol=self.tol,
-                                       max_iterations=self.max_iterations, state_scale=self.state_scale,
-                                       monodromy=orbit.monodromy if chord else None, settled=settled,
-                                       settle_on_iterate=self.settle_on_iterate)
-            made = self.coarse.calls - calls_before
-            self.calls += made
-            map_calls = orbit.map_calls + made
+            if not coarse_again:
+                settled = (None if self.accuracy is None
+                           else Settled(orbit.state, self.accuracy, self.coarse.blocks))
+                start, first_value = ((probe[0], probe[1]) if probe is not None and chord
+                                      else (orbit.state, None))
+                self.coarse_result = solve_fixed_point(
+                    self.coarse, start, orbit.parameter, tol=self.tol, max_iterations=self.max_iterations,
+                    state_scale=self.state_scale, monodromy=orbit.monodromy if chord else None,
+                    settled=settled, settle_on_iterate=self.settle_on_iterate, first_value=first_value)
+            coarse = self.coarse_result
+            if not coarse_again:
+                self.made = self.coarse.calls - self.counted
+                self.calls += self.made
+                self.counted = self.coarse.calls
+            map_calls = orbit.map_calls + self.made
+            self.coarse_orbit = coarse.y if coarse.converged else None
             if coarse.converged:
                 self.coarse_monodromy = coarse.extra
             if not coarse.converged:
@@ -607,7 +748,14 @@ class ErrorEstimate:
             # and does not move its multiplier across the unit circle (periodic._floquet.modulus_errors)
             errors = modulus_errors(orbit.multipliers, sorted_eigenvalues(coarse.extra), self.error_factor)
             state_error = self.error_factor * float(np.max(np.abs(orbit.state - coarse.y)))
-        return classify(orbit.parameter, orbit.state, orbit.monodromy, residual=orbit.residual,
-                        iterations=orbit.iterations, map_calls=map_calls, converged=True,
-                        errors=errors, state_error=state_error, stability_tol=stability_tol,
-                        start_time=start_time)
+            if correction is not None:
+                # the settled state's error, about its correction: that share of the N, N/2 distances
+                # adds to the estimates taken from them (error_factor of each distance)
+                share = WithinError.share_of(correction, orbit.state, coarse.y, self.coarse.blocks)
+                errors = errors * (1.0 + share / self.error_factor)
+                state_error += float(np.max(np.abs(correction)))
+        judged = classify(orbit.parameter, orbit.state, orbit.monodromy, residual=orbit.residual,
+                          iterations=orbit.iterations, map_calls=map_calls, converged=True,
+                          errors=errors, state_error=state_error, stability_tol=stability_tol,
+                          start_time=start_time)
+        return replace(judged, settled_fraction=share)

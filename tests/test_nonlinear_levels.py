@@ -89,6 +89,67 @@ def test_accuracy_and_finer_are_checked():
         periodic.find_orbit(_duffing(32), np.zeros(2), 1.1, finer=np.zeros(3), accuracy=0.01)
 
 
+class _Misleading(_Counting):
+    """A coarse map whose first period without its monodromy (``WithinError``'s probe) comes back with
+    its residual ``factor`` times too large: a distance from the coarse orbit measured wrong."""
+
+    def __init__(self, period_map, factor):
+        super().__init__(period_map)
+        self.factor, self.misled = factor, False
+
+    def end_state(self, x, parameter):
+        end = super().end_state(x, parameter)
+        if not self.misled:
+            self.misled = True
+            return x + self.factor * (end - x)
+        return end
+
+
+def _settling(coarse, **options):
+    # started, as the study is from its linear state, near the orbit: a neighbouring parameter's
+    start = periodic.find_orbit(_duffing(128), np.zeros(2), 1.09, tol=1e-12).state
+    return periodic.find_orbit(_Counting(_duffing(128)), start, 1.1, tol=1e-12, estimate=coarse,
+                               error_factor=1 / 3, accuracy=0.01, reuse_first=True, settle_on_iterate=True,
+                               **options)
+
+
+def test_an_orbit_settled_within_its_error_against_newton_to_1e_12():
+    exact = _settling(_Counting(_duffing(64)))
+    quick = _settling(_Counting(_duffing(64)), settle_within_error=True)
+    assert exact.residual <= 1e-12 and exact.settled_fraction == 0.0
+    assert quick.converged and quick.status == exact.status == "ok", quick.message
+    # settled before tol, and says so: its correction a share of its distance within the accuracy
+    assert quick.residual > 1e-12 and "of its distance from the N/2 orbit" in quick.message
+    assert 0.0 < quick.settled_fraction <= 0.01
+    assert quick.map_calls < exact.map_calls
+    # the state is the tol orbit's to about that share of the N, N/2 distance, inside its widened bar
+    distance = 3.0 * exact.state_error
+    assert np.abs(quick.state - exact.state).max() <= 2.0 * quick.settled_fraction * distance
+    assert exact.state_error < quick.state_error <= exact.state_error * (1.0 + 6.0 * quick.settled_fraction)
+    # the widened bar covers the tol orbit's bar plus the distance from it (the N/2 difference measured
+    # from the settled state is itself off by up to a third of that distance)
+    assert quick.state_error >= exact.state_error + (2 / 3) * np.abs(quick.state - exact.state).max()
+    # the multipliers' bars widened by 1 + share / factor, covering the move of the multipliers
+    np.testing.assert_allclose(quick.multiplier_errors, exact.multiplier_errors * (1 + 3 * quick.settled_fraction),
+                               rtol=0.05, atol=1e-3 * np.abs(exact.multipliers).max())
+    assert np.all(np.abs(np.abs(quick.multipliers) - np.abs(exact.multipliers)) <= quick.multiplier_errors)
+
+
+def test_a_misleading_distance_sends_the_settled_orbit_on_to_tol():
+    exact = _settling(_Counting(_duffing(64)))
+    misled = _settling(_Misleading(_duffing(64), 1e3), settle_within_error=True)
+    assert misled.converged and misled.residual <= 1e-12 and misled.settled_fraction == 0.0, misled.message
+    np.testing.assert_allclose(misled.state, exact.state, rtol=0, atol=1e-10)
+    assert misled.state_error == pytest.approx(exact.state_error, rel=0.02)
+
+
+def test_settle_within_error_needs_the_coarse_map_and_an_accuracy():
+    with pytest.raises(periodic.PeriodicError, match="settle_within_error"):
+        periodic.find_orbit(_duffing(32), np.zeros(2), 1.1, settle_within_error=True, accuracy=0.01)
+    with pytest.raises(periodic.PeriodicError, match="settle_within_error"):
+        periodic.find_orbit(_duffing(32), np.zeros(2), 1.1, settle_within_error=True, estimate=_duffing(16))
+
+
 def _six_bar():
     paths = ("links.link2.discretisation.n_elements", "links.link4.discretisation.n_elements")
     problem = studies.MechanismProblem.from_scene("six_bar", parameter_paths=paths)
@@ -102,6 +163,8 @@ def test_the_study_with_its_level_accuracy_against_levels_converged_to_tol(case,
         problem, values = _six_bar()
     else:
         problem, values = studies.MechanismProblem.from_scene(case), None
+    # the error levels alone: the N orbit converged to tol in both (its own settling: the test below)
+    monkeypatch.setattr(steady_module, "SETTLE_WITHIN_ERROR", False)
     quick = studies.nonlinear_steady_state(problem, values)
     monkeypatch.setattr(steady_module, "LEVEL_ACCURACY", None)
     exact = studies.nonlinear_steady_state(problem, values)

@@ -84,6 +84,13 @@ SETTLE_ON_ITERATE = True
 #: (``studies._budget.mesh_terms``' ``response``: the same problem, N and scheme, the same numbers)
 #: instead of solving it again. False: solved again (the benchmark's baseline).
 REUSE_LINEAR_STATE = True
+#: The N-step orbit, too, is converged once its chord correction is within ``LEVEL_ACCURACY`` of its
+#: distance from the N/2 orbit (``periodic.find_orbit``'s ``settle_within_error``: that distance
+#: measured by the N/2 level's first period, run at the first chord iterate), its residual then above
+#: ``tol``, and the error bars widened by the correction's share of that distance: on six_bar (8
+#: elements per link, 100 rad/s) the first chord iterate's correction was 0.2 % (positions) and 0.4 %
+#: (rates) of the distance, and two periods of N steps were left out of four. False: to ``tol``.
+SETTLE_WITHIN_ERROR = True
 #: An observable whose estimated error exceeds this fraction of its peak-to-peak is ``inaccurate``:
 #: the rule and value of the linear steady state's (docs/methods.md), applied to each observable
 #: since the nonlinear study reports them.
@@ -431,7 +438,8 @@ def untrusted_verdict(status: str, message: str, reasons: list[str]) -> tuple[st
 def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z: np.ndarray,
                      coarse_state: np.ndarray, speed: float, *, tol: float, max_iterations: int,
                      monodromy: np.ndarray | None = None, state: np.ndarray | None = None,
-                     coarse_monodromy: np.ndarray | None = None) -> tuple[dict[str, float], list[str]]:
+                     coarse_monodromy: np.ndarray | None = None, settled_fraction: float = 0.0
+                     ) -> tuple[dict[str, float], list[str]]:
     """({spec: estimated max abs error of the N-step response} from the N/2 orbit ``coarse_state``,
     the reasons the estimate is not trusted): the N/2 run must not split steps, the orbit found again
     on N/4 steps must give a ratio of successive differences of z in the asymptotic range
@@ -441,7 +449,10 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
     coarse_response, z_coarse, coarse_substeps = orbit_observables(linear, setup.coarse, coarse_state)
     # the convergence check on the coordinates (the lag states, N m, would set its scale instead)
     z, z_coarse = z[:, :m], z_coarse[:, :m]
-    errors = {spec: ERROR_FACTOR * float(np.abs(response[spec][::2] - coarse_response[spec]).max())
+    # an N orbit settled within its error (``settled_fraction`` of its distance from the N/2 orbit):
+    # that share of each difference adds to the estimate (``periodic.find_orbit``)
+    widened = ERROR_FACTOR + settled_fraction
+    errors = {spec: widened * float(np.abs(response[spec][::2] - coarse_response[spec]).max())
               for spec in response}
     reasons = [substep_reason(coarse_substeps, n_steps, "the N/2 run's")]
     quarter_map = setup.period_map(n_steps // 4)
@@ -452,8 +463,9 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
     # periods and Newton took 3 more), converged to LEVEL_ACCURACY of its distance from the N/2 orbit
     guess = coarse_state if state is None else coarse_state + 2**ORDER * (coarse_state - state)
     kept = monodromy if coarse_monodromy is None else coarse_monodromy
+    # (its multipliers are not read: no exact monodromy at its orbit)
     options = {"tol": tol, "max_iterations": max_iterations, "monodromy": kept, "finer": coarse_state,
-               "accuracy": LEVEL_ACCURACY, "settle_on_iterate": SETTLE_ON_ITERATE}
+               "accuracy": LEVEL_ACCURACY, "settle_on_iterate": SETTLE_ON_ITERATE, "exact_monodromy": False}
     quarter = periodic.find_orbit(quarter_map, guess, speed, **options)
     if not quarter.converged:    # the extrapolation failed (e.g. a state outside the linkage): from N/2
         quarter = periodic.find_orbit(quarter_map, coarse_state, speed, **options)
@@ -480,7 +492,7 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
 
 
 def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_steps: int = 256,
-                           tol: float = TOL, max_iterations: int = MAX_ITERATIONS,
+                           tol: float | None = None, max_iterations: int = MAX_ITERATIONS,
                            modes: Any = AUTO) -> NonlinearSteadyState:
     """The periodic solution of the full nonlinear constrained equations at ``values`` by shooting:
     Newton on the independent coordinates and rates at t = 0 (``mechanisms.PeriodMap``: one period of
@@ -492,9 +504,15 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
     ``modes``: ``"auto"`` (default) the elastic element-model links reduced to the fewest modes whose
     reduction check (against two more modes) stays within 0.1 % of each peak-to-peak, its error in
     ``reduction_error``; ``"full"`` (or None) the element models as the scene has them; a count: every
-    such link reduced to it (``studies._kinds._nonlinear_model``)."""
+    such link reduced to it (``studies._kinds._nonlinear_model``).
+
+    ``tol``: None (default) the orbit converged once its correction is within ``LEVEL_ACCURACY`` of
+    its distance from the N/2 orbit (``SETTLE_WITHIN_ERROR``, the error bars widened by that share) or
+    its relative residual is at most ``TOL``; a number: Newton to that residual."""
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a nonlinear steady state")
     check_integer("max_iterations", max_iterations, 1)
+    settle = SETTLE_WITHIN_ERROR and LEVEL_ACCURACY is not None and tol is None
+    tol = TOL if tol is None else tol
     if not (isinstance(tol, (int, float)) and 0.0 < tol < 1.0):
         raise StudiesError(f"tol: expected a relative residual in (0, 1), got {tol!r}")
     given, given_values, modes = problem, values, check_modes(modes)
@@ -510,7 +528,8 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
     speed = float(parameters.get("speed", 0.0))
     orbit = periodic.find_orbit(fine, setup.guess, speed, tol=tol, max_iterations=max_iterations,
                                 estimate=coarse, error_factor=ERROR_FACTOR, accuracy=LEVEL_ACCURACY,
-                                reuse_first=REUSE_FIRST_MONODROMY, settle_on_iterate=SETTLE_ON_ITERATE)
+                                reuse_first=REUSE_FIRST_MONODROMY, settle_on_iterate=SETTLE_ON_ITERATE,
+                                settle_within_error=settle)
     specs = linear.observables
     linear_response = {spec: setup.steady.response[:, k] for k, spec in enumerate(specs)}
     # the mesh term's base level is this linear state (the same problem, N and scheme): not solved again
@@ -524,7 +543,8 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
         if coarse.last is not None and np.isfinite(orbit.state_error):
             errors, trust = _error_estimates(setup, response, z, coarse.last, speed, tol=tol,
                                              max_iterations=max_iterations, monodromy=orbit.monodromy,
-                                             state=orbit.state, coarse_monodromy=coarse.last_monodromy)
+                                             state=orbit.state, coarse_monodromy=coarse.last_monodromy,
+                                             settled_fraction=orbit.settled_fraction)
             reasons += trust
     else:
         response = {spec: np.full(n_steps + 1, np.nan) for spec in specs}
@@ -556,7 +576,10 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
         reduced_modes=dict(choice.modes) if choice is not None else {},
         reduction_error=dict(choice.error) if choice is not None and choice.modes else {},
         mesh_error={} if mesh == NOT_APPLICABLE else dict(mesh["response"]),
-        error_methods={"time_step": f"N = {n_steps} against N/2 steps", "mesh": mesh_method,
+        error_methods={"time_step": f"N = {n_steps} against N/2 steps" + (
+                           f"; the N orbit settled within {orbit.settled_fraction:.2g} of its distance from the "
+                           "N/2 orbit, that share added" if orbit.settled_fraction > 0.0 else ""),
+                       "mesh": mesh_method,
                        "linearisation": "not applicable: the full nonlinear equations",
                        **({"reduction": f"reduced links checked against the next larger mode set or the full "
                                         f"model: {choice.message}"} if choice is not None and choice.modes else {})})
@@ -565,7 +588,8 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
 def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]:
     return {"values": speed_values(where, table),
             "n_steps": steps(where, table, n_steps, minimum=MIN_STEPS),
-            "tol": number(where, "tol", table.get("tol", TOL), positive=True),
+            # absent: None, the orbit settled within its error (``nonlinear_steady_state``'s tol)
+            "tol": number(where, "tol", table["tol"], positive=True) if "tol" in table else None,
             "max_iterations": integer(where, "max_iterations", table.get("max_iterations", MAX_ITERATIONS), 1,
                                       maximum=MAX_NEWTON, why=NEWTON_WHY),
             "modes": modes_option(where, table)}
