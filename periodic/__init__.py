@@ -17,9 +17,9 @@ from ._floquet import FloquetResult as FloquetResult
 from ._floquet import NearResonanceWarning as NearResonanceWarning
 from ._floquet import floquet as floquet
 from ._orbit import BIFURCATIONS as BIFURCATIONS
+from ._orbit import SETTLE_SLACK as SETTLE_SLACK
 from ._orbit import PeriodicOrbit as PeriodicOrbit
 from ._orbit import PeriodMap as PeriodMap
-from ._orbit import SETTLE_SLACK as SETTLE_SLACK
 from ._orbit import find_orbit as find_orbit
 from ._scheme import SCHEMES as SCHEMES
 from ._scheme import Newmark as Newmark
