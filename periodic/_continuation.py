@@ -5,11 +5,11 @@ largest rms state met so far, or ``state_scale``), ``P = |stop - start|``.  Each
 
     P(x, p) - x = 0,    t . (y - y_pred) = 0
 
-by damped Newton (:func:`periodic._orbit.newton`) from the predictor ``y_pred = y_k + ds t``:
+by damped Newton (:func:`periodic._fixed_point.newton`) from the predictor ``y_pred = y_k + ds t``:
 ``t`` is the unit tangent of the branch at the last point, the null vector of the bordered matrix
 ``[Phi - I, dP/dp]`` there (oriented along the parameter for ``natural``, along the step just taken
 for ``arclength``).  ``natural`` fixes the parameter (``e_p`` in the constraint, the predictor along
-``t`` scaled to move ``p`` by the step), and solves at it (:func:`periodic._orbit.solve_fixed_point`)
+``t`` scaled to move ``p`` by the step), and solves at it (:func:`periodic._fixed_point.solve_fixed_point`)
 by chord iterations with the last orbit's monodromy (periods without their own) and one exact
 monodromy at the converged orbit where they are predicted to contract fast enough (``CHORD_RATE``:
 the rate they would have had over the step just taken), else by Newton; the error level's orbit
@@ -48,18 +48,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ._orbit import (
-    DEFAULT_ERROR_FACTOR,
+from ._fixed_point import (
     CountingMap,
-    ErrorEstimate,
-    PeriodicOrbit,
     check_iterations,
     check_state,
-    classify,
     newton,
     relative_residual,
     solve_fixed_point,
 )
+from ._orbit import DEFAULT_ERROR_FACTOR, ErrorEstimate, PeriodicOrbit, classify
 from ._system import PeriodicError, check_real, check_tol
 from ._verdict import STABILITY_TOL, worst_status
 
