@@ -1,6 +1,7 @@
 """Planar mechanisms with elastic links in redundant generalized coordinates."""
 
 from ._alpha_step import fused_step as fused_step
+from ._alpha_step import fused_step_for as fused_step_for
 from ._assemble import assemble as assemble
 from ._batch import ConstraintTerms as ConstraintTerms
 from ._batch import LinearTerms as LinearTerms

@@ -104,6 +104,17 @@ def fused_step(mode: bool | str = True):
         FUSED_STEP = previous
 
 
+@contextlib.contextmanager
+def fused_step_for(total_steps: int):
+    """``with mechanisms.fused_step_for(total): ...``: under "auto", the runs inside take the fused
+    kernel when together they step ``total`` times or more (``FUSED_COMPILE_STEPS``): a study of many
+    short runs (a nonlinear sweep: some 50 orbits of about 8 periods each) repays the compile as one
+    long run does. A setting of True or False (``fused_step``) is kept."""
+    mode = True if FUSED_STEP == "auto" and total_steps >= FUSED_COMPILE_STEPS else FUSED_STEP
+    with fused_step(mode):
+        yield
+
+
 def fused_step_wanted(n_steps: int) -> bool:
     """Whether a run of ``n_steps`` steps takes the fused kernel under ``FUSED_STEP``. The two paths
     agree to round-off (bitwise without torque drives; tests/test_alpha_kernel.py)."""

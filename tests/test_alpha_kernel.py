@@ -150,6 +150,51 @@ def test_auto_takes_the_fused_step_when_compiled_or_for_a_long_run(monkeypatch):
             pass
 
 
+def test_runs_that_add_up_to_a_long_run_take_the_fused_step(monkeypatch):
+    """``fused_step_for(total)``: under "auto", short runs that together step ``FUSED_COMPILE_STEPS``
+    times or more take the fused kernel on a cold cache (a nonlinear sweep); fewer keep "auto"'s rule;
+    a setting of False or True is kept."""
+    from mechanisms import _alpha_kernel
+
+    monkeypatch.setattr(_alpha_step, "FUSED_STEP", "auto")
+    monkeypatch.setattr(_alpha_kernel, "compiled", lambda: False)
+    total = _alpha_step.FUSED_COMPILE_STEPS
+    with mechanisms.fused_step_for(total):
+        assert _alpha_step.fused_step_wanted(128)
+    with mechanisms.fused_step_for(total - 1):
+        assert not _alpha_step.fused_step_wanted(128)
+    with mechanisms.fused_step(False), mechanisms.fused_step_for(10 * total):
+        assert not _alpha_step.fused_step_wanted(128)
+    assert _alpha_step.FUSED_STEP == "auto"
+
+
+def test_a_long_nonlinear_sweep_takes_the_fused_step_on_a_cold_cache(monkeypatch):
+    """The sweep's periods together decide (``PERIODS_PER_ORBIT`` per point): on a cold cache a sweep
+    whose points add up to a long run steps by the fused kernel, a short one by the Python iteration."""
+    import studies
+    from mechanisms import _alpha_kernel
+    from studies._kinds import nonlinear_sweep as sweep_kind
+
+    monkeypatch.setattr(_alpha_step, "FUSED_STEP", "auto")
+    monkeypatch.setattr(_alpha_kernel, "compiled", lambda: False)
+    seen = []
+    wanted = _alpha_step.fused_step_wanted
+    monkeypatch.setattr(_alpha_step, "fused_step_wanted", lambda n: seen.append(wanted(n)) or seen[-1])
+    from mechanisms import _alpha_run  # the runs' own reference to it
+
+    monkeypatch.setattr(_alpha_run, "fused_step_wanted", _alpha_step.fused_step_wanted)
+    problem = studies.MechanismProblem.from_scene("four_bar_fem4")
+    options = dict(start=96.0, stop=100.0, step=2.0, n_steps=32, modes="full")
+    # 2 points x PERIODS_PER_ORBIT x 32 steps: below the threshold, then above it
+    monkeypatch.setattr(_alpha_step, "FUSED_COMPILE_STEPS", 2 * sweep_kind.PERIODS_PER_ORBIT * 32 + 1)
+    studies.nonlinear_sweep(problem, **options)
+    assert seen and not any(seen)
+    seen.clear()
+    monkeypatch.setattr(_alpha_step, "FUSED_COMPILE_STEPS", 2 * sweep_kind.PERIODS_PER_ORBIT * 32)
+    studies.nonlinear_sweep(problem, **options)
+    assert seen and all(seen)
+
+
 def test_the_probe_sees_a_compiled_kernel():
     """``compiled()`` is True once the kernel has run in this process (the tests above ran it)."""
     from mechanisms import _alpha_kernel

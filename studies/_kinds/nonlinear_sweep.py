@@ -13,6 +13,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+import mechanisms
 import periodic
 
 from .._kind import StudyKind, register_kind
@@ -62,6 +63,12 @@ METHODS = ("natural", "arclength")
 #: Orbits of one branch (``max_points``): each costs a few periods with their monodromy.
 MAX_ORBITS = 10_000
 ORBITS_WHY = "orbits of one branch, each a few nonlinear periods with their monodromy"
+#: Periods of N steps an orbit of the branch costs, its N/2 level's included (six_bar, 8 elements per
+#: link, 75 -> 87 rad/s at N = 128: 13 orbits, 92 periods of N steps and 31 of N/2, 8.3 a point) ...
+PERIODS_PER_ORBIT = 8
+#: ... and the points of a branch without ``step`` (``periodic.continue_orbits``' default: the range
+#: over 50): with the two, a sweep's steps decide whether it takes the fused step (``mechanisms.fused_step_for``).
+DEFAULT_POINTS = 50
 
 
 @dataclass(frozen=True, eq=False)
@@ -222,8 +229,6 @@ class _Mechanisms:
         self._kept: dict[float, tuple[Any, Any]] = {}
 
     def at(self, value: float) -> tuple[Any, Any]:
-        import mechanisms
-
         if value not in self._kept:
             if len(self._kept) >= 6:
                 self._kept.pop(next(iter(self._kept)))
@@ -249,8 +254,6 @@ class _ParameterMap:
         self._runs: dict[float, tuple[np.ndarray, Any, Any]] = {}
 
     def at(self, value: float):
-        import mechanisms
-
         if value not in self._maps:
             if len(self._maps) >= 4:
                 self._maps.pop(next(iter(self._maps)))
@@ -362,8 +365,21 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
         raise StudiesError(f"start, stop: expected lags {parameter!r} > 0 over the whole range (a lag of 0 "
                            f"removes the controller's state from the orbit), got {start!r} .. {stop!r}")
     started = time.perf_counter()
+    modes = check_modes(modes)
+    # the orbits' periods together (about PERIODS_PER_ORBIT of N steps at each of the points the
+    # branch takes at ``step``) decide whether the fused step's compile is repaid, as a long run's do
+    given_step = isinstance(step, (int, float)) and math.isfinite(step) and step > 0.0  # else refused later
+    points = max(1, min(max_points, math.ceil(abs(stop - start) / step) if given_step else DEFAULT_POINTS))
+    with mechanisms.fused_step_for(points * PERIODS_PER_ORBIT * n_steps):
+        return _follow(problem, parameter, start, stop, values, n_steps, step, method, tol, max_points,
+                       stop_at_instability, transient_periods, modes, started)
+
+
+def _follow(problem, parameter, start, stop, values, n_steps, step, method, tol, max_points, stop_at_instability,
+            transient_periods, modes, started) -> NonlinearSweep:
+    """``nonlinear_sweep`` once its arguments are checked."""
     fixed = {k: v for k, v in (values or {}).items() if k != parameter}
-    given, modes = problem, check_modes(modes)
+    given = problem
     choice = (choose_model(problem, dict(fixed, **{parameter: start}), modes)
               if getattr(problem, "supports_nonlinear", False) else None)
     if choice is not None and choice.modes and parameter != SPEED and parameter not in choice.problem.parameters:
