@@ -216,6 +216,64 @@ def test_the_processes_setting_is_checked(monkeypatch):
         use_helper()
 
 
+def test_the_free_cores_are_measured_not_read_off_the_load_average(monkeypatch):
+    """``free_core``: the machine's idle time over a short window (this process asleep) decides, not
+    the 1-min load average, which lags a busy minute (``pip install``, the last run) by a minute; the
+    load average only where the CPU times cannot be read or cover other CPUs than this process's."""
+    from studies.cli import _kernel_list
+
+    monkeypatch.setattr(_kernel_list, "_cores", lambda: 2)
+    monkeypatch.setattr(_kernel_list.os, "getloadavg", lambda: (1.9, 1.9, 1.9))   # just after a busy minute
+    monkeypatch.setattr(_kernel_list.time, "sleep", lambda seconds: None)
+
+    def ticks(*readings):
+        readings = iter(readings)
+        monkeypatch.setattr(_kernel_list, "_cpu_ticks", lambda: next(readings))
+
+    ticks((1000, 500, 2), (1020, 519, 2))          # 19 of 20 ticks idle: both cores free
+    assert _kernel_list.free_core()
+    ticks((1000, 500, 2), (1020, 511, 2))          # 11 of 20: 1.1 cores idle, one of them this process's
+    assert not _kernel_list.free_core()
+    ticks(None)                                    # unreadable: the load average
+    assert not _kernel_list.free_core()
+    monkeypatch.setattr(_kernel_list.os, "getloadavg", lambda: (0.3, 0.3, 0.3))
+    ticks((1000, 500, 64))                         # the host's 64 CPUs: the load average
+    assert _kernel_list.free_core()
+    monkeypatch.setattr(_kernel_list, "_cores", lambda: 1)
+    assert not _kernel_list.free_core()
+
+
+def test_the_cpu_times_read_this_machine():
+    from studies.cli import _kernel_list
+
+    found = _kernel_list._cpu_ticks()
+    if found is None:
+        pytest.skip("no /proc/stat here")
+    total, idle, cpus = found
+    assert 0 <= idle <= total and cpus == (os.cpu_count() or cpus)
+
+
+def test_a_helper_declined_at_the_first_miss_leaves_every_kernel_to_this_process(monkeypatch):
+    """Unset, the free cores are measured at ``start`` (a cold cache only); a busy machine declines:
+    no process, ``alive()`` False (nothing waits for it), the claims folder kept for this process."""
+    from studies.cli import _kernel_list
+
+    monkeypatch.delenv(_kernel_list.PROCESSES_VARIABLE, raising=False)
+    asked = []
+    monkeypatch.setattr(_kernel_list, "free_core", lambda: asked.append(1) or False)
+    helper = _kernel_list.Helper(["steady state"])
+    try:
+        assert not asked and helper.folder is not None and helper.alive()   # a warm run measures nothing
+        helper.start()
+        assert asked == [1] and helper.declined and helper.process is None and not helper.alive()
+        helper.start()
+        assert asked == [1]
+        assert helper.wait() < 1.0
+    finally:
+        helper.stop()
+    assert helper.folder is None
+
+
 _RECORD_SCRIPT = textwrap.dedent("""
     import json
     from studies.cli._kernel_record import main_job_list

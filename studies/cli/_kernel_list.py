@@ -38,7 +38,7 @@ from typing import Any, Callable, Iterable
 from .._errors import UsageError
 
 __all__ = ["KERNEL_LIST", "STEADY_STATE_STEP", "Helper", "Listed", "compile_listed", "first_root", "load_list",
-           "record", "use_helper"]
+           "free_core", "helper_setting", "record", "use_helper"]
 
 #: The list: JSON ``[{"step": ..., "kernel": "module.qualname", "signature": "(types, ...)"}, ...]``.
 KERNEL_LIST = Path(__file__).with_name("kernel_list.json")
@@ -48,8 +48,18 @@ STEADY_STATE_STEP = "steady state"
 PACKAGES = ("periodic", "mechanisms", "linearize", "studies")
 #: Environment variable: ``1`` compiles in this process only (no helper process).
 PROCESSES_VARIABLE = "FLEXVIB_COMPILE_PROCESSES"
-#: The load average (1 min) must leave this many cores free for the helper process.
+#: The load average (1 min) must leave this many cores free for the helper process (where the
+#: machine's CPU times cannot be read: ``free_core``).
 FREE_CORE = 1.0
+#: ``free_core`` measures the machine's idle time over this window (s), this process asleep, at the
+#: first kernel that misses the cache (a cold cache only): the 1-min load average lags by a minute,
+#: so right after a busy minute (``pip install``, the previous run) it said "no free core" on an idle
+#: machine and the cold start compiled on one core (11.4 s against 7.6 s for the linear studies,
+#: docs/benchmarks.md, session 12).
+MEASURE_WINDOW = 0.1
+#: ... and starts the helper when at least this many cores were idle over it: one for this process
+#: (asleep while measuring), most of one for the helper.
+IDLE_CORES = 1.5
 #: The longest wait (s) for the other process's callee before compiling it here (it may have ended).
 WAIT_LIMIT = 120.0
 
@@ -252,25 +262,60 @@ def _cores() -> int:
         return os.cpu_count() or 1
 
 
-def use_helper() -> bool:
-    """Whether to compile in a helper process too: ``FLEXVIB_COMPILE_PROCESSES`` ``1`` (never) or
-    ``2`` (always, for measurements); unset, when this process may use two cores and the load
-    average leaves one free beside this process (on a machine without a free core the helper only
-    competes with this process and adds its own start-up and the callees both compile)."""
+def helper_setting() -> bool | None:
+    """``FLEXVIB_COMPILE_PROCESSES``: ``1`` False (never a helper), ``2`` True (always, for
+    measurements), unset None (decided by :func:`free_core`); anything else ``UsageError``."""
     setting = os.environ.get(PROCESSES_VARIABLE, "").strip()
     if setting in ("1", "2"):
         return setting == "2"
     if setting:
         raise UsageError(f"{PROCESSES_VARIABLE}: expected 1 (compile in this process only) or 2 (and in a "
                          f"helper process), got {setting!r}; unset it to decide by the free cores")
+    return None
+
+
+def _cpu_ticks() -> tuple[int, int, int] | None:
+    """(all, idle, CPUs) of the machine's CPU time so far (``/proc/stat``, clock ticks; idle counts
+    I/O waits), or None where it cannot be read (not Linux)."""
+    try:
+        lines = Path("/proc/stat").read_text().splitlines()
+        fields = [int(x) for x in lines[0].split()[1:9]]
+    except (OSError, ValueError, IndexError):
+        return None
+    cpus = sum(1 for line in lines if line.startswith("cpu") and line[3:4].isdigit())
+    return sum(fields), fields[3] + fields[4], cpus
+
+
+def free_core(window: float = MEASURE_WINDOW) -> bool:
+    """Whether this process may use two cores and the machine's idle time over ``window`` s (this
+    process asleep) leaves ``IDLE_CORES`` of them: one for this process, one for the helper. On a
+    machine without a free core the helper only competes with this process and adds its own start-up
+    and the callees both compile. Where the CPU times cannot be read, or cover other CPUs than this
+    process's (a container showing the host's), the 1-min load average decides (``FREE_CORE``)."""
     cores = _cores()
-    return cores >= 2 and os.getloadavg()[0] <= cores - FREE_CORE
+    if cores < 2:
+        return False
+    before = _cpu_ticks()
+    if before is not None and before[2] == cores:
+        time.sleep(window)
+        after = _cpu_ticks()
+        if after is not None and after[0] > before[0]:
+            idle_share = (after[1] - before[1]) / (after[0] - before[0])
+            return idle_share * cores >= IDLE_CORES
+    return os.getloadavg()[0] <= cores - FREE_CORE
+
+
+def use_helper() -> bool:
+    """Whether to compile in a helper process too: :func:`helper_setting`, else :func:`free_core`."""
+    setting = helper_setting()
+    return free_core() if setting is None else setting
 
 
 class Helper:
     """The helper process that compiles its share of the list entries of the warm-up ``steps`` in a
     fresh interpreter: ``start()`` (at the first kernel that misses the cache; nothing when
-    :func:`use_helper` says no), ``wait()`` (the wall time waited, s),
+    :func:`helper_setting` says no, or, unset, :func:`free_core` measured then: ``declined``),
+    ``wait()`` (the wall time waited, s),
     ``stop()`` (end it if it runs; remove the claims). ``folder``: the claims both processes share;
     ``alive()``: whether the helper may still save a kernel (not started yet, or running)."""
 
@@ -278,7 +323,11 @@ class Helper:
         self.steps = list(steps)
         self.process: subprocess.Popen | None = None
         self._claims: tempfile.TemporaryDirectory | None = None
-        if use_helper():
+        # unset: the free cores are measured at ``start``, on a cold cache only (a warm run never
+        # waits for the measurement); until then the claims are kept as if the helper would run
+        self._measure = (setting := helper_setting()) is None
+        self.declined = False
+        if setting is not False:
             self._claims = tempfile.TemporaryDirectory(prefix="flexvib-compile-")
 
     @property
@@ -286,10 +335,13 @@ class Helper:
         return None if self._claims is None else Path(self._claims.name)
 
     def alive(self) -> bool:
-        return self.process is None or self.process.poll() is None
+        return not self.declined and (self.process is None or self.process.poll() is None)
 
     def start(self) -> None:
-        if self._claims is not None and self.process is None:
+        if self._claims is not None and self.process is None and not self.declined:
+            if self._measure and not free_core():
+                self.declined = True   # this process compiles every entry (the claims stay its own)
+                return
             self.process = subprocess.Popen(
                 [sys.executable, "-m", "studies.cli._kernel_list", self._claims.name, *self.steps],
                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
