@@ -56,7 +56,15 @@ from ._fixed_point import (
     relative_residual,
     solve_fixed_point,
 )
-from ._orbit import DEFAULT_ERROR_FACTOR, ErrorEstimate, PeriodicOrbit, classify
+from ._orbit import (
+    DEFAULT_ERROR_FACTOR,
+    ErrorEstimate,
+    PeriodicOrbit,
+    WithinError,
+    classify,
+    judge_within_error,
+    refined_orbit,
+)
 from ._system import PeriodicError, check_real, check_tol
 from ._verdict import STABILITY_TOL, worst_status
 
@@ -158,10 +166,15 @@ class _Corrector:
     """Newton on ``[P(x, p) - x; normal . (y - y_pred)] = 0`` in the scaled unknowns ``y``."""
 
     def __init__(self, period_map: CountingMap, state_scale: float, parameter_scale: float, floor: float,
-                 tol: float, max_iterations: int, stability_tol: float, estimator: ErrorEstimate):
+                 tol: float, max_iterations: int, stability_tol: float, estimator: ErrorEstimate,
+                 settle_accuracy: float | None = None):
         self.map, self.X, self.P, self.floor = period_map, state_scale, parameter_scale, floor
         self.tol, self.max_iterations, self.stability_tol = tol, max_iterations, stability_tol
         self.estimator = estimator
+        #: ``settle_within_error``'s accuracy (None: every orbit to ``tol``), and the
+        #: :class:`WithinError` of the last settling solve (None where it was solved to ``tol``)
+        self.settle_accuracy = settle_accuracy
+        self.last_within: WithinError | None = None
         self.calls_of_last_solve = 0
         #: the monodromy of the last accepted orbit: the chord iterations' Jacobian at a fixed parameter
         self.kept: np.ndarray | None = None
@@ -199,14 +212,17 @@ class _Corrector:
             tangent = -tangent
         return tangent
 
-    def solve(self, y_pred, normal, *, fixed_parameter: float | None = None, abandon=None):
+    def solve(self, y_pred, normal, *, fixed_parameter: float | None = None, abandon=None, settle: bool = False):
         """Newton from ``y_pred`` on the hyperplane ``normal . (y - y_pred) = 0``, or at the parameter
         value ``fixed_parameter`` exactly (``normal = e_p``); returns the :class:`NewtonResult`
         (``extra``: the monodromy). At a fixed parameter with a ``kept`` monodromy (the last orbit's):
         chord iterations with it, periods without their monodromy, and the exact one at the converged
-        state (``solve_fixed_point``), about half the cost of Newton's every-period monodromy."""
+        state (``solve_fixed_point``), about half the cost of Newton's every-period monodromy.
+        ``settle`` (at a fixed parameter, with ``settle_accuracy``): converged once within its own
+        error (``last_within``, for ``orbit``), as :func:`periodic.find_orbit`'s ``settle_within_error``."""
+        self.last_within = None
         if fixed_parameter is not None and self.kept is not None:
-            return self._chord_at(y_pred, fixed_parameter, abandon)
+            return self._chord_at(y_pred, fixed_parameter, abandon, settle)
         n = y_pred.size - 1
         column = {}
 
@@ -236,7 +252,7 @@ class _Corrector:
         self.calls_of_last_solve = self.map.calls - calls_before
         return found
 
-    def _chord_at(self, y_pred, parameter: float, abandon=None):
+    def _chord_at(self, y_pred, parameter: float, abandon=None, settle: bool = False):
         """``solve`` at the fixed ``parameter`` by ``solve_fixed_point`` with the ``kept`` monodromy,
         its result in the scaled unknowns (``y`` with the parameter, the residual with a zero
         constraint row, ``extra`` the monodromy at ``y``)."""
@@ -244,32 +260,47 @@ class _Corrector:
         calls_before = self.map.calls
         by_chord = self.chord_rate <= CHORD_RATE
         turned = None if abandon is None else (lambda state: abandon(self.scaled(state, parameter)))
+        within = None
+        if settle and self.settle_accuracy is not None and self.estimator.coarse is not None:
+            within = WithinError(self.estimator.coarse, parameter, self.settle_accuracy, self.map.blocks)
         found = solve_fixed_point(self.map, self.unscaled(y_pred)[0], parameter, tol=self.tol,
                                   max_iterations=self.max_iterations, state_scale=self.floor,
-                                  monodromy=self.kept if by_chord else None, abandon=turned)
+                                  monodromy=self.kept if by_chord else None, abandon=turned, settled=within)
+        self.last_within = within
         self.calls_of_last_solve = self.map.calls - calls_before
         monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(n)
         return replace(found, y=self.scaled(found.y, parameter), residual_vector=np.append(
             found.residual_vector / self.X, 0.0), jacobian=None, extra=monodromy)
 
-    def orbit(self, found, start_time, fixed_parameter: float | None = None) -> PeriodicOrbit:
+    def orbit(self, found, start_time, fixed_parameter: float | None = None,
+              within: WithinError | None = None) -> PeriodicOrbit:
+        """The orbit of ``found`` (``solve``'s), judged (``estimate``); ``within``: the solve's
+        ``last_within`` where it settled within its error."""
         state, parameter = self.unscaled(found.y)
         if fixed_parameter is not None:
             parameter = fixed_parameter
         orbit = classify(parameter, state, found.extra, residual=found.residual, iterations=found.iterations,
                          map_calls=self.calls_of_last_solve, converged=found.converged, reason=found.reason,
                          stability_tol=self.stability_tol, start_time=start_time)
-        return self.estimate(orbit, start_time)
+        return self.estimate(orbit, start_time, within)
 
-    def estimate(self, orbit: PeriodicOrbit, start_time: float) -> PeriodicOrbit:
+    def estimate(self, orbit: PeriodicOrbit, start_time: float, within: WithinError | None = None) -> PeriodicOrbit:
         """``orbit`` with its error bars from the coarse level (``ErrorEstimate.apply``), the coarse
         orbit solved by chord iterations with this orbit's monodromy only where they are predicted to
         contract by ``CHORD_RATE`` (``chord_rate`` of the two levels' monodromies at the last point;
         tried at the first), else by Newton: on six_bar at N = 128 the N/2 orbit differs from the N
         one by 10-110 % of the state near 78 rad/s and the chord contracted by 0.1-0.2 only (issue 24)."""
         by_chord = self.coarse_chord_rate <= CHORD_RATE
-        judged = self.estimator.apply(orbit, stability_tol=self.stability_tol, start_time=start_time,
-                                      chord=by_chord)
+
+        def refine(start, kept):
+            return refined_orbit(self.map, start, orbit.parameter, kept, tol=self.tol,
+                                 max_iterations=self.max_iterations, state_scale=self.floor,
+                                 iterations=orbit.iterations, stability_tol=self.stability_tol,
+                                 start_time=start_time)
+
+        judged, _ = judge_within_error(orbit, within, self.estimator, refine, tol=self.tol,
+                                       accuracy=self.settle_accuracy, stability_tol=self.stability_tol,
+                                       start_time=start_time, chord=by_chord)
         coarse = self.estimator.coarse_monodromy
         if coarse is not None:
             self.coarse_chord_rate = chord_rate(orbit.monodromy, coarse)
@@ -308,7 +339,8 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
                     tol: float = 1e-10, max_iterations: int = 10, max_points: int = 500,
                     stop_at_instability: bool = True, state_scale: float | None = None,
                     estimate=None, error_factor: float = DEFAULT_ERROR_FACTOR,
-                    stability_tol: float = STABILITY_TOL, accuracy: float | None = None) -> OrbitBranch:
+                    stability_tol: float = STABILITY_TOL, accuracy: float | None = None,
+                    settle_within_error: bool = False) -> OrbitBranch:
     """Follow the periodic orbit of ``period_map`` from ``parameter = start`` (near ``guess`` (n,)) to
     ``stop``.
 
@@ -327,8 +359,11 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
     map on N/2 steps costs a Newton solve on it per point, about a third more calls; the bifurcations
     are detected and located on the N-step multipliers either way); ``accuracy`` (a fraction, default
     None: ``tol``): each N/2 orbit converged once its correction is at most that of its distance from
-    the N-step orbit, as :func:`periodic.find_orbit`'s.  Nothing is raised on a numerical failure: see
-    ``OrbitBranch.status``.
+    the N-step orbit, as :func:`periodic.find_orbit`'s.  ``settle_within_error`` (with ``estimate`` a
+    period map and ``accuracy``; natural steps): each step's orbit converged once its correction is
+    at most ``accuracy`` of its distance from its N/2 orbit, the error bars widened by that share, as
+    :func:`periodic.find_orbit`'s (the first orbit, the located bifurcations: to ``tol``).  Nothing is
+    raised on a numerical failure: see ``OrbitBranch.status``.
     """
     start_time = time.perf_counter()
     guess = check_state("guess", guess)
@@ -354,6 +389,8 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
                               state_scale=floor, accuracy=accuracy,
                               settle_on_iterate=SETTLE_ON_ITERATE and accuracy is not None)
 
+    if settle_within_error and (estimator.coarse is None or accuracy is None):
+        raise PeriodicError("settle_within_error: expected `estimate` (the period map on N/2 steps) and `accuracy`")
     first = solve_fixed_point(counted, guess, start, tol=tol, max_iterations=max(max_iterations, 20),
                               state_scale=floor)
     first_orbit = classify(start, first.y, first.extra if first.extra is not None else first.jacobian,
@@ -365,7 +402,8 @@ def continue_orbits(period_map, guess, start: float, stop: float, *, step: float
                        method, counted.calls + estimator.calls, start_time, guess.size)
     rms = float(np.sqrt(np.mean(first.y**2)))
     scale = state_scale if state_scale else (rms if rms > 0.0 else 1.0)
-    corrector = _Corrector(counted, scale, span, floor, tol, max_iterations, stability_tol, estimator)
+    corrector = _Corrector(counted, scale, span, floor, tol, max_iterations, stability_tol, estimator,
+                           settle_accuracy=accuracy if settle_within_error else None)
     first_orbit = corrector.estimate(first_orbit, start_time)
     follower = _Follower(corrector, method, direction, stop, stop_at_instability, start_time,
                          adaptive_scale=not state_scale)
@@ -409,7 +447,7 @@ class _Follower:
                 return self._finish("min_step", min_step=min_step, reason=last_reason)
             y_pred, normal, fixed = self._predict(y, tangent, step)
             turned = self._turn_check(y, tangent) if EARLY_TURN_CHECK else None
-            found = corrector.solve(y_pred, normal, fixed_parameter=fixed, abandon=turned)
+            found = corrector.solve(y_pred, normal, fixed_parameter=fixed, abandon=turned, settle=True)
             if not found.converged:
                 last_reason = found.reason
                 step *= 0.5
@@ -428,7 +466,9 @@ class _Follower:
                 # the tangent where the step ends (the next step's direction and turn check); the step
                 # itself may make a large angle with it where the branch bends sharply (issue 12)
                 new_tangent = self._local_tangent(found, parameter, secant)
-                new = corrector.orbit(found, self.start_time, fixed)
+                new = corrector.orbit(found, self.start_time, fixed, within=corrector.last_within)
+                if fixed is not None:     # the orbit's state (sent on to tol where its settling misled)
+                    found = replace(found, y=corrector.scaled(new.state, fixed))
             else:  # passed: the end point exactly at stop
                 new, found = self._at_stop(y, found.y)
                 if new is None:

@@ -106,6 +106,8 @@ def newton(evaluate, y0, *, tol: float, max_iterations: int, relative, floor: fl
                 f"singular Jacobian: monodromy - I has condition number {condition:.3g} (a multiplier at +1: "
                 "a fold of the branch, use arclength continuation, or a free mode of an unforced system)"))
         direction = -np.linalg.solve(jacobian, value)
+        if callable(getattr(settled, "use_jacobian", None)):
+            settled.use_jacobian(jacobian)    # this iterate's (``periodic._orbit.WithinError``)
         if settled is not None and settled(y, direction):
             return NewtonResult(y, value, jacobian, extra, residual, iteration, True, "")
         if iteration == max_iterations:
@@ -305,8 +307,8 @@ def solve_fixed_point(period_map: CountingMap, guess, parameter, *, tol, max_ite
     Newton took two more periods with their monodromy).  ``settle_on_iterate``: ``chord``'s (an
     error level's orbit is the settled iterate, whose period a ``mechanisms.PeriodMap`` keeps: its
     monodromy without a period more).  ``abandon``: Newton's (its iterates only, not the chord's).
-    A ``settled`` with a ``use_jacobian(J)`` method (:class:`WithinError`) is given the chord's kept
-    Jacobian before the chord starts."""
+    A ``settled`` with a ``use_jacobian(J)`` method (``periodic._orbit.WithinError``) is given the
+    chord's kept Jacobian before the chord starts, and Newton's at each of its iterates."""
 
     def evaluate(state):
         end, monodromy = period_map(state, parameter)

@@ -134,27 +134,29 @@ class WithinError:
 
     That distance is measured once, at the first iterate asked about after the start (the start's
     correction measures the start, e.g. the linearisation's error, not the orbit): one period of the
-    coarse map there, without its monodromy, and its chord correction with the kept Jacobian
-    (``use_jacobian``), about ``|x_{N/2} - y|`` per block. That period is the coarse level's first
-    (``probe``: (y, P_{N/2}(y) - y)), so it costs nothing more where the coarse level starts there.
+    coarse map there, without its monodromy, and its correction with the Jacobian last given
+    (``use_jacobian``: the chord's kept one, or Newton's at ``y``), about ``|x_{N/2} - y|`` per
+    block. That period is the coarse level's first (``probe``: (y, P_{N/2}(y) - y)), so it costs
+    nothing more where the coarse level starts there.
     ``correction`` is the last correction asked about, the settled state's error to first order:
     :class:`ErrorEstimate` compares it with the coarse orbit's actual distance."""
 
     def __init__(self, coarse: "CountingMap", parameter: float, fraction: float, blocks):
         self.coarse, self.parameter, self.fraction = coarse, float(parameter), float(fraction)
         self.blocks = tuple(blocks)
-        self.factors = self.distance = self.probe = self.correction = None
+        self.jacobian = self.factors = self.distance = self.probe = self.correction = None
         self.asked = 0
 
     def use_jacobian(self, jacobian) -> None:
-        """The chord's kept Jacobian (n, n), ``monodromy - I``, factorised for the probe's correction."""
-        import scipy.linalg
-
-        self.factors = scipy.linalg.lu_factor(np.asarray(jacobian, dtype=float), check_finite=False)
+        """The Jacobian (n, n), ``monodromy - I``, of the probe's correction: the chord's kept one, or
+        Newton's at each iterate (``periodic._fixed_point.newton`` hands it over); factorised only
+        when the distance is measured."""
+        self.jacobian = jacobian
 
     def _measure(self, y: np.ndarray) -> None:
         import scipy.linalg
 
+        self.factors = scipy.linalg.lu_factor(np.asarray(self.jacobian, dtype=float), check_finite=False)
         try:
             value = np.asarray(self.coarse.end_state(y, self.parameter), dtype=float) - y
         except RuntimeError:      # the coarse level reports its own failure later: settle to tol
@@ -168,7 +170,7 @@ class WithinError:
 
     def __call__(self, y, correction) -> bool:
         self.asked += 1
-        if self.asked == 1 or self.factors is None:
+        if self.asked == 1 or self.jacobian is None:
             return False
         y = np.asarray(y, dtype=float)
         if self.distance is None:
@@ -188,6 +190,44 @@ class WithinError:
             distance = float(np.abs(state[a:b] + correction[a:b] - coarse_state[a:b]).max(initial=0.0))
             ratios.append(size / distance if distance > 0.0 else (0.0 if size == 0.0 else math.inf))
         return max(ratios, default=0.0)
+
+
+def judge_within_error(orbit: PeriodicOrbit, within: WithinError | None, estimator: "ErrorEstimate", refine, *,
+                       tol: float, accuracy: float | None, stability_tol: float, start_time: float,
+                       chord: bool = True) -> tuple[PeriodicOrbit, bool]:
+    """(``orbit`` judged by ``estimator``, ``ErrorEstimate.apply``; whether it settled within its
+    error) where it may have (``within``, :class:`WithinError`; None: judged as it is): a converged orbit whose
+    residual is above ``tol`` settled at ``within.correction``, whose share of the coarse orbit's
+    actual distance widens the bars; a share above ``SETTLE_SLACK`` times ``accuracy`` (the probe's
+    distance misled) sends it on, ``refine(start (n,), monodromy (n, n)) -> PeriodicOrbit`` (Newton
+    to ``tol`` from the corrected iterate), judged with the same coarse orbit. The message says how
+    a settled orbit settled (the caller adds its other notes)."""
+    early = (within is not None and orbit.converged and orbit.residual > tol and within.correction is not None)
+    judged = estimator.apply(orbit, stability_tol=stability_tol, start_time=start_time, chord=chord,
+                             probe=None if within is None else within.probe,
+                             correction=within.correction if early else None)
+    if not early:
+        return judged, False
+    if estimator.coarse_orbit is None or not judged.settled_fraction <= SETTLE_SLACK * accuracy:
+        # the probe's distance misled, or no coarse orbit to measure the share by: on to tol
+        refined = refine(orbit.state + within.correction, judged.monodromy)
+        return estimator.apply(refined, stability_tol=stability_tol, start_time=start_time, coarse_again=True), False
+    return replace(judged, message=(
+        f"{judged.message} (> tol {tol:g}: converged to {judged.settled_fraction:.2g} of its distance from "
+        f"the N/2 orbit, within {accuracy:g}; the error bars include that share)")), True
+
+
+def refined_orbit(period_map: CountingMap, start, parameter: float, monodromy, *, tol: float, max_iterations: int,
+                  state_scale: float, iterations: int, stability_tol: float, start_time: float) -> PeriodicOrbit:
+    """The orbit solved on to ``tol`` from ``start`` (n,) by ``solve_fixed_point`` with ``monodromy``
+    (n, n) kept (``judge_within_error``'s ``refine``), classified; ``iterations``: those before it
+    (the correction that led to ``start`` counts as one more)."""
+    found = solve_fixed_point(period_map, start, parameter, tol=tol, max_iterations=max_iterations,
+                              state_scale=state_scale, monodromy=monodromy)
+    kept = found.extra if found.extra is not None else found.jacobian + np.eye(np.size(start))
+    return classify(parameter, found.y, kept, residual=found.residual, iterations=iterations + 1 + found.iterations,
+                    map_calls=period_map.calls, converged=found.converged, reason=found.reason,
+                    stability_tol=stability_tol, start_time=start_time)
 
 
 def classify(parameter, state, monodromy, *, residual, iterations, map_calls, converged, reason="",
@@ -297,32 +337,20 @@ def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1
                               state_scale=state_scale, monodromy=monodromy, settled=settled,
                               reuse_first=reuse_first, settle_on_iterate=settle_on_iterate,
                               exact_monodromy=exact_monodromy)
-    early = within is not None and found.converged and found.residual > tol and within.correction is not None
     monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(guess.size)
     orbit = classify(parameter, found.y, monodromy, residual=found.residual, iterations=found.iterations,
                      map_calls=counted.calls, converged=found.converged, reason=found.reason,
                      stability_tol=stability_tol, start_time=start_time)
-    correction = within.correction if early else None
-    orbit = estimator.apply(orbit, stability_tol=stability_tol, start_time=start_time,
-                            probe=within.probe if within is not None else None, correction=correction)
-    if early and not orbit.settled_fraction <= SETTLE_SLACK * accuracy and estimator.coarse_orbit is not None:
-        # the probe's distance misled (or no coarse orbit to compare with): Newton on to tol from the
-        # corrected iterate, the coarse orbit kept
-        iterations = found.iterations
-        found = solve_fixed_point(counted, found.y + within.correction, parameter, tol=tol,
-                                  max_iterations=max_iterations, state_scale=state_scale,
-                                  monodromy=orbit.monodromy)
-        early = False
-        monodromy = found.extra if found.extra is not None else found.jacobian + np.eye(guess.size)
-        orbit = classify(parameter, found.y, monodromy, residual=found.residual,
-                         iterations=iterations + 1 + found.iterations, map_calls=counted.calls,
-                         converged=found.converged, reason=found.reason, stability_tol=stability_tol,
-                         start_time=start_time)
-        orbit = estimator.apply(orbit, stability_tol=stability_tol, start_time=start_time, coarse_again=True)
-    if orbit.converged and early:
-        orbit = replace(orbit, message=(
-            f"{orbit.message} (> tol {tol:g}: converged to {orbit.settled_fraction:.2g} of its distance from "
-            f"the N/2 orbit, within {accuracy:g}; the error bars include that share)"))
+
+    def refine(start, kept):
+        return refined_orbit(counted, start, parameter, kept, tol=tol, max_iterations=max_iterations,
+                             state_scale=state_scale, iterations=found.iterations, stability_tol=stability_tol,
+                             start_time=start_time)
+
+    orbit, early = judge_within_error(orbit, within, estimator, refine, tol=tol, accuracy=accuracy,
+                                      stability_tol=stability_tol, start_time=start_time)
+    if early:
+        pass    # settled within its error: its message says so (judge_within_error)
     elif orbit.converged and orbit.residual > tol and settled is not None and within is None:
         orbit = replace(orbit, message=(
             f"{orbit.message} (> tol {tol:g}: an error level, converged to {accuracy:g} of its distance from "

@@ -150,6 +150,39 @@ def test_settle_within_error_needs_the_coarse_map_and_an_accuracy():
         periodic.find_orbit(_duffing(32), np.zeros(2), 1.1, settle_within_error=True, estimate=_duffing(16))
 
 
+def _branch(**options):
+    return periodic.continue_orbits(_Counting(_duffing(128)), np.zeros(2), 0.9, 1.2, step=0.02, max_step=0.02,
+                                    tol=1e-12, estimate=_Counting(_duffing(64)), error_factor=1 / 3,
+                                    accuracy=0.01, **options)
+
+
+def test_a_branch_settled_within_its_error_against_newton_to_1e_12():
+    """``continue_orbits(settle_within_error=True)``: each step's orbit (Newton from the predictor, or
+    the chord) converged once its correction is within ``accuracy`` of its distance from its N/2
+    orbit, against the same branch to 1e-12: the same points and verdicts, each state inside its
+    widened bar, in fewer periods."""
+    exact = _branch()
+    quick = _branch(settle_within_error=True)
+    assert quick.status == exact.status == "ok", quick.message
+    np.testing.assert_array_equal(quick.parameters, exact.parameters)
+    settled = [orbit for orbit in quick.orbits if orbit.settled_fraction > 0.0]
+    assert len(settled) >= len(quick.orbits) // 2 and quick.orbits[0].settled_fraction == 0.0
+    assert all(0.0 < orbit.settled_fraction <= 2 * 0.01 and "of its distance from the N/2 orbit" in orbit.message
+               for orbit in settled)
+    assert quick.map_calls < exact.map_calls
+    for fast, slow in zip(quick.orbits, exact.orbits):
+        assert fast.status == slow.status
+        distance = 3.0 * slow.state_error
+        assert np.abs(fast.state - slow.state).max() <= 2.0 * max(fast.settled_fraction, 1e-9) * distance
+        assert fast.state_error >= slow.state_error * (1 - 0.03)
+        assert np.all(np.abs(np.abs(fast.multipliers) - np.abs(slow.multipliers)) <= fast.multiplier_errors)
+
+
+def test_settle_within_error_of_a_branch_needs_the_coarse_map_and_an_accuracy():
+    with pytest.raises(periodic.PeriodicError, match="settle_within_error"):
+        periodic.continue_orbits(_duffing(32), np.zeros(2), 0.9, 1.0, settle_within_error=True, accuracy=0.01)
+
+
 def _six_bar():
     paths = ("links.link2.discretisation.n_elements", "links.link4.discretisation.n_elements")
     problem = studies.MechanismProblem.from_scene("six_bar", parameter_paths=paths)

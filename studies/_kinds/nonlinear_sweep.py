@@ -69,6 +69,10 @@ PERIODS_PER_ORBIT = 8
 #: ... and the points of a branch without ``step`` (``periodic.continue_orbits``' default: the range
 #: over 50): with the two, a sweep's steps decide whether it takes the fused step (``mechanisms.fused_step_for``).
 DEFAULT_POINTS = 50
+#: Each step's orbit converged once its correction is within ``LEVEL_ACCURACY`` of its distance from
+#: its N/2 orbit (``periodic.continue_orbits``' ``settle_within_error``, as the steady state's
+#: ``SETTLE_WITHIN_ERROR``), its error bars widened by that share. False: to ``tol``.
+SETTLE_WITHIN_ERROR = True
 
 
 @dataclass(frozen=True, eq=False)
@@ -336,7 +340,7 @@ class _CoarseOrbits:
 
 def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop: float,
                     values: Mapping[str, float] | None = None, n_steps: int = 128, step: float | None = None,
-                    method: str = "natural", tol: float = TOL, max_points: int = 100,
+                    method: str = "natural", tol: float | None = None, max_points: int = 100,
                     stop_at_instability: bool = True, transient_periods: int = TRANSIENT_PERIODS,
                     modes: Any = AUTO) -> NonlinearSweep:
     """Follow the nonlinear periodic orbit (``studies.nonlinear_steady_state``'s, ``n_steps`` per
@@ -348,7 +352,12 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
 
     ``modes`` as for ``studies.nonlinear_steady_state`` (default ``"auto"``: the elastic links reduced to
     the fewest modes the reduction check accepts at ``start``; the linear curves are of the same
-    model; ``"full"``: the element models)."""
+    model; ``"full"``: the element models).
+
+    ``tol``: None (default) each step's orbit converged once its correction is within
+    ``LEVEL_ACCURACY`` of its distance from its N/2 orbit (``SETTLE_WITHIN_ERROR``; natural steps; the
+    error bars widened by that share) or its relative residual is at most ``TOL``; a number: every
+    orbit to that residual."""
     check_parameter(problem, parameter)
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a nonlinear sweep")
     check_integer("max_points", max_points, 2)
@@ -366,17 +375,19 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
                            f"removes the controller's state from the orbit), got {start!r} .. {stop!r}")
     started = time.perf_counter()
     modes = check_modes(modes)
+    settle = SETTLE_WITHIN_ERROR and LEVEL_ACCURACY is not None and tol is None and method == "natural"
+    tol = TOL if tol is None else tol
     # the orbits' periods together (about PERIODS_PER_ORBIT of N steps at each of the points the
     # branch takes at ``step``) decide whether the fused step's compile is repaid, as a long run's do
     given_step = isinstance(step, (int, float)) and math.isfinite(step) and step > 0.0  # else refused later
     points = max(1, min(max_points, math.ceil(abs(stop - start) / step) if given_step else DEFAULT_POINTS))
     with mechanisms.fused_step_for(points * PERIODS_PER_ORBIT * n_steps):
         return _follow(problem, parameter, start, stop, values, n_steps, step, method, tol, max_points,
-                       stop_at_instability, transient_periods, modes, started)
+                       stop_at_instability, transient_periods, modes, started, settle)
 
 
 def _follow(problem, parameter, start, stop, values, n_steps, step, method, tol, max_points, stop_at_instability,
-            transient_periods, modes, started) -> NonlinearSweep:
+            transient_periods, modes, started, settle) -> NonlinearSweep:
     """``nonlinear_sweep`` once its arguments are checked."""
     fixed = {k: v for k, v in (values or {}).items() if k != parameter}
     given = problem
@@ -405,7 +416,8 @@ def _follow(problem, parameter, start, stop, values, n_steps, step, method, tol,
     branch = periodic.continue_orbits(period_map, guess / scale, float(start), float(stop), step=step,
                                       method=method, tol=tol, max_points=max_points,
                                       stop_at_instability=stop_at_instability, estimate=coarse,
-                                      error_factor=ERROR_FACTOR, accuracy=LEVEL_ACCURACY)
+                                      error_factor=ERROR_FACTOR, accuracy=LEVEL_ACCURACY,
+                                      settle_within_error=settle)
     specs = first.linear.observables
     nonlinear = {spec: [] for spec in specs}
     nonlinear_error = {spec: [] for spec in specs}
@@ -422,10 +434,12 @@ def _follow(problem, parameter, start, stop, values, n_steps, step, method, tol,
         if n_substeps or coarse_substeps:
             statuses[k] = substep_verdict(statuses[k], "", n_substeps + coarse_substeps, n_steps)[0]
             split.append(f"{value:.6g}")
+        # an orbit settled within its error: that share of each difference adds (periodic.find_orbit)
+        widened = ERROR_FACTOR + branch.orbits[k].settled_fraction
         for j, spec in enumerate(specs):
             for values, errors, measure in ((nonlinear, nonlinear_error, peak_to_peak), (peaks, peak_errors, peak)):
                 values[spec].append(measure(response[spec])[0])
-                errors[spec].append(ERROR_FACTOR * abs(values[spec][-1] - measure(coarse_response[spec])[0])
+                errors[spec].append(widened * abs(values[spec][-1] - measure(coarse_response[spec])[0])
                                     if coarse_response else math.nan)
             linear_at[spec].append(peak_to_peak(steady.response[:, j])[0])
     linear_values = np.linspace(start, stop, LINEAR_POINTS)
@@ -549,7 +563,8 @@ def _check(where: str, table: Mapping[str, Any], n_steps: int) -> dict[str, Any]
             "method": method,
             "n_steps": integer(where, "n_steps", table.get("n_steps", min(n_steps, 128)), MIN_STEPS,
                                maximum=MAX_STEPS, why=STEPS_WHY),
-            "tol": number(where, "tol", table.get("tol", TOL), positive=True),
+            # absent: None, each orbit settled within its error (``nonlinear_sweep``'s tol)
+            "tol": number(where, "tol", table["tol"], positive=True) if "tol" in table else None,
             "max_points": integer(where, "max_points", table.get("max_points", 100), 2, maximum=MAX_ORBITS,
                                   why=ORBITS_WHY),
             "stop_at_instability": boolean(where, "stop_at_instability", table.get("stop_at_instability", True)),
