@@ -35,6 +35,7 @@ from ._system import PeriodicError as PeriodicError
 from ._system import PeriodicSystem as PeriodicSystem
 from ._system import ShootingError as ShootingError
 from ._verdict import MAX_RELATIVE_ERROR as MAX_RELATIVE_ERROR
+from ._verdict import ORDER_TOLERANCE as ORDER_TOLERANCE
 from ._verdict import STABILITY_TOL as STABILITY_TOL
 from ._verdict import STATUSES as STATUSES
 from ._verdict import ErrorCheck as ErrorCheck
@@ -46,7 +47,7 @@ from ._verdict import worst_status as worst_status
 __all__ = [
     "BIFURCATIONS",
     "SCHEMES",
-    "MAX_RELATIVE_ERROR", "STABILITY_TOL",
+    "MAX_RELATIVE_ERROR", "ORDER_TOLERANCE", "STABILITY_TOL",
     "STATUSES",
     "Duffing",
     "DuffingPeriodMap",

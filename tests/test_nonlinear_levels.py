@@ -211,3 +211,30 @@ def test_the_study_with_its_level_accuracy_against_levels_converged_to_tol(case,
         assert quick.response_error[spec] == pytest.approx(error, rel=0.02)
     worst = np.abs(exact.multipliers).max()
     np.testing.assert_allclose(quick.multiplier_errors, exact.multiplier_errors, rtol=0.05, atol=1e-3 * worst)
+
+
+def test_the_quarter_level_measures_the_ratio_to_its_accuracy_and_the_window_narrows_by_it(monkeypatch):
+    """The N/4 orbit converged to ``QUARTER_ACCURACY`` of its distance from the N/2 orbit: the ratio
+    of successive differences within that fraction of the ratio of the orbit to ``tol``, and the
+    trust window's lower end raised by as much (``order_tolerance``), so that no ratio it measures
+    lets an estimate be trusted that the exact ratio would not."""
+    import math
+
+    problem, values = _six_bar()
+    accuracy = steady_module.QUARTER_ACCURACY
+    seen = []
+    verdict = periodic.error_verdict
+
+    def spy(fine, coarse, order, **options):
+        seen.append((coarse / fine, options.get("order_tolerance")))
+        return verdict(fine, coarse, order, **options)
+
+    monkeypatch.setattr(periodic, "error_verdict", spy)
+    quick = studies.nonlinear_steady_state(problem, values)
+    monkeypatch.setattr(steady_module, "QUARTER_ACCURACY", 1e-6)   # the N/4 orbit to ~tol
+    exact = studies.nonlinear_steady_state(problem, values)
+    (ratio, window), (exact_ratio, exact_window) = seen
+    assert abs(ratio - exact_ratio) <= accuracy * exact_ratio
+    assert window == pytest.approx(periodic.ORDER_TOLERANCE + math.log2(1 - accuracy))
+    assert exact_window == pytest.approx(periodic.ORDER_TOLERANCE + math.log2(1 - 1e-6))
+    assert quick.status == exact.status
