@@ -16,6 +16,8 @@ from ._duffing import duffing_period_map as duffing_period_map
 from ._floquet import FloquetResult as FloquetResult
 from ._floquet import NearResonanceWarning as NearResonanceWarning
 from ._floquet import floquet as floquet
+from ._harmonic import HarmonicBalance as HarmonicBalance
+from ._harmonic import harmonic_balance as harmonic_balance
 from ._orbit import BIFURCATIONS as BIFURCATIONS
 from ._orbit import SETTLE_SLACK as SETTLE_SLACK
 from ._orbit import PeriodicOrbit as PeriodicOrbit
@@ -53,6 +55,7 @@ __all__ = [
     "DuffingPeriodMap",
     "ErrorCheck",
     "FloquetResult",
+    "HarmonicBalance",
     "NearResonanceWarning",
     "OrbitBranch",
     "Newmark",
@@ -73,6 +76,7 @@ __all__ = [
     "error_verdict",
     "find_orbit",
     "floquet",
+    "harmonic_balance",
     "get_scheme",
     "register_scheme",
     "response_derivative",
