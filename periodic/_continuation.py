@@ -262,7 +262,8 @@ class _Corrector:
         turned = None if abandon is None else (lambda state: abandon(self.scaled(state, parameter)))
         within = None
         if settle and self.settle_accuracy is not None and self.estimator.coarse is not None:
-            within = WithinError(self.estimator.coarse, parameter, self.settle_accuracy, self.map.blocks)
+            within = WithinError(self.estimator.coarse, parameter, self.settle_accuracy, self.map.blocks,
+                                 start=self.unscaled(y_pred)[0])
         found = solve_fixed_point(self.map, self.unscaled(y_pred)[0], parameter, tol=self.tol,
                                   max_iterations=self.max_iterations, state_scale=self.floor,
                                   monodromy=self.kept if by_chord else None, abandon=turned, settled=within)
@@ -295,8 +296,8 @@ class _Corrector:
         def refine(start, kept):
             return refined_orbit(self.map, start, orbit.parameter, kept, tol=self.tol,
                                  max_iterations=self.max_iterations, state_scale=self.floor,
-                                 iterations=orbit.iterations, stability_tol=self.stability_tol,
-                                 start_time=start_time)
+                                 iterations=orbit.iterations, map_calls=orbit.map_calls,
+                                 stability_tol=self.stability_tol, start_time=start_time)
 
         judged, _ = judge_within_error(orbit, within, self.estimator, refine, tol=self.tol,
                                        accuracy=self.settle_accuracy, stability_tol=self.stability_tol,
@@ -467,6 +468,10 @@ class _Follower:
                 # itself may make a large angle with it where the branch bends sharply (issue 12)
                 new_tangent = self._local_tangent(found, parameter, secant)
                 new = corrector.orbit(found, self.start_time, fixed, within=corrector.last_within)
+                if not new.converged:     # sent on to tol where its settling misled, and failed there
+                    last_reason = new.message
+                    step *= 0.5
+                    continue
                 if fixed is not None:     # the orbit's state (sent on to tol where its settling misled)
                     found = replace(found, y=corrector.scaled(new.state, fixed))
             else:  # passed: the end point exactly at stop

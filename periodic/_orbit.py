@@ -138,14 +138,16 @@ class WithinError:
     (``use_jacobian``: the chord's kept one, or Newton's at ``y``), about ``|x_{N/2} - y|`` per
     block. That period is the coarse level's first (``probe``: (y, P_{N/2}(y) - y)), so it costs
     nothing more where the coarse level starts there.
-    ``correction`` is the last correction asked about, the settled state's error to first order:
-    :class:`ErrorEstimate` compares it with the coarse orbit's actual distance."""
+    ``correction`` is the last correction asked about (at ``at``), the settled state's error to first
+    order: :class:`ErrorEstimate` compares it with the coarse orbit's actual distance."""
 
-    def __init__(self, coarse: "CountingMap", parameter: float, fraction: float, blocks):
+    def __init__(self, coarse: "CountingMap", parameter: float, fraction: float, blocks, start=None):
         self.coarse, self.parameter, self.fraction = coarse, float(parameter), float(fraction)
         self.blocks = tuple(blocks)
         self.jacobian = self.factors = self.distance = self.probe = self.correction = None
-        self.asked = 0
+        #: the start (given, else the first state asked about) and the state ``correction`` was asked at
+        self.start = None if start is None else np.array(start, dtype=float)
+        self.at = None
 
     def use_jacobian(self, jacobian) -> None:
         """The Jacobian (n, n), ``monodromy - I``, of the probe's correction: the chord's kept one, or
@@ -169,13 +171,15 @@ class WithinError:
             self.distance = np.zeros(len(self.blocks))
 
     def __call__(self, y, correction) -> bool:
-        self.asked += 1
-        if self.asked == 1 or self.jacobian is None:
-            return False
         y = np.asarray(y, dtype=float)
+        if self.start is None:
+            self.start = y.copy()
+        # the start itself (asked again where a chord that did not contract hands over to Newton)
+        if self.jacobian is None or np.array_equal(y, self.start):
+            return False
         if self.distance is None:
             self._measure(y)
-        self.correction = np.array(correction, dtype=float)
+        self.correction, self.at = np.array(correction, dtype=float), y.copy()
         return all(np.abs(self.correction[a:b]).max(initial=0.0) <= self.fraction * distance
                    for (a, b), distance in zip(self.blocks, self.distance))
 
@@ -202,7 +206,10 @@ def judge_within_error(orbit: PeriodicOrbit, within: WithinError | None, estimat
     distance misled) sends it on, ``refine(start (n,), monodromy (n, n)) -> PeriodicOrbit`` (Newton
     to ``tol`` from the corrected iterate), judged with the same coarse orbit. The message says how
     a settled orbit settled (the caller adds its other notes)."""
-    early = (within is not None and orbit.converged and orbit.residual > tol and within.correction is not None)
+    # settled where the correction was asked (to a scaled round trip's round-off), not at a later
+    # iterate (one Newton kept at its round-off floor: its correction is that floor's, not this one)
+    early = (within is not None and orbit.converged and orbit.residual > tol and within.correction is not None
+             and np.allclose(within.at, orbit.state, rtol=1e-10, atol=0.0))
     judged = estimator.apply(orbit, stability_tol=stability_tol, start_time=start_time, chord=chord,
                              probe=None if within is None else within.probe,
                              correction=within.correction if early else None)
@@ -218,16 +225,18 @@ def judge_within_error(orbit: PeriodicOrbit, within: WithinError | None, estimat
 
 
 def refined_orbit(period_map: CountingMap, start, parameter: float, monodromy, *, tol: float, max_iterations: int,
-                  state_scale: float, iterations: int, stability_tol: float, start_time: float) -> PeriodicOrbit:
+                  state_scale: float, iterations: int, map_calls: int, stability_tol: float,
+                  start_time: float) -> PeriodicOrbit:
     """The orbit solved on to ``tol`` from ``start`` (n,) by ``solve_fixed_point`` with ``monodromy``
-    (n, n) kept (``judge_within_error``'s ``refine``), classified; ``iterations``: those before it
-    (the correction that led to ``start`` counts as one more)."""
+    (n, n) kept (``judge_within_error``'s ``refine``), classified; ``iterations`` and ``map_calls``:
+    those before it (the correction that led to ``start`` counts as one more iteration)."""
+    calls_before = period_map.calls
     found = solve_fixed_point(period_map, start, parameter, tol=tol, max_iterations=max_iterations,
                               state_scale=state_scale, monodromy=monodromy)
     kept = found.extra if found.extra is not None else found.jacobian + np.eye(np.size(start))
     return classify(parameter, found.y, kept, residual=found.residual, iterations=iterations + 1 + found.iterations,
-                    map_calls=period_map.calls, converged=found.converged, reason=found.reason,
-                    stability_tol=stability_tol, start_time=start_time)
+                    map_calls=map_calls + period_map.calls - calls_before, converged=found.converged,
+                    reason=found.reason, stability_tol=stability_tol, start_time=start_time)
 
 
 def classify(parameter, state, monodromy, *, residual, iterations, map_calls, converged, reason="",
@@ -332,7 +341,7 @@ def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1
         if estimator.coarse is None or accuracy is None or settled is not None:
             raise PeriodicError("settle_within_error: expected `estimate` (the period map on N/2 steps) and "
                                 "`accuracy`, and no `finer` (this orbit is the finest level)")
-        settled = within = WithinError(estimator.coarse, parameter, accuracy, counted.blocks)
+        settled = within = WithinError(estimator.coarse, parameter, accuracy, counted.blocks, start=guess)
     found = solve_fixed_point(counted, guess, parameter, tol=tol, max_iterations=max_iterations,
                               state_scale=state_scale, monodromy=monodromy, settled=settled,
                               reuse_first=reuse_first, settle_on_iterate=settle_on_iterate,
@@ -344,8 +353,8 @@ def find_orbit(period_map: PeriodMap, guess, parameter: float, *, tol: float = 1
 
     def refine(start, kept):
         return refined_orbit(counted, start, parameter, kept, tol=tol, max_iterations=max_iterations,
-                             state_scale=state_scale, iterations=found.iterations, stability_tol=stability_tol,
-                             start_time=start_time)
+                             state_scale=state_scale, iterations=found.iterations, map_calls=counted.calls,
+                             stability_tol=stability_tol, start_time=start_time)
 
     orbit, early = judge_within_error(orbit, within, estimator, refine, tol=tol, accuracy=accuracy,
                                       stability_tol=stability_tol, start_time=start_time)

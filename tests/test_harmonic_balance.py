@@ -6,7 +6,8 @@ balance with alternating frequency-time evaluation, against
   (``periodic.duffing_period_map``, trapezoidal steps): the shooting converges to the balance's
   state at order 2 as its step halves, within its own N/2 error estimate;
 - itself: chord iterations with the tangent at the start reach Newton's solution; the truncation
-  estimate (H against H/2) bounds the actual truncation error (against 4H harmonics).
+  estimate (H against H/2) bounds the error (against 32 harmonics) where it says it is trusted, and
+  says it is not where the spectrum does not decay yet.
 """
 
 from __future__ import annotations
@@ -91,16 +92,36 @@ def test_chord_iterations_with_the_start_tangent_reach_newtons_solution(balanced
     np.testing.assert_allclose(newton.coefficients, balanced.coefficients, rtol=0, atol=1e-12)
 
 
-def test_the_truncation_estimate_bounds_the_truncation_error():
+def test_the_truncation_estimate_bounds_the_error_where_it_is_trusted():
+    """Against 32 harmonics: at H = 2 and 4 the spectrum does not decay yet (the H/2 difference is
+    smaller than the error at H = 2): not trusted; at 8 and 16 trusted, and at least the error."""
     residual, tangent = _duffing_equations(**DUFFING)
     period = 2 * math.pi / OMEGA
-    coarse = periodic.harmonic_balance(residual, tangent, np.zeros(1), period, harmonics=4, estimate_error=True)
-    fine = periodic.harmonic_balance(residual, tangent, coarse.coefficients, period, harmonics=16)
-    t = np.linspace(0.0, period, 200)
-    actual = float(np.abs(coarse.at(t)[0] - fine.at(t)[0]).max())
-    assert coarse.converged and fine.converged
-    assert actual <= coarse.truncation_error <= 1e3 * actual
-    assert "truncation error estimate" in coarse.message
+    reference = periodic.harmonic_balance(residual, tangent, np.zeros(1), period, harmonics=32)
+    t = np.linspace(0.0, period, 301)
+    for harmonics, trusted in ((2, False), (4, False), (8, True), (16, True)):
+        found = periodic.harmonic_balance(residual, tangent, reference.coefficients, period, harmonics=harmonics,
+                                          estimate_error=True)
+        actual = float(np.abs(found.at(t)[0] - reference.at(t)[0]).max())
+        assert found.converged and found.error_trusted == trusted, (harmonics, found.message)
+        assert ("trusted: the differences decay" in found.message) == trusted
+        if trusted:
+            assert actual <= found.truncation_error, (harmonics, actual, found.truncation_error)
+    assert not reference.error_trusted and math.isnan(reference.truncation_error)   # not asked for
+
+
+def test_a_failing_equation_is_reported_not_raised():
+    residual, tangent = _duffing_equations(**DUFFING)
+
+    def fails(t, x, v, a):
+        if np.abs(x).max() > 0.5:
+            raise RuntimeError("outside the model")
+        return residual(t, x, v, a)
+
+    found = periodic.harmonic_balance(fails, tangent, np.zeros(1), 2 * math.pi / OMEGA, harmonics=8)
+    assert not found.converged and "RuntimeError: outside the model" in found.message
+    nan = periodic.harmonic_balance(lambda t, x, v, a: x * np.nan, tangent, np.zeros(1), 1.0, harmonics=2)
+    assert not nan.converged and nan.message == "the residual is not finite at the start"
 
 
 def test_bad_input_names_the_argument():
@@ -113,5 +134,7 @@ def test_bad_input_names_the_argument():
         periodic.harmonic_balance(residual, tangent, np.zeros(1), -1.0, harmonics=4)
     with pytest.raises(periodic.PeriodicError, match=r"guess: expected coefficients \(2H \+ 1, n\)"):
         periodic.harmonic_balance(residual, tangent, np.zeros((2, 1)), 1.0, harmonics=4)
+    with pytest.raises(periodic.PeriodicError, match="guess: expected finite values"):
+        periodic.harmonic_balance(residual, tangent, np.array([np.nan]), 1.0, harmonics=2)
     with pytest.raises(periodic.PeriodicError, match="residual: expected to return shape"):
         periodic.harmonic_balance(lambda t, x, v, a: x[:, :0], tangent, np.zeros(1), 1.0, harmonics=2)

@@ -286,14 +286,26 @@ def _cpu_ticks() -> tuple[int, int, int] | None:
     return sum(fields), fields[3] + fields[4], cpus
 
 
+def _cpu_quota() -> float | None:
+    """The CPUs this process's control group may use (cgroup v2 ``cpu.max``: quota / period, e.g.
+    ``docker --cpus=1``), or None where it sets no quota or cannot be read."""
+    try:
+        quota, period = Path("/sys/fs/cgroup/cpu.max").read_text().split()[:2]
+        return None if quota == "max" else int(quota) / int(period)
+    except (OSError, ValueError):
+        return None
+
+
 def free_core(window: float = MEASURE_WINDOW) -> bool:
     """Whether this process may use two cores and the machine's idle time over ``window`` s (this
     process asleep) leaves ``IDLE_CORES`` of them: one for this process, one for the helper. On a
     machine without a free core the helper only competes with this process and adds its own start-up
     and the callees both compile. Where the CPU times cannot be read, or cover other CPUs than this
-    process's (a container showing the host's), the 1-min load average decides (``FREE_CORE``)."""
+    process's (a container showing the host's), the 1-min load average decides (``FREE_CORE``). A
+    control group's CPU quota below two CPUs (``_cpu_quota``) leaves no core for the helper."""
     cores = _cores()
-    if cores < 2:
+    quota = _cpu_quota()
+    if cores < 2 or (quota is not None and quota < 2.0):
         return False
     before = _cpu_ticks()
     if before is not None and before[2] == cores:
