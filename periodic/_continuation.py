@@ -175,6 +175,8 @@ class _Corrector:
         #: :class:`WithinError` of the last settling solve (None where it was solved to ``tol``)
         self.settle_accuracy = settle_accuracy
         self.last_within: WithinError | None = None
+        #: the last accepted orbit's distance from its coarse orbit, per block (None: not known)
+        self.last_distance: np.ndarray | None = None
         self.calls_of_last_solve = 0
         #: the monodromy of the last accepted orbit: the chord iterations' Jacobian at a fixed parameter
         self.kept: np.ndarray | None = None
@@ -262,8 +264,11 @@ class _Corrector:
         turned = None if abandon is None else (lambda state: abandon(self.scaled(state, parameter)))
         within = None
         if settle and self.settle_accuracy is not None and self.estimator.coarse is not None:
+            # where the coarse level goes by Newton it does not start from the probe's period: the last
+            # orbit's distance instead of a probe (its actual share is checked all the same)
+            known = self.last_distance if self.coarse_chord_rate > CHORD_RATE else None
             within = WithinError(self.estimator.coarse, parameter, self.settle_accuracy, self.map.blocks,
-                                 start=self.unscaled(y_pred)[0])
+                                 start=self.unscaled(y_pred)[0], distance=known)
         found = solve_fixed_point(self.map, self.unscaled(y_pred)[0], parameter, tol=self.tol,
                                   max_iterations=self.max_iterations, state_scale=self.floor,
                                   monodromy=self.kept if by_chord else None, abandon=turned, settled=within)
@@ -305,6 +310,9 @@ class _Corrector:
         coarse = self.estimator.coarse_monodromy
         if coarse is not None:
             self.coarse_chord_rate = chord_rate(orbit.monodromy, coarse)
+        coarse_state = self.estimator.coarse_orbit
+        self.last_distance = (None if coarse_state is None or not judged.converged
+                              else WithinError.distances(judged.state, coarse_state, self.map.blocks))
         return judged
 
 

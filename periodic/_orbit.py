@@ -132,8 +132,8 @@ class WithinError:
     distance from the coarse orbit, in each block (``blocks``), as an error level's orbit is
     (:class:`Settled`): iterating further would refine the state far below its own time-step error.
 
-    That distance is measured once, at the first iterate asked about after the start (the start's
-    correction measures the start, e.g. the linearisation's error, not the orbit): one period of the
+    That distance (unless given, ``distance``) is measured once, at the first iterate after the
+    start (the start's correction measures the start, e.g. the linearisation's error, not the orbit): one period of the
     coarse map there, without its monodromy, and its correction with the Jacobian last given
     (``use_jacobian``: the chord's kept one, or Newton's at ``y``), about ``|x_{N/2} - y|`` per
     block. That period is the coarse level's first (``probe``: (y, P_{N/2}(y) - y)), so it costs
@@ -141,10 +141,14 @@ class WithinError:
     ``correction`` is the last correction asked about (at ``at``), the settled state's error to first
     order: :class:`ErrorEstimate` compares it with the coarse orbit's actual distance."""
 
-    def __init__(self, coarse: "CountingMap", parameter: float, fraction: float, blocks, start=None):
+    def __init__(self, coarse: "CountingMap", parameter: float, fraction: float, blocks, start=None,
+                 distance=None):
         self.coarse, self.parameter, self.fraction = coarse, float(parameter), float(fraction)
         self.blocks = tuple(blocks)
-        self.jacobian = self.factors = self.distance = self.probe = self.correction = None
+        self.jacobian = self.factors = self.probe = self.correction = None
+        #: per block; given (a neighbouring orbit's, on a branch whose coarse level is solved by Newton,
+        #: which would not reuse the probe's period): not measured
+        self.distance = None if distance is None else np.asarray(distance, dtype=float)
         #: the start (given, else the first state asked about) and the state ``correction`` was asked at
         self.start = None if start is None else np.array(start, dtype=float)
         self.at = None
@@ -182,6 +186,13 @@ class WithinError:
         self.correction, self.at = np.array(correction, dtype=float), y.copy()
         return all(np.abs(self.correction[a:b]).max(initial=0.0) <= self.fraction * distance
                    for (a, b), distance in zip(self.blocks, self.distance))
+
+    @staticmethod
+    def distances(state, coarse_state, blocks) -> np.ndarray:
+        """Per block, the max norm of ``state - coarse_state`` (a converged orbit's distance from its
+        coarse orbit: the next one's ``distance`` on a branch)."""
+        difference = np.abs(np.asarray(state) - np.asarray(coarse_state))
+        return np.array([difference[a:b].max(initial=0.0) for a, b in blocks])
 
     @staticmethod
     def share_of(correction, state, coarse_state, blocks) -> float:
