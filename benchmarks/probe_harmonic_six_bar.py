@@ -9,8 +9,11 @@ dependent coordinates follow from the position, velocity and acceleration constr
 sample (the multipliers drop out). At ``z = 0`` it equals the linear system's ``-f`` (printed). Then:
 (1) ``periodic.harmonic_balance`` with the linearisation's ``M, C, K`` kept (chord) from the linear
 steady state; (2) the residual's Jacobian by differences against that tangent, at ``z = 0`` and at
-the linear state, column by column; (3) Newton with the difference Jacobian (slow: a check of the
-route, not a method), and its orbit against the shooting's. Findings: docs/benchmarks.md (session 12).
+the linear state, column by column; (2b) the same against the linearisation about the iterate's own
+motion (``tangent_along``), (2c) Newton with it, (2d) chord with it kept from the linear state, and
+the cost of one tangent and of one residual; (3) Newton with the difference Jacobian (slow: a check
+of the route, not a method), and its orbit against the shooting's. Findings: docs/benchmarks.md
+(session 12).
 
 Run: .venv/bin/python benchmarks/probe_harmonic_six_bar.py [H [S]]   (defaults 16 harmonics, 64 samples)
 """
@@ -55,6 +58,7 @@ class SixBar:
         self.t = np.arange(samples) * (self.period / samples)
         nominal = context.nominal
         self.s0, self.s0_rate, self.s0_acc = (a[:-1:stride][:samples] for a in (nominal.s, nominal.sdot, nominal.sddot))
+        self.drift = nominal.s[-1] - nominal.s[0]
         self.tangents = tuple(a[:-1:stride][:samples] for a in (system.M, system.C, system.K))
         self.force = system.f[:-1:stride][:samples]
         self.linear_state = self.setup.steady.state.x[:-1:stride][:samples, :self.m]
@@ -96,6 +100,24 @@ class SixBar:
     def tangent(self, t, z, z_rate, z_acc):
         return self.tangents
 
+    def tangent_along(self, t, z, z_rate, z_acc):
+        """The linearisation about the iterate's own motion (``linearize``'s ``linear_coefficients``,
+        its multipliers from the dependent rows, ``Phi_d^T lam = -(M s'' - Q)_d``): Newton's tangent."""
+        from linearize._core import linear_coefficients  # the linearisation's core: no public face
+
+        s, rate, acc, phi_d, _ = self.motion(z, z_rate, z_acc)
+        lam = np.empty((self.samples, phi_d.shape[1]))
+        for j in range(self.samples):
+            full = self.model.mass_matrix(s[j]) @ acc[j] - self.model.forces(s[j], rate[j], self.t[j])
+            lam[j] = np.linalg.solve(phi_d[j].T, -full[self.dependent])
+        def close(a, drift=0.0):    # the grid's t_N = T repeats t_0 (the angles of turning links plus a turn)
+            return np.concatenate([a, a[:1] + drift])
+
+        grid = np.append(self.t, self.period)
+        coefficients = linear_coefficients(self.model, grid, close(s, self.drift), close(rate), close(acc),
+                                           close(lam), period=self.period, independent=self.independent)
+        return coefficients.M[:-1], coefficients.C[:-1], coefficients.K[:-1]
+
 
 def difference_jacobian(newton, coefficients, scale=1e-7):
     value = newton.projected(coefficients).ravel()
@@ -132,6 +154,32 @@ def main() -> None:
         worst = np.abs(jacobian - linear).max(axis=0) / np.abs(linear).max(axis=0)
         print(f"(2) at {name}: the residual's Jacobian against the linear tangent, largest column difference "
               f"{worst.max():.3g} of the column (median {np.median(worst):.3g})")
+    tangent_newton = _harmonic._Newton(case.residual, case.tangent_along, t, basis, rate, acceleration, projection,
+                                       True)
+    for name, at in (("z = 0", np.zeros_like(guess)), ("the linear state", guess)):
+        _, jacobian = difference_jacobian(newton, at)
+        along = tangent_newton.jacobian(at)
+        worst = np.abs(jacobian - along).max(axis=0) / np.abs(along).max(axis=0)
+        print(f"(2b) at {name}: against the linearisation about the iterate's motion, largest column difference "
+              f"{worst.max():.3g} (median {np.median(worst):.3g})")
+    started = time.perf_counter()
+    exact = periodic.harmonic_balance(case.residual, case.tangent_along, guess, period, harmonics=harmonics,
+                                      samples=samples, update_jacobian=True, tol=1e-9, max_iterations=40)
+    print(f"(2c) Newton with that tangent: {exact.message} ({time.perf_counter() - started:.3f} s)")
+    started = time.perf_counter()
+    kept = periodic.harmonic_balance(case.residual, case.tangent_along, guess, period, harmonics=harmonics,
+                                     samples=samples, update_jacobian=False, tol=1e-9, max_iterations=40,
+                                     estimate_error=True)
+    print(f"(2d) chord with that tangent at the linear state: {kept.message} ({time.perf_counter() - started:.3f} s,"
+          f" the truncation estimate's H/2 and H/4 solutions included)")
+    started = time.perf_counter()
+    for _ in range(5):
+        tangent_newton.jacobian(guess)
+    print(f"     one tangent and Jacobian: {(time.perf_counter() - started) / 5 * 1e3:.1f} ms; ", end="")
+    started = time.perf_counter()
+    for _ in range(5):
+        case.residual(t, zero, zero, zero)
+    print(f"one residual: {(time.perf_counter() - started) / 5 * 1e3:.1f} ms")
     speed = float(case.choice.values["speed"])
     orbit = periodic.find_orbit(case.setup.fine, case.setup.guess, speed, tol=1e-10, estimate=case.setup.coarse)
     coefficients, started, iterations = guess.copy(), time.perf_counter(), 0
