@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -201,8 +202,13 @@ def test_kills_at_any_moment_leave_a_readable_file_and_the_rerun_is_bit_identica
                 *before, last = text.strip().splitlines()
                 assert last.startswith("interrupted: ") and \
                     last.endswith(f" points saved in {path}; run the same command to resume"), text
-                # a run after a SIGKILL reports the lock it found (the console shows warnings)
-                assert all("released the lock left by a run" in line for line in before), text
+                # a run after a SIGKILL reports the lock it found (the console shows warnings); a
+                # SIGTERM after the last point was saved can land while the studies' summaries are
+                # printed (stdout, at the end): those lines then come before it (seen in CI, kill 8)
+                saved, total = (int(x) for x in re.match(r"interrupted: (\d+) of (\d+) points", last).groups())
+                others = [line for line in before if "released the lock left by a run" not in line]
+                assert not others or saved == total, text
+                assert "Traceback" not in text, text
             else:
                 assert outcome == f"signal {int(signal.SIGKILL)}", (outcome, text)
             saved_counts.append(_check_readable(path, expected, assert_same, capsys))
