@@ -61,6 +61,7 @@ from ._orbit import (
     ErrorEstimate,
     PeriodicOrbit,
     WithinError,
+    block_max,
     classify,
     judge_within_error,
     refined_orbit,
@@ -262,14 +263,14 @@ class _Corrector:
         calls_before = self.map.calls
         by_chord = self.chord_rate <= CHORD_RATE
         turned = None if abandon is None else (lambda state: abandon(self.scaled(state, parameter)))
-        within = None
+        start, within = self.unscaled(y_pred)[0], None
         if settle and self.settle_accuracy is not None and self.estimator.coarse is not None:
             # where the coarse level goes by Newton it does not start from the probe's period: the last
             # orbit's distance instead of a probe (its actual share is checked all the same)
             known = self.last_distance if self.coarse_chord_rate > CHORD_RATE else None
-            within = WithinError(self.estimator.coarse, parameter, self.settle_accuracy, self.map.blocks,
-                                 start=self.unscaled(y_pred)[0], distance=known)
-        found = solve_fixed_point(self.map, self.unscaled(y_pred)[0], parameter, tol=self.tol,
+            within = WithinError(self.estimator.coarse, parameter, self.settle_accuracy, self.map.blocks, start,
+                                 distance=known)
+        found = solve_fixed_point(self.map, start, parameter, tol=self.tol,
                                   max_iterations=self.max_iterations, state_scale=self.floor,
                                   monodromy=self.kept if by_chord else None, abandon=turned, settled=within)
         self.last_within = within
@@ -312,7 +313,7 @@ class _Corrector:
             self.coarse_chord_rate = chord_rate(orbit.monodromy, coarse)
         coarse_state = self.estimator.coarse_orbit
         self.last_distance = (None if coarse_state is None or not judged.converged
-                              else WithinError.distances(judged.state, coarse_state, self.map.blocks))
+                              else block_max(judged.state - coarse_state, self.map.blocks))
         return judged
 
 

@@ -107,6 +107,12 @@ class PeriodicOrbit:
     settled_fraction: float = 0.0
 
 
+def block_max(vector, blocks) -> np.ndarray:
+    """The max norm of ``vector`` (n,) over each block ((start, stop) index ranges), (blocks,)."""
+    vector = np.abs(np.asarray(vector, dtype=float))
+    return np.array([vector[a:b].max(initial=0.0) for a, b in blocks])
+
+
 class Settled:
     """``settled(y, correction) -> bool``: whether an error level's iterate ``y`` (n,) is accurate
     enough, its Newton (or chord) ``correction`` (n,) at most ``fraction`` of its distance from the
@@ -120,9 +126,8 @@ class Settled:
         self.finer, self.fraction, self.blocks = np.asarray(finer, dtype=float), float(fraction), tuple(blocks)
 
     def __call__(self, y, correction) -> bool:
-        distance = np.asarray(y) + correction - self.finer
-        return all(np.abs(correction[a:b]).max(initial=0.0) <= self.fraction * np.abs(distance[a:b]).max(initial=0.0)
-                   for a, b in self.blocks)
+        distance = block_max(np.asarray(y) + correction - self.finer, self.blocks)
+        return bool(np.all(block_max(correction, self.blocks) <= self.fraction * distance))
 
 
 class WithinError:
@@ -132,25 +137,23 @@ class WithinError:
     distance from the coarse orbit, in each block (``blocks``), as an error level's orbit is
     (:class:`Settled`): iterating further would refine the state far below its own time-step error.
 
-    That distance (unless given, ``distance``) is measured once, at the first iterate after the
-    start (the start's correction measures the start, e.g. the linearisation's error, not the orbit): one period of the
-    coarse map there, without its monodromy, and its correction with the Jacobian last given
-    (``use_jacobian``: the chord's kept one, or Newton's at ``y``), about ``|x_{N/2} - y|`` per
-    block. That period is the coarse level's first (``probe``: (y, P_{N/2}(y) - y)), so it costs
-    nothing more where the coarse level starts there.
+    That distance (unless given, ``distance``) is measured once, at the first iterate other than
+    ``start`` (the start's correction measures the start, e.g. the linearisation's error, not the
+    orbit): one period of the coarse map there, without its monodromy, and its correction with the
+    Jacobian last given (``use_jacobian``: the chord's kept one, or Newton's at ``y``), about
+    ``|x_{N/2} - y|`` per block. That period is the coarse level's first (``probe``: (y, P_{N/2}(y) -
+    y)), so it costs nothing more where the coarse level starts there.
     ``correction`` is the last correction asked about (at ``at``), the settled state's error to first
     order: :class:`ErrorEstimate` compares it with the coarse orbit's actual distance."""
 
-    def __init__(self, coarse: "CountingMap", parameter: float, fraction: float, blocks, start=None,
-                 distance=None):
+    def __init__(self, coarse: "CountingMap", parameter: float, fraction: float, blocks, start, distance=None):
         self.coarse, self.parameter, self.fraction = coarse, float(parameter), float(fraction)
-        self.blocks = tuple(blocks)
-        self.jacobian = self.factors = self.probe = self.correction = None
+        self.blocks, self.start = tuple(blocks), np.array(start, dtype=float)
+        self.jacobian = self.probe = self.correction = None
         #: per block; given (a neighbouring orbit's, on a branch whose coarse level is solved by Newton,
         #: which would not reuse the probe's period): not measured
         self.distance = None if distance is None else np.asarray(distance, dtype=float)
-        #: the start (given, else the first state asked about) and the state ``correction`` was asked at
-        self.start = None if start is None else np.array(start, dtype=float)
+        #: the state ``correction`` was asked at
         self.at = None
 
     def use_jacobian(self, jacobian) -> None:
@@ -162,48 +165,37 @@ class WithinError:
     def _measure(self, y: np.ndarray) -> None:
         import scipy.linalg
 
-        self.factors = scipy.linalg.lu_factor(np.asarray(self.jacobian, dtype=float), check_finite=False)
+        factors = scipy.linalg.lu_factor(np.asarray(self.jacobian, dtype=float), check_finite=False)
         try:
             value = np.asarray(self.coarse.end_state(y, self.parameter), dtype=float) - y
         except RuntimeError:      # the coarse level reports its own failure later: settle to tol
             value = np.full(y.shape, np.nan)
-        step = scipy.linalg.lu_solve(self.factors, value, check_finite=False)
+        step = scipy.linalg.lu_solve(factors, value, check_finite=False)
         if np.all(np.isfinite(step)):
             self.probe = (y.copy(), value)
-            self.distance = np.array([np.abs(step[a:b]).max(initial=0.0) for a, b in self.blocks])
+            self.distance = block_max(step, self.blocks)
         else:                     # no distance to settle within: converged to tol only
             self.distance = np.zeros(len(self.blocks))
 
     def __call__(self, y, correction) -> bool:
         y = np.asarray(y, dtype=float)
-        if self.start is None:
-            self.start = y.copy()
         # the start itself (asked again where a chord that did not contract hands over to Newton)
         if self.jacobian is None or np.array_equal(y, self.start):
             return False
         if self.distance is None:
             self._measure(y)
         self.correction, self.at = np.array(correction, dtype=float), y.copy()
-        return all(np.abs(self.correction[a:b]).max(initial=0.0) <= self.fraction * distance
-                   for (a, b), distance in zip(self.blocks, self.distance))
-
-    @staticmethod
-    def distances(state, coarse_state, blocks) -> np.ndarray:
-        """Per block, the max norm of ``state - coarse_state`` (a converged orbit's distance from its
-        coarse orbit: the next one's ``distance`` on a branch)."""
-        difference = np.abs(np.asarray(state) - np.asarray(coarse_state))
-        return np.array([difference[a:b].max(initial=0.0) for a, b in blocks])
+        return bool(np.all(block_max(self.correction, self.blocks) <= self.fraction * self.distance))
 
     @staticmethod
     def share_of(correction, state, coarse_state, blocks) -> float:
         """The largest ratio over ``blocks`` of ``correction`` (n,) to the distance of ``state +
         correction`` from the coarse orbit ``coarse_state`` (max norms; inf where that distance is 0
         and the correction not)."""
-        ratios = []
-        for a, b in blocks:
-            size = float(np.abs(correction[a:b]).max(initial=0.0))
-            distance = float(np.abs(state[a:b] + correction[a:b] - coarse_state[a:b]).max(initial=0.0))
-            ratios.append(size / distance if distance > 0.0 else (0.0 if size == 0.0 else math.inf))
+        sizes = block_max(correction, blocks)
+        distances = block_max(np.asarray(state) + correction - coarse_state, blocks)
+        ratios = [size / distance if distance > 0.0 else (0.0 if size == 0.0 else math.inf)
+                  for size, distance in zip(sizes, distances)]
         return max(ratios, default=0.0)
 
 
