@@ -234,6 +234,9 @@ def test_continuation_over_speed_against_single_orbits(problem, monkeypatch):
     # by default each orbit settled within LEVEL_ACCURACY of its distance from its N/2 orbit (and
     # each N/2 orbit to it of its distance from the N orbit): the end point within a few of those
     # shares of that distance from the orbit to tol, and its error bar widened by that share
+    # and the sweep says so (the exact one does not)
+    assert "orbits settled within their error" in sweep.message
+    assert "settled within" not in exact.message
     accuracy, slack = steady_module.LEVEL_ACCURACY, periodic.SETTLE_SLACK
     assert abs(sweep.peak_to_peak[SPEC][-1] - single.peak_to_peak[SPEC]) <= 3 * slack * accuracy * difference
     np.testing.assert_allclose(sweep.peak_to_peak_error[SPEC], exact.peak_to_peak_error[SPEC],

@@ -510,6 +510,13 @@ def _error_estimates(setup: ShootingSetup, response: Mapping[str, np.ndarray], z
     return errors, [reason for reason in reasons if reason]
 
 
+def settling_tol(tol: float | None) -> tuple[float, bool]:
+    """(the residual Newton stops at, whether the finest orbit settles within its error) for a
+    nonlinear study's ``tol``: None the default ``TOL`` and settling (``SETTLE_WITHIN_ERROR``, with
+    ``LEVEL_ACCURACY``); a number that residual alone."""
+    return (TOL if tol is None else tol), (SETTLE_WITHIN_ERROR and LEVEL_ACCURACY is not None and tol is None)
+
+
 def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = None, *, n_steps: int = 256,
                            tol: float | None = None, max_iterations: int = MAX_ITERATIONS,
                            modes: Any = AUTO) -> NonlinearSteadyState:
@@ -530,8 +537,7 @@ def nonlinear_steady_state(problem: Any, values: Mapping[str, float] | None = No
     its relative residual is at most ``TOL``; a number: Newton to that residual."""
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a nonlinear steady state")
     check_integer("max_iterations", max_iterations, 1)
-    settle = SETTLE_WITHIN_ERROR and LEVEL_ACCURACY is not None and tol is None
-    tol = TOL if tol is None else tol
+    tol, settle = settling_tol(tol)
     if not (isinstance(tol, (int, float)) and 0.0 < tol < 1.0):
         raise StudiesError(f"tol: expected a relative residual in (0, 1), got {tol!r}")
     given, given_values, modes = problem, values, check_modes(modes)

@@ -44,9 +44,9 @@ from .nonlinear_steady_state import (
     ERROR_FACTOR,
     LEVEL_ACCURACY,
     MIN_STEPS,
-    TOL,
     modes_option,
     orbit_observables,
+    settling_tol,
     shooting_setup,
     substep_verdict,
     warm_up_shooting,
@@ -69,10 +69,6 @@ PERIODS_PER_ORBIT = 8
 #: ... and the points of a branch without ``step`` (``periodic.continue_orbits``' default: the range
 #: over 50): with the two, a sweep's steps decide whether it takes the fused step (``mechanisms.fused_step_for``).
 DEFAULT_POINTS = 50
-#: Each step's orbit converged once its correction is within ``LEVEL_ACCURACY`` of its distance from
-#: its N/2 orbit (``periodic.continue_orbits``' ``settle_within_error``, as the steady state's
-#: ``SETTLE_WITHIN_ERROR``), its error bars widened by that share. False: to ``tol``.
-SETTLE_WITHIN_ERROR = True
 
 
 @dataclass(frozen=True, eq=False)
@@ -354,10 +350,10 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
     the fewest modes the reduction check accepts at ``start``; the linear curves are of the same
     model; ``"full"``: the element models).
 
-    ``tol``: None (default) each step's orbit converged once its correction is within
-    ``LEVEL_ACCURACY`` of its distance from its N/2 orbit (``SETTLE_WITHIN_ERROR``; natural steps; the
-    error bars widened by that share) or its relative residual is at most ``TOL``; a number: every
-    orbit to that residual."""
+    ``tol``: None (default) each natural step's orbit converged once its correction is within
+    ``LEVEL_ACCURACY`` of its distance from its N/2 orbit (``periodic.continue_orbits``'
+    ``settle_within_error``, the steady state's ``settling_tol``; the error bars widened by that share)
+    or its relative residual is at most ``TOL``; a number: every orbit to that residual."""
     check_parameter(problem, parameter)
     n_steps = check_n_steps(n_steps, minimum=MIN_STEPS, study="a nonlinear sweep")
     check_integer("max_points", max_points, 2)
@@ -374,23 +370,9 @@ def nonlinear_sweep(problem: Any, parameter: str = SPEED, *, start: float, stop:
         raise StudiesError(f"start, stop: expected lags {parameter!r} > 0 over the whole range (a lag of 0 "
                            f"removes the controller's state from the orbit), got {start!r} .. {stop!r}")
     started = time.perf_counter()
-    modes = check_modes(modes)
-    settle = SETTLE_WITHIN_ERROR and LEVEL_ACCURACY is not None and tol is None and method == "natural"
-    tol = TOL if tol is None else tol
-    # the orbits' periods together (about PERIODS_PER_ORBIT of N steps at each of the points the
-    # branch takes at ``step``) decide whether the fused step's compile is repaid, as a long run's do
-    given_step = isinstance(step, (int, float)) and math.isfinite(step) and step > 0.0  # else refused later
-    points = max(1, min(max_points, math.ceil(abs(stop - start) / step) if given_step else DEFAULT_POINTS))
-    with mechanisms.fused_step_for(points * PERIODS_PER_ORBIT * n_steps):
-        return _follow(problem, parameter, start, stop, values, n_steps, step, method, tol, max_points,
-                       stop_at_instability, transient_periods, modes, started, settle)
-
-
-def _follow(problem, parameter, start, stop, values, n_steps, step, method, tol, max_points, stop_at_instability,
-            transient_periods, modes, started, settle) -> NonlinearSweep:
-    """``nonlinear_sweep`` once its arguments are checked."""
+    tol, settle = settling_tol(tol)
     fixed = {k: v for k, v in (values or {}).items() if k != parameter}
-    given = problem
+    given, modes = problem, check_modes(modes)
     choice = (choose_model(problem, dict(fixed, **{parameter: start}), modes)
               if getattr(problem, "supports_nonlinear", False) else None)
     if choice is not None and choice.modes and parameter != SPEED and parameter not in choice.problem.parameters:
@@ -413,11 +395,16 @@ def _follow(problem, parameter, start, stop, values, n_steps, step, method, tol,
     # on them and not on a bare stability_tol (as nonlinear_steady_state's verdict); its orbits to
     # LEVEL_ACCURACY of their distance from the N-step ones, as the steady state's
     coarse = _CoarseOrbits(_ParameterMap(mechanisms_at, n_steps // 2, first.fine.independent, scale))
-    branch = periodic.continue_orbits(period_map, guess / scale, float(start), float(stop), step=step,
-                                      method=method, tol=tol, max_points=max_points,
-                                      stop_at_instability=stop_at_instability, estimate=coarse,
-                                      error_factor=ERROR_FACTOR, accuracy=LEVEL_ACCURACY,
-                                      settle_within_error=settle)
+    # the orbits' periods together (about PERIODS_PER_ORBIT of N steps at each of the points the
+    # branch takes at ``step``) decide whether the fused step's compile is repaid, as a long run's do
+    given_step = isinstance(step, (int, float)) and math.isfinite(step) and step > 0.0  # else refused there
+    points = max(1, min(max_points, math.ceil(abs(stop - start) / step) if given_step else DEFAULT_POINTS))
+    with mechanisms.fused_step_for(points * PERIODS_PER_ORBIT * n_steps):
+        branch = periodic.continue_orbits(period_map, guess / scale, float(start), float(stop), step=step,
+                                          method=method, tol=tol, max_points=max_points,
+                                          stop_at_instability=stop_at_instability, estimate=coarse,
+                                          error_factor=ERROR_FACTOR, accuracy=LEVEL_ACCURACY,
+                                          settle_within_error=settle and method == "natural")
     specs = first.linear.observables
     nonlinear = {spec: [] for spec in specs}
     nonlinear_error = {spec: [] for spec in specs}
@@ -452,6 +439,10 @@ def _follow(problem, parameter, start, stop, values, n_steps, step, method, tol,
     after, transient_value, transient_t, transient = _after_instability(
         problem, period_map, branch, fixed, parameter, n_steps, transient_periods, specs)
     message = branch.message + (f"; {after}" if after else "")
+    shares = [orbit.settled_fraction for orbit in branch.orbits if orbit.settled_fraction > 0.0]
+    if shares:
+        message += (f"; {len(shares)} of {len(branch.orbits)} orbits settled within their error (up to "
+                    f"{max(shares):.2g} of their distance from the N/2 orbit, added to their error bars)")
     if choice is not None and choice.message:
         reduced = ", ".join(f"{k} {v} modes" for k, v in choice.modes.items()) or "model"
         message += f"; {reduced} (checked at {parameter} = {start:g}): {choice.message}"
