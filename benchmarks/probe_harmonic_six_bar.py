@@ -130,6 +130,13 @@ def difference_jacobian(newton, coefficients, scale=1e-7):
     return value, jacobian
 
 
+def _mean_ms(call, repeats: int = 5) -> float:
+    started = time.perf_counter()
+    for _ in range(repeats):
+        call()
+    return (time.perf_counter() - started) / repeats * 1e3
+
+
 def main() -> None:
     harmonics = int(sys.argv[1]) if len(sys.argv) > 1 else 16
     samples = int(sys.argv[2]) if len(sys.argv) > 2 else 64
@@ -172,14 +179,8 @@ def main() -> None:
                                      estimate_error=True)
     print(f"(2d) chord with that tangent at the linear state: {kept.message} ({time.perf_counter() - started:.3f} s,"
           f" the truncation estimate's H/2 and H/4 solutions included)")
-    started = time.perf_counter()
-    for _ in range(5):
-        tangent_newton.jacobian(guess)
-    print(f"     one tangent and Jacobian: {(time.perf_counter() - started) / 5 * 1e3:.1f} ms; ", end="")
-    started = time.perf_counter()
-    for _ in range(5):
-        case.residual(t, zero, zero, zero)
-    print(f"one residual: {(time.perf_counter() - started) / 5 * 1e3:.1f} ms")
+    print(f"     one tangent and Jacobian: {_mean_ms(lambda: tangent_newton.jacobian(guess)):.1f} ms; "
+          f"one residual: {_mean_ms(lambda: case.residual(t, zero, zero, zero)):.1f} ms")
     speed = float(case.choice.values["speed"])
     orbit = periodic.find_orbit(case.setup.fine, case.setup.guess, speed, tol=1e-10, estimate=case.setup.coarse)
     coefficients, started, iterations = guess.copy(), time.perf_counter(), 0

@@ -123,8 +123,8 @@ def harmonic_balance(residual: Residual, tangent: Tangent, guess, period: float,
     an (n,) constant. ``samples``: S (default ``4 H + 4``; at least ``2 H + 2``). Converged once the
     Newton correction is at most ``tol`` of the coefficients (max norms; plus 1e-300); a correction is
     shortened only where the residual is not finite at its end. A numerical failure (``residual`` or
-    ``tangent`` raising ``RuntimeError``, a non-finite value, a singular Jacobian, no decrease) is
-    returned, not raised (``converged`` False, ``message``); bad input raises ``PeriodicError``
+    ``tangent`` raising ``RuntimeError``, a non-finite value, a singular Jacobian, no convergence in
+    ``max_iterations``) is returned, not raised (``converged`` False, ``message``); bad input raises ``PeriodicError``
     naming the argument."""
     started = time.perf_counter()
     period = check_real("period", period)
@@ -274,7 +274,7 @@ class _Newton:
                     return _Found(coefficients, math.inf, math.inf, iteration, False,
                                   f"the {kind} correction is not finite (a singular Jacobian: a resonance of the "
                                   "tangent, or a free mode)")
-                norm, length = float(np.linalg.norm(value)), 1.0
+                length = 1.0
                 size = float(np.abs(coefficients - step).max()) + 1e-300
                 if float(np.abs(step).max()) <= tol * size:
                     # converged: a correction this small is taken whole (the residual may be at its
@@ -295,7 +295,7 @@ class _Newton:
                         break
                     length *= 0.5
                 else:
-                    return _Found(coefficients, norm, correction, iteration, False, (
+                    return _Found(coefficients, float(np.linalg.norm(value)), correction, iteration, False, (
                         f"the residual is not finite along the {kind} correction even at 1/{2**_MAX_HALVINGS} "
                         "of it; start nearer the solution"))
                 coefficients, value = trial, trial_value

@@ -205,15 +205,17 @@ def test_the_helper_process_runs_its_share_of_the_list(monkeypatch):
 
 def test_the_processes_setting_is_checked(monkeypatch):
     from studies._errors import UsageError
-    from studies.cli._kernel_list import PROCESSES_VARIABLE, use_helper
+    from studies.cli._kernel_list import PROCESSES_VARIABLE, helper_setting
 
     monkeypatch.setenv(PROCESSES_VARIABLE, "1")
-    assert not use_helper()
+    assert helper_setting() is False
     monkeypatch.setenv(PROCESSES_VARIABLE, "2")
-    assert use_helper()
+    assert helper_setting() is True
+    monkeypatch.delenv(PROCESSES_VARIABLE)
+    assert helper_setting() is None          # decided by the free cores, at the first cache miss
     monkeypatch.setenv(PROCESSES_VARIABLE, "two")
     with pytest.raises(UsageError, match="FLEXVIB_COMPILE_PROCESSES: expected 1 .* or 2 .* got 'two'"):
-        use_helper()
+        helper_setting()
 
 
 def test_the_free_cores_are_measured_not_read_off_the_load_average(monkeypatch):

@@ -38,7 +38,7 @@ from typing import Any, Callable, Iterable
 from .._errors import UsageError
 
 __all__ = ["KERNEL_LIST", "STEADY_STATE_STEP", "Helper", "Listed", "compile_listed", "first_root", "load_list",
-           "free_core", "helper_setting", "record", "use_helper"]
+           "free_core", "helper_setting", "record"]
 
 #: The list: JSON ``[{"step": ..., "kernel": "module.qualname", "signature": "(types, ...)"}, ...]``.
 KERNEL_LIST = Path(__file__).with_name("kernel_list.json")
@@ -315,12 +315,6 @@ def free_core(window: float = MEASURE_WINDOW) -> bool:
             idle_share = (after[1] - before[1]) / (after[0] - before[0])
             return idle_share * cores >= IDLE_CORES
     return os.getloadavg()[0] <= cores - FREE_CORE
-
-
-def use_helper() -> bool:
-    """Whether to compile in a helper process too: :func:`helper_setting`, else :func:`free_core`."""
-    setting = helper_setting()
-    return free_core() if setting is None else setting
 
 
 class Helper:
