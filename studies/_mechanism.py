@@ -389,11 +389,16 @@ class _RunRoute:
         reports it: its change from its values along the nominal motion (angles modulo 2 pi),
         plus the map's nominal part when it has one (the axially rigid link's nominal axial
         stress)."""
+        # the observable's values at many samples at once where it offers them (a link's built-in
+        # quantities: the same formulas; about 5 us a sample in Python otherwise)
+        along = getattr(observable, "values_along", None) if value is None else None
         value = observable.value if value is None else value
-        values = (self.computed[observable.spec] if observable.spec in self.computed
-                  else np.array([value(sk) for sk in self.s]))
-        values = deviation_from_nominal(values, self._repeated([value(sk) for sk in self.nominal_s[:-1]]),
-                                        observable.unit)
+
+        def evaluate(samples: np.ndarray) -> np.ndarray:
+            return along(samples) if along is not None else np.array([value(sk) for sk in samples])
+
+        values = self.computed[observable.spec] if observable.spec in self.computed else evaluate(self.s)
+        values = deviation_from_nominal(values, self._repeated(evaluate(self.nominal_s[:-1])), observable.unit)
         if linear_map.nominal is not None:   # on the linear grid (N+1,)
             values = values + self._repeated(np.asarray(linear_map.nominal)[::self.stride][:-1])
         return values
