@@ -14,6 +14,7 @@ from ._beams import beam_shapes as beam_shapes
 from ._kinematics import ConvergenceError as ConvergenceError
 from ._kinematics import NominalMotion as NominalMotion
 from ._kinematics import feedforward_torques as feedforward_torques
+from ._kinematics import nominal_at_period as nominal_at_period
 from ._kinematics import nominal_dynamics as nominal_dynamics
 from ._kinematics import nominal_motion as nominal_motion
 from ._load import build as build

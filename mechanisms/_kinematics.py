@@ -239,6 +239,23 @@ def nominal_dynamics(mechanism: Mechanism, kinematics: NominalMotion) -> Nominal
                    constraint_residual=residual, run_time=time.perf_counter() - started)
 
 
+def nominal_at_period(mechanism: Mechanism, kinematics: NominalMotion) -> NominalMotion:
+    """The nominal motion of ``mechanism`` whose drives follow the same law of the phase ``2 pi t /
+    period`` as those of ``kinematics``' mechanism in ``mechanism``'s own period (another speed):
+    ``kinematics``' positions at the same phases, the rates and accelerations scaled by the ratio of the
+    periods and its square, the inverse dynamics recomputed (``nominal_dynamics``, which checks the
+    positions against ``mechanism``'s constraints), without the continuation. Raises ``ArgumentError``
+    when the positions do not meet them (a drive law of time rather than of the phase, another
+    linkage): compute its ``nominal_motion`` instead."""
+    period = float(mechanism.period)
+    ratio = kinematics.period / period          # the speed ratio: the phase turns this much faster
+    scaled = replace(kinematics, t=kinematics.t / ratio, sdot=kinematics.sdot * ratio,
+                     sddot=kinematics.sddot * ratio**2, period=period,
+                     velocity_residual=kinematics.velocity_residual * abs(ratio),
+                     acceleration_residual=kinematics.acceleration_residual * ratio**2)
+    return nominal_dynamics(mechanism, scaled)
+
+
 def _rigid_mechanism(mechanism: Mechanism) -> Mechanism:
     """The mechanism whose model the nominal motion uses: torque drives following their nominal
     law, prescribed (their inverse-dynamics torque is what the drive's multiplier gives), without

@@ -415,3 +415,32 @@ def test_rigid_limit_stiff_coupler_reproduces_kinematics_and_torque():
     _, angle_soft = last_period_deviation(1e3, 256)
     assert torque_256 < 1e-3 and 3.5 < torque_128 / torque_256 < 4.5
     assert angle_stiff < 1e-8 and 8.0 < angle_soft / angle_stiff < 12.0
+
+
+@pytest.mark.parametrize("scene", ["six_bar", "two_link_arm"])
+def test_the_motion_at_another_speed_from_the_same_phases_equals_its_continuation(scene):
+    """``nominal_at_period`` (a speed sweep's nominal motions): the first speed's positions at the same
+    phases, rates and accelerations scaled, the inverse dynamics recomputed, against the continuation
+    at the new speed."""
+    import studies
+
+    problem = studies.MechanismProblem.from_scene(scene)
+    speed = problem.parameters["speed"]
+    first = mechanisms.nominal_motion(problem.mechanism({"speed": 0.8 * speed}), n_steps=64)
+    faster = problem.mechanism({"speed": 1.3 * speed})
+    carried, computed = mechanisms.nominal_at_period(faster, first), mechanisms.nominal_motion(faster, n_steps=64)
+    assert carried.period == pytest.approx(computed.period, rel=1e-14)
+    for name in ("t", "s", "sdot", "sddot", "lam", "drive_torque"):
+        expected = getattr(computed, name)
+        assert np.abs(getattr(carried, name) - expected).max() <= 1e-12 * np.abs(expected).max(), name
+
+
+def test_the_motion_of_another_linkage_is_refused_at_another_speed():
+    import studies
+
+    problem = studies.MechanismProblem.from_scene("six_bar", parameter_paths=["links.crank.length"])
+    length = problem.parameters["links.crank.length"]
+    first = mechanisms.nominal_motion(problem.mechanism(), n_steps=64)
+    with pytest.raises(mechanisms.ArgumentError, match="the linkage moved"):
+        mechanisms.nominal_at_period(problem.mechanism({"links.crank.length": 1.05 * length, "speed": 90.0}),
+                                     first)

@@ -227,14 +227,30 @@ class _Mechanisms:
     def __init__(self, problem: Any, parameter: str, values: Mapping[str, float]):
         self.problem, self.parameter, self.values = problem, parameter, dict(values)
         self._kept: dict[float, tuple[Any, Any]] = {}
+        self._first: Any = None     # a speed sweep's first nominal motion, the others its phases'
 
     def at(self, value: float) -> tuple[Any, Any]:
         if value not in self._kept:
             if len(self._kept) >= 6:
                 self._kept.pop(next(iter(self._kept)))
             mechanism = self.problem.mechanism(dict(self.values, **{self.parameter: value}))
-            self._kept[value] = mechanism, mechanisms.nominal_motion(mechanism, n_steps=NOMINAL_STEPS)
+            self._kept[value] = mechanism, self._nominal(mechanism)
         return self._kept[value]
+
+    def _nominal(self, mechanism: Any) -> Any:
+        """The nominal motion of ``mechanism`` (``NOMINAL_STEPS``): along a speed, prescribed drives turn
+        the linkage through the same configurations at every speed, so the first value's motion at
+        the same phases (``mechanisms.nominal_at_period``, its positions checked against the
+        constraints) saves the continuation; else, or when that check fails, computed."""
+        if self._first is not None:
+            try:
+                return mechanisms.nominal_at_period(mechanism, self._first)
+            except mechanisms.ArgumentError:
+                pass
+        motion = mechanisms.nominal_motion(mechanism, n_steps=NOMINAL_STEPS)
+        if self.parameter == SPEED and self._first is None and not mechanism.torque_drives:
+            self._first = motion
+        return motion
 
 
 class _ParameterMap:
