@@ -232,6 +232,13 @@ def nominal_dynamics(mechanism: Mechanism, kinematics: NominalMotion) -> Nominal
         raise ArgumentError(f"kinematics: the motion leaves a constraint residual {residual:.3g} on "
                             f"this mechanism (its own {kinematics.constraint_residual:.3g}): the "
                             f"linkage moved; compute its nominal_motion instead")
+    # the rates too: positions that meet the constraints at the samples could come from a law that
+    # differs between them (a harmonic of order k + N against one of order k)
+    velocity = float(np.abs(np.einsum("krn,kn->kr", positions.jacobian, sdot) + positions.rate).max())
+    if velocity > 10.0 * kinematics.velocity_residual + 1e-9 * max(1.0, float(np.abs(sdot).max())):
+        raise ArgumentError(f"kinematics: the rates leave a velocity constraint residual {velocity:.3g} on "
+                            f"this mechanism (their own {kinematics.velocity_residual:.3g}): the drives "
+                            f"moved; compute its nominal_motion instead")
     rigid_jacobians = positions.jacobian[:, :, rigid]
     inertia = inertia_residual_along(model, t, s, sdot, sddot)      # M s'' - Q, (N+1, n)
     lam = np.linalg.solve(np.swapaxes(rigid_jacobians, 1, 2), -inertia[:, rigid, None])[..., 0]
@@ -249,7 +256,8 @@ def nominal_at_period(mechanism: Mechanism, kinematics: NominalMotion) -> Nomina
     linkage): compute its ``nominal_motion`` instead."""
     period = float(mechanism.period)
     ratio = kinematics.period / period          # the speed ratio: the phase turns this much faster
-    scaled = replace(kinematics, t=kinematics.t / ratio, sdot=kinematics.sdot * ratio,
+    # the grid nominal_motion makes at this period (t / ratio may end an ulp off it)
+    scaled = replace(kinematics, t=np.linspace(0.0, period, kinematics.n_steps + 1), sdot=kinematics.sdot * ratio,
                      sddot=kinematics.sddot * ratio**2, period=period,
                      velocity_residual=kinematics.velocity_residual * abs(ratio),
                      acceleration_residual=kinematics.acceleration_residual * ratio**2)

@@ -444,3 +444,17 @@ def test_the_motion_of_another_linkage_is_refused_at_another_speed():
     with pytest.raises(mechanisms.ArgumentError, match="the linkage moved"):
         mechanisms.nominal_at_period(problem.mechanism({"links.crank.length": 1.05 * length, "speed": 90.0}),
                                      first)
+
+
+def test_rates_that_do_not_meet_the_velocity_constraints_are_refused():
+    """Positions that meet the constraints are not enough: rates 1 % off (a law that differs between
+    the samples) are refused too."""
+    import dataclasses
+
+    import studies
+
+    problem = studies.MechanismProblem.from_scene("six_bar")
+    first = mechanisms.nominal_motion(problem.mechanism(), n_steps=64)
+    wrong = dataclasses.replace(first, sdot=1.01 * first.sdot)
+    with pytest.raises(mechanisms.ArgumentError, match="velocity constraint residual"):
+        mechanisms.nominal_at_period(problem.mechanism({"speed": 90.0}), wrong)
