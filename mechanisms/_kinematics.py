@@ -214,7 +214,9 @@ def nominal_dynamics(mechanism: Mechanism, kinematics: NominalMotion) -> Nominal
     section properties, densities, masses, damping, gains): the same ``t, s, sdot, sddot``, the
     multipliers and drive torques of ``mechanism``'s rigid inverse dynamics recomputed along them,
     without the continuation.  Raises ``ArgumentError`` when ``kinematics`` does not meet
-    ``mechanism``'s constraints to ten times its own residual (and 1e-11): the linkage moved."""
+    ``mechanism``'s constraints to ten times its own residual (and 1e-11: the linkage moved), or its
+    rates the velocity constraints to ten times theirs (and 1e-9 of the largest rate: the drives
+    moved)."""
     started = time.perf_counter()
     rigid_mechanism = _rigid_mechanism(mechanism)
     if _same_mechanism(getattr(kinematics.model, "mechanism", None), rigid_mechanism):
@@ -251,15 +253,15 @@ def nominal_at_period(mechanism: Mechanism, kinematics: NominalMotion) -> Nomina
     period`` as those of ``kinematics``' mechanism in ``mechanism``'s own period (another speed):
     ``kinematics``' positions at the same phases, the rates and accelerations scaled by the ratio of the
     periods and its square, the inverse dynamics recomputed (``nominal_dynamics``, which checks the
-    positions against ``mechanism``'s constraints), without the continuation. Raises ``ArgumentError``
-    when the positions do not meet them (a drive law of time rather than of the phase, another
+    positions and rates against ``mechanism``'s constraints), without the continuation. Raises
+    ``ArgumentError`` when they do not meet them (a drive law of time rather than of the phase, another
     linkage): compute its ``nominal_motion`` instead."""
     period = float(mechanism.period)
     ratio = kinematics.period / period          # the speed ratio: the phase turns this much faster
     # the grid nominal_motion makes at this period (t / ratio may end an ulp off it)
     scaled = replace(kinematics, t=np.linspace(0.0, period, kinematics.n_steps + 1), sdot=kinematics.sdot * ratio,
                      sddot=kinematics.sddot * ratio**2, period=period,
-                     velocity_residual=kinematics.velocity_residual * abs(ratio),
+                     velocity_residual=kinematics.velocity_residual * ratio,
                      acceleration_residual=kinematics.acceleration_residual * ratio**2)
     return nominal_dynamics(mechanism, scaled)
 

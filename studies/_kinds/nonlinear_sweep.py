@@ -240,8 +240,8 @@ class _Mechanisms:
     def _nominal(self, mechanism: Any) -> Any:
         """The nominal motion of ``mechanism`` (``NOMINAL_STEPS``): along a speed, prescribed drives turn
         the linkage through the same configurations at every speed, so the first value's motion at
-        the same phases (``mechanisms.nominal_at_period``, its positions checked against the
-        constraints) saves the continuation; else, or when that check fails, computed."""
+        the same phases (``mechanisms.nominal_at_period``, its positions and rates checked against
+        the constraints) saves the continuation; else, or when that check fails, computed."""
         if self._first is not None:
             try:
                 return mechanisms.nominal_at_period(mechanism, self._first)
