@@ -23,7 +23,7 @@ from typing import Any, Callable, Mapping
 
 from .._kind import WARM_UP_STEPS, kind_named
 from .._problem import SPEED
-from ._kernel_list import STEADY_STATE_STEP, Helper, compile_listed, first_root, load_list
+from ._kernel_list import STEADY_STATE_STEP, Helper, compile_listed, load_list, probe_entries
 
 __all__ = ["CompileClock", "warm_up"]
 
@@ -127,11 +127,11 @@ def warm_up(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> CompileCl
         with _muted():
             listed = load_list(helper.steps)
             if listed:
-                # the probe: one kernel the code calls; loaded from the cache, the cache is taken as
-                # warm and the steps load what they need (walking the list would load the callees
-                # too, which a kernel loaded from the cache does not need)
+                # the probe: one kernel the code calls, with its few callees; loaded from the
+                # cache, the cache is taken as warm and the steps load what they need (walking the
+                # list would load every callee too, which a kernel loaded from the cache does not need)
                 before = clock.count
-                compile_listed(listed, helper.folder, only=[first_root(listed)], other_alive=helper.alive)
+                compile_listed(listed, helper.folder, only=probe_entries(listed), other_alive=helper.alive)
                 if clock.count > before:
                     compile_listed(listed, helper.folder, other_alive=helper.alive)
             clock.seconds += helper.wait()   # the helper's share is compile time too
