@@ -40,6 +40,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent.parent
 
 
+#: ``flexvib`` as the console script runs it (``studies._entry:main``), with the code on PYTHONPATH.
+CONSOLE_SCRIPT = "from studies._entry import main; main()"
 #: The jobs: extra arguments of ``flexvib run --out DIR/thesis.h5 --quiet``.
 JOBS = {"main": [], "linear": ["--only", "steady_state", "--only", "sweep", "--only", "campbell"]}
 
@@ -58,7 +60,9 @@ def run_job(source: Path, cache: Path, folder: Path, job: str = "main", processe
         env["FLEXVIB_COMPILE_PROCESSES"] = processes
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "studies.cli", "run", "--out", str(out), "--quiet", *JOBS[job]],
+    # the console script's route (``flexvib run``), whose entry starts the compile helper while the
+    # packages import; ``python -m studies.cli`` starts it at the warm-up
+    done = subprocess.run([sys.executable, "-c", CONSOLE_SCRIPT, "run", "--out", str(out), "--quiet", *JOBS[job]],
                           cwd=folder, env=env, capture_output=True, text=True)
     elapsed = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)

@@ -91,7 +91,14 @@ def run(argv=None) -> int:
             sys.unraisablehook = _signal_again(sys.unraisablehook)
             for number in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(number, _interrupt)
+            from studies._compile_helper import start_at_first_compilation, stop_listening  # light: no numpy
+
+            # `flexvib run` on a cold cache: the compile helper starts at the first compilation,
+            # while the imports below still run (their first kernel compiles in periodic.lapack)
+            start_at_first_compilation(sys.argv[1:] if argv is None else list(argv))
             from studies.cli import main as command  # numpy, scipy, numba, the study kinds
+
+            stop_listening()   # from here on the warm-up starts its helper, if it needs one
 
             code = command(argv)
         except BaseException as error:

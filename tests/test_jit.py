@@ -250,8 +250,9 @@ def test_an_unclaimed_callee_is_not_waited_for(tmp_path):
 
 
 def test_the_helper_process_runs_its_share_of_the_list(monkeypatch):
-    """The helper process (``python -m studies.cli._kernel_list CLAIMS STEP...``) starts, takes the
-    entries left to it and ends with exit code 0 (the cache is warm here: it loads them)."""
+    """The helper process (``python -m studies.cli._kernel_list CLAIMS``, its steps in the claims
+    folder) starts, takes the entries left to it and ends with exit code 0 (the cache is warm here:
+    it loads them)."""
     from studies.cli._kernel_list import PROCESSES_VARIABLE, Helper
 
     monkeypatch.setenv(PROCESSES_VARIABLE, "2")
@@ -264,6 +265,63 @@ def test_the_helper_process_runs_its_share_of_the_list(monkeypatch):
     finally:
         helper.stop()
     assert helper.folder is None
+
+
+def test_run_starts_the_helper_at_its_first_compilation_and_the_warm_up_takes_it(monkeypatch):
+    """``flexvib run``: the first kernel this process compiles starts the helper before the steps are
+    known (a cold cache: while the command imports); the warm-up takes it and names its steps (here
+    one the list does not hold: it has nothing to compile and ends with 0). Other commands, a setting
+    of 1, a compilation after ``stop_listening`` or in another thread start none."""
+    import threading
+
+    from studies import _compile_helper
+
+    monkeypatch.setenv("PYTHONPATH", str(ROOT))
+    monkeypatch.setenv(_compile_helper.PROCESSES_VARIABLE, "2")
+
+    def compile_one():
+        @numba.njit  # defined here: not in any cache
+        def fresh(x):
+            return x + 2.0
+
+        fresh.compile((numba.float64,))
+
+    _compile_helper.start_at_first_compilation(["check"])
+    compile_one()
+    assert _compile_helper.take_early(["steady state"]) is None
+    _compile_helper.start_at_first_compilation(["run", "--out", "x.h5"])
+    worker = threading.Thread(target=compile_one)
+    worker.start()
+    worker.join()
+    assert _compile_helper._Early.helper is None            # not this process's main thread
+    compile_one()
+    helper = _compile_helper.take_early(["no such step"])
+    try:
+        assert helper is not None and helper.process is not None
+        assert (helper.folder / _compile_helper.STEPS_FILE).read_text() == "no such step\n"
+        assert helper.wait(timeout=120.0) >= 0.0 and helper.process.returncode == 0
+    finally:
+        helper.stop()
+    assert helper.folder is None
+    compile_one()
+    assert _compile_helper.take_early(["steady state"]) is None   # the warm-up took it: listening ended
+    _compile_helper.start_at_first_compilation(["run"])
+    _compile_helper.stop_listening()
+    compile_one()
+    assert _compile_helper.take_early(["steady state"]) is None
+    monkeypatch.setenv(_compile_helper.PROCESSES_VARIABLE, "1")
+    _compile_helper.start_at_first_compilation(["run"])
+    assert _compile_helper._Early.listener is None
+
+
+def test_the_helper_waits_for_its_steps_while_its_parent_lives(tmp_path):
+    """A helper started before the steps were known waits for the steps file; its parent ended
+    before naming them (a run that never warmed up), it ends with nothing to do."""
+    from studies import _compile_helper
+
+    assert _compile_helper.read_steps(tmp_path, lambda: False) is None
+    (tmp_path / _compile_helper.STEPS_FILE).write_text("steady state\nnonlinear_check\n")
+    assert _compile_helper.read_steps(tmp_path, lambda: False) == ["steady state", "nonlinear_check"]
 
 
 def test_the_processes_setting_is_checked(monkeypatch):
@@ -285,7 +343,7 @@ def test_the_free_cores_are_measured_not_read_off_the_load_average(monkeypatch):
     """``free_core``: the machine's idle time over a short window (this process asleep) decides, not
     the 1-min load average, which lags a busy minute (``pip install``, the last run) by a minute; the
     load average only where the CPU times cannot be read or cover other CPUs than this process's."""
-    from studies.cli import _kernel_list
+    from studies import _compile_helper as _kernel_list   # the helper process's side
 
     monkeypatch.setattr(_kernel_list, "_cores", lambda: 2)
     monkeypatch.setattr(_kernel_list, "_cpu_quota", lambda: None)
@@ -314,7 +372,7 @@ def test_the_free_cores_are_measured_not_read_off_the_load_average(monkeypatch):
 
 
 def test_the_cpu_times_read_this_machine():
-    from studies.cli import _kernel_list
+    from studies import _compile_helper as _kernel_list   # the helper process's side
 
     found = _kernel_list._cpu_ticks()
     if found is None:
@@ -326,7 +384,7 @@ def test_the_cpu_times_read_this_machine():
 def test_a_helper_declined_at_the_first_miss_leaves_every_kernel_to_this_process(monkeypatch):
     """Unset, the free cores are measured at ``start`` (a cold cache only); a busy machine declines:
     no process, ``alive()`` False (nothing waits for it), the claims folder kept for this process."""
-    from studies.cli import _kernel_list
+    from studies import _compile_helper as _kernel_list   # the helper process's side
 
     monkeypatch.delenv(_kernel_list.PROCESSES_VARIABLE, raising=False)
     asked = []

@@ -21,6 +21,7 @@ import time
 import warnings
 from typing import Any, Callable, Mapping
 
+from .._compile_helper import take_early
 from .._kind import WARM_UP_STEPS, kind_named
 from .._problem import SPEED
 from ._kernel_list import STEADY_STATE_STEP, Helper, compile_listed, load_list, probe_entries
@@ -120,7 +121,9 @@ def warm_up(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> CompileCl
     Nothing the warm-up computes is kept; a warm-up run that fails (a tiny grid may not converge) is
     logged at DEBUG level and skipped, and its kernels compile when the study needs them."""
     steps = warm_up_steps(problem, studies)
-    helper = Helper([name for name, _ in steps])
+    names = [name for name, _ in steps]
+    # the helper ``flexvib run`` started while importing (a cold cache), or one of its own
+    helper = take_early(names) or Helper(names)
     clock = CompileClock(on_first=helper.start).start()
     started = time.perf_counter()
     try:

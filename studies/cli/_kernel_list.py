@@ -33,19 +33,19 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 import sys
-import tempfile
 import time
 import types
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
-from .._errors import UsageError
+# the helper process's side (when it starts, its steps), light to import: the console script starts
+# it before the packages are imported (re-exported here, where the warm-up finds its machinery)
+from .._compile_helper import PROCESSES_VARIABLE, WAIT_LIMIT, Helper, free_core, helper_setting, read_steps
 
-__all__ = ["KERNEL_LIST", "STEADY_STATE_STEP", "Helper", "Listed", "compile_listed", "first_root", "load_list",
-           "probe_entries", "free_core", "helper_setting", "record"]
+__all__ = ["KERNEL_LIST", "PROCESSES_VARIABLE", "STEADY_STATE_STEP", "Helper", "Listed", "compile_listed",
+           "first_root", "load_list", "probe_entries", "free_core", "helper_setting", "record"]
 
 #: The list: JSON ``[{"step": ..., "kernel": "module.qualname", "signature": "(types, ...)"}, ...]``.
 KERNEL_LIST = Path(__file__).with_name("kernel_list.json")
@@ -53,22 +53,6 @@ KERNEL_LIST = Path(__file__).with_name("kernel_list.json")
 STEADY_STATE_STEP = "steady state"
 #: The packages whose kernels the list holds.
 PACKAGES = ("periodic", "mechanisms", "linearize", "studies")
-#: Environment variable: ``1`` compiles in this process only (no helper process).
-PROCESSES_VARIABLE = "FLEXVIB_COMPILE_PROCESSES"
-#: The load average (1 min) must leave this many cores free for the helper process (where the
-#: machine's CPU times cannot be read: ``free_core``).
-FREE_CORE = 1.0
-#: ``free_core`` measures the machine's idle time over this window (s), this process asleep, at the
-#: first kernel that misses the cache (a cold cache only): the 1-min load average lags by a minute,
-#: so right after a busy minute (``pip install``, the previous run) it said "no free core" on an idle
-#: machine and the cold start compiled on one core (11.4 s against 7.6 s for the linear studies,
-#: docs/benchmarks.md, session 12).
-MEASURE_WINDOW = 0.1
-#: ... and starts the helper when at least this many cores were idle over it: one for this process
-#: (asleep while measuring), most of one for the helper.
-IDLE_CORES = 1.5
-#: The longest wait (s) for the other process's callee before compiling it here (it may have ended).
-WAIT_LIMIT = 120.0
 #: The compile cost (CPU s) of an entry the list gives none for (a list recorded before the costs).
 DEFAULT_COST = 0.1
 #: The least cost an entry is ranked with, so that a callee always ranks above its callers.
@@ -348,135 +332,27 @@ def compile_listed(listed: list[Listed], claims: Path | None, *, only: Iterable[
     return taken
 
 
-def _cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
-def helper_setting() -> bool | None:
-    """``FLEXVIB_COMPILE_PROCESSES``: ``1`` False (never a helper), ``2`` True (always, for
-    measurements), unset None (decided by :func:`free_core`); anything else ``UsageError``."""
-    setting = os.environ.get(PROCESSES_VARIABLE, "").strip()
-    if setting in ("1", "2"):
-        return setting == "2"
-    if setting:
-        raise UsageError(f"{PROCESSES_VARIABLE}: expected 1 (compile in this process only) or 2 (and in a "
-                         f"helper process), got {setting!r}; unset it to decide by the free cores")
-    return None
-
-
-def _cpu_ticks() -> tuple[int, int, int] | None:
-    """(all, idle, CPUs) of the machine's CPU time so far (``/proc/stat``, clock ticks; idle counts
-    I/O waits), or None where it cannot be read (not Linux)."""
-    try:
-        lines = Path("/proc/stat").read_text().splitlines()
-        fields = [int(x) for x in lines[0].split()[1:9]]
-    except (OSError, ValueError, IndexError):
-        return None
-    cpus = sum(1 for line in lines if line.startswith("cpu") and line[3:4].isdigit())
-    return sum(fields), fields[3] + fields[4], cpus
-
-
-def _cpu_quota() -> float | None:
-    """The CPUs this process's control group may use (cgroup v2 ``cpu.max``: quota / period, e.g.
-    ``docker --cpus=1``), or None where it sets no quota or cannot be read."""
-    try:
-        quota, period = Path("/sys/fs/cgroup/cpu.max").read_text().split()[:2]
-        return None if quota == "max" else int(quota) / int(period)
-    except (OSError, ValueError):
-        return None
-
-
-def free_core(window: float = MEASURE_WINDOW) -> bool:
-    """Whether this process may use two cores and the machine's idle time over ``window`` s (this
-    process asleep) leaves ``IDLE_CORES`` of them: one for this process, one for the helper. On a
-    machine without a free core the helper only competes with this process and adds its own start-up
-    and the callees both compile. Where the CPU times cannot be read, or cover other CPUs than this
-    process's (a container showing the host's), the 1-min load average decides (``FREE_CORE``). A
-    control group's CPU quota below two CPUs (``_cpu_quota``) leaves no core for the helper."""
-    cores = _cores()
-    quota = _cpu_quota()
-    if cores < 2 or (quota is not None and quota < 2.0):
-        return False
-    before = _cpu_ticks()
-    if before is not None and before[2] == cores:
-        time.sleep(window)
-        after = _cpu_ticks()
-        if after is not None and after[0] > before[0]:
-            idle_share = (after[1] - before[1]) / (after[0] - before[0])
-            return idle_share * cores >= IDLE_CORES
-    return os.getloadavg()[0] <= cores - FREE_CORE
-
-
-class Helper:
-    """The helper process that compiles its share of the list entries of the warm-up ``steps`` in a
-    fresh interpreter: ``start()`` (at the first kernel that misses the cache; nothing when
-    :func:`helper_setting` says no, or, unset, :func:`free_core` measured then: ``declined``),
-    ``wait()`` (the wall time waited, s),
-    ``stop()`` (end it if it runs; remove the claims). ``folder``: the claims both processes share;
-    ``alive()``: whether the helper may still save a kernel (not started yet, or running)."""
-
-    def __init__(self, steps: Iterable[str]) -> None:
-        self.steps = list(steps)
-        self.process: subprocess.Popen | None = None
-        self._claims: tempfile.TemporaryDirectory | None = None
-        # unset: the free cores are measured at ``start``, on a cold cache only (a warm run never
-        # waits for the measurement); until then the claims are kept as if the helper would run
-        self._measure = (setting := helper_setting()) is None
-        self.declined = False
-        if setting is not False:
-            self._claims = tempfile.TemporaryDirectory(prefix="flexvib-compile-")
-
-    @property
-    def folder(self) -> Path | None:
-        return None if self._claims is None else Path(self._claims.name)
-
-    def alive(self) -> bool:
-        return not self.declined and (self.process is None or self.process.poll() is None)
-
-    def start(self) -> None:
-        if self._claims is not None and self.process is None and not self.declined:
-            if self._measure and not free_core():
-                self.declined = True   # this process compiles every entry (the claims stay its own)
-                return
-            self.process = subprocess.Popen(
-                [sys.executable, "-m", "studies.cli._kernel_list", self._claims.name, *self.steps],
-                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-
-    def wait(self, timeout: float = 5 * WAIT_LIMIT) -> float:
-        """Wait for the helper to end (at most ``timeout`` s: then it is stopped, and what it has
-        not saved compiles in the warm-up); the wall time waited, s."""
-        started = time.perf_counter()
-        if self.process is not None:
-            try:
-                self.process.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.stop()
-        return time.perf_counter() - started
-
-    def stop(self) -> None:
-        if self.process is not None and self.process.poll() is None:
-            self.process.terminate()
-            self.process.wait()
-        if self._claims is not None:
-            self._claims.cleanup()
-            self._claims = None
-
-
-def _helper_main(claims: str, steps: list[str]) -> None:
+def _helper_main(claims: str) -> None:
+    """The helper process: import the packages whose kernels the list names (beside the parent's own
+    imports, when it started early), wait for the steps the parent names in the claims folder, and
+    compile its share of their entries."""
     import linearize  # noqa: F401 - the packages whose kernels the list names
     import mechanisms  # noqa: F401
     import periodic  # noqa: F401
     import studies  # noqa: F401
 
     parent = os.getppid()
-    compile_listed(load_list(steps), Path(claims), other_alive=lambda: os.getppid() == parent)
+
+    def parent_alive() -> bool:
+        return os.getppid() == parent
+
+    steps = read_steps(Path(claims), parent_alive)
+    if steps is not None:
+        compile_listed(load_list(steps), Path(claims), other_alive=parent_alive)
 
 
 if __name__ == "__main__":
-    _helper_main(sys.argv[1], sys.argv[2:])
+    _helper_main(sys.argv[1])
     # Every kernel it compiled is saved (numba writes a cache file whole before it returns) and every
     # claim marked: end now. The interpreter's teardown (numba's and LLVM's modules) took 0.4-0.5 s,
     # which the warm-up spent waiting for this process to end (docs/benchmarks.md, session 14).
