@@ -343,7 +343,7 @@ def test_the_free_cores_are_measured_not_read_off_the_load_average(monkeypatch):
     """``free_core``: the machine's idle time over a short window (this process asleep) decides, not
     the 1-min load average, which lags a busy minute (``pip install``, the last run) by a minute; the
     load average only where the CPU times cannot be read or cover other CPUs than this process's."""
-    from studies import _compile_helper as _kernel_list   # the helper process's side
+    from studies import _compile_helper as _kernel_list  # the helper process's side
 
     monkeypatch.setattr(_kernel_list, "_cores", lambda: 2)
     monkeypatch.setattr(_kernel_list, "_cpu_quota", lambda: None)
@@ -372,7 +372,7 @@ def test_the_free_cores_are_measured_not_read_off_the_load_average(monkeypatch):
 
 
 def test_the_cpu_times_read_this_machine():
-    from studies import _compile_helper as _kernel_list   # the helper process's side
+    from studies import _compile_helper as _kernel_list  # the helper process's side
 
     found = _kernel_list._cpu_ticks()
     if found is None:
@@ -384,7 +384,7 @@ def test_the_cpu_times_read_this_machine():
 def test_a_helper_declined_at_the_first_miss_leaves_every_kernel_to_this_process(monkeypatch):
     """Unset, the free cores are measured at ``start`` (a cold cache only); a busy machine declines:
     no process, ``alive()`` False (nothing waits for it), the claims folder kept for this process."""
-    from studies import _compile_helper as _kernel_list   # the helper process's side
+    from studies import _compile_helper as _kernel_list  # the helper process's side
 
     monkeypatch.delenv(_kernel_list.PROCESSES_VARIABLE, raising=False)
     asked = []
