@@ -343,38 +343,38 @@ def test_the_free_cores_are_measured_not_read_off_the_load_average(monkeypatch):
     """``free_core``: the machine's idle time over a short window (this process asleep) decides, not
     the 1-min load average, which lags a busy minute (``pip install``, the last run) by a minute; the
     load average only where the CPU times cannot be read or cover other CPUs than this process's."""
-    from studies import _compile_helper as _kernel_list  # the helper process's side
+    from studies import _compile_helper
 
-    monkeypatch.setattr(_kernel_list, "_cores", lambda: 2)
-    monkeypatch.setattr(_kernel_list, "_cpu_quota", lambda: None)
-    monkeypatch.setattr(_kernel_list.os, "getloadavg", lambda: (1.9, 1.9, 1.9))   # just after a busy minute
-    monkeypatch.setattr(_kernel_list.time, "sleep", lambda seconds: None)
+    monkeypatch.setattr(_compile_helper, "_cores", lambda: 2)
+    monkeypatch.setattr(_compile_helper, "_cpu_quota", lambda: None)
+    monkeypatch.setattr(_compile_helper.os, "getloadavg", lambda: (1.9, 1.9, 1.9))   # just after a busy minute
+    monkeypatch.setattr(_compile_helper.time, "sleep", lambda seconds: None)
 
     def ticks(*readings):
         readings = iter(readings)
-        monkeypatch.setattr(_kernel_list, "_cpu_ticks", lambda: next(readings))
+        monkeypatch.setattr(_compile_helper, "_cpu_ticks", lambda: next(readings))
 
     ticks((1000, 500, 2), (1020, 519, 2))          # 19 of 20 ticks idle: both cores free
-    assert _kernel_list.free_core()
+    assert _compile_helper.free_core()
     ticks((1000, 500, 2), (1020, 511, 2))          # 11 of 20: 1.1 cores idle, one of them this process's
-    assert not _kernel_list.free_core()
+    assert not _compile_helper.free_core()
     ticks(None)                                    # unreadable: the load average
-    assert not _kernel_list.free_core()
-    monkeypatch.setattr(_kernel_list.os, "getloadavg", lambda: (0.3, 0.3, 0.3))
+    assert not _compile_helper.free_core()
+    monkeypatch.setattr(_compile_helper.os, "getloadavg", lambda: (0.3, 0.3, 0.3))
     ticks((1000, 500, 64))                         # the host's 64 CPUs: the load average
-    assert _kernel_list.free_core()
+    assert _compile_helper.free_core()
     ticks((1000, 500, 2), (1020, 519, 2))
-    monkeypatch.setattr(_kernel_list, "_cpu_quota", lambda: 1.0)   # docker --cpus=1: no core for a helper
-    assert not _kernel_list.free_core()
-    monkeypatch.setattr(_kernel_list, "_cpu_quota", lambda: None)
-    monkeypatch.setattr(_kernel_list, "_cores", lambda: 1)
-    assert not _kernel_list.free_core()
+    monkeypatch.setattr(_compile_helper, "_cpu_quota", lambda: 1.0)   # docker --cpus=1: no core for a helper
+    assert not _compile_helper.free_core()
+    monkeypatch.setattr(_compile_helper, "_cpu_quota", lambda: None)
+    monkeypatch.setattr(_compile_helper, "_cores", lambda: 1)
+    assert not _compile_helper.free_core()
 
 
 def test_the_cpu_times_read_this_machine():
-    from studies import _compile_helper as _kernel_list  # the helper process's side
+    from studies import _compile_helper
 
-    found = _kernel_list._cpu_ticks()
+    found = _compile_helper._cpu_ticks()
     if found is None:
         pytest.skip("no /proc/stat here")
     total, idle, cpus = found
@@ -384,12 +384,12 @@ def test_the_cpu_times_read_this_machine():
 def test_a_helper_declined_at_the_first_miss_leaves_every_kernel_to_this_process(monkeypatch):
     """Unset, the free cores are measured at ``start`` (a cold cache only); a busy machine declines:
     no process, ``alive()`` False (nothing waits for it), the claims folder kept for this process."""
-    from studies import _compile_helper as _kernel_list  # the helper process's side
+    from studies import _compile_helper
 
-    monkeypatch.delenv(_kernel_list.PROCESSES_VARIABLE, raising=False)
+    monkeypatch.delenv(_compile_helper.PROCESSES_VARIABLE, raising=False)
     asked = []
-    monkeypatch.setattr(_kernel_list, "free_core", lambda: asked.append(1) or False)
-    helper = _kernel_list.Helper(["steady state"])
+    monkeypatch.setattr(_compile_helper, "free_core", lambda: asked.append(1) or False)
+    helper = _compile_helper.Helper(["steady state"])
     try:
         assert not asked and helper.folder is not None and helper.alive()   # a warm run measures nothing
         helper.start()
