@@ -6,8 +6,9 @@ typing, the lowering and the LLVM optimisation), so threads cannot share the wor
 because the cache (``cache=True``) is on disk: a kernel one process compiled and saved, the other
 loads in milliseconds. The warm-up (:mod:`studies.cli._jit`) walks :data:`KERNEL_LIST` (kernel,
 explicit signature, the warm-up step that first needs it), callees before callers, and so does a
-helper process (``python -m studies.cli._kernel_list CLAIMS STEP...``) started at the first
-compilation that misses the cache; each claims a kernel before compiling it (a file created with
+helper process (``python -m studies.cli._kernel_list CLAIMS``, the steps named in the claims
+folder; :mod:`studies._compile_helper` says when it starts: at the first compilation that misses the
+cache); each claims a kernel before compiling it (a file created with
 ``O_EXCL`` in a shared folder), so every kernel compiles once. Then the warm-up waits for the helper
 and runs the studies' code paths, which load the helper's kernels from the disk cache.
 
