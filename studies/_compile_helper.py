@@ -27,8 +27,8 @@ from typing import Iterable
 
 from ._errors import UsageError
 
-__all__ = ["Helper", "free_core", "helper_setting", "read_steps", "start_at_first_compilation", "stop_listening",
-           "take_early", "PROCESSES_VARIABLE", "STEPS_FILE", "WAIT_LIMIT"]
+__all__ = ["Helper", "discard_early", "free_core", "helper_setting", "read_steps", "start_at_first_compilation",
+           "stop_listening", "take_early", "PROCESSES_VARIABLE", "STEPS_FILE", "WAIT_LIMIT"]
 
 #: Environment variable: ``1`` compiles in this process only (no helper process).
 PROCESSES_VARIABLE = "FLEXVIB_COMPILE_PROCESSES"
@@ -150,7 +150,7 @@ class Helper:
                 self.declined = True   # this process compiles every entry (the claims stay its own)
                 return
             self.process = subprocess.Popen(
-                [sys.executable, "-m", "studies.cli._kernel_list", str(self._folder)],
+                [sys.executable, "-m", "studies.cli._kernel_list", str(self._folder), str(os.getpid())],
                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
     def set_steps(self, steps: Iterable[str]) -> None:
@@ -246,6 +246,16 @@ def stop_listening() -> None:
 
         event.unregister("numba:compile", _Early.listener)
         _Early.listener = None
+
+
+def discard_early() -> None:
+    """End the helper :func:`start_at_first_compilation` started if no warm-up took it (a run that
+    never warmed up: bad input, a complete result file), and remove its claims folder; stop
+    listening. The console script calls it when the command has returned."""
+    stop_listening()
+    helper, _Early.helper = _Early.helper, None
+    if helper is not None:
+        helper.stop()
 
 
 def take_early(steps: Iterable[str]) -> Helper | None:

@@ -83,6 +83,14 @@ def _exit_now(signum: int, frame) -> None:
     os._exit(INTERRUPTED)
 
 
+def _discard_compile_helper() -> None:
+    """End a compile helper started at the first compilation that no warm-up took (a run that never
+    warmed up), if the module that starts one was imported."""
+    helper_side = sys.modules.get("studies._compile_helper")
+    if helper_side is not None:
+        helper_side.discard_early()
+
+
 def run(argv=None) -> int:
     """Run ``flexvib`` (``studies.cli.main``) with SIGINT and SIGTERM handled from the start; returns
     the exit code (130 when interrupted). From its return on, a signal ends the process at once."""
@@ -112,6 +120,7 @@ def run(argv=None) -> int:
     except KeyboardInterrupt:   # a second signal while the first was being reported
         code = INTERRUPTED
     try:
+        _discard_compile_helper()
         signal.setitimer(signal.ITIMER_REAL, 0.0)   # no retried interrupt after the command
         for number in (signal.SIGINT, signal.SIGTERM):
             signal.signal(number, _exit_now)

@@ -204,6 +204,49 @@ def test_an_entry_waiting_for_the_other_process_lets_the_next_one_go_first(tmp_p
     assert (tmp_path / "1.done").exists() and not (tmp_path / "0.done").exists()
 
 
+def test_compile_listed_stops_when_told(tmp_path):
+    """``stop()`` (the helper's parent has ended) ends the walk before the next entry."""
+    from studies.cli._kernel_list import Listed, compile_listed
+
+    @numba.njit
+    def first(x):
+        return x + 4.0
+
+    @numba.njit
+    def second(x):
+        return x * 5.0
+
+    signature = (numba.float64,)
+    listed = [Listed("first", first, signature, ()), Listed("second", second, signature, ())]
+    looks = []
+    assert compile_listed(listed, tmp_path, stop=lambda: looks.append(1) or len(looks) > 1) == 1
+    assert first.signatures == [signature] and not second.signatures and not (tmp_path / "1").exists()
+
+
+def test_a_helper_whose_parent_ended_removes_its_claims():
+    """A parent killed before it stopped its helper (no ``finally`` ran): the helper sees it gone,
+    does nothing more and removes the claims folder, which nobody else would."""
+    import time
+
+    script = textwrap.dedent("""
+        import os
+        from studies._compile_helper import Helper
+        helper = Helper(setting=True)   # started before the steps were known, as for flexvib run
+        helper.start()
+        print(helper.folder, flush=True)
+        os._exit(9)                     # as a killed process: nothing cleaned up
+    """)
+    done = subprocess.run([sys.executable, "-c", script], env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 9, done.stderr
+    folder = Path(done.stdout.strip())
+    assert folder.name.startswith("flexvib-compile-")
+    deadline = time.monotonic() + 60.0
+    while folder.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not folder.exists()
+
+
 def test_compile_listed_takes_only_the_entries_it_claims(tmp_path):
     """Two processes share the list through claim files: an entry claimed by the other process is
     left to it (and its callees are waited for only while the other process is alive)."""
@@ -250,7 +293,7 @@ def test_an_unclaimed_callee_is_not_waited_for(tmp_path):
 
 
 def test_the_helper_process_runs_its_share_of_the_list(monkeypatch):
-    """The helper process (``python -m studies.cli._kernel_list CLAIMS``, its steps in the claims
+    """The helper process (``python -m studies.cli._kernel_list CLAIMS PARENT_PID``, its steps in the claims
     folder) starts, takes the entries left to it and ends with exit code 0 (the cache is warm here:
     it loads them)."""
     from studies.cli._kernel_list import PROCESSES_VARIABLE, Helper
@@ -309,6 +352,15 @@ def test_run_starts_the_helper_at_its_first_compilation_and_the_warm_up_takes_it
     _compile_helper.stop_listening()
     compile_one()
     assert _compile_helper.take_early(["steady state"]) is None
+    # a run that never warms up: the console script ends the helper nobody took, and its folder
+    _compile_helper.start_at_first_compilation(["run"])
+    compile_one()
+    untaken = _compile_helper._Early.helper
+    assert untaken is not None and untaken.process.poll() is None   # waiting for its steps
+    folder = untaken.folder
+    _compile_helper.discard_early()
+    assert untaken.process.poll() is not None and not folder.exists()
+    assert _compile_helper._Early.helper is None and _compile_helper._Early.listener is None
     monkeypatch.setenv(_compile_helper.PROCESSES_VARIABLE, "1")
     _compile_helper.start_at_first_compilation(["run"])
     assert _compile_helper._Early.listener is None

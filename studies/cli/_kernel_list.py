@@ -6,7 +6,7 @@ typing, the lowering and the LLVM optimisation), so threads cannot share the wor
 because the cache (``cache=True``) is on disk: a kernel one process compiled and saved, the other
 loads in milliseconds. The warm-up (:mod:`studies.cli._jit`) walks :data:`KERNEL_LIST` (kernel,
 explicit signature, the warm-up step that first needs it), callees before callers, and so does a
-helper process (``python -m studies.cli._kernel_list CLAIMS``, the steps named in the claims
+helper process (``python -m studies.cli._kernel_list CLAIMS PARENT_PID``, the steps named in the claims
 folder; :mod:`studies._compile_helper` says when it starts: at the first compilation that misses the
 cache); each claims a kernel before compiling it (a file created with
 ``O_EXCL`` in a shared folder), so every kernel compiles once. Then the warm-up waits for the helper
@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import sys
 import time
 import types
@@ -292,19 +293,20 @@ def probe_entries(listed: list[Listed]) -> list[int]:
 
 
 def compile_listed(listed: list[Listed], claims: Path | None, *, only: Iterable[int] | None = None,
-                   other_alive: Callable[[], bool] = lambda: True, timeout: float = WAIT_LIMIT) -> int:
+                   other_alive: Callable[[], bool] = lambda: True, timeout: float = WAIT_LIMIT,
+                   stop: Callable[[], bool] = lambda: False) -> int:
     """Compile (or load from the disk cache) each listed kernel (``only``: those indices) this
     process claims in the folder ``claims`` (every one when ``None``), in the list's order, after
     the callees the other process claimed are saved (a callee compiled in both would be the work
     done twice): an entry whose callee the other process is compiling waits, and the next entry that
     waits for nothing goes first. When every entry left waits, this process waits while the other
     is alive, at most ``timeout`` s since it last saw progress, then compiles the first with its
-    callees. A kernel that fails to compile is left to the warm-up. Returns how many entries this
-    process took."""
+    callees. A kernel that fails to compile is left to the warm-up. ``stop()`` True before an entry
+    ends the walk (the helper's parent has ended). Returns how many entries this process took."""
     pending = [index for index in range(len(listed)) if only is None or index in set(only)]
     taken = 0
     waiting_since = None
-    while pending:
+    while pending and not stop():
         if claims is not None:
             pending = [index for index in pending if not (claims / str(index)).exists()]
             ready = [index for index in pending if not _waits_for_the_other(claims, listed[index].callees)]
@@ -333,7 +335,7 @@ def compile_listed(listed: list[Listed], claims: Path | None, *, only: Iterable[
     return taken
 
 
-def _helper_main(claims: str) -> None:
+def _helper_main(claims: str, parent: int) -> None:
     """The helper process: import the packages whose kernels the list names (beside the parent's own
     imports, when it started early), wait for the steps the parent names in the claims folder, and
     compile its share of their entries."""
@@ -342,18 +344,23 @@ def _helper_main(claims: str) -> None:
     import periodic  # noqa: F401
     import studies  # noqa: F401
 
-    parent = os.getppid()
+    # the parent's pid as it passed it: read here, after the imports, getppid() would already be
+    # the reaper's (1) for a parent that ended meanwhile
 
     def parent_alive() -> bool:
         return os.getppid() == parent
 
     steps = read_steps(Path(claims), parent_alive)
     if steps is not None:
-        compile_listed(load_list(steps), Path(claims), other_alive=parent_alive)
+        # a parent that ended (killed) stops the walk: no compiling for a run that is gone
+        compile_listed(load_list(steps), Path(claims), other_alive=parent_alive,
+                       stop=lambda: not parent_alive())
+    if not parent_alive():   # nobody else will remove the claims (a parent alive removes them)
+        shutil.rmtree(claims, ignore_errors=True)
 
 
 if __name__ == "__main__":
-    _helper_main(sys.argv[1])
+    _helper_main(sys.argv[1], int(sys.argv[2]))
     # Every kernel it compiled is saved (numba writes a cache file whole before it returns) and every
     # claim marked: end now. The interpreter's teardown (numba's and LLVM's modules) took 0.4-0.5 s,
     # which the warm-up spent waiting for this process to end (docs/benchmarks.md, session 14).
