@@ -100,6 +100,9 @@ def run(argv=None) -> int:
             for number in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(number, _interrupt)
             from studies._compile_helper import start_at_first_compilation, stop_listening  # light: no numpy
+            from studies._threads import one_blas_thread  # light: no numpy
+
+            one_blas_thread()   # before the imports: this process's libraries and the compile helper's
 
             # `flexvib run` on a cold cache: the compile helper starts at the first compilation,
             # while the imports below still run (their first kernel compiles in periodic.lapack)

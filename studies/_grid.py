@@ -30,6 +30,7 @@ from ._errors import StudiesError
 from ._identity import differing_paths, digest, scene_numbers
 from ._integrity import DIGEST, POINT_DIGEST, POINT_MARK, POINT_OUTPUTS, dataset_layout, point_digest, seal
 from ._store import FORMAT_VERSION, encode, stored_name, write_attrs
+from ._threads import THREAD_VARIABLES  # what BLAS and OpenMP read as they load (the command's list)
 from ._writes import deferred_interrupts, owner_of
 
 logger = logging.getLogger(__name__)
@@ -413,12 +414,6 @@ def _watch_parent(parent_pid: int) -> None:
         time.sleep(WATCHDOG_PERIOD)
         if os.getppid() != parent_pid:
             os._exit(1)
-
-
-#: Environment variables read by BLAS and OpenMP libraries when they are loaded: the thread count of
-#: a library that a worker loads after its start (scipy's own OpenBLAS at the first ``scipy.linalg``).
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
-                    "VECLIB_MAXIMUM_THREADS")
 
 
 def single_threaded_libraries() -> None:

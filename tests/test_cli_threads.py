@@ -1,5 +1,5 @@
 """Every process of the ``flexvib`` command runs its BLAS and OpenMP libraries on one thread
-(``studies.cli._threads``), the command's own included, unless the user set a thread count."""
+(``studies._threads``), the command's own included, unless the user set a thread count."""
 
 from __future__ import annotations
 
@@ -9,8 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from studies import _grid  # the pool workers' pinning: no public face
-from studies.cli import _threads  # the command's machinery: no public face
+from studies import _grid, _threads  # the pool workers' pinning and the command's: no public face
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -43,4 +42,4 @@ def test_a_thread_count_the_user_set_is_left_alone():
 
 
 def test_the_command_and_the_pool_workers_pin_the_same_variables():
-    assert _threads.THREAD_VARIABLES == _grid.THREAD_VARIABLES
+    assert _grid.THREAD_VARIABLES is _threads.THREAD_VARIABLES   # one list, the command's

@@ -162,7 +162,7 @@ class _VersionAction(argparse.Action):
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``flexvib`` console script; returns the exit code: 0 done, 2 bad input
     (command line, scene, studies table), 1 a computation failed (or an internal error, a bug)."""
-    from ._threads import one_blas_thread
+    from .._threads import one_blas_thread
 
     one_blas_thread()  # before any BLAS call of this process or a process it starts
     parser = _parser()

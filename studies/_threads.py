@@ -11,7 +11,9 @@ docs/benchmarks.md). So the command runs each process on one BLAS thread: this p
 and the processes it starts: pool workers pin theirs again in ``studies.process_pool``'s
 initializer). A thread count the user set in one of the variables is left as it is.
 
-The library itself (``import studies``) leaves a program's threads alone.
+The library itself (``import studies``) leaves a program's threads alone. Light to import (no numpy):
+the console script (``studies._entry``) calls :func:`one_blas_thread` before its imports, so the
+compile helper it may start then runs on one thread too.
 """
 
 from __future__ import annotations
@@ -21,8 +23,8 @@ import sys
 
 __all__ = ["THREAD_VARIABLES", "one_blas_thread"]
 
-#: Environment variables read by BLAS and OpenMP libraries when they are loaded (the same list as
-#: ``studies._grid.THREAD_VARIABLES``, which pins the pool workers).
+#: Environment variables read by BLAS and OpenMP libraries when they are loaded (``studies._grid``
+#: pins the pool workers with the same).
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
                     "VECLIB_MAXIMUM_THREADS")
 
