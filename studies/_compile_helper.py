@@ -9,8 +9,10 @@ console script before its imports, listens for it (on a cold cache the first ker
 ``periodic.lapack`` is imported, about a second before the warm-up begins), so the helper's own
 start-up (its imports, about a second) runs beside this process's instead of after it; the warm-up
 then takes that helper (:func:`take_early`) and tells it the steps of the run (a file in the claims
-folder). A run that never warms up leaves the helper waiting for the steps; it ends with this
-process. Light to import (no numpy, no numba): the console script imports it first.
+folder). A helper no warm-up took (bad input, a complete result file) the console script ends when
+the command returns (:func:`discard_early`); a helper whose parent was killed stops compiling and
+removes the claims folder itself. Light to import (no numpy, no numba): the console script imports
+it first.
 """
 
 from __future__ import annotations
@@ -177,12 +179,14 @@ class Helper:
         return time.perf_counter() - started
 
     def stop(self) -> None:
-        if self.process is not None and self.process.poll() is None:
-            self.process.terminate()
-            self.process.wait()
-        if self._folder is not None:
-            shutil.rmtree(self._folder, ignore_errors=True)
-            self._folder = None
+        try:
+            if self.process is not None and self.process.poll() is None:
+                self.process.terminate()
+                self.process.wait()
+        finally:   # a second signal in the wait: the folder goes all the same
+            if self._folder is not None:
+                shutil.rmtree(self._folder, ignore_errors=True)
+                self._folder = None
 
 
 def read_steps(folder: Path, parent_alive) -> list[str] | None:
@@ -204,6 +208,7 @@ class _Early:
 
     helper: Helper | None = None
     listener = None
+    acted = False
 
 
 def start_at_first_compilation(argv: list[str]) -> None:
@@ -214,6 +219,7 @@ def start_at_first_compilation(argv: list[str]) -> None:
     compilation happens before the warm-up, which then starts its own helper as before)."""
     if not argv or argv[0] != "run" or _Early.listener is not None:
         return
+    _Early.acted = False
     try:
         setting = helper_setting()
     except UsageError:
@@ -226,10 +232,21 @@ def start_at_first_compilation(argv: list[str]) -> None:
 
     class _FirstCompilation(event.Listener):
         def on_start(self, ev):
-            if _Early.helper is None and threading.get_ident() == thread and _Early.listener is self:
-                # inside numba's compilation of the first kernel: a process started, nothing imported
-                _Early.helper = Helper(setting=setting)
-                _Early.helper.start()
+            if _Early.acted or threading.get_ident() != thread or _Early.listener is not self:
+                return
+            _Early.acted = True   # once: the first compilation only, whatever comes of it
+            # inside numba's compilation of the first kernel (inside an import): a process started,
+            # nothing imported; a helper that cannot start (no process, no folder) is no error here:
+            # the warm-up starts its own, or compiles alone
+            helper = None
+            try:
+                helper = Helper(setting=setting)
+                helper.start()
+            except Exception:  # noqa: BLE001 - OSError and the like from the folder or the process
+                if helper is not None:
+                    helper.stop()
+                return
+            _Early.helper = helper
 
         def on_end(self, ev):
             pass

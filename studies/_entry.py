@@ -122,11 +122,17 @@ def run(argv=None) -> int:
             code = INTERRUPTED
     except KeyboardInterrupt:   # a second signal while the first was being reported
         code = INTERRUPTED
+    except SystemExit:   # argparse's errors and --help: the process ends here, its helper first
+        try:
+            _discard_compile_helper()
+        except KeyboardInterrupt:
+            _exit_now(signal.SIGINT, None)
+        raise
     try:
-        _discard_compile_helper()
         signal.setitimer(signal.ITIMER_REAL, 0.0)   # no retried interrupt after the command
         for number in (signal.SIGINT, signal.SIGTERM):
             signal.signal(number, _exit_now)
+        _discard_compile_helper()   # after the handlers: a signal in it ends the process at once
     except KeyboardInterrupt:   # a signal as the command returned, before _exit_now took over
         _exit_now(signal.SIGINT, None)
     return code

@@ -132,7 +132,14 @@ def test_the_kernel_list_resolves_and_orders_callees_before_their_callers():
     terms = listed[position["mechanisms._batch.linear_terms_kernel"]]
     assert position["mechanisms._kernels.forces"] in terms.callees
     assert position["mechanisms._kernels.mass_matrix"] in terms.callees
-    assert all(max(entry.callees, default=-1) < k for k, entry in enumerate(listed))
+    # every listed kernel a kernel calls (read from its code here, not from the list's own record)
+    # comes before it
+    from studies.cli._kernel_list import _callees, _dispatchers
+
+    calls = _callees(_dispatchers())
+    for k, entry in enumerate(listed):
+        called_here = {j for j, other in enumerate(listed) if other.kernel in calls[entry.kernel]}
+        assert set(entry.callees) == called_here and all(j < k for j in called_here), entry.kernel
     # the warm-up's probe of the cache: a kernel no listed kernel calls (the code calls it), with
     # the fewest callees (compiled with it on a cold cache)
     probe = first_root(listed)
@@ -267,6 +274,7 @@ def test_compile_listed_takes_only_the_entries_it_claims(tmp_path):
     assert not twice.signatures and thrice.signatures == [signature]
     assert (tmp_path / "1.done").exists() and not (tmp_path / "0.done").exists()
     assert compile_listed(listed, None) == 2 and twice.signatures == [signature]
+    assert compile_listed(listed, None, only=(i for i in [0, 1])) == 2   # any iterable of indices
 
 
 def test_an_unclaimed_callee_is_not_waited_for(tmp_path):
@@ -315,12 +323,18 @@ def test_run_starts_the_helper_at_its_first_compilation_and_the_warm_up_takes_it
     known (a cold cache: while the command imports); the warm-up takes it and names its steps (here
     one the list does not hold: it has nothing to compile and ends with 0). Other commands, a setting
     of 1, a compilation after ``stop_listening`` or in another thread start none."""
-    import threading
-
     from studies import _compile_helper
 
     monkeypatch.setenv("PYTHONPATH", str(ROOT))
     monkeypatch.setenv(_compile_helper.PROCESSES_VARIABLE, "2")
+    try:
+        _starts_and_takes(_compile_helper, monkeypatch)
+    finally:   # no listener or helper left to the rest of the suite, whatever failed
+        _compile_helper.discard_early()
+
+
+def _starts_and_takes(_compile_helper, monkeypatch):
+    import threading
 
     def compile_one():
         @numba.njit  # defined here: not in any cache
@@ -366,14 +380,54 @@ def test_run_starts_the_helper_at_its_first_compilation_and_the_warm_up_takes_it
     assert _compile_helper._Early.listener is None
 
 
-def test_the_helper_waits_for_its_steps_while_its_parent_lives(tmp_path):
-    """A helper started before the steps were known waits for the steps file; its parent ended
-    before naming them (a run that never warmed up), it ends with nothing to do."""
+def test_the_helper_waits_for_its_steps_while_its_parent_lives(tmp_path, monkeypatch):
+    """A helper started before the steps were known waits for the steps file while its parent
+    lives, and reads them once written whole (``Helper.set_steps``); its parent ended before naming
+    them (a run that never warmed up), it ends with nothing to do."""
     from studies import _compile_helper
 
     assert _compile_helper.read_steps(tmp_path, lambda: False) is None
-    (tmp_path / _compile_helper.STEPS_FILE).write_text("steady state\nnonlinear_check\n")
-    assert _compile_helper.read_steps(tmp_path, lambda: False) == ["steady state", "nonlinear_check"]
+    monkeypatch.setattr(_compile_helper.time, "sleep", lambda seconds: None)
+    helper = _compile_helper.Helper(setting=False)   # no folder of its own: only its writer is used
+    helper._folder = tmp_path
+    looks = []
+
+    def parent_alive():   # the parent names the steps at the third look
+        looks.append(1)
+        if len(looks) == 3:
+            helper.set_steps(["steady state", "nonlinear_check"])
+        return True
+
+    assert _compile_helper.read_steps(tmp_path, parent_alive) == ["steady state", "nonlinear_check"]
+    assert len(looks) == 3 and not list(tmp_path.glob("*.partial"))
+
+
+def test_a_helper_that_cannot_start_at_the_first_compilation_is_no_error(monkeypatch):
+    """The process or the folder cannot be had (EAGAIN, a full /tmp): the first compilation goes on
+    (it runs inside an import), no helper is kept and its folder is removed; the warm-up then
+    starts its own, or compiles alone."""
+    from studies import _compile_helper
+
+    monkeypatch.setenv(_compile_helper.PROCESSES_VARIABLE, "2")
+    folders = []
+
+    def failing_start(self):
+        folders.append(self.folder)
+        raise OSError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(_compile_helper.Helper, "start", failing_start)
+
+    @numba.njit
+    def fresh(x):
+        return x + 6.0
+
+    try:
+        _compile_helper.start_at_first_compilation(["run"])
+        fresh.compile((numba.float64,))
+        assert fresh.signatures and _compile_helper._Early.helper is None
+        assert folders and not folders[0].exists()
+    finally:
+        _compile_helper.discard_early()
 
 
 def test_the_processes_setting_is_checked(monkeypatch):

@@ -134,8 +134,14 @@ def warm_up(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> CompileCl
                 # cache, the cache is taken as warm and the steps load what they need (walking the
                 # list would load every callee too, which a kernel loaded from the cache does not need)
                 before = clock.count
-                compile_listed(listed, helper.folder, only=probe_entries(listed), other_alive=helper.alive)
-                if clock.count > before:
+                probe = probe_entries(listed)
+                taken = compile_listed(listed, helper.folder, only=probe, other_alive=helper.alive)
+                # warm: this process took every probe entry and loaded each (an entry the helper
+                # took first, or one compiled here, says cold)
+                warm = taken == len(probe) and clock.count == before
+                if warm:
+                    helper.stop()   # a helper started at an import's compilation: nothing to share
+                else:
                     compile_listed(listed, helper.folder, other_alive=helper.alive)
             clock.seconds += helper.wait()   # the helper's share is compile time too
             for name, run in steps:

@@ -49,7 +49,7 @@ from .._compile_helper import PROCESSES_VARIABLE, WAIT_LIMIT, Helper, free_core,
 __all__ = ["KERNEL_LIST", "PROCESSES_VARIABLE", "STEADY_STATE_STEP", "Helper", "Listed", "compile_listed",
            "first_root", "load_list", "probe_entries", "free_core", "helper_setting", "record"]
 
-#: The list: JSON ``[{"step": ..., "kernel": "module.qualname", "signature": "(types, ...)"}, ...]``.
+#: The list: JSON ``[{"step": ..., "kernel": "module.qualname", "signature": "(types, ...)", "cost": CPU s}, ...]``.
 KERNEL_LIST = Path(__file__).with_name("kernel_list.json")
 #: The step every run warms up first (the linear steady state every kind builds on).
 STEADY_STATE_STEP = "steady state"
@@ -300,10 +300,11 @@ def compile_listed(listed: list[Listed], claims: Path | None, *, only: Iterable[
     the callees the other process claimed are saved (a callee compiled in both would be the work
     done twice): an entry whose callee the other process is compiling waits, and the next entry that
     waits for nothing goes first. When every entry left waits, this process waits while the other
-    is alive, at most ``timeout`` s since it last saw progress, then compiles the first with its
+    is alive, at most ``timeout`` s since it last took an entry, then compiles the first with its
     callees. A kernel that fails to compile is left to the warm-up. ``stop()`` True before an entry
     ends the walk (the helper's parent has ended). Returns how many entries this process took."""
-    pending = [index for index in range(len(listed)) if only is None or index in set(only)]
+    chosen = None if only is None else set(only)
+    pending = [index for index in range(len(listed)) if chosen is None or index in chosen]
     taken = 0
     waiting_since = None
     while pending and not stop():
