@@ -9,7 +9,12 @@ arrives wrapped (an extension module's import cut by it raises ``ImportError`` f
 ``studies._errors.interruption``) too. After the command
 has returned, the process ends at once (``os._exit``), and a signal before that with 130 too.
 Only the interpreter's own start-up (before this module runs, some tens of milliseconds) keeps the
-default handlers."""
+default handlers.
+
+Before the heavy imports it also sets one BLAS thread for the command's processes
+(``studies._threads``) and, for ``flexvib run``, listens for the first kernel compilation, which
+starts the compile helper of a cold cache while the imports still run (``studies._compile_helper``);
+a helper no warm-up took is ended when the command returns."""
 
 from __future__ import annotations
 
