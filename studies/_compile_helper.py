@@ -242,9 +242,11 @@ def start_at_first_compilation(argv: list[str]) -> None:
             try:
                 helper = Helper(setting=setting)
                 helper.start()
-            except Exception:  # noqa: BLE001 - OSError and the like from the folder or the process
+            except BaseException as error:  # OSError and the like from the folder or the process
                 if helper is not None:
                     helper.stop()
+                if not isinstance(error, Exception):
+                    raise   # an interrupt: the command reports it
                 return
             _Early.helper = helper
 

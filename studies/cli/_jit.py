@@ -122,11 +122,12 @@ def warm_up(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> CompileCl
     logged at DEBUG level and skipped, and its kernels compile when the study needs them."""
     steps = warm_up_steps(problem, studies)
     names = [name for name, _ in steps]
-    # the helper ``flexvib run`` started while importing (a cold cache), or one of its own
-    helper = take_early(names) or Helper(names)
-    clock = CompileClock(on_first=helper.start).start()
+    helper = None
     started = time.perf_counter()
-    try:
+    try:   # from before the helper's folder exists: an interrupt at any moment removes it
+        # the helper ``flexvib run`` started while importing (a cold cache), or one of its own
+        helper = take_early(names) or Helper(names)
+        clock = CompileClock(on_first=helper.start).start()
         with _muted():
             listed = load_list(helper.steps)
             if listed:
@@ -147,7 +148,8 @@ def warm_up(problem: Any, studies: Mapping[str, Mapping[str, Any]]) -> CompileCl
             for name, run in steps:
                 _attempt(name, run)
     finally:
-        helper.stop()
+        if helper is not None:
+            helper.stop()
     if clock.count:
         logger.info("compiled the numerical kernels in %.0f s (cached for the next runs; "
                     "not counted in the studies' run times)", time.perf_counter() - started)
