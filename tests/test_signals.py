@@ -240,3 +240,51 @@ def _call(hook, caught, failures):
         hook(caught)
     except Exception as error:  # noqa: BLE001 - the test reports it
         failures.append(error)
+
+
+# ---------------------------------------------------------------------------------------------------
+# a cold cache: the compile helper started during the imports (studies._compile_helper)
+# ---------------------------------------------------------------------------------------------------
+def _helpers_of(folder: Path) -> list[int]:
+    """The pids of the processes whose command line names a claims folder under ``folder``."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            if entry.name.isdigit() and str(folder) in (entry / "cmdline").read_bytes().decode(errors="replace"):
+                found.append(int(entry.name))
+        except OSError:
+            continue
+    return found
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/cmdline").exists(), reason="reads /proc")
+@pytest.mark.parametrize("number", [signal.SIGTERM, signal.SIGKILL])
+def test_a_run_killed_while_its_early_helper_compiles_leaves_no_helper_or_folder(number, tmp_path):
+    """On an empty numba cache the helper starts while the command imports; the run stopped once it
+    has (SIGTERM: 130 and one line; SIGKILL: nothing runs in it), no helper process is left and
+    no claims folder (a killed parent's helper stops and removes it itself)."""
+    scratch, cache = tmp_path / "tmp", tmp_path / "numba-cache"
+    scratch.mkdir()
+    cache.mkdir()
+    env = dict(os.environ, PYTHONPATH=str(ROOT), TMPDIR=str(scratch), NUMBA_CACHE_DIR=str(cache),
+               FLEXVIB_COMPILE_PROCESSES="2")
+    out = tmp_path / "run.h5"
+    process = subprocess.Popen([sys.executable, "-m", "studies._entry", "run", "mathieu", "--out", str(out),
+                                "--quiet", *ONLY], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 120.0
+    while not list(scratch.glob("flexvib-compile-*")) and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert process.poll() is None, "the run ended before its helper started"
+    assert _helpers_of(scratch), "no helper process was started during the imports"
+    time.sleep(0.5)   # the helper at work
+    process.send_signal(number)
+    _, err = process.communicate(timeout=120)
+    if number == signal.SIGTERM:
+        assert process.returncode == 130 and "Traceback" not in err, err
+        assert err.strip().splitlines()[-1].startswith("interrupted"), err
+    deadline = time.monotonic() + 60.0
+    while (_helpers_of(scratch) or list(scratch.glob("flexvib-compile-*"))) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _helpers_of(scratch) and not list(scratch.glob("flexvib-compile-*"))
