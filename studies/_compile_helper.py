@@ -267,12 +267,18 @@ def stop_listening() -> None:
         _Early.listener = None
 
 
+def _pop_early() -> Helper | None:
+    """The helper the first compilation started, no longer kept here (None if none); listening stops."""
+    stop_listening()
+    helper, _Early.helper = _Early.helper, None
+    return helper
+
+
 def discard_early() -> None:
     """End the helper :func:`start_at_first_compilation` started if no warm-up took it (a run that
     never warmed up: bad input, a complete result file), and remove its claims folder; stop
     listening. The console script calls it when the command has returned."""
-    stop_listening()
-    helper, _Early.helper = _Early.helper, None
+    helper = _pop_early()
     if helper is not None:
         helper.stop()
 
@@ -280,8 +286,7 @@ def discard_early() -> None:
 def take_early(steps: Iterable[str]) -> Helper | None:
     """The helper :func:`start_at_first_compilation` started, told the warm-up's ``steps`` (None when
     none was started); the listening stops either way (later compilations are the warm-up's)."""
-    stop_listening()
-    helper, _Early.helper = _Early.helper, None
+    helper = _pop_early()
     if helper is not None:
         helper.set_steps(steps)
     return helper
