@@ -273,8 +273,9 @@ def test_a_run_killed_while_its_early_helper_compiles_leaves_no_helper_or_folder
     process = subprocess.Popen([sys.executable, "-m", "studies._entry", "run", "mathieu", "--out", str(out),
                                 "--quiet", *ONLY], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True, start_new_session=True)
+    # The claims folder is made just before the helper process is spawned: wait for the process itself.
     deadline = time.monotonic() + 120.0
-    while not list(scratch.glob("flexvib-compile-*")) and process.poll() is None and time.monotonic() < deadline:
+    while not _helpers_of(scratch) and process.poll() is None and time.monotonic() < deadline:
         time.sleep(0.01)
     assert process.poll() is None, "the run ended before its helper started"
     assert _helpers_of(scratch), "no helper process was started during the imports"
