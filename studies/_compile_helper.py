@@ -11,7 +11,9 @@ start-up (its imports, about a second) runs beside this process's instead of aft
 then takes that helper (:func:`take_early`) and tells it the steps of the run (a file in the claims
 folder). A helper no warm-up took (bad input, a complete result file) the console script ends when
 the command returns (:func:`discard_early`); a helper whose parent was killed stops compiling and
-removes the claims folder itself. Light to import (no numpy, no numba): the console script imports
+removes the claims folder itself, and a run killed before it had a helper (SIGKILL in a warm
+cache's warm-up) leaves a folder named by its pid that the next run removes
+(:func:`remove_stale_folders`). Light to import (no numpy, no numba): the console script imports
 it first.
 """
 
@@ -29,8 +31,9 @@ from typing import Iterable
 
 from ._errors import UsageError
 
-__all__ = ["Helper", "discard_early", "free_core", "helper_setting", "read_steps", "start_at_first_compilation",
-           "stop_listening", "take_early", "PROCESSES_VARIABLE", "STEPS_FILE", "WAIT_LIMIT"]
+__all__ = ["Helper", "discard_early", "free_core", "helper_setting", "read_steps", "remove_stale_folders",
+           "start_at_first_compilation", "stop_listening", "take_early", "FOLDER_PREFIX", "PROCESSES_VARIABLE",
+           "STEPS_FILE", "WAIT_LIMIT"]
 
 #: Environment variable: ``1`` compiles in this process only (no helper process).
 PROCESSES_VARIABLE = "FLEXVIB_COMPILE_PROCESSES"
@@ -53,6 +56,9 @@ WAIT_LIMIT = 120.0
 STEPS_FILE = "steps"
 #: How often (s) the helper looks for the steps file and for its parent.
 POLL = 0.02
+#: The claims folders' names in the temporary directory: this prefix, the pid of the run that made
+#: it, a dash and tempfile's random part.
+FOLDER_PREFIX = "flexvib-compile-"
 
 
 def _cores() -> int:
@@ -135,7 +141,8 @@ class Helper:
         self._measure = setting is None
         self.declined = False
         if setting is not False:
-            self._folder = Path(tempfile.mkdtemp(prefix="flexvib-compile-"))
+            remove_stale_folders()
+            self._folder = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-"))
             if self.steps is not None:
                 self._write_steps()
 
@@ -187,6 +194,32 @@ class Helper:
             if self._folder is not None:
                 shutil.rmtree(self._folder, ignore_errors=True)
                 self._folder = None
+
+
+def remove_stale_folders(directory: str | Path | None = None) -> list[Path]:
+    """Remove the claims folders in ``directory`` (the temporary directory by default) whose run
+    has ended: a run killed (SIGKILL) before it could remove its own leaves one behind, and nothing
+    else would. A folder whose run is alive, or whose name carries no pid, stays. Returns the
+    folders removed."""
+    removed = []
+    for folder in Path(directory or tempfile.gettempdir()).glob(f"{FOLDER_PREFIX}*"):
+        pid = folder.name[len(FOLDER_PREFIX):].partition("-")[0]
+        if pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(folder, ignore_errors=True)
+            removed.append(folder)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:   # another user's process
+        return True
+    except OSError:           # no signals here (not POSIX): keep the folder
+        return True
+    return True
 
 
 def read_steps(folder: Path, parent_alive) -> list[str] | None:

@@ -254,6 +254,36 @@ def test_a_helper_whose_parent_ended_removes_its_claims():
     assert not folder.exists()
 
 
+def test_a_killed_runs_claims_folder_is_removed_by_the_next_run(tmp_path):
+    """A run killed before its helper existed (SIGKILL in a warm cache's warm-up: no helper to clean
+    up) leaves its claims folder; the next run's warm-up removes it, and leaves alone the folders of
+    live runs and any folder whose name carries no pid."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), TMPDIR=str(tmp_path))
+    killed = subprocess.run([sys.executable, "-c", textwrap.dedent("""
+        import os
+        from studies._compile_helper import Helper
+        print(Helper(["steady state"], setting=True).folder, flush=True)
+        os._exit(9)                     # as a killed process: nothing cleaned up
+    """)], env=env, capture_output=True, text=True, timeout=120)
+    assert killed.returncode == 9, killed.stderr
+    left = Path(killed.stdout.strip())
+    assert left.parent == tmp_path and left.is_dir() and left.name.startswith("flexvib-compile-")
+    live = tmp_path / f"flexvib-compile-{os.getpid()}-live"      # this test's process: alive
+    unnamed = tmp_path / "flexvib-compile-notapid"
+    live.mkdir()
+    unnamed.mkdir()
+    next_run = subprocess.run([sys.executable, "-c", textwrap.dedent("""
+        from studies._compile_helper import Helper
+        helper = Helper(["steady state"], setting=True)
+        print(helper.folder, flush=True)
+        helper.stop()
+    """)], env=env, capture_output=True, text=True, timeout=120)
+    assert next_run.returncode == 0, next_run.stderr
+    assert not left.exists()
+    assert live.is_dir() and unnamed.is_dir()
+    assert not Path(next_run.stdout.strip()).exists()   # its own removed by stop()
+
+
 def test_compile_listed_takes_only_the_entries_it_claims(tmp_path):
     """Two processes share the list through claim files: an entry claimed by the other process is
     left to it (and its callees are waited for only while the other process is alive)."""
