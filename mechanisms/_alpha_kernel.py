@@ -86,7 +86,7 @@ def _constraint_values(q, phi0, h_lin, drive_rows, drive_angles, ct_int, ct_real
         out[k] = phi0[k] + acc
     for d in range(drive_rows.shape[0]):
         out[drive_rows[d]] -= drive_angles[d]
-    _kernels.constraints(q, ct_int, ct_real, shp, idx, out)
+    _kernels.constraints(q.reshape((1, q.shape[0])), ct_int, ct_real, shp, idx, out.reshape((1, out.shape[0])))
 
 
 @numba.njit(cache=True, no_cfunc_wrapper=True)
@@ -177,6 +177,12 @@ def _newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h,
     rhs = np.empty(n + r)
     sddot_before = np.empty(n)
     lam_before = np.empty(r)
+    # one-sample views for the model kernels, which take samples along a leading axis
+    q_row, v_row, sddot_row = q.reshape((1, n)), v.reshape((1, n)), sddot.reshape((1, n))
+    lam_row, Q_row = lam.reshape((1, r)), Q.reshape((1, n))
+    M_row, Phi_s_row = M.reshape((1, n, n)), Phi_s.reshape((1, r, n))
+    d_s_row, d_v_row = d_s.reshape((1, n, n)), d_v.reshape((1, n, n))
+    d_ma_row, d_lam_row = d_ma.reshape((1, n, n)), d_lam.reshape((1, n, n))
     # the same kernels as the Python path's, so both evaluate the same expressions
     _start_step_values(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h, alpha_m,
                        alpha_f, beta, gamma, beta_p, gamma_p, qhat, vhat, sddot, lam, q, v)
@@ -201,24 +207,24 @@ def _newton(q_n, v_n, a_n, sddot_n, lam_n, sddot_prev, lam_prev, extrapolate, h,
                 info[3] = abs_tol * phi_scale
                 return STALLED, tangent_valid, iterations
         M[:, :] = 0.0
-        _kernels.mass_matrix(q, mp_int, mp_real, shp, idx, M)
+        _kernels.mass_matrix(q_row, mp_int, mp_real, shp, idx, M_row)
         Q[:] = 0.0
-        _kernels.forces(q, v, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, Q)
+        _kernels.forces(q_row, v_row, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, Q_row)
         exact = not tangent_valid
         if exact:
             d_s[:, :] = 0.0
             d_v[:, :] = 0.0
-            _kernels.force_jacobians(q, v, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0,
-                                     c0, d_s, d_v)
+            _kernels.force_jacobians(q_row, v_row, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
+                                     k0, c0, d_s_row, d_v_row)
         _affine_torques(q, v, grad, const, pos_gain, rate_gain, back_emf, command_limit,
                         torque_limit, Q, d_s, d_v, exact)
         Phi_s[:, :] = h_lin
-        _kernels.constraint_jacobian(q, ct_int, ct_real, shp, idx, Phi_s)
+        _kernels.constraint_jacobian(q_row, ct_int, ct_real, shp, idx, Phi_s_row)
         if exact:
             d_ma[:, :] = 0.0
-            _kernels.mass_matrix_jacobian(q, sddot, mp_int, mp_real, shp, idx, d_ma)
+            _kernels.mass_matrix_jacobian(q_row, sddot_row, mp_int, mp_real, shp, idx, d_ma_row)
             d_lam[:, :] = 0.0
-            _kernels.constraint_force_jacobian(q, lam, ct_int, ct_real, shp, idx, d_lam)
+            _kernels.constraint_force_jacobian(q_row, lam_row, ct_int, ct_real, shp, idx, d_lam_row)
             for i in range(n):
                 for j in range(n):
                     tangent[i, j] = (beta_p * (d_ma[i, j] - d_s[i, j] + d_lam[i, j])

@@ -3,15 +3,18 @@ every sample of a period).
 
 Public face: ``linear_terms_along``, ``inertia_residual_along`` and ``constraint_terms_along`` take
 any ``ConstrainedModel`` and samples ``t`` (N,), ``s, sdot, sddot`` (N, n), ``lam`` (N, r). A model
-that offers the method of the same name (``mechanisms.Model`` does: one numba call per quantity,
-through the kernels below) is evaluated by it; any other model through its per-sample protocol
-methods. Both give the same numbers up to summation order (tests/test_batch.py).
+that offers the method of the same name (``mechanisms.Model`` does: one call per quantity of the
+kernels in ``_kernels``, which take all samples at once, and numpy for the sums) is evaluated by it;
+any other model through its per-sample protocol methods. Both give the same numbers up to
+summation order (tests/test_batch.py).
 
-The kernels here take the assembled model's tables (``_model._Tables``, layouts in ``_kernels``;
-the constraint terms ``ct_int`` have six columns, the last the frame of a term in a moving link's
-frame) as arrays and fill their outputs; only ``Model`` calls them. Numba's cache of a kernel here
-is keyed by this file, not by the ``_kernels`` functions it calls: a change of a kernel's layout
-there must touch this file too (as this note did), or stale compiled code is reused.
+The kernels here (the nominal motion's position continuation and its helpers) take the assembled
+model's tables (``_model._Tables``, layouts in ``_kernels``; the constraint terms ``ct_int`` have six
+columns, the last the frame of a term in a moving link's frame) as arrays and fill their outputs;
+only ``Model`` calls them. Numba's cache of a kernel here is keyed by this file, not by the
+``_kernels`` functions it calls: a change of a kernel's layout there must touch this file too (as
+this note did: the model kernels now take samples along a leading axis), or stale compiled code is
+reused.
 """
 
 from __future__ import annotations
@@ -107,6 +110,71 @@ def constraint_terms_along(model, t, s, sdot=None, *, values: bool = False) -> C
 
 
 # ---------------------------------------------------------------------------------------------------
+# The assembled model's tables along a motion (``Model``'s methods of the same names)
+# ---------------------------------------------------------------------------------------------------
+#: ``tables_inertia_residual`` forms the mass matrices of this many entries (2 MB) at a time.
+MASS_CHUNK_ENTRIES = 2 ** 18
+
+
+def tables_linear_terms(tb, gx, gy, s, sdot, sddot, lam):
+    """M, D, K (N, n, n), R (N, n), J (N, r, n) of ``LinearTerms`` from the model's tables ``tb``
+    (``_model._Tables``) and gravity ``gx, gy`` (m/s^2) at the samples ``s, sdot, sddot`` (N, n),
+    ``lam`` (N, r), contiguous; torque drives left out. One kernel call per quantity; numpy sums."""
+    n_samples, n = s.shape
+    M, D, K, dQ_ds = (np.zeros((n_samples, n, n)) for _ in range(4))
+    Q = np.zeros((n_samples, n))
+    J = np.empty((n_samples, lam.shape[1], n))
+    J[:] = tb.h_lin
+    _kernels.mass_matrix(s, tb.mp_int, tb.mp_real, tb.shp, tb.idx, M)
+    _kernels.forces(s, sdot, gx, gy, tb.mp_int, tb.mp_real, tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0,
+                    tb.c0, Q)
+    _kernels.force_jacobians(s, sdot, gx, gy, tb.mp_int, tb.mp_real, tb.sp_int, tb.sp_real, tb.shp, tb.idx,
+                             tb.k0, tb.c0, dQ_ds, D)
+    _kernels.mass_matrix_jacobian(s, sddot, tb.mp_int, tb.mp_real, tb.shp, tb.idx, K)
+    _kernels.constraint_force_jacobian(s, lam, tb.ct_int, tb.ct_real, tb.shp, tb.idx, K)
+    _kernels.constraint_jacobian(s, tb.ct_int, tb.ct_real, tb.shp, tb.idx, J)
+    K -= dQ_ds                      # d(M s'')/ds - dQ/ds + d(Phi_s^T lam)/ds
+    np.negative(D, out=D)           # D = -dQ/ds'
+    R = np.einsum("kab,kb->ka", M, sddot) - Q + np.einsum("kra,kr->ka", J, lam)
+    return M, D, K, R, J
+
+
+def tables_inertia_residual(tb, gx, gy, s, sdot, sddot):
+    """``M(s) s'' - Q(s, s')`` (N, n) from the model's tables at the samples ``s, sdot, sddot``
+    (N, n), contiguous; torque drives left out."""
+    n_samples, n = s.shape
+    Q = np.zeros((n_samples, n))
+    _kernels.forces(s, sdot, gx, gy, tb.mp_int, tb.mp_real, tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0,
+                    tb.c0, Q)
+    out = np.empty((n_samples, n))
+    # the mass matrices a chunk of samples at a time: M s'' needs no (N, n, n) array of them
+    chunk = max(1, min(n_samples, MASS_CHUNK_ENTRIES // max(n * n, 1)))
+    M = np.empty((chunk, n, n))
+    for start in range(0, n_samples, chunk):
+        stop = min(start + chunk, n_samples)
+        block = M[:stop - start]
+        block[:] = 0.0
+        _kernels.mass_matrix(s[start:stop], tb.mp_int, tb.mp_real, tb.shp, tb.idx, block)
+        np.einsum("kab,kb->ka", block, sddot[start:stop], out=out[start:stop])
+    out -= Q
+    return out
+
+
+def tables_constraint_terms(tb, s, sdot, J, gamma, phi) -> None:
+    """Fill ``J`` (N, r, n) with Phi_s at the samples ``s`` (N, n); with ``sdot`` (N, n) add the
+    point constraints' part of gamma to ``gamma`` (N, r); with ``phi`` (N, r) add ``h_lin s`` and
+    the point constraints' part of Phi to it. ``gamma`` and ``phi`` hold the constant and drive
+    parts on entry."""
+    J[:] = tb.h_lin
+    _kernels.constraint_jacobian(s, tb.ct_int, tb.ct_real, tb.shp, tb.idx, J)
+    if sdot is not None:
+        _kernels.constraint_gamma(s, sdot, tb.ct_int, tb.ct_real, tb.shp, tb.idx, gamma)
+    if phi is not None:
+        phi += s @ tb.h_lin.T
+        _kernels.constraints(s, tb.ct_int, tb.ct_real, tb.shp, tb.idx, phi)
+
+
+# ---------------------------------------------------------------------------------------------------
 # Kernels of the assembled model
 # ---------------------------------------------------------------------------------------------------
 # no_cfunc_wrapper: no kernel is passed as a first-class function (its C wrapper is first-run
@@ -122,68 +190,6 @@ def _copy_matrix(source, target):
     for i in range(source.shape[0]):
         for j in range(source.shape[1]):
             target[i, j] = source[i, j]
-
-
-@numba.njit(cache=True, no_cfunc_wrapper=True)
-def linear_terms_kernel(S, Sd, Sdd, Lam, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0,
-                        c0, ct_int, ct_real, h_lin, residual_only, M, D, K, R, J):
-    """Fill M, D, K (N, n, n), R (N, n), J (N, r, n) of ``LinearTerms`` for the samples
-    S, Sd, Sdd (N, n), Lam (N, r), torque drives left out. Outputs must be zeroed on entry.
-
-    ``residual_only``: only R = M(S[k]) Sdd[k] - Q(S[k], Sd[k]), the inertia residual, with M a
-    (1, n, n) scratch; Lam, D, K, J and the constraint tables are not read (may be empty). One
-    kernel for both: a second would compile and optimise the mass and force kernels once more."""
-    n_samples, n = S.shape
-    Q = np.zeros(n)
-    dQ_ds = np.zeros((n, n))
-    for k in range(n_samples):
-        s, sdot, sddot = S[k], Sd[k], Sdd[k]
-        if residual_only:
-            Mk = M[0]
-            Mk[:, :] = 0.0
-        else:
-            Mk = M[k]
-        _kernels.mass_matrix(s, mp_int, mp_real, shp, idx, Mk)
-        Q[:] = 0.0
-        _kernels.forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, Q)
-        if not residual_only:
-            dQ_ds[:, :] = 0.0
-            _kernels.force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx,
-                                     k0, c0, dQ_ds, D[k])
-            _kernels.mass_matrix_jacobian(s, sddot, mp_int, mp_real, shp, idx, K[k])
-            _kernels.constraint_force_jacobian(s, Lam[k], ct_int, ct_real, shp, idx, K[k])
-            _copy_matrix(h_lin, J[k])
-            _kernels.constraint_jacobian(s, ct_int, ct_real, shp, idx, J[k])
-        for a in range(n):
-            acc = -Q[a]
-            for b in range(n):
-                acc += Mk[a, b] * sddot[b]
-            if not residual_only:
-                for b in range(n):
-                    K[k, a, b] -= dQ_ds[a, b]
-                    D[k, a, b] = -D[k, a, b]
-                for row in range(Lam.shape[1]):
-                    acc += J[k, row, a] * Lam[k, row]
-            R[k, a] = acc
-
-
-@numba.njit(cache=True, no_cfunc_wrapper=True)
-def constraint_terms_kernel(S, Sd, ct_int, ct_real, shp, idx, h_lin, J, gamma, phi):
-    """J[k] = Phi_s(S[k]) (constant rows h_lin included); when Sd has rows, gamma[k] += the
-    point-constraint part of gamma(S[k], Sd[k]); when phi has rows, phi[k] += h_lin S[k] + the
-    point-constraint part of Phi(S[k]). Outputs hold the constant and drive parts on entry."""
-    for k in range(S.shape[0]):
-        _copy_matrix(h_lin, J[k])
-        _kernels.constraint_jacobian(S[k], ct_int, ct_real, shp, idx, J[k])
-        if Sd.shape[0] == S.shape[0]:
-            _kernels.constraint_gamma(S[k], Sd[k], ct_int, ct_real, shp, idx, gamma[k])
-        if phi.shape[0] == S.shape[0]:
-            for i in range(h_lin.shape[0]):  # phi[k] += h_lin @ S[k], without compiling BLAS dot
-                acc = 0.0
-                for j in range(h_lin.shape[1]):
-                    acc += h_lin[i, j] * S[k, j]
-                phi[k, i] += acc
-            _kernels.constraints(S[k], ct_int, ct_real, shp, idx, phi[k])
 
 
 @numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True)
@@ -226,6 +232,10 @@ def continue_positions_kernel(s, start, drive_rows, drive_angles, rigid, phi0, h
     jac_r = np.empty((r, n_rigid))
     predicted = np.empty(n)
     q = np.empty(n)
+    # one-sample views for the model kernels, which take samples along a leading axis
+    q_row = q.reshape((1, n))
+    phi_row = phi.reshape((1, r))
+    jac_row = jac.reshape((1, r, n))
     for k in range(start, n_samples):
         for j in range(n):  # loops, not array expressions: less to compile on the first run
             predicted[j] = 3.0 * s[k - 1, j] - 3.0 * s[k - 2, j] + s[k - 3, j]
@@ -240,12 +250,12 @@ def continue_positions_kernel(s, start, drive_rows, drive_angles, rigid, phi0, h
                 phi[i] = acc
             for d in range(drive_rows.shape[0]):
                 phi[drive_rows[d]] -= drive_angles[k, d]
-            _kernels.constraints(q, ct_int, ct_real, shp, idx, phi)
+            _kernels.constraints(q_row, ct_int, ct_real, shp, idx, phi_row)
             if _max_abs(phi) < newton_stop:
                 converged = True
                 break
             _copy_matrix(h_lin, jac)
-            _kernels.constraint_jacobian(q, ct_int, ct_real, shp, idx, jac)
+            _kernels.constraint_jacobian(q_row, ct_int, ct_real, shp, idx, jac_row)
             for i in range(r):
                 for j in range(n_rigid):
                     jac_r[i, j] = jac[i, rigid[j]]

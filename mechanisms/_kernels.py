@@ -61,7 +61,13 @@ elastic coordinates), with their values in ``shp`` (``nnz`` per row):
 Inside a kernel, ``cols[a]`` maps the point's local column ``a`` (0, 1, 2 = x, y, theta, then the
 active elastic coordinates) to its index in ``s``.
 
-All kernels fill preallocated outputs (zeroed by the caller where they accumulate).
+All kernels fill preallocated outputs (zeroed by the caller where they accumulate). The kernels of
+the model's quantities (``mass_matrix`` to ``constraint_force_jacobian``) take N samples at once, a
+leading axis on their coordinates and outputs (N = 1 for one state: a ``reshape`` view), so that a
+model evaluated along a motion is one call per quantity with nothing compiled around it: a kernel
+that called them at each sample had LLVM optimise and emit their code again inside it (the batch
+kernels ``linear_terms_kernel`` and ``constraint_terms_kernel`` were 2.5 s of a first run's 17 s of
+compilation for a steady state: docs/benchmarks.md, session 15).
 """
 
 from __future__ import annotations
@@ -252,178 +258,187 @@ def _add_d(out, scale, nnz, apx, apy, lx, ly, cols, vx, vy):
 
 
 @numba.njit(cache=True, no_cfunc_wrapper=True)
-def mass_matrix(s, mp_int, mp_real, shp, idx, out):
-    """M = sum m L^T L + J h h^T, h = (0, 0, 1, g) (seed eq. 2.12 by d'Alembert); out (n, n) zeroed."""
+def mass_matrix(S, mp_int, mp_real, shp, idx, outs):
+    """M = sum m L^T L + J h h^T, h = (0, 0, 1, g) (seed eq. 2.12 by d'Alembert) at each sample of
+    S (N, n) into outs (N, n, n), zeroed."""
     lx, ly, cols = _scratch(mp_int[:, 1])
-    for i in range(mp_int.shape[0]):
-        off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
-        m, inertia, cx, cy = mp_real[i, 0], mp_real[i, 1], mp_real[i, 2], mp_real[i, 3]
-        _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
-        nl = 3 + nnz
-        for a in range(nl):
-            for b in range(nl):
-                out[cols[a], cols[b]] += m * (lx[a] * lx[b] + ly[a] * ly[b])
-        if inertia != 0.0:
-            g0 = ptr + 2 * nnz
-            t = off + 2
-            out[t, t] += inertia
-            for k in range(nnz):
-                out[t, cols[3 + k]] += inertia * shp[g0 + k]
-                out[cols[3 + k], t] += inertia * shp[g0 + k]
-                for j in range(nnz):
-                    out[cols[3 + k], cols[3 + j]] += inertia * shp[g0 + k] * shp[g0 + j]
+    for sample in range(S.shape[0]):
+        s, out = S[sample], outs[sample]
+        for i in range(mp_int.shape[0]):
+            off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
+            m, inertia, cx, cy = mp_real[i, 0], mp_real[i, 1], mp_real[i, 2], mp_real[i, 3]
+            _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
+            nl = 3 + nnz
+            for a in range(nl):
+                for b in range(nl):
+                    out[cols[a], cols[b]] += m * (lx[a] * lx[b] + ly[a] * ly[b])
+            if inertia != 0.0:
+                g0 = ptr + 2 * nnz
+                t = off + 2
+                out[t, t] += inertia
+                for k in range(nnz):
+                    out[t, cols[3 + k]] += inertia * shp[g0 + k]
+                    out[cols[3 + k], t] += inertia * shp[g0 + k]
+                    for j in range(nnz):
+                        out[cols[3 + k], cols[3 + j]] += inertia * shp[g0 + k] * shp[g0 + j]
 
 
 @numba.njit(cache=True, no_cfunc_wrapper=True)
-def mass_matrix_jacobian(s, acc, mp_int, mp_real, shp, idx, out):
+def mass_matrix_jacobian(S, Acc, mp_int, mp_real, shp, idx, outs):
     """d(M(s) a)/ds, a fixed: sum m [L^T d(L a)/ds + D(L a)] (eq. 1, 3); h is constant so the
-    rotary inertia adds nothing; out (n, n) zeroed."""
+    rotary inertia adds nothing. At each sample of S, Acc (N, n) into outs (N, n, n), zeroed."""
     lx, ly, cols = _scratch(mp_int[:, 1])
     jx = np.empty(len(lx))
     jy = np.empty(len(lx))
-    for i in range(mp_int.shape[0]):
-        off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
-        m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
-        if m == 0.0:
-            continue
-        apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
-        nl = 3 + nnz
-        la_x = 0.0
-        la_y = 0.0
-        for a in range(nl):
-            la_x += lx[a] * acc[cols[a]]
-            la_y += ly[a] * acc[cols[a]]
-        asa_x, asa_y = _elastic_velocity(acc, nnz, lx, ly, cols)  # A S a_q
-        at = acc[off + 2]
-        # d(L a)/ds: theta column -A p a_t + J A S a_q; q_k columns J A S_k a_t
-        jx[2] = -apx * at - asa_y
-        jy[2] = -apy * at + asa_x
-        for k in range(nnz):
-            jx[3 + k] = -ly[3 + k] * at
-            jy[3 + k] = lx[3 + k] * at
-        for a in range(nl):
-            for b in range(2, nl):
-                out[cols[a], cols[b]] += m * (lx[a] * jx[b] + ly[a] * jy[b])
-        _add_d(out, m, nnz, apx, apy, lx, ly, cols, la_x, la_y)
+    for sample in range(S.shape[0]):
+        s, acc, out = S[sample], Acc[sample], outs[sample]
+        for i in range(mp_int.shape[0]):
+            off, nnz, ptr, iptr = mp_int[i, 0], mp_int[i, 1], mp_int[i, 2], mp_int[i, 3]
+            m, cx, cy = mp_real[i, 0], mp_real[i, 2], mp_real[i, 3]
+            if m == 0.0:
+                continue
+            apx, apy = _fill_l(s, off, nnz, cx, cy, ptr, iptr, shp, idx, lx, ly, cols)
+            nl = 3 + nnz
+            la_x = 0.0
+            la_y = 0.0
+            for a in range(nl):
+                la_x += lx[a] * acc[cols[a]]
+                la_y += ly[a] * acc[cols[a]]
+            asa_x, asa_y = _elastic_velocity(acc, nnz, lx, ly, cols)  # A S a_q
+            at = acc[off + 2]
+            # d(L a)/ds: theta column -A p a_t + J A S a_q; q_k columns J A S_k a_t
+            jx[2] = -apx * at - asa_y
+            jy[2] = -apy * at + asa_x
+            for k in range(nnz):
+                jx[3 + k] = -ly[3 + k] * at
+                jy[3 + k] = lx[3 + k] * at
+            for a in range(nl):
+                for b in range(2, nl):
+                    out[cols[a], cols[b]] += m * (lx[a] * jx[b] + ly[a] * jy[b])
+            _add_d(out, m, nnz, apx, apy, lx, ly, cols, la_x, la_y)
 
 
 @numba.njit(cache=True, no_cfunc_wrapper=True)
-def forces(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, out):
-    """Q = sum m L^T (g - c) - dPi/ds - dD/ds' - K0 s - C0 s' (eq. 2, 5, 8; seed eq. 2.10, 2.13);
-    out (n,) zeroed."""
+def forces(S, Sd, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, outs):
+    """Q = sum m L^T (g - c) - dPi/ds - dD/ds' - K0 s - C0 s' (eq. 2, 5, 8; seed eq. 2.10, 2.13) at
+    each sample of S, Sd (N, n) into outs (N, n), zeroed."""
     lx, ly, cols = _scratch(mp_int[:, 1])
-    for i in range(mp_int.shape[0]):
-        m = mp_real[i, 0]
-        if m == 0.0:
-            continue
-        apx, apy, wt, asv_x, asv_y, vx, vy = _point_motion(s, sdot, gx, gy, i, mp_int, mp_real,
-                                                           shp, idx, lx, ly, cols)
-        for a in range(3 + mp_int[i, 1]):
-            out[cols[a]] += m * (lx[a] * vx + ly[a] * vy)
     slope, eps, kappa, coef = _group_scratch(sp_int)
     slope_rate, eps_rate, kappa_rate, coef_rate = _group_scratch(sp_int)
-    i0 = np.int64(0)  # not the literal 0: callees would compile a second, Literal[int] signature
-    while i0 < sp_int.shape[0]:
-        # -dPi/dq, eq. (5)
-        size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
-        _subtract_strain_force(out, i0, sp_int, sp_real, shp, idx, 1.0, eps, kappa, slope, coef)
-        beta = sp_real[i0, 2]
-        if beta != 0.0:
-            # -dD/dq', eq. (8)
-            _membrane_rate_group(sdot, i0, sp_int, sp_real, shp, idx, slope, slope_rate,
-                                 eps_rate, kappa_rate, coef_rate)
-            _subtract_strain_force(out, i0, sp_int, sp_real, shp, idx, beta, eps_rate,
-                                   kappa_rate, slope, coef_rate)
-        i0 += size
-    n = s.shape[0]
-    if k0.shape[0] == n:
-        for a in range(n):
-            acc = 0.0
-            for b in range(n):
-                acc += k0[a, b] * s[b] + c0[a, b] * sdot[b]
-            out[a] -= acc
+    for sample in range(S.shape[0]):
+        s, sdot, out = S[sample], Sd[sample], outs[sample]
+        for i in range(mp_int.shape[0]):
+            m = mp_real[i, 0]
+            if m == 0.0:
+                continue
+            apx, apy, wt, asv_x, asv_y, vx, vy = _point_motion(s, sdot, gx, gy, i, mp_int, mp_real,
+                                                               shp, idx, lx, ly, cols)
+            for a in range(3 + mp_int[i, 1]):
+                out[cols[a]] += m * (lx[a] * vx + ly[a] * vy)
+        i0 = np.int64(0)  # not the literal 0: callees would compile a second, Literal[int] signature
+        while i0 < sp_int.shape[0]:
+            # -dPi/dq, eq. (5)
+            size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
+            _subtract_strain_force(out, i0, sp_int, sp_real, shp, idx, 1.0, eps, kappa, slope, coef)
+            beta = sp_real[i0, 2]
+            if beta != 0.0:
+                # -dD/dq', eq. (8)
+                _membrane_rate_group(sdot, i0, sp_int, sp_real, shp, idx, slope, slope_rate,
+                                     eps_rate, kappa_rate, coef_rate)
+                _subtract_strain_force(out, i0, sp_int, sp_real, shp, idx, beta, eps_rate,
+                                       kappa_rate, slope, coef_rate)
+            i0 += size
+        n = s.shape[0]
+        if k0.shape[0] == n:
+            for a in range(n):
+                acc = 0.0
+                for b in range(n):
+                    acc += k0[a, b] * s[b] + c0[a, b] * sdot[b]
+                out[a] -= acc
 
 
 @numba.njit(cache=True, no_cfunc_wrapper=True)
-def force_jacobians(s, sdot, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, out_s,
-                    out_v):
-    """dQ/ds and dQ/ds' of ``forces`` (derivatives of eq. 2 and of the strain forces); outputs
-    (n, n) zeroed."""
+def force_jacobians(S, Sd, gx, gy, mp_int, mp_real, sp_int, sp_real, shp, idx, k0, c0, outs_s,
+                    outs_v):
+    """dQ/ds and dQ/ds' of ``forces`` (derivatives of eq. 2 and of the strain forces) at each sample
+    of S, Sd (N, n) into outs_s, outs_v (N, n, n), zeroed."""
     lx, ly, cols = _scratch(mp_int[:, 1])
-    for i in range(mp_int.shape[0]):
-        m = mp_real[i, 0]
-        if m == 0.0:
-            continue
-        apx, apy, wt, asv_x, asv_y, vx, vy = _point_motion(s, sdot, gx, gy, i, mp_int, mp_real,
-                                                           shp, idx, lx, ly, cols)
-        nnz = mp_int[i, 1]
-        nl = 3 + nnz
-        t = mp_int[i, 0] + 2
-        # d(g - c)/dtheta = w^2 J A p + 2 w A S q', with J A p = (-apy, apx)
-        dtx = -wt * wt * apy + 2.0 * wt * asv_x
-        dty = wt * wt * apx + 2.0 * wt * asv_y
-        # d(g - c)/dtheta' = 2 w A p - 2 J A S q'
-        dvx = 2.0 * wt * apx + 2.0 * asv_y
-        dvy = 2.0 * wt * apy - 2.0 * asv_x
-        for a in range(nl):
-            ca = cols[a]
-            out_s[ca, t] += m * (lx[a] * dtx + ly[a] * dty)
-            out_v[ca, t] += m * (lx[a] * dvx + ly[a] * dvy)
-            for k in range(nnz):
-                ck = cols[3 + k]
-                # d(g - c)/dq_k = w^2 A S_k;  d(g - c)/dq'_k = -2 w J A S_k
-                out_s[ca, ck] += m * wt * wt * (lx[a] * lx[3 + k] + ly[a] * ly[3 + k])
-                out_v[ca, ck] += m * (-2.0 * wt) * (-lx[a] * ly[3 + k] + ly[a] * lx[3 + k])
-        _add_d(out_s, m, nnz, apx, apy, lx, ly, cols, vx, vy)
     slope, eps, kappa, coef = _group_scratch(sp_int)
     slope_rate, eps_rate, kappa_rate, coef_rate = _group_scratch(sp_int)
     grad = np.empty(max(_max_local(sp_int[:, 1]) - 3, 1))
     grad_rate = np.empty(grad.shape[0])
-    i0 = np.int64(0)  # not the literal 0: callees would compile a second, Literal[int] signature
-    while i0 < sp_int.shape[0]:
-        # -d2Pi/dq2, eq. (6); with Kelvin-Voigt damping also -d2D/dq'dq and -d2D/dq'2, eq. (9)
-        size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
-        off, nnz, iptr, pptr = sp_int[i0, 0], sp_int[i0, 1], sp_int[i0, 3], sp_int[i0, 5]
-        beta = sp_real[i0, 2]
-        if beta != 0.0:
-            _membrane_rate_group(sdot, i0, sp_int, sp_real, shp, idx, slope, slope_rate,
-                                 eps_rate, kappa_rate, coef_rate)
-        for g in range(size):
-            ptr = sp_int[i0 + g, 2]
-            ea, ei = sp_real[i0 + g, 0], sp_real[i0 + g, 1]
-            for k in range(nnz):
-                grad[k] = shp[ptr + k]
-                grad_rate[k] = 0.0
-            for j in range(size):
-                pj = shp[pptr + g * size + j] * slope[j]
-                ptr_j = sp_int[i0 + j, 2]
+    for sample in range(S.shape[0]):
+        s, sdot, out_s, out_v = S[sample], Sd[sample], outs_s[sample], outs_v[sample]
+        for i in range(mp_int.shape[0]):
+            m = mp_real[i, 0]
+            if m == 0.0:
+                continue
+            apx, apy, wt, asv_x, asv_y, vx, vy = _point_motion(s, sdot, gx, gy, i, mp_int, mp_real,
+                                                               shp, idx, lx, ly, cols)
+            nnz = mp_int[i, 1]
+            nl = 3 + nnz
+            t = mp_int[i, 0] + 2
+            # d(g - c)/dtheta = w^2 J A p + 2 w A S q', with J A p = (-apy, apx)
+            dtx = -wt * wt * apy + 2.0 * wt * asv_x
+            dty = wt * wt * apx + 2.0 * wt * asv_y
+            # d(g - c)/dtheta' = 2 w A p - 2 J A S q'
+            dvx = 2.0 * wt * apx + 2.0 * asv_y
+            dvy = 2.0 * wt * apy - 2.0 * asv_x
+            for a in range(nl):
+                ca = cols[a]
+                out_s[ca, t] += m * (lx[a] * dtx + ly[a] * dty)
+                out_v[ca, t] += m * (lx[a] * dvx + ly[a] * dvy)
                 for k in range(nnz):
-                    grad[k] += pj * shp[ptr_j + nnz + k]
-                if beta != 0.0:
-                    pj_rate = shp[pptr + g * size + j] * slope_rate[j]
+                    ck = cols[3 + k]
+                    # d(g - c)/dq_k = w^2 A S_k;  d(g - c)/dq'_k = -2 w J A S_k
+                    out_s[ca, ck] += m * wt * wt * (lx[a] * lx[3 + k] + ly[a] * ly[3 + k])
+                    out_v[ca, ck] += m * (-2.0 * wt) * (-lx[a] * ly[3 + k] + ly[a] * lx[3 + k])
+            _add_d(out_s, m, nnz, apx, apy, lx, ly, cols, vx, vy)
+        i0 = np.int64(0)  # not the literal 0: callees would compile a second, Literal[int] signature
+        while i0 < sp_int.shape[0]:
+            # -d2Pi/dq2, eq. (6); with Kelvin-Voigt damping also -d2D/dq'dq and -d2D/dq'2, eq. (9)
+            size = _membrane_group(s, i0, sp_int, sp_real, shp, idx, slope, eps, kappa, coef)
+            off, nnz, iptr, pptr = sp_int[i0, 0], sp_int[i0, 1], sp_int[i0, 3], sp_int[i0, 5]
+            beta = sp_real[i0, 2]
+            if beta != 0.0:
+                _membrane_rate_group(sdot, i0, sp_int, sp_real, shp, idx, slope, slope_rate,
+                                     eps_rate, kappa_rate, coef_rate)
+            for g in range(size):
+                ptr = sp_int[i0 + g, 2]
+                ea, ei = sp_real[i0 + g, 0], sp_real[i0 + g, 1]
+                for k in range(nnz):
+                    grad[k] = shp[ptr + k]
+                    grad_rate[k] = 0.0
+                for j in range(size):
+                    pj = shp[pptr + g * size + j] * slope[j]
+                    ptr_j = sp_int[i0 + j, 2]
                     for k in range(nnz):
-                        grad_rate[k] += pj_rate * shp[ptr_j + nnz + k]
-            for k in range(nnz):
-                ck = off + 3 + idx[iptr + k]
-                for j in range(nnz):
-                    cj = off + 3 + idx[iptr + j]
-                    out_s[ck, cj] -= (
-                        ea * grad[k] * grad[j]
-                        + coef[g] * shp[ptr + nnz + k] * shp[ptr + nnz + j]
-                        + ei * shp[ptr + 2 * nnz + k] * shp[ptr + 2 * nnz + j])
+                        grad[k] += pj * shp[ptr_j + nnz + k]
                     if beta != 0.0:
-                        out_s[ck, cj] -= (coef_rate[g] * shp[ptr + nnz + k] * shp[ptr + nnz + j]
-                                          + beta * ea * grad[k] * grad_rate[j])
-                        out_v[ck, cj] -= beta * (
+                        pj_rate = shp[pptr + g * size + j] * slope_rate[j]
+                        for k in range(nnz):
+                            grad_rate[k] += pj_rate * shp[ptr_j + nnz + k]
+                for k in range(nnz):
+                    ck = off + 3 + idx[iptr + k]
+                    for j in range(nnz):
+                        cj = off + 3 + idx[iptr + j]
+                        out_s[ck, cj] -= (
                             ea * grad[k] * grad[j]
+                            + coef[g] * shp[ptr + nnz + k] * shp[ptr + nnz + j]
                             + ei * shp[ptr + 2 * nnz + k] * shp[ptr + 2 * nnz + j])
-        i0 += size
-    n = s.shape[0]
-    if k0.shape[0] == n:
-        for a in range(n):
-            for b in range(n):
-                out_s[a, b] -= k0[a, b]
-                out_v[a, b] -= c0[a, b]
+                        if beta != 0.0:
+                            out_s[ck, cj] -= (coef_rate[g] * shp[ptr + nnz + k] * shp[ptr + nnz + j]
+                                              + beta * ea * grad[k] * grad_rate[j])
+                            out_v[ck, cj] -= beta * (
+                                ea * grad[k] * grad[j]
+                                + ei * shp[ptr + 2 * nnz + k] * shp[ptr + 2 * nnz + j])
+            i0 += size
+        n = s.shape[0]
+        if k0.shape[0] == n:
+            for a in range(n):
+                for b in range(n):
+                    out_s[a, b] -= k0[a, b]
+                    out_v[a, b] -= c0[a, b]
 
 
 @numba.njit(cache=True, forceinline=True, no_cfunc_wrapper=True, no_cpython_wrapper=True)
@@ -450,82 +465,90 @@ def _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols):
 
 
 @numba.njit(cache=True, no_cfunc_wrapper=True)
-def constraints(s, ct_int, ct_real, shp, idx, out):
-    """Phi[row] += d . (R + A p), or e . (R + A p - R_f) in a frame, over the constraint terms;
-    out (r,) holds the constant parts."""
+def constraints(S, ct_int, ct_real, shp, idx, outs):
+    """Phi[row] += d . (R + A p), or e . (R + A p - R_f) in a frame, over the constraint terms, at
+    each sample of S (N, n); outs (N, r) holds the constant parts."""
     lx, ly, cols = _scratch(ct_int[:, 2])
-    for i in range(ct_int.shape[0]):
-        row, off, nnz, frame, apx, apy, ex, ey = _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols)
-        rx = s[off] + apx
-        ry = s[off + 1] + apy
-        if frame >= 0:
-            rx -= s[frame]
-            ry -= s[frame + 1]
-        out[row] += ex * rx + ey * ry
+    for sample in range(S.shape[0]):
+        s, out = S[sample], outs[sample]
+        for i in range(ct_int.shape[0]):
+            row, off, nnz, frame, apx, apy, ex, ey = _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols)
+            rx = s[off] + apx
+            ry = s[off + 1] + apy
+            if frame >= 0:
+                rx -= s[frame]
+                ry -= s[frame + 1]
+            out[row] += ex * rx + ey * ry
 
 
 @numba.njit(cache=True, no_cfunc_wrapper=True)
-def constraint_jacobian(s, ct_int, ct_real, shp, idx, out):
-    """Phi_s[row] += d^T L (eq. 1), with a frame eq. (10); out (r, n) holds the constant (linear)
-    rows."""
+def constraint_jacobian(S, ct_int, ct_real, shp, idx, outs):
+    """Phi_s[row] += d^T L (eq. 1), with a frame eq. (10), at each sample of S (N, n); outs
+    (N, r, n) holds the constant (linear) rows."""
     lx, ly, cols = _scratch(ct_int[:, 2])
-    for i in range(ct_int.shape[0]):
-        row, off, nnz, frame, apx, apy, ex, ey = _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols)
-        for a in range(3 + nnz):
-            out[row, cols[a]] += ex * lx[a] + ey * ly[a]
-        if frame >= 0:
-            out[row, frame] -= ex
-            out[row, frame + 1] -= ey
-            out[row, frame + 2] += -ey * (s[off] + apx - s[frame]) + ex * (s[off + 1] + apy
-                                                                          - s[frame + 1])
+    for sample in range(S.shape[0]):
+        s, out = S[sample], outs[sample]
+        for i in range(ct_int.shape[0]):
+            row, off, nnz, frame, apx, apy, ex, ey = _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols)
+            for a in range(3 + nnz):
+                out[row, cols[a]] += ex * lx[a] + ey * ly[a]
+            if frame >= 0:
+                out[row, frame] -= ex
+                out[row, frame + 1] -= ey
+                out[row, frame + 2] += -ey * (s[off] + apx - s[frame]) + ex * (s[off + 1] + apy
+                                                                              - s[frame + 1])
 
 
 @numba.njit(cache=True, no_cfunc_wrapper=True)
-def constraint_gamma(s, sdot, ct_int, ct_real, shp, idx, out):
+def constraint_gamma(S, Sd, ct_int, ct_real, shp, idx, outs):
     """gamma[row] -= d . c (eq. 2; the point constraints do not depend on t), with a frame also
-    eq. (11); out (r,) holds the drive rows' accelerations."""
+    eq. (11), at each sample of S, Sd (N, n); outs (N, r) holds the drive rows' accelerations."""
     lx, ly, cols = _scratch(ct_int[:, 2])
-    for i in range(ct_int.shape[0]):
-        row, off, nnz, frame, apx, apy, ex, ey = _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols)
-        wt = sdot[off + 2]
-        asv_x, asv_y = _elastic_velocity(sdot, nnz, lx, ly, cols)
-        cxv = -wt * wt * apx - 2.0 * wt * asv_y
-        cyv = -wt * wt * apy + 2.0 * wt * asv_x
-        out[row] -= ex * cxv + ey * cyv
-        if frame >= 0:
-            wf = sdot[frame + 2]
-            delta_x = s[off] + apx - s[frame]
-            delta_y = s[off + 1] + apy - s[frame + 1]
-            rate_x = -sdot[frame]
-            rate_y = -sdot[frame + 1]
-            for a in range(3 + nnz):
-                rate_x += lx[a] * sdot[cols[a]]
-                rate_y += ly[a] * sdot[cols[a]]
-            out[row] += (-2.0 * wf * (-ey * rate_x + ex * rate_y)
-                         + wf * wf * (ex * delta_x + ey * delta_y))
+    for sample in range(S.shape[0]):
+        s, sdot, out = S[sample], Sd[sample], outs[sample]
+        for i in range(ct_int.shape[0]):
+            row, off, nnz, frame, apx, apy, ex, ey = _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols)
+            wt = sdot[off + 2]
+            asv_x, asv_y = _elastic_velocity(sdot, nnz, lx, ly, cols)
+            cxv = -wt * wt * apx - 2.0 * wt * asv_y
+            cyv = -wt * wt * apy + 2.0 * wt * asv_x
+            out[row] -= ex * cxv + ey * cyv
+            if frame >= 0:
+                wf = sdot[frame + 2]
+                delta_x = s[off] + apx - s[frame]
+                delta_y = s[off + 1] + apy - s[frame + 1]
+                rate_x = -sdot[frame]
+                rate_y = -sdot[frame + 1]
+                for a in range(3 + nnz):
+                    rate_x += lx[a] * sdot[cols[a]]
+                    rate_y += ly[a] * sdot[cols[a]]
+                out[row] += (-2.0 * wf * (-ey * rate_x + ex * rate_y)
+                             + wf * wf * (ex * delta_x + ey * delta_y))
 
 
 @numba.njit(cache=True, no_cfunc_wrapper=True)
-def constraint_force_jacobian(s, lam, ct_int, ct_real, shp, idx, out):
-    """d(Phi_s^T lam)/ds = sum lam[row] D(d) (eq. 3), with a frame also eq. (12); out (n, n)
-    zeroed."""
+def constraint_force_jacobian(S, Lam, ct_int, ct_real, shp, idx, outs):
+    """d(Phi_s^T lam)/ds = sum lam[row] D(d) (eq. 3), with a frame also eq. (12), at each sample of
+    S (N, n), Lam (N, r) into outs (N, n, n), zeroed."""
     lx, ly, cols = _scratch(ct_int[:, 2])
-    for i in range(ct_int.shape[0]):
-        row, off, nnz, frame, apx, apy, ex, ey = _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols)
-        scale = lam[row]
-        _add_d(out, scale, nnz, apx, apy, lx, ly, cols, ex, ey)
-        if frame >= 0:
-            tf = frame + 2
-            for a in range(3 + nnz):
-                value = scale * (-ey * lx[a] + ex * ly[a])
-                out[cols[a], tf] += value
-                out[tf, cols[a]] += value
-            out[frame, tf] += scale * ey
-            out[tf, frame] += scale * ey
-            out[frame + 1, tf] -= scale * ex
-            out[tf, frame + 1] -= scale * ex
-            out[tf, tf] -= scale * (ex * (s[off] + apx - s[frame]) + ey * (s[off + 1] + apy
-                                                                         - s[frame + 1]))
+    for sample in range(S.shape[0]):
+        s, lam, out = S[sample], Lam[sample], outs[sample]
+        for i in range(ct_int.shape[0]):
+            row, off, nnz, frame, apx, apy, ex, ey = _constraint_term(s, i, ct_int, ct_real, shp, idx, lx, ly, cols)
+            scale = lam[row]
+            _add_d(out, scale, nnz, apx, apy, lx, ly, cols, ex, ey)
+            if frame >= 0:
+                tf = frame + 2
+                for a in range(3 + nnz):
+                    value = scale * (-ey * lx[a] + ex * ly[a])
+                    out[cols[a], tf] += value
+                    out[tf, cols[a]] += value
+                out[frame, tf] += scale * ey
+                out[tf, frame] += scale * ey
+                out[frame + 1, tf] -= scale * ex
+                out[tf, frame + 1] -= scale * ex
+                out[tf, tf] -= scale * (ex * (s[off] + apx - s[frame]) + ey * (s[off + 1] + apy
+                                                                             - s[frame + 1]))
 
 
 @numba.njit(cache=True, no_cfunc_wrapper=True)

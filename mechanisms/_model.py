@@ -199,7 +199,7 @@ class Model:
         tb = self._tables
         s = self._vector(s, self.n_coords, "s")
         out = np.zeros((self.n_coords, self.n_coords))
-        _kernels.mass_matrix(s, tb.mp_int, tb.mp_real, tb.shp, tb.idx, out)
+        _kernels.mass_matrix(s[None], tb.mp_int, tb.mp_real, tb.shp, tb.idx, out[None])
         return out
 
     def forces(self, s, sdot, t):
@@ -207,8 +207,8 @@ class Model:
         s = self._vector(s, self.n_coords, "s")
         sdot = self._vector(sdot, self.n_coords, "sdot")
         out = np.zeros(self.n_coords)
-        _kernels.forces(s, sdot, self._gx, self._gy, tb.mp_int, tb.mp_real, tb.sp_int,
-                        tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, out)
+        _kernels.forces(s[None], sdot[None], self._gx, self._gy, tb.mp_int, tb.mp_real, tb.sp_int,
+                        tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, out[None])
         for info in self._torque_drives:
             tau, _, _ = self._torque_terms(info, np.array([t], dtype=float), s[None], sdot[None],
                                            derivatives=False)
@@ -221,14 +221,14 @@ class Model:
         out = tb.phi0 + tb.h_lin @ s
         for info in self._prescribed:
             out[info.row] -= drive_law(info.drive, self.period, t)[0]
-        _kernels.constraints(s, tb.ct_int, tb.ct_real, tb.shp, tb.idx, out)
+        _kernels.constraints(s[None], tb.ct_int, tb.ct_real, tb.shp, tb.idx, out[None])
         return out
 
     def constraint_jacobian(self, s, t):
         tb = self._tables
         s = self._vector(s, self.n_coords, "s")
         out = tb.h_lin.copy()
-        _kernels.constraint_jacobian(s, tb.ct_int, tb.ct_real, tb.shp, tb.idx, out)
+        _kernels.constraint_jacobian(s[None], tb.ct_int, tb.ct_real, tb.shp, tb.idx, out[None])
         return out
 
     def constraint_rate(self, s, t):
@@ -244,7 +244,7 @@ class Model:
         out = np.zeros(self.n_constraints)
         for info in self._prescribed:
             out[info.row] = drive_law(info.drive, self.period, t)[2]  # -Phi_tt
-        _kernels.constraint_gamma(s, sdot, tb.ct_int, tb.ct_real, tb.shp, tb.idx, out)
+        _kernels.constraint_gamma(s[None], sdot[None], tb.ct_int, tb.ct_real, tb.shp, tb.idx, out[None])
         return out
 
     # --- analytic derivatives ------------------------------------------------------------------
@@ -253,7 +253,7 @@ class Model:
         s = self._vector(s, self.n_coords, "s")
         sddot = self._vector(sddot, self.n_coords, "sddot")
         out = np.zeros((self.n_coords, self.n_coords))
-        _kernels.mass_matrix_jacobian(s, sddot, tb.mp_int, tb.mp_real, tb.shp, tb.idx, out)
+        _kernels.mass_matrix_jacobian(s[None], sddot[None], tb.mp_int, tb.mp_real, tb.shp, tb.idx, out[None])
         return out
 
     def force_jacobians(self, s, sdot, t):
@@ -262,8 +262,8 @@ class Model:
         sdot = self._vector(sdot, self.n_coords, "sdot")
         d_s = np.zeros((self.n_coords, self.n_coords))
         d_v = np.zeros((self.n_coords, self.n_coords))
-        _kernels.force_jacobians(s, sdot, self._gx, self._gy, tb.mp_int, tb.mp_real, tb.sp_int,
-                                 tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, d_s, d_v)
+        _kernels.force_jacobians(s[None], sdot[None], self._gx, self._gy, tb.mp_int, tb.mp_real,
+                                 tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, d_s[None], d_v[None])
         for info in self._torque_drives:
             # tau h enters Q: its derivatives are h dtau/ds^T and h dtau/ds'^T
             _, dtau_ds, dtau_dv = self._torque_terms(info, np.array([t], dtype=float), s[None],
@@ -277,7 +277,7 @@ class Model:
         s = self._vector(s, self.n_coords, "s")
         lam = self._vector(lam, self.n_constraints, "lam")
         out = np.zeros((self.n_coords, self.n_coords))
-        _kernels.constraint_force_jacobian(s, lam, tb.ct_int, tb.ct_real, tb.shp, tb.idx, out)
+        _kernels.constraint_force_jacobian(s[None], lam[None], tb.ct_int, tb.ct_real, tb.shp, tb.idx, out[None])
         return out
 
     def step_kernel(self):
@@ -466,18 +466,12 @@ class Model:
     def linear_terms_along(self, t, s, sdot, sddot, lam) -> LinearTerms:
         """``LinearTerms`` (mass, damping ``-dQ/ds'``, stiffness, residual, constraint Jacobian)
         along the samples ``t`` (N,), ``s, sdot, sddot`` (N, n), ``lam`` (N, r); equal to the
-        per-sample methods. Torque drives (whose law is Python) are added vectorised."""
+        per-sample methods (up to summation order). One kernel call per quantity, numpy for the
+        sums; torque drives (whose law is Python) added vectorised."""
         n, r = self.n_coords, self.n_constraints
         t, (s, sdot, sddot, lam) = self._samples(
             t, {"s": s, "sdot": sdot, "sddot": sddot, "lam": lam}, (n, n, n, r))
-        n_samples = len(t)
-        M, D, K = (np.zeros((n_samples, n, n)) for _ in range(3))
-        R = np.zeros((n_samples, n))
-        J = np.zeros((n_samples, r, n))
-        tb = self._tables
-        _batch.linear_terms_kernel(s, sdot, sddot, lam, self._gx, self._gy, tb.mp_int, tb.mp_real,
-                                   tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, tb.ct_int,
-                                   tb.ct_real, tb.h_lin, False, M, D, K, R, J)
+        M, D, K, R, J = _batch.tables_linear_terms(self._tables, self._gx, self._gy, s, sdot, sddot, lam)
         for info in self._torque_drives:
             # tau h enters Q: K = -dQ/ds gets -h dtau/ds^T, D = -dQ/ds' gets -h dtau/ds'^T
             tau, dtau_ds, dtau_dv = self._torque_terms(info, t, s, sdot)
@@ -491,13 +485,7 @@ class Model:
         (N, n), torque drives included: minus the constraint forces of the inverse dynamics."""
         n = self.n_coords
         t, (s, sdot, sddot) = self._samples(t, {"s": s, "sdot": sdot, "sddot": sddot}, (n, n, n))
-        out = np.zeros(s.shape)
-        tb = self._tables
-        unread = np.zeros((0, 0, 0))
-        _batch.linear_terms_kernel(s, sdot, sddot, np.zeros((0, 0)), self._gx, self._gy, tb.mp_int,
-                                   tb.mp_real, tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0,
-                                   tb.ct_int, tb.ct_real, tb.h_lin, True, np.zeros((1, n, n)), unread,
-                                   unread, out, unread)
+        out = _batch.tables_inertia_residual(self._tables, self._gx, self._gy, s, sdot, sddot)
         for info in self._torque_drives:
             tau, _, _ = self._torque_terms(info, t, s, sdot, derivatives=False)
             out -= tau[:, None] * info.gradient
@@ -505,28 +493,27 @@ class Model:
 
     def constraint_terms_along(self, t, s, sdot=None, *, values: bool = False) -> ConstraintTerms:
         """``ConstraintTerms`` along the samples ``t`` (N,), ``s`` (N, n): Phi_s, Phi_t, with
-        ``sdot`` (N, n) also gamma, with ``values`` also Phi; equal to the per-sample methods."""
+        ``sdot`` (N, n) also gamma, with ``values`` also Phi; equal to the per-sample methods (up
+        to summation order)."""
         n, r = self.n_coords, self.n_constraints
         arrays = {"s": s} if sdot is None else {"s": s, "sdot": sdot}
         t, checked = self._samples(t, arrays, (n, n))
         s = checked[0]
-        sdot = checked[1] if sdot is not None else np.zeros((0, n))
         n_samples = len(t)
         tb = self._tables
-        J = np.zeros((n_samples, r, n))
+        J = np.empty((n_samples, r, n))
         rate = np.zeros((n_samples, r))
         gamma = np.zeros((n_samples, r))
-        phi = np.tile(tb.phi0, (n_samples, 1)) if values else np.zeros((0, r))
+        phi = np.tile(tb.phi0, (n_samples, 1)) if values else None
         for info in self._prescribed:
             angle, angle_rate, angle_acc = drive_law(info.drive, self.period, t)
             rate[:, info.row] = -angle_rate
             gamma[:, info.row] = angle_acc          # -Phi_tt of the drive row
             if values:
                 phi[:, info.row] -= angle
-        _batch.constraint_terms_kernel(s, sdot, tb.ct_int, tb.ct_real, tb.shp, tb.idx, tb.h_lin, J,
-                                       gamma, phi)
-        return ConstraintTerms(jacobian=J, rate=rate, gamma=gamma if len(sdot) else None,
-                               values=phi if values else None)
+        _batch.tables_constraint_terms(tb, s, None if sdot is None else checked[1], J, gamma, phi)
+        return ConstraintTerms(jacobian=J, rate=rate, gamma=gamma if sdot is not None else None,
+                               values=phi)
 
     def _continue_positions(self, s, start, times, *, newton_stop, max_correction, column_scale):
         """Fill ``s[start:]`` (N+1, n) by the nominal motion's fast continuation

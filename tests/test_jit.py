@@ -106,7 +106,7 @@ def test_the_warm_up_compiles_every_kernel_the_run_calls(tmp_path):
     found = json.loads(done.stdout.splitlines()[-1])
     assert found["run"] == found["warm_up"]
     called = {name: sigs for name, sigs in found["run"].items() if sigs}
-    assert "periodic._newmark.newmark_march" in called and "mechanisms._batch.linear_terms_kernel" in called
+    assert "periodic._newmark.newmark_march" in called and "mechanisms._kernels.force_jacobians" in called
     assert "mechanisms._alpha_tangent._tangent_steps" in called    # the shooting's monodromy
     assert not [name for name, sigs in called.items() if len(sigs) != 1]
     assert not [name for name, sigs in called.items() if any("Literal" in s for s in sigs)]
@@ -129,9 +129,9 @@ def test_the_kernel_list_resolves_and_orders_callees_before_their_callers():
     assert len(listed) == len(entries) > 20
     assert {(e.kernel, repr(tuple(e.signature))) for e in listed} == {(e["kernel"], e["signature"]) for e in entries}
     position = {entry.kernel: k for k, entry in enumerate(listed)}
-    terms = listed[position["mechanisms._batch.linear_terms_kernel"]]
-    assert position["mechanisms._kernels.forces"] in terms.callees
-    assert position["mechanisms._kernels.mass_matrix"] in terms.callees
+    continuation = listed[position["mechanisms._batch.continue_positions_kernel"]]
+    assert position["mechanisms._kernels.constraints"] in continuation.callees
+    assert position["mechanisms._kernels.constraint_jacobian"] in continuation.callees
     # every listed kernel a kernel calls (read from its code here, not from the list's own record)
     # comes before it
     from studies.cli._kernel_list import _callees, _dispatchers
@@ -161,21 +161,21 @@ def test_the_list_goes_by_the_longest_chain_of_compilations_first(tmp_path):
     from studies.cli._kernel_list import load_list
 
     signature = "(float64,)"   # not the kernels' real types: load_list only reads the names and costs
-    costs = {"mechanisms._batch.linear_terms_kernel": 1.0, "mechanisms._kernels.forces": 1.0,
+    costs = {"mechanisms._alpha_kernel._newton": 1.0, "mechanisms._kernels.forces": 1.0,
              "mechanisms._kernels.mass_matrix": 0.5, "periodic._newmark.newmark_march": 1.8}
     path = tmp_path / "list.json"
     path.write_text(json.dumps([{"step": "s", "kernel": k, "signature": signature, "cost": c}
                                 for k, c in costs.items()]))
     listed = load_list(["s"], path)
-    # ranks: forces 1 + 1 = 2, newmark_march 1.8, mass_matrix 0.5 + 1 = 1.5, linear_terms_kernel 1
+    # ranks: forces 1 + 1 = 2, newmark_march 1.8, mass_matrix 0.5 + 1 = 1.5, _newton 1
     assert [entry.kernel for entry in listed] == [
         "mechanisms._kernels.forces", "periodic._newmark.newmark_march", "mechanisms._kernels.mass_matrix",
-        "mechanisms._batch.linear_terms_kernel"]
+        "mechanisms._alpha_kernel._newton"]
     assert listed[3].callees == (0, 2) and listed[1].callees == ()
     # a list without costs (recorded before them) takes the same cost for each: callees still first
     path.write_text(json.dumps([{"step": "s", "kernel": k, "signature": signature} for k in costs]))
     order = [entry.kernel for entry in load_list(["s"], path)]
-    assert order.index("mechanisms._kernels.forces") < order.index("mechanisms._batch.linear_terms_kernel")
+    assert order.index("mechanisms._kernels.forces") < order.index("mechanisms._alpha_kernel._newton")
 
 
 def test_an_entry_waiting_for_the_other_process_lets_the_next_one_go_first(tmp_path):
