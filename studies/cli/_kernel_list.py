@@ -15,7 +15,7 @@ and runs the studies' code paths, which load the helper's kernels from the disk 
 Both processes take the list in the same order, the longest chain of compilations first: an entry's
 rank is its own compile cost (CPU s, recorded with the list) plus the largest rank among the listed
 kernels that call it, and the entries go by falling rank. The callers that end the chains (the
-batch kernels of the linearisation, the Newmark march) then start as early as their callees allow,
+position continuation, the generalized-alpha step, the Newmark march) then start as early as their callees allow,
 instead of last of all while the other process idles (the order by call depth left one core idle
 for about a second at the end of the cold start, docs/benchmarks.md, session 14). A process whose
 next entry waits for a callee the other is compiling takes the next entry that waits for nothing.
