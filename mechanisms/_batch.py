@@ -112,8 +112,15 @@ def constraint_terms_along(model, t, s, sdot=None, *, values: bool = False) -> C
 # ---------------------------------------------------------------------------------------------------
 # The assembled model's tables along a motion (``Model``'s methods of the same names)
 # ---------------------------------------------------------------------------------------------------
-#: ``tables_inertia_residual`` forms the mass matrices of this many entries (2 MB) at a time.
-MASS_CHUNK_ENTRIES = 2 ** 18
+#: The (n, n) terms that are only summed into others (the mass matrices of the inertia residual,
+#: dQ/ds of the stiffness) are formed this many entries (2 MB) at a time, not for every sample.
+CHUNK_ENTRIES = 2 ** 18
+
+
+def _chunks(n_samples: int, n: int):
+    """(start, stop) of consecutive sample ranges of at most ``CHUNK_ENTRIES`` (n, n) entries."""
+    size = max(1, min(n_samples, CHUNK_ENTRIES // max(n * n, 1)))
+    return [(start, min(start + size, n_samples)) for start in range(0, n_samples, size)], size
 
 
 def tables_linear_terms(tb, gx, gy, s, sdot, sddot, lam):
@@ -121,19 +128,24 @@ def tables_linear_terms(tb, gx, gy, s, sdot, sddot, lam):
     (``_model._Tables``) and gravity ``gx, gy`` (m/s^2) at the samples ``s, sdot, sddot`` (N, n),
     ``lam`` (N, r), contiguous; torque drives left out. One kernel call per quantity; numpy sums."""
     n_samples, n = s.shape
-    M, D, K, dQ_ds = (np.zeros((n_samples, n, n)) for _ in range(4))
+    M, D, K = (np.zeros((n_samples, n, n)) for _ in range(3))
     Q = np.zeros((n_samples, n))
     J = np.empty((n_samples, lam.shape[1], n))
     J[:] = tb.h_lin
     _kernels.mass_matrix(s, tb.mp_int, tb.mp_real, tb.shp, tb.idx, M)
     _kernels.forces(s, sdot, gx, gy, tb.mp_int, tb.mp_real, tb.sp_int, tb.sp_real, tb.shp, tb.idx, tb.k0,
                     tb.c0, Q)
-    _kernels.force_jacobians(s, sdot, gx, gy, tb.mp_int, tb.mp_real, tb.sp_int, tb.sp_real, tb.shp, tb.idx,
-                             tb.k0, tb.c0, dQ_ds, D)
     _kernels.mass_matrix_jacobian(s, sddot, tb.mp_int, tb.mp_real, tb.shp, tb.idx, K)
     _kernels.constraint_force_jacobian(s, lam, tb.ct_int, tb.ct_real, tb.shp, tb.idx, K)
     _kernels.constraint_jacobian(s, tb.ct_int, tb.ct_real, tb.shp, tb.idx, J)
-    K -= dQ_ds                      # d(M s'')/ds - dQ/ds + d(Phi_s^T lam)/ds
+    ranges, size = _chunks(n_samples, n)
+    dQ_ds = np.empty((size, n, n))
+    for start, stop in ranges:
+        block = dQ_ds[:stop - start]
+        block[:] = 0.0
+        _kernels.force_jacobians(s[start:stop], sdot[start:stop], gx, gy, tb.mp_int, tb.mp_real, tb.sp_int,
+                                 tb.sp_real, tb.shp, tb.idx, tb.k0, tb.c0, block, D[start:stop])
+        K[start:stop] -= block      # d(M s'')/ds - dQ/ds + d(Phi_s^T lam)/ds
     np.negative(D, out=D)           # D = -dQ/ds'
     R = np.einsum("kab,kb->ka", M, sddot) - Q + np.einsum("kra,kr->ka", J, lam)
     return M, D, K, R, J
@@ -148,10 +160,9 @@ def tables_inertia_residual(tb, gx, gy, s, sdot, sddot):
                     tb.c0, Q)
     out = np.empty((n_samples, n))
     # the mass matrices a chunk of samples at a time: M s'' needs no (N, n, n) array of them
-    chunk = max(1, min(n_samples, MASS_CHUNK_ENTRIES // max(n * n, 1)))
-    M = np.empty((chunk, n, n))
-    for start in range(0, n_samples, chunk):
-        stop = min(start + chunk, n_samples)
+    ranges, size = _chunks(n_samples, n)
+    M = np.empty((size, n, n))
+    for start, stop in ranges:
         block = M[:stop - start]
         block[:] = 0.0
         _kernels.mass_matrix(s[start:stop], tb.mp_int, tb.mp_real, tb.shp, tb.idx, block)

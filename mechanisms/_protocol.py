@@ -25,8 +25,8 @@ Batched evaluations along a sampled motion (times ``t`` (N,), ``s, sdot, sddot``
 ``M s'' - Q + Phi_s^T lam`` and Phi_s), ``mechanisms.inertia_residual_along(model, t, s, sdot,
 sddot)`` (``M s'' - Q``) and ``mechanisms.constraint_terms_along(model, t, s, sdot=None, *,
 values=False)`` (``ConstraintTerms``: Phi_s, Phi_t, gamma, Phi). A model that has methods of these
-names (``Model`` does: one numba call each) is evaluated by them; any other through the per-sample
-methods of this protocol, with the same results.
+names (``Model`` does: one kernel call per quantity, numpy summing the terms) is evaluated by them;
+any other through the per-sample methods of this protocol, with the same results.
 
 ``mechanisms.Model`` (the assembler's implementation) adds, beyond this protocol: ``mechanism``,
 ``period`` (s), ``layouts`` (link name -> ``LinkLayout`` with ``coords``/``elastic`` slices and

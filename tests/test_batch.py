@@ -1,7 +1,8 @@
 """The batched evaluations of an assembled model along a sampled motion (``Model.*_along``, one
-numba call each) equal the model's own per-sample methods (the path ``mechanisms.*_along`` takes
-for any other ``ConstrainedModel``), on a mechanism with every kind of term: elastic links with
-geometric stiffening, gravity, damping, point masses and a torque drive."""
+kernel call per quantity, numpy summing the terms) equal the model's own per-sample methods (the
+path ``mechanisms.*_along`` takes for any other ``ConstrainedModel``), on a mechanism with every
+kind of term: elastic links with geometric stiffening, gravity, damping, point masses and a torque
+drive."""
 
 import numpy as np
 import pytest
@@ -101,3 +102,26 @@ def test_batched_evaluations_check_the_sample_shapes():
         model.inertia_residual_along(t, S, S[:2], S)
     with pytest.raises(ValueError, match="t must be a 1-d array"):
         model.constraint_terms_along(np.zeros((3, 1)), S)
+
+
+def test_chunked_sums_equal_the_whole_motion_at_once(monkeypatch):
+    """The (n, n) terms only summed into others (dQ/ds into the stiffness, the mass matrices of the
+    inertia residual) are formed a chunk of samples at a time; chunks of 3 samples (the last one
+    short) give the same numbers to the last bit as one chunk of all 7."""
+    import mechanisms._batch as batch
+
+    model = mc.assemble(mc.four_bar(discretisation="fem", n_elements=2, gravity=(0.0, -9.81)))
+    rng = np.random.default_rng(17)
+    n, r, n_samples = model.n_coords, model.n_constraints, 7
+    t = rng.uniform(0, 0.06, n_samples)
+    S, Sd, Sdd = rng.standard_normal((3, n_samples, n))
+    S[:, model.elastic_index] *= 1e-3
+    Lam = rng.standard_normal((n_samples, r))
+    whole = model.linear_terms_along(t, S, Sd, Sdd, Lam), model.inertia_residual_along(t, S, Sd, Sdd)
+    assert batch._chunks(n_samples, n)[1] == n_samples          # one chunk at this size
+    monkeypatch.setattr(batch, "CHUNK_ENTRIES", 3 * n * n)
+    assert batch._chunks(n_samples, n) == ([(0, 3), (3, 6), (6, 7)], 3)
+    chunked = model.linear_terms_along(t, S, Sd, Sdd, Lam), model.inertia_residual_along(t, S, Sd, Sdd)
+    for name in ("mass", "damping", "stiffness", "residual", "jacobian"):
+        np.testing.assert_array_equal(getattr(chunked[0], name), getattr(whole[0], name), err_msg=name)
+    np.testing.assert_array_equal(chunked[1], whole[1])
