@@ -211,14 +211,13 @@ def remove_stale_folders(directory: str | Path | None = None) -> list[Path]:
 
 
 def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists (another user's, or where signals cannot tell, counts as alive)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
-    except PermissionError:   # another user's process
-        return True
-    except OSError:           # no signals here (not POSIX): keep the folder
-        return True
+    except OSError:   # PermissionError (another user's process) and the like: keep its folder
+        pass
     return True
 
 
