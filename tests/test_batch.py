@@ -108,7 +108,7 @@ def test_chunked_sums_equal_the_whole_motion_at_once(monkeypatch):
     """The (n, n) terms only summed into others (dQ/ds into the stiffness, the mass matrices of the
     inertia residual) are formed a chunk of samples at a time; chunks of 3 samples (the last one
     short) give the same numbers to the last bit as one chunk of all 7."""
-    import mechanisms._batch as batch
+    import mechanisms._batch as batch  # patched: the chunk size of the sums (internal)
 
     model = mc.assemble(mc.four_bar(discretisation="fem", n_elements=2, gravity=(0.0, -9.81)))
     rng = np.random.default_rng(17)
